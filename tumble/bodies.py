@@ -1,0 +1,176 @@
+"""Rigid bodies: principal moments of inertia, principal axes, and their validation.
+
+The lowest layer of tumble. A :class:`Body` is three principal moments ``(I1, I2, I3)`` in kg m² (any
+order) and, when it was built from a full inertia tensor, the principal axes in the frame of that tensor.
+Everything above this module works in the principal-axis (body) frame.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["Body", "as_moments", "validate_moments"]
+
+# A flat lamina has I3 = I1 + I2 exactly; moments computed in floating point may miss the equality by a
+# few ulps, so the triangle inequality is checked with this relative slack.
+_TRIANGLE_SLACK = 16 * np.finfo(float).eps
+
+
+def validate_moments(moments, *, name="moments"):
+    """Check principal moments and return them as a float64 array.
+
+    Parameters
+    ----------
+    moments : array_like, shape (..., 3)
+        Principal moments of inertia, kg m², in any order.
+    name : str
+        How the caller calls this argument in error messages.
+
+    Returns
+    -------
+    ndarray, shape (..., 3), float64
+
+    Raises
+    ------
+    ValueError
+        If the last axis is not of length 3, a moment is not finite or not positive, or the moments violate
+        the triangle inequality ``Ia + Ib >= Ic`` (equality, a flat lamina, is allowed).
+    """
+    try:
+        arr = np.asarray(moments, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{name} must be numbers, got {moments!r}") from err
+    if arr.ndim == 0 or arr.shape[-1] != 3:
+        raise ValueError(f"{name} must have shape (..., 3) (three principal moments), got shape {arr.shape}")
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        idx = np.argwhere(bad)[0]
+        raise ValueError(f"{name} must be finite, got I{idx[-1] + 1} = {arr[tuple(idx)]}")
+    bad = arr <= 0
+    if bad.any():
+        idx = np.argwhere(bad)[0]
+        raise ValueError(f"{name} must be > 0 kg m², got I{idx[-1] + 1} = {arr[tuple(idx)]}")
+    rows = arr.reshape(-1, 3)
+    largest = rows.max(axis=1)
+    bad = rows.sum(axis=1) - largest < largest * (1.0 - _TRIANGLE_SLACK)
+    if bad.any():
+        row = rows[np.argmax(bad)]
+        raise ValueError(
+            f"{name} {tuple(float(x) for x in row)} violate the triangle inequality: the two smaller moments "
+            f"sum to {float(row.sum() - row.max())} < largest {float(row.max())}; no rigid body has them"
+        )
+    return arr
+
+
+class Body:
+    """A rigid body given by its principal moments of inertia.
+
+    Parameters
+    ----------
+    I1, I2, I3 : float
+        Principal moments of inertia, kg m², in any order; all > 0 and obeying the triangle inequality.
+    axes : array_like, shape (3, 3), optional
+        Principal axes as the columns of a proper rotation matrix, expressed in the frame the body was
+        described in (identity by default). ``axes[:, i]`` belongs to moment ``I(i+1)``.
+    name : str, optional
+        A label used in reprs and datasets.
+
+    Examples
+    --------
+    >>> Body(1.0, 2.0, 3.0).moments
+    array([1., 2., 3.])
+    """
+
+    __slots__ = ("_moments", "_axes", "name")
+
+    def __init__(self, I1, I2, I3, *, axes=None, name=None):
+        moments = validate_moments([I1, I2, I3])
+        moments.setflags(write=False)
+        self._moments = moments
+        if axes is None:
+            axes = np.eye(3)
+        axes = np.array(axes, dtype=float)
+        if axes.shape != (3, 3) or not np.all(np.isfinite(axes)):
+            raise ValueError(f"axes must be a finite (3, 3) array, got shape {axes.shape}")
+        if not np.allclose(axes.T @ axes, np.eye(3), atol=1e-10) or np.linalg.det(axes) < 0:
+            raise ValueError("axes must be a proper rotation matrix (orthonormal, right-handed columns)")
+        axes.setflags(write=False)
+        self._axes = axes
+        self.name = name
+
+    @classmethod
+    def from_tensor(cls, tensor, *, name=None):
+        """Diagonalise a symmetric positive-definite inertia tensor.
+
+        Parameters
+        ----------
+        tensor : array_like, shape (3, 3)
+            Inertia tensor about the centre of mass (or about any fixed point), kg m².
+
+        Returns
+        -------
+        Body
+            Moments in ascending order; ``axes`` holds the matching eigenvectors as a right-handed frame,
+            each axis signed so that its largest component is positive (the third one is flipped instead
+            when that is needed for handedness).
+        """
+        t = np.asarray(tensor, dtype=float)
+        if t.shape != (3, 3):
+            raise ValueError(f"inertia tensor must have shape (3, 3), got {t.shape}")
+        if not np.all(np.isfinite(t)):
+            raise ValueError("inertia tensor must be finite (found NaN or inf)")
+        scale = np.abs(t).max()
+        if scale == 0 or not np.allclose(t, t.T, rtol=0, atol=1e-12 * scale):
+            raise ValueError("inertia tensor must be symmetric and non-zero")
+        moments, axes = np.linalg.eigh(0.5 * (t + t.T))
+        if moments[0] <= 0:
+            raise ValueError(f"inertia tensor must be positive definite, smallest eigenvalue is {moments[0]}")
+        for i in range(3):
+            if axes[np.argmax(np.abs(axes[:, i])), i] < 0:
+                axes[:, i] = -axes[:, i]
+        if np.linalg.det(axes) < 0:
+            axes[:, 2] = -axes[:, 2]
+        return cls(*moments, axes=axes, name=name)
+
+    @property
+    def moments(self):
+        """ndarray, shape (3,): principal moments ``(I1, I2, I3)``, kg m²."""
+        return self._moments.copy()
+
+    @property
+    def axes(self):
+        """ndarray, shape (3, 3): principal axes as columns, in the frame the body was described in."""
+        return self._axes.copy()
+
+    def tensor(self):
+        """The inertia tensor in the describing frame, ``axes @ diag(moments) @ axes.T``, kg m²."""
+        return self._axes @ np.diag(self._moments) @ self._axes.T
+
+    def __repr__(self):
+        label = f", name={self.name!r}" if self.name else ""
+        i1, i2, i3 = (float(x) for x in self._moments)
+        return f"Body({i1!r}, {i2!r}, {i3!r}{label})"
+
+    def __eq__(self, other):
+        if not isinstance(other, Body):
+            return NotImplemented
+        return np.array_equal(self._moments, other._moments) and np.array_equal(self._axes, other._axes)
+
+    def __hash__(self):
+        return hash((self._moments.tobytes(), self._axes.tobytes()))
+
+
+def as_moments(body):
+    """Principal moments from a :class:`Body` or an array of moments.
+
+    Parameters
+    ----------
+    body : Body or array_like, shape (..., 3)
+
+    Returns
+    -------
+    ndarray, shape (3,) for a Body, else (..., 3); validated, float64.
+    """
+    if isinstance(body, Body):
+        return body.moments
+    return validate_moments(body, name="body moments")

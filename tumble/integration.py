@@ -1,0 +1,2 @@
+"""placeholder — being written."""
+def integrate(*a, **k): raise NotImplementedError

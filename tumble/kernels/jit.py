@@ -1,0 +1,40 @@
+"""The one place where numba options are chosen.
+
+Every kernel in :mod:`tumble.kernels` is compiled through :func:`jit` so that caching, fast-math and the
+error model are decided here and nowhere else.
+
+* ``cache=True``: compiled machine code is kept on disk (``__pycache__``) so only the first run pays.
+* ``fastmath``: only ``contract`` (fused multiply-add), ``arcp`` (multiply by a reciprocal) and ``nsz``
+  (ignore the sign of zero). ``nnan``/``ninf`` are deliberately left out: they let LLVM delete
+  ``x != x`` and ``isfinite`` tests, and blow-up detection must keep working (numba issues #9383, #6217).
+  ``reassoc`` is left out too: it would let the compiler reorder the compensated and cancellation-free
+  formulas the exact solution relies on.
+* ``error_model="numpy"``: a division by zero gives inf/NaN (and is caught by the status checks) instead of
+  raising, which also lets loops vectorise.
+"""
+
+import numba
+
+FASTMATH = frozenset({"contract", "arcp", "nsz"})
+
+_OPTIONS = dict(cache=True, fastmath=set(FASTMATH), error_model="numpy", nogil=True)
+
+
+def jit(fn=None, *, parallel=False, inline=False):
+    """Compile ``fn`` with tumble's numba options.
+
+    Parameters
+    ----------
+    parallel : bool
+        Enable ``prange`` (only for ensemble drivers).
+    inline : bool
+        Inline at the numba IR level (for tiny helpers called in inner loops).
+    """
+    options = dict(_OPTIONS, parallel=parallel)
+    if inline:
+        options["inline"] = "always"
+
+    def wrap(f):
+        return numba.njit(**options)(f)
+
+    return wrap if fn is None else wrap(fn)
