@@ -1,1 +1,406 @@
-"""placeholder — being written."""
+"""Linear stability theory and closed-form special cases of Euler's equations.
+
+Everything here is vectorised with numpy broadcasting: a body is a :class:`~tumble.bodies.Body` or an
+array of principal moments of shape ``(..., 3)`` (kg m²), spins and other arguments broadcast against the
+leading shape. Axis arguments are 1-based (1, 2, 3) as in the physics.
+
+* :func:`stability_exponent`, :func:`linear`: small perturbations of a steady spin about a principal axis
+  (Landau & Lifshitz, *Mechanics*, §37; DESIGN.md "Physics").
+* :func:`symmetric_top_precession`: torque-free symmetric top (L&L §33, §36).
+* :func:`constant_torque_symmetric_top`: symmetric top under a constant body torque about its symmetry
+  axis (problem sheet "Part 8: Rigid Body Dynamics", problem 6, "the wobbly space station").
+* :func:`first_flip_time`, :func:`flip_spacing` (from :mod:`tumble.exact`) and
+  :func:`flip_time_asymptote`: timing of the flips of a spin near the intermediate axis.
+
+Degenerate axes
+---------------
+When the spin axis shares its moment with another axis (a symmetric top spun about a transverse axis, or
+a sphere), ``q = 0`` and linear theory predicts neither oscillation nor exponential growth: the kind is
+``"neutral"`` and the value ``0.0`` (never NaN). Moments that differ by no more than
+``DEGENERATE_RTOL`` times the largest moment count as equal, so that bodies diagonalised numerically
+(whose equal moments differ in the last bits) are classified the same way as exact ones.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .bodies import as_moments
+
+__all__ = [
+    "DEGENERATE_RTOL",
+    "KINDS",
+    "constant_torque_symmetric_top",
+    "first_flip_time",
+    "flip_spacing",
+    "flip_time_asymptote",
+    "linear",
+    "linear_rate",
+    "stability_exponent",
+    "symmetric_top_precession",
+]
+
+#: Moments within this fraction of the body's largest moment are treated as equal (degenerate axes).
+DEGENERATE_RTOL = 1e-12
+
+#: The kinds :func:`linear` can return.
+KINDS = ("periodic", "exponential", "neutral")
+
+
+def _axis_index(axis, name="axis"):
+    """Validate a 1-based axis (int or integer array) and return it 0-based."""
+    arr = np.asarray(axis)
+    if arr.dtype == bool or arr.dtype.kind not in "iu":
+        raise ValueError(f"{name} must be 1, 2 or 3 (an integer), got {axis!r}")
+    if not np.isin(arr, (1, 2, 3)).all():
+        raise ValueError(f"{name} must be 1, 2 or 3, got {axis!r}")
+    return arr.astype(np.intp) - 1
+
+
+def _finite(value, name):
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{name} must be a finite number or array of numbers, got {value!r}") from err
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite (found NaN or inf)")
+    return arr
+
+
+def _pick(moments, index):
+    """``moments[..., index]`` with ``index`` broadcast against the leading shape of ``moments``."""
+    shape = np.broadcast_shapes(moments.shape[:-1], np.shape(index))
+    moments = np.broadcast_to(moments, shape + (3,))
+    index = np.broadcast_to(index, shape)
+    return np.take_along_axis(moments, index[..., None], axis=-1)[..., 0]
+
+
+def _differences(ia, ib, scale):
+    """``ia − ib``, snapped to exactly 0 where it is within ``DEGENERATE_RTOL * scale``."""
+    d = ia - ib
+    return np.where(np.abs(d) <= DEGENERATE_RTOL * scale, 0.0, d)
+
+
+def stability_exponent(body, axis):
+    """Linear stability exponent ``q`` of a steady spin about a principal axis.
+
+    For a spin ``w`` about axis ``a`` (the other two ``b``, ``c``), small perturbations obey
+    ``δw_b'' = −q w² δw_b`` with
+
+    ``q = (Ia − Ib)(Ia − Ic) / (Ib Ic)``
+
+    (Landau & Lifshitz §37; DESIGN.md). ``q > 0``: oscillation at angular frequency ``|w| sqrt(q)``
+    (largest and smallest axes); ``q < 0``: exponential growth at rate ``|w| sqrt(−q)`` (intermediate
+    axis); ``q = 0``: degenerate axis, neutral. ``q`` is dimensionless, unchanged by scaling all moments.
+
+    Parameters
+    ----------
+    body : Body or array_like, shape (..., 3)
+        Principal moments, kg m².
+    axis : int or array_like of int, shape broadcastable to (...)
+        Spin axis, 1-based.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        ``q``, dimensionless; exactly 0 for degenerate axes (moments equal within ``DEGENERATE_RTOL``).
+    """
+    moments = as_moments(body)
+    k = _axis_index(axis)
+    ia = _pick(moments, k)
+    ib = _pick(moments, (k + 1) % 3)
+    ic = _pick(moments, (k + 2) % 3)
+    scale = np.max(np.broadcast_to(moments, ia.shape + (3,)), axis=-1)
+    return _differences(ia, ib, scale) * _differences(ia, ic, scale) / (ib * ic)
+
+
+def linear_rate(body, axis, spin=1.0):
+    """Signed linear rate: ``+|w| sqrt(q)`` (periodic, rad/s) or ``−|w| sqrt(−q)`` (exponential, 1/s).
+
+    A compact, purely numeric form of :func:`linear` for array code: the sign carries the kind, 0 is
+    neutral.
+
+    Parameters
+    ----------
+    body : Body or array_like, shape (..., 3)
+        Principal moments, kg m².
+    axis : int or array_like of int
+        Spin axis, 1-based.
+    spin : float or array_like
+        Spin rate ``w`` about ``axis``, rad/s; finite.
+
+    Returns
+    -------
+    ndarray, shape (...)
+    """
+    q = stability_exponent(body, axis)
+    w = np.abs(_finite(spin, "spin"))
+    return np.sign(q) * w * np.sqrt(np.abs(q))
+
+
+def linear(body, axis, spin=1.0):
+    """Linear-theory behaviour of a perturbed steady spin about a principal axis.
+
+    With ``q`` from :func:`stability_exponent` (Landau & Lifshitz §37; DESIGN.md "Physics"):
+
+    * ``q > 0`` → ``("periodic", |w| sqrt(q))``: perturbations oscillate at this angular frequency, rad/s;
+    * ``q < 0`` → ``("exponential", |w| sqrt(−q))``: perturbations grow at this rate, 1/s;
+    * ``q = 0`` → ``("neutral", 0.0)``: a degenerate axis (the spin axis shares its moment with another:
+      a symmetric top spun about a transverse axis, or a sphere). Linearised perturbations neither
+      oscillate nor grow exponentially (at most they drift linearly in time), so no rate is defined.
+
+    Parameters
+    ----------
+    body : Body or array_like, shape (..., 3)
+        Principal moments, kg m², any order.
+    axis : int or array_like of int, broadcastable to (...)
+        Spin axis, 1, 2 or 3.
+    spin : float or array_like, broadcastable to (...)
+        Spin rate ``w`` about ``axis``, rad/s; finite (its sign does not matter).
+
+    Returns
+    -------
+    kind : str, or ndarray of str, shape (...)
+        ``"periodic"``, ``"exponential"`` or ``"neutral"``.
+    value : float, or ndarray of float, shape (...)
+        Angular frequency (rad/s), growth rate (1/s), or 0.0.
+        For a single body (a Body or moments of shape (3,)), a scalar axis and a scalar spin the result
+        is exactly the tuple ``(str, float)``.
+
+    Raises
+    ------
+    ValueError
+        Invalid moments, an axis other than 1, 2, 3, or a non-finite spin.
+
+    Examples
+    --------
+    >>> linear((1.0, 2.0, 3.0), 2, 1.0)
+    ('exponential', 0.5773502691896257)
+    """
+    q = stability_exponent(body, axis)
+    w = np.abs(_finite(spin, "spin"))
+    value = w * np.sqrt(np.abs(q))
+    q = np.broadcast_to(q, np.shape(value))
+    kind = np.where(q > 0, KINDS[0], np.where(q < 0, KINDS[1], KINDS[2]))
+    if np.ndim(value) == 0:
+        return str(kind), float(value)
+    return kind, value
+
+
+def _symmetric_pair(moments, axis, rtol):
+    """Moments about the symmetry axis and about the (equal) transverse axes; ValueError if not equal."""
+    k = _axis_index(axis)
+    if k.ndim:
+        raise ValueError(f"axis must be a single integer 1, 2 or 3, got {axis!r}")
+    k = int(k)
+    i_sym = moments[..., k]
+    i_b, i_c = moments[..., (k + 1) % 3], moments[..., (k + 2) % 3]
+    if not np.all(np.abs(i_b - i_c) <= rtol * np.maximum(i_b, i_c)):
+        raise ValueError(
+            f"body is not a symmetric top about axis {k + 1}: the other two moments differ "
+            f"(I{(k + 1) % 3 + 1} = {np.asarray(i_b).ravel()[:3]}, I{(k + 2) % 3 + 1} = {np.asarray(i_c).ravel()[:3]})"
+        )
+    return i_sym, 0.5 * (i_b + i_c), k
+
+
+def symmetric_top_precession(body, w3, *, axis=3, rtol=1e-10):
+    """Body-frame precession rate of a torque-free symmetric top.
+
+    For ``I1 = I2`` (symmetry axis 3) Euler's equations give ``w3`` constant and
+    ``w1 + i w2 = (w10 + i w20) exp(i Ω t)`` with
+
+    ``Ω = w3 (I3 − I1) / I1``
+
+    (Landau & Lifshitz §33; DESIGN.md). ``Ω > 0`` for an oblate top (``I3 > I1``) spun with ``w3 > 0``:
+    ``(w1, w2)`` turns counter-clockwise about ``+e3`` in the body frame. For another symmetry axis ``s``
+    the same holds cyclically: ``w_{s+1} + i w_{s+2}`` turns at ``w_s (I_s − I_⊥)/I_⊥``.
+
+    Parameters
+    ----------
+    body : Body or array_like, shape (..., 3)
+        Principal moments, kg m²; the two moments other than ``axis`` must be equal (within ``rtol``).
+    w3 : float or array_like, broadcastable to (...)
+        Spin component along the symmetry axis, rad/s.
+    axis : {1, 2, 3}
+        The symmetry axis.
+    rtol : float
+        Relative tolerance for the equality of the transverse moments.
+
+    Returns
+    -------
+    float or ndarray, shape (...)
+        ``Ω``, rad/s, signed.
+
+    Raises
+    ------
+    ValueError
+        If the body is not symmetric about ``axis``, or ``w3`` is not finite.
+    """
+    moments = as_moments(body)
+    i_sym, i_perp, _ = _symmetric_pair(moments, axis, rtol)
+    omega = _finite(w3, "w3") * (i_sym - i_perp) / i_perp
+    return float(omega) if np.ndim(omega) == 0 else omega
+
+
+def constant_torque_symmetric_top(body, w0, torque, t, *, axis=3, rtol=1e-10):
+    """Body-frame angular velocity of a symmetric top under a constant torque about its symmetry axis.
+
+    Euler's equations ``I1 w1' = (I2 − I3) w2 w3 + N1`` (and cyclic) with ``I1 = I2`` and body torque
+    ``N = (0, 0, Γ)`` give (problem sheet, problem 6, "the wobbly space station"; DESIGN.md):
+
+    ``w3(t) = w30 + Γ t / I3``,
+    ``w1 + i w2 = (w10 + i w20) exp(i β (w30 t + Γ t² / (2 I3)))``,  ``β = (I3 − I1) / I1``.
+
+    The transverse spin keeps its magnitude and turns at the ever faster rate ``β w3(t)``. With
+    ``axis = s`` the same solution is used cyclically (components ``s+1, s+2, s``).
+
+    Parameters
+    ----------
+    body : Body or array_like, shape (..., 3)
+        Principal moments, kg m², symmetric about ``axis``.
+    w0 : array_like, shape (..., 3)
+        Initial body-frame angular velocity, rad/s.
+    torque : float or array_like, broadcastable to (...)
+        Body-frame torque ``Γ`` about the symmetry axis, N m.
+    t : array_like, shape (T,)
+        Times, s (any order, may include negative times).
+    axis : {1, 2, 3}
+        The symmetry axis.
+    rtol : float
+        Relative tolerance for the equality of the transverse moments.
+
+    Returns
+    -------
+    ndarray, shape (..., T, 3)
+        ``w(t)``, rad/s; the leading shape is the broadcast of the body's, ``w0``'s and ``torque``'s.
+
+    Examples
+    --------
+    The sheet's space station: ``I = (2, 2, 1)``, ``Γ = 1``, ``w0 = (0.3, 0, 1)``:
+
+    >>> w = constant_torque_symmetric_top((2.0, 2.0, 1.0), (0.3, 0.0, 1.0), 1.0, [0.0, 1.0])
+    >>> w.shape
+    (2, 3)
+    """
+    moments = as_moments(body)
+    i_sym, i_perp, k = _symmetric_pair(moments, axis, rtol)
+    w0 = _finite(w0, "w0")
+    if w0.ndim == 0 or w0.shape[-1] != 3:
+        raise ValueError(f"w0 must have shape (..., 3), got {w0.shape}")
+    gamma = _finite(torque, "torque")
+    t = _finite(t, "t")
+    if t.ndim != 1:
+        raise ValueError(f"t must be one-dimensional, shape (T,), got shape {t.shape}")
+    b_idx, c_idx = (k + 1) % 3, (k + 2) % 3
+    w_sym0 = w0[..., k]
+    eta0 = w0[..., b_idx] + 1j * w0[..., c_idx]
+    beta = (i_sym - i_perp) / i_perp
+    # Add the time axis last to everything per-body.
+    ex = lambda a: np.asarray(a)[..., None]  # noqa: E731
+    w_sym = ex(w_sym0) + ex(gamma) * t / ex(i_sym)
+    phase = ex(beta) * (ex(w_sym0) * t + ex(gamma) * t**2 / (2 * ex(i_sym)))
+    eta = ex(eta0) * np.exp(1j * phase)
+    shape = np.broadcast_shapes(w_sym.shape, eta.shape)
+    out = np.empty(shape + (3,))
+    out[..., b_idx] = eta.real
+    out[..., c_idx] = eta.imag
+    out[..., k] = w_sym
+    return out
+
+
+# --- Flip timing near the intermediate axis -----------------------------------------------------------
+# The closed form lives in tumble.exact; these thin wrappers import it when called (so theory never fails
+# to import because of exact) and carry the physics in their docstrings.
+
+
+def first_flip_time(body, w0):
+    """Time of the first flip of a spin, s (re-exported from :func:`tumble.exact.first_flip_time`).
+
+    A flip is a sign change of the spin component along the intermediate axis, ``w_mid`` (the body turns
+    over). In the exact solution (Landau & Lifshitz §37) ``w_mid ∝ sn(u)``, ``u = u0 + ν t``, with quarter
+    period ``K(m)``; the first flip is at the first zero of ``sn`` after ``u0``. Started at a maximum of
+    ``|w_mid|`` (the other small component zero) it comes exactly at ``K/|ν|``, which tends to
+    :func:`flip_time_asymptote` near the separatrix. See :func:`tumble.exact.parameters` for ``K``, ``ν``,
+    ``u0``.
+
+    Parameters
+    ----------
+    body : Body or array_like, shape (3,)
+        One rigid body: principal moments, kg m², any order.
+    w0 : array_like, shape (..., 3)
+        Initial body-frame angular velocity, rad/s.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        Time of the first flip after ``t = 0``, s; ``inf`` where none comes (steady spins, separatrix spins
+        past their flip).
+    """
+    from . import exact
+
+    return exact.first_flip_time(body, w0)
+
+
+def flip_spacing(body, w0):
+    """Time between successive flips, ``2K(m)/|ν|``, s (re-exported from :func:`tumble.exact.flip_spacing`).
+
+    Half the period ``4K/|ν|`` of the body-frame motion: ``w_mid ∝ sn(u)`` changes sign at every
+    ``u = 2Kj`` (Landau & Lifshitz §37).
+
+    Parameters
+    ----------
+    body : Body or array_like, shape (3,)
+        One rigid body: principal moments, kg m², any order.
+    w0 : array_like, shape (..., 3)
+        Initial body-frame angular velocity, rad/s.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        Flip spacing, s; ``inf`` for steady spins and on the separatrix.
+    """
+    from . import exact
+
+    return exact.flip_spacing(body, w0)
+
+
+def flip_time_asymptote(body, w0):
+    """Linear-theory estimate of the first flip time, ``(1/λ) ln(4/k')``, s.
+
+    Near the separatrix the complementary modulus ``k' = sqrt(1 − m)`` of the exact solution tends to 0,
+    ``K(m) = ln(4/k') + O(k'² ln k')`` (Abramowitz & Stegun 17.3.26) and the elliptic frequency ``ν``
+    tends to the linear growth rate ``λ`` about the intermediate axis, so ``K/|ν| → (1/λ) ln(4/k')``.
+    ``k'`` is taken from :func:`tumble.exact.parameters`.
+
+    ``λ = (|L|/I2) sqrt(−q2)`` is the linear rate (:func:`linear`) for a spin about the intermediate axis
+    ``I2`` (the median moment) with the same angular momentum, ``w = |L|/I2``, ``|L| = |I w0|``. ``|L|``
+    is conserved, so the estimate does not depend on where along the trajectory ``w0`` is taken, and on
+    the separatrix ``ν = λ`` exactly (there ``|L|/I2 = sqrt(2T/I2)``).
+
+    Parameters
+    ----------
+    body : Body or array_like, shape (3,)
+        One rigid body: principal moments, kg m², any order (the intermediate one is found).
+    w0 : array_like, shape (..., 3)
+        Initial body-frame angular velocity, rad/s, in the order of the moments.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        Estimated flip time, s; ``inf`` where no flip happens (``k' = 0``: exactly on the separatrix, or
+        no distinct intermediate axis, ``λ = 0``).
+    """
+    from . import exact
+
+    moments = as_moments(body)
+    w0 = _finite(w0, "w0")
+    if w0.ndim == 0 or w0.shape[-1] != 3:
+        raise ValueError(f"w0 must have shape (..., 3), got {w0.shape}")
+    kc = np.asarray(exact.parameters(body, w0).kc, dtype=float)
+    mid = np.argsort(moments, axis=-1)[..., 1]
+    i_mid = _pick(moments, mid)
+    spin = np.linalg.norm(moments * w0, axis=-1) / i_mid
+    lam = spin * np.sqrt(np.maximum(-stability_exponent(moments, mid + 1), 0.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = np.where((lam > 0) & (kc > 0), np.log(4.0 / kc) / lam, np.inf)
+    return float(out) if out.ndim == 0 else out
