@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["Body", "as_moments", "validate_moments"]
+__all__ = ["Body", "as_moments", "finite_array", "one_body", "spin_vectors", "validate_moments"]
 
 # A flat lamina has I3 = I1 + I2 exactly; moments computed in floating point may miss the equality by a
 # few ulps, so the triangle inequality is checked with this relative slack.
@@ -174,3 +174,32 @@ def as_moments(body):
     if isinstance(body, Body):
         return body.moments
     return validate_moments(body, name="body moments")
+
+
+def one_body(body):
+    """The moments, shape (3,), of one body given as a :class:`Body` or three numbers; ValueError otherwise."""
+    moments = as_moments(body)
+    if moments.shape != (3,):
+        raise ValueError(f"body must be one body (a tumble.Body or three moments), got moments of shape "
+                         f"{moments.shape}")
+    return moments
+
+
+def finite_array(value, name):
+    """``value`` as a float64 array, or a ValueError naming ``name`` if it is not numbers or not finite."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{name} must be a number or an array of numbers, got {value!r}") from err
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite (found NaN or inf)")
+    return arr
+
+
+def spin_vectors(w0, name="w0"):
+    """Body-frame angular velocities as a finite float64 array of shape (..., 3), rad/s."""
+    w = finite_array(w0, name)
+    if w.ndim == 0 or w.shape[-1] != 3:
+        raise ValueError(f"{name} must have shape (..., 3) (body-frame angular velocity, rad/s), "
+                         f"got shape {w.shape}")
+    return w

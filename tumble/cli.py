@@ -70,7 +70,8 @@ def demo(samples=2000, seed=0, dt=0.002, out=sys.stdout):
         error = np.linalg.norm(w - reference, axis=1)
         l2 = np.abs(np.sum((moments * w) ** 2, axis=1) / l2_0 - 1).max()
         energy = np.abs(0.5 * np.sum(moments * w**2, axis=1) / e_0 - 1).max()
-        print(f"  {method:18s} {np.median(error):13.2e} {error.max():12.2e} {l2:11.1e} {energy:13.1e} {wall:8.3f} "
+        label = "exact (reference)" if method == "exact" else method
+        print(f"  {label:18s} {np.median(error):13.2e} {error.max():12.2e} {l2:11.1e} {energy:13.1e} {wall:8.3f} "
               f"{compiled:10.2f}", file=out)
     print("\nEvery spin has flipped about the intermediate axis and come part of the way back "
           f"(omega_{middle + 1} changed sign at t ≈ {first_flip:.2f} s).", file=out)

@@ -68,7 +68,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .bodies import as_moments
+from .bodies import one_body, spin_vectors
 from .kernels import elliptic as _ell
 
 __all__ = ["EllipticParameters", "omega", "period", "parameters", "first_flip_time", "flip_spacing"]
@@ -198,27 +198,6 @@ class _Solution(NamedTuple):
     mid_axis: int
 
 
-def _check_w0(w0):
-    try:
-        w = np.asarray(w0, dtype=float)
-    except (TypeError, ValueError) as err:
-        raise ValueError(f"w0 must be numbers (body-frame angular velocity, rad/s), got {w0!r}") from err
-    if w.ndim == 0 or w.shape[-1] != 3:
-        raise ValueError(f"w0 must have shape (..., 3) (body-frame angular velocity), got shape {w.shape}")
-    if not np.all(np.isfinite(w)):
-        raise ValueError("w0 must be finite (found NaN or inf)")
-    return w
-
-
-def _check_body(body):
-    moments = as_moments(body)
-    if moments.shape != (3,):
-        raise ValueError(
-            f"body must be one body (a tumble.Body or three moments), got moments of shape {moments.shape}"
-        )
-    return moments
-
-
 def _check_t(t):
     try:
         tt = np.asarray(t, dtype=float)
@@ -233,8 +212,8 @@ def _check_t(t):
 
 def _solve(body, w0):
     """Everything the closed form needs, per sample (flattened)."""
-    moments = _check_body(body)
-    w = _check_w0(w0)
+    moments = one_body(body)
+    w = spin_vectors(w0)
     shape = w.shape[:-1]
     w = np.ascontiguousarray(w.reshape(-1, 3))
     n = w.shape[0]

@@ -8,7 +8,7 @@ import numpy as np
 import xarray as xr
 
 from . import exact
-from .bodies import as_moments
+from .bodies import finite_array, one_body, spin_vectors
 from .kernels.methods import METHODS, run
 from .kernels.steppers import TORQUE_CONSTANT, TORQUE_USER
 
@@ -20,29 +20,21 @@ METHOD_NAMES = (*METHODS, "exact")
 _STEP_COUNT_SLACK = 1e-9
 
 
-def _as_float(value, name):
-    try:
-        x = float(value)
-    except (TypeError, ValueError) as err:
-        raise ValueError(f"{name} must be a number, got {value!r}") from err
-    if not math.isfinite(x):
-        raise ValueError(f"{name} must be finite, got {x}")
-    return x
+def _scalar(value, name):
+    x = finite_array(value, name)
+    if x.ndim:
+        raise ValueError(f"{name} must be a number, got shape {x.shape}")
+    return float(x)
 
 
 def _initial_spins(w0):
-    try:
-        w = np.array(w0, dtype=float)
-    except (TypeError, ValueError) as err:
-        raise ValueError(f"w0 must be an array of numbers with shape (N, 3), got {w0!r}") from err
-    if w.ndim == 1 and w.shape == (3,):
+    w = spin_vectors(w0)
+    if w.ndim == 1:
         w = w[None, :]
-    if w.ndim != 2 or w.shape[1] != 3:
+    if w.ndim != 2:
         raise ValueError(f"w0 must have shape (N, 3) (N spins, rad/s, body frame), got shape {w.shape}")
     if w.shape[0] == 0:
         raise ValueError("w0 holds no spins (shape (0, 3))")
-    if not np.all(np.isfinite(w)):
-        raise ValueError(f"w0 must be finite; sample {int(np.argwhere(~np.isfinite(w))[0, 0])} is not")
     return w
 
 
@@ -115,14 +107,12 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
     ValueError
         Invalid moments, spins, horizon, step, method, torque or save interval, or ``"exact"`` with a torque.
     """
-    moments = as_moments(body)
-    if moments.shape != (3,):
-        raise ValueError(f"body must be one body (3 moments), got moments of shape {moments.shape}")
+    moments = one_body(body)
     w = _initial_spins(w0)
-    t_end = _as_float(t_end, "t_end")
+    t_end = _scalar(t_end, "t_end")
     if t_end < 0:
         raise ValueError(f"t_end must be >= 0 s, got {t_end}")
-    dt = _as_float(dt, "dt")
+    dt = _scalar(dt, "dt")
     if dt <= 0:
         raise ValueError(f"dt must be > 0 s, got {dt}")
     if method not in METHOD_NAMES:

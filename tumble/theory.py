@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .bodies import as_moments
+from .bodies import as_moments, finite_array
 
 __all__ = [
     "DEGENERATE_RTOL",
@@ -55,16 +55,6 @@ def _axis_index(axis, name="axis"):
     if not np.isin(arr, (1, 2, 3)).all():
         raise ValueError(f"{name} must be 1, 2 or 3, got {axis!r}")
     return arr.astype(np.intp) - 1
-
-
-def _finite(value, name):
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as err:
-        raise ValueError(f"{name} must be a finite number or array of numbers, got {value!r}") from err
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite (found NaN or inf)")
-    return arr
 
 
 def _pick(moments, index):
@@ -134,7 +124,7 @@ def linear_rate(body, axis, spin=1.0):
     ndarray, shape (...)
     """
     q = stability_exponent(body, axis)
-    w = np.abs(_finite(spin, "spin"))
+    w = np.abs(finite_array(spin, "spin"))
     return np.sign(q) * w * np.sqrt(np.abs(q))
 
 
@@ -178,7 +168,7 @@ def linear(body, axis, spin=1.0):
     ('exponential', 0.5773502691896257)
     """
     q = stability_exponent(body, axis)
-    w = np.abs(_finite(spin, "spin"))
+    w = np.abs(finite_array(spin, "spin"))
     value = w * np.sqrt(np.abs(q))
     q = np.broadcast_to(q, np.shape(value))
     kind = np.where(q > 0, KINDS[0], np.where(q < 0, KINDS[1], KINDS[2]))
@@ -238,7 +228,7 @@ def symmetric_top_precession(body, w3, *, axis=3, rtol=1e-10):
     """
     moments = as_moments(body)
     i_sym, i_perp, _ = _symmetric_pair(moments, axis, rtol)
-    omega = _finite(w3, "w3") * (i_sym - i_perp) / i_perp
+    omega = finite_array(w3, "w3") * (i_sym - i_perp) / i_perp
     return float(omega) if np.ndim(omega) == 0 else omega
 
 
@@ -284,11 +274,11 @@ def constant_torque_symmetric_top(body, w0, torque, t, *, axis=3, rtol=1e-10):
     """
     moments = as_moments(body)
     i_sym, i_perp, k = _symmetric_pair(moments, axis, rtol)
-    w0 = _finite(w0, "w0")
+    w0 = finite_array(w0, "w0")
     if w0.ndim == 0 or w0.shape[-1] != 3:
         raise ValueError(f"w0 must have shape (..., 3), got {w0.shape}")
-    gamma = _finite(torque, "torque")
-    t = _finite(t, "t")
+    gamma = finite_array(torque, "torque")
+    t = finite_array(t, "t")
     if t.ndim != 1:
         raise ValueError(f"t must be one-dimensional, shape (T,), got shape {t.shape}")
     b_idx, c_idx = (k + 1) % 3, (k + 2) % 3
@@ -393,7 +383,7 @@ def flip_time_asymptote(body, w0):
     from . import exact
 
     moments = as_moments(body)
-    w0 = _finite(w0, "w0")
+    w0 = finite_array(w0, "w0")
     if w0.ndim == 0 or w0.shape[-1] != 3:
         raise ValueError(f"w0 must have shape (..., 3), got {w0.shape}")
     kc = np.asarray(exact.parameters(body, w0).kc, dtype=float)
