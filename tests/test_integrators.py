@@ -277,6 +277,14 @@ def test_integrate_returns_omega_by_sample_time_axis_with_units():
     assert ds.attrs["method"] == "rk4" and ds.attrs["n_steps"] == 10
 
 
+@pytest.mark.parametrize("method", ["rk4", "exact"])
+def test_integrate_never_modifies_the_callers_spins(method):
+    w0 = np.array([[0.1, 1.0, 0.1]])
+    tumble.integrate((1.0, 2.0, 3.0), w0, 1.0, 0.1, method=method)
+    tumble.integrate((1.0, 2.0, 3.0), w0[0], 1.0, 0.1, method=method)
+    assert w0.tolist() == [[0.1, 1.0, 0.1]]
+
+
 def test_without_save_every_only_the_final_state_is_stored():
     ds = tumble.integrate((1.0, 2.0, 3.0), [[0.1, 1.0, 0.1]], 1.0, 0.1)
     assert ds.omega.shape == (1, 1, 3)

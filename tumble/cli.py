@@ -94,6 +94,9 @@ def main(argv=None):
     except ValueError as err:
         print(f"tumble: error: {err}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # output piped into a reader that stopped early (e.g. `| head`)
+        sys.stderr.close()
+        return 1
     except KeyboardInterrupt:
         print("tumble: interrupted", file=sys.stderr)
         return 1

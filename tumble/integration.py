@@ -141,7 +141,7 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
         order, path = None, "closed form (Jacobi elliptic functions)"
     else:
         integrator = METHODS[method]
-        state = np.ascontiguousarray(w.T)
+        state = np.array(w.T, order="C")  # a copy: the kernel overwrites it, never the caller's w0
         saved = run(integrator, state, moments, 0.0, step, n_steps, save_every=save, torque_kind=kind,
                     torque_params=params, torque_fn=fn)
         omega = saved.transpose(2, 0, 1) if save else state.T[:, None, :]
