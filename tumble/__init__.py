@@ -7,8 +7,9 @@ spins with numba kernels and compares them with linear theory and the exact Jaco
 
 from importlib.metadata import PackageNotFoundError, version
 
-from . import exact, shapes, theory
+from . import exact, sampling, shapes, theory
 from .bodies import Body
+from .engine import run_ensemble
 from .integration import integrate
 
 try:
@@ -16,4 +17,4 @@ try:
 except PackageNotFoundError:  # running from a source tree that was not installed
     __version__ = "0+unknown"
 
-__all__ = ["Body", "exact", "integrate", "shapes", "theory", "__version__"]
+__all__ = ["Body", "exact", "integrate", "run_ensemble", "sampling", "shapes", "theory", "__version__"]

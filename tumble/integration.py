@@ -3,14 +3,14 @@
 import math
 import warnings
 
-import numba
 import numpy as np
 import xarray as xr
 
 from . import exact
 from .bodies import finite_array, one_body, spin_vectors
-from .kernels.methods import METHODS, run
-from .kernels.steppers import TORQUE_CONSTANT, TORQUE_USER
+from .engine import run_ensemble
+from .kernels.drivers import STATUS_NAMES, STATUS_OK
+from .kernels.methods import METHODS
 
 __all__ = ["integrate", "METHOD_NAMES"]
 
@@ -47,24 +47,6 @@ def _step_plan(t_end, dt):
     if n_steps == 0 or abs(ratio - n_steps) > _STEP_COUNT_SLACK * ratio:
         n_steps = math.ceil(ratio)
     return n_steps, t_end / n_steps
-
-
-def _torque(torque):
-    """``(kind, params, fn, description)``; params and fn ``None`` when torque-free."""
-    if callable(torque):
-        fn = torque if isinstance(torque, numba.core.registry.CPUDispatcher) else numba.njit(torque)
-        return TORQUE_USER, None, fn, f"function {getattr(torque, '__name__', repr(torque))}(t, w1, w2, w3)"
-    try:
-        params = np.array(torque, dtype=float)
-    except (TypeError, ValueError) as err:
-        raise ValueError(f"torque must be 3 numbers (N m, body frame) or a function, got {torque!r}") from err
-    if params.shape != (3,):
-        raise ValueError(f"torque must have shape (3,) (N m, body frame), got shape {params.shape}")
-    if not np.all(np.isfinite(params)):
-        raise ValueError(f"torque must be finite, got {params.tolist()}")
-    if not params.any():
-        return TORQUE_CONSTANT, None, None, "none"
-    return TORQUE_CONSTANT, params, None, f"constant {params.tolist()} N m"
 
 
 def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=None, attitude=False):
@@ -122,38 +104,26 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
             raise ValueError(f"save_every must be None or an integer >= 1 (steps), got {save_every!r}")
     if attitude:
         raise NotImplementedError("attitude=True (orientation quaternions) is not implemented yet")
-    kind, params, fn, torque_text = _torque(torque)
     n_steps, step = _step_plan(t_end, dt)
-    save = int(save_every or 0)
-    if save:
-        saved_steps = list(range(0, n_steps + 1, save))
-        if saved_steps[-1] != n_steps:
-            saved_steps.append(n_steps)
-        times = np.array(saved_steps, dtype=float) * step
-    else:
-        times = np.array([t_end])
+    # A plain integration returns what the method computes: no early stop, no drift flagging. The final
+    # state alone is read off a trajectory of two states (start, end), so integrate() needs one compiled
+    # kernel variant per method and torque, not two.
+    result = run_ensemble(moments, w, t_end, step, method=method, torque=torque, final=False,
+                          save_every=save_every or max(n_steps, 1), drift_limit=0.0, progress=False)
+    omega = result.trajectory if save_every else result.trajectory[:, -1:, :]
+    times = result.times if save_every else np.array([t_end])
+    info = result.info
 
-    if method == "exact":
-        if params is not None or fn is not None:
-            raise ValueError("method 'exact' is the torque-free closed form; it cannot take a torque "
-                             f"({torque_text}); use a stepping method")
-        omega = exact.omega(moments, w, times)
-        order, path = None, "closed form (Jacobi elliptic functions)"
-    else:
-        integrator = METHODS[method]
-        state = np.array(w.T, order="C")  # a copy: the kernel overwrites it, never the caller's w0
-        saved = run(integrator, state, moments, 0.0, step, n_steps, save_every=save, torque_kind=kind,
-                    torque_params=params, torque_fn=fn)
-        omega = saved.transpose(2, 0, 1) if save else state.T[:, None, :]
-        order, path = integrator.order, "fixed-step kernel"
-
-    n_bad = int(np.count_nonzero(~np.all(np.isfinite(omega), axis=(1, 2))))
+    n_bad = int(np.count_nonzero(result.status != STATUS_OK))
     if n_bad:
         warnings.warn(f"{n_bad} of {len(w)} samples became non-finite (step too large for the spin rate?)",
                       RuntimeWarning, stacklevel=2)
     ds = xr.Dataset(
         {"omega": (("sample", "time", "axis"), omega,
-                   {"units": "rad/s", "long_name": "body-frame angular velocity"})},
+                   {"units": "rad/s", "long_name": "body-frame angular velocity"}),
+         "status": ("sample", result.status,
+                    {"long_name": "sample status", "flag_values": np.arange(len(STATUS_NAMES), dtype=np.int8),
+                     "flag_meanings": " ".join(name.replace(" ", "_") for name in STATUS_NAMES)})},
         coords={
             "sample": ("sample", np.arange(len(w)), {"long_name": "ensemble member"}),
             "time": ("time", times, {"units": "s", "long_name": "time"}),
@@ -161,14 +131,16 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
         },
         attrs={
             "method": method,
-            "order": -1 if order is None else order,
-            "path": path,
-            "dt": step if n_steps else dt,
+            "order": METHODS[method].order if method in METHODS else -1,
+            "path": info["path"],
+            "dt": step,
             "n_steps": n_steps if method != "exact" else 0,
             "t_end": t_end,
             "moments": moments,
-            "torque": torque_text,
+            "torque": info["torque"],
             "n_nonfinite": n_bad,
+            "sample_steps_computed": info["sample_steps_computed"],
+            "sample_steps_skipped": info["sample_steps_skipped"],
         },
     )
     return ds

@@ -1,89 +1,299 @@
-"""The generic ensemble driver: every fixed-step method, every sample, the time loop inside.
+"""The generic ensemble driver: every fixed-step method, every sample, the time loop inside, observers on the fly.
 
 Samples are cut into blocks of ``block`` samples; blocks run in parallel (``prange``) and each block is
-copied into a contiguous ``(3, B)`` structure-of-arrays buffer so the step functions vectorise across
-samples. Samples never interact, so results do not depend on the number of threads.
+copied into three contiguous component arrays (structure of arrays) so that the per-sample step
+(:mod:`tumble.kernels.fused`) vectorises across samples. Samples never interact, so the results do not
+depend on the number of threads or on the block size.
+
+Observers are compiled in only when asked: every optional output is ``None`` when not requested, and numba
+prunes its branch at compile time. Memory is O(samples) unless a trajectory is stored.
+
+Per-sample status: ``STATUS_OK``, ``STATUS_NONFINITE`` (a component became NaN or inf) or ``STATUS_DRIFT``
+(torque-free only: ``|L|**2`` or the energy drifted by more than ``drift_limit``, relative). A sample with a
+bad status stops stepping and keeps the state it had when it was caught; so does a sample whose measurement
+is complete (early stop, see ``stop_norm`` and ``stop_flips``).
 """
+
+import math
 
 import numpy as np
 from numba import prange
 
+from .fused import rk4_block, rk8_block, splitting2_block, splitting4_block, symplectic_euler_block
 from .jit import jit
-from .steppers import (
-    FAMILY_EXPLICIT_RK,
-    FAMILY_IMPLICIT_MIDPOINT,
-    FAMILY_SPLITTING,
-    explicit_rk_step,
-    implicit_midpoint_step,
-    splitting_step,
-)
+from .steppers import MIDPOINT_WORK, energy, euler_rate, implicit_midpoint_block, l_squared
+from .tableaux import METHOD_ORDER
+
+RK4, RK8, SYMPLECTIC_EULER, SPLITTING2, SPLITTING4, IMPLICIT_MIDPOINT = (
+    METHOD_ORDER.index(name)
+    for name in ("rk4", "rk8", "symplectic_euler", "splitting2", "splitting4", "implicit_midpoint"))
+
+STATUS_OK = 0
+STATUS_NONFINITE = 1
+STATUS_DRIFT = 2
+STATUS_NAMES = ("ok", "non-finite", "invariant drift")
+
+# How often (in steps) samples are checked for non-finite values when no per-step observer runs anyway.
+CHECK_EVERY = 32
+# Newton iterations on the cubic Hermite interpolant that locates a sign change inside a step.
+_FLIP_NEWTON = 4
 
 
-def work_buffers(family, stages):
-    """How many ``(3, B)`` scratch buffers a step of ``family`` needs."""
-    if family == FAMILY_EXPLICIT_RK:
-        return stages + 1
-    if family == FAMILY_IMPLICIT_MIDPOINT:
-        return 3
-    return 1  # splitting: each sample's initial |L|**2
+@jit(inline=True)
+def _hermite_root(y0, d0, y1, d1, h):
+    """Fraction ``s`` in [0, 1] of the step where the cubic Hermite interpolant of ``(y0, d0), (y1, d1)``
+    vanishes; linear interpolation refined by Newton steps (O(h**4) accurate in time)."""
+    s = y0 / (y0 - y1)
+    for _ in range(_FLIP_NEWTON):
+        s2 = s * s
+        s3 = s2 * s
+        p = ((2 * s3 - 3 * s2 + 1) * y0 + (s3 - 2 * s2 + s) * h * d0 + (-2 * s3 + 3 * s2) * y1
+             + (s3 - s2) * h * d1)
+        dp = ((6 * s2 - 6 * s) * y0 + (3 * s2 - 4 * s + 1) * h * d0 + (-6 * s2 + 6 * s) * y1
+              + (3 * s2 - 2 * s) * h * d1)
+        if dp != 0.0:
+            s = s - p / dp
+        s = min(1.0, max(0.0, s))
+    return s
 
 
-@jit(parallel=True)
-def propagate(family, A, b, c, flows, fractions, axis_order, n_work, w, moments, t0, h, n_steps, save_every, saved,
-              torque_kind, torque_params, torque_fn, block):
-    """Advance every sample ``n_steps`` fixed steps of size ``h``.
+@jit
+def _freeze(i, k, code, y1, y2, y3, active, frozen, status, last):
+    """Stop sample ``i`` of a block after step ``k``: keep its state, record why and when."""
+    active[i] = False
+    frozen[0, i], frozen[1, i], frozen[2, i] = y1[i], y2[i], y3[i]
+    if code != STATUS_OK:
+        status[i] = code
+    last[i] = k
 
-    Parameters
-    ----------
-    family : int
-        ``FAMILY_EXPLICIT_RK`` (uses ``A, b, c``), ``FAMILY_SPLITTING`` (uses ``flows, fractions``) or
-        ``FAMILY_IMPLICIT_MIDPOINT``.
-    axis_order : ndarray, shape (3,), int64
-        Body axis turned by each rotation sub-flow of a splitting.
-    n_work : int
-        Scratch buffers per block (:func:`work_buffers`).
-    w : ndarray, shape (3, N)
-        Body-frame angular velocity, rad/s; overwritten with the final state.
-    moments : ndarray, shape (3,)
-        Principal moments, kg m².
-    t0, h : float
-        Start time and step, s.
-    n_steps, save_every : int
-        Steps to take; store the state every ``save_every`` steps (0: store nothing).
-    saved : ndarray, shape (n_saved, 3, N)
-        Receives the initial state, every ``save_every``-th state and the final state.
-    torque_kind, torque_params, torque_fn
-        See :func:`tumble.kernels.steppers.body_torque`; ``torque_params=None`` compiles the torque out.
-    block : int
-        Samples per block.
-    """
-    n = w.shape[1]
-    n_blocks = (n + block - 1) // block
-    for ib in prange(n_blocks):
-        lo = ib * block
-        hi = min(lo + block, n)
-        y = np.empty((3, hi - lo))
-        y[:, :] = w[:, lo:hi]
-        work = np.empty((n_work, 3, hi - lo))
-        if family == FAMILY_SPLITTING:
-            target = work[0, 0]
-            for i in range(hi - lo):
-                l1, l2, l3 = moments[0] * y[0, i], moments[1] * y[1, i], moments[2] * y[2, i]
-                target[i] = l1 * l1 + l2 * l2 + l3 * l3
-        slot = 0
-        if save_every > 0:
-            saved[0, :, lo:hi] = y
-            slot = 1
-        for k in range(n_steps):
-            t = t0 + k * h
-            if family == FAMILY_EXPLICIT_RK:
-                explicit_rk_step(y, work, t, h, moments, A, b, c, torque_kind, torque_params, torque_fn)
-            elif family == FAMILY_SPLITTING:
-                splitting_step(y, work[0, 0], t, h, moments, axis_order, flows, fractions, torque_kind, torque_params,
-                               torque_fn)
+
+@jit
+def _restore_frozen(y1, y2, y3, active, frozen):
+    """The step moved every sample of the block; put the stopped ones back."""
+    for i in range(y1.shape[0]):
+        if not active[i]:
+            y1[i], y2[i], y3[i] = frozen[0, i], frozen[1, i], frozen[2, i]
+
+
+@jit
+def _observe_flips(ys, previous, active, axis, t, h, body, flips, flip_count, lo, torque_kind, torque_params,
+                   torque_fn):
+    """Record sign changes of the ``axis`` component during the step ``[t, t + h]``."""
+    for i in range(ys.shape[1]):
+        ya, yp = ys[axis, i], previous[axis, i]
+        if active[i] and ((ya < 0.0 < yp) or (yp < 0.0 < ya) or (ya == 0.0 and yp != 0.0)):
+            d0 = euler_rate(t, previous[0, i], previous[1, i], previous[2, i], body, torque_kind, torque_params,
+                            torque_fn)[axis]
+            d1 = euler_rate(t + h, ys[0, i], ys[1, i], ys[2, i], body, torque_kind, torque_params, torque_fn)[axis]
+            count = flip_count[lo + i]
+            if count < flips.shape[1]:
+                flips[lo + i, count] = t + h * _hermite_root(yp, d0, ya, d1, h)
+            flip_count[lo + i] = count + 1
+
+
+@jit
+def _observe_drift(ys, active, body, e0, l0, drift, lo, drift_limit, k, frozen, status, last):
+    """Running maximum of the relative energy and ``|L|**2`` errors; samples past ``drift_limit`` stop.
+
+    Returns how many samples it stopped."""
+    stopped = 0
+    for i in range(ys.shape[1]):
+        if not active[i]:
+            continue
+        de = abs(energy(ys[0, i], ys[1, i], ys[2, i], body) / e0[i] - 1.0)
+        dl = abs(l_squared(ys[0, i], ys[1, i], ys[2, i], body) / l0[i] - 1.0)
+        if drift is not None:
+            drift[0, lo + i] = max(drift[0, lo + i], de)
+            drift[1, lo + i] = max(drift[1, lo + i], dl)
+        if drift_limit > 0.0 and not (de <= drift_limit and dl <= drift_limit):
+            _freeze(i, k, STATUS_DRIFT, ys[0], ys[1], ys[2], active, frozen, status, last)
+            stopped += 1
+    return stopped
+
+
+@jit
+def _check_finite(ys, active, k, frozen, status, last):
+    """Stop samples with a non-finite component; returns how many."""
+    stopped = 0
+    for i in range(ys.shape[1]):
+        if active[i] and not (math.isfinite(ys[0, i]) and math.isfinite(ys[1, i]) and math.isfinite(ys[2, i])):
+            _freeze(i, k, STATUS_NONFINITE, ys[0], ys[1], ys[2], active, frozen, status, last)
+            stopped += 1
+    return stopped
+
+
+@jit
+def _observe_norm(ys, active, axis, probes, lo, row, stop_norm, reached):
+    """Transverse norm about ``axis`` into ``probes[row]`` (NaN for stopped samples); marks samples whose norm
+    reached ``stop_norm``."""
+    b, c = (axis + 1) % 3, (axis + 2) % 3
+    for i in range(ys.shape[1]):
+        norm = math.hypot(ys[b, i], ys[c, i])
+        if probes is not None:
+            probes[row, lo + i] = norm if active[i] else np.nan
+        if active[i] and stop_norm > 0.0 and norm >= stop_norm:
+            reached[i] = True
+
+
+@jit
+def _stop_complete(ys, active, reached, stop_norm, stop_flips, flip_count, lo, k, frozen, status, last):
+    """Stop the samples whose measurement is complete; returns how many are still running."""
+    remaining = 0
+    for i in range(ys.shape[1]):
+        if active[i]:
+            if (stop_norm <= 0.0 or reached[i]) and (stop_flips <= 0 or flip_count[lo + i] >= stop_flips):
+                _freeze(i, k, STATUS_OK, ys[0], ys[1], ys[2], active, frozen, status, last)
             else:
-                implicit_midpoint_step(y, work, t, h, moments, torque_kind, torque_params, torque_fn)
-            if save_every > 0 and ((k + 1) % save_every == 0 or k + 1 == n_steps):
-                saved[slot, :, lo:hi] = y
-                slot += 1
-        w[:, lo:hi] = y
+                remaining += 1
+    return remaining
+
+
+def make_propagate(method):
+    """The driver for one method (an index of METHOD_ORDER).
+
+    ``method`` is a constant of the returned closure, so numba prunes every other method's branch before
+    compiling: each method compiles (and is cached) on its own, and only when it is used. The observers are
+    block functions compiled once and shared by every variant of the driver.
+    """
+
+    @jit(parallel=True)
+    def propagate(w, body, t0, h, n_steps, block,
+                  save_every, saved,
+                  axis, probe_steps, probes,
+                  flips, flip_count,
+                  drift,
+                  status, steps_taken,
+                  stop_norm, stop_flips, drift_limit,
+                  torque_kind, torque_params, torque_fn):
+        """Advance every sample ``n_steps`` fixed steps of size ``h``, observing as asked.
+
+        Parameters
+        ----------
+        w : ndarray, shape (3, N)
+            Body-frame angular velocity, rad/s; overwritten with the final (or frozen) state.
+        body : tuple
+            :func:`tumble.kernels.steppers.body_constants` of the moments.
+        t0, h : float
+            Start time and step, s.
+        n_steps, block : int
+            Steps to take; samples per block.
+        save_every : int
+            With ``saved`` (shape ``(n_saved, 3, N)``): store the initial state, every ``save_every``-th state and
+            the final one. ``saved=None`` stores nothing.
+        axis : int
+            0-based spin axis; the transverse norm is ``hypot`` of the other two components.
+        probe_steps, probes : ndarray (P,) int64 increasing, ndarray (P, N) or None
+            Transverse norm (rad/s) after each step listed in ``probe_steps`` (0 = the initial state); NaN once a
+            sample has stopped.
+        flips, flip_count : ndarray (N, F) or None, ndarray (N,) int64
+            Times (s) of the first ``F`` sign changes of the ``axis`` component, located inside the step by cubic
+            Hermite interpolation; ``flip_count`` counts all of them.
+        drift : ndarray (2, N) or None
+            Running maximum of ``|E/E0 - 1|`` and ``||L|²/|L0|² - 1|``.
+        status, steps_taken : ndarray (N,) int8, ndarray (N,) int64
+            Outputs: per-sample status and the number of steps each sample took.
+        stop_norm, stop_flips : float, int
+            Early stop: a sample stops once its transverse norm has reached ``stop_norm`` (at a probe) and it has
+            flipped ``stop_flips`` times; a criterion <= 0 is off, both off disables early stopping.
+        drift_limit : float
+            Torque-free invariant drift that marks a sample ``STATUS_DRIFT`` (<= 0: off).
+        torque_kind, torque_params, torque_fn
+            See :func:`tumble.kernels.steppers.body_torque`; ``torque_params=None`` compiles the torque out.
+        """
+        n = w.shape[1]
+        n_blocks = (n + block - 1) // block
+        early_stop = stop_norm > 0.0 or stop_flips > 0
+        limit = drift_limit if torque_params is None else 0.0
+        n_probes = probe_steps.shape[0]
+        for ib in prange(n_blocks):
+            lo = ib * block
+            hi = min(lo + block, n)
+            m = hi - lo
+            ys = np.empty((3, m))
+            ys[:, :] = w[:, lo:hi]
+            y1, y2, y3 = ys[0], ys[1], ys[2]
+            active = np.ones(m, dtype=np.bool_)
+            reached = np.zeros(m, dtype=np.bool_)
+            frozen = np.empty((3, m))  # the state of each sample at the step it stopped
+            last = np.full(m, n_steps, dtype=np.int64)
+            block_status = status[lo:hi]
+            block_status[:] = STATUS_OK
+            target = np.empty(m)  # initial |L|^2 (the splittings project onto it)
+            e0 = np.empty(m)
+            for i in range(m):
+                target[i] = l_squared(y1[i], y2[i], y3[i], body)
+                e0[i] = energy(y1[i], y2[i], y3[i], body)
+            work = np.empty((MIDPOINT_WORK if method == IMPLICIT_MIDPOINT else 0, m))
+            previous = np.empty((3, m))
+            n_frozen = 0
+            slot = 0
+            if saved is not None:
+                saved[0, :, lo:hi] = ys
+                slot = 1
+            probe = 0
+            while probe < n_probes and probe_steps[probe] == 0:
+                _observe_norm(ys, active, axis, probes, lo, probe, stop_norm, reached)
+                probe += 1
+            ran = 0
+            for k in range(n_steps):
+                t = t0 + k * h
+                if flips is not None:
+                    previous[:, :] = ys
+                if method == RK4:
+                    rk4_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
+                elif method == RK8:
+                    rk8_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
+                elif method == SYMPLECTIC_EULER:
+                    symplectic_euler_block(y1, y2, y3, active, t, h, body, target, work, torque_kind,
+                                           torque_params, torque_fn)
+                elif method == SPLITTING2:
+                    splitting2_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params,
+                                     torque_fn)
+                elif method == SPLITTING4:
+                    splitting4_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params,
+                                     torque_fn)
+                else:
+                    implicit_midpoint_block(y1, y2, y3, active, t, h, body, work, torque_kind, torque_params,
+                                            torque_fn)
+                if n_frozen:
+                    _restore_frozen(y1, y2, y3, active, frozen)
+                ran = k + 1
+                if flips is not None:
+                    _observe_flips(ys, previous, active, axis, t, h, body, flips, flip_count, lo, torque_kind,
+                                   torque_params, torque_fn)
+                if drift is not None or limit > 0.0:
+                    n_frozen += _observe_drift(ys, active, body, e0, target, drift, lo, limit, ran, frozen,
+                                               block_status, last)
+                if flips is not None or ran % CHECK_EVERY == 0 or ran == n_steps:
+                    n_frozen += _check_finite(ys, active, ran, frozen, block_status, last)
+                if saved is not None and (ran % save_every == 0 or ran == n_steps):
+                    saved[slot, :, lo:hi] = ys
+                    slot += 1
+                while probe < n_probes and probe_steps[probe] == ran:
+                    _observe_norm(ys, active, axis, probes, lo, probe, stop_norm, reached)
+                    probe += 1
+                if early_stop:
+                    remaining = _stop_complete(ys, active, reached, stop_norm, stop_flips, flip_count, lo, ran,
+                                               frozen, block_status, last)
+                    n_frozen = m - remaining
+                    if remaining == 0:
+                        break
+            # A block that stopped early fills the rest of its requested outputs: trajectories hold the frozen
+            # state, probes are NaN (no measurement after a sample stopped).
+            if saved is not None:
+                for k in range(ran, n_steps):
+                    if (k + 1) % save_every == 0 or k + 1 == n_steps:
+                        saved[slot, :, lo:hi] = ys
+                        slot += 1
+            while probe < n_probes:
+                if probes is not None:
+                    probes[probe, lo:hi] = np.nan
+                probe += 1
+            w[:, lo:hi] = ys
+            steps_taken[lo:hi] = last
+
+    return propagate
+
+
+# One driver per method, compiled lazily on first use.
+PROPAGATE = tuple(make_propagate(i) for i in range(len(METHOD_ORDER)))

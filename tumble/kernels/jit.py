@@ -17,6 +17,8 @@ import numba
 
 FASTMATH = frozenset({"contract", "arcp", "nsz"})
 
+_NUMBA_IR_INLINE = True
+
 _OPTIONS = dict(cache=True, fastmath=set(FASTMATH), error_model="numpy", nogil=True)
 
 
@@ -31,7 +33,7 @@ def jit(fn=None, *, parallel=False, inline=False):
         Inline at the numba IR level (for tiny helpers called in inner loops).
     """
     options = dict(_OPTIONS, parallel=parallel)
-    if inline:
+    if inline and _NUMBA_IR_INLINE:
         options["inline"] = "always"
 
     def wrap(f):

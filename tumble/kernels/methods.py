@@ -1,55 +1,72 @@
-"""The fixed-step methods by name, and the call that runs one of them on an ensemble."""
+"""The fixed-step methods by name, and the call that runs one of them on an ensemble with its observers."""
 
 from typing import NamedTuple
 
 import numpy as np
 
 from . import tableaux
-from .drivers import propagate, work_buffers
-from .steppers import FAMILY_EXPLICIT_RK, FAMILY_IMPLICIT_MIDPOINT, FAMILY_SPLITTING
+from .drivers import PROPAGATE
+from .steppers import TORQUE_CONSTANT, body_constants
 
-__all__ = ["Method", "METHODS", "run"]
+__all__ = ["BLOCK", "METHODS", "Method", "Observed", "run"]
 
-_NO_TABLE = np.zeros((0, 0))
-_NO_VECTOR = np.zeros(0)
-_NO_FLOWS = np.zeros(0, dtype=np.int64)
+# Samples per SIMD block: large enough to amortise the per-step dispatch, small enough to stay in L1.
+BLOCK = 256
+
+_NO_STEPS = np.zeros(0, dtype=np.int64)
 
 
 class Method(NamedTuple):
-    """A fixed-step integrator: its family, nominal order and coefficients."""
+    """A fixed-step integrator: its kernel id, nominal order and coefficients."""
 
     name: str
-    family: int
+    kernel_id: int
     order: int
-    tableau: tableaux.ButcherTableau | None = None
-    splitting: tableaux.Splitting | None = None
-    geometric: bool = False  # keeps |L|^2 to round-off (and, for the midpoint rule, the energy too)
+    coefficients: object  # ButcherTableau, Splitting or ImplicitMidpoint
+
+    @property
+    def splitting(self):
+        """The composition of exact sub-flows, or None for a Runge–Kutta method."""
+        return self.coefficients if isinstance(self.coefficients, tableaux.Splitting) else None
+
+    @property
+    def geometric(self):
+        """Keeps ``|L|**2`` to round-off (the midpoint rule keeps the energy too)."""
+        return not isinstance(self.coefficients, tableaux.ButcherTableau)
 
 
-def _rk(t):
-    return Method(t.name, FAMILY_EXPLICIT_RK, t.order, tableau=t)
+METHODS = {m.name: Method(m.name, i, m.order, m) for i, m in enumerate(tableaux.ALL_METHODS)}
 
 
-def _split(s):
-    return Method(s.name, FAMILY_SPLITTING, s.order, splitting=s, geometric=True)
+class Observed(NamedTuple):
+    """What a run returns; an output that was not asked for is None."""
+
+    saved: np.ndarray | None  # (n_saved, 3, N), rad/s
+    probes: np.ndarray | None  # (P, N), transverse norm, rad/s
+    flips: np.ndarray | None  # (N, F), s
+    flip_count: np.ndarray | None  # (N,)
+    drift: np.ndarray | None  # (2, N): max |E/E0 - 1|, max ||L|²/|L0|² - 1|
+    status: np.ndarray  # (N,) int8
+    steps_taken: np.ndarray  # (N,) int64
 
 
-METHODS = {
-    m.name: m
-    for m in (
-        _rk(tableaux.RK4),
-        _rk(tableaux.RK8),
-        _split(tableaux.SYMPLECTIC_EULER),
-        _split(tableaux.SPLITTING2),
-        _split(tableaux.SPLITTING4),
-        Method("implicit_midpoint", FAMILY_IMPLICIT_MIDPOINT, 2, geometric=True),
-    )
-}
+def _relabelling(method, moments, torque_params, torque_fn):
+    """Axis order for the kernel frame: splittings turn about the axes by ascending moment (measured: the
+    smallest errors), so their axes are relabelled; ``u = sign * w[perm]`` solves Euler's equations with
+    moments ``I[perm]`` (an odd permutation reverses the sense of rotation, hence the sign)."""
+    if method.splitting is None or torque_fn is not None:
+        return None
+    perm = np.argsort(moments, kind="stable")
+    if np.array_equal(perm, [0, 1, 2]):
+        return None
+    sign = float(np.linalg.det(np.eye(3)[perm]))
+    return perm, sign
 
 
-def run(method, w, moments, t0, h, n_steps, *, save_every=0, torque_kind=0, torque_params=None, torque_fn=None,
-        block=128):
-    """Integrate an ensemble with a named fixed-step method.
+def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, probe_steps=None, max_flips=0,
+        drift=False, stop_norm=0.0, stop_flips=0, drift_limit=0.0, torque_kind=TORQUE_CONSTANT,
+        torque_params=None, torque_fn=None, block=BLOCK):
+    """Integrate an ensemble with a named fixed-step method, observing only what is asked.
 
     Parameters
     ----------
@@ -62,39 +79,59 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, torque_kind=0, torq
         Start time and step, s.
     n_steps : int
     save_every : int
-        0 stores nothing; k > 0 stores the initial state, every k-th step and the final state.
+        0 stores no trajectory; k > 0 stores the initial state, every k-th step and the final state.
+    axis : int
+        0-based spin axis for the transverse norm and the flips.
+    probe_steps : array_like of int, optional
+        Steps after which to record the transverse norm (0 = initial state), increasing.
+    max_flips : int
+        Record the times of the first ``max_flips`` sign changes of the ``axis`` component (0: off).
+    drift : bool
+        Record the running maximum of the relative energy and ``|L|**2`` errors.
+    stop_norm, stop_flips, drift_limit
+        Early stop and blow-up detection, see :func:`tumble.kernels.drivers.propagate`.
     torque_kind, torque_params, torque_fn
         ``torque_params=None`` and ``torque_fn=None``: torque-free (compiled out).
     block : int
-        Samples per SIMD block.
+        Samples per SIMD block; results do not depend on it.
 
     Returns
     -------
-    saved : ndarray, shape (n_saved, 3, N)
-        Stored states (``n_saved = 0`` when ``save_every == 0``).
+    Observed
     """
     n = w.shape[1]
+    moments = np.asarray(moments, dtype=float)
+    relabel = _relabelling(method, moments, torque_params, torque_fn)
+    kernel_w, kernel_axis = w, axis
+    if relabel is not None:
+        perm, sign = relabel
+        kernel_w = np.ascontiguousarray(sign * w[perm])
+        moments = moments[perm]
+        kernel_axis = int(np.argsort(perm)[axis])
+        if torque_params is not None:
+            torque_params = sign * np.asarray(torque_params, dtype=float)[perm]
+    if torque_fn is not None and torque_params is None:
+        torque_params = np.zeros(0)
+
     n_saved = 0
     if save_every > 0:
         n_saved = 1 + n_steps // save_every + (1 if n_steps % save_every else 0)
-    saved = np.empty((n_saved, 3, n))
-    A, b, c = _NO_TABLE, _NO_VECTOR, _NO_VECTOR
-    flows, fractions = _NO_FLOWS, _NO_VECTOR
-    stages = 0
-    if method.tableau is not None:
-        A, b, c = method.tableau.A, method.tableau.b, method.tableau.c
-        stages = len(b)
-    if method.splitting is not None:
-        split = method.splitting
-        if torque_params is None and torque_fn is None:
-            split = split.without_torque()
-        flows, fractions = split.flows, split.fractions
-    if torque_fn is not None and torque_params is None:
-        torque_params = _NO_VECTOR
-    moments = np.ascontiguousarray(moments, dtype=float)
-    # Splittings turn about the axes in order of ascending moment (smallest errors measured; see tableaux).
-    axis_order = np.argsort(moments, kind="stable").astype(np.int64)
-    propagate(method.family, A, b, c, flows, fractions, axis_order, work_buffers(method.family, stages), w,
-              moments, float(t0), float(h), int(n_steps), int(save_every),
-              saved, int(torque_kind), torque_params, torque_fn, int(block))
-    return saved
+    saved = np.empty((n_saved, 3, n)) if save_every > 0 else None
+    probe_steps = _NO_STEPS if probe_steps is None else np.ascontiguousarray(probe_steps, dtype=np.int64)
+    probes = np.empty((len(probe_steps), n)) if len(probe_steps) else None
+    flips = np.full((n, max_flips), np.nan) if max_flips > 0 else None
+    flip_count = np.zeros(n, dtype=np.int64)
+    drifts = np.zeros((2, n)) if drift else None
+    status = np.zeros(n, dtype=np.int8)
+    steps_taken = np.zeros(n, dtype=np.int64)
+    PROPAGATE[method.kernel_id](kernel_w, body_constants(moments), float(t0), float(h), int(n_steps),
+                                int(block),
+              int(save_every), saved, int(kernel_axis), probe_steps, probes, flips, flip_count, drifts,
+              status, steps_taken, float(stop_norm), int(stop_flips), float(drift_limit), int(torque_kind),
+              torque_params, torque_fn)
+    if relabel is not None:
+        inverse = np.argsort(perm)
+        w[:] = sign * kernel_w[inverse]
+        if saved is not None:
+            saved = sign * saved[:, inverse]
+    return Observed(saved, probes, flips, flip_count if max_flips > 0 else None, drifts, status, steps_taken)

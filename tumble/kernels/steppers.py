@@ -1,30 +1,27 @@
-"""One step of each integrator family on a block of samples.
+"""Hand-written pieces of every step: Euler's equations, the torque, the exact sub-flows.
 
-A block is a structure-of-arrays ``y[axis, sample]`` (shape ``(3, B)``) of body-frame angular velocities.
-Every step function updates ``y`` in place, uses only the scratch ``work`` it is given, and loops over
-samples innermost so that the compiler can vectorise across them.
+The per-sample step functions in :mod:`tumble.kernels.fused` are generated from the coefficient tables
+(:mod:`tumble.kernels.codegen`) and call the small inline functions below. Everything works on scalars of
+one sample, so that a loop over the samples of a block compiles to packed SIMD code with the state in
+registers.
 
 Euler's equations with body torque ``N`` (Landau & Lifshitz §36):
 ``I1 w1' = (I2 - I3) w2 w3 + N1`` and cyclic.
 
-The torque is evaluated by :func:`body_torque`. ``torque_params is None`` means torque-free, and numba prunes
-every torque branch at compile time; otherwise ``torque_kind`` picks one of the built-in profiles below, or
-``torque_fn`` (a user's jitted ``f(t, w1, w2, w3) -> (N1, N2, N3)``) is called.
+``body`` is the tuple made by :func:`body_constants`. The torque is evaluated by :func:`body_torque`;
+``torque_params is None`` means torque-free, and numba prunes every torque branch at compile time; otherwise
+``torque_kind`` picks one of the built-in profiles, or ``torque_fn`` (a user's jitted
+``f(t, w1, w2, w3) -> (N1, N2, N3)``) is called.
 """
 
 import math
 
 from .jit import jit
-from .tableaux import TORQUE
+from .trig import sincos
 
 # Built-in torque profiles (numeric parameters only, so that studies stay data).
 TORQUE_CONSTANT = 0  # params = (N1, N2, N3), N m
 TORQUE_USER = -1  # torque_fn is called
-
-# Integrator families run by the generic driver.
-FAMILY_EXPLICIT_RK = 0
-FAMILY_SPLITTING = 1
-FAMILY_IMPLICIT_MIDPOINT = 2
 
 # Implicit midpoint: fixed-point iterations stop once the update is below this many ulps of the state.
 _MIDPOINT_ULPS = 4.0
@@ -32,7 +29,18 @@ _MIDPOINT_MAX_ITERATIONS = 60
 _EPS = 2.220446049250313e-16
 
 
-@jit
+def body_constants(moments):
+    """``(I1, I2, I3, a1, a2, a3, I2/I1, I3/I1, I1/I2, I3/I2, I1/I3, I2/I3)`` for the kernels.
+
+    ``a1 = (I2 - I3)/I1`` and cyclic are the coefficients of Euler's equations; the ratios serve the exact
+    rotations of the splittings.
+    """
+    i1, i2, i3 = (float(x) for x in moments)
+    return (i1, i2, i3, (i2 - i3) / i1, (i3 - i1) / i2, (i1 - i2) / i3,
+            i2 / i1, i3 / i1, i1 / i2, i3 / i2, i1 / i3, i2 / i3)
+
+
+@jit(inline=True)
 def body_torque(t, w1, w2, w3, torque_kind, torque_params, torque_fn):
     """Body-frame torque (N m) at time ``t`` (s) and angular velocity ``w`` (rad/s)."""
     if torque_fn is not None:
@@ -41,172 +49,101 @@ def body_torque(t, w1, w2, w3, torque_kind, torque_params, torque_fn):
     return torque_params[0], torque_params[1], torque_params[2]
 
 
-@jit
-def euler_rhs(z, out, t, moments, torque_kind, torque_params, torque_fn):
-    """``out[:, i] = w'`` for every sample ``z[:, i]`` of a block."""
-    i1, i2, i3 = moments[0], moments[1], moments[2]
-    a1, a2, a3 = (i2 - i3) / i1, (i3 - i1) / i2, (i1 - i2) / i3
-    for i in range(z.shape[1]):
-        w1, w2, w3 = z[0, i], z[1, i], z[2, i]
-        d1, d2, d3 = a1 * w2 * w3, a2 * w3 * w1, a3 * w1 * w2
-        if torque_params is not None:
-            n1, n2, n3 = body_torque(t, w1, w2, w3, torque_kind, torque_params, torque_fn)
-            d1 += n1 / i1
-            d2 += n2 / i2
-            d3 += n3 / i3
-        out[0, i], out[1, i], out[2, i] = d1, d2, d3
+@jit(inline=True)
+def euler_rate(t, w1, w2, w3, body, torque_kind, torque_params, torque_fn):
+    """``w'`` from Euler's equations, rad/s²."""
+    d1 = body[3] * w2 * w3
+    d2 = body[4] * w3 * w1
+    d3 = body[5] * w1 * w2
+    if torque_params is not None:
+        n1, n2, n3 = body_torque(t, w1, w2, w3, torque_kind, torque_params, torque_fn)
+        d1 += n1 / body[0]
+        d2 += n2 / body[1]
+        d3 += n3 / body[2]
+    return d1, d2, d3
 
 
-@jit
-def explicit_rk_step(y, work, t, h, moments, A, b, c, torque_kind, torque_params, torque_fn):
-    """One explicit Runge–Kutta step. ``work`` has shape ``(s + 1, 3, B)``: the stages and one buffer."""
-    stages = b.shape[0]
-    n = y.shape[1]
-    z = work[stages]
-    for s in range(stages):
-        # z = y + h * sum_j A[s, j] k_j, with the sum formed before adding to y (less round-off).
-        for i in range(n):
-            z[0, i] = 0.0
-            z[1, i] = 0.0
-            z[2, i] = 0.0
-        for j in range(s):
-            a = A[s, j]
-            if a != 0.0:
-                k = work[j]
-                for i in range(n):
-                    z[0, i] += a * k[0, i]
-                    z[1, i] += a * k[1, i]
-                    z[2, i] += a * k[2, i]
-        for i in range(n):
-            z[0, i] = y[0, i] + h * z[0, i]
-            z[1, i] = y[1, i] + h * z[1, i]
-            z[2, i] = y[2, i] + h * z[2, i]
-        euler_rhs(z, work[s], t + c[s] * h, moments, torque_kind, torque_params, torque_fn)
-    for i in range(n):
-        z[0, i] = 0.0
-        z[1, i] = 0.0
-        z[2, i] = 0.0
-    for s in range(stages):
-        weight = b[s]
-        if weight != 0.0:
-            k = work[s]
-            for i in range(n):
-                z[0, i] += weight * k[0, i]
-                z[1, i] += weight * k[1, i]
-                z[2, i] += weight * k[2, i]
-    for i in range(n):
-        y[0, i] += h * z[0, i]
-        y[1, i] += h * z[1, i]
-        y[2, i] += h * z[2, i]
+@jit(inline=True)
+def rotate(theta, wb, wc, r_cb, r_bc):
+    """Exact flow of ``H_a = L_a**2 / (2 I_a)``: ``(L_b, L_c)`` turns by ``theta = w_a tau``.
 
-
-@jit
-def rotate_about_axis(y, axis, tau, moments):
-    """Exact flow of ``H_a = L_a**2 / (2 I_a)`` for time ``tau``: ``L`` turns about body axis ``a``.
-
-    With ``(a, b, c)`` cyclic, ``w_a`` is constant and ``(L_b, L_c)`` rotates by ``theta = w_a tau``:
-    ``L_b <- cos(theta) L_b + sin(theta) L_c``, ``L_c <- -sin(theta) L_b + cos(theta) L_c``
-    (McLachlan 1993). ``|L|`` is kept to round-off.
+    With ``(a, b, c)`` cyclic, ``L_b <- cos(theta) L_b + sin(theta) L_c`` and
+    ``L_c <- -sin(theta) L_b + cos(theta) L_c`` (McLachlan 1993); in ``w``, with ``r_cb = I_c/I_b`` and
+    ``r_bc = I_b/I_c``. ``|L|`` is kept to round-off.
     """
-    a = axis
-    b = (axis + 1) % 3
-    c = (axis + 2) % 3
-    ib, ic = moments[b], moments[c]
-    r_cb = ic / ib
-    r_bc = ib / ic
-    for i in range(y.shape[1]):
-        theta = y[a, i] * tau
-        cs = math.cos(theta)
-        sn = math.sin(theta)
-        wb, wc = y[b, i], y[c, i]
-        y[b, i] = cs * wb + sn * r_cb * wc
-        y[c, i] = cs * wc - sn * r_bc * wb
+    s, c = sincos(theta)
+    return c * wb + s * r_cb * wc, c * wc - s * r_bc * wb
 
 
-@jit
-def torque_flow(y, t, tau, moments, torque_kind, torque_params, torque_fn):
-    """Torque sub-flow ``w' = N(t, w) / I`` over ``tau`` by one classical RK4 step per sample.
+@jit  # not inlined: six inlined copies in splitting4 cost minutes of compile time for torque scenes
+def torque_subflow(t, tau, w1, w2, w3, body, torque_kind, torque_params, torque_fn):
+    """Torque sub-flow ``w' = N(t, w) / I`` over ``tau`` by one classical RK4 step.
 
-    Exact for a constant torque; its local error O(tau**5) keeps the documented order of every composition
-    up to four.
+    Exact for a constant torque; its local error O(tau**5) keeps the documented order of every composition up
+    to four.
     """
-    i1, i2, i3 = moments[0], moments[1], moments[2]
+    i1, i2, i3 = body[0], body[1], body[2]
     half = 0.5 * tau
-    for i in range(y.shape[1]):
-        w1, w2, w3 = y[0, i], y[1, i], y[2, i]
-        a1, a2, a3 = body_torque(t, w1, w2, w3, torque_kind, torque_params, torque_fn)
-        b1, b2, b3 = body_torque(t + half, w1 + half * a1 / i1, w2 + half * a2 / i2, w3 + half * a3 / i3,
-                                 torque_kind, torque_params, torque_fn)
-        c1, c2, c3 = body_torque(t + half, w1 + half * b1 / i1, w2 + half * b2 / i2, w3 + half * b3 / i3,
-                                 torque_kind, torque_params, torque_fn)
-        d1, d2, d3 = body_torque(t + tau, w1 + tau * c1 / i1, w2 + tau * c2 / i2, w3 + tau * c3 / i3,
-                                 torque_kind, torque_params, torque_fn)
-        sixth = tau / 6.0
-        y[0, i] = w1 + sixth * (a1 + 2.0 * (b1 + c1) + d1) / i1
-        y[1, i] = w2 + sixth * (a2 + 2.0 * (b2 + c2) + d2) / i2
-        y[2, i] = w3 + sixth * (a3 + 2.0 * (b3 + c3) + d3) / i3
+    a1, a2, a3 = body_torque(t, w1, w2, w3, torque_kind, torque_params, torque_fn)
+    b1, b2, b3 = body_torque(t + half, w1 + half * a1 / i1, w2 + half * a2 / i2, w3 + half * a3 / i3,
+                             torque_kind, torque_params, torque_fn)
+    c1, c2, c3 = body_torque(t + half, w1 + half * b1 / i1, w2 + half * b2 / i2, w3 + half * b3 / i3,
+                             torque_kind, torque_params, torque_fn)
+    d1, d2, d3 = body_torque(t + tau, w1 + tau * c1 / i1, w2 + tau * c2 / i2, w3 + tau * c3 / i3,
+                             torque_kind, torque_params, torque_fn)
+    sixth = tau / 6.0
+    return (w1 + sixth * (a1 + 2.0 * (b1 + c1) + d1) / i1,
+            w2 + sixth * (a2 + 2.0 * (b2 + c2) + d2) / i2,
+            w3 + sixth * (a3 + 2.0 * (b3 + c3) + d3) / i3)
+
+
+@jit(inline=True)
+def l_squared(w1, w2, w3, body):
+    """``|L|**2 = sum (I_i w_i)**2``, (kg m² rad/s)²."""
+    l1, l2, l3 = body[0] * w1, body[1] * w2, body[2] * w3
+    return l1 * l1 + l2 * l2 + l3 * l3
+
+
+@jit(inline=True)
+def energy(w1, w2, w3, body):
+    """Kinetic energy ``½ sum I_i w_i**2``, J."""
+    return 0.5 * (body[0] * w1 * w1 + body[1] * w2 * w2 + body[2] * w3 * w3)
+
+
+@jit(inline=True)
+def project_l_squared(w1, w2, w3, target, body):
+    """Rescale ``w`` onto ``|L|**2 = target`` (a few-ulp correction that stops round-off random-walking)."""
+    now = l_squared(w1, w2, w3, body)
+    scale = math.sqrt(target / now) if now > 0.0 else 1.0
+    return w1 * scale, w2 * scale, w3 * scale
 
 
 @jit
-def splitting_step(y, target, t, h, moments, axis_order, flows, fractions, torque_kind, torque_params,
-                   torque_fn):
-    """One step of a composition of exact sub-flows; time advances only inside the torque sub-flow.
-
-    ``axis_order[r]`` is the body axis that rotation sub-flow ``r`` turns about (tumble orders them by
-    ascending moment, which measured the smallest errors). Torque-free, every sub-flow keeps ``|L|**2``
-    exactly; to stop round-off from random-walking it over millions of steps, the state is rescaled at the end
-    of each step onto ``|L|**2 = target`` (each sample's initial value), a projection that moves it by a few
-    ulps and leaves the method itself unchanged.
-    """
-    clock = t
-    for j in range(flows.shape[0]):
-        flow = flows[j]
-        tau = fractions[j] * h
-        if flow == TORQUE:
-            if torque_params is not None:
-                torque_flow(y, clock, tau, moments, torque_kind, torque_params, torque_fn)
-            clock += tau
-        else:
-            rotate_about_axis(y, axis_order[flow], tau, moments)
-    if torque_params is None:
-        i1, i2, i3 = moments[0], moments[1], moments[2]
-        for i in range(y.shape[1]):
-            l1, l2, l3 = i1 * y[0, i], i2 * y[1, i], i3 * y[2, i]
-            now = l1 * l1 + l2 * l2 + l3 * l3
-            scale = math.sqrt(target[i] / now) if now > 0.0 else 1.0
-            y[0, i] *= scale
-            y[1, i] *= scale
-            y[2, i] *= scale
-
-
-@jit
-def implicit_midpoint_step(y, work, t, h, moments, torque_kind, torque_params, torque_fn):
-    """Implicit midpoint rule ``y1 = y0 + h f(t + h/2, (y0 + y1)/2)``; keeps every quadratic invariant.
+def implicit_midpoint_block(y1, y2, y3, active, t, h, body, work, torque_kind, torque_params, torque_fn):
+    """Implicit midpoint rule ``y1 = y0 + h f(t + h/2, (y0 + y1)/2)`` on a block; keeps quadratic invariants.
 
     The midpoint ``z = y0 + (h/2) f(t + h/2, z)`` is found by fixed-point iteration (Hairer, Lubich &
     Wanner, sect. VIII.6); each sample stops iterating once its update is below a few ulps, so its result
-    does not depend on its neighbours in the block. Then ``y1 = 2 z - y0``. ``work`` has shape ``(3, 3, B)``.
+    does not depend on its neighbours in the block. Then ``y1 = 2 z - y0``. ``work`` has shape ``(4, B)``.
     """
-    z = work[0]
-    f = work[1]
-    done = work[2, 0]
-    n = y.shape[1]
+    z1, z2, z3, done = work[0], work[1], work[2], work[3]
+    n = y1.shape[0]
     half = 0.5 * h
     tm = t + half
     for i in range(n):
-        z[0, i], z[1, i], z[2, i] = y[0, i], y[1, i], y[2, i]
-        done[i] = 0.0
+        z1[i], z2[i], z3[i] = y1[i], y2[i], y3[i]
+        done[i] = 0.0 if active[i] else 1.0
     for _ in range(_MIDPOINT_MAX_ITERATIONS):
-        euler_rhs(z, f, tm, moments, torque_kind, torque_params, torque_fn)
         remaining = 0
         for i in range(n):
             if done[i] == 0.0:
-                n0 = y[0, i] + half * f[0, i]
-                n1 = y[1, i] + half * f[1, i]
-                n2 = y[2, i] + half * f[2, i]
-                change = abs(n0 - z[0, i]) + abs(n1 - z[1, i]) + abs(n2 - z[2, i])
-                size = abs(n0) + abs(n1) + abs(n2)
-                z[0, i], z[1, i], z[2, i] = n0, n1, n2
+                f1, f2, f3 = euler_rate(tm, z1[i], z2[i], z3[i], body, torque_kind, torque_params, torque_fn)
+                n1 = y1[i] + half * f1
+                n2 = y2[i] + half * f2
+                n3 = y3[i] + half * f3
+                change = abs(n1 - z1[i]) + abs(n2 - z2[i]) + abs(n3 - z3[i])
+                size = abs(n1) + abs(n2) + abs(n3)
+                z1[i], z2[i], z3[i] = n1, n2, n3
                 # A NaN compares false and stops too: a non-finite sample must not keep the loop running.
                 if change > _MIDPOINT_ULPS * _EPS * size:
                     remaining += 1
@@ -215,6 +152,10 @@ def implicit_midpoint_step(y, work, t, h, moments, torque_kind, torque_params, t
         if remaining == 0:
             break
     for i in range(n):
-        y[0, i] = 2.0 * z[0, i] - y[0, i]
-        y[1, i] = 2.0 * z[1, i] - y[1, i]
-        y[2, i] = 2.0 * z[2, i] - y[2, i]
+        if active[i]:
+            y1[i] = 2.0 * z1[i] - y1[i]
+            y2[i] = 2.0 * z2[i] - y2[i]
+            y3[i] = 2.0 * z3[i] - y3[i]
+
+
+MIDPOINT_WORK = 4  # scratch rows implicit_midpoint_block needs

@@ -19,7 +19,8 @@ from typing import NamedTuple
 import numpy as np
 
 __all__ = [
-    "ButcherTableau", "Splitting", "RK4", "RK8", "SYMPLECTIC_EULER", "SPLITTING2", "SPLITTING4",
+    "ALL_METHODS", "ButcherTableau", "IMPLICIT_MIDPOINT", "METHOD_ORDER", "RK4", "RK8", "SYMPLECTIC_EULER",
+    "SPLITTING2", "SPLITTING4", "Splitting",
     "ROTATE_1", "ROTATE_2", "ROTATE_3", "TORQUE",
 ]
 
@@ -147,3 +148,17 @@ _DOP853_A = [
 ]
 
 RK8 = ButcherTableau.build("rk8", 8, _DOP853_A, _DOP853_B, _DOP853_C)
+
+
+class ImplicitMidpoint(NamedTuple):
+    """The implicit midpoint rule: no coefficients, solved by fixed-point iteration."""
+
+    name: str = "implicit_midpoint"
+    order: int = 2
+
+
+IMPLICIT_MIDPOINT = ImplicitMidpoint()
+
+# Every fixed-step method; a method's kernel id is its index here.
+ALL_METHODS = (RK4, RK8, SYMPLECTIC_EULER, SPLITTING2, SPLITTING4, IMPLICIT_MIDPOINT)
+METHOD_ORDER = tuple(m.name for m in ALL_METHODS)

@@ -1,0 +1,20 @@
+"""The generated per-sample kernels are exactly what the coefficient tables say."""
+
+from pathlib import Path
+
+from tumble.kernels import codegen, tableaux
+
+
+def test_committed_fused_module_is_what_the_generator_writes():
+    committed = Path(codegen.TARGET).read_text()
+    assert committed == codegen.module_source(), "run: python tumble/kernels/codegen.py"
+
+
+def test_every_nonzero_coefficient_appears_as_an_exact_literal():
+    source = codegen.module_source()
+    for tableau in (tableaux.RK4, tableaux.RK8):
+        for value in [*tableau.A[tableau.A != 0], *tableau.b[tableau.b != 0]]:
+            assert f"({float(value)!r} * h)" in source
+    for splitting in (tableaux.SPLITTING2, tableaux.SPLITTING4):
+        for value in splitting.without_torque().fractions:
+            assert f"{float(value)!r} * h" in source

@@ -1,0 +1,290 @@
+"""The ensemble engine: plan a scene's path, run it chunk by chunk, observe only what was asked.
+
+A scene asks for some of: the final state, a decimated trajectory, the transverse perturbation norm at
+given times (for growth fits), the times of the spin-axis sign changes (flips), the running invariant
+error. :func:`run_ensemble` picks the cheapest path that still delivers all of them:
+
+* torque-free with ``method="auto"`` (or ``"exact"``): the closed form (:mod:`tumble.exact`), no steps at all;
+* otherwise a fixed-step kernel with only the requested observers compiled in, the torque compiled out when
+  it is zero, and — when the caller gives stop criteria — each sample stopping once its measurement is
+  complete.
+
+Samples run in chunks of :data:`tumble.sampling.CHUNK`; a progress bar (tqdm, only on a terminal) advances
+per chunk, and Ctrl-C stops between chunks. What ran and what was skipped is returned in ``info``.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from typing import NamedTuple
+
+import numba
+import numpy as np
+from tqdm.auto import tqdm
+
+from . import exact
+from .bodies import one_body
+from .kernels.drivers import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK
+from .kernels.methods import METHODS, run
+from .kernels.steppers import TORQUE_CONSTANT, TORQUE_USER
+from .sampling import CHUNK
+
+__all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "STATUS_NAMES", "run_ensemble", "torque_spec"]
+
+# Torque-free samples whose energy or |L|^2 drift by more than this (relative) are flagged, not trusted.
+DEFAULT_DRIFT_LIMIT = 1e-2
+# Method for scenes with a torque when the caller says "auto": the fastest fourth-order kernel.
+AUTO_FORCED_METHOD = "rk4"
+
+_warmed = set()
+
+
+class EnsembleResult(NamedTuple):
+    """Arrays per sample (first axis) and what ran. An output that was not asked for is None."""
+
+    final: np.ndarray | None  # (N, 3), rad/s
+    times: np.ndarray | None  # (T,), s, of the trajectory
+    trajectory: np.ndarray | None  # (N, T, 3), rad/s
+    probe_times: np.ndarray | None  # (P,), s
+    probes: np.ndarray | None  # (N, P), transverse norm, rad/s (NaN after a sample stopped)
+    flips: np.ndarray | None  # (N, F), s (NaN where fewer flips happened)
+    flip_count: np.ndarray | None  # (N,)
+    drift: np.ndarray | None  # (N, 2): max |E/E0 - 1|, max ||L|²/|L0|² - 1|
+    status: np.ndarray  # (N,) int8, see STATUS_NAMES
+    steps_taken: np.ndarray  # (N,) steps each sample took (0 on the closed-form path)
+    info: dict
+
+
+def torque_spec(torque):
+    """``(kind, params, fn, description)`` of a torque argument; params and fn None when torque-free.
+
+    ``torque`` is None, three numbers (N m, body frame; all zero means none) or a function
+    ``f(t, w1, w2, w3) -> (N1, N2, N3)`` (numba-jitted, or jittable in nopython mode).
+    """
+    if torque is None:
+        return TORQUE_CONSTANT, None, None, "none"
+    if callable(torque):
+        fn = torque if isinstance(torque, numba.core.registry.CPUDispatcher) else numba.njit(torque)
+        return TORQUE_USER, None, fn, f"function {getattr(torque, '__name__', repr(torque))}(t, w1, w2, w3)"
+    try:
+        params = np.array(torque, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"torque must be 3 numbers (N m, body frame) or a function, got {torque!r}") from err
+    if params.shape != (3,):
+        raise ValueError(f"torque must have shape (3,) (N m, body frame), got shape {params.shape}")
+    if not np.all(np.isfinite(params)):
+        raise ValueError(f"torque must be finite, got {params.tolist()}")
+    if not params.any():
+        return TORQUE_CONSTANT, None, None, "none"
+    return TORQUE_CONSTANT, params, None, f"constant {params.tolist()} N m"
+
+
+def _choose_path(method, torque_free, axis_is_intermediate, max_flips):
+    """(method actually run, reason)."""
+    if method == "exact":
+        if not torque_free:
+            raise ValueError("method 'exact' is the torque-free closed form; it cannot take a torque")
+        return "exact", "closed form requested"
+    if method != "auto":
+        return method, "method requested"
+    if torque_free and (max_flips == 0 or axis_is_intermediate):
+        return "exact", "torque-free: closed form, no steps"
+    if torque_free:
+        return AUTO_FORCED_METHOD, "flips of a non-intermediate axis are located by stepping"
+    return AUTO_FORCED_METHOD, "a torque acts: fixed-step kernel"
+
+
+def _warm(method, torque_params, torque_fn, save_every, probe_steps, max_flips, drift):
+    """Compile (or load from the cache) the kernel variant a run needs; seconds it took (0 if done before)."""
+    key = (method, torque_params is None, torque_fn, save_every > 0, probe_steps is not None, max_flips > 0,
+           drift)
+    if key in _warmed:
+        return 0.0
+    started = time.perf_counter()
+    w = np.array([[0.0], [1.0], [0.0]])
+    run(METHODS[method], w, np.array([1.0, 2.0, 3.0]), 0.0, 1e-3, 1, save_every=1 if save_every > 0 else 0,
+        probe_steps=None if probe_steps is None else [1], max_flips=max_flips, drift=drift,
+        torque_params=None if torque_params is None else np.zeros(3), torque_fn=torque_fn)
+    _warmed.add(key)
+    return time.perf_counter() - started
+
+
+def _exact_flips(body, w0, axis, max_flips, t_end):
+    """Flip times of the intermediate-axis component from the closed form: first flip, then every 2K/nu."""
+    first = np.atleast_1d(exact.first_flip_time(body, w0))
+    spacing = np.atleast_1d(exact.flip_spacing(body, w0))
+    j = np.arange(max_flips)
+    with np.errstate(invalid="ignore"):
+        times = first[:, None] + j[None, :] * spacing[:, None]
+    times = np.where(times <= t_end, times, np.nan)
+    count = np.where(np.isfinite(first) & (first <= t_end),
+                     np.floor((t_end - np.where(np.isfinite(first), first, 0.0))
+                              / np.where(np.isfinite(spacing), spacing, np.inf)) + 1, 0).astype(np.int64)
+    return times, count
+
+
+def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, final=True, save_every=None,
+                 probe_times=None, max_flips=0, drift=False, stop_norm=0.0, stop_flips=0,
+                 drift_limit=DEFAULT_DRIFT_LIMIT, chunk=CHUNK, progress=None):
+    """Run an ensemble of spins and observe it on the fly.
+
+    Parameters
+    ----------
+    body : Body or array_like, shape (3,)
+    w0 : ndarray, shape (N, 3)
+        Initial body-frame angular velocities, rad/s (validated by the caller).
+    t_end, dt : float
+        Horizon and step, s; ``dt`` must divide ``t_end`` into whole steps (the caller rounds).
+    method : str
+        ``"auto"`` (closed form when torque-free, else a kernel), ``"exact"`` or a kernel method name.
+    torque : None, array_like (3,) or callable
+        See :func:`torque_spec`.
+    axis : int
+        1-based spin axis of the scene: the transverse norm and the flips refer to it.
+    final : bool
+        Return the final state.
+    save_every : int, optional
+        Store the initial state, every ``save_every``-th step and the final state.
+    probe_times : array_like, optional
+        Times (s) at which to record the transverse norm; rounded to the nearest step.
+    max_flips : int
+        Record the first ``max_flips`` sign changes of the ``axis`` component.
+    drift : bool
+        Record the running maximum relative error of the energy and ``|L|**2``.
+    stop_norm, stop_flips : float, int
+        Early stop once a sample's transverse norm reached ``stop_norm`` (rad/s) and it flipped ``stop_flips``
+        times; only honoured when neither the final state nor a trajectory is asked for.
+    drift_limit : float
+        Torque-free invariant drift that flags a sample as ``invariant drift``.
+    chunk : int
+        Samples per kernel call (progress and Ctrl-C granularity).
+    progress : bool, optional
+        Show a progress bar; default: only when standard error is a terminal.
+
+    Returns
+    -------
+    EnsembleResult
+    """
+    moments = one_body(body)
+    w0 = np.asarray(w0, dtype=float)
+    n = len(w0)
+    n_steps = int(round(t_end / dt)) if t_end > 0 else 0
+    a = int(axis) - 1
+    kind, params, fn, torque_text = torque_spec(torque)
+    torque_free = params is None and fn is None
+    axis_is_intermediate = a == int(np.argsort(moments, kind="stable")[1])
+    chosen, reason = _choose_path(method, torque_free, axis_is_intermediate, max_flips)
+    if chosen != "exact" and chosen not in METHODS:
+        raise ValueError(f"method must be 'auto', 'exact' or one of {', '.join(METHODS)}; got {method!r}")
+    save = int(save_every or 0)
+    times = None
+    if save:
+        steps = list(range(0, n_steps + 1, save))
+        if steps[-1] != n_steps:
+            steps.append(n_steps)
+        times = np.array(steps, dtype=float) * dt
+    probe_steps = None
+    if probe_times is not None:
+        probe_steps = np.clip(np.rint(np.asarray(probe_times, dtype=float) / dt), 0, n_steps).astype(np.int64)
+        probe_times = probe_steps * dt
+    early = (stop_norm > 0 or stop_flips > 0) and not final and not save
+    info = {"path": "closed form" if chosen == "exact" else "fixed-step kernel", "method": chosen,
+            "reason": reason, "dt": dt, "n_steps": n_steps, "torque": torque_text, "early_stop": early,
+            "samples": n}
+    show = sys.stderr.isatty() if progress is None else progress
+    bar = tqdm(total=n, unit="spins", disable=not show, desc=f"{chosen}")
+
+    if chosen == "exact":
+        with bar:
+            result = _run_exact(moments, w0, t_end, final, times, probe_times, a, max_flips, drift, bar, chunk)
+        info.update(sample_steps_computed=0, sample_steps_skipped=n * n_steps, jit_seconds=0.0)
+        return result._replace(info=info)
+
+    info["jit_seconds"] = _warm(chosen, params, fn, save, probe_steps, max_flips, drift)
+    final_w = np.empty((n, 3)) if final else None
+    trajectory = np.empty((n, len(times), 3)) if save else None
+    probes = np.empty((n, len(probe_steps))) if probe_steps is not None else None
+    flips = np.empty((n, max_flips)) if max_flips else None
+    flip_count = np.empty(n, dtype=np.int64) if max_flips else None
+    drifts = np.empty((n, 2)) if drift else None
+    status = np.empty(n, dtype=np.int8)
+    steps_taken = np.empty(n, dtype=np.int64)
+    computed = 0
+    started = time.perf_counter()
+    with bar:
+        for lo in range(0, n, chunk):
+            hi = min(lo + chunk, n)
+            state = np.array(w0[lo:hi].T, order="C")
+            observed = run(METHODS[chosen], state, moments, 0.0, dt, n_steps, save_every=save, axis=a,
+                           probe_steps=probe_steps, max_flips=max_flips, drift=drift,
+                           stop_norm=stop_norm if early else 0.0, stop_flips=stop_flips if early else 0,
+                           drift_limit=drift_limit if torque_free else 0.0, torque_kind=kind,
+                           torque_params=params, torque_fn=fn)
+            if final:
+                final_w[lo:hi] = state.T
+            if save:
+                trajectory[lo:hi] = observed.saved.transpose(2, 0, 1)
+            if probes is not None:
+                probes[lo:hi] = observed.probes.T
+            if flips is not None:
+                flips[lo:hi] = observed.flips
+                flip_count[lo:hi] = observed.flip_count
+            if drifts is not None:
+                drifts[lo:hi] = observed.drift.T
+            status[lo:hi] = observed.status
+            steps_taken[lo:hi] = observed.steps_taken
+            computed += _block_steps(observed.steps_taken)
+            bar.update(hi - lo)
+    info.update(run_seconds=time.perf_counter() - started, sample_steps_computed=int(computed),
+                sample_steps_skipped=int(n * n_steps - steps_taken.sum()))
+    return EnsembleResult(final_w, times, trajectory, probe_times, probes, flips, flip_count, drifts, status,
+                          steps_taken, info)
+
+
+def _block_steps(steps_taken, block=None):
+    """Sample-steps the kernel actually computed: every sample of a block steps until the block's last one
+    stops (the SIMD lanes of a block move together)."""
+    from .kernels.methods import BLOCK
+
+    block = block or BLOCK
+    total = 0
+    for lo in range(0, len(steps_taken), block):
+        part = steps_taken[lo:lo + block]
+        total += len(part) * int(part.max())
+    return total
+
+
+def _run_exact(moments, w0, t_end, final, times, probe_times, a, max_flips, drift, bar, chunk):
+    n = len(w0)
+    b, c = (a + 1) % 3, (a + 2) % 3
+    final_w = np.empty((n, 3)) if final else None
+    trajectory = np.empty((n, len(times), 3)) if times is not None else None
+    probes = np.empty((n, len(probe_times))) if probe_times is not None else None
+    flips = np.empty((n, max_flips)) if max_flips else None
+    flip_count = np.empty(n, dtype=np.int64) if max_flips else None
+    drifts = np.empty((n, 2)) if drift else None
+    for lo in range(0, n, chunk):
+        hi = min(lo + chunk, n)
+        w = w0[lo:hi]
+        if final or drift:
+            end = exact.omega(moments, w, np.array([t_end]))[:, 0]
+            if final:
+                final_w[lo:hi] = end
+            if drift:
+                e0, l0 = 0.5 * (moments * w**2).sum(1), ((moments * w) ** 2).sum(1)
+                e1, l1 = 0.5 * (moments * end**2).sum(1), ((moments * end) ** 2).sum(1)
+                drifts[lo:hi] = np.stack([np.abs(e1 / e0 - 1), np.abs(l1 / l0 - 1)], axis=1)
+        if trajectory is not None:
+            trajectory[lo:hi] = exact.omega(moments, w, times)
+        if probes is not None:
+            at = exact.omega(moments, w, probe_times)
+            probes[lo:hi] = np.hypot(at[..., b], at[..., c])
+        if flips is not None:
+            flips[lo:hi], flip_count[lo:hi] = _exact_flips(moments, w, a, max_flips, t_end)
+        bar.update(hi - lo)
+    status = np.full(n, STATUS_OK, dtype=np.int8)
+    if final_w is not None:
+        status[~np.all(np.isfinite(final_w), axis=1)] = STATUS_NONFINITE
+    return EnsembleResult(final_w, times, trajectory, probe_times, probes, flips, flip_count, drifts, status,
+                          np.zeros(n, dtype=np.int64), {})
