@@ -1,7 +1,8 @@
 """Ensemble-engine benchmarks: throughput per method against the naive per-sample loop, peak memory of a
 million-sample growth measurement, and a warm 4096-sample scene end to end.
 
-    python benchmarks/engine.py            # writes benchmarks/results/engine.md
+    python benchmarks/engine.py                    # all parts; writes benchmarks/results/engine.md
+    python benchmarks/engine.py memory warm_scene  # re-measure some parts, keep the others' last results
 
 Compile time is excluded from every timing (each kernel is run once first) and reported separately; each
 timing is the median of several runs; the naive loop is measured in the same run as the fast one.
@@ -101,14 +102,16 @@ from tumble.engine import run_ensemble
 from tumble.sampling import perturbed_spins
 n = int(sys.argv[1])
 w0 = perturbed_spins((1.0, 2.0, 3.0), 2, 1.0, 1e-6, n, seed=1)
-r = run_ensemble((1.0, 2.0, 3.0), w0, 40.0, 0.01, method="rk4", final=False,
+r = run_ensemble((1.0, 2.0, 3.0), w0, 40.0, 0.01, method="rk4", axis=2, final=False,
                  probe_times=np.geomspace(0.01, 40.0, 32), max_flips=2, progress=False)
 print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, r.info["sample_steps_computed"])
 """
 
 
 def peak_memory(samples=1_000_000):
-    """Peak resident memory (MiB) of a growth measurement (probes + flips, no trajectory), in a fresh process."""
+    """Peak resident memory (MiB) of a growth measurement (probes + flips, no trajectory), in a fresh process
+    whose kernel comes from the disk cache (a first, tiny run fills it: compiling takes memory of its own)."""
+    subprocess.run([sys.executable, "-c", _MEMORY_SCRIPT, "10"], capture_output=True, text=True, check=True)
     done = subprocess.run([sys.executable, "-c", _MEMORY_SCRIPT, str(samples)], capture_output=True, text=True,
                           check=True)
     peak, steps = done.stdout.split()
@@ -121,7 +124,7 @@ def warm_scene(samples=4096):
     for method in ("auto", "rk4"):
         def scene():
             w0 = perturbed_spins(MOMENTS, 2, 1.0, 1e-3, samples, seed=5)
-            return run_ensemble(MOMENTS, w0, 20.0, 0.01, method=method, final=False, max_flips=1,
+            return run_ensemble(MOMENTS, w0, 20.0, 0.01, method=method, axis=2, final=False, max_flips=1,
                                 probe_times=np.geomspace(0.01, 20.0, 32), progress=False)
 
         scene()
@@ -129,12 +132,18 @@ def warm_scene(samples=4096):
     return rows
 
 
-def main():
+PARTS = {"throughput": throughput, "memory": peak_memory, "warm_scene": warm_scene}
+
+
+def main(parts=None):
     RESULTS.mkdir(exist_ok=True)
     machine = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, numba {numba.__version__}"
-    report = dict(date=str(date.today()), machine=machine, threads=numba.get_num_threads(),
-                  throughput=throughput(), memory=peak_memory(), warm_scene=warm_scene())
-    (RESULTS / "engine.json").write_text(json.dumps(report, indent=1))
+    store = RESULTS / "engine.json"
+    report = json.loads(store.read_text()) if parts and store.exists() else {}
+    report.update(date=str(date.today()), machine=machine, threads=numba.get_num_threads())
+    for name in parts or PARTS:
+        report[name] = PARTS[name]()
+    store.write_text(json.dumps(report, indent=1))
     lines = [f"# Ensemble engine benchmark — {report['date']}", "",
              f"Machine: {machine}; numba threads: {report['threads']}. {SAMPLES} samples, I = (1, 2, 3); "
              f"medians of {REPEATS} runs, compile time excluded (reported separately).", "",
@@ -157,4 +166,4 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    main(sys.argv[1:])
