@@ -26,7 +26,7 @@ from tqdm.auto import tqdm
 from . import exact
 from .bodies import one_body
 from .kernels.drivers import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK
-from .kernels.methods import METHODS, run
+from .kernels.methods import BLOCK, METHODS, run
 from .kernels.steppers import TORQUE_CONSTANT, TORQUE_USER
 from .sampling import CHUNK
 
@@ -114,14 +114,11 @@ def _exact_flips(body, w0, axis, max_flips, t_end):
     """Flip times of the intermediate-axis component from the closed form: first flip, then every 2K/nu."""
     first = np.atleast_1d(exact.first_flip_time(body, w0))
     spacing = np.atleast_1d(exact.flip_spacing(body, w0))
-    j = np.arange(max_flips)
-    with np.errstate(invalid="ignore"):
-        times = first[:, None] + j[None, :] * spacing[:, None]
-    times = np.where(times <= t_end, times, np.nan)
-    count = np.where(np.isfinite(first) & (first <= t_end),
-                     np.floor((t_end - np.where(np.isfinite(first), first, 0.0))
-                              / np.where(np.isfinite(spacing), spacing, np.inf)) + 1, 0).astype(np.int64)
-    return times, count
+    later = np.arange(1, max_flips)[None, :] * spacing[:, None]  # inf where the spin never flips again
+    times = np.concatenate([first[:, None], first[:, None] + later], axis=1)
+    with np.errstate(invalid="ignore"):  # inf - inf where the spin never flips at all
+        count = np.where(first <= t_end, np.floor((t_end - first) / spacing) + 1, 0)
+    return np.where(times <= t_end, times, np.nan), count.astype(np.int64)
 
 
 def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, final=True, save_every=None,
@@ -184,6 +181,7 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         if steps[-1] != n_steps:
             steps.append(n_steps)
         times = np.array(steps, dtype=float) * dt
+        times[-1] = t_end  # exactly, not n_steps * dt rounded
     probe_steps = None
     if probe_times is not None:
         probe_steps = np.clip(np.rint(np.asarray(probe_times, dtype=float) / dt), 0, n_steps).astype(np.int64)
@@ -242,17 +240,10 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
                           steps_taken, info)
 
 
-def _block_steps(steps_taken, block=None):
+def _block_steps(steps_taken):
     """Sample-steps the kernel actually computed: every sample of a block steps until the block's last one
     stops (the SIMD lanes of a block move together)."""
-    from .kernels.methods import BLOCK
-
-    block = block or BLOCK
-    total = 0
-    for lo in range(0, len(steps_taken), block):
-        part = steps_taken[lo:lo + block]
-        total += len(part) * int(part.max())
-    return total
+    return sum(len(part) * int(part.max()) for part in np.split(steps_taken, range(BLOCK, len(steps_taken), BLOCK)))
 
 
 def _run_exact(moments, w0, t_end, final, times, probe_times, a, max_flips, drift, bar, chunk):
