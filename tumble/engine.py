@@ -122,7 +122,7 @@ def _exact_flips(body, w0, axis, max_flips, t_end):
 
 
 def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, final=True, save_every=None,
-                 probe_times=None, max_flips=0, drift=False, stop_norm=0.0, stop_flips=0,
+                 probe_times=None, norm_weights=None, max_flips=0, drift=False, stop_norm=0.0, stop_flips=0,
                  drift_limit=DEFAULT_DRIFT_LIMIT, chunk=CHUNK, progress=None):
     """Run an ensemble of spins and observe it on the fly.
 
@@ -145,6 +145,9 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         Store the initial state, every ``save_every``-th step and the final state.
     probe_times : array_like, optional
         Times (s) at which to record the transverse norm; rounded to the nearest step.
+    norm_weights : array_like (3,), optional
+        Weights ``g`` of the transverse norm ``sqrt(g_b w_b² + g_c w_c²)`` about ``axis`` (default: all 1, the
+        Euclidean norm; also the norm ``stop_norm`` refers to).
     max_flips : int
         Record the first ``max_flips`` sign changes of the ``axis`` component.
     drift : bool
@@ -182,6 +185,7 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
             steps.append(n_steps)
         times = np.array(steps, dtype=float) * dt
         times[-1] = t_end  # exactly, not n_steps * dt rounded
+    weights = np.ones(3) if norm_weights is None else np.asarray(norm_weights, dtype=float)
     probe_steps = None
     if probe_times is not None:
         probe_steps = np.clip(np.rint(np.asarray(probe_times, dtype=float) / dt), 0, n_steps).astype(np.int64)
@@ -195,7 +199,8 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
 
     if chosen == "exact":
         with bar:
-            result = _run_exact(moments, w0, t_end, final, times, probe_times, a, max_flips, drift, bar, chunk)
+            result = _run_exact(moments, w0, t_end, final, times, probe_times, a, weights, max_flips, drift, bar,
+                                chunk)
         info.update(sample_steps_computed=0, sample_steps_skipped=n * n_steps, jit_seconds=0.0)
         return result._replace(info=info)
 
@@ -215,7 +220,7 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
             hi = min(lo + chunk, n)
             state = np.array(w0[lo:hi].T, order="C")
             observed = run(METHODS[chosen], state, moments, 0.0, dt, n_steps, save_every=save, axis=a,
-                           probe_steps=probe_steps, max_flips=max_flips, drift=drift,
+                           norm_weights=weights, probe_steps=probe_steps, max_flips=max_flips, drift=drift,
                            stop_norm=stop_norm if early else 0.0, stop_flips=stop_flips if early else 0,
                            drift_limit=drift_limit if torque_free else 0.0, torque_kind=kind,
                            torque_params=params, torque_fn=fn)
@@ -246,7 +251,7 @@ def _block_steps(steps_taken):
     return sum(len(part) * int(part.max()) for part in np.split(steps_taken, range(BLOCK, len(steps_taken), BLOCK)))
 
 
-def _run_exact(moments, w0, t_end, final, times, probe_times, a, max_flips, drift, bar, chunk):
+def _run_exact(moments, w0, t_end, final, times, probe_times, a, weights, max_flips, drift, bar, chunk):
     n = len(w0)
     b, c = (a + 1) % 3, (a + 2) % 3
     final_w = np.empty((n, 3)) if final else None
@@ -270,7 +275,7 @@ def _run_exact(moments, w0, t_end, final, times, probe_times, a, max_flips, drif
             trajectory[lo:hi] = exact.omega(moments, w, times)
         if probes is not None:
             at = exact.omega(moments, w, probe_times)
-            probes[lo:hi] = np.hypot(at[..., b], at[..., c])
+            probes[lo:hi] = np.sqrt(weights[b] * at[..., b] ** 2 + weights[c] * at[..., c] ** 2)
         if flips is not None:
             flips[lo:hi], flip_count[lo:hi] = _exact_flips(moments, w, a, max_flips, t_end)
         bar.update(hi - lo)

@@ -123,12 +123,13 @@ def _check_finite(ys, active, k, frozen, status, last):
 
 
 @jit
-def _observe_norm(ys, active, axis, probes, lo, row, stop_norm, reached):
-    """Transverse norm about ``axis`` into ``probes[row]`` (NaN for stopped samples); marks samples whose norm
-    reached ``stop_norm``."""
+def _observe_norm(ys, active, axis, weights, probes, lo, row, stop_norm, reached):
+    """Weighted transverse norm ``sqrt(g_b w_b² + g_c w_c²)`` about ``axis`` into ``probes[row]`` (NaN for
+    stopped samples); marks samples whose norm reached ``stop_norm``."""
     b, c = (axis + 1) % 3, (axis + 2) % 3
+    gb, gc = weights[b], weights[c]
     for i in range(ys.shape[1]):
-        norm = math.hypot(ys[b, i], ys[c, i])
+        norm = math.sqrt(gb * ys[b, i] * ys[b, i] + gc * ys[c, i] * ys[c, i])
         if probes is not None:
             probes[row, lo + i] = norm if active[i] else np.nan
         if active[i] and stop_norm > 0.0 and norm >= stop_norm:
@@ -159,7 +160,7 @@ def make_propagate(method):
     @jit(parallel=True)
     def propagate(w, body, t0, h, n_steps, block,
                   save_every, saved,
-                  axis, probe_steps, probes,
+                  axis, norm_weights, probe_steps, probes,
                   flips, flip_count,
                   drift,
                   status, steps_taken,
@@ -181,9 +182,11 @@ def make_propagate(method):
             With ``saved`` (shape ``(n_saved, 3, N)``): store the initial state, every ``save_every``-th state and
             the final one. ``saved=None`` stores nothing.
         axis : int
-            0-based spin axis; the transverse norm is ``hypot`` of the other two components.
+            0-based spin axis.
+        norm_weights : ndarray (3,)
+            Weights ``g`` of the transverse norm ``sqrt(g_b w_b² + g_c w_c²)`` of the two other components.
         probe_steps, probes : ndarray (P,) int64 increasing, ndarray (P, N) or None
-            Transverse norm (rad/s) after each step listed in ``probe_steps`` (0 = the initial state); NaN once a
+            Weighted transverse norm (rad/s) after each step listed in ``probe_steps`` (0 = the initial state); NaN once a
             sample has stopped.
         flips, flip_count : ndarray (N, F) or None, ndarray (N,) int64
             Times (s) of the first ``F`` sign changes of the ``axis`` component, located inside the step by cubic
@@ -232,7 +235,7 @@ def make_propagate(method):
                 slot = 1
             probe = 0
             while probe < n_probes and probe_steps[probe] == 0:
-                _observe_norm(ys, active, axis, probes, lo, probe, stop_norm, reached)
+                _observe_norm(ys, active, axis, norm_weights, probes, lo, probe, stop_norm, reached)
                 probe += 1
             ran = 0
             for k in range(n_steps):
@@ -270,7 +273,7 @@ def make_propagate(method):
                     saved[slot, :, lo:hi] = ys
                     slot += 1
                 while probe < n_probes and probe_steps[probe] == ran:
-                    _observe_norm(ys, active, axis, probes, lo, probe, stop_norm, reached)
+                    _observe_norm(ys, active, axis, norm_weights, probes, lo, probe, stop_norm, reached)
                     probe += 1
                 if early_stop:
                     remaining = _stop_complete(ys, active, reached, stop_norm, stop_flips, flip_count, lo, ran,

@@ -63,7 +63,8 @@ def _relabelling(method, moments, torque_params, torque_fn):
     return perm, sign
 
 
-def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, probe_steps=None, max_flips=0,
+def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weights=None, probe_steps=None,
+        max_flips=0,
         drift=False, stop_norm=0.0, stop_flips=0, drift_limit=0.0, torque_kind=TORQUE_CONSTANT,
         torque_params=None, torque_fn=None, block=BLOCK):
     """Integrate an ensemble with a named fixed-step method, observing only what is asked.
@@ -82,6 +83,8 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, probe_steps
         0 stores no trajectory; k > 0 stores the initial state, every k-th step and the final state.
     axis : int
         0-based spin axis for the transverse norm and the flips.
+    norm_weights : array_like (3,), optional
+        Weights ``g`` of the transverse norm ``sqrt(g_b w_b² + g_c w_c²)`` (default all 1: the Euclidean norm).
     probe_steps : array_like of int, optional
         Steps after which to record the transverse norm (0 = initial state), increasing.
     max_flips : int
@@ -103,11 +106,13 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, probe_steps
     moments = np.asarray(moments, dtype=float)
     relabel = _relabelling(method, moments, torque_params, torque_fn)
     kernel_w, kernel_axis = w, axis
+    weights = np.ones(3) if norm_weights is None else np.asarray(norm_weights, dtype=float)
     if relabel is not None:
         perm, sign = relabel
         kernel_w = np.ascontiguousarray(sign * w[perm])
         moments = moments[perm]
         kernel_axis = int(np.argsort(perm)[axis])
+        weights = weights[perm]
         if torque_params is not None:
             torque_params = sign * np.asarray(torque_params, dtype=float)[perm]
     if torque_fn is not None and torque_params is None:
@@ -126,8 +131,8 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, probe_steps
     steps_taken = np.zeros(n, dtype=np.int64)
     PROPAGATE[method.kernel_id](kernel_w, body_constants(moments), float(t0), float(h), int(n_steps),
                                 int(block),
-              int(save_every), saved, int(kernel_axis), probe_steps, probes, flips, flip_count, drifts,
-              status, steps_taken, float(stop_norm), int(stop_flips), float(drift_limit), int(torque_kind),
+              int(save_every), saved, int(kernel_axis), np.ascontiguousarray(weights), probe_steps, probes, flips,
+              flip_count, drifts, status, steps_taken, float(stop_norm), int(stop_flips), float(drift_limit), int(torque_kind),
               torque_params, torque_fn)
     if relabel is not None:
         inverse = np.argsort(perm)
