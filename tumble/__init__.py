@@ -7,14 +7,16 @@ spins with numba kernels and compares them with linear theory and the exact Jaco
 
 from importlib.metadata import PackageNotFoundError, version
 
-from . import exact, sampling, shapes, theory
-from .bodies import Body
-from .engine import run_ensemble
-from .integration import integrate
-
 try:
     __version__ = version("tumble")
 except PackageNotFoundError:  # running from a source tree that was not installed
     __version__ = "0+unknown"
 
-__all__ = ["Body", "exact", "integrate", "run_ensemble", "sampling", "shapes", "theory", "__version__"]
+from . import analysis, exact, io, sampling, shapes, theory  # noqa: E402  (modules read __version__)
+from .bodies import Body  # noqa: E402
+from .engine import run_ensemble  # noqa: E402
+from .integration import integrate  # noqa: E402
+from .study import flip_time_law, inertia_triangle, measure, regress_scan, scan  # noqa: E402
+
+__all__ = ["Body", "analysis", "exact", "flip_time_law", "inertia_triangle", "integrate", "io", "measure",
+           "regress_scan", "run_ensemble", "sampling", "scan", "shapes", "theory", "__version__"]

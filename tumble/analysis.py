@@ -1,0 +1,344 @@
+"""Estimators: growth rates, oscillation frequencies, flip statistics, scene summaries and scan regressions.
+
+Plain numpy in, plain numpy out (no xarray here; :mod:`tumble.study` builds the datasets).
+
+The coordinates every estimator works in come from an exact invariant. For a torque-free spin about
+principal axis ``a``, ``2 T I_a - |L|² = Σ_i I_i (I_a - I_i) w_i²`` is conserved, and its ``i = a`` term
+vanishes: with ``k_i = I_i (I_a - I_i)`` the transverse components ``(w_b, w_c)`` stay on the conic
+``k_b w_b² + k_c w_c² = const`` — an ellipse when ``k_b k_c > 0`` (``a`` the largest or smallest axis) and a
+hyperbola when ``k_b k_c < 0`` (``a`` the intermediate axis). In the scaled coordinates
+``(x, y) = (sqrt(g_b) w_b, sqrt(g_c) w_c)``, ``g_b = sqrt|k_b / k_c|``, ``g_c = sqrt|k_c / k_b|`` (so
+``g_b g_c = 1`` and norms keep the units of ``w``), the linearised motion (Landau & Lifshitz, Mechanics §37)
+is a uniform rotation at ``ω = W sqrt(q)`` or a uniform hyperbolic rotation at ``λ = W sqrt(-q)``:
+
+* periodic: ``x + i y ∝ exp(± i ω t)`` — the phase ``atan2(y, x)`` advances uniformly whatever the
+  ellipticity of the plain components, and by exactly ``2π`` per period of the exact motion;
+* exponential: ``x ± y ∝ exp(± λ t)``, so ``x² + y² = 2 (A² e^{2λt} + B² e^{-2λt})`` with no cross term:
+  the log-slope of the scaled norm differs from ``λ`` by ``2 λ (B/A)² e^{-4λt}``, where the plain norm's
+  differs by a term in ``e^{-2λt}``.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+__all__ = [
+    "FIT_NAMES",
+    "FIT_OK",
+    "FIT_SHORT_WINDOW",
+    "FIT_NO_SIGNAL",
+    "FIT_UNDERSAMPLED",
+    "Regression",
+    "Summary",
+    "flip_statistics",
+    "growth_rates",
+    "invariant_weights",
+    "oscillation_frequencies",
+    "regression",
+    "summarize",
+]
+
+#: Per-sample outcome of a fit (the engine's statuses, non-finite and drift, come before these).
+FIT_OK = 0
+FIT_SHORT_WINDOW = 1  # fewer than MIN_POINTS or less than MIN_EFOLDS e-folds between floor and saturation
+FIT_NO_SIGNAL = 2  # the transverse perturbation is at round-off level: its phase means nothing
+FIT_UNDERSAMPLED = 3  # the phase moved by more than MAX_PHASE_STEP between two samples: unwrapping is unsafe
+FIT_NAMES = ("ok", "fit window too short", "no signal", "undersampled")
+
+#: Fewest points in a growth fit window, and fewest e-folds it must span.
+MIN_POINTS = 8
+MIN_EFOLDS = 1.0
+#: Largest phase change between two stored times that still unwraps safely, rad.
+MAX_PHASE_STEP = 0.5 * np.pi
+#: A transverse radius below this fraction of |w| is round-off, not signal.
+NO_SIGNAL = 1e-11
+
+
+def invariant_weights(moments, axis):
+    """Weights ``g`` of the scaled transverse norm ``sqrt(g_b w_b² + g_c w_c²)`` about ``axis``.
+
+    ``g_b = sqrt|k_b / k_c|``, ``g_c = sqrt|k_c / k_b|``, ``k_i = I_i (I_a - I_i)`` (see the module
+    docstring); ``g_a = 0``. Where ``k_b`` or ``k_c`` vanishes (a symmetric top spun about an axis of its
+    degenerate pair, a sphere) the conic degenerates and the weights are 1.
+
+    Parameters
+    ----------
+    moments : array_like, shape (3,)
+        Principal moments, kg m².
+    axis : {1, 2, 3}
+        Spin axis, 1-based.
+
+    Returns
+    -------
+    ndarray, shape (3,)
+    """
+    moments = np.asarray(moments, dtype=float)
+    a = int(axis) - 1
+    b, c = (a + 1) % 3, (a + 2) % 3
+    k = moments * (moments[a] - moments)
+    weights = np.ones(3)
+    weights[a] = 0.0
+    scale = np.abs(moments).max() ** 2
+    if min(abs(k[b]), abs(k[c])) > 1e-12 * scale:
+        ratio = np.sqrt(abs(k[b] / k[c]))
+        weights[b], weights[c] = ratio, 1.0 / ratio
+    return weights
+
+
+def _masked_slope(times, values, mask):
+    """Least-squares slope of ``values`` against ``times`` over ``mask``, row by row (NaN rows: < 2 points)."""
+    t = np.where(mask, times, 0.0)
+    y = np.where(mask, values, 0.0)
+    count = mask.sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t_mean = t.sum(axis=1) / count
+        y_mean = y.sum(axis=1) / count
+        dt = np.where(mask, times - t_mean[:, None], 0.0)
+        dy = np.where(mask, values - y_mean[:, None], 0.0)
+        slope = (dt * dy).sum(axis=1) / (dt * dt).sum(axis=1)
+    return np.where(count >= 2, slope, np.nan)
+
+
+class GrowthFit(NamedTuple):
+    """Per-sample exponential fits (arrays of shape (N,))."""
+
+    rate: np.ndarray  # 1/s, NaN where code != FIT_OK
+    t_start: np.ndarray  # s, first time inside the window
+    t_stop: np.ndarray  # s, last time inside the window
+    norm_start: np.ndarray  # rad/s, norm at t_start
+    norm_stop: np.ndarray  # rad/s, norm at t_stop
+    points: np.ndarray  # points in the window
+    code: np.ndarray  # int8, FIT_OK or FIT_SHORT_WINDOW
+
+
+def growth_rates(times, norms, saturation, *, floor=5.0):
+    """Exponential growth rate of each sample's transverse norm, fitted inside its linear regime.
+
+    The window is chosen per sample, automatically:
+
+    * it opens at the first time the norm exceeds ``floor`` times its running minimum: by then the growing
+      mode dominates the decaying one (in the scaled norm their ratio is below ``1/(4 floor⁴)``, so the
+      log-slope is within ``0.1 %`` of the rate for ``floor = 5``; a sample started near the stable
+      direction first shrinks, and its window opens later);
+    * it closes at the last time before the norm first exceeds ``saturation``, the end of the linear
+      regime (the nonlinear correction to the log-slope is of order ``(norm/|w|)²``).
+
+    The rate is the least-squares slope of ``ln(norm)`` against time over the window. A window with fewer than
+    :data:`MIN_POINTS` points or spanning less than :data:`MIN_EFOLDS` e-folds gives NaN and
+    ``FIT_SHORT_WINDOW``.
+
+    Parameters
+    ----------
+    times : ndarray, shape (P,)
+        Increasing probe times, s.
+    norms : ndarray, shape (N, P)
+        Transverse norm (preferably the scaled one, :func:`invariant_weights`), rad/s; NaN where a sample had
+        stopped or was not valid.
+    saturation : float or ndarray (N,)
+        End of the linear regime, rad/s.
+    floor : float
+        Window opening, in multiples of the running minimum.
+
+    Returns
+    -------
+    GrowthFit
+    """
+    times = np.asarray(times, dtype=float)
+    norms = np.asarray(norms, dtype=float)
+    n, p = norms.shape
+    saturation = np.broadcast_to(np.asarray(saturation, dtype=float), (n,))
+    finite = np.isfinite(norms) & (norms > 0)
+    safe = np.where(finite, norms, np.inf)
+    running_min = np.minimum.accumulate(safe, axis=1)
+    above = finite & (norms >= floor * running_min)
+    saturated = ~finite | (norms > saturation[:, None])  # a stopped (NaN) sample is past its window too
+    first_saturated = np.where(saturated.any(axis=1), saturated.argmax(axis=1), p)
+    index = np.arange(p)
+    opened = above.any(axis=1)
+    start = np.where(opened, above.argmax(axis=1), p)
+    window = (index >= start[:, None]) & (index < first_saturated[:, None]) & finite
+    points = window.sum(axis=1)
+    logs = np.log(np.where(finite, norms, 1.0))
+    rate = _masked_slope(times, logs, window)
+    stop = np.clip(first_saturated - 1, 0, p - 1)
+    start_c = np.clip(start, 0, p - 1)
+    rows = np.arange(n)
+    norm_start, norm_stop = norms[rows, start_c], norms[rows, stop]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        efolds = np.log(norm_stop / norm_start)
+    good = (points >= MIN_POINTS) & (efolds >= MIN_EFOLDS) & np.isfinite(rate)
+    nan = np.full(n, np.nan)
+    return GrowthFit(np.where(good, rate, nan), np.where(good, times[start_c], nan), np.where(good, times[stop], nan),
+                     np.where(good, norm_start, nan), np.where(good, norm_stop, nan), np.where(good, points, 0),
+                     np.where(good, FIT_OK, FIT_SHORT_WINDOW).astype(np.int8))
+
+
+class PhaseFit(NamedTuple):
+    """Per-sample oscillation fits (arrays of shape (N,))."""
+
+    frequency: np.ndarray  # rad/s, >= 0, NaN where code != FIT_OK
+    radius: np.ndarray  # rad/s, median scaled transverse radius (the signal)
+    code: np.ndarray  # int8
+
+
+def oscillation_frequencies(times, transverse, weights, spin):
+    """Angular frequency of each sample's transverse oscillation, from the phase of its scaled components.
+
+    The phase ``θ = atan2(sqrt(g_c) w_c, sqrt(g_b) w_b)`` advances uniformly in linear theory and by exactly
+    ``2π`` per period of the exact motion, whatever the ellipticity of the plain components (module
+    docstring). It is unwrapped along time and the frequency is ``|slope|`` of its least-squares line.
+
+    Samples whose scaled radius ever falls below ``NO_SIGNAL · |spin|`` give ``FIT_NO_SIGNAL`` (the phase of
+    round-off is noise), those whose phase jumps by more than :data:`MAX_PHASE_STEP` between two stored times
+    ``FIT_UNDERSAMPLED``; both get NaN and are left out of scene statistics.
+
+    Parameters
+    ----------
+    times : ndarray, shape (T,)
+        Increasing times, s.
+    transverse : ndarray, shape (N, T, 2)
+        ``(w_b, w_c)`` of each sample at each time, rad/s.
+    weights : ndarray, shape (2,)
+        ``(g_b, g_c)`` from :func:`invariant_weights`.
+    spin : float
+        The unperturbed spin, rad/s (scale for the no-signal threshold).
+
+    Returns
+    -------
+    PhaseFit
+    """
+    times = np.asarray(times, dtype=float)
+    x = np.sqrt(weights[0]) * transverse[..., 0]
+    y = np.sqrt(weights[1]) * transverse[..., 1]
+    radius = np.hypot(x, y)
+    phase = np.unwrap(np.arctan2(y, x), axis=1)
+    finite = np.all(np.isfinite(phase), axis=1)
+    signal = np.min(np.where(np.isfinite(radius), radius, 0.0), axis=1) > NO_SIGNAL * abs(spin)
+    with np.errstate(invalid="ignore"):
+        steps_ok = np.all(np.abs(np.diff(phase, axis=1)) <= MAX_PHASE_STEP, axis=1)
+    everywhere = np.ones_like(phase, dtype=bool)
+    frequency = np.abs(_masked_slope(times, np.where(np.isfinite(phase), phase, 0.0), everywhere))
+    code = np.where(~signal | ~finite, FIT_NO_SIGNAL, np.where(steps_ok, FIT_OK, FIT_UNDERSAMPLED)).astype(np.int8)
+    return PhaseFit(np.where(code == FIT_OK, frequency, np.nan), np.median(radius, axis=1), code)
+
+
+class FlipStats(NamedTuple):
+    """Per-sample flip timing (arrays of shape (N,))."""
+
+    first: np.ndarray  # s, time of the first flip (NaN: none within the horizon)
+    spacing: np.ndarray  # s, mean time between the recorded flips (NaN: fewer than two)
+
+
+def flip_statistics(flips):
+    """First flip time and mean spacing between successive flips of each sample.
+
+    Parameters
+    ----------
+    flips : ndarray, shape (N, F)
+        Flip times, s, NaN where fewer flips happened (the engine's ``flips``).
+
+    Returns
+    -------
+    FlipStats
+    """
+    flips = np.asarray(flips, dtype=float)
+    count = np.isfinite(flips).sum(axis=1)
+    last = flips[np.arange(len(flips)), np.clip(count - 1, 0, None)]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        spacing = np.where(count >= 2, (last - flips[:, 0]) / (count - 1), np.nan)
+    return FlipStats(flips[:, 0].copy() if flips.shape[1] else np.full(len(flips), np.nan), spacing)
+
+
+class Summary(NamedTuple):
+    """A scene statistic over its valid samples."""
+
+    median: float
+    spread: float  # half the interquartile range
+    ci_low: float  # bootstrap confidence interval of the median
+    ci_high: float
+    used: int  # samples that entered
+    excluded: int  # samples left out (bad status or failed fit)
+
+
+def summarize(values, *, confidence=0.95, resamples=1000, seed=0):
+    """Median, spread and a bootstrap confidence interval of the median over the finite ``values``.
+
+    NaN entries (bad samples, failed fits) are excluded and counted. The interval is the percentile bootstrap
+    (Efron & Tibshirani 1993, ch. 13) over ``resamples`` resamples drawn from ``numpy.random.default_rng(seed)``
+    — deterministic. With no valid value every statistic is NaN and ``used`` is 0, which the caller reports.
+
+    Parameters
+    ----------
+    values : array_like, shape (N,)
+    confidence : float
+        In (0, 1).
+    resamples : int
+        Bootstrap resamples (0: no interval, NaN bounds).
+    seed : int
+        Seed of the resampling.
+
+    Returns
+    -------
+    Summary
+    """
+    values = np.asarray(values, dtype=float).ravel()
+    good = values[np.isfinite(values)]
+    used, excluded = len(good), len(values) - len(good)
+    if used == 0:
+        return Summary(np.nan, np.nan, np.nan, np.nan, 0, excluded)
+    median = float(np.median(good))
+    q1, q3 = np.percentile(good, [25.0, 75.0])
+    low = high = np.nan
+    if resamples > 0:
+        rng = np.random.default_rng(seed)
+        batch = max(1, min(resamples, 10_000_000 // used))  # bounded memory: batch x used indices at once
+        medians = np.concatenate([np.median(good[rng.integers(0, used, size=(min(batch, resamples - done), used))],
+                                            axis=1) for done in range(0, resamples, batch)])
+        low, high = np.percentile(medians, [50.0 * (1 - confidence), 50.0 * (1 + confidence)])
+    return Summary(median, float(0.5 * (q3 - q1)), float(low), float(high), used, excluded)
+
+
+class Regression(NamedTuple):
+    """Least-squares line ``y = slope x + intercept`` over a scan, and its worst point."""
+
+    slope: float
+    intercept: float
+    r2: float
+    worst: int  # flat index of the point with the largest relative error |y - x| / |x|
+    worst_error: float
+    points: int
+
+
+def regression(x, y):
+    """Regress measured ``y`` on ``x`` (theory, or ``ln(1/ε)`` for the flip-time law) over a scan.
+
+    Points where either value is not finite are left out. ``worst`` is the point with the largest relative
+    deviation ``|y - x| / |x|`` (meaningful when ``x`` is the theory for ``y``).
+
+    Parameters
+    ----------
+    x, y : array_like, same shape
+
+    Returns
+    -------
+    Regression
+        NaN fields (and ``worst = -1``) when fewer than two points are usable.
+    """
+    x = np.asarray(x, dtype=float).ravel()
+    y = np.asarray(y, dtype=float).ravel()
+    if x.shape != y.shape:
+        raise ValueError(f"x and y must have the same size, got {x.size} and {y.size}")
+    use = np.isfinite(x) & np.isfinite(y)
+    if use.sum() < 2 or np.ptp(x[use]) == 0:
+        return Regression(np.nan, np.nan, np.nan, -1, np.nan, int(use.sum()))
+    slope, intercept = np.polyfit(x[use], y[use], 1)
+    residual = y[use] - (slope * x[use] + intercept)
+    total = np.sum((y[use] - y[use].mean()) ** 2)
+    r2 = 1.0 - np.sum(residual**2) / total if total > 0 else 1.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        relative = np.where(use, np.abs(y - x) / np.abs(x), -np.inf)
+    relative = np.where(np.isnan(relative), np.inf, relative)
+    worst = int(np.argmax(relative))
+    return Regression(float(slope), float(intercept), float(r2), worst, float(relative[worst]), int(use.sum()))

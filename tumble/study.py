@@ -1,0 +1,568 @@
+"""Scenes and scans: measure growth rates and frequencies against theory, as xarray Datasets.
+
+:func:`measure` runs one *scene* — an ensemble of spins about one principal axis of one body, perturbed by a
+small tilt — and measures, per sample and for the scene, how fast the perturbation oscillates or grows,
+next to linear theory. :func:`scan` runs the product of scene parameters and stacks the scenes along scan
+dimensions; :func:`regress_scan` and :func:`flip_time_law` regress a scan.
+
+Planning a scene (what is computed and why):
+
+* the kind comes from linear theory (:func:`tumble.theory.linear`): ``periodic`` (largest or smallest
+  axis), ``exponential`` (intermediate axis) or ``neutral`` (degenerate moments: symmetric top about an
+  axis of its equal pair, sphere);
+* ``method="auto"``: torque-free scenes take the closed form (:mod:`tumble.exact`) — no steps; a named
+  method steps with ``dt`` chosen from its order (:data:`STEPS_PER_RADIAN`) unless given;
+* periodic and neutral scenes store the transverse components at :data:`SAVES_PER_PERIOD` times per period
+  over :data:`PERIODS` periods and fit the phase (:func:`tumble.analysis.oscillation_frequencies`);
+* exponential scenes record only the scaled transverse norm at :data:`PROBES` times (no trajectory), fit its
+  log-slope inside the linear regime (:func:`tumble.analysis.growth_rates`), and locate the first
+  ``flips`` sign changes of the spin-axis component; on a stepping path each sample stops once its norm has
+  saturated and it has flipped ``flips`` times;
+* samples run in slices of :data:`SLICE` (memory stays O(samples), whatever the ensemble size).
+
+What the scene skipped is on the dataset (``path``, ``sample_steps_computed``, ``sample_steps_skipped``).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import warnings
+
+import numpy as np
+import xarray as xr
+
+from . import __version__, analysis, exact, theory
+from .bodies import Body, one_body
+from .engine import run_ensemble
+from .kernels.drivers import STATUS_NAMES, STATUS_OK
+from .kernels.methods import METHODS
+from .sampling import CHUNK, perturbed_spins, seed_entropy
+
+__all__ = ["SAMPLE_STATUS_NAMES", "flip_time_law", "inertia_triangle", "measure", "regress_scan", "scan"]
+
+#: Per-sample status in a measurement: the engine's (ok, non-finite, invariant drift), then the fit's.
+SAMPLE_STATUS_NAMES = STATUS_NAMES + analysis.FIT_NAMES[1:]
+_FIT_OFFSET = len(STATUS_NAMES) - 1
+
+#: Fixed steps per radian of the scene's fastest phase (1/rate, 1/ω or 1/|spin|), by order of the method:
+#: enough that the method's own error stays far below the accuracy targets (0.1 % periodic, 0.5 %
+#: exponential). Pass ``dt`` to choose otherwise.
+STEPS_PER_RADIAN = {1: 5000, 2: 200, 4: 40, 8: 12}
+
+#: Periods observed in a periodic or neutral scene, and stored times per period (phase unwrapping needs
+#: well over 2; 32 keeps every phase step below π/16).
+PERIODS = 8
+SAVES_PER_PERIOD = 32
+
+#: Probe times of the transverse norm in an exponential scene (evenly spaced up to saturation).
+PROBES = 256
+
+#: End of the linear regime: the plain transverse norm reaches ``SATURATION · |spin|`` — or, for larger
+#: tilts, ``SATURATION_TILTS`` times the initial norm (so the window, opened at 5 times the running minimum,
+#: spans at least ln 6 e-folds; the error then grows as the nonlinear correction, O(amplitude²)).
+SATURATION = 0.03
+SATURATION_TILTS = 30.0
+
+#: Samples per engine call (bounds the memory of stored components and probes).
+SLICE = 8 * CHUNK
+
+#: Bootstrap resamples of a scene's confidence interval, and its level.
+BOOTSTRAP = 1000
+CONFIDENCE = 0.95
+
+_KIND_UNITS = {"periodic": "rad/s", "exponential": "1/s", "neutral": "rad/s"}
+
+
+def _check_method(method):
+    names = ("auto", "exact", *METHODS)
+    if not isinstance(method, str) or method not in names:
+        raise ValueError(f"method must be one of {', '.join(names)}; got {method!r}")
+    return method
+
+
+def _positive_int(value, name):
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < 0:
+        raise ValueError(f"{name} must be a non-negative integer, got {value!r}")
+    return int(value)
+
+
+def _neutral_plane(moments, a):
+    """The plane whose phase a neutral scene measures: ``(a, d)`` with ``I_d = I_a`` (the degenerate pair,
+    which precesses slowly about the distinct axis), or the transverse pair for a sphere."""
+    b, c = (a + 1) % 3, (a + 2) % 3
+    scale = moments.max()
+    equal_b = abs(moments[b] - moments[a]) <= 1e-12 * scale
+    equal_c = abs(moments[c] - moments[a]) <= 1e-12 * scale
+    if equal_b and equal_c:
+        return (b, c), 0.0
+    d, e = (b, c) if equal_b else (c, b)
+    return (a, d), abs(moments[e] - moments[a]) / moments[a]
+
+
+def _plan(moments, a, kind, value, spin, amplitude, method, dt, flips, w0_probe):
+    """Horizon, step and the observation times of a scene."""
+    w = abs(spin)
+    if kind == "exponential":
+        timescale = 1.0 / value
+    elif kind == "periodic":
+        timescale = 1.0 / value
+    else:
+        timescale = 1.0 / w
+    order = 0 if method == "exact" else METHODS[method].order
+    if dt is None:
+        dt = np.inf if method == "exact" else min(timescale, 1.0 / w) / STEPS_PER_RADIAN[order]
+    plan = {}
+    if kind == "exponential":
+        weights = analysis.invariant_weights(moments, a + 1)
+        b, c = (a + 1) % 3, (a + 2) % 3
+        # The largest initial scaled norm of a tilt ``amplitude``, and the end of the linear regime: the plain
+        # norm at SATURATION |spin| (sqrt(min g) converts), or SATURATION_TILTS initial norms for large tilts.
+        r0 = max(math.sin(min(amplitude, 0.5 * np.pi)) * w * math.sqrt(max(weights[b], weights[c])), 1e-300)
+        saturation = max(SATURATION * w * math.sqrt(min(weights[b], weights[c])), SATURATION_TILTS * r0)
+        t_growth = (math.log(max(saturation / r0, math.e)) + 3.0) / value
+        t_end = t_growth
+        if flips:
+            first = exact.first_flip_time(moments, w0_probe)
+            spacing = exact.flip_spacing(moments, w0_probe)
+            last = first + (flips - 1) * spacing
+            last = last[np.isfinite(last)]
+            if len(last):
+                t_end = max(t_end, 1.1 * float(np.quantile(last, 0.9)))
+        plan.update(weights=weights, saturation=saturation, probe_times=np.linspace(0.0, t_growth, PROBES + 1))
+    else:
+        if kind == "periodic":
+            period = 2 * np.pi / value
+        else:
+            plane, ratio = _neutral_plane(moments, a)
+            precession = w * math.sin(min(amplitude, 0.5 * np.pi)) * ratio
+            period = 2 * np.pi / precession if precession > 0 else 2 * np.pi / w
+            plan.update(plane=plane)
+        t_end = PERIODS * period
+        plan.update(period=period)
+    if method == "exact":
+        n_steps = max(1, math.ceil(t_end / period * SAVES_PER_PERIOD)) if kind != "exponential" else PROBES
+        dt = t_end / n_steps
+    else:
+        n_steps = max(1, math.ceil(t_end / dt))
+        dt = t_end / n_steps
+    if kind != "exponential":
+        plan["save_every"] = max(1, int(round(plan["period"] / SAVES_PER_PERIOD / dt)))
+    plan.update(t_end=t_end, dt=dt, n_steps=n_steps)
+    return plan
+
+
+def _validate_scene(body, axis, spin, amplitude, samples, method, flips):
+    moments = one_body(body)
+    if isinstance(axis, (bool, np.bool_)) or axis not in (1, 2, 3):
+        raise ValueError(f"axis must be 1, 2 or 3 (a principal axis, 1-based), got {axis!r}")
+    _check_method(method)
+    flips = _positive_int(flips, "flips")
+    perturbed_spins(moments, axis, spin, amplitude, 1, seed=0)  # validates spin and amplitude
+    if isinstance(samples, (bool, np.bool_)) or not isinstance(samples, (int, np.integer)) or samples < 1:
+        raise ValueError(f"samples must be an integer >= 1, got {samples!r}")
+    return moments, int(axis), float(spin), float(amplitude), int(samples), flips
+
+
+def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="auto", *, dt=None, flips=3,
+            distribution="cone", progress=None):
+    """Measure one scene: how fast perturbations of a steady spin oscillate or grow, against linear theory.
+
+    Parameters
+    ----------
+    body : Body or array_like, shape (3,)
+        Principal moments, kg m².
+    axis : {1, 2, 3}
+        Spin axis, 1-based.
+    spin : float
+        Unperturbed spin about ``axis``, rad/s (non-zero).
+    amplitude : float
+        Tilt of the perturbed spins from the axis, rad (see :func:`tumble.sampling.perturbed_spins`).
+    samples : int
+        Ensemble size.
+    seed : int >= 0 or None
+        Entropy of the ensemble (``None``: fresh, stored on the dataset).
+    method : str
+        ``"auto"`` (closed form: the scene is torque-free), ``"exact"`` or a fixed-step method name.
+    dt : float, optional
+        Step of a fixed-step method, s (default: from the method's order, :data:`STEPS_PER_RADIAN`).
+    flips : int
+        Exponential scenes: flips of the spin axis to time (first flip and spacing); 0 skips them.
+    distribution : str
+        Tilt distribution, see :func:`tumble.sampling.perturbed_spins`.
+    progress : bool, optional
+        Progress bar (default: on a terminal only).
+
+    Returns
+    -------
+    xarray.Dataset
+        Scalars ``rate`` (median over valid samples), ``rate_theory``, ``rel_error``
+        (``|rate − rate_theory| / rate_theory``; for a neutral scene, whose theory is 0, relative to
+        ``|spin|``), ``kind``; its bootstrap interval ``rate_ci_low``/``rate_ci_high`` and ``rate_spread``;
+        ``samples_used``/``samples_excluded``; the fit window (exponential); flip statistics (exponential,
+        ``flips > 0``); per sample ``sample_rate(sample)`` and ``sample_status(sample)``; the scene's
+        parameters as scalar coordinates (``I1``, ``I2``, ``I3``, ``axis``, ``spin``, ``amplitude``,
+        ``method``) ready to be stacked by :func:`scan`.
+
+    Raises
+    ------
+    ValueError
+        Invalid body, axis, spin, amplitude, samples, seed, method or flips.
+
+    Examples
+    --------
+    >>> ds = measure((1.0, 2.0, 3.0), axis=2, samples=64)
+    >>> str(ds.kind.values), bool(ds.rel_error < 5e-3)
+    ('exponential', True)
+    """
+    moments, axis, spin, amplitude, samples, flips = _validate_scene(body, axis, spin, amplitude, samples,
+                                                                     method, flips)
+    if dt is not None and (not np.isfinite(dt) or dt <= 0):
+        raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+    entropy = seed_entropy(seed)
+    a = axis - 1
+    kind, value = theory.linear(moments, axis, spin)
+    chosen = "exact" if method == "auto" else method
+    w_probe = perturbed_spins(moments, axis, spin, amplitude, min(samples, CHUNK), seed=entropy,
+                              distribution=distribution)
+    plan = _plan(moments, a, kind, value, spin, amplitude, chosen, dt, flips if kind == "exponential" else 0,
+                 w_probe)
+    growth = kind == "exponential"
+    n_flips = flips if growth else 0
+
+    rate = np.empty(samples)
+    code = np.empty(samples, dtype=np.int8)
+    extra = {name: np.empty(samples) for name in
+             (("t_start", "t_stop", "norm_start", "norm_stop") if growth else ("radius",))}
+    flip_first = np.full(samples, np.nan)
+    flip_spacing = np.full(samples, np.nan)
+    flip_exact = np.full(samples, np.nan)
+    flip_asymptote = np.full(samples, np.nan)
+    info = {}
+    computed = skipped = 0
+    for lo in range(0, samples, SLICE):
+        hi = min(lo + SLICE, samples)
+        w0 = perturbed_spins(moments, axis, spin, amplitude, samples, seed=entropy, distribution=distribution,
+                             start=lo, stop=hi)
+        result = run_ensemble(moments, w0, plan["t_end"], plan["dt"], method=chosen, axis=axis, final=False,
+                              save_every=None if growth else plan["save_every"],
+                              probe_times=plan["probe_times"] if growth else None,
+                              norm_weights=plan["weights"] if growth else None, max_flips=n_flips,
+                              stop_norm=plan["saturation"] if growth else 0.0, stop_flips=n_flips,
+                              progress=progress)
+        info = result.info
+        computed += info["sample_steps_computed"]
+        skipped += info["sample_steps_skipped"]
+        if growth:
+            fit = analysis.growth_rates(result.probe_times, result.probes, plan["saturation"])
+            rate[lo:hi] = fit.rate
+            for name in extra:
+                extra[name][lo:hi] = getattr(fit, name)
+        else:
+            b, c = plan.get("plane", ((a + 1) % 3, (a + 2) % 3))
+            weights = (analysis.invariant_weights(moments, axis)[[b, c]] if kind == "periodic" else np.ones(2))
+            fit = analysis.oscillation_frequencies(result.times, result.trajectory[..., [b, c]], weights, spin)
+            rate[lo:hi] = fit.frequency
+            extra["radius"][lo:hi] = fit.radius
+        code[lo:hi] = np.where(result.status != STATUS_OK, result.status,
+                               np.where(fit.code != analysis.FIT_OK, fit.code + _FIT_OFFSET, 0))
+        if n_flips:
+            stats = analysis.flip_statistics(result.flips)
+            flip_first[lo:hi], flip_spacing[lo:hi] = stats.first, stats.spacing
+            flip_exact[lo:hi] = exact.flip_spacing(moments, w0)
+            flip_asymptote[lo:hi] = theory.flip_time_asymptote(moments, w0)
+    valid = code == 0
+    rate = np.where(valid, rate, np.nan)
+    summary = analysis.summarize(rate, confidence=CONFIDENCE, resamples=BOOTSTRAP, seed=entropy % 2**63)
+    if summary.used == 0:
+        counts = np.bincount(code, minlength=len(SAMPLE_STATUS_NAMES))
+        warnings.warn(f"no sample of the scene (axis {axis}, amplitude {amplitude}) gave a rate; statuses: "
+                      + ", ".join(f"{SAMPLE_STATUS_NAMES[k]} {n}" for k, n in enumerate(counts) if n),
+                      RuntimeWarning, stacklevel=2)
+    return _scene_dataset(moments, axis, spin, amplitude, samples, method, chosen, kind, value, summary, rate,
+                          code, extra, valid, (flip_first, flip_spacing, flip_exact, flip_asymptote) if n_flips
+                          else None, plan, info, computed, skipped, entropy, distribution)
+
+
+def _var(value, units, long_name, dims=(), **attrs):
+    return xr.Variable(dims, value, {"units": units, "long_name": long_name, **attrs})
+
+
+def _median(values, valid):
+    picked = values[valid & np.isfinite(values)]
+    return float(np.median(picked)) if len(picked) else np.nan
+
+
+def _scene_dataset(moments, axis, spin, amplitude, samples, method, chosen, kind, value, summary, rate, code,
+                   extra, valid, flip_data, plan, info, computed, skipped, entropy, distribution):
+    unit = _KIND_UNITS[kind]
+    theory_scale = value if value > 0 else abs(spin)
+    rel_error = abs(summary.median - value) / theory_scale
+    data = {
+        "rate": _var(summary.median, unit, f"measured {kind} rate: median over valid samples"),
+        "rate_theory": _var(value, unit, f"linear-theory {kind} rate"),
+        "rel_error": _var(rel_error, "1", "relative error of the measured rate, |rate - rate_theory| / "
+                          + ("rate_theory" if value > 0 else "|spin| (neutral: theory is 0)")),
+        "kind": _var(kind, "1", "linear-theory kind: periodic, exponential or neutral"),
+        "rate_ci_low": _var(summary.ci_low, unit, f"lower bound of the {CONFIDENCE:.0%} bootstrap interval of "
+                            "the median rate"),
+        "rate_ci_high": _var(summary.ci_high, unit, f"upper bound of the {CONFIDENCE:.0%} bootstrap interval of "
+                             "the median rate"),
+        "rate_spread": _var(summary.spread, unit, "half the interquartile range of the sample rates"),
+        "samples_used": _var(np.int64(summary.used), "1", "samples with a valid rate"),
+        "samples_excluded": _var(np.int64(summary.excluded), "1", "samples left out (bad status or failed fit)"),
+        "sample_rate": _var(rate, unit, f"measured {kind} rate of each sample (NaN: excluded)", ("sample",)),
+        "sample_status": _var(code, "1", "status of each sample", ("sample",),
+                              flag_values=np.arange(len(SAMPLE_STATUS_NAMES), dtype=np.int8),
+                              flag_meanings=" ".join(name.replace(" ", "_").replace("-", "_")
+                                                     for name in SAMPLE_STATUS_NAMES)),
+        "dt": _var(plan["dt"], "s", "time step (closed form: spacing of the evaluation times)"),
+        "t_end": _var(plan["t_end"], "s", "horizon of the scene"),
+        "n_steps": _var(np.int64(plan["n_steps"]), "1", "fixed steps to the horizon"),
+        "sample_steps_computed": _var(np.int64(computed), "1", "sample-steps the kernel computed"),
+        "sample_steps_skipped": _var(np.int64(skipped), "1", "sample-steps skipped (closed form, early stop)"),
+        "path": _var(info.get("path", ""), "1", "how the scene ran"),
+    }
+    if kind == "exponential":
+        for name, units, text in (("t_start", "s", "start of the fit window"),
+                                  ("t_stop", "s", "end of the fit window"),
+                                  ("norm_start", "rad/s", "scaled transverse norm at the start of the fit window"),
+                                  ("norm_stop", "rad/s", "scaled transverse norm at the end of the fit window")):
+            data[f"fit_{name}"] = _var(_median(extra[name], valid), units, f"{text} (median over samples)")
+        data["fit_saturation"] = _var(plan["saturation"], "rad/s", "end of the linear regime (scaled norm)")
+    else:
+        data["signal_radius"] = _var(_median(extra["radius"], valid), "rad/s",
+                                     "median scaled transverse radius (the signal of the phase fit)")
+    data["flips_timed"] = _var(np.int64(0), "1", "samples with at least two flips timed")
+    if flip_data is not None:
+        first, spacing, spacing_exact, asymptote = flip_data
+        has_spacing = valid & np.isfinite(spacing)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            spacing_error = np.abs(spacing / spacing_exact - 1.0)
+        data.update(
+            flip_first=_var(_median(first, valid), "s", "time of the first flip (median over samples)"),
+            flip_first_asymptote=_var(_median(asymptote, valid), "s",
+                                      "linear-theory first flip time (1/lambda) ln(4/k') (median)"),
+            flip_spacing=_var(_median(spacing, valid), "s", "time between flips (median over samples)"),
+            flip_spacing_exact=_var(_median(spacing_exact, valid), "s", "exact time between flips 2K/nu (median)"),
+            flip_spacing_asymptote=_var(2 * _median(asymptote, valid), "s",
+                                        "linear-theory time between flips (2/lambda) ln(4/k') (median)"),
+            flip_spacing_rel_error=_var(float(np.max(spacing_error[has_spacing])) if has_spacing.any() else np.nan,
+                                        "1", "largest |spacing / (2K/nu) - 1| over samples"),
+            flips_timed=_var(np.int64(has_spacing.sum()), "1", "samples with at least two flips timed"),
+            sample_first_flip=_var(np.where(valid, first, np.nan), "s", "time of the first flip", ("sample",)),
+            sample_flip_spacing=_var(np.where(valid, spacing, np.nan), "s", "mean time between flips",
+                                     ("sample",)),
+        )
+    coords = {
+        "I1": _var(moments[0], "kg m2", "principal moment of inertia 1"),
+        "I2": _var(moments[1], "kg m2", "principal moment of inertia 2"),
+        "I3": _var(moments[2], "kg m2", "principal moment of inertia 3"),
+        "axis": _var(np.int64(axis), "1", "spin axis (1-based principal axis)"),
+        "spin": _var(spin, "rad/s", "unperturbed spin about the axis"),
+        "amplitude": _var(amplitude, "rad", "tilt of the perturbed spins from the axis"),
+        "method": _var(method, "1", "integration method asked for"),
+        "sample": _var(np.arange(samples, dtype=np.int64), "1", "sample index", ("sample",)),
+    }
+    attrs = {
+        "title": f"tumble measurement: {kind} rate about axis {axis}",
+        "method_run": chosen,
+        "samples": samples,
+        "seed_entropy": str(entropy),
+        "distribution": distribution,
+        "bootstrap_resamples": BOOTSTRAP,
+        "source": f"tumble {__version__}",
+    }
+    return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+def inertia_triangle(n=20):
+    """Moments on an ``n × n`` grid over the inertia triangle, every point a valid body.
+
+    With ``I3 = 1`` the largest moment, ``I2/I3 = s`` runs over ``(1/2, 1)`` and ``I1/I3`` over
+    ``(1 − s, s)`` (the triangle inequality ``I1 + I2 >= I3`` and the ordering ``I1 <= I2``); both are
+    sampled at cell midpoints, so no point sits on an edge (a symmetric top or a flat lamina).
+
+    Returns
+    -------
+    moments : ndarray, shape (n * n, 3)
+    coords : dict
+        ``"i2_over_i3"`` and ``"i1_fraction"`` (where ``I1/I3`` lies between ``1 − s`` and ``s``), each (n * n,).
+    """
+    mid = (np.arange(n) + 0.5) / n
+    s, u = np.meshgrid(0.5 + 0.5 * mid, mid, indexing="ij")
+    i1 = (1.0 - s) + u * (2.0 * s - 1.0)
+    moments = np.stack([i1.ravel(), s.ravel(), np.ones(n * n)], axis=1)
+    return moments, {"i2_over_i3": s.ravel(), "i1_fraction": u.ravel()}
+
+
+_SCAN_DIMS = ("axis", "spin", "amplitude", "method")
+
+
+def scan(bodies, axis=(1, 2, 3), spin=1.0, amplitude=1e-3, method="auto", *, samples=256, seed=0,
+         body_coords=None, **options):
+    """Measure every combination of scene parameters; scan parameters become coordinates.
+
+    Parameters
+    ----------
+    bodies : Body, array_like (3,) or sequence of them, or ndarray (B, 3)
+        The bodies: a ``body`` dimension with coordinates ``I1``, ``I2``, ``I3`` (kg m²).
+    axis, spin, amplitude, method : scalar or sequence
+        A sequence becomes a dimension of that name; a scalar stays a scalar coordinate.
+    samples, seed
+        As for :func:`measure`. Every scene uses the same seed: scenes are coupled sample by sample
+        (common random numbers), so differences between them are physics, not sampling noise.
+    body_coords : dict, optional
+        Extra coordinates along ``body`` (name → array of length B), e.g. from :func:`inertia_triangle`.
+    **options
+        Passed to :func:`measure` (``dt``, ``flips``, ``distribution``, ``progress``).
+
+    Returns
+    -------
+    xarray.Dataset
+        The scene variables of :func:`measure` with dimensions ``(body, axis, spin, amplitude, method)`` (those
+        that were sequences), per-sample variables with ``sample`` last.
+    """
+    if isinstance(bodies, Body) or np.ndim(bodies) == 1:
+        bodies = [bodies]
+    moments = np.array([one_body(b) for b in bodies])
+    values = {"axis": axis, "spin": spin, "amplitude": amplitude, "method": method}
+    swept = {name: list(v) for name, v in values.items() if isinstance(v, (list, tuple, np.ndarray))}
+    for name, v in swept.items():
+        if len(v) == 0:
+            raise ValueError(f"{name} must not be an empty sequence")
+    fixed = {name: v for name, v in values.items() if name not in swept}
+    scenes = []
+    for m in moments:
+        row = []
+        for combo in itertools.product(*swept.values()):
+            params = {**fixed, **dict(zip(swept, combo))}
+            ds = measure(m, params["axis"], params["spin"], params["amplitude"], samples, seed, params["method"],
+                         **options)
+            row.append(ds.drop_vars(["I1", "I2", "I3"]))
+        scenes.append(row)
+    shape = [len(v) for v in swept.values()]
+    stacked = [_combine(_nest(row, shape), list(swept)) for row in scenes]
+    out = xr.concat(stacked, dim="body", data_vars="all", coords="different", compat="equals",
+                    combine_attrs="override")
+    out = out.assign_coords(
+        I1=("body", moments[:, 0], {"units": "kg m2", "long_name": "principal moment of inertia 1"}),
+        I2=("body", moments[:, 1], {"units": "kg m2", "long_name": "principal moment of inertia 2"}),
+        I3=("body", moments[:, 2], {"units": "kg m2", "long_name": "principal moment of inertia 3"}),
+        body=("body", np.arange(len(moments), dtype=np.int64), {"units": "1", "long_name": "body index"}))
+    for name, v in (body_coords or {}).items():
+        v = np.asarray(v)
+        if v.shape != (len(moments),):
+            raise ValueError(f"body_coords[{name!r}] must have one value per body ({len(moments)}), got shape "
+                             f"{v.shape}")
+        out = out.assign_coords({name: ("body", v, {"units": "1", "long_name": name.replace("_", " ")})})
+    out = out.transpose("body", *swept, ..., "sample")
+    out.attrs["title"] = "tumble scan: measured rates against linear theory"
+    return out
+
+
+def _nest(items, shape):
+    """A flat list in C order as nested lists of ``shape`` (the item itself for an empty shape)."""
+    if not shape:
+        return items[0]
+    size = len(items) // shape[0]
+    return [_nest(items[i * size:(i + 1) * size], shape[1:]) for i in range(shape[0])]
+
+
+def _combine(nested, dims):
+    """Concatenate nested lists of scene datasets along ``dims``, outermost first."""
+    if not dims:
+        return nested
+    return xr.concat([_combine(part, dims[1:]) for part in nested], dim=dims[0], data_vars="all",
+                     coords="different", compat="equals", combine_attrs="override")
+
+
+def regress_scan(ds):
+    """Measured rate against theory over a scan, per kind: slope, intercept, R², worst point.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        From :func:`scan` (or one :func:`measure`).
+
+    Returns
+    -------
+    xarray.Dataset
+        Dimension ``kind`` (the kinds present, neutral excluded: its theory is 0); variables ``slope``,
+        ``intercept``, ``r2``, ``median_rel_error``, ``worst_rel_error``, ``points``, and the worst point's
+        ``rate``, ``rate_theory`` and scan coordinates.
+    """
+    rows = []
+    for kind in ("periodic", "exponential"):
+        mask = ds["kind"] == kind
+        if not bool(mask.any()):
+            continue
+        theory_values = ds["rate_theory"].where(mask).values.ravel()
+        measured = ds["rate"].where(mask).values.ravel()
+        fit = analysis.regression(theory_values, measured)
+        worst = {}
+        if fit.worst >= 0:
+            point = ds[["rate", "rate_theory"]][dict(zip(ds["rate"].dims, np.unravel_index(fit.worst,
+                                                                                          ds["rate"].shape)))]
+            for name, variable in [*point.data_vars.items(), *point.coords.items()]:
+                if variable.ndim == 0:
+                    worst[f"worst_{name}"] = ((), variable.values.item(),
+                                              {"units": _KIND_UNITS[kind] if name.startswith("rate")
+                                               else variable.attrs.get("units", "1"),
+                                               "long_name": f"{name} of the scene with the largest error"})
+        rel = ds["rel_error"].where(mask).values
+        rows.append(xr.Dataset({
+            "slope": ((), fit.slope, {"units": "1", "long_name": "slope of measured rate against theory"}),
+            "intercept": ((), fit.intercept, {"units": _KIND_UNITS[kind], "long_name": "intercept"}),
+            "r2": ((), fit.r2, {"units": "1", "long_name": "coefficient of determination"}),
+            "median_rel_error": ((), float(np.nanmedian(rel)), {"units": "1",
+                                                                "long_name": "median relative error over scenes"}),
+            "worst_rel_error": ((), fit.worst_error, {"units": "1", "long_name": "largest relative error"}),
+            "points": ((), np.int64(fit.points), {"units": "1", "long_name": "scenes in the fit"}),
+            **worst,
+        }).expand_dims(kind=[kind]))
+    if not rows:
+        raise ValueError("the dataset holds no periodic or exponential scene to regress")
+    return xr.concat(rows, dim="kind", combine_attrs="override") if len(rows) > 1 else rows[0]
+
+
+def flip_time_law(ds):
+    """The flip-time law over an amplitude scan: first-flip time against ``ln(1/ε)``, slope against ``1/λ``.
+
+    Near the separatrix the first flip comes at ``(1/λ) ln(4/k')`` and ``k' ∝ ε``, so the median first-flip
+    time is linear in ``ln(1/ε)`` with slope ``1/λ``.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A :func:`scan` with an ``amplitude`` dimension (at least two amplitudes) of exponential scenes timed
+        with ``flips > 0``.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``slope`` (s), ``slope_theory = 1/rate_theory`` (s), ``rel_error``, ``intercept`` (s), ``r2``, over the
+        scan's other dimensions.
+    """
+    if "amplitude" not in ds.dims or ds.sizes["amplitude"] < 2:
+        raise ValueError("the flip-time law needs a scan over at least two amplitudes (an 'amplitude' dimension)")
+    if "flip_first" not in ds:
+        raise ValueError("the dataset has no flip times: scan exponential scenes with flips > 0")
+    x = np.log(1.0 / ds["amplitude"])
+
+    def fit(times, xs):
+        r = analysis.regression(xs, times)
+        return np.array([r.slope, r.intercept, r.r2])
+
+    out = xr.apply_ufunc(fit, ds["flip_first"], x, input_core_dims=[["amplitude"], ["amplitude"]],
+                         output_core_dims=[["fit"]], vectorize=True)
+    theory_slope = 1.0 / ds["rate_theory"].isel(amplitude=0, drop=True)
+    result = xr.Dataset({
+        "slope": out.isel(fit=0, drop=True).assign_attrs(units="s", long_name="d(first flip time)/d ln(1/amplitude)"),
+        "intercept": out.isel(fit=1, drop=True).assign_attrs(units="s", long_name="intercept"),
+        "r2": out.isel(fit=2, drop=True).assign_attrs(units="1", long_name="coefficient of determination"),
+        "slope_theory": theory_slope.assign_attrs(units="s", long_name="1 / linear growth rate"),
+    })
+    result["rel_error"] = (abs(result["slope"] - result["slope_theory"]) / result["slope_theory"]).assign_attrs(
+        units="1", long_name="|slope - 1/lambda| / (1/lambda)")
+    return result.drop_vars([c for c in result.coords if c not in result.dims and c != "method"], errors="ignore")
