@@ -336,22 +336,23 @@ def _scene_dataset(moments, axis, spin, amplitude, samples, method, chosen, kind
     data["flips_timed"] = _var(np.int64(0), "1", "samples with at least two flips timed")
     if flip_data is not None:
         first, spacing, spacing_exact, asymptote = flip_data
-        has_spacing = valid & np.isfinite(spacing)
+        ok = (code == 0) | (code > _FIT_OFFSET)  # flips need a sound trajectory, not a successful rate fit
+        has_spacing = ok & np.isfinite(spacing)
         with np.errstate(invalid="ignore", divide="ignore"):
             spacing_error = np.abs(spacing / spacing_exact - 1.0)
         data.update(
-            flip_first=_var(_median(first, valid), "s", "time of the first flip (median over samples)"),
-            flip_first_asymptote=_var(_median(asymptote, valid), "s",
+            flip_first=_var(_median(first, ok), "s", "time of the first flip (median over samples)"),
+            flip_first_asymptote=_var(_median(asymptote, ok), "s",
                                       "linear-theory first flip time (1/lambda) ln(4/k') (median)"),
-            flip_spacing=_var(_median(spacing, valid), "s", "time between flips (median over samples)"),
-            flip_spacing_exact=_var(_median(spacing_exact, valid), "s", "exact time between flips 2K/nu (median)"),
-            flip_spacing_asymptote=_var(2 * _median(asymptote, valid), "s",
+            flip_spacing=_var(_median(spacing, ok), "s", "time between flips (median over samples)"),
+            flip_spacing_exact=_var(_median(spacing_exact, ok), "s", "exact time between flips 2K/nu (median)"),
+            flip_spacing_asymptote=_var(2 * _median(asymptote, ok), "s",
                                         "linear-theory time between flips (2/lambda) ln(4/k') (median)"),
             flip_spacing_rel_error=_var(float(np.max(spacing_error[has_spacing])) if has_spacing.any() else np.nan,
                                         "1", "largest |spacing / (2K/nu) - 1| over samples"),
             flips_timed=_var(np.int64(has_spacing.sum()), "1", "samples with at least two flips timed"),
-            sample_first_flip=_var(np.where(valid, first, np.nan), "s", "time of the first flip", ("sample",)),
-            sample_flip_spacing=_var(np.where(valid, spacing, np.nan), "s", "mean time between flips",
+            sample_first_flip=_var(np.where(ok, first, np.nan), "s", "time of the first flip", ("sample",)),
+            sample_flip_spacing=_var(np.where(ok, spacing, np.nan), "s", "mean time between flips",
                                      ("sample",)),
         )
     coords = {
