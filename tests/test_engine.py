@@ -165,3 +165,34 @@ def test_the_per_sample_step_compiles_to_packed_simd_code():
           np.ones(64), np.empty((0, 64)), 0, None, None)
     assembly = "\n".join(fresh.inspect_asm().values())
     assert re.search(r"vfmadd\w*pd\s+[^\n]*%[yz]mm", assembly)
+
+
+@pytest.mark.parametrize("path", ["closed form", "kernel"])
+def test_ctrl_c_stops_between_chunks(spins, monkeypatch, path):
+    """SIGINT during the second chunk lets that chunk finish, starts no other, and restores the handler."""
+    import signal
+
+    import tumble.engine as engine
+
+    target = "exact" if path == "closed form" else "run"
+    real = getattr(engine.exact, "omega") if target == "exact" else engine.run
+    calls = []
+
+    def pressed_during_second_chunk(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            signal.raise_signal(signal.SIGINT)
+        return real(*args, **kwargs)
+
+    method = "auto" if target == "exact" else "rk4"
+    run_ensemble(MOMENTS, spins[:1], 0.01, 0.01, axis=AXIS, method=method)  # compiled: no warm-up call below
+    if target == "exact":
+        monkeypatch.setattr(engine.exact, "omega", pressed_during_second_chunk)
+    else:
+        monkeypatch.setattr(engine, "run", pressed_during_second_chunk)
+    before = signal.getsignal(signal.SIGINT)
+    with pytest.raises(engine.Interrupted, match="after 200 of 300 samples") as stopped:
+        run_ensemble(MOMENTS, spins, 1.0, 0.01, axis=AXIS, method=method, chunk=100, progress=False)
+    assert len(calls) == 2 and stopped.value.done == 200
+    assert isinstance(stopped.value, KeyboardInterrupt)
+    assert signal.getsignal(signal.SIGINT) is before

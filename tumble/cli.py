@@ -97,8 +97,8 @@ def main(argv=None):
     except BrokenPipeError:  # output piped into a reader that stopped early (e.g. `| head`)
         sys.stderr.close()
         return 1
-    except KeyboardInterrupt:
-        print("tumble: interrupted", file=sys.stderr)
+    except KeyboardInterrupt as err:
+        print(f"tumble: interrupted{': ' + str(err) if str(err) else ''}", file=sys.stderr)
         return 1
     return 0
 

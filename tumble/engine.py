@@ -15,7 +15,10 @@ per chunk, and Ctrl-C stops between chunks. What ran and what was skipped is ret
 
 from __future__ import annotations
 
+import contextlib
+import signal
 import sys
+import threading
 import time
 from typing import NamedTuple
 
@@ -30,7 +33,7 @@ from .kernels.methods import BLOCK, METHODS, run
 from .kernels.steppers import TORQUE_CONSTANT, TORQUE_USER
 from .sampling import CHUNK
 
-__all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "STATUS_NAMES", "run_ensemble", "torque_spec"]
+__all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "Interrupted", "STATUS_NAMES", "run_ensemble", "torque_spec"]
 
 # Torque-free samples whose energy or |L|^2 drift by more than this (relative) are flagged, not trusted.
 DEFAULT_DRIFT_LIMIT = 1e-2
@@ -108,6 +111,40 @@ def _warm(method, torque_params, torque_fn, save_every, probe_steps, max_flips, 
         torque_params=None if torque_params is None else np.zeros(3), torque_fn=torque_fn)
     _warmed.add(key)
     return time.perf_counter() - started
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C stopped a run between two chunks; ``done`` samples of ``total`` had finished."""
+
+    def __init__(self, done, total):
+        super().__init__(f"stopped by Ctrl-C between chunks after {done} of {total} samples")
+        self.done, self.total = done, total
+
+
+@contextlib.contextmanager
+def _stop_between_chunks():
+    """Defer Ctrl-C to the end of the current chunk.
+
+    Inside, SIGINT only sets a flag (the yielded callable reads it), so a chunk is never abandoned half-done —
+    the closed form's numpy work included; a second Ctrl-C interrupts at once. The previous handler is
+    restored on exit. Outside the main thread (where Python cannot install handlers) nothing changes.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: False
+        return
+    pressed = []
+    previous = signal.getsignal(signal.SIGINT)
+
+    def handler(signum, frame):
+        if pressed:
+            raise KeyboardInterrupt
+        pressed.append(True)
+
+    signal.signal(signal.SIGINT, handler)
+    try:
+        yield lambda: bool(pressed)
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _exact_flips(body, w0, axis, max_flips, t_end):
@@ -198,9 +235,11 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
     bar = tqdm(total=n, unit="spins", disable=not show, desc=f"{chosen}")
 
     if chosen == "exact":
-        with bar:
+        with bar, _stop_between_chunks() as interrupted:
             result = _run_exact(moments, w0, t_end, final, times, probe_times, a, weights, max_flips, drift, bar,
-                                chunk)
+                                chunk, interrupted)
+            if interrupted():  # pressed during the last chunk: the run stops all the same
+                raise Interrupted(n, n)
         info.update(sample_steps_computed=0, sample_steps_skipped=n * n_steps, jit_seconds=0.0)
         return result._replace(info=info)
 
@@ -215,8 +254,10 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
     steps_taken = np.empty(n, dtype=np.int64)
     computed = 0
     started = time.perf_counter()
-    with bar:
+    with bar, _stop_between_chunks() as interrupted:
         for lo in range(0, n, chunk):
+            if interrupted():
+                raise Interrupted(lo, n)
             hi = min(lo + chunk, n)
             state = np.array(w0[lo:hi].T, order="C")
             observed = run(METHODS[chosen], state, moments, 0.0, dt, n_steps, save_every=save, axis=a,
@@ -239,6 +280,8 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
             steps_taken[lo:hi] = observed.steps_taken
             computed += _block_steps(observed.steps_taken)
             bar.update(hi - lo)
+        if interrupted():
+            raise Interrupted(n, n)
     info.update(run_seconds=time.perf_counter() - started, sample_steps_computed=int(computed),
                 sample_steps_skipped=int(n * n_steps - steps_taken.sum()))
     return EnsembleResult(final_w, times, trajectory, probe_times, probes, flips, flip_count, drifts, status,
@@ -251,7 +294,8 @@ def _block_steps(steps_taken):
     return sum(len(part) * int(part.max()) for part in np.split(steps_taken, range(BLOCK, len(steps_taken), BLOCK)))
 
 
-def _run_exact(moments, w0, t_end, final, times, probe_times, a, weights, max_flips, drift, bar, chunk):
+def _run_exact(moments, w0, t_end, final, times, probe_times, a, weights, max_flips, drift, bar, chunk,
+               interrupted):
     n = len(w0)
     b, c = (a + 1) % 3, (a + 2) % 3
     final_w = np.empty((n, 3)) if final else None
@@ -261,6 +305,8 @@ def _run_exact(moments, w0, t_end, final, times, probe_times, a, weights, max_fl
     flip_count = np.empty(n, dtype=np.int64) if max_flips else None
     drifts = np.empty((n, 2)) if drift else None
     for lo in range(0, n, chunk):
+        if interrupted():
+            raise Interrupted(lo, n)
         hi = min(lo + chunk, n)
         w = w0[lo:hi]
         if final or drift:
