@@ -191,8 +191,10 @@ def oscillation_frequencies(times, transverse, weights, spin):
     docstring). It is unwrapped along time and the frequency is ``|slope|`` of its least-squares line.
 
     Samples whose scaled radius ever falls below ``NO_SIGNAL · |spin|`` give ``FIT_NO_SIGNAL`` (the phase of
-    round-off is noise), those whose phase jumps by more than :data:`MAX_PHASE_STEP` between two stored times
-    ``FIT_UNDERSAMPLED``; both get NaN and are left out of scene statistics.
+    round-off is noise), those whose unwrapped phase steps by more than :data:`MAX_PHASE_STEP` between two
+    stored times ``FIT_UNDERSAMPLED``; both get NaN and are left out of scene statistics. The check catches
+    true steps between ``MAX_PHASE_STEP`` and ``π``; a step beyond ``π`` aliases and no check on the samples
+    alone can see it — the caller stores enough times per period (:mod:`tumble.study` stores 32).
 
     Parameters
     ----------
@@ -244,11 +246,13 @@ def flip_statistics(flips):
     FlipStats
     """
     flips = np.asarray(flips, dtype=float)
+    if flips.shape[1] == 0:
+        return FlipStats(np.full(len(flips), np.nan), np.full(len(flips), np.nan))
     count = np.isfinite(flips).sum(axis=1)
     last = flips[np.arange(len(flips)), np.clip(count - 1, 0, None)]
     with np.errstate(invalid="ignore", divide="ignore"):
         spacing = np.where(count >= 2, (last - flips[:, 0]) / (count - 1), np.nan)
-    return FlipStats(flips[:, 0].copy() if flips.shape[1] else np.full(len(flips), np.nan), spacing)
+    return FlipStats(flips[:, 0].copy(), spacing)
 
 
 class Summary(NamedTuple):
@@ -339,6 +343,6 @@ def regression(x, y):
     r2 = 1.0 - np.sum(residual**2) / total if total > 0 else 1.0
     with np.errstate(divide="ignore", invalid="ignore"):
         relative = np.where(use, np.abs(y - x) / np.abs(x), -np.inf)
-    relative = np.where(np.isnan(relative), np.inf, relative)
+    relative = np.where(use & (y == x), 0.0, relative)  # 0/0: a point that matches exactly is no error
     worst = int(np.argmax(relative))
     return Regression(float(slope), float(intercept), float(r2), worst, float(relative[worst]), int(use.sum()))
