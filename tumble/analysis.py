@@ -13,9 +13,9 @@ is a uniform rotation at ``ω = W sqrt(q)`` or a uniform hyperbolic rotation at 
 
 * periodic: ``x + i y ∝ exp(± i ω t)`` — the phase ``atan2(y, x)`` advances uniformly whatever the
   ellipticity of the plain components, and by exactly ``2π`` per period of the exact motion;
-* exponential: ``x ± y ∝ exp(± λ t)``, so ``x² + y² = 2 (A² e^{2λt} + B² e^{-2λt})`` with no cross term:
-  the log-slope of the scaled norm differs from ``λ`` by ``2 λ (B/A)² e^{-4λt}``, where the plain norm's
-  differs by a term in ``e^{-2λt}``.
+* exponential: ``x ± y ∝ exp(± λ t)``, so ``x² + y² = 2 (A² e^{2λt} + B² e^{-2λt})`` with no cross term
+  and no constant: a sum of two exponentials, whose rate linear prediction recovers exactly
+  (:func:`growth_rates`), however much of the decaying mode a sample starts with.
 """
 
 from __future__ import annotations
@@ -42,14 +42,13 @@ __all__ = [
 
 #: Per-sample outcome of a fit (the engine's statuses, non-finite and drift, come before these).
 FIT_OK = 0
-FIT_SHORT_WINDOW = 1  # fewer than MIN_POINTS or less than MIN_EFOLDS e-folds between floor and saturation
+FIT_SHORT_WINDOW = 1  # fewer than MIN_POINTS before saturation, or no growth
 FIT_NO_SIGNAL = 2  # the transverse perturbation is at round-off level: its phase means nothing
 FIT_UNDERSAMPLED = 3  # the phase moved by more than MAX_PHASE_STEP between two samples: unwrapping is unsafe
 FIT_NAMES = ("ok", "fit window too short", "no signal", "undersampled")
 
-#: Fewest points in a growth fit window, and fewest e-folds it must span.
+#: Fewest points in a growth fit window.
 MIN_POINTS = 8
-MIN_EFOLDS = 1.0
 #: Largest phase change between two stored times that still unwraps safely, rad.
 MAX_PHASE_STEP = 0.5 * np.pi
 #: A transverse radius below this fraction of |w| is round-off, not signal.
@@ -113,66 +112,66 @@ class GrowthFit(NamedTuple):
     code: np.ndarray  # int8, FIT_OK or FIT_SHORT_WINDOW
 
 
-def growth_rates(times, norms, saturation, *, floor=5.0):
-    """Exponential growth rate of each sample's transverse norm, fitted inside its linear regime.
+def growth_rates(times, norms, saturation):
+    """Exponential growth rate of each sample's scaled transverse norm, inside its linear regime.
 
-    The window is chosen per sample, automatically:
+    In the scaled coordinates (module docstring) the linearised motion gives
+    ``s(t) = r(t)² = 2 (A² e^{2λt} + B² e^{-2λt})`` exactly — a sum of two exponentials with no constant term —
+    so on equally spaced times ``s(t + h) + s(t - h) = 2 cosh(2λh) s(t)`` holds whatever the mix of growing
+    and decaying modes (linear prediction; Prony's method). Each interior point of the window gives
+    ``d_k = (s_{k+1} + s_{k-1} - 2 s_k) / (2 s_k) = cosh(2λh) - 1``; their mean ``d`` gives
+    ``λ = asinh(sqrt(d/2)) / h`` (the same as ``arccosh(1 + d) / 2h``, without its cancellation).
 
-    * it opens at the first time the norm exceeds ``floor`` times its running minimum: by then the growing
-      mode dominates the decaying one (in the scaled norm their ratio is below ``1/(4 floor⁴)``, so the
-      log-slope is within ``0.1 %`` of the rate for ``floor = 5``; a sample started near the stable
-      direction first shrinks, and its window opens later);
-    * it closes at the last time before the norm first exceeds ``saturation``, the end of the linear
-      regime (the nonlinear correction to the log-slope is of order ``(norm/|w|)²``).
-
-    The rate is the least-squares slope of ``ln(norm)`` against time over the window. A window with fewer than
-    :data:`MIN_POINTS` points or spanning less than :data:`MIN_EFOLDS` e-folds gives NaN and
-    ``FIT_SHORT_WINDOW``.
+    The window runs from the first time (the initial amplitude) to the last time before the norm first exceeds
+    ``saturation`` (the end of the linear regime; the nonlinear correction to ``d`` is of order
+    ``(r/|w|)²``). No time needs to be skipped for the decaying mode to die out: the estimator is exact in
+    linear theory for any mix of the two (a sample exactly on the stable direction, which only decays, gives
+    the same ``λ``: the rate of its mode). A window with fewer than :data:`MIN_POINTS` points, or in which the
+    norm is not exponential at all (``d <= 0``), gives NaN and ``FIT_SHORT_WINDOW``.
 
     Parameters
     ----------
     times : ndarray, shape (P,)
-        Increasing probe times, s.
+        Equally spaced, increasing probe times, s.
     norms : ndarray, shape (N, P)
-        Transverse norm (preferably the scaled one, :func:`invariant_weights`), rad/s; NaN where a sample had
-        stopped or was not valid.
+        Scaled transverse norm (:func:`invariant_weights`), rad/s; NaN where a sample had stopped.
     saturation : float or ndarray (N,)
-        End of the linear regime, rad/s.
-    floor : float
-        Window opening, in multiples of the running minimum.
+        End of the linear regime, rad/s (scaled norm).
 
     Returns
     -------
     GrowthFit
+
+    Raises
+    ------
+    ValueError
+        Times that are not equally spaced.
     """
     times = np.asarray(times, dtype=float)
     norms = np.asarray(norms, dtype=float)
     n, p = norms.shape
+    if p < 3:
+        raise ValueError(f"growth_rates needs at least 3 times, got {p}")
+    h = (times[-1] - times[0]) / (p - 1)
+    if not np.allclose(np.diff(times), h, rtol=1e-9, atol=0.0):
+        raise ValueError("growth_rates needs equally spaced times (linear prediction)")
     saturation = np.broadcast_to(np.asarray(saturation, dtype=float), (n,))
     finite = np.isfinite(norms) & (norms > 0)
-    safe = np.where(finite, norms, np.inf)
-    running_min = np.minimum.accumulate(safe, axis=1)
-    above = finite & (norms >= floor * running_min)
-    saturated = ~finite | (norms > saturation[:, None])  # a stopped (NaN) sample is past its window too
-    first_saturated = np.where(saturated.any(axis=1), saturated.argmax(axis=1), p)
-    index = np.arange(p)
-    opened = above.any(axis=1)
-    start = np.where(opened, above.argmax(axis=1), p)
-    window = (index >= start[:, None]) & (index < first_saturated[:, None]) & finite
-    points = window.sum(axis=1)
-    logs = np.log(np.where(finite, norms, 1.0))
-    rate = _masked_slope(times, logs, window)
-    stop = np.clip(first_saturated - 1, 0, p - 1)
-    start_c = np.clip(start, 0, p - 1)
-    rows = np.arange(n)
-    norm_start, norm_stop = norms[rows, start_c], norms[rows, stop]
+    beyond = ~finite | (norms > saturation[:, None])  # a stopped (NaN) sample is past its window too
+    stop = np.where(beyond.any(axis=1), beyond.argmax(axis=1), p)  # the window is [0, stop)
+    s = np.where(finite, norms, 1.0) ** 2
+    interior = np.arange(1, p - 1)[None, :] + 1 < stop[:, None]
     with np.errstate(invalid="ignore", divide="ignore"):
-        efolds = np.log(norm_stop / norm_start)
-    good = (points >= MIN_POINTS) & (efolds >= MIN_EFOLDS) & np.isfinite(rate)
+        d = (s[:, 2:] + s[:, :-2] - 2.0 * s[:, 1:-1]) / (2.0 * s[:, 1:-1])
+        mean = np.where(interior, d, 0.0).sum(axis=1) / interior.sum(axis=1)
+        rate = np.arcsinh(np.sqrt(mean / 2.0)) / h
+    good = (stop >= MIN_POINTS) & (mean > 0) & np.isfinite(rate)
+    last = np.clip(stop - 1, 0, p - 1)
+    rows = np.arange(n)
     nan = np.full(n, np.nan)
-    return GrowthFit(np.where(good, rate, nan), np.where(good, times[start_c], nan), np.where(good, times[stop], nan),
-                     np.where(good, norm_start, nan), np.where(good, norm_stop, nan), np.where(good, points, 0),
-                     np.where(good, FIT_OK, FIT_SHORT_WINDOW).astype(np.int8))
+    return GrowthFit(np.where(good, rate, nan), np.where(good, times[0], nan), np.where(good, times[last], nan),
+                     np.where(good, norms[:, 0], nan), np.where(good, norms[rows, last], nan),
+                     np.where(good, stop, 0), np.where(good, FIT_OK, FIT_SHORT_WINDOW).astype(np.int8))
 
 
 class PhaseFit(NamedTuple):

@@ -59,10 +59,9 @@ SAVES_PER_PERIOD = 32
 PROBES = 256
 
 #: End of the linear regime: the plain transverse norm reaches ``SATURATION · |spin|`` — or, for larger
-#: tilts, ``SATURATION_TILTS`` times the initial norm (so the window, opened at 5 times the running minimum,
-#: spans at least ln 6 e-folds; the error then grows as the nonlinear correction, O(amplitude²)).
-SATURATION = 0.03
-SATURATION_TILTS = 30.0
+#: tilts, ``SATURATION_TILTS`` times the tilt (the error then grows as the nonlinear correction, O(amplitude²)).
+SATURATION = 0.01
+SATURATION_TILTS = 10.0
 
 #: Samples per engine call (bounds the memory of stored components and probes).
 SLICE = 8 * CHUNK
@@ -101,54 +100,52 @@ def _neutral_plane(moments, a):
 
 
 def _plan(moments, a, kind, value, spin, amplitude, method, dt, flips, w0_probe):
-    """Horizon, step and the observation times of a scene."""
+    """Horizon, step and observation times of a scene.
+
+    Observations (probes or stored states) are ``spacing`` apart, a whole number of steps: the growth estimator
+    needs equally spaced times, and the closed form evaluates exactly there.
+    """
     w = abs(spin)
-    if kind == "exponential":
-        timescale = 1.0 / value
-    elif kind == "periodic":
-        timescale = 1.0 / value
-    else:
-        timescale = 1.0 / w
-    order = 0 if method == "exact" else METHODS[method].order
-    if dt is None:
-        dt = np.inf if method == "exact" else min(timescale, 1.0 / w) / STEPS_PER_RADIAN[order]
+    timescale = 1.0 / value if value > 0 else 1.0 / w
+    if dt is None and method != "exact":
+        dt = min(timescale, 1.0 / w) / STEPS_PER_RADIAN[METHODS[method].order]
+    tilt = math.sin(min(amplitude, 0.5 * np.pi))
     plan = {}
     if kind == "exponential":
         weights = analysis.invariant_weights(moments, a + 1)
         b, c = (a + 1) % 3, (a + 2) % 3
-        # The largest initial scaled norm of a tilt ``amplitude``, and the end of the linear regime: the plain
-        # norm at SATURATION |spin| (sqrt(min g) converts), or SATURATION_TILTS initial norms for large tilts.
-        r0 = max(math.sin(min(amplitude, 0.5 * np.pi)) * w * math.sqrt(max(weights[b], weights[c])), 1e-300)
-        saturation = max(SATURATION * w * math.sqrt(min(weights[b], weights[c])), SATURATION_TILTS * r0)
-        t_growth = (math.log(max(saturation / r0, math.e)) + 3.0) / value
+        # End of the linear regime: the plain transverse norm at `level`. Once the growing mode dominates, a plain
+        # norm p has the scaled norm p / sqrt((1/g_b + 1/g_c) / 2).
+        level = max(SATURATION, SATURATION_TILTS * tilt) * w
+        saturation = level / math.sqrt(0.5 * (1.0 / weights[b] + 1.0 / weights[c]))
+        t_growth = (math.log(max(level / max(tilt * w, 1e-300), math.e)) + 3.0) / value
+        spacing = t_growth / PROBES
         t_end = t_growth
         if flips:
             first = exact.first_flip_time(moments, w0_probe)
-            spacing = exact.flip_spacing(moments, w0_probe)
-            last = first + (flips - 1) * spacing
+            last = first + (flips - 1) * exact.flip_spacing(moments, w0_probe)
             last = last[np.isfinite(last)]
             if len(last):
                 t_end = max(t_end, 1.1 * float(np.quantile(last, 0.9)))
-        plan.update(weights=weights, saturation=saturation, probe_times=np.linspace(0.0, t_growth, PROBES + 1))
+        plan.update(weights=weights, saturation=saturation)
     else:
         if kind == "periodic":
             period = 2 * np.pi / value
         else:
             plane, ratio = _neutral_plane(moments, a)
-            precession = w * math.sin(min(amplitude, 0.5 * np.pi)) * ratio
-            period = 2 * np.pi / precession if precession > 0 else 2 * np.pi / w
+            precession = w * tilt * ratio
+            period = 2 * np.pi / (precession if precession > 0 else w)
             plan.update(plane=plane)
+        spacing = period / SAVES_PER_PERIOD
         t_end = PERIODS * period
-        plan.update(period=period)
-    if method == "exact":
-        n_steps = max(1, math.ceil(t_end / period * SAVES_PER_PERIOD)) if kind != "exponential" else PROBES
-        dt = t_end / n_steps
+    every = 1 if method == "exact" else max(1, math.ceil(spacing / dt))
+    dt = spacing / every
+    n_steps = max(1, math.ceil(t_end / dt - 1e-9))
+    if kind == "exponential":
+        plan["probe_times"] = np.arange(PROBES + 1) * spacing
     else:
-        n_steps = max(1, math.ceil(t_end / dt))
-        dt = t_end / n_steps
-    if kind != "exponential":
-        plan["save_every"] = max(1, int(round(plan["period"] / SAVES_PER_PERIOD / dt)))
-    plan.update(t_end=t_end, dt=dt, n_steps=n_steps)
+        plan["save_every"] = every
+    plan.update(t_end=n_steps * dt, dt=dt, n_steps=n_steps)
     return plan
 
 
@@ -424,7 +421,8 @@ def scan(bodies, axis=(1, 2, 3), spin=1.0, amplitude=1e-3, method="auto", *, sam
         The scene variables of :func:`measure` with dimensions ``(body, axis, spin, amplitude, method)`` (those
         that were sequences), per-sample variables with ``sample`` last.
     """
-    if isinstance(bodies, Body) or np.ndim(bodies) == 1:
+    if isinstance(bodies, Body) or (not isinstance(bodies, (list, tuple)) and np.ndim(bodies) == 1) or (
+            isinstance(bodies, (list, tuple)) and len(bodies) == 3 and all(np.ndim(b) == 0 for b in bodies)):
         bodies = [bodies]
     moments = np.array([one_body(b) for b in bodies])
     values = {"axis": axis, "spin": spin, "amplitude": amplitude, "method": method}

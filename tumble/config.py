@@ -1,0 +1,698 @@
+"""Study files: parse, merge over the documented defaults, validate, resolve.
+
+A *study* is a TOML file (or a mapping of the same shape) that states only what differs from
+``studies/defaults.toml``, where every key is documented. :func:`load_study` reads it with the standard
+library's :mod:`tomllib`, merges it over the defaults, checks every value and returns the *resolved*
+study: a plain ``dict`` of plain Python types (str, int, float, list, dict), every key filled, which is
+JSON-serialisable and is stored in each result file so the run can be repeated. Loading a resolved study
+again gives it back unchanged.
+
+Every problem is a :class:`StudyError` (a ``ValueError``) whose message reads
+``"<file>: <field.path>: <what is wrong>"``; list indices in field paths count from 0
+(``scan.moments[1]`` is the second body of the scan). Pseudo-fields name problems that are not about one
+key: ``<file>`` (the file cannot be found or read) and ``<toml>`` (TOML syntax, with tomllib's line and
+column).
+
+Studies are data, never code: nothing here evaluates, executes or unpickles anything; a time-dependent
+torque is one of the named :data:`PROFILES` with numeric parameters.
+
+This module validates and resolves; it does not run anything (:mod:`tumble.study` does).
+"""
+
+from __future__ import annotations
+
+import copy
+import difflib
+import inspect
+import math
+import numbers
+import operator
+import os
+import tomllib
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from . import shapes
+from .bodies import Body, validate_moments
+from .kernels.methods import METHODS
+from .sampling import DISTRIBUTIONS
+
+__all__ = [
+    "ARRAYS",
+    "DEFAULTS_PATH",
+    "FIGURES",
+    "FORMATS",
+    "METHOD_NAMES",
+    "PROFILES",
+    "SCAN_KEYS",
+    "SHAPES",
+    "STUDIES_DIR",
+    "StudyError",
+    "TRIANGLE_RANGE",
+    "UNTITLED",
+    "bundled_studies",
+    "load_study",
+    "resolve_body",
+]
+
+
+def _studies_dir():
+    """The folder of bundled studies: ``studies/`` next to the package in a source tree (and an editable
+    install), else ``tumble/studies/`` inside an installed package (shipped there as package data)."""
+    here = Path(__file__).resolve().parent
+    candidates = (here.parent / "studies", here / "studies")
+    for folder in candidates:
+        if (folder / "defaults.toml").is_file():
+            return folder
+    return candidates[0]
+
+
+#: Folder holding the bundled study files and ``defaults.toml``.
+STUDIES_DIR = _studies_dir()
+
+#: The documented defaults every study is merged over.
+DEFAULTS_PATH = STUDIES_DIR / "defaults.toml"
+
+#: Shape functions of :mod:`tumble.shapes` a study may name in ``body.shape``.
+SHAPES = ("rod", "disc", "cylinder", "cone", "sphere", "ellipsoid", "cuboid", "cube_about_edge", "loaded_die",
+          "t_handle")
+
+#: ``integration.method``: the planner's choice, the closed form, or a fixed-step method.
+METHOD_NAMES = ("auto", "exact", *METHODS)
+
+#: ``torque.profile``: named time dependences of the body-frame torque (see ``defaults.toml``).
+PROFILES = ("none", "constant", "ramp", "sine", "pulse")
+
+#: Which profile needs which time parameter (> 0); the other one must stay 0.
+_PROFILE_TIMES = {"sine": "period", "ramp": "duration", "pulse": "duration"}
+
+#: ``outputs.figures``, ``outputs.format`` and ``outputs.arrays``.
+FIGURES = ("stability_map", "norm_growth", "flip_law", "flip_components", "invariant_drift", "work_precision",
+           "summary")
+FORMATS = ("png", "pdf")
+ARRAYS = ("sample_rate", "sample_status", "sample_first_flip", "sample_flip_spacing")
+
+#: Keys of the ``[scan]`` table, and the field each one replaces.
+SCAN_KEYS = {
+    "moments": "body.moments",
+    "triangle": "body.moments",
+    "axis": "spin.axis",
+    "rate": "spin.rate",
+    "amplitude": "perturbation.amplitude",
+    "method": "integration.method",
+}
+
+#: ``scan.triangle``: the n x n inertia-triangle grid, n in this range.
+TRIANGLE_RANGE = (2, 200)
+
+#: Tables and their keys, in the order of the resolved study. ``body.dimensions`` is a table whose keys
+#: are the shape function's arguments; ``scan`` holds only the keys a study gives.
+_TABLES = {
+    "body": ("moments", "shape", "dimensions"),
+    "spin": ("axis", "rate"),
+    "perturbation": ("amplitude", "samples", "seed", "distribution"),
+    "integration": ("method", "dt", "flips"),
+    "torque": ("profile", "vector", "period", "duration"),
+    "scan": tuple(SCAN_KEYS),
+    "outputs": ("figures", "format", "arrays", "directory"),
+}
+_TOP = ("title", *_TABLES)
+_SUBTABLES = {("body", "dimensions")}
+
+#: Title of a study given as a mapping with ``title = ""`` (a file's default title is its stem).
+UNTITLED = "untitled study"
+
+# Shape moments given in a study must agree with the shape's to this relative tolerance.
+_SHAPE_RTOL = 1e-9
+
+
+class StudyError(ValueError):
+    """An invalid study: ``"<file>: <field.path>: <what is wrong>"``.
+
+    Attributes
+    ----------
+    file : str
+        The study file as given (or the bundled file a name resolved to), or ``"<mapping>"``.
+    field : str
+        Dotted field path, list indices from 0 (``body.moments[2]``); ``<file>`` or ``<toml>`` for problems
+        with the file itself.
+    problem : str
+        What is wrong, and where it helps, what would be right.
+    """
+
+    def __init__(self, file, field, problem):
+        self.file = str(file)
+        self.field = str(field)
+        self.problem = str(problem)
+        super().__init__(f"{self.file}: {self.field}: {self.problem}")
+
+    def __reduce__(self):
+        return type(self), (self.file, self.field, self.problem)
+
+
+class _Invalid(Exception):
+    """A problem at a field path; :func:`load_study` adds the file and raises a :class:`StudyError`."""
+
+    def __init__(self, field, problem):
+        super().__init__(field, problem)
+        self.field = field
+        self.problem = problem
+
+
+# --------------------------------------------------------------------------------------------------------
+# Reading
+
+
+def _toml_kind(value):
+    """How TOML (the user's view) calls the type of ``value``."""
+    if isinstance(value, (bool, np.bool_)):
+        return f"a boolean ({str(bool(value)).lower()})"
+    if isinstance(value, numbers.Integral):
+        return f"an integer ({int(value)})"
+    if isinstance(value, numbers.Real):
+        return f"a float ({float(value)!r})"
+    if isinstance(value, str):
+        return f"a string ({value!r})"
+    if isinstance(value, Mapping):
+        return "a table"
+    if isinstance(value, (list, tuple)):
+        return "an array"
+    if hasattr(value, "isoformat"):
+        return "a date/time"
+    return f"a {type(value).__name__}"
+
+
+def _read_toml(path, shown):
+    """The table in TOML file ``path``; errors name the file as ``shown``."""
+    try:
+        with open(path, "rb") as fh:
+            return tomllib.load(fh)
+    except tomllib.TOMLDecodeError as err:
+        raise StudyError(shown, "<toml>", f"not valid TOML: {err}") from None
+    except UnicodeDecodeError as err:
+        raise StudyError(shown, "<toml>", f"not UTF-8 text ({err.reason} at byte {err.start})") from None
+    except OSError as err:
+        raise StudyError(shown, "<file>", f"cannot be read: {err.strerror or err}") from None
+
+
+def _is_bare_name(text):
+    return bool(text) and Path(text).name == text and "/" not in text and os.sep not in text \
+        and not text.endswith(".toml") and text not in (".", "..")
+
+
+def _locate(source):
+    """``(path, shown)`` of a study file given as a path or a bundled name."""
+    text = os.fspath(source)
+    path = Path(text)
+    if path.is_file():
+        return path, text
+    if path.exists():
+        raise StudyError(text, "<file>", "is not a file (a study is a TOML file or a bundled study name)")
+    if _is_bare_name(text):
+        bundled = STUDIES_DIR / f"{text}.toml"
+        if bundled.is_file():
+            return bundled, str(bundled)
+    names = ", ".join(_bundled_names()) or "none"
+    raise StudyError(text, "<file>", f"no such file, and no bundled study of that name (bundled: {names})")
+
+
+def _plain(value, field):
+    """A copy of a mapping-given study with tuples as lists, ndarrays as lists, numpy scalars as Python
+    scalars and mappings as dicts (keys must be strings)."""
+    if isinstance(value, Mapping):
+        out = {}
+        for key, item in value.items():
+            if not isinstance(key, str):
+                raise _Invalid(field or "<study>", f"keys must be strings, got {key!r}")
+            out[key] = _plain(item, f"{field}.{key}" if field else key)
+        return out
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if isinstance(value, (list, tuple)):
+        return [_plain(item, f"{field}[{i}]") for i, item in enumerate(value)]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+# --------------------------------------------------------------------------------------------------------
+# Structure: known keys, tables where tables belong
+
+
+def _leaf_paths():
+    paths = ["title"]
+    for table, keys in _TABLES.items():
+        paths += [f"{table}.{key}" for key in keys]
+    return paths
+
+
+def _unknown(field, key, known):
+    """An _Invalid for unknown ``key`` in the table at ``field``, suggesting a close or relocated key."""
+    path = f"{field}.{key}" if field else key
+    close = difflib.get_close_matches(key, known, n=1, cutoff=0.6)
+    if close:
+        hint = f"did you mean {close[0]!r}?"
+    else:
+        others = {p.rsplit(".", 1)[-1]: p for p in reversed(_leaf_paths()) if p != path}
+        near = difflib.get_close_matches(key, list(others), n=1, cutoff=0.8)
+        elsewhere = [others[near[0]]] if near else []
+        hint = f"did you mean {elsewhere[0]}?" if elsewhere else f"known keys: {', '.join(known)}"
+    where = f"in [{field}]" if field else "at the top level"
+    return _Invalid(path, f"unknown key {where}; {hint}")
+
+
+def _check_structure(study):
+    """Every key known, every table a table."""
+    if not isinstance(study, Mapping):
+        raise _Invalid("<study>", f"a study is a table of settings, got {_toml_kind(study)}")
+    for key, value in study.items():
+        if key not in _TOP:
+            raise _unknown("", key, _TOP)
+        if key not in _TABLES:
+            continue
+        if not isinstance(value, Mapping):
+            raise _Invalid(key, f"must be a table ([{key}] section), got {_toml_kind(value)}")
+        for sub, item in value.items():
+            if sub not in _TABLES[key]:
+                raise _unknown(key, sub, _TABLES[key])
+            if (key, sub) in _SUBTABLES:
+                if not isinstance(item, Mapping):
+                    raise _Invalid(f"{key}.{sub}", f"must be a table, got {_toml_kind(item)}")
+            elif isinstance(item, Mapping):
+                raise _Invalid(f"{key}.{sub}", "must be a value, got a table")
+
+
+def _merge(defaults, study):
+    """``study`` over ``defaults`` (two levels; ``body.dimensions`` and scan lists are replaced whole)."""
+    merged = copy.deepcopy(defaults)
+    for key, value in study.items():
+        if key in _TABLES:
+            merged.setdefault(key, {}).update(copy.deepcopy(value))
+        else:
+            merged[key] = copy.deepcopy(value)
+    return merged
+
+
+# --------------------------------------------------------------------------------------------------------
+# Values
+
+
+def _number(value, field):
+    """A finite real number as a float (ints accepted; booleans are not numbers)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise _Invalid(field, f"must be a number, got {_toml_kind(value)}")
+    x = float(value)
+    if not math.isfinite(x):
+        raise _Invalid(field, f"must be finite, got {x}")
+    return x
+
+
+def _at_least(value, field, low, unit=""):
+    x = _number(value, field)
+    if x < low:
+        raise _Invalid(field, f"must be >= {low:g}{unit}, got {x!r}")
+    return x
+
+
+def _integer(value, field):
+    """An integer as a Python int (floats are not integers, even integral ones; booleans neither)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
+        raise _Invalid(field, f"must be an integer, got {_toml_kind(value)}")
+    return operator.index(value)
+
+
+def _string(value, field):
+    if not isinstance(value, str):
+        raise _Invalid(field, f"must be a string, got {_toml_kind(value)}")
+    return value
+
+
+def _choice(value, field, allowed):
+    _string(value, field)
+    if value not in allowed:
+        close = difflib.get_close_matches(value, [a for a in allowed if a], n=1, cutoff=0.6)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+        shown = ", ".join(repr(a) for a in allowed)
+        raise _Invalid(field, f"unknown value {value!r}{hint} (one of {shown})")
+    return value
+
+
+def _array(value, field, *, length=None, empty=True):
+    if not isinstance(value, list):
+        raise _Invalid(field, f"must be an array, got {_toml_kind(value)}")
+    if length is not None and len(value) != length:
+        raise _Invalid(field, f"must have {length} elements, got {len(value)}")
+    if not empty and not value:
+        raise _Invalid(field, "must not be empty")
+    return value
+
+
+def _vector(value, field):
+    return [_number(x, f"{field}[{i}]") for i, x in enumerate(_array(value, field, length=3))]
+
+
+def _moments(value, field):
+    """Three principal moments, kg m², positive and obeying the triangle inequality."""
+    moments = _vector(value, field)
+    for i, x in enumerate(moments):
+        if x <= 0:
+            raise _Invalid(f"{field}[{i}]", f"a principal moment must be > 0 kg m², got {x!r}")
+    try:
+        validate_moments(moments, name="the moments")
+    except ValueError as err:
+        raise _Invalid(field, str(err)) from None
+    return moments
+
+
+def _distinct(values, field, raw):
+    """No value twice in a scan list (each scene would be run twice)."""
+    seen = {}
+    for i, v in enumerate(values):
+        key = tuple(v) if isinstance(v, list) else v
+        if key in seen:
+            raise _Invalid(f"{field}[{i}]", f"duplicates {field}[{seen[key]}] ({raw[i]!r}); list each value "
+                                            f"once")
+        seen[key] = i
+    return values
+
+
+def _names(value, field, allowed, *, empty=True):
+    items = _array(value, field, empty=empty)
+    names = [_choice(x, f"{field}[{i}]", allowed) for i, x in enumerate(items)]
+    return _distinct(names, field, items)
+
+
+# --------------------------------------------------------------------------------------------------------
+# Fields
+
+
+def _axis(value, field):
+    a = _integer(value, field)
+    if a not in (1, 2, 3):
+        raise _Invalid(field, f"must be 1, 2 or 3 (a principal axis, 1-based), got {a}")
+    return a
+
+
+def _rate(value, field):
+    x = _number(value, field)
+    if x == 0:
+        raise _Invalid(field, "must be non-zero, rad/s (the spin rate; its sign is the sense of rotation)")
+    return x
+
+
+def _amplitude(value, field, distribution):
+    x = _at_least(value, field, 0, " rad")
+    if distribution != "gaussian" and x >= 0.5 * math.pi:
+        raise _Invalid(field, f"must be < pi/2 rad for distribution {distribution!r} (the tilt of the "
+                              f"perturbed spins), got {x!r}")
+    return x
+
+
+def _method(value, field, profile):
+    name = _choice(value, field, METHOD_NAMES)
+    if name == "exact" and profile != "none":
+        raise _Invalid(field, f"'exact' is the torque-free closed form, but torque.profile is {profile!r}; "
+                              f"use 'auto' or a fixed-step method ({', '.join(METHODS)})")
+    return name
+
+
+def _shape_parameters(shape):
+    """Keyword parameters of ``tumble.shapes.<shape>``: name -> default (``inspect.Parameter.empty``)."""
+    params = inspect.signature(getattr(shapes, shape)).parameters.values()
+    return {p.name: p.default for p in params
+            if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
+
+
+def _dimensions(shape, dims):
+    """The shape's keyword arguments (given ones checked, defaults filled in) and the resulting Body."""
+    field = "body.dimensions"
+    params = _shape_parameters(shape)
+    resolved = {}
+    for key, value in dims.items():
+        path = f"{field}.{key}"
+        if key not in params:
+            raise _Invalid(path, f"unknown key: {shape}() has no argument {key!r}{_hint(key, params)}")
+        if isinstance(params[key], str):
+            resolved[key] = _string(value, path)
+        else:
+            resolved[key] = _number(value, path)
+    missing = [k for k, d in params.items() if d is inspect.Parameter.empty and k not in resolved]
+    if missing:
+        raise _Invalid(field, f"missing {', '.join(missing)}: {shape}() takes {', '.join(params)} (SI units)")
+    for key, default in params.items():
+        if key not in resolved and isinstance(default, (str, int, float)) and not isinstance(default, bool):
+            resolved[key] = default if isinstance(default, str) else float(default)
+    body = _shape_body(shape, resolved)
+    ordered = {key: resolved[key] for key in params if key in resolved}
+    return ordered, body
+
+
+def _hint(key, params):
+    close = difflib.get_close_matches(key, list(params), n=1, cutoff=0.6)
+    return f"; did you mean {close[0]!r}?" if close else f" (arguments: {', '.join(params)})"
+
+
+def _shape_body(shape, dims):
+    try:
+        return getattr(shapes, shape)(**dims)
+    except ValueError as err:
+        message = str(err)
+        named = [k for k in dims if message.startswith(f"{k} ")]
+        field = f"body.dimensions.{named[0]}" if named else "body.dimensions"
+        raise _Invalid(field, f"{shape}(): {message}") from None
+
+
+def _body(table, given):
+    shape = _choice(table["shape"], "body.shape", ("", *SHAPES))
+    dims = table["dimensions"]
+    if not shape:
+        if dims:
+            raise _Invalid("body.dimensions", "given, but body.shape is \"\"; dimensions describe a shape: "
+                                              "set body.shape or give body.moments instead")
+        return {"moments": _moments(table["moments"], "body.moments"), "shape": "", "dimensions": {}}
+    dims, body = _dimensions(shape, dims)
+    moments = [float(x) for x in body.moments]
+    if "moments" in given:
+        stated = _moments(given["moments"], "body.moments")
+        if not np.allclose(stated, moments, rtol=_SHAPE_RTOL, atol=0.0):
+            raise _Invalid("body.moments", f"{stated} disagree with body.shape = {shape!r}, whose moments "
+                                           f"are {moments}; state the shape or the moments, not both")
+    return {"moments": moments, "shape": shape, "dimensions": dims}
+
+
+def _torque(table):
+    profile = _choice(table["profile"], "torque.profile", PROFILES)
+    vector = _vector(table["vector"], "torque.vector")
+    times = {key: _at_least(table[key], f"torque.{key}", 0, " s") for key in ("period", "duration")}
+    if profile == "none" and any(vector):
+        raise _Invalid("torque.vector", f"is {vector} but torque.profile is 'none' (torque-free); set "
+                                        f"torque.profile (e.g. 'constant') or remove the vector")
+    needed = _PROFILE_TIMES.get(profile)
+    for key, value in times.items():
+        if key == needed and value <= 0:
+            raise _Invalid(f"torque.{key}", f"must be > 0 s for profile {profile!r}, got {value!r}")
+        if key != needed and value != 0:
+            raise _Invalid(f"torque.{key}", f"is unused by profile {profile!r} and must stay 0, got {value!r}")
+    return {"profile": profile, "vector": vector, **times}
+
+
+def _scan(table, resolved):
+    """The scan lists (only the keys given), each element checked like the field it replaces."""
+    out = {}
+    shape = resolved["body"]["shape"]
+    distribution = resolved["perturbation"]["distribution"]
+    profile = resolved["torque"]["profile"]
+    if "triangle" in table and "moments" in table:
+        raise _Invalid("scan.triangle", "not together with scan.moments: each gives the bodies of the scan")
+    for key in SCAN_KEYS:
+        if key not in table:
+            continue
+        field = f"scan.{key}"
+        value = table[key]
+        if key in ("moments", "triangle") and shape:
+            raise _Invalid(field, f"scans bodies, but body.shape = {shape!r} fixes the body; use one of them")
+        if key == "triangle":
+            n = _integer(value, field) if not isinstance(value, list) else None
+            if n is None:
+                raise _Invalid(field, "must be an integer n (the n x n inertia-triangle grid), got an array")
+            low, high = TRIANGLE_RANGE
+            if not low <= n <= high:
+                raise _Invalid(field, f"must be in [{low}, {high}] (the n x n inertia-triangle grid), got {n}")
+            out[key] = n
+            continue
+        items = _array(value, field, empty=False)
+        check = {
+            "moments": _moments,
+            "axis": _axis,
+            "rate": _rate,
+            "amplitude": lambda v, f: _amplitude(v, f, distribution),
+            "method": lambda v, f: _method(v, f, profile),
+        }[key]
+        out[key] = _distinct([check(v, f"{field}[{i}]") for i, v in enumerate(items)], field, items)
+    return out
+
+
+def _resolve(study, given, title):
+    """The resolved study from the merged mapping ``study`` (``given``: the study before merging)."""
+    resolved = {"title": _string(study["title"], "title") or title}
+    resolved["body"] = _body(study["body"], given.get("body", {}))
+    spin = study["spin"]
+    resolved["spin"] = {"axis": _axis(spin["axis"], "spin.axis"), "rate": _rate(spin["rate"], "spin.rate")}
+    pert = study["perturbation"]
+    distribution = _choice(pert["distribution"], "perturbation.distribution", DISTRIBUTIONS)
+    resolved["perturbation"] = {
+        "amplitude": _amplitude(pert["amplitude"], "perturbation.amplitude", distribution),
+        "samples": _integer(pert["samples"], "perturbation.samples"),
+        "seed": _integer(pert["seed"], "perturbation.seed"),
+        "distribution": distribution,
+    }
+    if resolved["perturbation"]["samples"] < 1:
+        raise _Invalid("perturbation.samples", f"must be >= 1, got {resolved['perturbation']['samples']}")
+    if resolved["perturbation"]["seed"] < 0:
+        raise _Invalid("perturbation.seed", f"must be >= 0, got {resolved['perturbation']['seed']}")
+    resolved["torque"] = _torque(study["torque"])
+    integ = study["integration"]
+    resolved["integration"] = {
+        "method": _method(integ["method"], "integration.method", resolved["torque"]["profile"]),
+        "dt": _at_least(integ["dt"], "integration.dt", 0, " s"),
+        "flips": _integer(integ["flips"], "integration.flips"),
+    }
+    if resolved["integration"]["flips"] < 0:
+        raise _Invalid("integration.flips", f"must be >= 0, got {resolved['integration']['flips']}")
+    resolved["scan"] = _scan(study["scan"], resolved)
+    out = study["outputs"]
+    resolved["outputs"] = {
+        "figures": _names(out["figures"], "outputs.figures", FIGURES),
+        "format": _names(out["format"], "outputs.format", FORMATS, empty=False),
+        "arrays": _names(out["arrays"], "outputs.arrays", ARRAYS),
+        "directory": _string(out["directory"], "outputs.directory"),
+    }
+    return {key: resolved[key] for key in _TOP}
+
+
+# --------------------------------------------------------------------------------------------------------
+# Public
+
+
+def _defaults():
+    shown = str(DEFAULTS_PATH)
+    defaults = _read_toml(DEFAULTS_PATH, shown)
+    try:
+        _check_structure(defaults)
+    except _Invalid as err:
+        raise StudyError(shown, err.field, err.problem) from None
+    missing = [p for p in _leaf_paths() if not p.startswith("scan.")
+               and (p.split(".")[0] not in defaults
+                    or ("." in p and p.split(".")[1] not in defaults[p.split(".")[0]]))]
+    if missing:
+        raise StudyError(shown, missing[0], "missing from the defaults file (every key must have a default)")
+    return defaults
+
+
+def _apply_overrides(study, overrides):
+    """Set dotted ``overrides`` (``{"perturbation.samples": 64}``) in the (unmerged) study."""
+    study = copy.deepcopy(study)
+    for path, value in overrides.items():
+        parts = str(path).split(".")
+        if len(parts) == 1:
+            study[parts[0]] = _plain(value, path)
+            continue
+        if len(parts) != 2 or parts[0] not in _TABLES:
+            raise _Invalid(str(path), "an override names a field as 'table.key', e.g. 'perturbation.samples'")
+        table = study.setdefault(parts[0], {})
+        if not isinstance(table, dict):
+            raise _Invalid(parts[0], f"must be a table ([{parts[0]}] section), got {_toml_kind(table)}")
+        table[parts[1]] = _plain(value, path)
+    return study
+
+
+def load_study(source, *, overrides=None):
+    """Read, merge over the defaults, validate and resolve a study.
+
+    Parameters
+    ----------
+    source : str, os.PathLike or Mapping
+        A TOML file; a bundled study's name (``"intermediate_axis"`` for
+        ``studies/intermediate_axis.toml``, see :func:`bundled_studies`); or a mapping of the same shape
+        as the file (e.g. a resolved study).
+    overrides : Mapping[str, object], optional
+        Values that replace the study's, by dotted field path (``{"perturbation.samples": 64}``), as the
+        command line's ``--samples``, ``--seed`` and ``--out`` do; checked like the study itself.
+
+    Returns
+    -------
+    dict
+        The resolved study: every key of ``defaults.toml`` filled (``title`` defaults to the file's stem;
+        with ``body.shape`` set, ``body.moments`` holds the shape's moments and ``body.dimensions`` also
+        the arguments left at their defaults, except ``None`` ones), ``scan`` only the keys given. Plain
+        Python types only (JSON-serialisable); ``load_study(load_study(x)) == load_study(x)``.
+
+    Raises
+    ------
+    StudyError
+        If the file cannot be read or parsed, or any key or value is invalid; the message names the file,
+        the field path and what is wrong.
+    """
+    if isinstance(source, Mapping):
+        shown, title = "<mapping>", UNTITLED
+        try:
+            given = _plain(source, "")
+        except _Invalid as err:
+            raise StudyError(shown, err.field, err.problem) from None
+    elif isinstance(source, (str, os.PathLike)):
+        path, shown = _locate(source)
+        title = path.stem
+        given = _read_toml(path, shown)
+    else:
+        raise TypeError(f"a study is a path, a bundled study name or a mapping, got {type(source).__name__}")
+    defaults = _defaults()
+    try:
+        if overrides:
+            given = _apply_overrides(given, overrides)
+        _check_structure(given)
+        return _resolve(_merge(defaults, given), given, title)
+    except _Invalid as err:
+        raise StudyError(shown, err.field, err.problem) from None
+
+
+def _bundled_names():
+    folder = Path(STUDIES_DIR)
+    if not folder.is_dir():
+        return []
+    return sorted(p.stem for p in folder.glob("*.toml") if p.name != "defaults.toml" and p.is_file())
+
+
+def bundled_studies():
+    """The bundled studies: ``{name: title}``, sorted by name (``defaults.toml`` is not a study).
+
+    The title is the file's ``title`` or, when it has none, its name. Raises :class:`StudyError` for a
+    bundled file that is not valid TOML.
+    """
+    out = {}
+    for name in _bundled_names():
+        path = Path(STUDIES_DIR) / f"{name}.toml"
+        title = _read_toml(path, str(path)).get("title", "")
+        out[name] = title if isinstance(title, str) and title else name
+    return out
+
+
+def resolve_body(study):
+    """The :class:`~tumble.bodies.Body` of a resolved study (not of its scan).
+
+    Parameters
+    ----------
+    study : Mapping
+        A resolved study (:func:`load_study`).
+
+    Returns
+    -------
+    Body
+        ``tumble.shapes.<body.shape>(**body.dimensions)`` when a shape is named, else
+        ``Body(*body.moments)``.
+    """
+    body = study["body"]
+    if body.get("shape"):
+        return getattr(shapes, body["shape"])(**body.get("dimensions", {}))
+    return Body(*body["moments"])
