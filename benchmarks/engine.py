@@ -21,11 +21,10 @@ import numba
 import numpy as np
 from numba import prange
 
-from tumble.engine import run_ensemble
+from tumble import measure
 from tumble.kernels import fused, steppers
 from tumble.kernels.jit import jit
 from tumble.kernels.methods import METHODS, run
-from tumble.sampling import perturbed_spins
 
 RESULTS = Path(__file__).with_name("results")
 MOMENTS = np.array([1.0, 2.0, 3.0])
@@ -97,38 +96,37 @@ def throughput():
 
 
 _MEMORY_SCRIPT = """
-import resource, sys, numpy as np
-from tumble.engine import run_ensemble
-from tumble.sampling import perturbed_spins
+import resource, sys
+import tumble
 n = int(sys.argv[1])
-w0 = perturbed_spins((1.0, 2.0, 3.0), 2, 1.0, 1e-6, n, seed=1)
-r = run_ensemble((1.0, 2.0, 3.0), w0, 40.0, 0.01, method="rk4", axis=2, final=False,
-                 probe_times=np.geomspace(0.01, 40.0, 32), max_flips=2, progress=False)
-print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, r.info["sample_steps_computed"])
+ds = tumble.measure((1.0, 2.0, 3.0), 2, samples=n, method="rk4", progress=False)
+print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, int(ds.sample_steps_computed),
+      float(ds.rel_error), int(ds.n_steps), ds.sizes["sample"])
 """
 
 
 def peak_memory(samples=1_000_000):
-    """Peak resident memory (MiB) of a growth measurement (probes + flips, no trajectory), in a fresh process
-    whose kernels come from the disk cache (compiling takes memory of its own, reported nowhere here)."""
+    """Peak resident memory (MiB) of ``tumble.measure`` on the intermediate axis with rk4 (norm probes, three
+    flips, early stop, no trajectory), in a fresh process whose kernels come from the disk cache (compiling
+    takes memory of its own, reported nowhere here)."""
     for _ in range(2):  # the second run finds every kernel it needs in the cache
         done = subprocess.run([sys.executable, "-c", _MEMORY_SCRIPT, str(samples)], capture_output=True,
                               text=True, check=True)
-    peak, steps = done.stdout.split()
-    return dict(samples=samples, peak_mib=float(peak), sample_steps=int(steps))
+    peak, steps, error, n_steps, _ = done.stdout.split()
+    return dict(samples=samples, peak_mib=float(peak), sample_steps=int(steps), rel_error=float(error),
+                n_steps=int(n_steps))
 
 
 def warm_scene(samples=4096):
-    """A 4096-sample growth scene end to end (sampling + run + observers), warm kernels, both paths."""
+    """``tumble.measure`` of a 4096-sample growth scene end to end (sampling, run, observers, fits, bootstrap,
+    dataset), warm kernels, both paths."""
     rows = []
     for method in ("auto", "rk4"):
         def scene():
-            w0 = perturbed_spins(MOMENTS, 2, 1.0, 1e-3, samples, seed=5)
-            return run_ensemble(MOMENTS, w0, 20.0, 0.01, method=method, axis=2, final=False, max_flips=1,
-                                probe_times=np.geomspace(0.01, 20.0, 32), progress=False)
+            return measure(MOMENTS, 2, samples=samples, seed=5, method=method, progress=False)
 
         scene()
-        rows.append(dict(method=method, path=scene().info["path"], seconds=median_seconds(scene)))
+        rows.append(dict(method=method, path=str(scene()["path"].values), seconds=median_seconds(scene)))
     return rows
 
 
@@ -156,9 +154,11 @@ def main(parts=None):
         lines.append(f"| {r['method']} | {r['fast']:.2e} | {naive} | {speedup} | {r['compile_fast']:.1f} / "
                      f"{compile_naive} |")
     m = report["memory"]
-    lines += ["", f"Peak memory of a {m['samples']:,}-sample growth measurement (rk4, 4000 steps, 32 norm probes, "
-              f"2 flips, no trajectory): **{m['peak_mib']:.0f} MiB** (target ≤ 1 GB).", "",
-              "Warm 4096-sample growth scene, end to end (sampling, run, observers):", ""]
+    lines += ["", f"Peak memory of a {m['samples']:,}-sample growth measurement, `tumble.measure(..., axis=2, "
+              f"method=\"rk4\")` ({m['n_steps']} steps, 257 norm probes, 3 flips, early stop, no trajectory; "
+              f"rel. error {m['rel_error']:.1e}): **{m['peak_mib']:.0f} MiB** (target ≤ 1 GB).", "",
+              "Warm 4096-sample growth scene, `tumble.measure` end to end (sampling, run, observers, fits, "
+              "bootstrap, dataset):", ""]
     for r in report["warm_scene"]:
         lines.append(f"- method `{r['method']}` ({r['path']}): {r['seconds']:.3f} s (target < 1 s)")
     (RESULTS / "engine.md").write_text("\n".join(lines) + "\n")
