@@ -106,6 +106,7 @@ title = "everything at once"
 shape = "cuboid"
 dimensions = {mass = 2, a = 0.3, b = 0.2, c = 0.1}
 [spin]
+axis = 3
 rate = -2
 [perturbation]
 amplitude = 0.01
@@ -115,13 +116,13 @@ distribution = "filled_cone"
 [integration]
 method = "rk8"
 dt = 1e-3
+horizon = 40
 flips = 0
 [torque]
 profile = "sine"
 vector = [0, 0, 1e-3]
 period = 2.5
 [scan]
-axis = [1, 2, 3]
 amplitude = [1e-4, 1e-3]
 method = ["rk4", "splitting4"]
 rate = [1, 2.5]
@@ -133,10 +134,20 @@ directory = "out/here"
 """
 
 
+SCAN_BODY = """
+[scan]
+body = [{shape = "rod", dimensions = {mass = 1.0, length = 0.5, radius = 0.01}, label = "rod"},
+        {moments = [1, 2, 3], label = "brick"},
+        {shape = "cuboid", dimensions = {mass = 2, a = 0.3, b = 0.2, c = 0.1}},
+        {moments = [1, 1.5, 1.7]}]
+"""
+
+
 @pytest.mark.parametrize("text", ["[spin]\naxis = 1\n", FULL, "[scan]\ntriangle = 5\n",
                                   "[scan]\nmoments = [[1, 2, 3], [1, 1.5, 1.7]]\n",
                                   "[body]\nshape = 'rod'\ndimensions = {mass = 1, length = 2, about = 'end'}\n",
-                                  "[body]\nshape = 't_handle'\n[torque]\nprofile = 'ramp'\nduration = 3\n"])
+                                  "[body]\nshape = 't_handle'\n[torque]\nprofile = 'ramp'\nvector = [0, 1e-3, 0]\n"
+                                  "duration = 3\n", SCAN_BODY])
 def test_a_resolved_study_resolves_to_itself_and_survives_json(tmp_path, text):
     study = load_study(write(tmp_path, text))
     assert load_study(study) == study
@@ -163,6 +174,7 @@ def test_resolved_values_are_plain_python_types(tmp_path):
     assert study["spin"]["rate"] == -2.0 and type(study["spin"]["rate"]) is float
     assert study["body"]["dimensions"] == {"mass": 2.0, "a": 0.3, "b": 0.2, "c": 0.1}
     assert study["scan"]["rate"] == [1.0, 2.5]
+    assert study["integration"]["horizon"] == 40.0 and type(study["integration"]["horizon"]) is float
     assert study["torque"] == {"profile": "sine", "vector": [0.0, 0.0, 1e-3], "period": 2.5, "duration": 0.0}
 
 
@@ -265,18 +277,32 @@ MALFORMED = [
     ("[integration]\ndt = nan\n", "integration.dt"),
     ("[integration]\nflips = -1\n", "integration.flips"),
     ("[integration]\nflips = 1.5\n", "integration.flips"),
-    ("[integration]\nmethod = 'exact'\n[torque]\nprofile = 'constant'\nvector = [0, 0, 1]\n",
+    ("[spin]\naxis = 3\n[integration]\nmethod = 'exact'\n[torque]\nprofile = 'constant'\nvector = [0, 0, 1]\n",
      "integration.method"),
+    ("[integration]\nhorizon = -1.0\n", "integration.horizon", ">= 0"),
+    ("[integration]\nhorizon = 'long'\n", "integration.horizon", "number"),
+    ("[integration]\nhorizon = true\n", "integration.horizon", "number"),
+    ("[integration]\nhorizon = inf\n", "integration.horizon", "finite"),
+    ("[integration]\nhorizon = nan\n", "integration.horizon", "finite"),
     # torque
     ("[torque]\nprofile = 'spline'\n", "torque.profile"),
     ("[torque]\nprofile = 'lambda t: __import__(\"os\").system(\"true\")'\n", "torque.profile"),
     ("[torque]\nvector = [0, 0, 1]\n", "torque.vector"),
     ("[torque]\nprofile = 'constant'\nvector = [0, 1]\n", "torque.vector"),
     ("[torque]\nprofile = 'constant'\nvector = [0, 1, false]\n", "torque.vector[2]"),
-    ("[torque]\nprofile = 'sine'\nvector = [0, 0, 1]\n", "torque.period"),
-    ("[torque]\nprofile = 'ramp'\nvector = [0, 0, 1]\n", "torque.duration"),
-    ("[torque]\nprofile = 'pulse'\nvector = [0, 0, 1]\nduration = -1\n", "torque.duration"),
-    ("[torque]\nprofile = 'constant'\nvector = [0, 0, 1]\nperiod = 2\n", "torque.period"),
+    ("[torque]\nprofile = 'sine'\nvector = [0, 1, 0]\n", "torque.period"),
+    ("[torque]\nprofile = 'ramp'\nvector = [0, 1, 0]\n", "torque.duration"),
+    ("[torque]\nprofile = 'pulse'\nvector = [0, 1, 0]\nduration = -1\n", "torque.duration"),
+    ("[torque]\nprofile = 'constant'\nvector = [0, 1, 0]\nperiod = 2\n", "torque.period"),
+    # torque: about the spin axis only (linear theory), and then the spin axis is not scanned
+    ("[torque]\nprofile = 'constant'\nvector = [0, 0, 1]\n", "torque.vector[2]", "linear theory"),
+    ("[torque]\nprofile = 'constant'\nvector = [1e-3, 1e-3, 0]\n", "torque.vector[0]", "tumble.integrate"),
+    ("[spin]\naxis = 3\n[torque]\nprofile = 'sine'\nvector = [0, -2, 1]\nperiod = 1\n", "torque.vector[1]",
+     "must be 0"),
+    ("[torque]\nprofile = 'constant'\n", "torque.vector[1]", "'none'"),
+    ("[spin]\naxis = 1\n[torque]\nprofile = 'pulse'\nvector = [0, 0, 0]\nduration = 1\n", "torque.vector[0]",
+     "non-zero"),
+    ("[torque]\nprofile = 'constant'\nvector = [0, 1, 0]\n[scan]\naxis = [1, 2]\n", "scan.axis", "torque"),
     # scan
     ("[scan]\nspin = [1, 2]\n", "scan.spin"),
     ("[scan]\naxis = []\n", "scan.axis"),
@@ -287,7 +313,8 @@ MALFORMED = [
     ("[scan]\namplitude = [1e-3, 2.0]\n", "scan.amplitude[1]"),
     ("[scan]\nrate = [0, 1]\n", "scan.rate[0]"),
     ("[scan]\nmethod = ['rk4', 'euler']\n", "scan.method[1]"),
-    ("[scan]\nmethod = ['rk4', 'exact']\n[torque]\nprofile = 'constant'\nvector = [1, 0, 0]\n", "scan.method[1]"),
+    ("[spin]\naxis = 1\n[scan]\nmethod = ['rk4', 'exact']\n[torque]\nprofile = 'constant'\nvector = [1, 0, 0]\n",
+     "scan.method[1]"),
     ("[scan]\nmoments = [[1, 2, 3], [1, 1, 3]]\n", "scan.moments[1]"),
     ("[scan]\nmoments = [[1, 2, -3]]\n", "scan.moments[0][2]"),
     ("[scan]\nmoments = [[1, 2, 3], [1.0, 2.0, 3.0]]\n", "scan.moments[1]"),
@@ -299,6 +326,39 @@ MALFORMED = [
     ("[scan]\ntriangle = 10\nmoments = [[1, 2, 3]]\n", "scan.triangle"),
     ("[body]\nshape = 'sphere'\ndimensions = {mass = 1, radius = 1}\n[scan]\nmoments = [[1, 2, 3]]\n",
      "scan.moments"),
+    # scan.body: each entry checked exactly like [body]
+    ("[scan]\nbody = 3\n", "scan.body", "array"),
+    ("[scan.body]\nshape = 'rod'\n", "scan.body", "array"),
+    ("[scan]\nbody = []\n", "scan.body", "empty"),
+    ("[scan]\nbody = [[1, 2, 3]]\n", "scan.body[0]", "table"),
+    ("[scan]\nbody = [{label = 'nothing'}]\n", "scan.body[0]", "shape"),
+    ("[scan]\nbody = [{moments = [1, 2, 3]}, {shap = 'rod'}]\n", "scan.body[1].shap", "did you mean 'shape'?"),
+    ("[scan]\nbody = [{moments = [1, 2, 3], dimension = {}}]\n", "scan.body[0].dimension", "dimensions"),
+    ("[scan]\nbody = [{shape = 'brick'}]\n", "scan.body[0].shape", "unknown value"),
+    ("[scan]\nbody = [{shape = 'rod', dimensions = 3}]\n", "scan.body[0].dimensions", "table"),
+    ("[scan]\nbody = [{dimensions = {mass = 1}}]\n", "scan.body[0].dimensions", "shape"),
+    ("[scan]\nbody = [{shape = 'cuboid', dimensions = {mass = 1}}]\n", "scan.body[0].dimensions", "missing"),
+    ("[scan]\nbody = [{moments = [1, 2, 3]}, {moments = [2, 3, 4]},\n"
+     "        {shape = 'rod', dimensions = {mass = -1, length = 1}}]\n", "scan.body[2].dimensions.mass", "positive"),
+    ("[scan]\nbody = [{shape = 'rod', dimensions = {mass = 1, lenght = 1}}]\n", "scan.body[0].dimensions.lenght",
+     "length"),
+    ("[scan]\nbody = [{moments = [1, 2, -3]}]\n", "scan.body[0].moments[2]", "> 0"),
+    ("[scan]\nbody = [{moments = [1, 1, 3]}]\n", "scan.body[0].moments", "triangle"),
+    ("[scan]\nbody = [{moments = [1, 2]}]\n", "scan.body[0].moments", "3 elements"),
+    ("[scan]\nbody = [{shape = 'sphere', dimensions = {mass = 1, radius = 1}, moments = [1, 2, 3]}]\n",
+     "scan.body[0].moments", "disagree"),
+    ("[scan]\nbody = [{moments = [1, 2, 3], label = 7}]\n", "scan.body[0].label", "string"),
+    ("[scan]\nbody = [{moments = [1, 2, 3], label = 'a'}, {moments = [2, 3, 4], label = 'b'},\n"
+     "        {moments = [3, 4, 5], label = 'c'}, {moments = [1, 1.5, 1.7], label = 'b'}]\n",
+     "scan.body[3].label", "distinct"),
+    ("[scan]\nbody = [{shape = 'sphere', dimensions = {mass = 1, radius = 1}},\n"
+     "        {shape = 'sphere', dimensions = {mass = 2, radius = 1}}]\n", "scan.body[1].label", "distinct"),
+    ("[scan]\nbody = [{moments = [1, 2, 3]}, {moments = [2, 3, 4], label = 'body 0'}]\n", "scan.body[1].label",
+     "distinct"),
+    ("[scan]\nbody = [{moments = [1, 2, 3]}]\nmoments = [[1, 2, 3]]\n", "scan.body", "scan.moments"),
+    ("[scan]\nbody = [{moments = [1, 2, 3]}]\ntriangle = 10\n", "scan.body", "scan.triangle"),
+    ("[body]\nshape = 'sphere'\ndimensions = {mass = 1, radius = 1}\n[scan]\nbody = [{moments = [1, 2, 3]}]\n",
+     "scan.body", "body.shape"),
     # outputs
     ("[outputs]\nfigures = 'summary'\n", "outputs.figures"),
     ("[outputs]\nfigures = ['summary', 'phase_portrait']\n", "outputs.figures[1]"),
@@ -311,8 +371,12 @@ MALFORMED = [
 ]
 
 
-@pytest.mark.parametrize(("text", "field"), MALFORMED, ids=[f"{i:02d}-{f}" for i, (_, f) in enumerate(MALFORMED)])
-def test_a_malformed_study_names_its_file_and_field(tmp_path, text, field):
+# (text, field) or (text, field, a word the problem must contain)
+_CASES = [(case[0], case[1], case[2] if len(case) > 2 else "") for case in MALFORMED]
+
+
+@pytest.mark.parametrize(("text", "field", "word"), _CASES, ids=[f"{i:03d}-{f}" for i, (_, f, _) in enumerate(_CASES)])
+def test_a_malformed_study_names_its_file_and_field(tmp_path, text, field, word):
     path = write(tmp_path, text)
     with pytest.raises(StudyError) as err:
         load_study(path)
@@ -320,6 +384,7 @@ def test_a_malformed_study_names_its_file_and_field(tmp_path, text, field):
     assert message.startswith(f"{path}: {field}: "), message
     assert err.value.file == str(path) and err.value.field == field
     assert err.value.problem and "\n" not in err.value.problem
+    assert word in err.value.problem, message
 
 
 def test_there_are_many_malformed_cases():
@@ -396,7 +461,7 @@ def test_study_error_is_a_value_error_that_pickles():
 
 def test_the_exact_method_is_fine_without_torque_and_auto_with_it():
     assert load_study({"integration": {"method": "exact"}})["integration"]["method"] == "exact"
-    study = load_study({"torque": {"profile": "pulse", "vector": [0, 0, 1], "duration": 0.5}})
+    study = load_study({"spin": {"axis": 3}, "torque": {"profile": "pulse", "vector": [0, 0, 1], "duration": 0.5}})
     assert study["integration"]["method"] == "auto"
 
 
@@ -409,6 +474,26 @@ def test_gaussian_tilts_may_exceed_the_cone_limit():
 def test_a_flat_lamina_is_a_valid_body():
     assert load_study({"body": {"moments": [1.0, 2.0, 3.0]}})["body"]["moments"] == [1.0, 2.0, 3.0]
     assert load_study({"body": {"moments": [0.5, 0.5, 1.0]}})["body"]["moments"] == [0.5, 0.5, 1.0]
+
+
+def test_the_horizon_defaults_to_the_planners_choice_and_takes_seconds():
+    assert load_study({})["integration"]["horizon"] == 0.0
+    study = load_study({"integration": {"horizon": 12}})
+    assert study["integration"]["horizon"] == 12.0 and type(study["integration"]["horizon"]) is float
+
+
+@pytest.mark.parametrize("axis", [1, 2, 3])
+def test_a_torque_about_the_spin_axis_is_accepted_with_scans_of_other_keys(axis):
+    vector = [0.0, 0.0, 0.0]
+    vector[axis - 1] = -2e-3
+    study = load_study({"spin": {"axis": axis}, "torque": {"profile": "constant", "vector": vector},
+                        "scan": {"rate": [1, 2], "moments": [[1, 2, 3], [1, 1, 1.5]]}})
+    assert study["torque"]["vector"] == vector
+    assert study["scan"]["rate"] == [1.0, 2.0]
+
+
+def test_scanning_the_spin_axis_is_fine_torque_free():
+    assert load_study({"scan": {"axis": [1, 2, 3]}})["scan"]["axis"] == [1, 2, 3]
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -446,6 +531,46 @@ def test_bad_dimensions_name_the_argument():
         load_study({"body": {"shape": "cuboid", "dimensions": {"mass": 1, "a": 1, "b": 1, "c": 0}}})
     with pytest.raises(StudyError, match=r"body\.dimensions: missing b, c: cuboid\(\) takes mass, a, b, c"):
         load_study({"body": {"shape": "cuboid", "dimensions": {"mass": 1, "a": 1}}})
+
+
+def test_scan_bodies_resolve_to_labels_shapes_filled_dimensions_and_moments(tmp_path):
+    study = load_study(write(tmp_path, SCAN_BODY))
+    rod = tumble.shapes.rod(1.0, 0.5, radius=0.01)
+    cuboid = tumble.shapes.cuboid(2.0, 0.3, 0.2, 0.1)
+    assert study["scan"]["body"] == [
+        {"label": "rod", "shape": "rod", "dimensions": {"mass": 1.0, "length": 0.5, "about": "centre", "radius": 0.01},
+         "moments": rod.moments.tolist()},
+        {"label": "brick", "shape": "", "dimensions": {}, "moments": [1.0, 2.0, 3.0]},
+        {"label": "cuboid", "shape": "cuboid", "dimensions": {"mass": 2.0, "a": 0.3, "b": 0.2, "c": 0.1},
+         "moments": cuboid.moments.tolist()},
+        {"label": "body 3", "shape": "", "dimensions": {}, "moments": [1.0, 1.5, 1.7]},
+    ]
+    assert list(study["scan"]["body"][0]) == ["label", "shape", "dimensions", "moments"]
+    assert study["body"] == load_study({})["body"]  # the single-valued body is untouched
+    assert load_study(study) == study
+    assert load_study(json.loads(json.dumps(study))) == study
+
+
+def test_scan_bodies_may_be_written_as_an_array_of_tables(tmp_path):
+    text = ("[[scan.body]]\nshape = 'rod'\nlabel = 'stick'\n[scan.body.dimensions]\nmass = 1\nlength = 2\n"
+            "[[scan.body]]\nmoments = [1, 2, 3]\n")
+    study = load_study(write(tmp_path, text))
+    assert [b["label"] for b in study["scan"]["body"]] == ["stick", "body 1"]
+    assert study["scan"]["body"][0]["dimensions"] == {"mass": 1.0, "length": 2.0, "about": "centre"}
+
+
+def test_scan_bodies_helper_gives_moments_and_labels_for_each_kind_of_scan(tmp_path):
+    moments, labels = config.scan_bodies(load_study(write(tmp_path, SCAN_BODY)))
+    assert moments.shape == (4, 3) and moments.dtype == np.float64
+    assert labels == ["rod", "brick", "cuboid", "body 3"]
+    np.testing.assert_array_equal(moments[0], tumble.shapes.rod(1.0, 0.5, radius=0.01).moments)
+    np.testing.assert_array_equal(moments[1], [1.0, 2.0, 3.0])
+    moments, labels = config.scan_bodies(load_study({"scan": {"moments": [[1, 2, 3], [1, 1.5, 1.7]]}}))
+    np.testing.assert_array_equal(moments, [[1.0, 2.0, 3.0], [1.0, 1.5, 1.7]])
+    assert labels == ["body 0", "body 1"]
+    assert config.scan_bodies(load_study({"scan": {"triangle": 5}})) is None
+    assert config.scan_bodies(load_study({"scan": {"axis": [1, 3]}})) is None
+    assert config.scan_bodies(load_study({})) is None
 
 
 # ------------------------------------------------------------------------------------------------------

@@ -17,6 +17,7 @@ from .bodies import Body  # noqa: E402
 from .engine import run_ensemble  # noqa: E402
 from .integration import integrate  # noqa: E402
 from .study import flip_time_law, inertia_triangle, measure, regress_scan, scan  # noqa: E402
+from .runner import run_study  # noqa: E402
 
 __all__ = ["Body", "analysis", "exact", "flip_time_law", "inertia_triangle", "integrate", "io", "measure",
-           "regress_scan", "run_ensemble", "sampling", "scan", "shapes", "theory", "__version__"]
+           "regress_scan", "run_ensemble", "run_study", "sampling", "scan", "shapes", "theory", "__version__"]

@@ -1,11 +1,17 @@
-"""Command line: ``tumble demo`` (the study runner and its commands arrive with the studies layer).
+"""Command line: ``tumble run [STUDY]``, ``tumble studies``, ``tumble plot FILE.nc``, ``tumble bench``,
+``tumble demo``.
 
-Exit status: 0 success, 2 invalid input (one clear message, no traceback), 1 any other failure.
+Exit status: 0 success, 2 invalid input (one clear message naming the file, the field and what is wrong; no
+traceback, no output file), 1 any other failure (``TUMBLE_DEBUG=1`` shows its traceback).
 """
 
 import argparse
+import os
+import subprocess
 import sys
 import time
+import traceback
+from pathlib import Path
 
 import numpy as np
 
@@ -77,28 +83,147 @@ def demo(samples=2000, seed=0, dt=0.002, out=sys.stdout):
           f"(omega_{middle + 1} changed sign at t ≈ {first_flip:.2f} s).", file=out)
 
 
-def main(argv=None):
+_BENCHMARKS = ("engine", "accuracy", "work_precision")
+
+
+class InputError(ValueError):
+    """Invalid command-line input (exit 2)."""
+
+
+def _run(args):
+    from . import config, runner
+
+    overrides = {key: value for key, value in (("perturbation.samples", args.samples),
+                                               ("perturbation.seed", args.seed)) if value is not None}
+    started = time.perf_counter()
+    resolved = config.load_study(args.study, overrides=overrides)
+    stem = runner.output_stem(args.study, resolved)
+    directory = Path(args.out or resolved["outputs"]["directory"] or Path("data", "runs", stem))
+    if args.format:
+        resolved["outputs"]["format"] = list(dict.fromkeys(args.format))
+    print(f"tumble {__version__}: study {args.study!r} ({resolved['title']})", flush=True)
+    try:
+        ds = runner._run(resolved, args.study, progress=None)
+    except ValueError as err:  # a value the scene cannot take, found while planning it: still the input's fault
+        raise InputError(f"{args.study}: {err}") from None
+    command = " ".join(["tumble run", args.study] + [f"--{k.split('.')[1]} {v}" for k, v in overrides.items()])
+    stored, paths = runner.write_outputs(ds, resolved, directory, stem, action=command)
+    print(runner.summary_table(stored))
+    print(f"\n{time.perf_counter() - started:.1f} s; wrote:")
+    for path in paths:
+        print(f"  {path}")
+
+
+def _studies(args):
+    from . import config
+
+    names = config.bundled_studies()
+    width = max(map(len, names), default=0)
+    for name, title in names.items():
+        print(f"{name:{width}s}  {title}")
+    print(f"\n{len(names)} studies in {config.STUDIES_DIR}; run one with `tumble run NAME`, or write your own "
+          f"(see {config.DEFAULTS_PATH.name})")
+
+
+def _plot(args):
+    from . import io, plots
+
+    path = Path(args.file)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    try:
+        ds = io.read_dataset(path, require_tumble=True)
+    except (ValueError, OSError) as err:
+        raise InputError(f"{path}: not a tumble result file ({err})") from None
+    names = args.figures or [name for name in plots.FIGURES if plots.can_draw(ds, name)[0]]
+    for name in names:
+        ok, reason = plots.can_draw(ds, name) if name in plots.FIGURES else (False, "unknown figure")
+        if not ok:
+            raise InputError(f"{path}: figure {name!r}: {reason} (figures: {', '.join(plots.FIGURES)})")
+    directory = Path(args.out) if args.out else path.parent
+    written = plots.save_figures(ds, names, directory, path.stem, formats=tuple(args.format or ("png",)))
+    for written_path in written:
+        print(written_path)
+
+
+def _bench(args):
+    folder = Path(__file__).resolve().parent.parent / "benchmarks"
+    if not folder.is_dir():
+        folder = Path.cwd() / "benchmarks"
+    if not folder.is_dir():
+        raise InputError("tumble bench runs the scripts in benchmarks/ of a tumble source checkout; run it from "
+                         "the repository's root folder")
+    names = args.names or list(_BENCHMARKS)
+    for name in names:
+        script = folder / f"{name}.py"
+        if not script.is_file():
+            raise InputError(f"benchmark {name!r}: no {script} (benchmarks: {', '.join(_BENCHMARKS)})")
+    for name in names:
+        extra = ["--quick"] if args.quick and name == "work_precision" else []
+        print(f"== benchmarks/{name}.py {' '.join(extra)}", flush=True)
+        done = subprocess.run([sys.executable, str(folder / f"{name}.py"), *extra], check=False)
+        if done.returncode:
+            raise RuntimeError(f"benchmark {name} failed (exit status {done.returncode})")
+
+
+def _parser():
     parser = argparse.ArgumentParser(prog="tumble", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"tumble {__version__}")
     commands = parser.add_subparsers(dest="command", required=True)
+    run = commands.add_parser("run", help="run a study: netCDF file, figures and a summary")
+    run.add_argument("study", nargs="?", default="intermediate_axis",
+                     help="a study file (TOML) or a bundled study's name (default: intermediate_axis)")
+    run.add_argument("--out", help="output folder (default: the study's outputs.directory, else data/runs/<study>/)")
+    run.add_argument("--samples", type=int, help="override perturbation.samples")
+    run.add_argument("--seed", type=int, help="override perturbation.seed")
+    run.add_argument("--format", nargs="+", choices=("png", "pdf"), help="figure formats (override outputs.format)")
+    commands.add_parser("studies", help="list the bundled studies")
+    plot = commands.add_parser("plot", help="draw the figures of a result file")
+    plot.add_argument("file", help="a netCDF file written by tumble run")
+    plot.add_argument("--figures", nargs="+", help="which figures (default: every one the file can give)")
+    plot.add_argument("--format", nargs="+", choices=("png", "pdf"), help="figure formats (default png)")
+    plot.add_argument("--out", help="output folder (default: the file's folder)")
+    bench = commands.add_parser("bench", help="run the benchmarks (from a source checkout)")
+    bench.add_argument("names", nargs="*", help=f"which ({', '.join(_BENCHMARKS)}; default all)")
+    bench.add_argument("--quick", action="store_true", help="small sizes, for a smoke run")
     run_demo = commands.add_parser("demo", help="run the physics-core demo on the Dzhanibekov T-handle")
     run_demo.add_argument("--samples", type=int, default=2000, help="ensemble size (default 2000)")
     run_demo.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     run_demo.add_argument("--dt", type=float, default=0.002, help="step in s (default 0.002)")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv=None):
+    """Entry point of ``tumble`` and ``python -m tumble``; returns the exit status."""
+    from .config import StudyError
+
+    args = _parser().parse_args(argv)
     try:
-        if args.command == "demo":
+        if args.command == "run":
+            _run(args)
+        elif args.command == "studies":
+            _studies(args)
+        elif args.command == "plot":
+            _plot(args)
+        elif args.command == "bench":
+            _bench(args)
+        elif args.command == "demo":
             if args.samples < 1:
-                raise ValueError(f"--samples must be >= 1, got {args.samples}")
+                raise InputError(f"--samples must be >= 1, got {args.samples}")
             demo(samples=args.samples, seed=args.seed, dt=args.dt)
-    except ValueError as err:
+    except (StudyError, InputError) as err:
         print(f"tumble: error: {err}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into a reader that stopped early (e.g. `| head`)
         sys.stderr.close()
         return 1
     except KeyboardInterrupt as err:
-        print(f"tumble: interrupted{': ' + str(err) if str(err) else ''}", file=sys.stderr)
+        print(f"tumble: interrupted{': ' + str(err) if str(err) else ''}; nothing was written", file=sys.stderr)
+        return 1
+    except Exception as err:  # noqa: BLE001 - the command line reports every failure as one line (exit 1)
+        if os.environ.get("TUMBLE_DEBUG"):
+            traceback.print_exc()
+        print(f"tumble: failed: {type(err).__name__}: {err}", file=sys.stderr)
         return 1
     return 0
 

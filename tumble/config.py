@@ -55,6 +55,7 @@ __all__ = [
     "bundled_studies",
     "load_study",
     "resolve_body",
+    "scan_bodies",
 ]
 
 
@@ -94,8 +95,10 @@ FIGURES = ("stability_map", "norm_growth", "flip_law", "flip_components", "invar
 FORMATS = ("png", "pdf")
 ARRAYS = ("sample_rate", "sample_status", "sample_first_flip", "sample_flip_spacing")
 
-#: Keys of the ``[scan]`` table, and the field each one replaces.
+#: Keys of the ``[scan]`` table, and the field each one replaces (``scan.body`` replaces the whole ``[body]``
+#: table: moments, shape and dimensions).
 SCAN_KEYS = {
+    "body": "body",
     "moments": "body.moments",
     "triangle": "body.moments",
     "axis": "spin.axis",
@@ -113,19 +116,23 @@ _TABLES = {
     "body": ("moments", "shape", "dimensions"),
     "spin": ("axis", "rate"),
     "perturbation": ("amplitude", "samples", "seed", "distribution"),
-    "integration": ("method", "dt", "flips"),
+    "integration": ("method", "dt", "horizon", "flips"),
     "torque": ("profile", "vector", "period", "duration"),
     "scan": tuple(SCAN_KEYS),
     "outputs": ("figures", "format", "arrays", "directory"),
 }
 _TOP = ("title", *_TABLES)
 _SUBTABLES = {("body", "dimensions")}
+_TABLE_ARRAYS = {("scan", "body")}
 
 #: Title of a study given as a mapping with ``title = ""`` (a file's default title is its stem).
 UNTITLED = "untitled study"
 
 # Shape moments given in a study must agree with the shape's to this relative tolerance.
 _SHAPE_RTOL = 1e-9
+
+#: Keys of one entry of ``scan.body`` (an inline table): a shape with its dimensions, or moments.
+_SCAN_BODY_KEYS = ("label", "shape", "dimensions", "moments")
 
 
 class StudyError(ValueError):
@@ -208,12 +215,12 @@ def _locate(source):
     path = Path(text)
     if path.is_file():
         return path, text
-    if path.exists():
-        raise StudyError(text, "<file>", "is not a file (a study is a TOML file or a bundled study name)")
-    if _is_bare_name(text):
+    if _is_bare_name(text):  # a bundled name wins over a folder of the same name (e.g. an output folder)
         bundled = STUDIES_DIR / f"{text}.toml"
         if bundled.is_file():
             return bundled, str(bundled)
+    if path.exists():
+        raise StudyError(text, "<file>", "is not a file (a study is a TOML file or a bundled study name)")
     names = ", ".join(_bundled_names()) or "none"
     raise StudyError(text, "<file>", f"no such file, and no bundled study of that name (bundled: {names})")
 
@@ -252,14 +259,17 @@ def _unknown(field, key, known):
     """An _Invalid for unknown ``key`` in the table at ``field``, suggesting a close or relocated key."""
     path = f"{field}.{key}" if field else key
     close = difflib.get_close_matches(key, known, n=1, cutoff=0.6)
+    entry = field.endswith("]")  # an entry of an array of tables (scan.body[1]): no relocated-key hints
     if close:
         hint = f"did you mean {close[0]!r}?"
+    elif entry:
+        hint = f"known keys: {', '.join(known)}"
     else:
         others = {p.rsplit(".", 1)[-1]: p for p in reversed(_leaf_paths()) if p != path}
         near = difflib.get_close_matches(key, list(others), n=1, cutoff=0.8)
         elsewhere = [others[near[0]]] if near else []
         hint = f"did you mean {elsewhere[0]}?" if elsewhere else f"known keys: {', '.join(known)}"
-    where = f"in [{field}]" if field else "at the top level"
+    where = (f"in {field}" if entry else f"in [{field}]") if field else "at the top level"
     return _Invalid(path, f"unknown key {where}; {hint}")
 
 
@@ -277,6 +287,8 @@ def _check_structure(study):
         for sub, item in value.items():
             if sub not in _TABLES[key]:
                 raise _unknown(key, sub, _TABLES[key])
+            if (key, sub) in _TABLE_ARRAYS:
+                continue  # an array of tables (scan.body), checked entry by entry
             if (key, sub) in _SUBTABLES:
                 if not isinstance(item, Mapping):
                     raise _Invalid(f"{key}.{sub}", f"must be a table, got {_toml_kind(item)}")
@@ -425,9 +437,9 @@ def _shape_parameters(shape):
             if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
 
 
-def _dimensions(shape, dims):
-    """The shape's keyword arguments (given ones checked, defaults filled in) and the resulting Body."""
-    field = "body.dimensions"
+def _dimensions(shape, dims, field="body.dimensions"):
+    """The shape's keyword arguments (given ones checked, defaults filled in) and the resulting Body;
+    ``field`` is the path of the dimensions table (``scan.body[2].dimensions`` for an entry of a scan)."""
     params = _shape_parameters(shape)
     resolved = {}
     for key, value in dims.items():
@@ -444,7 +456,7 @@ def _dimensions(shape, dims):
     for key, default in params.items():
         if key not in resolved and isinstance(default, (str, int, float)) and not isinstance(default, bool):
             resolved[key] = default if isinstance(default, str) else float(default)
-    body = _shape_body(shape, resolved)
+    body = _shape_body(shape, resolved, field)
     ordered = {key: resolved[key] for key in params if key in resolved}
     return ordered, body
 
@@ -454,41 +466,90 @@ def _hint(key, params):
     return f"; did you mean {close[0]!r}?" if close else f" (arguments: {', '.join(params)})"
 
 
-def _shape_body(shape, dims):
+def _shape_body(shape, dims, field="body.dimensions"):
     try:
         return getattr(shapes, shape)(**dims)
     except ValueError as err:
         message = str(err)
         named = [k for k in dims if message.startswith(f"{k} ")]
-        field = f"body.dimensions.{named[0]}" if named else "body.dimensions"
-        raise _Invalid(field, f"{shape}(): {message}") from None
+        raise _Invalid(f"{field}.{named[0]}" if named else field, f"{shape}(): {message}") from None
 
 
-def _body(table, given):
-    shape = _choice(table["shape"], "body.shape", ("", *SHAPES))
+def _body(table, given, field="body"):
+    """A body table (merged ``table``; ``given``: as the study states it) resolved to moments, shape and
+    dimensions; ``field`` is its path (``body``, or ``scan.body[2]`` for an entry of a scan)."""
+    shape = _choice(table["shape"], f"{field}.shape", ("", *SHAPES))
     dims = table["dimensions"]
     if not shape:
         if dims:
-            raise _Invalid("body.dimensions", "given, but body.shape is \"\"; dimensions describe a shape: "
-                                              "set body.shape or give body.moments instead")
-        return {"moments": _moments(table["moments"], "body.moments"), "shape": "", "dimensions": {}}
-    dims, body = _dimensions(shape, dims)
+            raise _Invalid(f"{field}.dimensions", f"given, but {field}.shape is \"\"; dimensions describe a "
+                                                  f"shape: set {field}.shape or give {field}.moments instead")
+        return {"moments": _moments(table["moments"], f"{field}.moments"), "shape": "", "dimensions": {}}
+    dims, body = _dimensions(shape, dims, f"{field}.dimensions")
     moments = [float(x) for x in body.moments]
     if "moments" in given:
-        stated = _moments(given["moments"], "body.moments")
+        stated = _moments(given["moments"], f"{field}.moments")
         if not np.allclose(stated, moments, rtol=_SHAPE_RTOL, atol=0.0):
-            raise _Invalid("body.moments", f"{stated} disagree with body.shape = {shape!r}, whose moments "
-                                           f"are {moments}; state the shape or the moments, not both")
+            raise _Invalid(f"{field}.moments", f"{stated} disagree with {field}.shape = {shape!r}, whose "
+                                               f"moments are {moments}; state the shape or the moments, not both")
     return {"moments": moments, "shape": shape, "dimensions": dims}
 
 
-def _torque(table):
+def _scan_body(entry, field, index):
+    """One entry of ``scan.body``: ``{shape = ..., dimensions = {...}, label = ...}`` or
+    ``{moments = [...], label = ...}``, checked exactly like the ``[body]`` table."""
+    if not isinstance(entry, Mapping):
+        raise _Invalid(field, f"must be a table ({{shape = \"rod\", dimensions = {{...}}}} or "
+                              f"{{moments = [I1, I2, I3]}}), got {_toml_kind(entry)}")
+    for key in entry:
+        if key not in _SCAN_BODY_KEYS:
+            raise _unknown(field, key, _SCAN_BODY_KEYS)
+    dims = entry.get("dimensions", {})
+    if not isinstance(dims, Mapping):
+        raise _Invalid(f"{field}.dimensions", f"must be a table, got {_toml_kind(dims)}")
+    shape = entry.get("shape", "")
+    if not shape and "moments" not in entry and not dims:
+        raise _Invalid(field, "names no body: give shape (with dimensions) or moments = [I1, I2, I3]")
+    table = {"shape": shape, "dimensions": dims, "moments": entry.get("moments")}
+    body = _body(table, entry, field)
+    label = _string(entry.get("label", ""), f"{field}.label") or body["shape"] or f"body {index}"
+    return {"label": label, "shape": body["shape"], "dimensions": body["dimensions"], "moments": body["moments"]}
+
+
+def _scan_body_list(value, field):
+    """``scan.body``: a non-empty list of bodies with distinct labels."""
+    items = _array(value, field, empty=False)
+    bodies = [_scan_body(entry, f"{field}[{i}]", i) for i, entry in enumerate(items)]
+    seen = {}
+    for i, body in enumerate(bodies):
+        label = body["label"]
+        if label in seen:
+            raise _Invalid(f"{field}[{i}].label", f"{label!r} duplicates the label of {field}[{seen[label]}]; "
+                                                  f"labels name the bodies of the scan and must be distinct "
+                                                  f"(set label = \"...\" on one of them)")
+        seen[label] = i
+    return bodies
+
+
+def _torque(table, axis):
+    """The torque table; a torque (profile other than 'none') must act about the spin axis ``axis``."""
     profile = _choice(table["profile"], "torque.profile", PROFILES)
     vector = _vector(table["vector"], "torque.vector")
     times = {key: _at_least(table[key], f"torque.{key}", 0, " s") for key in ("period", "duration")}
     if profile == "none" and any(vector):
         raise _Invalid("torque.vector", f"is {vector} but torque.profile is 'none' (torque-free); set "
                                         f"torque.profile (e.g. 'constant') or remove the vector")
+    if profile != "none":
+        for i, x in enumerate(vector):
+            if i != axis - 1 and x != 0:
+                raise _Invalid(f"torque.vector[{i}]", f"must be 0, got {x!r}: measured rates are compared with "
+                                                      f"linear theory for a torque about the spin axis "
+                                                      f"(spin.axis = {axis}) only; arbitrary torques belong to "
+                                                      f"tumble.integrate")
+        if vector[axis - 1] == 0:
+            raise _Invalid(f"torque.vector[{axis - 1}]", f"must be non-zero for profile {profile!r}: the torque "
+                                                         f"acts about the spin axis (spin.axis = {axis}); for no "
+                                                         f"torque use torque.profile = 'none'")
     needed = _PROFILE_TIMES.get(profile)
     for key, value in times.items():
         if key == needed and value <= 0:
@@ -504,6 +565,14 @@ def _scan(table, resolved):
     shape = resolved["body"]["shape"]
     distribution = resolved["perturbation"]["distribution"]
     profile = resolved["torque"]["profile"]
+    for other in ("moments", "triangle"):
+        if "body" in table and other in table:
+            raise _Invalid("scan.body", f"not together with scan.{other}: each gives the bodies of the scan")
+    if "axis" in table and profile != "none":
+        axis = resolved["spin"]["axis"]
+        raise _Invalid("scan.axis", f"not with a torque (torque.profile = {profile!r}): the torque acts about the "
+                                    f"spin axis (spin.axis = {axis}), which is therefore fixed; scan the axis "
+                                    f"torque-free (torque.profile = 'none')")
     if "triangle" in table and "moments" in table:
         raise _Invalid("scan.triangle", "not together with scan.moments: each gives the bodies of the scan")
     for key in SCAN_KEYS:
@@ -511,8 +580,11 @@ def _scan(table, resolved):
             continue
         field = f"scan.{key}"
         value = table[key]
-        if key in ("moments", "triangle") and shape:
+        if key in ("body", "moments", "triangle") and shape:
             raise _Invalid(field, f"scans bodies, but body.shape = {shape!r} fixes the body; use one of them")
+        if key == "body":
+            out[key] = _scan_body_list(value, field)
+            continue
         if key == "triangle":
             n = _integer(value, field) if not isinstance(value, list) else None
             if n is None:
@@ -552,11 +624,12 @@ def _resolve(study, given, title):
         raise _Invalid("perturbation.samples", f"must be >= 1, got {resolved['perturbation']['samples']}")
     if resolved["perturbation"]["seed"] < 0:
         raise _Invalid("perturbation.seed", f"must be >= 0, got {resolved['perturbation']['seed']}")
-    resolved["torque"] = _torque(study["torque"])
+    resolved["torque"] = _torque(study["torque"], resolved["spin"]["axis"])
     integ = study["integration"]
     resolved["integration"] = {
         "method": _method(integ["method"], "integration.method", resolved["torque"]["profile"]),
         "dt": _at_least(integ["dt"], "integration.dt", 0, " s"),
+        "horizon": _at_least(integ["horizon"], "integration.horizon", 0, " s"),
         "flips": _integer(integ["flips"], "integration.flips"),
     }
     if resolved["integration"]["flips"] < 0:
@@ -626,8 +699,10 @@ def load_study(source, *, overrides=None):
     dict
         The resolved study: every key of ``defaults.toml`` filled (``title`` defaults to the file's stem;
         with ``body.shape`` set, ``body.moments`` holds the shape's moments and ``body.dimensions`` also
-        the arguments left at their defaults, except ``None`` ones), ``scan`` only the keys given. Plain
-        Python types only (JSON-serialisable); ``load_study(load_study(x)) == load_study(x)``.
+        the arguments left at their defaults, except ``None`` ones), ``scan`` only the keys given
+        (``scan.body`` as a list of ``{"label", "shape", "dimensions", "moments"}``, each body resolved like
+        ``body``, ``shape`` ``""`` for moments; see :func:`scan_bodies`). Plain Python types only
+        (JSON-serialisable); ``load_study(load_study(x)) == load_study(x)``.
 
     Raises
     ------
@@ -696,3 +771,30 @@ def resolve_body(study):
     if body.get("shape"):
         return getattr(shapes, body["shape"])(**body.get("dimensions", {}))
     return Body(*body["moments"])
+
+
+def scan_bodies(study):
+    """The bodies a resolved study's scan runs, from ``scan.body`` or ``scan.moments``.
+
+    Parameters
+    ----------
+    study : Mapping
+        A resolved study (:func:`load_study`).
+
+    Returns
+    -------
+    tuple of (ndarray, list of str), or None
+        ``(moments, labels)``: ``moments`` of shape (B, 3), principal moments in kg m² (float64), one row
+        per body in the order of the scan; ``labels`` the B body labels (``scan.body``'s labels, or
+        ``"body 0"``, ``"body 1"``, ... for ``scan.moments``). ``None`` when the scan lists no bodies, and
+        for ``scan.triangle``, whose grid the caller builds (``tumble.inertia_triangle(n)``).
+    """
+    scan = study.get("scan", {})
+    if "body" in scan:
+        entries = scan["body"]
+        moments = np.array([entry["moments"] for entry in entries], dtype=np.float64).reshape(-1, 3)
+        return moments, [entry["label"] for entry in entries]
+    if "moments" in scan:
+        moments = np.array(scan["moments"], dtype=np.float64).reshape(-1, 3)
+        return moments, [f"body {i}" for i in range(len(moments))]
+    return None

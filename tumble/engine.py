@@ -20,6 +20,7 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Mapping
 from typing import NamedTuple
 
 import numba
@@ -30,7 +31,7 @@ from . import exact
 from .bodies import one_body
 from .kernels.drivers import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK
 from .kernels.methods import BLOCK, METHODS, run
-from .kernels.steppers import TORQUE_CONSTANT, TORQUE_USER
+from .kernels.steppers import TORQUE_CONSTANT, TORQUE_PULSE, TORQUE_RAMP, TORQUE_SINE, TORQUE_USER
 from .sampling import CHUNK
 
 __all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "Interrupted", "STATUS_NAMES", "run_ensemble", "torque_spec"]
@@ -59,28 +60,58 @@ class EnsembleResult(NamedTuple):
     info: dict
 
 
+#: Named torque profiles a study may use (studies are data: a profile name and numbers, never code).
+TORQUE_PROFILES = {"constant": TORQUE_CONSTANT, "ramp": TORQUE_RAMP, "sine": TORQUE_SINE, "pulse": TORQUE_PULSE}
+_PROFILE_TIME = {"ramp": "duration", "sine": "period", "pulse": "duration"}
+_PROFILE_TEXT = {"constant": "constant {v} N m", "ramp": "ramp {v} N m x min(t / {tau} s, 1)",
+                 "sine": "sine {v} N m x sin(2 pi t / {tau} s)", "pulse": "pulse {v} N m for 0 <= t < {tau} s"}
+
+
+def _torque_vector(vector):
+    try:
+        params = np.array(vector, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"torque must be 3 numbers (N m, body frame) or a function, got {vector!r}") from err
+    if params.shape != (3,):
+        raise ValueError(f"torque must have shape (3,) (N m, body frame), got shape {params.shape}")
+    if not np.all(np.isfinite(params)):
+        raise ValueError(f"torque must be finite, got {params.tolist()}")
+    return params
+
+
 def torque_spec(torque):
     """``(kind, params, fn, description)`` of a torque argument; params and fn None when torque-free.
 
-    ``torque`` is None, three numbers (N m, body frame; all zero means none) or a function
-    ``f(t, w1, w2, w3) -> (N1, N2, N3)`` (numba-jitted, or jittable in nopython mode).
+    ``torque`` is None, three numbers (N m, body frame; all zero means none), a named profile — a mapping
+    ``{"profile": "constant" | "ramp" | "sine" | "pulse", "vector": (N1, N2, N3), "duration": s, "period": s}``
+    (``duration`` for ramp and pulse, ``period`` for sine; see :mod:`tumble.kernels.steppers`), or a function
+    ``f(t, w1, w2, w3) -> (N1, N2, N3)`` (numba-jitted, or jittable in nopython mode). ``params`` is
+    ``(N1, N2, N3, tau)``.
     """
     if torque is None:
         return TORQUE_CONSTANT, None, None, "none"
     if callable(torque):
         fn = torque if isinstance(torque, numba.core.registry.CPUDispatcher) else numba.njit(torque)
         return TORQUE_USER, None, fn, f"function {getattr(torque, '__name__', repr(torque))}(t, w1, w2, w3)"
-    try:
-        params = np.array(torque, dtype=float)
-    except (TypeError, ValueError) as err:
-        raise ValueError(f"torque must be 3 numbers (N m, body frame) or a function, got {torque!r}") from err
-    if params.shape != (3,):
-        raise ValueError(f"torque must have shape (3,) (N m, body frame), got shape {params.shape}")
-    if not np.all(np.isfinite(params)):
-        raise ValueError(f"torque must be finite, got {params.tolist()}")
-    if not params.any():
+    profile, tau = "constant", 0.0
+    if isinstance(torque, Mapping):
+        profile = torque.get("profile", "constant")
+        if profile == "none":
+            return TORQUE_CONSTANT, None, None, "none"
+        if profile not in TORQUE_PROFILES:
+            raise ValueError(f"torque profile must be one of none, {', '.join(TORQUE_PROFILES)}; got {profile!r}")
+        if profile in _PROFILE_TIME:
+            key = _PROFILE_TIME[profile]
+            tau = float(torque.get(key, 0.0))
+            if not (np.isfinite(tau) and tau > 0):
+                raise ValueError(f"torque profile {profile!r} needs {key} > 0 s, got {torque.get(key)!r}")
+        vector = _torque_vector(torque.get("vector", (0.0, 0.0, 0.0)))
+    else:
+        vector = _torque_vector(torque)
+    if not vector.any():
         return TORQUE_CONSTANT, None, None, "none"
-    return TORQUE_CONSTANT, params, None, f"constant {params.tolist()} N m"
+    text = _PROFILE_TEXT[profile].format(v=vector.tolist(), tau=f"{tau:g}")
+    return TORQUE_PROFILES[profile], np.append(vector, tau), None, text
 
 
 def _choose_path(method, torque_free, axis_is_intermediate, max_flips):
@@ -108,7 +139,7 @@ def _warm(method, torque_params, torque_fn, save_every, probe_steps, max_flips, 
     w = np.array([[0.0], [1.0], [0.0]])
     run(METHODS[method], w, np.array([1.0, 2.0, 3.0]), 0.0, 1e-3, 1, save_every=1 if save_every > 0 else 0,
         probe_steps=None if probe_steps is None else [1], max_flips=max_flips, drift=drift,
-        torque_params=None if torque_params is None else np.zeros(3), torque_fn=torque_fn)
+        torque_params=None if torque_params is None else np.zeros(4), torque_fn=torque_fn)
     _warmed.add(key)
     return time.perf_counter() - started
 

@@ -34,12 +34,14 @@ import xarray as xr
 
 from . import __version__, analysis, exact, theory
 from .bodies import Body, one_body
-from .engine import run_ensemble
+from .engine import AUTO_FORCED_METHOD, TORQUE_PROFILES, run_ensemble, torque_spec
+from .integration import integrate
 from .kernels.drivers import STATUS_NAMES, STATUS_OK
 from .kernels.methods import METHODS
 from .sampling import CHUNK, perturbed_spins, seed_entropy
 
-__all__ = ["SAMPLE_STATUS_NAMES", "flip_time_law", "inertia_triangle", "measure", "regress_scan", "scan"]
+__all__ = ["CURVES", "SAMPLE_STATUS_NAMES", "flip_time_law", "inertia_triangle", "invariant_drift", "measure",
+           "regress_scan", "scan"]
 
 #: Per-sample status in a measurement: the engine's (ok, non-finite, invariant drift), then the fit's.
 SAMPLE_STATUS_NAMES = STATUS_NAMES + analysis.FIT_NAMES[1:]
@@ -54,6 +56,16 @@ STEPS_PER_RADIAN = {1: 5000, 2: 200, 4: 40, 8: 12}
 #: well over 2; 32 keeps every phase step below π/16).
 PERIODS = 8
 SAVES_PER_PERIOD = 32
+
+#: Most stored states per sample of a periodic scene (bounds memory when a long horizon is asked for).
+MAX_SAVES = 8192
+
+#: Points of the optional curves: the traced sample's trajectory (flip_components figure).
+TRACE_POINTS = 1500
+
+#: Optional per-scene curves :func:`measure` can keep for figures: the median scaled norm against time
+#: (exponential scenes) and the body-frame ω of one sample (every scene).
+CURVES = ("norm", "trace")
 
 #: Probe times of the transverse norm in an exponential scene (evenly spaced up to saturation).
 PROBES = 256
@@ -99,16 +111,18 @@ def _neutral_plane(moments, a):
     return (a, d), abs(moments[e] - moments[a]) / moments[a]
 
 
-def _plan(moments, a, kind, value, spin, amplitude, method, dt, flips, w0_probe):
+def _plan(moments, a, kind, value, spin, amplitude, method, dt, flips, w0_probe, horizon=None, spin_max=None):
     """Horizon, step and observation times of a scene.
 
     Observations (probes or stored states) are ``spacing`` apart, a whole number of steps: the growth estimator
-    needs equally spaced times, and the closed form evaluates exactly there.
+    needs equally spaced times, and the closed form evaluates exactly there. ``spin_max`` (a torque spins the
+    body up) sets the step; ``horizon`` replaces the planned horizon.
     """
     w = abs(spin)
     timescale = 1.0 / value if value > 0 else 1.0 / w
     if dt is None and method != "exact":
-        dt = min(timescale, 1.0 / w) / STEPS_PER_RADIAN[METHODS[method].order]
+        fastest = max(w, spin_max or w)
+        dt = min(timescale * w / fastest, 1.0 / fastest) / STEPS_PER_RADIAN[METHODS[method].order]
     tilt = math.sin(min(amplitude, 0.5 * np.pi))
     plan = {}
     if kind == "exponential":
@@ -119,9 +133,13 @@ def _plan(moments, a, kind, value, spin, amplitude, method, dt, flips, w0_probe)
         level = max(SATURATION, SATURATION_TILTS * tilt) * w
         saturation = level / math.sqrt(0.5 * (1.0 / weights[b] + 1.0 / weights[c]))
         t_growth = (math.log(max(level / max(tilt * w, 1e-300), math.e)) + 3.0) / value
+        if horizon:
+            t_growth = min(t_growth, horizon)
         spacing = t_growth / PROBES
         t_end = t_growth
-        if flips:
+        if flips and horizon:
+            t_end = horizon
+        elif flips:
             first = exact.first_flip_time(moments, w0_probe)
             last = first + (flips - 1) * exact.flip_spacing(moments, w0_probe)
             last = last[np.isfinite(last)]
@@ -136,8 +154,12 @@ def _plan(moments, a, kind, value, spin, amplitude, method, dt, flips, w0_probe)
             precession = w * tilt * ratio
             period = 2 * np.pi / (precession if precession > 0 else w)
             plan.update(plane=plane)
-        spacing = period / SAVES_PER_PERIOD
-        t_end = PERIODS * period
+        # A torque that spins the body up shortens the period: sample at the fastest one.
+        spacing = period / SAVES_PER_PERIOD * (w / max(w, spin_max or w))
+        t_end = horizon or PERIODS * period
+        if t_end / spacing > MAX_SAVES:
+            raise ValueError(f"horizon {t_end:g} s needs {t_end / spacing:.0f} stored states per sample for the phase "
+                             f"fit ({SAVES_PER_PERIOD} per period), more than {MAX_SAVES}; choose a shorter horizon")
     every = 1 if method == "exact" else max(1, math.ceil(spacing / dt))
     dt = spacing / every
     n_steps = max(1, math.ceil(t_end / dt - 1e-9))
@@ -162,7 +184,7 @@ def _validate_scene(body, axis, spin, amplitude, samples, method, flips):
 
 
 def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="auto", *, dt=None, flips=3,
-            distribution="cone", progress=None):
+            distribution="cone", torque=None, horizon=None, curves=(), progress=None):
     """Measure one scene: how fast perturbations of a steady spin oscillate or grow, against linear theory.
 
     Parameters
@@ -187,6 +209,18 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
         Exponential scenes: flips of the spin axis to time (first flip and spacing); 0 skips them.
     distribution : str
         Tilt distribution, see :func:`tumble.sampling.perturbed_spins`.
+    torque : None, array_like (3,) or mapping, optional
+        A torque about the spin axis — three numbers (N m) or a named profile (see
+        :func:`tumble.engine.torque_spec`) — for periodic scenes: the spin then changes as
+        ``w_a(t) = spin + (N_a/I_a) S(t)`` and linear theory's phase advances by ``sqrt(q) ∫|w_a| dt``; the
+        theory rate is the least-squares slope of that phase over the observation times, exactly what the
+        phase fit measures. (The wobbly space station of the problem sheet.)
+    horizon : float, optional
+        Span of the scene, s (default: :data:`PERIODS` periods, or growth to saturation and ``flips`` flips).
+    curves : iterable of str
+        Optional curves to keep for figures, from :data:`CURVES`: ``"norm"`` (median and quartiles of the
+        scaled transverse norm at the probe times, exponential scenes) and ``"trace"`` (the body-frame ω of
+        the first sample over the horizon).
     progress : bool, optional
         Progress bar (default: on a terminal only).
 
@@ -204,7 +238,7 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
     Raises
     ------
     ValueError
-        Invalid body, axis, spin, amplitude, samples, seed, method or flips.
+        Invalid body, axis, spin, amplitude, samples, seed, method, flips, torque, horizon or curves.
 
     Examples
     --------
@@ -216,14 +250,29 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
                                                                      method, flips)
     if dt is not None and (not np.isfinite(dt) or dt <= 0):
         raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+    if horizon is not None and (not np.isfinite(horizon) or horizon <= 0):
+        raise ValueError(f"horizon must be a positive number of seconds, got {horizon!r}")
+    curves = tuple(curves)
+    for name in curves:
+        if name not in CURVES:
+            raise ValueError(f"curves must be among {', '.join(CURVES)}; got {name!r}")
     entropy = seed_entropy(seed)
     a = axis - 1
     kind, value = theory.linear(moments, axis, spin)
-    chosen = "exact" if method == "auto" else method
+    spin_up = _axial_spin_up(torque, moments, a, kind, spin)
+    chosen = ("exact" if spin_up is None else AUTO_FORCED_METHOD) if method == "auto" else method
+    if spin_up is not None and chosen == "exact":
+        raise ValueError("method 'exact' is the torque-free closed form; a scene with a torque needs a fixed-step "
+                         "method (or 'auto')")
+    spin_max = None
+    if spin_up is not None:
+        span = horizon or PERIODS * 2 * np.pi / value
+        spin_max = float(np.abs(spin + spin_up["gain"] * _spin_up_integrals(spin_up, np.linspace(0, span, 1001))[0])
+                         .max())
     w_probe = perturbed_spins(moments, axis, spin, amplitude, min(samples, CHUNK), seed=entropy,
                               distribution=distribution)
     plan = _plan(moments, a, kind, value, spin, amplitude, chosen, dt, flips if kind == "exponential" else 0,
-                 w_probe)
+                 w_probe, horizon, spin_max)
     growth = kind == "exponential"
     n_flips = flips if growth else 0
 
@@ -236,6 +285,8 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
     flip_exact = np.full(samples, np.nan)
     flip_asymptote = np.full(samples, np.nan)
     info = {}
+    kept = {}
+    value_free = value
     computed = skipped = 0
     for lo in range(0, samples, SLICE):
         hi = min(lo + SLICE, samples)
@@ -246,12 +297,14 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
                               probe_times=plan["probe_times"] if growth else None,
                               norm_weights=plan["weights"] if growth else None, max_flips=n_flips,
                               stop_norm=plan["saturation"] if growth else 0.0, stop_flips=n_flips,
-                              progress=progress)
+                              torque=torque if spin_up is not None else None, progress=progress)
         info = result.info
         computed += info["sample_steps_computed"]
         skipped += info["sample_steps_skipped"]
         if growth:
             fit = analysis.growth_rates(result.probe_times, result.probes, plan["saturation"])
+            if "norm" in curves and lo == 0:
+                kept["norm"] = (result.probe_times, result.probes)
             rate[lo:hi] = fit.rate
             for name in extra:
                 extra[name][lo:hi] = getattr(fit, name)
@@ -261,6 +314,8 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
             fit = analysis.oscillation_frequencies(result.times, result.trajectory[..., [b, c]], weights, spin)
             rate[lo:hi] = fit.frequency
             extra["radius"][lo:hi] = fit.radius
+            if spin_up is not None:
+                value = _spin_up_rate(spin_up, value_free, spin, result.times)
         code[lo:hi] = np.where(result.status != STATUS_OK, result.status,
                                np.where(fit.code != analysis.FIT_OK, fit.code + _FIT_OFFSET, 0))
         if n_flips:
@@ -268,6 +323,9 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
             flip_first[lo:hi], flip_spacing[lo:hi] = stats.first, stats.spacing
             flip_exact[lo:hi] = exact.flip_spacing(moments, w0)
             flip_asymptote[lo:hi] = theory.flip_time_asymptote(moments, w0)
+    if "trace" in curves:
+        w_trace = perturbed_spins(moments, axis, spin, amplitude, 1, seed=entropy, distribution=distribution)
+        kept["trace"] = _trace(moments, w_trace, plan, chosen, torque if spin_up is not None else None)
     valid = code == 0
     rate = np.where(valid, rate, np.nan)
     summary = analysis.summarize(rate, confidence=CONFIDENCE, resamples=BOOTSTRAP, seed=entropy % 2**63)
@@ -276,9 +334,86 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
         warnings.warn(f"no sample of the scene (axis {axis}, amplitude {amplitude}) gave a rate; statuses: "
                       + ", ".join(f"{SAMPLE_STATUS_NAMES[k]} {n}" for k, n in enumerate(counts) if n),
                       RuntimeWarning, stacklevel=2)
-    return _scene_dataset(moments, axis, spin, amplitude, samples, method, chosen, kind, value, summary, rate,
-                          code, extra, valid, (flip_first, flip_spacing, flip_exact, flip_asymptote) if n_flips
-                          else None, plan, info, computed, skipped, entropy, distribution)
+    ds = _scene_dataset(moments, axis, spin, amplitude, samples, method, chosen, kind, value, summary, rate,
+                        code, extra, valid, (flip_first, flip_spacing, flip_exact, flip_asymptote) if n_flips
+                        else None, plan, info, computed, skipped, entropy, distribution)
+    if spin_up is not None:
+        ds.attrs["torque"] = info.get("torque", "")
+    ds = ds.assign(_curves(kept, curves))
+    if "trace" in curves:
+        ds = ds.assign_coords(component=_var(np.array([1, 2, 3]), "1", "body-frame component (principal axis)",
+                                             ("component",)))
+    return ds
+
+
+def _axial_spin_up(torque, moments, a, kind, spin):
+    """``None`` when torque-free, else the scene's spin-up: profile, time scale and gain ``N_a / I_a``."""
+    torque_kind, params, fn, _ = torque_spec(torque)
+    if params is None and fn is None:
+        return None
+    if fn is not None:
+        raise ValueError("measure takes a torque as three numbers or a named profile; a torque function belongs "
+                         "to tumble.integrate (linear theory cannot be stated for it)")
+    if kind != "periodic":
+        raise ValueError(f"measure compares a torqued scene with linear theory only about a stable axis (periodic); "
+                         f"axis {a + 1} is {kind}")
+    others = [i for i in range(3) if i != a]
+    if params[others].any():
+        raise ValueError(f"measure compares with linear theory for a torque about the spin axis only; torque "
+                         f"components {[i + 1 for i in others]} must be 0, got {params[:3].tolist()}")
+    profile = next(name for name, k in TORQUE_PROFILES.items() if k == torque_kind)
+    return {"profile": profile, "tau": float(params[3]), "gain": float(params[a]) / moments[a]}
+
+
+def _spin_up_integrals(spin_up, t):
+    return theory.profile_integrals(spin_up["profile"], spin_up["tau"], t)
+
+
+def _spin_up_rate(spin_up, value, spin, times):
+    """Linear theory's rate of a torqued periodic scene: the least-squares slope of its phase over ``times``."""
+    first, second = _spin_up_integrals(spin_up, times)
+    spin_now = spin + spin_up["gain"] * first
+    if np.any(np.sign(spin_now) != np.sign(spin)):
+        raise ValueError("the torque reverses the spin within the horizon; linear theory about a steady spin does "
+                         "not apply (shorten the horizon or weaken the torque)")
+    phase = (value / abs(spin)) * np.sign(spin) * (spin * times + spin_up["gain"] * second)
+    return float(np.polyfit(times, phase, 1)[0])
+
+
+def _trace(moments, w0, plan, method, torque):
+    """``(times, omega (T, 3))`` of one sample over the scene's horizon, about :data:`TRACE_POINTS` points."""
+    if method == "exact":
+        times = np.linspace(0.0, plan["t_end"], TRACE_POINTS)
+        return times, exact.omega(moments, w0, times)[0]
+    every = max(1, -(-plan["n_steps"] // TRACE_POINTS))
+    ds = integrate(moments, w0, plan["t_end"], plan["dt"], method=method, torque=torque, save_every=every)
+    return ds.time.values, ds.omega.values[0]
+
+
+def _curves(kept, curves):
+    """Dataset variables of the kept curves (NaN where the scene has none, so that scans stack)."""
+    out = {}
+    if "norm" in curves:
+        times, probes = kept.get("norm", (np.full(PROBES + 1, np.nan), np.full((1, PROBES + 1), np.nan)))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns after every sample stopped
+            q1, median, q3 = np.nanquantile(probes, [0.25, 0.5, 0.75], axis=0)
+        dims = ("growth_point",)
+        out.update(
+            growth_time=_var(times, "s", "probe time of the transverse norm", dims),
+            growth_norm=_var(median, "rad/s", "scaled transverse norm, median over samples", dims),
+            growth_norm_q1=_var(q1, "rad/s", "scaled transverse norm, lower quartile over samples", dims),
+            growth_norm_q3=_var(q3, "rad/s", "scaled transverse norm, upper quartile over samples", dims))
+    if "trace" in curves:
+        times, omega = kept["trace"]
+        n = TRACE_POINTS + 2  # fixed length (NaN padded), so that scenes of a scan stack
+        t_pad, w_pad = np.full(n, np.nan), np.full((n, 3), np.nan)
+        t_pad[:len(times)], w_pad[:len(times)] = times, omega
+        out.update(
+            trace_time=_var(t_pad, "s", "time along the traced sample (NaN: padding)", ("trace_point",)),
+            trace_omega=_var(w_pad, "rad/s", "body-frame angular velocity of the first sample",
+                             ("trace_point", "component")))
+    return out
 
 
 def _var(value, units, long_name, dims=(), **attrs):
@@ -372,6 +507,55 @@ def _scene_dataset(moments, axis, spin, amplitude, samples, method, chosen, kind
         "source": f"tumble {__version__}",
     }
     return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+#: Stored times of an invariant-drift record (:func:`invariant_drift`).
+DRIFT_POINTS = 200
+
+
+def invariant_drift(body, axis, spin=1.0, amplitude=1e-3, methods=tuple(METHODS), *, samples=16, seed=0,
+                    horizon=None, dt=None):
+    """How each fixed-step method keeps the invariants ``|L|²`` and kinetic energy over a scene's horizon.
+
+    Every method integrates the same ``samples`` spins (torque-free) with its own step (from its order,
+    :data:`STEPS_PER_RADIAN`, unless ``dt`` is given) to the same :data:`DRIFT_POINTS` + 1 times.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``drift_l2(drift_method, drift_time)`` and ``drift_energy(drift_method, drift_time)``: the largest
+        relative error ``|X(t)/X(0) − 1|`` over the samples; ``drift_dt(drift_method)``.
+    """
+    moments, axis, spin, amplitude, samples, _ = _validate_scene(body, axis, spin, amplitude, samples, "auto", 0)
+    methods = [_check_method(m) for m in methods]
+    if not methods or any(m in ("auto", "exact") for m in methods):
+        raise ValueError(f"methods must be fixed-step methods ({', '.join(METHODS)}), got {methods!r}")
+    kind, value = theory.linear(moments, axis, spin)
+    w0 = perturbed_spins(moments, axis, spin, amplitude, samples, seed=seed)
+    t_end = horizon or _plan(moments, axis - 1, kind, value, spin, amplitude, "exact", None,
+                             2 if kind == "exponential" else 0, w0)["t_end"]
+    l2_0 = np.sum((moments * w0) ** 2, axis=1)[:, None]
+    e_0 = np.sum(moments * w0**2, axis=1)[:, None]
+    l2, energy, steps = [], [], []
+    for m in methods:
+        step = dt or min(1.0 / value if value > 0 else 1.0 / abs(spin), 1.0 / abs(spin)) / STEPS_PER_RADIAN[
+            METHODS[m].order]
+        every = max(1, math.ceil(t_end / step / DRIFT_POINTS))
+        ds = integrate(moments, w0, t_end, t_end / (every * DRIFT_POINTS), method=m, save_every=every)
+        w = ds.omega.values
+        with np.errstate(invalid="ignore", over="ignore"):
+            l2.append(np.abs(np.sum((moments * w) ** 2, axis=2) / l2_0 - 1).max(axis=0))
+            energy.append(np.abs(np.sum(moments * w**2, axis=2) / e_0 - 1).max(axis=0))
+        steps.append(ds.attrs["dt"])
+    dims = ("drift_method", "drift_time")
+    return xr.Dataset(
+        {"drift_l2": _var(np.array(l2), "1", "largest relative |L|^2 error over the samples", dims),
+         "drift_energy": _var(np.array(energy), "1", "largest relative kinetic-energy error over the samples",
+                              dims),
+         "drift_dt": _var(np.array(steps), "s", "time step of each method", ("drift_method",))},
+        coords={"drift_method": _var(np.array(methods), "1", "integration method", ("drift_method",)),
+                "drift_time": _var(np.linspace(0.0, t_end, DRIFT_POINTS + 1), "s", "time", ("drift_time",))},
+        attrs={"drift_samples": samples})
 
 
 def inertia_triangle(n=20):

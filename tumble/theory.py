@@ -30,12 +30,14 @@ from .bodies import as_moments, finite_array
 __all__ = [
     "DEGENERATE_RTOL",
     "KINDS",
+    "TORQUE_PROFILE_FORMULAS",
     "constant_torque_symmetric_top",
     "first_flip_time",
     "flip_spacing",
     "flip_time_asymptote",
     "linear",
     "linear_rate",
+    "profile_integrals",
     "stability_exponent",
     "symmetric_top_precession",
 ]
@@ -232,8 +234,37 @@ def symmetric_top_precession(body, w3, *, axis=3, rtol=1e-10):
     return float(omega) if np.ndim(omega) == 0 else omega
 
 
-def constant_torque_symmetric_top(body, w0, torque, t, *, axis=3, rtol=1e-10):
-    """Body-frame angular velocity of a symmetric top under a constant torque about its symmetry axis.
+#: Scale s(t) of the named torque profiles (N(t) = vector * s(t); tau the profile's time scale, s).
+TORQUE_PROFILE_FORMULAS = {"constant": "1", "ramp": "min(t / tau, 1)", "sine": "sin(2 pi t / tau)",
+                           "pulse": "1 for 0 <= t < tau, else 0"}
+
+
+def profile_integrals(profile, tau, t):
+    """First and second time integrals of a torque profile's scale: ``S(t) = ∫0^t s``, ``∫0^t S``.
+
+    ``s(t)`` is one of :data:`TORQUE_PROFILE_FORMULAS`; ``t >= 0`` (s). With a torque ``N s(t)`` about the
+    spin axis ``a``, ``w_a(t) = w_a0 + (N_a / I_a) S(t)`` to first order in the tilt, and the phase of a
+    small perturbation advances by ``sqrt(q) (w_a0 t + (N_a / I_a) ∫S)`` (exactly, in linear theory: the
+    linearised equations are a constant matrix times ``w_a(t)``).
+    """
+    t = np.asarray(t, dtype=float)
+    if profile == "constant":
+        return t, 0.5 * t**2
+    if profile not in TORQUE_PROFILE_FORMULAS:
+        raise ValueError(f"profile must be one of {', '.join(TORQUE_PROFILE_FORMULAS)}; got {profile!r}")
+    if not tau > 0:
+        raise ValueError(f"the {profile} profile needs a time scale tau > 0 s, got {tau!r}")
+    if profile == "sine":
+        k = 2 * np.pi / tau
+        return (1 - np.cos(k * t)) / k, (t - np.sin(k * t) / k) / k
+    rising, after = np.minimum(t, tau), np.maximum(t - tau, 0.0)
+    if profile == "ramp":
+        return rising**2 / (2 * tau) + after, rising**3 / (6 * tau) + 0.5 * tau * after + 0.5 * after**2
+    return rising, 0.5 * rising**2 + tau * after  # pulse
+
+
+def constant_torque_symmetric_top(body, w0, torque, t, *, axis=3, rtol=1e-10, profile="constant", tau=0.0):
+    """Body-frame angular velocity of a symmetric top under a torque about its symmetry axis.
 
     Euler's equations ``I1 w1' = (I2 − I3) w2 w3 + N1`` (and cyclic) with ``I1 = I2`` and body torque
     ``N = (0, 0, Γ)`` give (problem sheet, problem 6, "the wobbly space station"; DESIGN.md):
@@ -242,7 +273,9 @@ def constant_torque_symmetric_top(body, w0, torque, t, *, axis=3, rtol=1e-10):
     ``w1 + i w2 = (w10 + i w20) exp(i β (w30 t + Γ t² / (2 I3)))``,  ``β = (I3 − I1) / I1``.
 
     The transverse spin keeps its magnitude and turns at the ever faster rate ``β w3(t)``. With
-    ``axis = s`` the same solution is used cyclically (components ``s+1, s+2, s``).
+    ``axis = s`` the same solution is used cyclically (components ``s+1, s+2, s``). A named time profile
+    ``Γ s(t)`` (``profile``, ``tau``; see :func:`profile_integrals`) replaces ``t`` by ``S(t)`` in ``w3`` and
+    ``t²/2`` by ``∫S`` in the phase (``t >= 0`` then).
 
     Parameters
     ----------
@@ -287,8 +320,9 @@ def constant_torque_symmetric_top(body, w0, torque, t, *, axis=3, rtol=1e-10):
     beta = (i_sym - i_perp) / i_perp
     # Add the time axis last to everything per-body.
     ex = lambda a: np.asarray(a)[..., None]  # noqa: E731
-    w_sym = ex(w_sym0) + ex(gamma) * t / ex(i_sym)
-    phase = ex(beta) * (ex(w_sym0) * t + ex(gamma) * t**2 / (2 * ex(i_sym)))
+    first, second = profile_integrals(profile, tau, t)
+    w_sym = ex(w_sym0) + ex(gamma) * first / ex(i_sym)
+    phase = ex(beta) * (ex(w_sym0) * t + ex(gamma) * second / ex(i_sym))
     eta = ex(eta0) * np.exp(1j * phase)
     shape = np.broadcast_shapes(w_sym.shape, eta.shape)
     out = np.empty(shape + (3,))

@@ -114,7 +114,8 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
         kernel_axis = int(np.argsort(perm)[axis])
         weights = weights[perm]
         if torque_params is not None:
-            torque_params = sign * np.asarray(torque_params, dtype=float)[perm]
+            torque_params = np.asarray(torque_params, dtype=float).copy()  # (N1, N2, N3, tau): turn the vector
+            torque_params[:3] = sign * torque_params[perm]
     if torque_fn is not None and torque_params is None:
         torque_params = np.zeros(0)
 

@@ -19,8 +19,12 @@ import math
 from .jit import jit
 from .trig import sincos
 
-# Built-in torque profiles (numeric parameters only, so that studies stay data).
-TORQUE_CONSTANT = 0  # params = (N1, N2, N3), N m
+# Built-in torque profiles (numeric parameters only, so that studies stay data). params = (N1, N2, N3, tau):
+# the vector (N m, body frame) and the profile's time scale tau (s; unused by the constant profile).
+TORQUE_CONSTANT = 0  # N
+TORQUE_RAMP = 1  # N min(t / tau, 1): rises linearly over tau, then holds
+TORQUE_SINE = 2  # N sin(2 pi t / tau)
+TORQUE_PULSE = 3  # N for 0 <= t < tau, then 0 (a fixed step across the jump errs O(h) once)
 TORQUE_USER = -1  # torque_fn is called
 
 # Implicit midpoint: fixed-point iterations stop once the update is below this many ulps of the state.
@@ -45,8 +49,14 @@ def body_torque(t, w1, w2, w3, torque_kind, torque_params, torque_fn):
     """Body-frame torque (N m) at time ``t`` (s) and angular velocity ``w`` (rad/s)."""
     if torque_fn is not None:
         return torque_fn(t, w1, w2, w3)
-    # TORQUE_CONSTANT (the only built-in profile so far)
-    return torque_params[0], torque_params[1], torque_params[2]
+    scale = 1.0
+    if torque_kind == TORQUE_RAMP:
+        scale = min(t / torque_params[3], 1.0)
+    elif torque_kind == TORQUE_SINE:
+        scale = math.sin(2.0 * math.pi * t / torque_params[3])
+    elif torque_kind == TORQUE_PULSE:
+        scale = 1.0 if t < torque_params[3] else 0.0
+    return scale * torque_params[0], scale * torque_params[1], scale * torque_params[2]
 
 
 @jit(inline=True)

@@ -1,0 +1,224 @@
+"""Run a study: resolve it, plan what its outputs need, run its scenes, write the netCDF file and figures.
+
+The planner computes only what the study's ``outputs`` ask for: the per-sample arrays it keeps, the norm
+curves only for ``norm_growth``, one traced sample only for ``flip_components``, the per-method invariant
+record only for ``invariant_drift`` and the work-precision runs only for ``work_precision``.
+
+Every check that can fail on the study's input runs before anything is computed or written, and every file
+is written atomically (:func:`tumble.io.write_dataset`, :func:`tumble.plots.save_figures`), so invalid input
+never leaves a file behind.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from . import config, io, plots, study, theory
+from .config import StudyError
+from .kernels.methods import METHODS
+
+__all__ = ["PER_SAMPLE", "output_stem", "plan", "run_study", "summary_table", "write_outputs"]
+
+#: Per-sample variables a result may keep (``outputs.arrays``); the rest are dropped after the fit.
+PER_SAMPLE = ("sample_rate", "sample_status", "sample_first_flip", "sample_flip_spacing")
+
+#: Figures that need curves :func:`tumble.study.measure` keeps only on request.
+_CURVES = {"norm_growth": "norm", "flip_components": "trace"}
+
+#: Samples of the per-method invariant record (``invariant_drift``).
+_DRIFT_SAMPLES = 16
+
+
+def output_stem(source, resolved):
+    """File stem of a study's outputs: the study file's stem, else its title made file-safe."""
+    if isinstance(source, (str, Path)) and not isinstance(source, Mapping):
+        return Path(source).stem
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", resolved["title"]).strip("_.") or "study"
+
+
+def _bodies(resolved):
+    """``(moments (B, 3) or (3,), body coordinates or None)``: the scan's bodies, or the study's one body."""
+    scan = resolved["scan"]
+    if "triangle" in scan:
+        moments, coords = study.inertia_triangle(scan["triangle"])
+        return moments, coords
+    listed = config.scan_bodies(resolved)
+    if listed is not None:
+        moments, labels = listed
+        return np.asarray(moments, dtype=float), {"body_label": np.array(labels)}
+    return config.resolve_body(resolved).moments, None
+
+
+def plan(resolved, file="<mapping>"):
+    """What a resolved study will run: a dict of :func:`tumble.study.scan` / ``measure`` arguments.
+
+    Raises :class:`~tumble.config.StudyError` for combinations that are valid field by field but cannot
+    give what the study asks (a figure the scan cannot draw, a torque about an unstable axis).
+    """
+    scan = resolved["scan"]
+    figures = resolved["outputs"]["figures"]
+    moments, body_coords = _bodies(resolved)
+    values = {"axis": scan.get("axis", resolved["spin"]["axis"]), "spin": scan.get("rate", resolved["spin"]["rate"]),
+              "amplitude": scan.get("amplitude", resolved["perturbation"]["amplitude"]),
+              "method": scan.get("method", resolved["integration"]["method"])}
+    torque = resolved["torque"] if resolved["torque"]["profile"] != "none" else None
+    integ = resolved["integration"]
+    options = {"dt": integ["dt"] or None, "flips": integ["flips"], "horizon": integ["horizon"] or None,
+               "distribution": resolved["perturbation"]["distribution"], "torque": torque,
+               "curves": tuple(sorted({_CURVES[f] for f in figures if f in _CURVES}))}
+    bodies = np.atleast_2d(moments)
+    axes = values["axis"] if isinstance(values["axis"], list) else [values["axis"]]
+    kinds = {theory.linear(m, a, 1.0)[0] for m in bodies for a in axes}
+
+    def refuse(field, problem):
+        raise StudyError(file, field, problem)
+
+    if torque is not None and kinds != {"periodic"}:
+        refuse("spin.axis", f"a torque scene is compared with linear theory about a stable (largest or smallest) "
+                            f"axis only; axis {axes[0]} of this body is {', '.join(sorted(kinds - {'periodic'}))}")
+    for i, name in enumerate(figures):
+        field = f"outputs.figures[{i}]"
+        if name == "stability_map" and not ("triangle" in scan and isinstance(values["axis"], list)):
+            refuse(field, "stability_map needs scan.triangle (the inertia triangle) and scan.axis (e.g. [1, 2, 3])")
+        if name == "flip_law" and not (isinstance(values["amplitude"], list) and len(values["amplitude"]) >= 2
+                                       and integ["flips"] >= 1 and "exponential" in kinds):
+            refuse(field, "flip_law needs scan.amplitude with at least 2 values, integration.flips >= 1 and a spin "
+                          "about the intermediate axis")
+        if name == "norm_growth" and "exponential" not in kinds:
+            refuse(field, "norm_growth needs a spin about the intermediate axis (no scene grows exponentially)")
+        if name in ("invariant_drift", "work_precision") and torque is not None:
+            refuse(field, f"{name} measures torque-free invariants; set torque.profile = 'none'")
+    scanned = [key for key in ("moments", "triangle", "body", "axis", "rate", "amplitude", "method") if key in scan]
+    return {"moments": moments, "body_coords": body_coords, "values": values, "options": options,
+            "scanned": scanned, "samples": resolved["perturbation"]["samples"],
+            "seed": resolved["perturbation"]["seed"]}
+
+
+def _first(value):
+    return value[0] if isinstance(value, list) else value
+
+
+def _run(resolved, file, progress):
+    """The result dataset of a resolved study (nothing written)."""
+    p = plan(resolved, file)
+    values, options = p["values"], p["options"]
+    if p["scanned"]:
+        ds = study.scan(p["moments"], values["axis"], values["spin"], values["amplitude"], values["method"],
+                        samples=p["samples"], seed=p["seed"], body_coords=p["body_coords"], progress=progress,
+                        **options)
+    else:
+        ds = study.measure(p["moments"], values["axis"], values["spin"], values["amplitude"], p["samples"],
+                           p["seed"], values["method"], progress=progress, **options)
+    keep = resolved["outputs"]["arrays"]
+    ds = ds.drop_vars([name for name in PER_SAMPLE if name in ds and name not in keep])
+    if not any(name in ds for name in PER_SAMPLE):
+        ds = ds.drop_vars("sample")
+    figures = resolved["outputs"]["figures"]
+    first_body = np.atleast_2d(p["moments"])[0]
+    scene = (first_body, _first(values["axis"]), _first(values["spin"]), _first(values["amplitude"]))
+    if "invariant_drift" in figures:
+        methods = [m for m in np.atleast_1d(values["method"]) if m in METHODS] or list(METHODS)
+        ds = ds.merge(study.invariant_drift(*scene, methods, samples=min(_DRIFT_SAMPLES, p["samples"]),
+                                            seed=p["seed"], horizon=options["horizon"]))
+    if "work_precision" in figures:
+        from . import precision  # scipy's solve_ivp runs: imported only when asked for
+
+        ds = ds.merge(precision.work_precision(*scene, samples=p["samples"], t_end=options["horizon"] or 20.0,
+                                               seed=p["seed"], progress=progress))
+    ds.attrs["title"] = resolved["title"]
+    return ds
+
+
+def write_outputs(ds, resolved, directory, stem, *, action=None):
+    """Write ``<directory>/<stem>.nc`` and the study's figures; return ``(stored dataset, paths)``."""
+    directory = Path(directory)
+    path = directory / f"{stem}.nc"
+    stored = io.write_dataset(ds, path, title=resolved["title"], study=resolved,
+                              seed_entropy=ds.attrs.get("seed_entropy"), action=action)
+    figures = plots.save_figures(stored, resolved["outputs"]["figures"], directory, stem,
+                                 formats=tuple(resolved["outputs"]["format"]))
+    return stored, [path, *figures]
+
+
+def run_study(source, *, overrides=None, out=None, progress=None):
+    """Run a study and return its result dataset.
+
+    Parameters
+    ----------
+    source : str, os.PathLike or Mapping
+        A study file, a bundled study's name (``tumble studies``) or a mapping of the same shape
+        (see ``studies/defaults.toml``).
+    overrides : Mapping[str, object], optional
+        Values by dotted field path, e.g. ``{"perturbation.samples": 64}``.
+    out : str or os.PathLike, optional
+        Folder to write ``<stem>.nc`` and the figures to. Without it, files are written only when the study
+        sets ``outputs.directory``; otherwise nothing is written (the command line's ``tumble run`` writes
+        to ``data/runs/<stem>/`` by default).
+    progress : bool, optional
+        Progress bars (default: on a terminal only).
+
+    Returns
+    -------
+    xarray.Dataset
+        Per scene ``rate``, ``rate_theory``, ``rel_error``, ``kind`` (scan parameters as coordinates), the
+        arrays and curves the outputs ask for, and, when written, exactly what the file holds (provenance and
+        the resolved study in ``attrs["study"]``).
+
+    Raises
+    ------
+    tumble.config.StudyError
+        Invalid study (the message names the file, the field path and what is wrong); nothing is written.
+    """
+    resolved = config.load_study(source, overrides=overrides)
+    file = "<mapping>" if isinstance(source, Mapping) else str(source)
+    ds = _run(resolved, file, progress)
+    directory = out if out is not None else resolved["outputs"]["directory"] or None
+    if directory is None:
+        return ds
+    stored, _ = write_outputs(ds, resolved, directory, output_stem(source, resolved))
+    return stored
+
+
+def _scene_label(ds, index):
+    """``axis=2 amplitude=0.001``: the scan coordinates of one scene (dimensions of length 1 left out)."""
+    if not index:
+        return f"axis={int(ds.axis)} spin={float(ds.spin):g} amplitude={float(ds.amplitude):g}"
+    parts = []
+    for dim, i in zip(ds.rate.dims, index):
+        if ds.sizes[dim] == 1:
+            continue
+        value = (ds["body_label"] if dim == "body" and "body_label" in ds.coords else ds[dim]).values[i]
+        parts.append(f"{dim}={value:g}" if isinstance(value, float) else f"{dim}={value}")
+    return " ".join(parts) or "scene"
+
+
+def summary_table(ds, limit=24):
+    """Measured against theory, as text: one line per scene, or per kind for a scan of more than ``limit``."""
+    rate, theory_rate = np.atleast_1d(ds.rate.values), np.atleast_1d(ds.rate_theory.values)
+    kinds, errors = np.atleast_1d(ds.kind.values).astype(str), np.atleast_1d(ds.rel_error.values)
+    lines = []
+    if rate.size <= limit:
+        lines.append(f"{'scene':38s} {'kind':11s} {'measured':>12s} {'theory':>12s} {'rel. error':>10s}")
+        for index in np.ndindex(ds.rate.shape):
+            lines.append(f"{_scene_label(ds, index)[:38]:38s} {str(ds.kind.values[index]):11s} "
+                         f"{float(ds.rate.values[index]):12.6g} {float(ds.rate_theory.values[index]):12.6g} "
+                         f"{float(ds.rel_error.values[index]):10.2e}")
+    else:
+        lines.append(f"{'kind':11s} {'scenes':>7s} {'median rel. error':>18s} {'worst':>10s}")
+        for kind in sorted(set(kinds.ravel())):
+            picked = errors.ravel()[kinds.ravel() == kind]
+            finite = picked[np.isfinite(picked)]
+            lines.append(f"{kind:11s} {picked.size:7d} {np.median(finite) if finite.size else np.nan:18.2e} "
+                         f"{finite.max() if finite.size else np.nan:10.2e}")
+    bad = int(np.count_nonzero(~np.isfinite(rate)))
+    if bad:
+        lines.append(f"{bad} scene(s) gave no rate: every sample was excluded (see sample_status)")
+    if "flip_first" in ds and np.isfinite(ds.flip_first.values).any() and ds.flip_first.size == 1:
+        lines.append(f"first flip {float(ds.flip_first):.4g} s (asymptote {float(ds.flip_first_asymptote):.4g} s), "
+                     f"then every {float(ds.flip_spacing):.6g} s (exact 2K/nu {float(ds.flip_spacing_exact):.6g} s)")
+    return "\n".join(lines)
