@@ -50,7 +50,10 @@ def _bodies(resolved):
     listed = config.scan_bodies(resolved)
     if listed is not None:
         moments, labels = listed
-        return np.asarray(moments, dtype=float), {"body_label": np.array(labels)}
+        moments = np.asarray(moments, dtype=float)
+        if "moments" in scan:  # unnamed bodies: their moments say most
+            labels = ["I=(" + ", ".join(f"{x:.7g}" for x in m) + ")" for m in moments]
+        return moments, {"body_label": np.array(labels)}
     return config.resolve_body(resolved).moments, None
 
 
@@ -209,15 +212,20 @@ def summary_table(ds, limit=24):
                          f"{float(ds.rate.values[index]):12.6g} {float(ds.rate_theory.values[index]):12.6g} "
                          f"{float(ds.rel_error.values[index]):10.2e}")
     else:
-        lines.append(f"{'kind':11s} {'scenes':>7s} {'median rel. error':>18s} {'worst':>10s}")
+        lines.append(f"{'kind':11s} {'scenes':>7s} {'median rel. error':>18s} {'worst':>10s}  worst scene")
         for kind in sorted(set(kinds.ravel())):
-            picked = errors.ravel()[kinds.ravel() == kind]
-            finite = picked[np.isfinite(picked)]
-            lines.append(f"{kind:11s} {picked.size:7d} {np.median(finite) if finite.size else np.nan:18.2e} "
-                         f"{finite.max() if finite.size else np.nan:10.2e}")
+            picked = np.where(kinds == kind, errors, np.nan)
+            if np.isfinite(picked).any():
+                worst = np.unravel_index(np.nanargmax(picked), picked.shape)
+                lines.append(f"{kind:11s} {np.count_nonzero(kinds == kind):7d} {np.nanmedian(picked):18.2e} "
+                             f"{picked[worst]:10.2e}  {_scene_label(ds, worst)}")
     bad = int(np.count_nonzero(~np.isfinite(rate)))
     if bad:
         lines.append(f"{bad} scene(s) gave no rate: every sample was excluded (see sample_status)")
+    if rate.size == 1 and "rate_ci_low" in ds and "samples_used" in ds:
+        lines.append(f"95% bootstrap interval of the median [{float(ds.rate_ci_low):.8g}, {float(ds.rate_ci_high):.8g}] "
+                     f"{ds.rate.attrs.get('units', '')}; {int(ds.samples_used)} samples used, "
+                     f"{int(ds.samples_excluded)} excluded")
     if "flip_first" in ds and np.isfinite(ds.flip_first.values).any() and ds.flip_first.size == 1:
         lines.append(f"first flip {float(ds.flip_first):.4g} s (asymptote {float(ds.flip_first_asymptote):.4g} s), "
                      f"then every {float(ds.flip_spacing):.6g} s (exact 2K/nu {float(ds.flip_spacing_exact):.6g} s)")
