@@ -27,10 +27,12 @@ from __future__ import annotations
 
 import itertools
 import math
+import sys
 import warnings
 
 import numpy as np
 import xarray as xr
+from tqdm.auto import tqdm
 
 from . import __version__, analysis, exact, theory
 from .bodies import Body, one_body
@@ -615,15 +617,21 @@ def scan(bodies, axis=(1, 2, 3), spin=1.0, amplitude=1e-3, method="auto", *, sam
         if len(v) == 0:
             raise ValueError(f"{name} must not be an empty sequence")
     fixed = {name: v for name, v in values.items() if name not in swept}
+    combos = list(itertools.product(*swept.values()))
+    # One bar over the scenes (on a terminal unless progress says otherwise), none per scene.
+    progress = options.pop("progress", None)
+    show = sys.stderr.isatty() if progress is None else progress
     scenes = []
-    for m in moments:
-        row = []
-        for combo in itertools.product(*swept.values()):
-            params = {**fixed, **dict(zip(swept, combo))}
-            ds = measure(m, params["axis"], params["spin"], params["amplitude"], samples, seed, params["method"],
-                         **options)
-            row.append(ds.drop_vars(["I1", "I2", "I3"]))
-        scenes.append(row)
+    with tqdm(total=len(moments) * len(combos), unit="scenes", disable=not show, desc="scan") as bar:
+        for m in moments:
+            row = []
+            for combo in combos:
+                params = {**fixed, **dict(zip(swept, combo))}
+                ds = measure(m, params["axis"], params["spin"], params["amplitude"], samples, seed,
+                             params["method"], progress=False, **options)
+                row.append(ds.drop_vars(["I1", "I2", "I3"]))
+                bar.update()
+            scenes.append(row)
     shape = [len(v) for v in swept.values()]
     stacked = [_combine(_nest(row, shape), list(swept)) for row in scenes]
     out = xr.concat(stacked, dim="body", data_vars="all", coords="different", compat="equals",
