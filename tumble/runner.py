@@ -219,6 +219,14 @@ def summary_table(ds, limit=24):
                 worst = np.unravel_index(np.nanargmax(picked), picked.shape)
                 lines.append(f"{kind:11s} {np.count_nonzero(kinds == kind):7d} {np.nanmedian(picked):18.2e} "
                              f"{picked[worst]:10.2e}  {_scene_label(ds, worst)}")
+    if "wp_error" in ds:
+        from . import precision
+
+        fast = precision.speedups(ds)
+        lines.append(f"\n{'error':>8s} {'best tumble method':>20s} {'x DOP853':>9s} {'exact x DOP853':>15s}")
+        for i, error in enumerate(fast.error.values):
+            lines.append(f"{error:8.0e} {str(fast.best_tumble.values[i]):>20s} "
+                         f"{float(fast.best_tumble_speedup[i]):9.1f} {float(fast.exact_speedup[i]):15.1f}")
     bad = int(np.count_nonzero(~np.isfinite(rate)))
     if bad:
         lines.append(f"{bad} scene(s) gave no rate: every sample was excluded (see sample_status)")

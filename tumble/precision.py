@@ -1,0 +1,582 @@
+"""Work-precision diagrams: run time against error for every tumble integrator and SciPy, in one run.
+
+:func:`work_precision` integrates one ensemble of perturbed spins to ``t_end`` with
+
+* every fixed-step tumble method (:data:`tumble.kernels.methods.METHODS`) over a geometric ladder of step
+  counts, each run through :func:`tumble.integrate`;
+* the closed form (``tumble.integrate(..., method="exact")``, one point);
+* SciPy's ``solve_ivp`` (``RK45``, ``DOP853``) over a ladder of relative tolerances, on the *stacked*
+  ensemble (one state vector of length ``3 N``) with a right-hand side written in numpy array operations —
+  the fastest way a SciPy user has to integrate many spins at once,
+
+and measures, per point, the error at ``t_end`` against the exact solution (:func:`tumble.exact.omega`)
+and the wall time (median of ``repeats`` runs, compile time excluded and reported separately).
+:func:`speedups` reads the resulting curves off at given errors and forms ratios against a baseline.
+
+Error measure
+-------------
+Per sample ``i``: ``e_i = |w_i(t_end) - w_exact,i(t_end)| / |w_i(0)|`` (Euclidean norms, dimensionless).
+``wp_error`` is ``max_i e_i``, ``wp_error_median`` the median. The perturbed spins lie on a cone about the
+intermediate axis; the cone crosses the separatrix, so the worst sample is one whose motion is nearly
+heteroclinic and whose phase error is amplified most — the max is the hard, honest measure.
+
+The closed form is the reference, so its error against itself is zero by construction. Its point carries
+instead an *estimate* of its own error: the closed form composed over two halves,
+``omega(omega(w0, t_end/2), t_end/2)``, against ``omega(w0, t_end)`` (the flow property, which any
+round-off or parameter error breaks). The estimate is what it costs to trust the closed form: the
+error of the parameters (``K``, ``nu``) amplified by the flow, about 1e-14 … 1e-13 here.
+
+SciPy settings
+--------------
+``solve_ivp(rhs, (0, t_end), y0, method=..., rtol=rtol, atol=rtol * ATOL_FACTOR * |spin|)``, no ``t_eval``,
+no dense output (the last accepted step ends exactly on ``t_end``). The error norm SciPy controls is the RMS
+over all ``3 N`` components, so one tolerance governs the whole ensemble: that is what a user of the stacked
+form gets. ``vectorized=False`` (the flag means several *time points* per call, not several samples), but
+the right-hand side computes all samples at once. SciPy runs in one thread; tumble's kernels use
+``numba.get_num_threads()`` threads (recorded in the attributes).
+"""
+
+from __future__ import annotations
+
+import datetime
+import math
+import os
+import platform
+import sys
+import time
+import warnings
+
+import numba
+import numpy as np
+import xarray as xr
+
+from . import __version__, exact
+from .bodies import one_body
+from .integration import integrate
+from .kernels.methods import METHODS
+from .sampling import perturbed_spins
+
+__all__ = ["ATOL_FACTOR", "DEFAULT_RTOLS", "SCIPY_METHODS", "default_steps", "euler_rhs_stacked", "speedups",
+           "time_to_error", "work_precision"]
+
+#: SciPy's absolute tolerance is ``rtol * ATOL_FACTOR * |spin|`` (rad/s): the transverse components start
+#: at ``amplitude * |spin|`` and the relative tolerance should govern, so atol sits well below them.
+ATOL_FACTOR = 1e-3
+
+#: Default relative tolerances for SciPy: 1e-3 … 1e-13, one per decade.
+DEFAULT_RTOLS = tuple(10.0 ** -k for k in range(3, 14))
+
+#: SciPy methods accepted: the explicit Runge–Kutta pairs (implicit ones would build a 3N × 3N Jacobian).
+SCIPY_METHODS = ("RK23", "RK45", "DOP853")
+
+#: Default step-count ladders per nominal order, ``2**lo … 2**hi``: wide enough to go from errors of about
+#: 1e-2 (the coarse end, for the scene of the benchmark: t_end = 20 s at 1 rad/s) down to round-off
+#: (about 1e-13) or until the next run would take longer than :data:`MAX_POINT_SECONDS`.
+_LADDER_EXPONENTS = {1: (8, 17), 2: (6, 16), 4: (4, 15), 8: (3, 11)}
+
+#: Default ladders stop refining once the error is this small (round-off reached) ...
+ROUND_OFF = 1e-12
+#: ... or once the error is below 1e-9 and refining the step no longer halves it (the round-off floor) ...
+_FLOOR_ERROR, _FLOOR_GAIN = 1e-9, 0.5
+#: ... or once the next (twice longer) run is predicted to take more than this many seconds.
+MAX_POINT_SECONDS = 3.0
+
+_EXACT = "exact"
+_SCIPY_PREFIX = "scipy_"
+
+
+# ------------------------------------------------------------------------------------------------- helpers
+def default_steps(method, t_end=20.0):
+    """Default step counts for a fixed-step tumble method: a geometric ladder chosen by its order.
+
+    Parameters
+    ----------
+    method : str
+        A key of :data:`tumble.kernels.methods.METHODS`.
+    t_end : float
+        Horizon, s. The ladders are tuned for ``t_end = 20 s`` at about 1 rad/s; they are scaled by
+        ``t_end / 20`` (and kept >= 4 steps) so that the step sizes, not the counts, stay comparable.
+
+    Returns
+    -------
+    ndarray of int
+        Increasing step counts, doubling from one to the next.
+    """
+    order = METHODS[method].order
+    lo, hi = _LADDER_EXPONENTS.get(order, _LADDER_EXPONENTS[min(_LADDER_EXPONENTS, key=lambda k: abs(k - order))])
+    counts = (2.0 ** np.arange(lo, hi + 1)) * (t_end / 20.0)
+    return np.unique(np.maximum(4, np.round(counts)).astype(np.int64))
+
+
+def _machine():
+    """CPU model (from /proc/cpuinfo where there is one), architecture and core count, as one line."""
+    model = None
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
+            for line in f:
+                if line.lower().startswith("model name"):
+                    model = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    arch = platform.processor() or platform.machine()
+    return f"{model or 'unknown CPU'} ({arch}), {os.cpu_count()} logical cores, {platform.system()}"
+
+
+def _errors(w, reference, norm0):
+    """(max, median) over samples of ``|w - reference| / |w0|``; inf where a sample is not finite."""
+    e = np.linalg.norm(w - reference, axis=1) / norm0
+    e = np.where(np.isfinite(e), e, np.inf)
+    return float(e.max()), float(np.median(e))
+
+
+def euler_rhs_stacked(moments):
+    """The right-hand side of Euler's equations on a stacked ensemble, for ``scipy.integrate.solve_ivp``.
+
+    Parameters
+    ----------
+    moments : ndarray, shape (3,)
+        Principal moments, kg m².
+
+    Returns
+    -------
+    callable
+        ``rhs(t, y) -> dy`` with ``y`` of shape ``(3 N,)``, laid out as ``(w1 of all samples, w2 of all,
+        w3 of all)`` (rad/s) and ``dy`` in rad/s²: ``I1 w1' = (I2 - I3) w2 w3`` and cyclic, all samples in
+        three numpy expressions.
+    """
+    i1, i2, i3 = (float(x) for x in moments)
+    c1, c2, c3 = (i2 - i3) / i1, (i3 - i1) / i2, (i1 - i2) / i3
+
+    def rhs(t, y):
+        w1, w2, w3 = y.reshape(3, -1)
+        out = np.empty_like(y)
+        d1, d2, d3 = out.reshape(3, -1)
+        np.multiply(w2, w3, out=d1)
+        d1 *= c1
+        np.multiply(w3, w1, out=d2)
+        d2 *= c2
+        np.multiply(w1, w2, out=d3)
+        d3 *= c3
+        return out
+
+    return rhs
+
+
+def _check_positive_int(value, name):
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+    return int(value)
+
+
+def _step_ladders(methods, steps, t_end):
+    """Per method: (step counts, adaptive stop?)."""
+    if steps is None:
+        return {m: (default_steps(m, t_end), True) for m in methods}
+    if isinstance(steps, dict):
+        unknown = set(steps) - set(methods)
+        if unknown:
+            raise ValueError(f"steps names methods that are not run: {sorted(unknown)}")
+        ladders = {}
+        for m in methods:
+            ladders[m] = (default_steps(m, t_end), True) if m not in steps else (_counts(steps[m], m), False)
+        return ladders
+    counts = _counts(steps, "steps")
+    return {m: (counts, False) for m in methods}
+
+
+def _counts(values, name):
+    counts = np.atleast_1d(np.asarray(values))
+    if counts.ndim != 1 or counts.size == 0 or counts.dtype.kind not in "iu" or np.any(counts < 1):
+        raise ValueError(f"step counts for {name} must be a non-empty sequence of integers >= 1, got {values!r}")
+    return np.unique(counts.astype(np.int64))
+
+
+def _say(progress, text):
+    if progress:
+        print(text, file=sys.stderr, flush=True)
+
+
+# ----------------------------------------------------------------------------------------- the benchmark
+def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, samples=2000, t_end=20.0, seed=0,
+                   methods=None, steps=None, rtols=None, repeats=3, scipy_methods=("RK45", "DOP853"),
+                   progress=False):
+    """Work-precision data: wall time against error at ``t_end`` for tumble's integrators and SciPy.
+
+    Parameters
+    ----------
+    body : Body or array_like, shape (3,)
+        Principal moments, kg m².
+    axis : {1, 2, 3}
+        Axis of the unperturbed spin, 1-based (default 2: the intermediate axis of (1, 2, 3)).
+    spin : float
+        Spin rate, rad/s.
+    amplitude : float
+        Tilt of every spin from the axis, rad (``perturbed_spins``' ``"cone"``).
+    samples : int
+        Ensemble size.
+    t_end : float
+        Horizon, s (> 0).
+    seed : int
+        Seed of the ensemble.
+    methods : sequence of str, optional
+        Fixed-step tumble methods (default: all of :data:`~tumble.kernels.methods.METHODS`). The closed form
+        ``"exact"`` is always measured (one point); naming it here is allowed and changes nothing.
+    steps : sequence of int, or dict {method: sequence of int}, optional
+        Step counts ``n`` (``dt = t_end / n``). Default (and for methods a dict leaves out): a doubling
+        ladder chosen by the method's order (:func:`default_steps`) that stops early once the error reaches
+        round-off (< :data:`ROUND_OFF`, or below 1e-9 and no longer halving) or when the next run would take
+        longer than :data:`MAX_POINT_SECONDS`. Step counts given explicitly are all run.
+    rtols : sequence of float, optional
+        SciPy relative tolerances (default :data:`DEFAULT_RTOLS`, 1e-3 … 1e-13); ``atol = rtol *
+        ATOL_FACTOR * |spin|``.
+    repeats : int
+        Each point's wall time is the median of this many runs. The runs are interleaved: a first pass
+        walks every solver's curve (deciding its points), then ``repeats - 1`` further passes time every
+        point of every solver in turn, so that load from other processes falls on all solvers alike.
+    scipy_methods : sequence of str
+        ``solve_ivp`` methods (of :data:`SCIPY_METHODS`); empty to leave SciPy out.
+    progress : bool
+        Print one line per point to standard error.
+
+    Returns
+    -------
+    xarray.Dataset
+        Dimensions ``solver`` (tumble method names, ``"exact"``, ``"scipy_<method>"``) and ``wp_point``
+        (index along each solver's curve, NaN-padded):
+
+        * ``wp_error(solver, wp_point)``: max over samples of ``|w - w_exact| / |w0|`` at ``t_end``;
+        * ``wp_error_median(solver, wp_point)``: the median over samples;
+        * ``wp_wall(solver, wp_point)``: wall time, s (median of ``repeats``, compile time excluded);
+        * ``wp_setting(solver, wp_point)``: ``dt`` (s) for tumble methods, ``rtol`` for SciPy, NaN for exact;
+        * ``wp_steps(solver, wp_point)``: steps taken (accepted steps for SciPy; NaN for exact);
+        * ``wp_nfev(solver, wp_point)``: right-hand-side evaluations (SciPy only, else NaN);
+        * ``compile_time(solver)``: first call of each tumble method (compile or cache load), s; 0 for SciPy;
+        * ``solver_kind(solver)``: ``"tumble"``, ``"exact"`` or ``"scipy"``; ``order(solver)``: nominal
+          order (NaN for exact and SciPy).
+
+        Attributes describe the ensemble, the machine, numba threads, versions and the date, and what the
+        closed-form point's time is made of: ``exact_omega_wall_s`` (:func:`tumble.exact.omega` alone) and
+        ``integrate_one_step_rk4_wall_s`` (``tumble.integrate`` with one rk4 step: its fixed cost; NaN
+        without rk4).
+
+    Raises
+    ------
+    ValueError
+        Invalid body, ensemble, horizon, methods, step counts, tolerances or repeats.
+    """
+    moments = one_body(body)
+    samples = _check_positive_int(samples, "samples")
+    repeats = _check_positive_int(repeats, "repeats")
+    t_end = float(t_end)
+    if not (math.isfinite(t_end) and t_end > 0):
+        raise ValueError(f"t_end must be a finite number > 0 s, got {t_end!r}")
+    methods = list(METHODS) if methods is None else [m for m in dict.fromkeys(methods) if m != _EXACT]
+    unknown = [m for m in methods if m not in METHODS]
+    if unknown:
+        raise ValueError(f"methods must be among {', '.join((*METHODS, _EXACT))}; got {unknown}")
+    scipy_methods = list(dict.fromkeys(scipy_methods or ()))
+    bad = [m for m in scipy_methods if m not in SCIPY_METHODS]
+    if bad:
+        raise ValueError(f"scipy_methods must be among {', '.join(SCIPY_METHODS)}; got {bad}")
+    rtols = np.asarray(DEFAULT_RTOLS if rtols is None else rtols, dtype=float).reshape(-1)
+    if scipy_methods and (rtols.size == 0 or not np.all(np.isfinite(rtols)) or np.any(rtols <= 0)):
+        raise ValueError(f"rtols must be a non-empty sequence of finite numbers > 0, got {rtols!r}")
+    rtols = np.sort(rtols)[::-1]  # loose to tight
+    ladders = _step_ladders(methods, steps, t_end)
+
+    w0 = perturbed_spins(moments, axis, spin, amplitude, samples, seed=seed)
+    norm0 = np.linalg.norm(w0, axis=1)
+    reference = exact.omega(moments, w0, np.array([t_end]))[:, -1, :]
+
+    curves = {}  # solver -> list of dict(error, error_median, wall, setting, steps, nfev)
+    timers = {}  # solver -> list of (callable, wall times of its runs)
+    compile_time = {}
+
+    def timed(fn):
+        started = time.perf_counter()
+        result = fn()
+        return time.perf_counter() - started, result
+
+    # Pass 1 walks every solver's ladder once: it decides which points exist (errors, round-off, time cap)
+    # and gives each point its first wall time. Passes 2 … repeats then time every point again, all solvers
+    # in turn, so that a change of machine load during the run hits all solvers alike; each point's wall
+    # time is the median over the passes.
+
+    # --- tumble fixed-step methods -------------------------------------------------------------------------
+    for m in methods:
+        compile_time[m], _ = timed(lambda m=m: integrate(moments, w0[:2], t_end / 4, t_end / 4, method=m))
+        counts, adaptive = ladders[m]
+        points, runs = [], []
+        for n in counts:
+            n = int(n)
+            if adaptive and points and points[-1]["wall"] * n / points[-1]["steps"] > MAX_POINT_SECONDS:
+                _say(progress, f"  {m}: stop before n={n} (next run would exceed {MAX_POINT_SECONDS} s)")
+                break
+            dt = t_end / n
+
+            def one_run(m=m, dt=dt):
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", RuntimeWarning)  # coarse steps may blow up: error inf
+                    return integrate(moments, w0, t_end, dt, method=m)
+
+            wall, ds = timed(one_run)
+            err, err_med = _errors(ds.omega.values[:, -1, :], reference, norm0)
+            points.append(dict(error=err, error_median=err_med, wall=wall, setting=float(ds.attrs["dt"]),
+                               steps=int(ds.attrs["n_steps"]), nfev=np.nan))
+            runs.append((one_run, [wall]))
+            _say(progress, f"  {m:18s} n={n:7d} dt={dt:.3e} s  error {err:.2e} (median {err_med:.2e})  "
+                           f"{wall:.4f} s")
+            if adaptive and (err < ROUND_OFF or (len(points) > 1 and err < _FLOOR_ERROR
+                                                   and err > _FLOOR_GAIN * points[-2]["error"])):
+                break
+        curves[m], timers[m] = points, runs
+
+    # --- the closed form ------------------------------------------------------------------------------------
+    compile_time[_EXACT], _ = timed(lambda: integrate(moments, w0[:2], t_end, t_end, method=_EXACT))
+
+    def exact_run():
+        return integrate(moments, w0, t_end, t_end, method=_EXACT)
+
+    wall, ds = timed(exact_run)
+    w_exact = ds.omega.values[:, -1, :]
+    halves = exact.omega(moments, exact.omega(moments, w0, np.array([0.5 * t_end]))[:, -1, :],
+                         np.array([0.5 * t_end]))[:, -1, :]
+    err, err_med = _errors(halves, w_exact, norm0)
+    curves[_EXACT] = [dict(error=err, error_median=err_med, wall=wall, setting=np.nan, steps=np.nan, nfev=np.nan)]
+    timers[_EXACT] = [(exact_run, [wall])]
+    _say(progress, f"  {_EXACT:18s} error estimate {err:.2e} (median {err_med:.2e})  {wall:.4f} s")
+    # What the closed-form point's time is made of: the bare closed form, and integrate()'s own cost
+    # (validation, Dataset) measured on a one-step rk4 run of the same ensemble.
+    parts = {"exact_omega": [(lambda: exact.omega(moments, w0, np.array([t_end])), [])]}
+    if "rk4" in methods:
+        parts["integrate_one_step_rk4"] = [(lambda: integrate(moments, w0, t_end, t_end, method="rk4"), [])]
+
+    # --- SciPy on the stacked ensemble ----------------------------------------------------------------------
+    if scipy_methods:
+        from scipy.integrate import solve_ivp
+
+        rhs = euler_rhs_stacked(moments)
+        y0 = np.ascontiguousarray(w0.T).reshape(-1)
+        for sm in scipy_methods:
+            name = _SCIPY_PREFIX + sm
+            compile_time[name] = 0.0
+            points, runs = [], []
+            for rtol in rtols:
+                atol = rtol * ATOL_FACTOR * abs(float(spin))
+
+                def one_run(sm=sm, rtol=rtol, atol=atol):
+                    return solve_ivp(rhs, (0.0, t_end), y0, method=sm, rtol=rtol, atol=atol)
+
+                wall, sol = timed(one_run)
+                if sol.status != 0:
+                    raise RuntimeError(f"solve_ivp({sm}, rtol={rtol:g}) failed: {sol.message}")
+                w_end = sol.y[:, -1].reshape(3, -1).T
+                err, err_med = _errors(w_end, reference, norm0)
+                points.append(dict(error=err, error_median=err_med, wall=wall, setting=float(rtol),
+                                   steps=len(sol.t) - 1, nfev=int(sol.nfev)))
+                runs.append((one_run, [wall]))
+                _say(progress, f"  {name:18s} rtol={rtol:.0e}  error {err:.2e} (median {err_med:.2e})  "
+                               f"{wall:.4f} s  ({len(sol.t) - 1} steps, {sol.nfev} f-evals)")
+            curves[name], timers[name] = points, runs
+
+    # --- passes 2 … repeats, then medians --------------------------------------------------------------------
+    for runs in parts.values():  # the parts had no first pass
+        for fn, walls in runs:
+            walls.append(timed(fn)[0])
+    for k in range(1, repeats):
+        _say(progress, f"  timing pass {k + 1} of {repeats}")
+        for runs in (*timers.values(), *parts.values()):
+            for fn, walls in runs:
+                walls.append(timed(fn)[0])
+    for solver, runs in timers.items():
+        for point, (_, walls) in zip(curves[solver], runs):
+            point["wall"] = float(np.median(walls))
+    extra = {name: float(np.median(runs[0][1])) for name, runs in parts.items()}
+
+    ds = _dataset(curves, compile_time, methods, moments, axis, spin, amplitude, samples, t_end, seed, repeats)
+    ds.attrs.update(exact_omega_wall_s=extra["exact_omega"],
+                    integrate_one_step_rk4_wall_s=extra.get("integrate_one_step_rk4", math.nan))
+    return ds
+
+
+def _dataset(curves, compile_time, methods, moments, axis, spin, amplitude, samples, t_end, seed, repeats):
+    solvers = list(curves)
+    width = max(len(p) for p in curves.values())
+    fields = ("error", "error_median", "wall", "setting", "steps", "nfev")
+    table = {f: np.full((len(solvers), width), np.nan) for f in fields}
+    for i, s in enumerate(solvers):
+        for j, point in enumerate(curves[s]):
+            for f in fields:
+                table[f][i, j] = point[f]
+    kind = ["tumble" if s in METHODS else _EXACT if s == _EXACT else "scipy" for s in solvers]
+    order = [float(METHODS[s].order) if s in METHODS else np.nan for s in solvers]
+    dims = ("solver", "wp_point")
+    data = {
+        "wp_error": (dims, table["error"], {
+            "units": "1", "long_name": "max over samples of |w - w_exact| / |w0| at t_end",
+            "comment": "for 'exact': estimate, the closed form composed over two halves of t_end against "
+                       "one evaluation over t_end"}),
+        "wp_error_median": (dims, table["error_median"], {
+            "units": "1", "long_name": "median over samples of |w - w_exact| / |w0| at t_end"}),
+        "wp_wall": (dims, table["wall"], {
+            "units": "s", "long_name": "wall time of one ensemble run",
+            "comment": f"median of {repeats} runs (time.perf_counter) taken in {repeats} interleaved passes "
+                       "over all solvers; compile time excluded"}),
+        "wp_setting": (dims, table["setting"], {
+            "units": "s (tumble methods: step dt); 1 (scipy: rtol)",
+            "long_name": "step dt (tumble) or relative tolerance rtol (scipy); NaN for exact",
+            "comment": f"scipy atol = rtol * {ATOL_FACTOR:g} * |spin| rad/s"}),
+        "wp_steps": (dims, table["steps"], {
+            "units": "1", "long_name": "steps (fixed steps for tumble, accepted steps for scipy)"}),
+        "wp_nfev": (dims, table["nfev"], {
+            "units": "1", "long_name": "right-hand-side evaluations (scipy only)"}),
+        "compile_time": ("solver", np.array([compile_time.get(s, 0.0) for s in solvers]), {
+            "units": "s", "long_name": "first call (compile or cache load), excluded from wp_wall; 0 for scipy"}),
+        "solver_kind": ("solver", np.array(kind), {"units": "1", "long_name": "tumble, exact or scipy"}),
+        "order": ("solver", np.array(order), {"units": "1", "long_name": "nominal order of the fixed-step method"}),
+    }
+    coords = {
+        "solver": ("solver", np.array(solvers), {"units": "1", "long_name": "integrator"}),
+        "wp_point": ("wp_point", np.arange(width), {"units": "1", "long_name": "index along a solver's curve"}),
+    }
+    import scipy
+
+    attrs = {
+        "title": "tumble work-precision benchmark",
+        "I1": float(moments[0]), "I2": float(moments[1]), "I3": float(moments[2]),
+        "moments_units": "kg m2",
+        "axis": int(axis), "spin": float(spin), "spin_units": "rad/s",
+        "amplitude": float(amplitude), "amplitude_units": "rad", "distribution": "cone",
+        "samples": int(samples), "t_end": float(t_end), "t_end_units": "s", "seed": int(seed),
+        "repeats": int(repeats), "machine": _machine(), "numba_threads": int(numba.get_num_threads()),
+        "scipy_threads": 1, "scipy_atol_factor": ATOL_FACTOR,
+        "versions": f"tumble {__version__}, numba {numba.__version__}, numpy {np.__version__}, "
+                    f"scipy {scipy.__version__}, python {platform.python_version()}",
+        "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "tumble_methods": list(methods),
+    }
+    return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+# ----------------------------------------------------------------------------------------- reading off
+def _pareto(walls, errors):
+    """The work-precision front: points sorted by time whose error beats every faster point's."""
+    ok = np.isfinite(walls) & np.isfinite(errors) & (walls > 0)
+    order = np.argsort(walls[ok], kind="stable")
+    w, e = walls[ok][order], errors[ok][order]
+    front_w, front_e = [], []
+    for wi, ei in zip(w, e):
+        if not front_e or ei < front_e[-1]:
+            front_w.append(wi)
+            front_e.append(ei)
+    return np.array(front_w), np.array(front_e)
+
+
+def time_to_error(walls, errors, target):
+    """Least wall time at which a solver's curve reaches ``error <= target``, by log-log interpolation.
+
+    The curve is first reduced to its front (sorted by time, keeping only points more accurate than every
+    faster one: "the best time achieving at least that error"). Between the last front point with error
+    above ``target`` and the first at or below it, ``log(time)`` is interpolated linearly in
+    ``log(error)``. A target looser than the fastest point's error gives that point's time (an upper
+    bound: the curve is not extrapolated); a target tighter than every point's error gives NaN.
+
+    Parameters
+    ----------
+    walls, errors : array_like, shape (P,)
+        Wall times (s) and errors of one solver's points; NaN entries are ignored.
+    target : float
+        Error to reach (> 0).
+
+    Returns
+    -------
+    float
+        Seconds, or NaN when the solver never reaches ``target``.
+    """
+    w, e = _pareto(np.asarray(walls, dtype=float), np.asarray(errors, dtype=float))
+    reached = np.nonzero(e <= target)[0]
+    if reached.size == 0:
+        return math.nan
+    k = int(reached[0])
+    if k == 0 or e[k] <= 0:
+        return float(w[k])
+    le0, le1 = math.log(e[k - 1]), math.log(e[k])
+    lw0, lw1 = math.log(w[k - 1]), math.log(w[k])
+    return float(math.exp(lw0 + (math.log(target) - le0) * (lw1 - lw0) / (le1 - le0)))
+
+
+def speedups(ds, errors=(1e-4, 1e-7, 1e-10), baseline="scipy_DOP853"):
+    """Wall time each solver needs to reach given errors, and its speed-up over a baseline solver.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        From :func:`work_precision` (reads ``wp_error``, ``wp_wall`` and, if present, ``solver_kind``).
+    errors : sequence of float
+        Target errors (same measure as ``wp_error``: max over samples, relative).
+    baseline : str
+        Solver whose time is the numerator of the ratio.
+
+    Returns
+    -------
+    xarray.Dataset
+        * ``time_to_error(solver, error)``, s — :func:`time_to_error` along each solver's curve; NaN where
+          the solver never reaches that error within the measured points;
+        * ``speedup(solver, error)`` — ``baseline time / solver time``; NaN where either never reaches it;
+        * ``best_tumble(error)`` — the fixed-step tumble method with the least time (``""`` if none reaches
+          it), ``best_tumble_speedup(error)`` its speed-up;
+        * ``exact_speedup(error)`` — the closed form's speed-up (NaN if absent or not accurate enough).
+
+    Raises
+    ------
+    ValueError
+        If ``baseline`` is not a solver of ``ds`` or an error is not > 0.
+    """
+    solvers = [str(s) for s in ds["solver"].values]
+    if baseline not in solvers:
+        raise ValueError(f"baseline {baseline!r} is not a solver of the dataset ({', '.join(solvers)})")
+    targets = np.asarray(errors, dtype=float).reshape(-1)
+    if targets.size == 0 or not np.all(np.isfinite(targets) & (targets > 0)):
+        raise ValueError(f"errors must be finite numbers > 0, got {errors!r}")
+    walls = ds["wp_wall"].transpose("solver", "wp_point").values
+    errs = ds["wp_error"].transpose("solver", "wp_point").values
+    times = np.array([[time_to_error(walls[i], errs[i], t) for t in targets] for i in range(len(solvers))])
+    base = times[solvers.index(baseline)]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = base[None, :] / times
+    if "solver_kind" in ds:
+        kinds = [str(k) for k in ds["solver_kind"].values]
+    else:
+        kinds = ["tumble" if s in METHODS else _EXACT if s == _EXACT else "scipy" for s in solvers]
+    tumble_rows = [i for i, k in enumerate(kinds) if k == "tumble"]
+    best, best_ratio = [], []
+    for j in range(targets.size):
+        finite = [i for i in tumble_rows if np.isfinite(times[i, j])]
+        if finite:
+            i = min(finite, key=lambda r: times[r, j])
+            best.append(solvers[i])
+            best_ratio.append(ratio[i, j])
+        else:
+            best.append("")
+            best_ratio.append(np.nan)
+    exact_ratio = ratio[solvers.index(_EXACT)] if _EXACT in solvers else np.full(targets.size, np.nan)
+    note = "NaN: the solver (or the baseline) never reaches that error within the measured points"
+    return xr.Dataset(
+        {
+            "time_to_error": (("solver", "error"), times, {
+                "units": "s", "long_name": "least wall time to reach the error (log-log interpolation)",
+                "comment": note}),
+            "speedup": (("solver", "error"), ratio, {
+                "units": "1", "long_name": f"{baseline} time / solver time", "comment": note}),
+            "best_tumble": ("error", np.array(best), {
+                "units": "1", "long_name": "fastest fixed-step tumble method at that error ('' if none)"}),
+            "best_tumble_speedup": ("error", np.array(best_ratio, dtype=float), {
+                "units": "1", "long_name": f"speed-up of the best tumble method over {baseline}"}),
+            "exact_speedup": ("error", np.asarray(exact_ratio, dtype=float), {
+                "units": "1", "long_name": f"speed-up of the closed form over {baseline}"}),
+        },
+        coords={"solver": ("solver", np.array(solvers), {"units": "1", "long_name": "integrator"}),
+                "error": ("error", targets, {"units": "1", "long_name": "target error (max over samples)"})},
+        attrs={"baseline": baseline},
+    )
