@@ -95,23 +95,61 @@ def _run(args):
 
     overrides = {key: value for key, value in (("perturbation.samples", args.samples),
                                                ("perturbation.seed", args.seed)) if value is not None}
+    for flag, value in (("--chunk-scenes", args.chunk_scenes), ("--workers", args.workers)):
+        if value is not None and value < 1:
+            raise InputError(f"{flag} must be >= 1, got {value}")
     started = time.perf_counter()
     resolved = config.load_study(args.study, overrides=overrides)
     stem = runner.output_stem(args.study, resolved)
     directory = Path(args.out or resolved["outputs"]["directory"] or Path("data", "runs", stem))
     if args.format:
         resolved["outputs"]["format"] = list(dict.fromkeys(args.format))
+    job = runner.scene_job(resolved, args.study)
+    scheduler = _scheduler(args)
+    store = runner.open_checkpoint(resolved, job, directory, stem)
+    scenes = job["layout"]["scenes"]
+    chunk = args.chunk_scenes or runner.default_chunk_scenes(scenes)
+    if args.dry_run:
+        print(f"{args.study}: valid; {scenes} scene(s) of {job['samples']} samples in {-(-scenes // chunk)} "
+              f"chunk(s) of up to {chunk}; would write {directory / (stem + '.nc')}")
+        return
     print(f"tumble {__version__}: study {args.study!r} ({resolved['title']})", flush=True)
+    if args.fresh:
+        store.remove()
+    log = lambda line: print(line, flush=True)  # noqa: E731
     try:
-        ds = runner._run(resolved, args.study, progress=None)
+        if scheduler is None:
+            ds = runner._run(resolved, args.study, None, job=job, store=store, chunk_scenes=chunk, log=log)
+        else:
+            from . import distributed
+
+            with distributed.connect(scheduler, workers=args.workers) as client:
+                print(f"dask scheduler {client.scheduler.address}: {len(client.scheduler_info()['workers'])} "
+                      f"worker(s)", flush=True)
+                ds = runner._run(resolved, args.study, None, job=job, store=store, client=client,
+                                 chunk_scenes=chunk, log=log)
+    except OSError:
+        raise
     except ValueError as err:  # a value the scene cannot take, found while planning it: still the input's fault
         raise InputError(f"{args.study}: {err}") from None
     command = " ".join(["tumble run", args.study] + [f"--{k.split('.')[1]} {v}" for k, v in overrides.items()])
     stored, paths = runner.write_outputs(ds, resolved, directory, stem, action=command)
+    store.remove()
+    store.clean_partial_results()
     print(runner.summary_table(stored))
     print(f"\n{time.perf_counter() - started:.1f} s; wrote:")
     for path in paths:
         print(f"  {path}")
+
+
+def _scheduler(args):
+    """The dask scheduler asked for (``--scheduler`` or ``$DASK_SCHEDULER_ADDRESS``), or None: in-process."""
+    from . import distributed
+
+    try:
+        return distributed.scheduler_address(args.scheduler)
+    except distributed.SchedulerError as err:
+        raise InputError(str(err)) from None
 
 
 def _studies(args):
@@ -177,6 +215,17 @@ def _parser():
     run.add_argument("--samples", type=int, help="override perturbation.samples")
     run.add_argument("--seed", type=int, help="override perturbation.seed")
     run.add_argument("--format", nargs="+", choices=("png", "pdf"), help="figure formats (override outputs.format)")
+    run.add_argument("--scheduler", metavar="ADDRESS",
+                     help="run the scenes on dask.distributed: 'local' (a LocalCluster on 127.0.0.1) or "
+                          "tcp://HOST:PORT of a running scheduler (default: $DASK_SCHEDULER_ADDRESS, else in-process; "
+                          "needs pip install \"tumble[distributed]\")")
+    run.add_argument("--workers", type=int, help="worker processes of --scheduler local (default: one per core)")
+    run.add_argument("--chunk-scenes", type=int, metavar="N",
+                     help="scenes per chunk: the unit of checkpointing and of dask tasks (default: about 32 chunks)")
+    run.add_argument("--fresh", action="store_true",
+                     help="discard finished chunks of an earlier interrupted run instead of resuming from them")
+    run.add_argument("--dry-run", action="store_true",
+                     help="check the study and show its scenes and chunks; run and write nothing")
     commands.add_parser("studies", help="list the bundled studies")
     plot = commands.add_parser("plot", help="draw the figures of a result file")
     plot.add_argument("file", help="a netCDF file written by tumble run")
@@ -195,6 +244,7 @@ def _parser():
 
 def main(argv=None):
     """Entry point of ``tumble`` and ``python -m tumble``; returns the exit status."""
+    from .checkpoint import OutputError
     from .config import StudyError
 
     args = _parser().parse_args(argv)
@@ -214,11 +264,16 @@ def main(argv=None):
     except (StudyError, InputError) as err:
         print(f"tumble: error: {err}", file=sys.stderr)
         return 2
+    except OutputError as err:
+        print(f"tumble: failed: {err.strerror or err}; earlier results there are unchanged, and finished chunks are "
+              "kept for a rerun to resume from", file=sys.stderr)
+        return 1
     except BrokenPipeError:  # output piped into a reader that stopped early (e.g. `| head`)
         sys.stderr.close()
         return 1
     except KeyboardInterrupt as err:
-        print(f"tumble: interrupted{': ' + str(err) if str(err) else ''}; nothing was written", file=sys.stderr)
+        print(f"tumble: interrupted{': ' + str(err) if str(err) else ''}; no result was written (finished chunks "
+              "are kept: rerun to resume)", file=sys.stderr)
         return 1
     except Exception as err:  # noqa: BLE001 - the command line reports every failure as one line (exit 1)
         if os.environ.get("TUMBLE_DEBUG"):

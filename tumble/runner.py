@@ -11,18 +11,22 @@ never leaves a file behind.
 
 from __future__ import annotations
 
+import contextlib
+import math
 import re
+import sys
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
-import xarray as xr
+from tqdm.auto import tqdm
 
-from . import config, io, plots, study, theory
+from . import checkpoint, config, io, plots, study, theory
 from .config import StudyError
 from .kernels.methods import METHODS
 
-__all__ = ["PER_SAMPLE", "output_stem", "plan", "run_study", "summary_table", "write_outputs"]
+__all__ = ["PER_SAMPLE", "compute_chunk", "compute_scene", "default_chunk_scenes", "open_checkpoint", "output_stem",
+           "plan", "run_scenes", "run_study", "scene_job", "summary_table", "write_outputs"]
 
 #: Per-sample variables a result may keep (``outputs.arrays``); the rest are dropped after the fit.
 PER_SAMPLE = ("sample_rate", "sample_status", "sample_first_flip", "sample_flip_spacing")
@@ -106,17 +110,117 @@ def _first(value):
     return value[0] if isinstance(value, list) else value
 
 
-def _run(resolved, file, progress):
-    """The result dataset of a resolved study (nothing written)."""
+def scene_job(resolved, file="<mapping>"):
+    """The scenes a resolved study runs, as plain data that pickles to a dask worker.
+
+    Returns
+    -------
+    dict
+        ``layout`` (:func:`tumble.study.scan_layout`; ``layout["scenes"]`` scenes), ``scanned`` (False: one
+        :func:`tumble.study.measure`), ``samples``, ``seed``, ``options`` (keyword arguments of ``measure``),
+        ``body_coords`` and the :func:`plan` itself.
+
+    Raises
+    ------
+    tumble.config.StudyError
+        As :func:`plan`.
+    """
     p = plan(resolved, file)
-    values, options = p["values"], p["options"]
-    if p["scanned"]:
-        ds = study.scan(p["moments"], values["axis"], values["spin"], values["amplitude"], values["method"],
-                        samples=p["samples"], seed=p["seed"], body_coords=p["body_coords"], progress=progress,
-                        **options)
+    values = p["values"]
+    layout = study.scan_layout(p["moments"], values["axis"], values["spin"], values["amplitude"], values["method"])
+    return {"layout": layout, "scanned": bool(p["scanned"]), "samples": p["samples"], "seed": p["seed"],
+            "options": p["options"], "body_coords": p["body_coords"], "plan": p}
+
+
+def compute_scene(job, index, *, progress=False):
+    """Scene ``index`` of a :func:`scene_job`: a scan's scene, or the study's one :func:`~tumble.study.measure`."""
+    if job["scanned"]:
+        return study.scan_scene(job["layout"], index, samples=job["samples"], seed=job["seed"], **job["options"])
+    moments, params = study.scan_scene_parameters(job["layout"], index)
+    return study.measure(moments, params["axis"], params["spin"], params["amplitude"], job["samples"], job["seed"],
+                         params["method"], progress=progress, **job["options"])
+
+
+def compute_chunk(job, indices, *, threads=None, progress=False):
+    """Run a chunk of scenes: ``{index: scene dataset}``, normalised as a chunk file gives them back.
+
+    This is the task a dask worker runs. ``threads`` sets numba's thread count for the calling thread first
+    (1 inside dask workers, so that workers do not oversubscribe the cores); the results do not depend on it.
+    """
+    if threads is not None:
+        import numba
+
+        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
+    return {i: checkpoint.normalise_scene(compute_scene(job, i, progress=progress)) for i in indices}
+
+
+def default_chunk_scenes(scenes):
+    """Scenes per chunk when not given: about 32 chunks per study (enough to balance two to eight workers,
+    few enough that writing the chunk files costs little), at least one scene."""
+    return max(1, math.ceil(scenes / 32))
+
+
+def run_scenes(job, *, store=None, client=None, chunk_scenes=None, progress=None, log=None):
+    """Run every scene of a :func:`scene_job` not already in the checkpoint; return all of them, in order.
+
+    Parameters
+    ----------
+    job : dict
+        From :func:`scene_job`.
+    store : tumble.checkpoint.Checkpoint, optional
+        Finished scenes are read from it and every newly finished chunk is written to it (atomically).
+    client : distributed.Client, optional
+        Run the chunks on this dask cluster (:mod:`tumble.distributed`); default: in this process.
+    chunk_scenes : int, optional
+        Scenes per chunk (default :func:`default_chunk_scenes`). The results do not depend on it.
+    progress : bool, optional
+        Progress bar over the scenes (default: on a terminal only).
+    log : callable, optional
+        Called with one line of text about a resume.
+
+    Returns
+    -------
+    list of xarray.Dataset
+        The scenes, normalised (:func:`tumble.checkpoint.normalise_scene`).
+    """
+    n = job["layout"]["scenes"]
+    done = store.load() if store is not None else {}
+    if log and store is not None and store.stale:
+        log(f"ignored and removed {store.stale} checkpoint file(s) of another study or tumble version")
+    if log and done:
+        log(f"resuming: {len(done)} of {n} scenes already finished in {store.folder}")
+    todo = [i for i in range(n) if i not in done]
+    size = chunk_scenes or default_chunk_scenes(n)
+    if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
+        raise ValueError(f"chunk_scenes must be an integer >= 1, got {chunk_scenes!r}")
+    chunks = [todo[k:k + size] for k in range(0, len(todo), size)]
+    save = store.write if store is not None else None
+    if client is not None:
+        from . import distributed
+
+        for scenes in distributed.run_chunks(client, compute_chunk, job, chunks):
+            if save:
+                save(scenes)
+            done.update(scenes)
     else:
-        ds = study.measure(p["moments"], values["axis"], values["spin"], values["amplitude"], p["samples"],
-                           p["seed"], values["method"], progress=progress, **options)
+        show = sys.stderr.isatty() if progress is None else progress
+        with tqdm(total=n, initial=len(done), unit="scenes", disable=not (show and n > 1), desc="scan") as bar:
+            for chunk in chunks:
+                scenes = compute_chunk(job, chunk, progress=progress if n == 1 else False)
+                if save:
+                    save(scenes)
+                done.update(scenes)
+                bar.update(len(chunk))
+    return [done[i] for i in range(n)]
+
+
+def _run(resolved, file, progress, *, job=None, store=None, client=None, chunk_scenes=None, log=None):
+    """The result dataset of a resolved study (nothing written but the checkpoint's chunks)."""
+    job = job or scene_job(resolved, file)
+    p = job["plan"]
+    values, options = p["values"], p["options"]
+    scenes = run_scenes(job, store=store, client=client, chunk_scenes=chunk_scenes, progress=progress, log=log)
+    ds = study.assemble_scan(job["layout"], scenes, p["body_coords"]) if job["scanned"] else scenes[0]
     keep = resolved["outputs"]["arrays"]
     ds = ds.drop_vars([name for name in PER_SAMPLE if name in ds and name not in keep])
     if not any(name in ds for name in PER_SAMPLE):
@@ -137,18 +241,36 @@ def _run(resolved, file, progress):
     return ds
 
 
+def open_checkpoint(resolved, job, directory, stem):
+    """The :class:`~tumble.checkpoint.Checkpoint` of a study writing ``<directory>/<stem>.nc``."""
+    return checkpoint.Checkpoint(directory, stem, checkpoint.study_hash(resolved), job["layout"]["scenes"])
+
+
 def write_outputs(ds, resolved, directory, stem, *, action=None):
-    """Write ``<directory>/<stem>.nc`` and the study's figures; return ``(stored dataset, paths)``."""
+    """Write ``<directory>/<stem>.nc`` and the study's figures; return ``(stored dataset, paths)``.
+
+    Raises
+    ------
+    tumble.checkpoint.OutputError
+        A file cannot be written (unwritable folder, disk full): an earlier ``<stem>.nc`` is left as it was.
+    """
     directory = Path(directory)
     path = directory / f"{stem}.nc"
-    stored = io.write_dataset(ds, path, title=resolved["title"], study=resolved,
-                              seed_entropy=ds.attrs.get("seed_entropy"), action=action)
-    figures = plots.save_figures(stored, resolved["outputs"]["figures"], directory, stem,
-                                 formats=tuple(resolved["outputs"]["format"]))
+    try:
+        with checkpoint.local_file_locks():
+            stored = io.write_dataset(ds, path, title=resolved["title"], study=resolved,
+                                      seed_entropy=ds.attrs.get("seed_entropy"), action=action)
+        figures = plots.save_figures(stored, resolved["outputs"]["figures"], directory, stem,
+                                     formats=tuple(resolved["outputs"]["format"]))
+    except checkpoint.OutputError:
+        raise
+    except OSError as err:
+        raise checkpoint.OutputError(err.errno, f"cannot write the results to {directory}: "
+                                                f"{err.strerror or err}") from err
     return stored, [path, *figures]
 
 
-def run_study(source, *, overrides=None, out=None, progress=None):
+def run_study(source, *, overrides=None, out=None, progress=None, scheduler=None, chunk_scenes=None):
     """Run a study and return its result dataset.
 
     Parameters
@@ -161,9 +283,16 @@ def run_study(source, *, overrides=None, out=None, progress=None):
     out : str or os.PathLike, optional
         Folder to write ``<stem>.nc`` and the figures to. Without it, files are written only when the study
         sets ``outputs.directory``; otherwise nothing is written (the command line's ``tumble run`` writes
-        to ``data/runs/<stem>/`` by default).
+        to ``data/runs/<stem>/`` by default). When writing, finished chunks of scenes are checkpointed in
+        ``<out>/.<stem>.chunks/`` and a rerun resumes from them (:mod:`tumble.checkpoint`).
     progress : bool, optional
         Progress bars (default: on a terminal only).
+    scheduler : str or distributed.Client, optional
+        Run the scenes on a dask cluster: ``"local"`` (a LocalCluster on 127.0.0.1), a scheduler address
+        ``"tcp://HOST:PORT"``, or a connected ``distributed.Client`` (see :mod:`tumble.distributed`).
+        Default: in this process. The results are the same bits either way.
+    chunk_scenes : int, optional
+        Scenes per chunk (checkpoint and dask task); the results do not depend on it.
 
     Returns
     -------
@@ -176,15 +305,35 @@ def run_study(source, *, overrides=None, out=None, progress=None):
     ------
     tumble.config.StudyError
         Invalid study (the message names the file, the field path and what is wrong); nothing is written.
+    tumble.checkpoint.OutputError
+        The output folder cannot be written; earlier results there are left as they were.
     """
     resolved = config.load_study(source, overrides=overrides)
     file = "<mapping>" if isinstance(source, Mapping) else str(source)
-    ds = _run(resolved, file, progress)
+    job = scene_job(resolved, file)
     directory = out if out is not None else resolved["outputs"]["directory"] or None
+    stem = output_stem(source, resolved)
+    store = open_checkpoint(resolved, job, directory, stem) if directory is not None else None
+    with _scheduler(scheduler) as client:
+        ds = _run(resolved, file, progress, job=job, store=store, client=client, chunk_scenes=chunk_scenes)
     if directory is None:
         return ds
-    stored, _ = write_outputs(ds, resolved, directory, output_stem(source, resolved))
+    stored, _ = write_outputs(ds, resolved, directory, stem)
+    store.remove()
+    store.clean_partial_results()
     return stored
+
+
+@contextlib.contextmanager
+def _scheduler(scheduler):
+    """A dask client for ``scheduler`` (None: none; a Client is used as it is, not closed)."""
+    if scheduler is None or not isinstance(scheduler, str):
+        yield scheduler
+        return
+    from . import distributed
+
+    with distributed.connect(scheduler) as client:
+        yield client
 
 
 def _scene_label(ds, index):

@@ -42,8 +42,8 @@ from .kernels.drivers import STATUS_NAMES, STATUS_OK
 from .kernels.methods import METHODS
 from .sampling import CHUNK, perturbed_spins, seed_entropy
 
-__all__ = ["CURVES", "SAMPLE_STATUS_NAMES", "flip_time_law", "inertia_triangle", "invariant_drift", "measure",
-           "regress_scan", "scan"]
+__all__ = ["CURVES", "SAMPLE_STATUS_NAMES", "assemble_scan", "flip_time_law", "inertia_triangle", "invariant_drift",
+           "measure", "regress_scan", "scan", "scan_layout", "scan_scene", "scan_scene_parameters"]
 
 #: Per-sample status in a measurement: the engine's (ok, non-finite, invariant drift), then the fit's.
 SAMPLE_STATUS_NAMES = STATUS_NAMES + analysis.FIT_NAMES[1:]
@@ -583,6 +583,84 @@ def inertia_triangle(n=20):
 _SCAN_DIMS = ("axis", "spin", "amplitude", "method")
 
 
+def scan_layout(bodies, axis=(1, 2, 3), spin=1.0, amplitude=1e-3, method="auto"):
+    """The scenes of a scan, in order: what :func:`scan` runs, cut so that scenes can run anywhere.
+
+    Parameters
+    ----------
+    bodies, axis, spin, amplitude, method
+        As for :func:`scan`.
+
+    Returns
+    -------
+    dict
+        ``moments`` (B, 3) kg m², ``swept`` (name -> list of values, the scan dimensions after ``body``, in
+        order), ``fixed`` (name -> scalar) and ``scenes``: the number of scenes, ``B`` times the product of
+        the swept lengths. Scene ``i`` is body ``i // per_body`` with the ``i % per_body``-th combination of
+        the swept values in C order (:func:`scan_scene_parameters`). Plain data: it pickles and hashes.
+    """
+    if isinstance(bodies, Body) or (not isinstance(bodies, (list, tuple)) and np.ndim(bodies) == 1) or (
+            isinstance(bodies, (list, tuple)) and len(bodies) == 3 and all(np.ndim(b) == 0 for b in bodies)):
+        bodies = [bodies]
+    moments = np.array([one_body(b) for b in bodies])
+    values = {"axis": axis, "spin": spin, "amplitude": amplitude, "method": method}
+    swept = {name: list(v) for name, v in values.items() if isinstance(v, (list, tuple, np.ndarray))}
+    for name, v in swept.items():
+        if len(v) == 0:
+            raise ValueError(f"{name} must not be an empty sequence")
+    fixed = {name: v for name, v in values.items() if name not in swept}
+    per_body = math.prod(len(v) for v in swept.values())
+    return {"moments": moments, "swept": swept, "fixed": fixed, "scenes": len(moments) * per_body}
+
+
+def scan_scene_parameters(layout, index):
+    """``(moments (3,), {"axis", "spin", "amplitude", "method"})`` of scene ``index`` of a :func:`scan_layout`."""
+    combos = list(itertools.product(*layout["swept"].values()))
+    body, combo = divmod(index, len(combos))
+    return layout["moments"][body], {**layout["fixed"], **dict(zip(layout["swept"], combos[combo]))}
+
+
+def scan_scene(layout, index, *, samples=256, seed=0, **options):
+    """Measure scene ``index`` of a :func:`scan_layout` exactly as :func:`scan` does (without ``I1..I3``).
+
+    A scene depends only on its parameters, ``samples``, ``seed`` and ``options``, never on which other
+    scenes run, where or in which order (common random numbers from ``seed``), so a scan cut into chunks of
+    scenes and run on any number of processes assembles to the same bits (:func:`assemble_scan`).
+    """
+    moments, params = scan_scene_parameters(layout, index)
+    options.pop("progress", None)
+    ds = measure(moments, params["axis"], params["spin"], params["amplitude"], samples, seed, params["method"],
+                 progress=False, **options)
+    return ds.drop_vars(["I1", "I2", "I3"])
+
+
+def assemble_scan(layout, scenes, body_coords=None):
+    """Stack the scene datasets of a :func:`scan_layout` (all of them, in order) into the scan's dataset."""
+    moments, swept = layout["moments"], layout["swept"]
+    if len(scenes) != layout["scenes"]:
+        raise ValueError(f"a scan of {layout['scenes']} scenes cannot be assembled from {len(scenes)}")
+    per_body = layout["scenes"] // len(moments)
+    shape = [len(v) for v in swept.values()]
+    stacked = [_combine(_nest(scenes[b * per_body:(b + 1) * per_body], shape), list(swept))
+               for b in range(len(moments))]
+    out = xr.concat(stacked, dim="body", data_vars="all", coords="different", compat="equals",
+                    combine_attrs="override")
+    out = out.assign_coords(
+        I1=("body", moments[:, 0], {"units": "kg m2", "long_name": "principal moment of inertia 1"}),
+        I2=("body", moments[:, 1], {"units": "kg m2", "long_name": "principal moment of inertia 2"}),
+        I3=("body", moments[:, 2], {"units": "kg m2", "long_name": "principal moment of inertia 3"}),
+        body=("body", np.arange(len(moments), dtype=np.int64), {"units": "1", "long_name": "body index"}))
+    for name, v in (body_coords or {}).items():
+        v = np.asarray(v)
+        if v.shape != (len(moments),):
+            raise ValueError(f"body_coords[{name!r}] must have one value per body ({len(moments)}), got shape "
+                             f"{v.shape}")
+        out = out.assign_coords({name: ("body", v, {"units": "1", "long_name": name.replace("_", " ")})})
+    out = out.transpose("body", *swept, ..., "sample")
+    out.attrs["title"] = "tumble scan: measured rates against linear theory"
+    return out
+
+
 def scan(bodies, axis=(1, 2, 3), spin=1.0, amplitude=1e-3, method="auto", *, samples=256, seed=0,
          body_coords=None, **options):
     """Measure every combination of scene parameters; scan parameters become coordinates.
@@ -606,50 +684,22 @@ def scan(bodies, axis=(1, 2, 3), spin=1.0, amplitude=1e-3, method="auto", *, sam
     xarray.Dataset
         The scene variables of :func:`measure` with dimensions ``(body, axis, spin, amplitude, method)`` (those
         that were sequences), per-sample variables with ``sample`` last.
+
+    Notes
+    -----
+    The same scan cut into chunks of scenes: :func:`scan_layout`, :func:`scan_scene`, :func:`assemble_scan`
+    (what ``tumble run`` does to checkpoint a scan and to run it on a dask cluster).
     """
-    if isinstance(bodies, Body) or (not isinstance(bodies, (list, tuple)) and np.ndim(bodies) == 1) or (
-            isinstance(bodies, (list, tuple)) and len(bodies) == 3 and all(np.ndim(b) == 0 for b in bodies)):
-        bodies = [bodies]
-    moments = np.array([one_body(b) for b in bodies])
-    values = {"axis": axis, "spin": spin, "amplitude": amplitude, "method": method}
-    swept = {name: list(v) for name, v in values.items() if isinstance(v, (list, tuple, np.ndarray))}
-    for name, v in swept.items():
-        if len(v) == 0:
-            raise ValueError(f"{name} must not be an empty sequence")
-    fixed = {name: v for name, v in values.items() if name not in swept}
-    combos = list(itertools.product(*swept.values()))
+    layout = scan_layout(bodies, axis, spin, amplitude, method)
     # One bar over the scenes (on a terminal unless progress says otherwise), none per scene.
     progress = options.pop("progress", None)
     show = sys.stderr.isatty() if progress is None else progress
     scenes = []
-    with tqdm(total=len(moments) * len(combos), unit="scenes", disable=not show, desc="scan") as bar:
-        for m in moments:
-            row = []
-            for combo in combos:
-                params = {**fixed, **dict(zip(swept, combo))}
-                ds = measure(m, params["axis"], params["spin"], params["amplitude"], samples, seed,
-                             params["method"], progress=False, **options)
-                row.append(ds.drop_vars(["I1", "I2", "I3"]))
-                bar.update()
-            scenes.append(row)
-    shape = [len(v) for v in swept.values()]
-    stacked = [_combine(_nest(row, shape), list(swept)) for row in scenes]
-    out = xr.concat(stacked, dim="body", data_vars="all", coords="different", compat="equals",
-                    combine_attrs="override")
-    out = out.assign_coords(
-        I1=("body", moments[:, 0], {"units": "kg m2", "long_name": "principal moment of inertia 1"}),
-        I2=("body", moments[:, 1], {"units": "kg m2", "long_name": "principal moment of inertia 2"}),
-        I3=("body", moments[:, 2], {"units": "kg m2", "long_name": "principal moment of inertia 3"}),
-        body=("body", np.arange(len(moments), dtype=np.int64), {"units": "1", "long_name": "body index"}))
-    for name, v in (body_coords or {}).items():
-        v = np.asarray(v)
-        if v.shape != (len(moments),):
-            raise ValueError(f"body_coords[{name!r}] must have one value per body ({len(moments)}), got shape "
-                             f"{v.shape}")
-        out = out.assign_coords({name: ("body", v, {"units": "1", "long_name": name.replace("_", " ")})})
-    out = out.transpose("body", *swept, ..., "sample")
-    out.attrs["title"] = "tumble scan: measured rates against linear theory"
-    return out
+    with tqdm(total=layout["scenes"], unit="scenes", disable=not show, desc="scan") as bar:
+        for index in range(layout["scenes"]):
+            scenes.append(scan_scene(layout, index, samples=samples, seed=seed, **options))
+            bar.update()
+    return assemble_scan(layout, scenes, body_coords)
 
 
 def _nest(items, shape):

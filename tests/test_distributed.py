@@ -1,0 +1,111 @@
+"""Scale-out on dask.distributed: one LocalCluster of two single-threaded worker processes on 127.0.0.1 for the
+whole module; the same bits as in-process, resumed or not, from Python and from `tumble run --scheduler`."""
+
+import pytest
+
+pytest.importorskip("distributed")
+
+import numba  # noqa: E402
+import xarray as xr  # noqa: E402
+
+import tumble  # noqa: E402
+from tumble import cli, config, distributed, io, runner  # noqa: E402
+
+from test_resume import SCAN, STEPPED, _toml, assert_same_result, finished_chunks  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def client():
+    """The module's one LocalCluster (two worker processes, one thread each, 127.0.0.1), as tumble starts it."""
+    with distributed.connect("local", workers=2) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def in_process(tmp_path_factory, warm_kernels):
+    """The two studies run in this process: their result files."""
+    out = tmp_path_factory.mktemp("in_process")
+    tumble.run_study(SCAN, out=out)
+    tumble.run_study(STEPPED, out=out)
+    return {"scan": out / "resume.nc", "stepped": out / "stepped.nc"}
+
+
+def test_the_local_cluster_has_two_single_threaded_workers_on_localhost(client):
+    workers = client.scheduler_info()["workers"]
+    assert len(workers) == 2
+    assert client.scheduler.address.startswith("tcp://127.0.0.1:")
+    assert all(address.startswith("tcp://127.0.0.1:") and info["nthreads"] == 1 for address, info in workers.items())
+
+
+def test_dask_workers_run_numba_with_one_thread(client):
+    # numba's thread count is per thread: ask inside a task, where the scenes run, after compute_chunk set it.
+    def threads_in_task():
+        runner.compute_chunk({"layout": {"scenes": 0}}, [], threads=1)
+        return numba.get_num_threads(), numba.config.NUMBA_NUM_THREADS
+
+    results = client.gather([client.submit(threads_in_task, pure=False, workers=[w])
+                             for w in client.scheduler_info()["workers"]])
+    assert results == [(1, 1), (1, 1)]
+    plugins = client.run(lambda dask_worker: sorted(dask_worker.plugins))
+    assert all("tumble-numba" in names for names in plugins.values())
+
+
+@pytest.mark.parametrize("name, study", [("scan", SCAN), ("stepped", STEPPED)])
+def test_the_cluster_gives_the_bits_of_an_in_process_run(client, in_process, tmp_path, name, study):
+    tumble.run_study(study, out=tmp_path, scheduler=client, chunk_scenes=2)
+    assert_same_result(in_process[name], next(tmp_path.glob("*.nc")))
+    assert [p.name for p in tmp_path.iterdir()] == [in_process[name].name]
+
+
+def test_the_cluster_resumes_a_checkpoint_written_in_process(client, in_process, tmp_path, monkeypatch):
+    resolved = config.load_study(SCAN)
+    job = runner.scene_job(resolved)
+    runner.open_checkpoint(resolved, job, tmp_path, "resume").write(runner.compute_chunk(job, range(0, 20)))
+    submitted = []
+    run_chunks = distributed.run_chunks
+    monkeypatch.setattr(distributed, "run_chunks",
+                        lambda client, fn, job, chunks: submitted.extend(chunks) or run_chunks(client, fn, job, chunks))
+    tumble.run_study(SCAN, out=tmp_path, scheduler=client, chunk_scenes=3)
+    assert submitted == [[20, 21, 22], [23, 24, 25], [26]]
+    assert_same_result(in_process["scan"], tmp_path / "resume.nc")
+
+
+def test_tumble_run_uses_the_scheduler_named_in_the_environment(client, in_process, tmp_path, monkeypatch, capsys):
+    study = tmp_path / "resume.toml"
+    study.write_text(_toml(SCAN))
+    monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", client.scheduler.address)
+    assert cli.main(["run", str(study), "--out", str(tmp_path / "env"), "--chunk-scenes", "5"]) == 0
+    assert f"dask scheduler {client.scheduler.address}: 2 worker(s)" in capsys.readouterr().out
+    assert_same_result(in_process["scan"], tmp_path / "env" / "resume.nc")
+    monkeypatch.delenv("DASK_SCHEDULER_ADDRESS")
+    assert cli.main(["run", str(study), "--out", str(tmp_path / "flag"), "--scheduler", client.scheduler.address]) == 0
+    assert_same_result(in_process["scan"], tmp_path / "flag" / "resume.nc")
+
+
+def test_an_error_in_a_worker_is_the_input_error_it_would_be_in_process(client, tmp_path, capsys):
+    # Valid field by field, but the scene refuses it: a horizon needing more stored states than allowed.
+    study = tmp_path / "long.toml"
+    study.write_text(_toml({"body": {"moments": [1.0, 2.0, 3.0]}, "spin": {"axis": 1},
+                            "perturbation": {"samples": 8}, "integration": {"horizon": 1e6},
+                            "outputs": {"figures": [], "arrays": []}}))
+    status = cli.main(["run", str(study), "--out", str(tmp_path / "out"), "--scheduler", client.scheduler.address])
+    err = capsys.readouterr().err
+    assert status == 2 and "horizon" in err and "Traceback" not in err
+    assert not list((tmp_path / "out").glob("*.nc")) if (tmp_path / "out").exists() else True
+
+
+def test_an_unreachable_scheduler_exits_1(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(distributed, "CONNECT_TIMEOUT", 1)
+    status = cli.main(["run", "intermediate_axis", "--out", str(tmp_path / "out"), "--scheduler",
+                       "tcp://127.0.0.1:9"])
+    err = capsys.readouterr().err
+    assert status == 1 and "cannot reach the dask scheduler at tcp://127.0.0.1:9" in err and "Traceback" not in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_results_on_the_cluster_are_datasets_xarray_can_compare(client, in_process):
+    # The in-memory result (no file) is the same too.
+    ds = tumble.run_study(SCAN, scheduler=client)
+    stored = io.read_dataset(in_process["scan"])
+    xr.testing.assert_equal(ds[["rate", "rel_error", "sample_rate"]], stored[["rate", "rel_error", "sample_rate"]])
+    assert finished_chunks(in_process["scan"].parent) == []

@@ -1,0 +1,225 @@
+"""Checkpoint and resume: finished chunks are reused only for the same study, the result is assembled
+atomically, and the numbers are the same bits however the scan is cut, resumed or threaded."""
+
+import json
+import subprocess
+import sys
+
+import numba
+import pytest
+import xarray as xr
+
+import tumble
+from tumble import checkpoint, cli, config, io, runner
+
+# 27 closed-form scenes (3 x 3 inertia triangle x 3 axes) of 64 samples: about a second.
+SCAN = {"title": "resume", "perturbation": {"samples": 64}, "scan": {"triangle": 3, "axis": [1, 2, 3]},
+        "integration": {"flips": 0}, "outputs": {"figures": [], "arrays": ["sample_rate", "sample_status"]}}
+
+# Stepping scenes (rk4, samples over two blocks of 256 so that numba's prange splits them), both kinds.
+STEPPED = {"title": "stepped", "body": {"moments": [1.0, 2.0, 3.0]}, "perturbation": {"samples": 600},
+           "scan": {"axis": [1, 2], "method": ["auto", "rk4"]}, "integration": {"flips": 1},
+           "outputs": {"figures": [], "arrays": ["sample_rate", "sample_first_flip"]}}
+
+
+def without_history(ds):
+    """A result file's dataset without the line that records when it was written."""
+    ds = ds.copy()
+    ds.attrs.pop("history", None)
+    return ds
+
+
+def assert_same_result(path_a, path_b):
+    xr.testing.assert_identical(without_history(io.read_dataset(path_a)), without_history(io.read_dataset(path_b)))
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """The scan run in one go, in this process, one chunk per scene (its file)."""
+    out = tmp_path_factory.mktemp("reference")
+    tumble.run_study(SCAN, out=out, chunk_scenes=1)
+    return out / "resume.nc"
+
+
+def finished_chunks(out, stem="resume"):
+    folder = checkpoint.chunk_folder(out, stem)
+    return sorted(p.name for p in folder.iterdir()) if folder.is_dir() else []
+
+
+@pytest.mark.parametrize("chunk_scenes", [4, 27])
+def test_the_chunk_size_changes_no_bit_of_the_result(reference, tmp_path, chunk_scenes):
+    tumble.run_study(SCAN, out=tmp_path, chunk_scenes=chunk_scenes)
+    assert_same_result(reference, tmp_path / "resume.nc")
+
+
+def test_a_chunked_run_gives_the_bits_of_the_plain_scan(reference):
+    resolved = config.load_study(SCAN)
+    p = runner.plan(resolved)
+    values = p["values"]
+    plain = tumble.scan(p["moments"], values["axis"], values["spin"], values["amplitude"], values["method"],
+                        samples=p["samples"], seed=p["seed"], body_coords=p["body_coords"], **p["options"])
+    stored = io.read_dataset(reference)
+    for name in ("rate", "rate_theory", "rel_error", "sample_rate", "rate_ci_low", "rate_ci_high"):
+        assert plain[name].values.tobytes() == stored[name].values.tobytes(), name
+
+
+def test_a_finished_run_leaves_only_its_result(reference):
+    assert sorted(p.name for p in reference.parent.iterdir()) == ["resume.nc"]
+
+
+def test_a_rerun_skips_the_finished_chunks_and_gives_the_same_bits(reference, tmp_path, monkeypatch):
+    resolved = config.load_study(SCAN)
+    job = runner.scene_job(resolved)
+    store = runner.open_checkpoint(resolved, job, tmp_path, "resume")
+    store.write(runner.compute_chunk(job, range(0, 10)))
+    store.write(runner.compute_chunk(job, [17, 20]))
+    assert finished_chunks(tmp_path) == ["scenes-000000-000009.chunk", "scenes-000017-000020.chunk"]
+    assert not list(tmp_path.glob("*.nc"))  # finished chunks are never named like a result
+
+    computed = []
+    compute = runner.compute_scene
+    monkeypatch.setattr(runner, "compute_scene", lambda job, i, **kw: computed.append(i) or compute(job, i, **kw))
+    logged = []
+    scenes = runner.run_scenes(job, store=runner.open_checkpoint(resolved, job, tmp_path, "resume"), chunk_scenes=5,
+                               log=logged.append)
+    assert sorted(computed) == [i for i in range(27) if i >= 10 and i not in (17, 20)]
+    assert "resuming: 12 of 27 scenes" in logged[0]
+    assert len(scenes) == 27
+
+    monkeypatch.setattr(runner, "compute_scene", compute)
+    tumble.run_study(SCAN, out=tmp_path)
+    assert_same_result(reference, tmp_path / "resume.nc")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["resume.nc"]  # checkpoint removed after the result
+
+
+def test_a_chunk_of_another_study_is_never_reused(reference, tmp_path, monkeypatch):
+    other = json.loads(json.dumps(SCAN))
+    other["perturbation"]["seed"] = 7  # other numbers, same scenes and chunk names
+    resolved = config.load_study(other)
+    job = runner.scene_job(resolved)
+    runner.open_checkpoint(resolved, job, tmp_path, "resume").write(runner.compute_chunk(job, range(27)))
+
+    computed = []
+    compute = runner.compute_scene
+    monkeypatch.setattr(runner, "compute_scene", lambda job, i, **kw: computed.append(i) or compute(job, i, **kw))
+    tumble.run_study(SCAN, out=tmp_path)
+    assert sorted(computed) == list(range(27))
+    assert_same_result(reference, tmp_path / "resume.nc")
+
+
+def test_a_chunk_of_another_tumble_version_is_never_reused(tmp_path, monkeypatch):
+    resolved = config.load_study(SCAN)
+    job = runner.scene_job(resolved)
+    runner.open_checkpoint(resolved, job, tmp_path, "resume").write(runner.compute_chunk(job, [0]))
+    monkeypatch.setattr(checkpoint, "__version__", "99.0")
+    store = runner.open_checkpoint(resolved, job, tmp_path, "resume")
+    assert store.load() == {} and store.stale == 1 and finished_chunks(tmp_path) == []
+
+
+def test_the_study_hash_follows_every_number_but_not_where_or_how_figures_are_written():
+    base = config.load_study(SCAN)
+    digest = checkpoint.study_hash(base)
+    for field, value in (("perturbation.samples", 65), ("perturbation.seed", 1), ("perturbation.amplitude", 2e-3),
+                         ("integration.method", "rk4"), ("outputs.arrays", ["sample_rate"])):
+        assert checkpoint.study_hash(config.load_study(SCAN, overrides={field: value})) != digest, field
+    for field, value in (("outputs.format", ["pdf"]), ("outputs.directory", "elsewhere")):
+        assert checkpoint.study_hash(config.load_study(SCAN, overrides={field: value})) == digest, field
+
+
+def test_an_unreadable_chunk_is_recomputed_not_trusted(reference, tmp_path):
+    folder = checkpoint.chunk_folder(tmp_path, "resume")
+    folder.mkdir()
+    (folder / "scenes-000000-000026.chunk").write_bytes(b"\x89HDF\r\n\x1a\n truncated")
+    (folder / ".scenes-000000-000003.chunk.abc.part").write_bytes(b"half a chunk")
+    tumble.run_study(SCAN, out=tmp_path)
+    assert_same_result(reference, tmp_path / "resume.nc")
+    assert not folder.exists()
+
+
+def test_an_interrupted_run_leaves_no_file_named_like_a_result(tmp_path, monkeypatch, capsys):
+    compute = runner.compute_scene
+
+    def fail_at_scene_12(job, i, **kw):
+        if i == 12:
+            raise KeyboardInterrupt
+        return compute(job, i, **kw)
+
+    monkeypatch.setattr(runner, "compute_scene", fail_at_scene_12)
+    study = tmp_path / "resume.toml"
+    study.write_text(_toml(SCAN))
+    status = cli.main(["run", str(study), "--out", str(tmp_path / "out"), "--chunk-scenes", "4"])
+    assert status == 1 and "interrupted" in capsys.readouterr().err
+    out = tmp_path / "out"
+    assert [p.name for p in out.iterdir()] == [".resume.chunks"]
+    assert finished_chunks(out) == ["scenes-000000-000003.chunk", "scenes-000004-000007.chunk",
+                                    "scenes-000008-000011.chunk"]
+    chunk = checkpoint.chunk_folder(out, "resume") / "scenes-000000-000003.chunk"
+    assert cli.main(["plot", str(chunk)]) == 2  # a chunk is not a tumble result
+    assert "not a tumble result" in capsys.readouterr().err
+
+
+def test_numba_thread_count_changes_no_bit(tmp_path, warm_kernels):
+    before = numba.get_num_threads()
+    try:
+        paths = []
+        for threads in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
+            numba.set_num_threads(threads)
+            tumble.run_study(STEPPED, out=tmp_path / f"threads{threads}", chunk_scenes=3)
+            paths.append(tmp_path / f"threads{threads}" / "stepped.nc")
+    finally:
+        numba.set_num_threads(before)
+    assert_same_result(*paths)
+
+
+def test_fresh_discards_an_earlier_checkpoint(reference, tmp_path, capsys):
+    resolved = config.load_study(SCAN)
+    job = runner.scene_job(resolved)
+    runner.open_checkpoint(resolved, job, tmp_path / "out", "resume").write(runner.compute_chunk(job, [3]))
+    study = tmp_path / "resume.toml"
+    study.write_text(_toml(SCAN))
+    assert cli.main(["run", str(study), "--out", str(tmp_path / "out"), "--fresh"]) == 0
+    assert "resuming" not in capsys.readouterr().out
+    assert_same_result(reference, tmp_path / "out" / "resume.nc")
+
+
+def test_dry_run_checks_and_counts_but_writes_nothing(tmp_path, capsys):
+    study = tmp_path / "resume.toml"
+    study.write_text(_toml(SCAN))
+    assert cli.main(["run", str(study), "--out", str(tmp_path / "out"), "--dry-run", "--chunk-scenes", "10"]) == 0
+    assert "27 scene(s) of 64 samples in 3 chunk(s)" in capsys.readouterr().out
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("args, words", [
+    (("--scheduler", "localhost:8786"), "tcp://HOST:PORT"),
+    (("--chunk-scenes", "0"), "--chunk-scenes"),
+    (("--workers", "0"), "--workers"),
+])
+def test_bad_scale_out_options_exit_2(tmp_path, capsys, args, words):
+    status = cli.main(["run", "intermediate_axis", "--out", str(tmp_path / "out"), *args])
+    err = capsys.readouterr().err
+    assert status == 2 and words in err and "Traceback" not in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_without_dask_tumble_runs_and_scheduler_exits_2_with_how_to_install(tmp_path):
+    hide_dask = "import sys; sys.modules['distributed'] = None; sys.modules['dask'] = None; import tumble.cli as c; "
+    done = subprocess.run([sys.executable, "-c", hide_dask + "sys.exit(c.main(sys.argv[1:]))", "run",
+                           "intermediate_axis", "--out", str(tmp_path / "out"), "--scheduler", "local"],
+                          capture_output=True, text=True, check=False)
+    assert done.returncode == 2, done.stderr
+    assert "dask.distributed is not installed" in done.stderr and "pip install" in done.stderr
+    assert "Traceback" not in done.stderr and not (tmp_path / "out").exists()
+
+
+def _toml(study):
+    """A study mapping as TOML text (tables of scalars and lists only, as the studies here)."""
+    lines = []
+    for key, value in study.items():
+        if not isinstance(value, dict):
+            lines.append(f"{key} = {json.dumps(value)}")
+    for key, value in study.items():
+        if isinstance(value, dict):
+            lines.append(f"[{key}]")
+            lines += [f"{k} = {json.dumps(v)}" for k, v in value.items()]
+    return "\n".join(lines) + "\n"

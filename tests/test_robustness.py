@@ -1,0 +1,208 @@
+"""Nothing lost, nothing crashes: kill -9 mid-scan then resume, a full disk or an unwritable folder, and
+generated malformed studies."""
+
+import errno
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+import xarray as xr
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from tumble import checkpoint, cli, config, io, runner
+
+from test_resume import _toml, assert_same_result, finished_chunks
+
+# 48 closed-form scenes of 256 samples: about 3 s, cut into 24 chunks.
+KILLED = {"title": "killed", "perturbation": {"samples": 256}, "scan": {"triangle": 4, "axis": [1, 2, 3]},
+          "integration": {"flips": 0}, "outputs": {"figures": [], "arrays": ["sample_rate"]}}
+
+SMALL = {"title": "small", "body": {"moments": [1.0, 2.0, 3.0]}, "perturbation": {"samples": 32},
+         "scan": {"axis": [1, 2, 3]}, "outputs": {"figures": ["summary"], "arrays": []}}
+
+
+def test_kill_9_at_a_random_point_then_a_rerun_gives_the_uninterrupted_result(tmp_path, capsys):
+    study = tmp_path / "killed.toml"
+    study.write_text(_toml(KILLED))
+    # The uninterrupted run first (in this process; it also puts the kernels in numba's disk cache).
+    assert cli.main(["run", str(study), "--out", str(tmp_path / "whole"), "--chunk-scenes", "2"]) == 0
+    capsys.readouterr()
+
+    out = tmp_path / "killed"
+    seed = random.randrange(2**32)
+    delay = random.Random(seed).uniform(0.0, 1.0)
+    command = [sys.executable, "-m", "tumble", "run", str(study), "--out", str(out), "--chunk-scenes", "2"]
+    proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 120
+        while not finished_chunks(out, "killed") and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        time.sleep(delay)  # the random point: 0-1 s after the first chunk was written
+        os.kill(proc.pid, signal.SIGKILL)
+    finally:
+        proc.wait(timeout=60)
+    assert proc.returncode == -signal.SIGKILL, f"finished before the kill (seed {seed}): use a bigger study"
+    left = sorted(p.name for p in out.iterdir())
+    assert all(name.startswith(".") for name in left), left  # nothing named like a result
+    chunks = finished_chunks(out, "killed")
+    assert 1 <= len(chunks) < 24, (seed, chunks)
+
+    assert cli.main(["run", str(study), "--out", str(out), "--chunk-scenes", "2"]) == 0
+    assert "resuming:" in capsys.readouterr().out
+    assert_same_result(tmp_path / "whole" / "killed.nc", out / "killed.nc")
+    assert sorted(p.name for p in out.iterdir()) == ["killed.nc"]
+
+
+@pytest.fixture
+def earlier_result(tmp_path, capsys):
+    """A folder holding the result of a first run of SMALL, and its bytes."""
+    study = tmp_path / "small.toml"
+    study.write_text(_toml(SMALL))
+    out = tmp_path / "out"
+    assert cli.main(["run", str(study), "--out", str(out)]) == 0
+    capsys.readouterr()
+    return study, out, {p.name: p.read_bytes() for p in out.iterdir()}
+
+
+def _disk_full(*args, **kwargs):
+    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+
+@pytest.mark.parametrize("where", ["result", "chunk"])
+def test_a_full_disk_exits_1_and_leaves_the_earlier_results_intact(earlier_result, monkeypatch, capsys, where):
+    study, out, before = earlier_result
+    if where == "result":
+        monkeypatch.setattr(xr.Dataset, "to_netcdf", _disk_full)
+    else:
+        monkeypatch.setattr(checkpoint.np, "savez", _disk_full)
+    status = cli.main(["run", str(study), "--out", str(out), "--seed", "5"])
+    err = capsys.readouterr().err
+    assert status == 1 and "No space left on device" in err and "Traceback" not in err
+    assert "earlier results there are unchanged" in err and len(err.strip().splitlines()) == 1
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before
+    assert not [p for p in out.rglob("*.part")]
+    if where == "result":  # the scenes were finished: a rerun resumes from them
+        assert finished_chunks(out, "small")
+        monkeypatch.undo()
+        assert cli.main(["run", str(study), "--out", str(out), "--seed", "5"]) == 0
+        assert "resuming: 3 of 3 scenes" in capsys.readouterr().out
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
+def test_a_read_only_output_folder_exits_1_and_leaves_the_earlier_results_intact(earlier_result, capsys):
+    study, out, before = earlier_result
+    out.chmod(0o555)
+    try:
+        status = cli.main(["run", str(study), "--out", str(out), "--seed", "5"])
+    finally:
+        out.chmod(0o755)
+    err = capsys.readouterr().err
+    assert status == 1 and "Permission denied" in err and "Traceback" not in err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+def test_an_output_path_under_a_file_exits_1_naming_it(tmp_path, capsys):
+    study = tmp_path / "small.toml"
+    study.write_text(_toml(SMALL))
+    (tmp_path / "file").write_text("not a folder")
+    status = cli.main(["run", str(study), "--out", str(tmp_path / "file" / "sub")])
+    err = capsys.readouterr().err
+    assert status == 1 and "cannot write" in err and str(tmp_path / "file" / "sub") in err
+    assert (tmp_path / "file").read_text() == "not a folder"
+
+
+# ------------------------------------------------------------------------------------- generated studies
+
+_SCALARS = st.one_of(st.none(), st.booleans(), st.integers(-5, 5), st.integers(-10**20, 10**20),
+                     st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=6),
+                     st.sampled_from(["rk4", "exact", "auto", "cone", "disc", "cuboid", "constant", "png",
+                                      "summary", "stability_map", "norm_growth", "sample_rate", "t_handle"]))
+_VALUES = st.recursive(_SCALARS, lambda inner: st.one_of(st.lists(inner, max_size=4),
+                                                         st.dictionaries(st.text(max_size=6), inner, max_size=3)),
+                       max_leaves=8)
+
+# Known tables and keys, so that the generated studies get past the first check often enough to reach the
+# deeper ones; plus a stray key now and then.
+_FIELDS = {
+    "body": ["moments", "shape", "dimensions", "tensor"],
+    "spin": ["axis", "rate"],
+    "perturbation": ["amplitude", "samples", "seed", "distribution"],
+    "integration": ["method", "dt", "horizon", "flips"],
+    "torque": ["profile", "vector", "duration", "period"],
+    "scan": ["axis", "amplitude", "rate", "method", "triangle", "moments", "body"],
+    "outputs": ["figures", "arrays", "format", "directory"],
+    "mystery": ["x"],
+}
+
+
+@st.composite
+def studies(draw):
+    study = {}
+    if draw(st.booleans()):
+        study["title"] = draw(_VALUES)
+    for table in draw(st.lists(st.sampled_from(sorted(_FIELDS)), max_size=4, unique=True)):
+        keys = draw(st.lists(st.sampled_from(_FIELDS[table]), max_size=3, unique=True))
+        study[table] = {key: draw(_VALUES) for key in keys} if draw(st.integers(0, 9)) else draw(_VALUES)
+    return study
+
+
+@settings(max_examples=50, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(studies())
+def test_a_generated_study_is_either_valid_or_a_study_error(study):
+    try:
+        resolved = config.load_study(study)
+        runner.scene_job(resolved)
+    except config.StudyError as err:
+        assert str(err).startswith("<mapping>: ")
+
+
+def _toml_value(value):
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value).replace("inf", "inf").replace("nan", "nan")
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_value(v) for v in value if v is not None) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f'"{k}" = {_toml_value(v)}' for k, v in value.items() if v is not None) + "}"
+    return '"?"'
+
+
+def _toml_text(study, cut):
+    lines = [f"title = {_toml_value(study['title'])}"] if study.get("title") is not None else []
+    for table, body in study.items():
+        if table == "title":
+            continue
+        if isinstance(body, dict):
+            lines.append(f"[{table}]")
+            lines += [f'"{k}" = {_toml_value(v)}' for k, v in body.items() if v is not None]
+        elif body is not None:
+            lines.append(f"{table} = {_toml_value(body)}")
+    text = "\n".join(lines) + "\n"
+    return text[:cut] if cut is not None else text  # a cut may break the TOML itself
+
+
+@settings(max_examples=50, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+                                                                  HealthCheck.function_scoped_fixture])
+@given(studies(), st.one_of(st.none(), st.integers(0, 200)))
+def test_tumble_run_on_a_generated_study_exits_0_or_2_never_a_traceback(tmp_path, capsys, study, cut):
+    path = tmp_path / "generated.toml"
+    path.write_text(_toml_text(study, cut))
+    status = cli.main(["run", str(path), "--out", str(tmp_path / "out"), "--dry-run"])
+    out, err = capsys.readouterr()
+    assert status in (0, 2), err
+    assert "Traceback" not in err
+    if status == 2:
+        assert err.startswith("tumble: error: ") and len(err.strip().splitlines()) == 1, err
+    else:
+        assert "valid;" in out
+    assert not (tmp_path / "out").exists()
