@@ -83,7 +83,8 @@ def demo(samples=2000, seed=0, dt=0.002, out=sys.stdout):
           f"(omega_{middle + 1} changed sign at t ≈ {first_flip:.2f} s).", file=out)
 
 
-_BENCHMARKS = ("engine", "accuracy", "work_precision")
+_BENCHMARKS = ("engine", "accuracy", "work_precision", "stress", "scale_out")
+_QUICK = ("work_precision", "stress")  # the benchmarks that take --quick
 
 
 class InputError(ValueError):
@@ -197,7 +198,7 @@ def _bench(args):
         if not script.is_file():
             raise InputError(f"benchmark {name!r}: no {script} (benchmarks: {', '.join(_BENCHMARKS)})")
     for name in names:
-        extra = ["--quick"] if args.quick and name == "work_precision" else []
+        extra = ["--quick"] if args.quick and name in _QUICK else []
         print(f"== benchmarks/{name}.py {' '.join(extra)}", flush=True)
         done = subprocess.run([sys.executable, str(folder / f"{name}.py"), *extra], check=False)
         if done.returncode:
