@@ -24,7 +24,6 @@ reported separately. Timings are wall-clock seconds of one run (the scans are de
 """
 
 import argparse
-import hashlib
 import json
 import os
 import platform
@@ -43,8 +42,9 @@ from tumble import exact
 from tumble.sampling import perturbed_spins, seed_entropy
 from tumble.study import SAMPLE_STATUS_NAMES
 
+from provenance import source_digest  # benchmarks/provenance.py
+
 RESULTS = Path(__file__).with_name("results")
-PACKAGE = Path(tumble.__file__).parent
 
 #: Targets of issue 4: median relative error over the triangle scan, per kind.
 TARGETS = {"periodic": 1e-3, "exponential": 5e-3}
@@ -101,17 +101,6 @@ def _e(x, digits=2):
 
 def _pct(x):
     return "—" if not np.isfinite(x) else f"{100 * x:.3g} %"
-
-
-def source_digest():
-    """sha256 of the sources of the tumble modules this run imported, to tie the figures to that code."""
-    h = hashlib.sha256()
-    files = {Path(m.__file__) for name, m in list(sys.modules.items())
-             if (name == "tumble" or name.startswith("tumble.")) and getattr(m, "__file__", None)}
-    for path in sorted(files):
-        h.update(str(path.relative_to(PACKAGE)).encode())
-        h.update(path.read_bytes())
-    return h.hexdigest()[:16]
 
 
 def timed(fn, *args, **kwargs):

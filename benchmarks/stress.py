@@ -39,7 +39,6 @@ Compile / cache-load time is measured in a warm-up and reported apart; every par
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import os
 import platform
@@ -61,8 +60,10 @@ from tumble.kernels.drivers import STATUS_DRIFT, STATUS_NAMES, STATUS_OK
 from tumble.kernels.methods import METHODS as _KERNEL_METHODS
 from tumble.sampling import perturbed_spins
 
+from provenance import source_digest  # benchmarks/provenance.py
+
 RESULTS = Path(__file__).with_name("results")
-PACKAGE = Path(tumble.__file__).parent
+
 METHODS = tuple(_KERNEL_METHODS)
 
 FULL = dict(
@@ -181,17 +182,6 @@ def _g(x, digits=4):
     if x is None or not np.isfinite(x):
         return "—" if x is None or np.isnan(x) else "∞"
     return f"{x:.{digits}g}"
-
-
-def source_digest():
-    """sha256 of the sources of the tumble modules this run imported, to tie the figures to that code."""
-    h = hashlib.sha256()
-    files = {Path(m.__file__) for name, m in list(sys.modules.items())
-             if (name == "tumble" or name.startswith("tumble.")) and getattr(m, "__file__", None)}
-    for path in sorted(files):
-        h.update(str(path.relative_to(PACKAGE)).encode())
-        h.update(path.read_bytes())
-    return h.hexdigest()[:16]
 
 
 def invariants(moments, w):

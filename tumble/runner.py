@@ -351,7 +351,7 @@ def _scene_label(ds, index):
 
 def summary_table(ds, limit=24):
     """Measured against theory, as text: one line per scene, or per kind for a scan of more than ``limit``."""
-    rate, theory_rate = np.atleast_1d(ds.rate.values), np.atleast_1d(ds.rate_theory.values)
+    rate = np.atleast_1d(ds.rate.values)
     kinds, errors = np.atleast_1d(ds.kind.values).astype(str), np.atleast_1d(ds.rel_error.values)
     lines = []
     if rate.size <= limit:

@@ -1,0 +1,20 @@
+"""What the benchmarks record about the code they measured."""
+
+import hashlib
+import sys
+from pathlib import Path
+
+import tumble
+
+PACKAGE = Path(tumble.__file__).parent
+
+
+def source_digest():
+    """sha256 of the sources of the tumble modules this run imported, to tie the figures to that code."""
+    h = hashlib.sha256()
+    files = {Path(m.__file__) for name, m in list(sys.modules.items())
+             if (name == "tumble" or name.startswith("tumble.")) and getattr(m, "__file__", None)}
+    for path in sorted(files):
+        h.update(str(path.relative_to(PACKAGE)).encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()[:16]
