@@ -5,8 +5,8 @@ A study's scenes run in *chunks* (groups of scenes). Each finished chunk is writ
 ``scenes-<first>-<last>.chunk``: a NumPy ``.npz`` archive (plain arrays, read with ``allow_pickle=False``)
 holding every variable and attribute of each scene with its exact dtype, and a JSON manifest with the study's
 hash (:func:`study_hash`) and the layout of each scene. (netCDF, one group per scene, cost 35 ms a scene to
-write — as much as computing a 256-sample closed-form scene; the archive costs about 1 ms.) A rerun of the same study into the same folder reads
-the chunks whose hash matches and runs only the scenes they lack; a chunk with another hash (another study,
+write — as much as computing a 256-sample closed-form scene; the archive costs about 1 ms.) A rerun of the
+same study into the same folder reads the chunks whose hash matches and runs only the scenes they lack; a chunk with another hash (another study,
 another tumble version) is never used, and is removed. The result file is assembled from the scenes and
 written atomically by :func:`tumble.io.write_dataset`; the checkpoint folder is removed after that.
 
@@ -36,10 +36,10 @@ from . import __version__, io
 
 __all__ = ["Checkpoint", "OutputError", "chunk_folder", "local_file_locks", "normalise_scene", "study_hash"]
 
-#: Suffix of a finished chunk file (netCDF4 inside; deliberately not ``.nc``).
+#: Suffix of a finished chunk file (a NumPy archive; deliberately not ``.nc``).
 CHUNK_SUFFIX = ".chunk"
 
-#: Root attribute holding the study hash of a chunk file.
+#: Manifest key holding the study hash of a chunk file.
 HASH_ATTR = "tumble_checkpoint"
 
 _CHUNK_NAME = re.compile(r"^scenes-(\d+)-(\d+)\.chunk$")
