@@ -6,8 +6,8 @@ A study's scenes run in *chunks* (groups of scenes). Each finished chunk is writ
 holding every variable and attribute of each scene with its exact dtype, and a JSON manifest with the study's
 hash (:func:`study_hash`) and the layout of each scene. (netCDF, one group per scene, cost 35 ms a scene to
 write — as much as computing a 256-sample closed-form scene; the archive costs about 1 ms.) A rerun of the
-same study into the same folder reads the chunks whose hash matches and runs only the scenes they lack; a chunk with another hash (another study,
-another tumble version) is never used, and is removed. The result file is assembled from the scenes and
+same study into the same folder reads the chunks whose hash matches and runs only the scenes they lack; a
+chunk with another hash (another study, another tumble version) is never used, and is removed. The result file is assembled from the scenes and
 written atomically by :func:`tumble.io.write_dataset`; the checkpoint folder is removed after that.
 
 Nothing in the folder can be mistaken for a result: it is hidden, its files are not named ``*.nc`` and are not netCDF
