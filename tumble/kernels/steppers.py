@@ -134,7 +134,10 @@ def implicit_midpoint_block(y1, y2, y3, active, t, h, body, work, torque_kind, t
 
     The midpoint ``z = y0 + (h/2) f(t + h/2, z)`` is found by fixed-point iteration (Hairer, Lubich &
     Wanner, sect. VIII.6); each sample stops iterating once its update is below a few ulps, so its result
-    does not depend on its neighbours in the block. Then ``y1 = 2 z - y0``. ``work`` has shape ``(4, B)``.
+    does not depend on its neighbours in the block. Then ``y1 = 2 z - y0``. A sample whose iteration has not
+    converged after ``_MIDPOINT_MAX_ITERATIONS`` sweeps (the step is too large for the fixed-point solver,
+    ``h |ω|`` near 2 or above) is set to NaN, so that the engine flags it non-finite rather than keep a
+    half-solved step. ``work`` has shape ``(4, B)``.
     """
     z1, z2, z3, done = work[0], work[1], work[2], work[3]
     n = y1.shape[0]
@@ -162,7 +165,9 @@ def implicit_midpoint_block(y1, y2, y3, active, t, h, body, work, torque_kind, t
         if remaining == 0:
             break
     for i in range(n):
-        if active[i]:
+        if active[i] and done[i] == 0.0:  # no convergence (h too large for the iteration): never silent
+            y1[i] = y2[i] = y3[i] = math.nan
+        elif active[i]:
             y1[i] = 2.0 * z1[i] - y1[i]
             y2[i] = 2.0 * z2[i] - y2[i]
             y3[i] = 2.0 * z3[i] - y3[i]
