@@ -13,6 +13,10 @@ from tumble import plots, theory
 
 LAMBDA = 1.0 / np.sqrt(3.0)  # growth rate of I = (1, 2, 3) spun at 1 rad/s about axis 2
 
+#: Figures of a traced spin's attitude: tested in test_attitude_plots.py.
+ATTITUDE = ("flip_strip", "flip_animation", "polhode", "herpolhode")
+SCAN_FIGURES = [name for name in plots.FIGURES if name not in ATTITUDE]
+
 
 def _scene_vars(moments, axis, spin=1.0):
     """Scene scalars as measure() gives them, for linear theory plus a small measured error."""
@@ -127,7 +131,7 @@ def _assert_paper_axes(fig):
     assert 3.3 <= width <= 7.1 and height <= 4.0, "paper size: one or two columns wide"
 
 
-@pytest.mark.parametrize("name", plots.FIGURES)
+@pytest.mark.parametrize("name", SCAN_FIGURES)
 def test_each_figure_draws_labelled_axes_from_its_schema(name, drawable):
     ds = drawable[name]
     assert plots.can_draw(ds, name) == (True, "")
@@ -176,6 +180,7 @@ def test_real_measurement_gives_a_summary_and_says_why_not_the_rest(measured):
     ("stability_map", "'body' dimension"), ("norm_growth", "'growth_norm'"),
     ("flip_law", "'amplitude' dimension with at least 2 values"), ("flip_components", "'trace_omega'"),
     ("invariant_drift", "'drift_l2'"), ("work_precision", "'wp_error'"), ("summary", "'rate'"),
+    *[(name, "'attitude_quaternion'") for name in ATTITUDE],
 ])
 def test_unsuitable_dataset_is_refused_naming_what_is_missing(name, missing):
     ds = xr.Dataset({"other": ("x", np.zeros(3))})
@@ -263,7 +268,8 @@ def test_can_draw_rejects_unknown_names(measured):
     with pytest.raises(ValueError, match="unknown figure"):
         plots.can_draw(measured, "nope")
     assert plots.FIGURES == ("stability_map", "norm_growth", "flip_law", "flip_components", "invariant_drift",
-                             "work_precision", "summary")
+                             "work_precision", "summary", "flip_strip", "flip_animation", "polhode", "herpolhode")
+    assert set(plots.ANIMATIONS) <= set(plots.FIGURES)
 
 
 def test_one_scene_draws_single_column_and_a_scan_names_the_scene_it_shows(triangle_scan):

@@ -7,7 +7,10 @@ error. :func:`run_ensemble` picks the cheapest path that still delivers all of t
 * torque-free with ``method="auto"`` (or ``"exact"``): the closed form (:mod:`tumble.exact`), no steps at all;
 * otherwise a fixed-step kernel with only the requested observers compiled in, the torque compiled out when
   it is zero, and — when the caller gives stop criteria — each sample stopping once its measurement is
-  complete.
+  complete;
+* the attitude (orientation quaternion) only when asked (``attitude=True``): the closed form
+  (:func:`tumble.exact.attitude`) or the attitude kernels (:mod:`tumble.kernels.attitude`), which are never
+  compiled or run otherwise.
 
 Samples run in chunks of :data:`tumble.sampling.CHUNK`; a progress bar (tqdm, only on a terminal) advances
 per chunk, and Ctrl-C stops between chunks. What ran and what was skipped is returned in ``info``.
@@ -30,7 +33,7 @@ from tqdm.auto import tqdm
 from . import exact
 from .bodies import one_body
 from .kernels.drivers import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK
-from .kernels.methods import BLOCK, METHODS, run
+from .kernels.methods import BLOCK, METHODS, run, run_attitude
 from .kernels.steppers import TORQUE_CONSTANT, TORQUE_PULSE, TORQUE_RAMP, TORQUE_SINE, TORQUE_USER
 from .sampling import CHUNK
 
@@ -58,6 +61,7 @@ class EnsembleResult(NamedTuple):
     status: np.ndarray  # (N,) int8, see STATUS_NAMES
     steps_taken: np.ndarray  # (N,) steps each sample took (0 on the closed-form path)
     info: dict
+    quaternion: np.ndarray | None = None  # (N, T, 4), body-to-space rotation, scalar first (attitude=True)
 
 
 #: Named torque profiles a study may use (studies are data: a profile name and numbers, never code).
@@ -191,7 +195,7 @@ def _exact_flips(body, w0, axis, max_flips, t_end):
 
 def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, final=True, save_every=None,
                  probe_times=None, norm_weights=None, max_flips=0, drift=False, stop_norm=0.0, stop_flips=0,
-                 drift_limit=DEFAULT_DRIFT_LIMIT, chunk=CHUNK, progress=None):
+                 drift_limit=DEFAULT_DRIFT_LIMIT, chunk=CHUNK, progress=None, attitude=False):
     """Run an ensemble of spins and observe it on the fly.
 
     Parameters
@@ -229,6 +233,9 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         Samples per kernel call (progress and Ctrl-C granularity).
     progress : bool, optional
         Show a progress bar; default: only when standard error is a terminal.
+    attitude : bool
+        Also integrate the orientation, stored with the trajectory (needs ``save_every``; no other observer).
+        The body frame is the space frame at ``t = 0``.
 
     Returns
     -------
@@ -245,6 +252,8 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
     chosen, reason = _choose_path(method, torque_free, axis_is_intermediate, max_flips)
     if chosen != "exact" and chosen not in METHODS:
         raise ValueError(f"method must be 'auto', 'exact' or one of {', '.join(METHODS)}; got {method!r}")
+    if attitude and (not save_every or probe_times is not None or max_flips or drift or stop_norm or stop_flips):
+        raise ValueError("attitude=True is stored with the trajectory: it needs save_every and no other observer")
     save = int(save_every or 0)
     times = None
     if save:
@@ -263,17 +272,25 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
             "reason": reason, "dt": dt, "n_steps": n_steps, "torque": torque_text, "early_stop": early,
             "samples": n}
     show = sys.stderr.isatty() if progress is None else progress
+    started_all = time.perf_counter()
     bar = tqdm(total=n, unit="spins", disable=not show, desc=f"{chosen}")
 
     if chosen == "exact":
         with bar, _stop_between_chunks() as interrupted:
             result = _run_exact(moments, w0, t_end, final, times, probe_times, a, weights, max_flips, drift, bar,
-                                chunk, interrupted)
+                                chunk, interrupted, attitude)
             if interrupted():  # pressed during the last chunk: the run stops all the same
                 raise Interrupted(n, n)
         info.update(sample_steps_computed=0, sample_steps_skipped=n * n_steps, jit_seconds=0.0)
         return result._replace(info=info)
 
+    if attitude:
+        with bar, _stop_between_chunks() as interrupted:
+            result = _run_attitude(METHODS[chosen], moments, w0, dt, n_steps, save, times, final, kind, params, fn,
+                                   bar, chunk, interrupted)
+        info.update(run_seconds=time.perf_counter() - started_all, sample_steps_computed=n * n_steps,
+                    sample_steps_skipped=0)
+        return result._replace(info=info)
     info["jit_seconds"] = _warm(chosen, params, fn, save, probe_steps, max_flips, drift)
     final_w = np.empty((n, 3)) if final else None
     trajectory = np.empty((n, len(times), 3)) if save else None
@@ -325,8 +342,31 @@ def _block_steps(steps_taken):
     return sum(len(part) * int(part.max()) for part in np.split(steps_taken, range(BLOCK, len(steps_taken), BLOCK)))
 
 
+def _run_attitude(method, moments, w0, dt, n_steps, save, times, final, kind, params, fn, bar, chunk, interrupted):
+    """Angular velocity and attitude by a fixed-step method, chunk by chunk, from the identity attitude."""
+    n = len(w0)
+    trajectory = np.empty((n, len(times), 3))
+    quaternion = np.empty((n, len(times), 4))
+    status = np.empty(n, dtype=np.int8)
+    for lo in range(0, n, chunk):
+        if interrupted():
+            raise Interrupted(lo, n)
+        hi = min(lo + chunk, n)
+        identity = np.zeros((hi - lo, 4))
+        identity[:, 0] = 1.0
+        trajectory[lo:hi], quaternion[lo:hi], status[lo:hi] = run_attitude(
+            method, w0[lo:hi], identity, moments, 0.0, dt, n_steps, save_every=save, torque_kind=kind,
+            torque_params=params, torque_fn=fn)
+        bar.update(hi - lo)
+    if interrupted():
+        raise Interrupted(n, n)
+    final_w = trajectory[:, -1].copy() if final else None
+    return EnsembleResult(final_w, times, trajectory, None, None, None, None, None, status,
+                          np.full(n, n_steps, dtype=np.int64), {}, quaternion)
+
+
 def _run_exact(moments, w0, t_end, final, times, probe_times, a, weights, max_flips, drift, bar, chunk,
-               interrupted):
+               interrupted, attitude=False):
     n = len(w0)
     b, c = (a + 1) % 3, (a + 2) % 3
     final_w = np.empty((n, 3)) if final else None
@@ -335,11 +375,14 @@ def _run_exact(moments, w0, t_end, final, times, probe_times, a, weights, max_fl
     flips = np.empty((n, max_flips)) if max_flips else None
     flip_count = np.empty(n, dtype=np.int64) if max_flips else None
     drifts = np.empty((n, 2)) if drift else None
+    quaternion = np.empty((n, len(times), 4)) if attitude else None
     for lo in range(0, n, chunk):
         if interrupted():
             raise Interrupted(lo, n)
         hi = min(lo + chunk, n)
         w = w0[lo:hi]
+        if attitude:
+            quaternion[lo:hi] = exact.attitude(moments, w, times)
         if final or drift:
             end = exact.omega(moments, w, np.array([t_end]))[:, 0]
             if final:
@@ -360,4 +403,4 @@ def _run_exact(moments, w0, t_end, final, times, probe_times, a, weights, max_fl
     if final_w is not None:
         status[~np.all(np.isfinite(final_w), axis=1)] = STATUS_NONFINITE
     return EnsembleResult(final_w, times, trajectory, probe_times, probes, flips, flip_count, drifts, status,
-                          np.zeros(n, dtype=np.int64), {})
+                          np.zeros(n, dtype=np.int64), {}, quaternion)

@@ -67,11 +67,14 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from scipy.special import elliprf, elliprj
 
+from . import rotations
 from .bodies import one_body, spin_vectors
 from .kernels import elliptic as _ell
 
-__all__ = ["EllipticParameters", "omega", "period", "parameters", "first_flip_time", "flip_spacing"]
+__all__ = ["EllipticParameters", "attitude", "omega", "period", "parameters", "first_flip_time", "flip_spacing",
+           "rotation_per_period"]
 
 REGIME_LARGEST = 1  # L² > 2E I_mid: w along the largest-moment axis never changes sign (dn there)
 REGIME_SEPARATRIX = 0  # L² = 2E I_mid
@@ -437,3 +440,210 @@ def first_flip_time(body, w0):
         tsep = -sol.phase0 / sol.nu
         out = np.where(separatrix & (tsep > 0), tsep, out)
     return out.reshape(sol.shape)
+
+
+# ---------------------------------------------------------------------------------------------------
+# The attitude: body-to-space rotation in closed form
+def _cyclic_frame(p):
+    """Quaternion of the proper rotation taking body coordinates to ``(a, b, p)``, ``a, b = p+1, p+2``
+    (mod 3), for each reference axis ``p`` (0-based)."""
+    table = np.array([[0.5, -0.5, -0.5, -0.5],  # p = 0: (x0, x1, x2) -> (x1, x2, x0), -120° about (1, 1, 1)
+                      [0.5, 0.5, 0.5, 0.5],  # p = 1: -> (x2, x0, x1), +120° about (1, 1, 1)
+                      [1.0, 0.0, 0.0, 0.0]])  # p = 2: identity
+    return table[p]
+
+
+def _wrap(z):
+    return z - 2.0 * np.pi * np.round(z / (2.0 * np.pi))
+
+
+def _sncndn(u, kc):
+    out = np.empty(u.shape + (3,))
+    _ell.jacobi_sncndn(np.ascontiguousarray(u.ravel()), np.ascontiguousarray(np.broadcast_to(kc, u.shape).ravel()),
+                       out.reshape(-1, 3))
+    return out[..., 0], out[..., 1], out[..., 2]
+
+
+def _pi_integral(u, K, kc, n_char, separatrix):
+    """``∫_0^u du' / (1 - n sn²(u'))`` for ``n <= 0`` and the elliptic argument ``u`` (continuous in ``u``),
+    and the amplitude ``am(u)``; on the separatrix (``m = 1``, ``sn = tanh``) in elementary functions.
+
+    Elliptic: ``u = 2K j + r``, ``|r| <= K``; the integral is ``2 j Π(n|m) + Π(n; am r | m)`` with Carlson's
+    ``Π(n; φ|m) = s R_F(c², d², 1) + (n/3) s³ R_J(c², d², 1, 1 - n s²)``, ``s, c, d = sn, cn, dn (r)``
+    (DLMF 19.25.14), and ``am(u) = j π + atan2(s, c)``.
+    """
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        j = np.where(separatrix, 0.0, np.floor(u / (2.0 * K) + 0.5))
+        r = np.where(separatrix, u, u - 2.0 * K * j)
+    s, c, d = _sncndn(r, np.where(separatrix, 0.0, kc))
+    amplitude = j * np.pi + np.arctan2(s, c)
+    c2, d2 = c * c, d * d
+    incomplete = s * elliprf(c2, d2, 1.0) + (n_char / 3.0) * s**3 * elliprj(c2, d2, 1.0, 1.0 - n_char * s * s)
+    a = np.sqrt(-n_char)
+    tangent = (u + a * np.arctan(a * np.tanh(u))) / (1.0 + a * a)  # separatrix: ∫ du / (1 + a² tanh² u)
+    with np.errstate(invalid="ignore"):  # the complete integral is infinite on the separatrix (unused there)
+        complete = elliprf(0.0, kc * kc, 1.0) + (n_char / 3.0) * elliprj(0.0, kc * kc, 1.0, 1.0 - n_char)
+        integral = np.where(separatrix, tangent, 2.0 * j * complete + incomplete)
+    return integral, amplitude
+
+
+def attitude(body, w0, t):
+    """Orientation of the torque-free rigid body in closed form: the body-to-space rotation.
+
+    The space frame is the body frame at ``t = 0`` (``q(0) = 1``). In the frame where the angular momentum
+    ``L`` is along ``Z``, the rotation is ``R_z(φ) R_x(θ) R_z(ψ)`` in the body axes ``(a, b, p)`` (Landau &
+    Lifshitz §35, §37), with ``p`` the axis the polhode circles (whose component goes as ``dn``) and
+    ``(a, b, p)`` right-handed. ``θ`` and ``ψ`` follow from the body-frame direction of ``L``
+    (``L / |L| = (sin θ sin ψ, sin θ cos ψ, cos θ)``, from :func:`omega`); the precession angle obeys
+    ``φ' = |L| (2E - I_p w_p²) / (|L|² - I_p² w_p²)``, which with ``w_p ∝ dn u`` integrates to
+
+    ``φ(t) = |L| t / I_p + |L| (I_p - I_q) / (I_q I_p ν) [Π(u) - Π(u0)]``,
+
+    ``Π(u) = ∫_0^u du' / (1 - n sn² u')``, ``n = -I_p (I_mid - I_q) / (I_q (I_p - I_mid))`` (``q`` the third
+    extreme axis, ``u = u0 + ν t`` the elliptic argument of :func:`omega`): an elliptic integral of the third
+    kind, evaluated with Carlson's ``R_F`` and ``R_J`` (scipy.special); ``φ`` never needs a quadrature.
+    ``ψ`` is carried continuously in time from the amplitude ``am u``, so ``q(t)`` is continuous in ``t``
+    (``q`` and ``-q`` are the same rotation; the sign here is the one reached continuously from ``q(0) = 1``).
+    Steady spins turn uniformly about their fixed axis.
+
+    Parameters
+    ----------
+    body : Body or array_like, shape (3,)
+        One rigid body (moments in kg m², any order).
+    w0 : array_like, shape (..., 3)
+        Initial body-frame angular velocity, rad/s.
+    t : array_like, shape (T,) or scalar
+        Times, s.
+
+    Returns
+    -------
+    ndarray, shape (..., T, 4)
+        Unit quaternions, scalar first (``v_space = q v_body q*``); shape ``(..., 4)`` for a scalar ``t``.
+    """
+    tt = _check_t(t)
+    moments = one_body(body)
+    sol = _solve(body, w0)
+    times = np.ascontiguousarray(np.atleast_1d(tt))
+    w = np.ascontiguousarray(spin_vectors(w0).reshape(-1, 3))
+    n = w.shape[0]
+    w_t = np.empty((n, times.shape[0], 3))
+    _ell.torque_free_omega(sol.kind, sol.amp, sol.cols, sol.kc, sol.phase0, sol.nu, times, w_t)
+    out = np.empty((n, times.shape[0], 4))
+
+    steady = sol.kind == _ell.KIND_STATIONARY
+    spin = np.linalg.norm(w[steady], axis=1)
+    axis = np.where(spin[:, None] > 0, w[steady], [1.0, 0.0, 0.0])
+    out[steady] = rotations.about_axis(spin[:, None] * times, axis[:, None, :])
+
+    moving = ~steady
+    if moving.any():  # t = 0 is prepended: the attitude is taken relative to the start
+        start = np.empty((n, 1, 3))
+        _ell.torque_free_omega(sol.kind, sol.amp, sol.cols, sol.kc, sol.phase0, sol.nu, np.zeros(1), start)
+        out[moving] = _moving_attitude(moments, sol, moving, w[moving],
+                                       np.concatenate([start[moving], w_t[moving]], axis=1),
+                                       np.concatenate([[0.0], times]))[:, 1:]
+    if not np.all(np.isfinite(out)):
+        raise FloatingPointError("exact.attitude produced non-finite values; please report this spin")
+    out = out.reshape(sol.shape + (times.shape[0], 4))
+    return out[..., 0, :] if tt.ndim == 0 else out
+
+
+def _moving_attitude(moments, sol, rows, w, w_t, times):
+    """Attitude of the non-steady spins ``rows`` at ``times`` (``times[0] = 0``), from ``w_t = omega(times)``."""
+    cq, cm, cp = (sol.cols[rows, j] for j in range(3))
+    Iq, Im, Ip = moments[cq], moments[cm], moments[cp]
+    kc, K, nu, phase0 = sol.kc[rows], sol.K[rows], sol.nu[rows], sol.phase0[rows]
+    separatrix = sol.kind[rows] == _ell.KIND_SEPARATRIX
+    size = np.sqrt(((moments * w) ** 2).sum(axis=1))  # |L|
+    ca, cb = (cp + 1) % 3, (cp + 2) % 3
+    L = moments * w_t
+    la, lb, lp = (np.take_along_axis(L, c[:, None, None], axis=2)[..., 0] for c in (ca, cb, cp))
+    theta = np.arctan2(np.hypot(la, lb), lp)
+
+    # the elliptic argument u = u0 + nu t (separatrix: the argument of tanh, sech)
+    with np.errstate(invalid="ignore"):
+        u = np.where(separatrix, 0.0, K)[:, None] + phase0[:, None] + nu[:, None] * times
+        u0 = np.where(separatrix, 0.0, K) + phase0
+    n_char = -Ip * (Im - Iq) / (Iq * (Ip - Im))
+    sep = separatrix[:, None]
+    integral, am = _pi_integral(u, K[:, None], kc[:, None], n_char[:, None], sep)
+    integral0, _ = _pi_integral(u0, K, kc, n_char, separatrix)
+    phi = size[:, None] * times / Ip[:, None] + (size * (Ip - Iq) / (Iq * Ip * nu))[:, None] * (
+        integral - integral0[:, None])
+
+    # psi = atan2(L_a, L_b), carried continuously through the amplitude am(u): L_q ∝ X cn, L_mid ∝ Y sn
+    X = (Iq * sol.amp[rows, 0])[:, None]
+    Y = (Im * sol.amp[rows, 1])[:, None]
+    reference = np.where(X > 0, np.sign(Y) * am, np.pi - np.sign(Y) * am)  # near atan2(Y sn, X cn)
+    reference = np.where((ca == cm)[:, None], reference, 0.5 * np.pi - reference)
+    psi = reference + _wrap(np.arctan2(la, lb) - reference)
+
+    frame = _cyclic_frame(cp)[:, None, :]
+    local = rotations.product(rotations.product(rotations.about_axis(phi, 2), rotations.about_axis(theta, 0)),
+                              rotations.about_axis(psi, 2))
+    start = rotations.product(local[:, :1], frame)
+    return rotations.product(rotations.conjugate(start), rotations.product(local, frame))
+
+
+def rotation_per_period(body, w0, *, nodes=256, max_nodes=1 << 16, tol=1e-13):
+    """Montgomery's formula for how far the body turns about ``L`` in one period of its body-frame motion.
+
+    After one period ``T`` (:func:`period`) the body-frame motion repeats and the body has turned about the
+    fixed angular momentum by ``Δθ = 2 E T / |L| - S`` (mod 2π) (R. Montgomery, "How much does the rigid
+    body rotate? A Berry's phase from the 18th century", Am. J. Phys. 59, 394 (1991)), with ``S`` the solid
+    angle enclosed by the path of ``L / |L|`` in the body frame: the cap about the pole ``±e_p`` it circles
+    (``p`` the axis whose component keeps its sign), counted positive when ``L / |L|`` circles that pole
+    clockwise seen from outside the sphere, negative otherwise.
+
+    ``S = -s ∮ (1 - s cos θ) dψ`` (``s = ±1`` the pole) is computed here from the closed-form motion (:func:`omega`) with the trapezoid
+    rule over one period, which converges geometrically for this smooth periodic integrand; ``ψ' = (n_b
+    n_a' - n_a n_b') / (n_a² + n_b²)`` with ``n' = n × w`` (``n = L/|L|`` in body axes ``(a, b, p)``, ``p``
+    the axis the polhode circles, ``cos θ = n_p``). The nodes double until two estimates agree to ``tol``.
+    It is independent of :func:`attitude`, which gives the same angle from an elliptic integral of the third
+    kind.
+
+    Parameters
+    ----------
+    body : Body or array_like, shape (3,)
+    w0 : array_like, shape (..., 3)
+        Initial body-frame angular velocity, rad/s.
+
+    Returns
+    -------
+    delta : ndarray, shape (...)
+        ``2 E T / |L| - S``, rad (not reduced mod 2π); NaN where the motion is not periodic (steady spins,
+        the separatrix, a symmetric top's motion is periodic and included).
+    solid_angle : ndarray, shape (...)
+        ``S``, sr.
+    """
+    moments = one_body(body)
+    sol = _solve(body, w0)
+    w = np.ascontiguousarray(spin_vectors(w0).reshape(-1, 3))
+    n = w.shape[0]
+    delta = np.full(n, np.nan)
+    solid = np.full(n, np.nan)
+    periodic = np.flatnonzero(sol.kind == _ell.KIND_ELLIPTIC)
+    for i in periodic:
+        T = 4.0 * sol.K[i] / abs(sol.nu[i])
+        p = sol.cols[i, 2]
+        a, b = (p + 1) % 3, (p + 2) % 3
+        previous = None
+        count = nodes
+        while True:
+            t = np.arange(count) * (T / count)
+            wt = omega(moments, w[i], t)
+            L = moments * wt
+            u = L / np.linalg.norm(L, axis=1, keepdims=True)
+            du = np.cross(u, wt)
+            psi_rate = (u[:, b] * du[:, a] - u[:, a] * du[:, b]) / (u[:, a] ** 2 + u[:, b] ** 2)
+            pole = 1.0 if u[0, p] > 0 else -1.0  # the cap about the pole L circles (n_p keeps its sign)
+            estimate = -pole * np.mean((1.0 - pole * u[:, p]) * psi_rate) * T
+            if previous is not None and abs(estimate - previous) <= tol * max(1.0, abs(estimate)):
+                break
+            if count >= max_nodes:
+                raise FloatingPointError(f"rotation_per_period: the solid angle did not converge for spin {w[i]}")
+            previous = estimate
+            count *= 2
+        solid[i] = estimate
+        delta[i] = sol.energy[i] * 2.0 * T / np.sqrt(sol.L2[i]) - estimate
+    return delta.reshape(sol.shape), solid.reshape(sol.shape)

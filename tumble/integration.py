@@ -76,13 +76,17 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
     save_every : int, optional
         None stores only the final state; ``k`` stores the initial state, every k-th step and the final one.
     attitude : bool
-        Orientation is not integrated yet; ``True`` raises NotImplementedError.
+        Also integrate the orientation: ``quaternion(sample, time, component)``, the unit quaternion (scalar
+        first) of the body-to-space rotation, ``v_space = q v_body q*``, with the space frame equal to the body
+        frame at ``t = 0``. Every method carries it in its own way (:mod:`tumble.kernels.attitude`); ``"exact"``
+        gives it in closed form (:func:`tumble.exact.attitude`). Without it no attitude code runs.
 
     Returns
     -------
     xarray.Dataset
         ``omega(sample, time, axis)``, rad/s, with coordinates ``sample``, ``time`` (s) and ``axis`` (1, 2, 3)
-        and attributes recording the method, step, step count and torque.
+        and attributes recording the method, step, step count and torque; with ``attitude=True`` also
+        ``quaternion(sample, time, component)`` (component 0 the scalar part).
 
     Raises
     ------
@@ -102,14 +106,13 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
     if save_every is not None:
         if isinstance(save_every, bool) or not isinstance(save_every, (int, np.integer)) or save_every < 1:
             raise ValueError(f"save_every must be None or an integer >= 1 (steps), got {save_every!r}")
-    if attitude:
-        raise NotImplementedError("attitude=True (orientation quaternions) is not implemented yet")
     n_steps, step = _step_plan(t_end, dt)
     # A plain integration returns what the method computes: no early stop, no drift flagging. The final
     # state alone is read off a trajectory of two states (start, end), so integrate() needs one compiled
     # kernel variant per method and torque, not two.
     result = run_ensemble(moments, w, t_end, step, method=method, torque=torque, final=False,
-                          save_every=save_every or max(n_steps, 1), drift_limit=0.0, progress=False)
+                          save_every=save_every or max(n_steps, 1), drift_limit=0.0, progress=False,
+                          attitude=bool(attitude))
     omega = result.trajectory if save_every else result.trajectory[:, -1:, :]
     times = result.times if save_every else np.array([t_end])
     info = result.info
@@ -143,4 +146,10 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
             "sample_steps_skipped": info["sample_steps_skipped"],
         },
     )
+    if attitude:
+        quaternion = result.quaternion if save_every else result.quaternion[:, -1:, :]
+        ds["quaternion"] = (("sample", "time", "component"), quaternion,
+                            {"units": "1", "long_name": "body-to-space rotation, unit quaternion, scalar first"})
+        ds = ds.assign_coords(component=("component", np.arange(4),
+                                         {"long_name": "quaternion component (0: scalar part)"}))
     return ds

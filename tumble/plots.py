@@ -12,6 +12,11 @@ with data and names it in its title; a figure that draws several picks at most :
 
 :func:`can_draw` says cheaply whether a dataset holds what a figure reads; :func:`save_figures` writes files
 atomically.
+
+The attitude figures (``flip_animation``, ``flip_strip``, ``polhode``, ``herpolhode``) draw one traced spin's
+orientation as :func:`tumble.study.attitude_trace` stores it; their drawing lives in :mod:`tumble.attitude_plots`.
+``flip_animation`` gives a :class:`~tumble.attitude_plots.FlipAnimation`, which :func:`save_figures` writes as
+a GIF (an MP4 when matplotlib finds ffmpeg), whatever image formats are asked for.
 """
 
 from __future__ import annotations
@@ -34,14 +39,18 @@ from matplotlib.patches import Patch
 from matplotlib.ticker import MaxNLocator
 from matplotlib.tri import Triangulation
 
-from . import theory
+from . import attitude_plots, theory
 
-__all__ = ["DOUBLE", "FIGURES", "SINGLE", "can_draw", "flip_components", "flip_law", "invariant_drift",
-           "norm_growth", "save_figures", "stability_map", "summary", "work_precision"]
+__all__ = ["ANIMATIONS", "DOUBLE", "FIGURES", "SINGLE", "can_draw", "flip_animation", "flip_components",
+           "flip_law", "flip_strip", "herpolhode", "invariant_drift", "norm_growth", "polhode", "save_figures",
+           "stability_map", "summary", "work_precision"]
 
 #: Names of the figures, in the order a report shows them.
 FIGURES = ("stability_map", "norm_growth", "flip_law", "flip_components", "invariant_drift", "work_precision",
-           "summary")
+           "summary", "flip_strip", "flip_animation", "polhode", "herpolhode")
+
+#: Figures that are movies: written as ``<stem>_<name>.gif`` (``.mp4`` when ffmpeg is found), whatever formats.
+ANIMATIONS = ("flip_animation",)
 
 #: Figure widths, inches: one journal column, two columns.
 SINGLE = 3.4
@@ -687,12 +696,59 @@ def _summary_scan(ds):
     return fig
 
 
+# ----------------------------------------------------------------------------------------------- attitude
+
+
+@_figure(attitude_plots.missing_attitude)
+def flip_strip(ds):
+    """A row of eight snapshots of the body through its first flip, in the invariable frame (``L`` up), the
+    intermediate axis red; each panel gives its time and the angle between that axis and ``L``.
+
+    Reads ``attitude_quaternion``, ``attitude_omega``, ``attitude_moments`` along ``attitude_time`` (s) and the
+    attributes of ``attitude_quaternion`` (see :mod:`tumble.attitude_plots`). The body is the box with the same
+    principal moments, or the T-handle when ``body_shape`` is ``"t_handle"``.
+    """
+    return attitude_plots.flip_strip(ds, width=DOUBLE)
+
+
+@_figure(attitude_plots.missing_attitude)
+def flip_animation(ds):
+    """The body turning in the invariable frame (``L`` up, the intermediate axis red), one frame per stored time
+    nearest to 160 times evenly spaced over the trace, at 20 frames per second.
+
+    Reads what :func:`flip_strip` reads. Returns a :class:`~tumble.attitude_plots.FlipAnimation` (a
+    :class:`matplotlib.animation.FuncAnimation`), not a Figure; :func:`save_figures` writes it as a movie.
+    """
+    return attitude_plots.flip_animation(ds)
+
+
+@_figure(attitude_plots.missing_attitude)
+def polhode(ds):
+    """The polhode: body-frame ``ω(t)`` on the energy ellipsoid ``Σ I ω² = 2T`` (light wireframe), with the
+    polhodes of other ``|L|²`` at the same energy and the separatrix (Landau & Lifshitz §37).
+
+    Reads what :func:`flip_strip` reads.
+    """
+    return attitude_plots.polhode(ds, width=SINGLE)
+
+
+@_figure(attitude_plots.missing_attitude)
+def herpolhode(ds):
+    """The herpolhode: the tip of the space-frame ``ω(t) = R(t) ω_body(t)`` in the invariable plane
+    ``ω · L̂ = 2T/|L|``, in the plane's own coordinates, with the circles bounding it.
+
+    Reads what :func:`flip_strip` reads.
+    """
+    return attitude_plots.herpolhode(ds, width=SINGLE)
+
+
 # ------------------------------------------------------------------------------------------------ public
 
 
 _DRAW = {"stability_map": stability_map, "norm_growth": norm_growth, "flip_law": flip_law,
          "flip_components": flip_components, "invariant_drift": invariant_drift, "work_precision": work_precision,
-         "summary": summary}
+         "summary": summary, "flip_strip": flip_strip, "flip_animation": flip_animation, "polhode": polhode,
+         "herpolhode": herpolhode}
 
 
 def _check_name(name):
@@ -743,6 +799,9 @@ def save_figures(ds, names, directory, stem, formats=("png",), dpi=200):
     """Draw figures of ``ds`` and write each to ``<directory>/<stem>_<name>.<format>`` atomically.
 
     Every name is checked (:func:`can_draw`) before anything is drawn, so an unsuitable request writes no file.
+    An animation (:data:`ANIMATIONS`) is written once, as ``<stem>_<name>.gif`` or, when matplotlib finds
+    ffmpeg, ``.mp4`` (:func:`tumble.attitude_plots.animation_format`), at its own small resolution, whatever
+    ``formats`` and ``dpi`` say.
 
     Parameters
     ----------
@@ -756,7 +815,7 @@ def save_figures(ds, names, directory, stem, formats=("png",), dpi=200):
     formats : sequence of str
         From :data:`FORMATS` ("png", "pdf").
     dpi : float
-        Resolution of raster formats, dots per inch.
+        Resolution of raster formats, dots per inch (not of animations).
 
     Returns
     -------
@@ -783,6 +842,16 @@ def save_figures(ds, names, directory, stem, formats=("png",), dpi=200):
     directory.mkdir(parents=True, exist_ok=True)
     written = []
     for name in names:
+        if name in ANIMATIONS:
+            path = directory / f"{stem}_{name}.{attitude_plots.animation_format()}"
+            anim = _DRAW[name](ds)
+            try:
+                with matplotlib.rc_context(_STYLE):
+                    attitude_plots.save_animation(anim, path)
+            finally:
+                anim.figure.clear()
+            written.append(path)
+            continue
         fig = _DRAW[name](ds)
         try:
             for fmt in formats:

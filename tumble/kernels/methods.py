@@ -5,10 +5,11 @@ from typing import NamedTuple
 import numpy as np
 
 from . import tableaux
+from .attitude import FAMILY_MIDPOINT, FAMILY_RUNGE_KUTTA, FAMILY_SPLITTING, propagate_attitude
 from .drivers import PROPAGATE
 from .steppers import TORQUE_CONSTANT, body_constants
 
-__all__ = ["BLOCK", "METHODS", "Method", "Observed", "run"]
+__all__ = ["BLOCK", "METHODS", "Method", "Observed", "run", "run_attitude"]
 
 # Samples per SIMD block: large enough to amortise the per-step dispatch, small enough to stay in L1.
 BLOCK = 256
@@ -141,3 +142,74 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
         if saved is not None:
             saved = sign * saved[:, inverse]
     return Observed(saved, probes, flips, flip_count if max_flips > 0 else None, drifts, status, steps_taken)
+
+
+_NO_TABLE = np.zeros((0, 0))
+_NO_ROW = np.zeros(0)
+_NO_FLOWS = np.zeros(0, dtype=np.int64)
+
+
+def run_attitude(method, w, q, moments, t0, h, n_steps, *, save_every, torque_kind=TORQUE_CONSTANT,
+                 torque_params=None, torque_fn=None):
+    """Integrate angular velocity and attitude together (:mod:`tumble.kernels.attitude`).
+
+    Parameters
+    ----------
+    method : Method
+    w : ndarray, shape (N, 3)
+        Initial body-frame angular velocities, rad/s.
+    q : ndarray, shape (N, 4)
+        Initial unit quaternions (scalar first) of the body-to-space rotation.
+    moments : ndarray, shape (3,)
+    t0, h : float
+        Start time and step, s.
+    n_steps, save_every : int
+        Steps; the initial state, every ``save_every``-th state and the final one are stored.
+    torque_kind, torque_params, torque_fn
+        As :func:`run`.
+
+    Returns
+    -------
+    saved_w : ndarray, shape (N, n_saved, 3)
+    saved_q : ndarray, shape (N, n_saved, 4)
+    status : ndarray, shape (N,), int8
+    """
+    moments = np.asarray(moments, dtype=float)
+    n = w.shape[0]
+    coefficients = method.coefficients
+    relabel = _relabelling(method, moments, torque_params, torque_fn)
+    axes, sign = np.arange(3), 1.0
+    kernel_w = np.array(w, dtype=float)
+    if relabel is not None:
+        perm, sign = relabel
+        axes = perm
+        kernel_w = sign * kernel_w[:, perm]
+        moments = moments[perm]
+        if torque_params is not None:
+            torque_params = np.asarray(torque_params, dtype=float).copy()
+            torque_params[:3] = sign * torque_params[perm]
+    if torque_fn is not None and torque_params is None:
+        torque_params = np.zeros(0)
+    A, b, c, flows, fractions = _NO_TABLE, _NO_ROW, _NO_ROW, _NO_FLOWS, _NO_ROW
+    if isinstance(coefficients, tableaux.ButcherTableau):
+        family = FAMILY_RUNGE_KUTTA
+        A, b, c = coefficients.A, coefficients.b, coefficients.c
+    elif isinstance(coefficients, tableaux.Splitting):
+        family = FAMILY_SPLITTING
+        if torque_params is None:
+            coefficients = coefficients.without_torque()
+        flows, fractions = coefficients.flows, coefficients.fractions
+    else:
+        family = FAMILY_MIDPOINT
+    n_saved = 1 + n_steps // save_every + (1 if n_steps % save_every else 0)
+    saved_w = np.empty((n_saved, n, 3))
+    saved_q = np.empty((n_saved, n, 4))
+    status = np.zeros(n, dtype=np.int8)
+    kernel_q = np.array(q, dtype=float)
+    propagate_attitude(family, A, b, c, flows, fractions, np.asarray(axes, dtype=np.int64), float(sign),
+                       np.ascontiguousarray(kernel_w), kernel_q, body_constants(moments), float(t0), float(h),
+                       int(n_steps), int(save_every), saved_w, saved_q, status, int(torque_kind), torque_params,
+                       torque_fn)
+    if relabel is not None:
+        saved_w = sign * saved_w[:, :, np.argsort(perm)]
+    return saved_w.transpose(1, 0, 2), saved_q.transpose(1, 0, 2), status

@@ -1,0 +1,56 @@
+"""Unit quaternions of rotations, scalar first, vectorised over leading axes (numpy only).
+
+``q = (q0, q1, q2, q3) = (cos(a/2), sin(a/2) n)`` turns vectors by the angle ``a`` about the unit vector
+``n``: ``v' = q v q*``. An attitude ``q`` of tumble is the body-to-space rotation: ``v_space = q v_body q*``.
+``q`` and ``-q`` are the same rotation.
+"""
+
+import numpy as np
+
+__all__ = ["about_axis", "angle_between", "conjugate", "product", "rotate"]
+
+
+def product(a, b):
+    """Hamilton product ``a ⊗ b`` (the rotation ``b`` first, then ``a``), shapes broadcast, last axis 4."""
+    a0, a1, a2, a3 = np.moveaxis(np.asarray(a, dtype=float), -1, 0)
+    b0, b1, b2, b3 = np.moveaxis(np.asarray(b, dtype=float), -1, 0)
+    return np.stack([a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
+                     a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
+                     a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1,
+                     a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0], axis=-1)
+
+
+def conjugate(q):
+    """``q*``: the inverse rotation of a unit quaternion."""
+    q = np.array(q, dtype=float)
+    q[..., 1:] *= -1.0
+    return q
+
+
+def rotate(q, v):
+    """``q v q*`` for vectors ``v`` (last axis 3), shapes broadcast."""
+    q = np.asarray(q, dtype=float)
+    v = np.asarray(v, dtype=float)
+    s, u = q[..., :1], q[..., 1:]
+    t = 2.0 * np.cross(u, v)
+    return v + s * t + np.cross(u, t)
+
+
+def about_axis(angle, axis):
+    """Quaternion of the rotation by ``angle`` (rad) about ``axis`` (a vector, normalised here, or 0, 1, 2)."""
+    angle = np.asarray(angle, dtype=float)
+    if isinstance(axis, (int, np.integer)):
+        n = np.zeros(3)
+        n[axis] = 1.0
+    else:
+        n = np.asarray(axis, dtype=float)
+        n = n / np.linalg.norm(n, axis=-1, keepdims=True)
+    half = 0.5 * angle[..., None]
+    return np.concatenate([np.cos(half), np.sin(half) * n], axis=-1)
+
+
+def angle_between(a, b):
+    """Angle (rad, in [0, pi]) of the rotation that takes attitude ``b`` to attitude ``a``; 0 when they
+    are the same rotation (``a = ±b``)."""
+    d = product(a, conjugate(b))
+    return 2.0 * np.arctan2(np.linalg.norm(d[..., 1:], axis=-1), np.abs(d[..., 0]))
