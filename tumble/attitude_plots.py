@@ -7,8 +7,8 @@ Reads the attitude of one spin, as :func:`tumble.study.attitude_trace` stores it
 ``attitude_quaternion(attitude_time, quaternion_component)``  unit quaternion, scalar first, of the body-to-space
                                                           rotation, ``v_space = q v_body q*``; the space
                                                           frame is the body frame at ``t = 0``
-``attitude_omega(attitude_time, axis)``                   body-frame angular velocity, rad/s
-``attitude_moments(axis)``                                principal moments, kg m²
+``attitude_omega(attitude_time, component)``              body-frame angular velocity, rad/s
+``attitude_moments(component)``                           principal moments, kg m² (``component``: 1, 2, 3)
 attributes of ``attitude_quaternion``                     ``method``, ``spin_axis`` (1-based), optional
                                                           ``body_shape`` and ``body_shape_json``
 ========================================================  ==============================================
@@ -151,16 +151,16 @@ def missing_attitude(ds):
     if absent:
         have = "has none" if len(absent) == len(ATTITUDE_VARIABLES) else f"lacks {', '.join(map(repr, absent))}"
         return ("the attitude of one traced spin: 'attitude_quaternion' (attitude_time, quaternion_component), "
-                "'attitude_omega' (attitude_time, axis) and 'attitude_moments' (axis), as "
+                "'attitude_omega' (attitude_time, component) and 'attitude_moments' (component), as "
                 f"tumble.study.attitude_trace gives; this dataset {have}")
     for name, dims in (("attitude_quaternion", ("attitude_time", "quaternion_component")),
-                       ("attitude_omega", ("attitude_time", "axis")), ("attitude_moments", ("axis",))):
+                       ("attitude_omega", ("attitude_time", "component")), ("attitude_moments", ("component",))):
         lacking = [d for d in dims if d not in ds[name].dims]
         if lacking:
             return f"{name!r} along the dimension(s) {', '.join(map(repr, lacking))}"
-    if ds.sizes["quaternion_component"] != 4 or ds.sizes["axis"] != 3:
-        return ("4 quaternion components and 3 axes (sizes of 'quaternion_component' and 'axis'), got "
-                f"{ds.sizes['quaternion_component']} and {ds.sizes['axis']}")
+    if ds.sizes["quaternion_component"] != 4 or ds.sizes["component"] != 3:
+        return ("4 quaternion components and 3 vector components (sizes of 'quaternion_component' and "
+                f"'component'), got {ds.sizes['quaternion_component']} and {ds.sizes['component']}")
     if "attitude_time" not in ds.variables:
         return "the coordinate 'attitude_time' (s)"
     finite = _finite_rows(ds)
@@ -172,7 +172,7 @@ def missing_attitude(ds):
 def _finite_rows(ds):
     """Boolean DataArray: times (per scene of a scan) where the quaternion and omega are finite."""
     quaternion = np.isfinite(ds["attitude_quaternion"]).all("quaternion_component")
-    omega = np.isfinite(ds["attitude_omega"]).all("axis")
+    omega = np.isfinite(ds["attitude_omega"]).all("component")
     return quaternion & omega & np.isfinite(ds["attitude_time"])
 
 
@@ -213,8 +213,8 @@ def read_attitude(ds):
     time = np.broadcast_to(at("attitude_time", "attitude_time"), keep.shape)[keep]
     quaternion = at("attitude_quaternion", "attitude_time", "quaternion_component")[keep]
     quaternion = quaternion / np.linalg.norm(quaternion, axis=1, keepdims=True)
-    omega = at("attitude_omega", "attitude_time", "axis")[keep]
-    moments = at("attitude_moments", "axis")
+    omega = at("attitude_omega", "attitude_time", "component")[keep]
+    moments = at("attitude_moments", "component")
     if not np.all(np.isfinite(moments) & (moments > 0)):
         raise ValueError(f"an attitude plot needs positive principal moments in 'attitude_moments', got {moments}")
     attrs = ds["attitude_quaternion"].attrs
@@ -751,7 +751,10 @@ def flip_strip(source, *, panels=8, width=_DOUBLE):
     trace = _trace(source)
     indices = _nearest(trace.time, snapshot_times(trace, panels))
     solid, frame = _solid(trace), invariable_frame(trace)
-    angle = np.degrees(np.arccos(np.clip(_spin_cosine(trace), -1, 1)))
+    # the angle of the drawn (red) half of the intermediate axis to L: for the T-handle the stem's side
+    momentum = trace.moments * trace.omega
+    cosine = momentum @ solid.marker / np.linalg.norm(momentum, axis=1)
+    angle = np.degrees(np.arccos(np.clip(cosine, -1, 1)))
     height = width / len(indices) * 1.25 + 0.75
     fig = Figure(figsize=(width, height))
     step = 1.0 / len(indices)
