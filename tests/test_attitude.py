@@ -193,7 +193,8 @@ def test_integrate_attitude_dataset():
     assert ds["quaternion"].shape == (2, 11, 4)
     assert list(ds["component"].values) == [0, 1, 2, 3]
     assert ds["quaternion"].attrs["long_name"].startswith("body-to-space")
-    assert "quaternion" not in tumble.integrate(BODY, SPINS[:2], 1.0, 0.01, method="rk4")
+    plain = tumble.integrate(BODY, SPINS[:2], 1.0, 0.01, method="rk4")
+    assert "quaternion" not in plain and plain.attrs["attitude"] == 0 and ds.attrs["attitude"] == 1
     final = tumble.integrate(BODY, SPINS[:2], 1.0, 0.01, method="rk4", attitude=True)
     np.testing.assert_array_equal(final.quaternion.values[:, 0], ds.quaternion.values[:, -1])
     with pytest.raises(ValueError, match="torque"):
@@ -218,3 +219,40 @@ def test_a_failed_implicit_midpoint_step_is_flagged_with_its_attitude():
         ds = tumble.integrate(BODY, w0, 1.0, 0.1, method="implicit_midpoint", attitude=True)
     assert ds.status.values[0] == 1
     assert np.isnan(ds.quaternion.values).all()
+
+
+def test_the_dzhanibekov_flip_study_draws_its_attitude_figures_and_plot_redraws_them(tmp_path, capsys):
+    from tumble import cli
+
+    assert cli.main(["run", "dzhanibekov_flip", "--samples", "16", "--out", str(tmp_path / "run")]) == 0
+    names = ("flip_animation.gif", "flip_strip.png", "polhode.png", "herpolhode.png")
+    for name in names:
+        assert (tmp_path / "run" / f"dzhanibekov_flip_{name}").stat().st_size > 1000
+    import xarray as xr
+
+    with xr.open_dataset(tmp_path / "run" / "dzhanibekov_flip.nc") as ds:
+        q = ds["attitude_quaternion"].values
+        assert ds["attitude_quaternion"].attrs["body_shape"] == "t_handle"
+        assert ds["axis"].size == 1  # the spin axis stays the scene's coordinate
+    L = rotations.rotate(q, shapes.t_handle().moments * ds["attitude_omega"].values)
+    assert np.ptp(L, axis=0).max() < 1e-12 * np.abs(L).max()
+    assert cli.main(["plot", str(tmp_path / "run" / "dzhanibekov_flip.nc"), "--figures", "flip_strip", "polhode",
+                     "--out", str(tmp_path / "again")]) == 0
+    assert sorted(p.name for p in (tmp_path / "again").iterdir()) == ["dzhanibekov_flip_flip_strip.png",
+                                                                      "dzhanibekov_flip_polhode.png"]
+
+
+def test_attitude_trace_by_a_fixed_step_method_matches_the_closed_form():
+    from tumble import study
+
+    handle = shapes.t_handle()
+    closed = study.attitude_trace(handle, 2, 10.0, 1e-3)
+    stepped = study.attitude_trace(handle, 2, 10.0, 1e-3, method="splitting4")
+    assert closed["attitude_quaternion"].attrs["method"] == "exact"
+    assert stepped.attitude_time.values[-1] == pytest.approx(closed.attitude_time.values[-1])
+    end = rotations.angle_between(closed.attitude_quaternion.values[-1], stepped.attitude_quaternion.values[-1])
+    assert end < 1e-8
+    # three flips: the horizon is the first flip time plus 2.5 flip spacings
+    w0 = closed.attitude_omega.values[0]
+    assert closed.attitude_time.values[-1] == pytest.approx(exact.first_flip_time(handle, w0)
+                                                            + 2.5 * exact.flip_spacing(handle, w0))

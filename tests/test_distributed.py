@@ -11,7 +11,8 @@ import xarray as xr  # noqa: E402
 import tumble  # noqa: E402
 from tumble import cli, config, distributed, io, runner  # noqa: E402
 
-from test_resume import SCAN, STEPPED, _toml, assert_same_result, finished_chunks  # noqa: E402
+from test_resume import (BIG, BIG_RANGES, SCAN, STEPPED, _toml, assert_same_result, finished_chunks,  # noqa: E402
+                         write_chunk)
 
 
 @pytest.fixture(scope="module")
@@ -27,7 +28,8 @@ def in_process(tmp_path_factory, warm_kernels):
     out = tmp_path_factory.mktemp("in_process")
     tumble.run_study(SCAN, out=out)
     tumble.run_study(STEPPED, out=out)
-    return {"scan": out / "resume.nc", "stepped": out / "stepped.nc"}
+    tumble.run_study(BIG, out=out)
+    return {"scan": out / "resume.nc", "stepped": out / "stepped.nc", "big": out / "big.nc"}
 
 
 def test_the_local_cluster_has_two_single_threaded_workers_on_localhost(client):
@@ -38,9 +40,9 @@ def test_the_local_cluster_has_two_single_threaded_workers_on_localhost(client):
 
 
 def test_dask_workers_run_numba_with_one_thread(client):
-    # numba's thread count is per thread: ask inside a task, where the scenes run, after compute_chunk set it.
+    # numba's thread count is per thread: ask inside a task, where the scenes run, after compute_task set it.
     def threads_in_task():
-        runner.compute_chunk({"layout": {"scenes": 0}}, [], threads=1)
+        runner.compute_task({}, runner.Task(()), threads=1)
         return numba.get_num_threads(), numba.config.NUMBA_NUM_THREADS
 
     results = client.gather([client.submit(threads_in_task, pure=False, workers=[w])
@@ -57,16 +59,33 @@ def test_the_cluster_gives_the_bits_of_an_in_process_run(client, in_process, tmp
     assert [p.name for p in tmp_path.iterdir()] == [in_process[name].name]
 
 
+def test_the_cluster_runs_the_sample_ranges_of_a_large_scene_with_the_bits_of_the_whole_scene(
+        client, in_process, tmp_path, monkeypatch):
+    resolved = config.load_study(BIG)
+    job = runner.scene_job(resolved)
+    store = runner.open_checkpoint(resolved, job, tmp_path, "big")
+    task = runner.Task((0,), *BIG_RANGES[1])  # one range finished in process: the cluster runs the other three
+    store.write(task.name, runner.compute_task(job, task, store.digest))
+    submitted = []
+    run_chunks = distributed.run_chunks
+    monkeypatch.setattr(distributed, "run_chunks", lambda client, fn, job, tasks, digest: submitted.extend(tasks)
+                        or run_chunks(client, fn, job, tasks, digest))
+    tumble.run_study(BIG, out=tmp_path, scheduler=client, chunk_samples=4096)
+    assert [(t.start, t.stop) for t in submitted] == [BIG_RANGES[0], *BIG_RANGES[2:]]
+    assert_same_result(in_process["big"], tmp_path / "big.nc")
+    assert [p.name for p in tmp_path.iterdir()] == ["big.nc"]
+
+
 def test_the_cluster_resumes_a_checkpoint_written_in_process(client, in_process, tmp_path, monkeypatch):
     resolved = config.load_study(SCAN)
     job = runner.scene_job(resolved)
-    runner.open_checkpoint(resolved, job, tmp_path, "resume").write(runner.compute_chunk(job, range(0, 20)))
+    write_chunk(runner.open_checkpoint(resolved, job, tmp_path, "resume"), job, range(0, 20))
     submitted = []
     run_chunks = distributed.run_chunks
-    monkeypatch.setattr(distributed, "run_chunks",
-                        lambda client, fn, job, chunks: submitted.extend(chunks) or run_chunks(client, fn, job, chunks))
+    monkeypatch.setattr(distributed, "run_chunks", lambda client, fn, job, tasks, digest: submitted.extend(tasks)
+                        or run_chunks(client, fn, job, tasks, digest))
     tumble.run_study(SCAN, out=tmp_path, scheduler=client, chunk_scenes=3)
-    assert submitted == [[20, 21, 22], [23, 24, 25], [26]]
+    assert [task.scenes for task in submitted] == [(20, 21, 22), (23, 24, 25), (26,)]
     assert_same_result(in_process["scan"], tmp_path / "resume.nc")
 
 

@@ -10,7 +10,7 @@ import pytest
 import xarray as xr
 
 import tumble
-from tumble import checkpoint, cli, config, io, runner
+from tumble import checkpoint, cli, config, io, runner, study
 
 # 27 closed-form scenes (3 x 3 inertia triangle x 3 axes) of 64 samples: about a second.
 SCAN = {"title": "resume", "perturbation": {"samples": 64}, "scan": {"triangle": 3, "axis": [1, 2, 3]},
@@ -20,6 +20,13 @@ SCAN = {"title": "resume", "perturbation": {"samples": 64}, "scan": {"triangle":
 STEPPED = {"title": "stepped", "body": {"moments": [1.0, 2.0, 3.0]}, "perturbation": {"samples": 600},
            "scan": {"axis": [1, 2], "method": ["auto", "rk4"]}, "integration": {"flips": 1},
            "outputs": {"figures": [], "arrays": ["sample_rate", "sample_first_flip"]}}
+
+# One scene of 3 sampler blocks and a bit (closed form, exponential, flips timed): cut into 4 sample ranges with
+# chunk_samples=4096, whole by default.
+BIG = {"title": "big", "body": {"moments": [1.0, 2.0, 3.0]}, "spin": {"axis": 2},
+       "perturbation": {"samples": 3 * 4096 + 100}, "integration": {"flips": 1},
+       "outputs": {"figures": [], "arrays": ["sample_rate", "sample_status", "sample_first_flip"]}}
+BIG_RANGES = [(0, 4096), (4096, 8192), (8192, 12288), (12288, 12388)]
 
 
 def without_history(ds):
@@ -34,11 +41,25 @@ def assert_same_result(path_a, path_b):
 
 
 @pytest.fixture(scope="module")
+def big_whole(tmp_path_factory):
+    """BIG run in one go, in this process, its one scene whole (its file)."""
+    out = tmp_path_factory.mktemp("big_whole")
+    tumble.run_study(BIG, out=out)
+    return out / "big.nc"
+
+
+@pytest.fixture(scope="module")
 def reference(tmp_path_factory):
     """The scan run in one go, in this process, one chunk per scene (its file)."""
     out = tmp_path_factory.mktemp("reference")
     tumble.run_study(SCAN, out=out, chunk_scenes=1)
     return out / "resume.nc"
+
+
+def write_chunk(store, job, indices):
+    """Run the scenes ``indices`` as one chunk and write it into ``store``, as a run does."""
+    task = runner.Task(tuple(indices))
+    return store.write(task.name, runner.compute_task(job, task, store.digest))
 
 
 def finished_chunks(out, stem="resume"):
@@ -71,8 +92,8 @@ def test_a_rerun_skips_the_finished_chunks_and_gives_the_same_bits(reference, tm
     resolved = config.load_study(SCAN)
     job = runner.scene_job(resolved)
     store = runner.open_checkpoint(resolved, job, tmp_path, "resume")
-    store.write(runner.compute_chunk(job, range(0, 10)))
-    store.write(runner.compute_chunk(job, [17, 20]))
+    write_chunk(store, job, range(0, 10))
+    write_chunk(store, job, [17, 20])
     assert finished_chunks(tmp_path) == ["scenes-000000-000009.chunk", "scenes-000017-000020.chunk"]
     assert not list(tmp_path.glob("*.nc"))  # finished chunks are never named like a result
 
@@ -97,7 +118,7 @@ def test_a_chunk_of_another_study_is_never_reused(reference, tmp_path, monkeypat
     other["perturbation"]["seed"] = 7  # other numbers, same scenes and chunk names
     resolved = config.load_study(other)
     job = runner.scene_job(resolved)
-    runner.open_checkpoint(resolved, job, tmp_path, "resume").write(runner.compute_chunk(job, range(27)))
+    write_chunk(runner.open_checkpoint(resolved, job, tmp_path, "resume"), job, range(27))
 
     computed = []
     compute = runner.compute_scene
@@ -110,10 +131,10 @@ def test_a_chunk_of_another_study_is_never_reused(reference, tmp_path, monkeypat
 def test_a_chunk_of_another_tumble_version_is_never_reused(tmp_path, monkeypatch):
     resolved = config.load_study(SCAN)
     job = runner.scene_job(resolved)
-    runner.open_checkpoint(resolved, job, tmp_path, "resume").write(runner.compute_chunk(job, [0]))
+    write_chunk(runner.open_checkpoint(resolved, job, tmp_path, "resume"), job, [0])
     monkeypatch.setattr(checkpoint, "__version__", "99.0")
     store = runner.open_checkpoint(resolved, job, tmp_path, "resume")
-    assert store.load() == {} and store.stale == 1 and finished_chunks(tmp_path) == []
+    assert store.load() == ({}, {}) and store.stale == 1 and finished_chunks(tmp_path) == []
 
 
 def test_the_study_hash_follows_every_number_but_not_where_or_how_figures_are_written():
@@ -174,7 +195,7 @@ def test_numba_thread_count_changes_no_bit(tmp_path, warm_kernels):
 def test_fresh_discards_an_earlier_checkpoint(reference, tmp_path, capsys):
     resolved = config.load_study(SCAN)
     job = runner.scene_job(resolved)
-    runner.open_checkpoint(resolved, job, tmp_path / "out", "resume").write(runner.compute_chunk(job, [3]))
+    write_chunk(runner.open_checkpoint(resolved, job, tmp_path / "out", "resume"), job, [3])
     study = tmp_path / "resume.toml"
     study.write_text(_toml(SCAN))
     assert cli.main(["run", str(study), "--out", str(tmp_path / "out"), "--fresh"]) == 0
@@ -187,11 +208,79 @@ def test_dry_run_checks_and_counts_but_writes_nothing(tmp_path, capsys):
     study.write_text(_toml(SCAN))
     assert cli.main(["run", str(study), "--out", str(tmp_path / "out"), "--dry-run", "--chunk-scenes", "10"]) == 0
     assert "27 scene(s) of 64 samples in 3 chunk(s)" in capsys.readouterr().out
+    big = tmp_path / "big.toml"
+    big.write_text(_toml(BIG))
+    assert cli.main(["run", str(big), "--out", str(tmp_path / "out"), "--dry-run", "--chunk-samples", "4096"]) == 0
+    assert "1 scene(s) of 12388 samples in 4 chunk(s) of up to 1 (4 of them sample ranges of up to 4096 samples)" \
+        in capsys.readouterr().out
     assert not (tmp_path / "out").exists()
+
+
+def test_sample_ranges_are_cut_at_multiples_of_the_sampler_block():
+    assert runner.sample_ranges(12388, 4096) == BIG_RANGES
+    assert runner.sample_ranges(12388, 8192) == [(0, 8192), (8192, 12388)]
+    # the range holding sample 0 reaches `first` (the norm curve's samples); finished ranges stay as they are
+    assert runner.sample_ranges(40000, 4096, first=32768) == [(0, 32768), (32768, 36864), (36864, 40000)]
+    assert runner.sample_ranges(12388, 8192, done=[(0, 4096), (8192, 12288)]) == [(4096, 8192), (12288, 12388)]
+    with pytest.raises(ValueError, match="chunk_samples must be a multiple of 4096"):
+        runner.chunk_samples_size(5000)
+
+
+def test_a_scene_cut_into_sample_ranges_gives_the_bits_of_the_whole_scene(big_whole, tmp_path, monkeypatch):
+    ranges = []
+    compute = runner.compute_samples
+    monkeypatch.setattr(runner, "compute_samples",
+                        lambda job, i, lo, hi, **kw: ranges.append((lo, hi)) or compute(job, i, lo, hi, **kw))
+    tumble.run_study(BIG, out=tmp_path, chunk_samples=4096)
+    assert ranges == BIG_RANGES
+    assert_same_result(big_whole, tmp_path / "big.nc")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["big.nc"]
+
+
+def test_the_norm_curve_keeps_its_samples_when_a_scene_is_cut(monkeypatch):
+    # growth_norm is a quantile over the first SLICE samples: the range holding sample 0 must hold them all.
+    job = runner.scene_job(config.load_study(BIG, overrides={"outputs.figures": ["norm_growth"]}))
+    tasks = runner.plan_tasks(job, checkpoint.Finished({}, {}), chunk_samples=4096)
+    assert [(t.start, t.stop) for t in tasks] == [(0, 12388)]  # SLICE > 12388 samples: one range
+    monkeypatch.setattr(study, "SLICE", 8192)  # a smaller slice, to cut a small scene
+    tasks = runner.plan_tasks(job, checkpoint.Finished({}, {}), chunk_samples=4096)
+    assert [(t.start, t.stop) for t in tasks] == [(0, 8192), (8192, 12288), (12288, 12388)]
+    scene = study.scene_plan((1.0, 2.0, 3.0), 2, samples=12388, flips=0, curves=("norm",))
+    with pytest.raises(ValueError, match="norm curve"):
+        study.scene_samples(scene, 0, 4096)
+    whole = study.scene_result(scene, [study.scene_samples(scene, 0, 12388)])
+    cut = study.scene_result(scene, [study.scene_samples(scene, t.start, t.stop) for t in tasks])
+    xr.testing.assert_identical(whole, cut)
+    assert whole.growth_norm.values.tobytes() == cut.growth_norm.values.tobytes()
+
+
+def test_a_rerun_resumes_from_finished_sample_ranges(big_whole, tmp_path, monkeypatch):
+    resolved = config.load_study(BIG)
+    job = runner.scene_job(resolved)
+    store = runner.open_checkpoint(resolved, job, tmp_path, "big")
+    for lo, hi in (BIG_RANGES[0], BIG_RANGES[2]):
+        task = runner.Task((0,), lo, hi)
+        store.write(task.name, runner.compute_task(job, task, store.digest))
+    assert finished_chunks(tmp_path, "big") == ["samples-000000-0000000000-0000004096.chunk",
+                                                "samples-000000-0000008192-0000012288.chunk"]
+    ranges = []
+    compute = runner.compute_samples
+    monkeypatch.setattr(runner, "compute_samples",
+                        lambda job, i, lo, hi, **kw: ranges.append((lo, hi)) or compute(job, i, lo, hi, **kw))
+    logged = []
+    runner.run_scenes(job, store=runner.open_checkpoint(resolved, job, tmp_path, "big"), chunk_samples=8192,
+                      log=logged.append)  # another range size: the finished ranges are used all the same
+    assert ranges == [BIG_RANGES[1], BIG_RANGES[3]]
+    assert "resuming: 0 of 1 scenes and 2 sample range(s) of 1 more" in logged[0]
+    ranges.clear()
+    tumble.run_study(BIG, out=tmp_path)  # every range finished: nothing to compute, only the reduction
+    assert ranges == []
+    assert_same_result(big_whole, tmp_path / "big.nc")
 
 
 @pytest.mark.parametrize("args, words", [
     (("--scheduler", "localhost:8786"), "tcp://HOST:PORT"),
+    (("--chunk-samples", "5000"), "--chunk-samples: chunk_samples must be a multiple of 4096"),
     (("--chunk-scenes", "0"), "--chunk-scenes"),
     (("--workers", "0"), "--workers"),
 ])

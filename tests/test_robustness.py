@@ -14,7 +14,7 @@ import xarray as xr
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from tumble import checkpoint, cli, config, io, runner
+from tumble import checkpoint, cli, config, runner
 
 from test_resume import _toml, assert_same_result, finished_chunks
 
@@ -22,25 +22,32 @@ from test_resume import _toml, assert_same_result, finished_chunks
 KILLED = {"title": "killed", "perturbation": {"samples": 256}, "scan": {"triangle": 4, "axis": [1, 2, 3]},
           "integration": {"flips": 0}, "outputs": {"figures": [], "arrays": ["sample_rate"]}}
 
+# One closed-form scene of 16 sampler blocks, cut into 16 sample ranges by --chunk-samples 4096.
+LARGE_SCENE = {"title": "large", "body": {"moments": [1.0, 2.0, 3.0]}, "spin": {"axis": 2},
+               "perturbation": {"samples": 16 * 4096}, "integration": {"flips": 0},
+               "outputs": {"figures": [], "arrays": ["sample_rate"]}}
+
 SMALL = {"title": "small", "body": {"moments": [1.0, 2.0, 3.0]}, "perturbation": {"samples": 32},
          "scan": {"axis": [1, 2, 3]}, "outputs": {"figures": ["summary"], "arrays": []}}
 
 
-def test_kill_9_at_a_random_point_then_a_rerun_gives_the_uninterrupted_result(tmp_path, capsys):
-    study = tmp_path / "killed.toml"
-    study.write_text(_toml(KILLED))
+def _kill_9_then_rerun(tmp_path, capsys, spec, stem, chunk_flag, chunks):
+    """Run ``spec`` uninterrupted, then in a subprocess killed with SIGKILL at a random point after its first
+    chunk file; rerun it and check that it resumes and gives the uninterrupted result."""
+    study = tmp_path / f"{stem}.toml"
+    study.write_text(_toml(spec))
     # The uninterrupted run first (in this process; it also puts the kernels in numba's disk cache).
-    assert cli.main(["run", str(study), "--out", str(tmp_path / "whole"), "--chunk-scenes", "2"]) == 0
+    assert cli.main(["run", str(study), "--out", str(tmp_path / "whole"), *chunk_flag]) == 0
     capsys.readouterr()
 
     out = tmp_path / "killed"
     seed = random.randrange(2**32)
     delay = random.Random(seed).uniform(0.0, 1.0)
-    command = [sys.executable, "-m", "tumble", "run", str(study), "--out", str(out), "--chunk-scenes", "2"]
+    command = [sys.executable, "-m", "tumble", "run", str(study), "--out", str(out), *chunk_flag]
     proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
         deadline = time.monotonic() + 120
-        while not finished_chunks(out, "killed") and proc.poll() is None and time.monotonic() < deadline:
+        while not finished_chunks(out, stem) and proc.poll() is None and time.monotonic() < deadline:
             time.sleep(0.01)
         time.sleep(delay)  # the random point: 0-1 s after the first chunk was written
         os.kill(proc.pid, signal.SIGKILL)
@@ -49,13 +56,22 @@ def test_kill_9_at_a_random_point_then_a_rerun_gives_the_uninterrupted_result(tm
     assert proc.returncode == -signal.SIGKILL, f"finished before the kill (seed {seed}): use a bigger study"
     left = sorted(p.name for p in out.iterdir())
     assert all(name.startswith(".") for name in left), left  # nothing named like a result
-    chunks = finished_chunks(out, "killed")
-    assert 1 <= len(chunks) < 24, (seed, chunks)
+    finished = finished_chunks(out, stem)
+    assert 1 <= len(finished) < chunks, (seed, finished)
 
-    assert cli.main(["run", str(study), "--out", str(out), "--chunk-scenes", "2"]) == 0
+    assert cli.main(["run", str(study), "--out", str(out), *chunk_flag]) == 0
     assert "resuming:" in capsys.readouterr().out
-    assert_same_result(tmp_path / "whole" / "killed.nc", out / "killed.nc")
-    assert sorted(p.name for p in out.iterdir()) == ["killed.nc"]
+    assert_same_result(tmp_path / "whole" / f"{stem}.nc", out / f"{stem}.nc")
+    assert sorted(p.name for p in out.iterdir()) == [f"{stem}.nc"]
+
+
+def test_kill_9_at_a_random_point_then_a_rerun_gives_the_uninterrupted_result(tmp_path, capsys):
+    _kill_9_then_rerun(tmp_path, capsys, KILLED, "killed", ["--chunk-scenes", "2"], 24)
+
+
+@pytest.mark.slow
+def test_kill_9_inside_a_scene_cut_into_sample_ranges_then_a_rerun_gives_the_uninterrupted_result(tmp_path, capsys):
+    _kill_9_then_rerun(tmp_path, capsys, LARGE_SCENE, "large", ["--chunk-samples", "4096"], 16)
 
 
 @pytest.fixture
@@ -79,7 +95,7 @@ def test_a_full_disk_exits_1_and_leaves_the_earlier_results_intact(earlier_resul
     if where == "result":
         monkeypatch.setattr(xr.Dataset, "to_netcdf", _disk_full)
     else:
-        monkeypatch.setattr(checkpoint.np, "savez", _disk_full)
+        monkeypatch.setattr(checkpoint.os, "fsync", _disk_full)  # the first chunk file cannot be flushed
     status = cli.main(["run", str(study), "--out", str(out), "--seed", "5"])
     err = capsys.readouterr().err
     assert status == 1 and "No space left on device" in err and "Traceback" not in err

@@ -12,7 +12,7 @@ try:
 except PackageNotFoundError:  # running from a source tree that was not installed
     __version__ = "0+unknown"
 
-from . import analysis, exact, io, sampling, shapes, theory  # noqa: E402  (modules read __version__)
+from . import analysis, exact, io, rotations, sampling, shapes, study, theory  # noqa: E402  (modules read __version__)
 from .bodies import Body  # noqa: E402
 from .engine import run_ensemble  # noqa: E402
 from .integration import integrate  # noqa: E402
@@ -20,4 +20,5 @@ from .study import flip_time_law, inertia_triangle, measure, regress_scan, scan 
 from .runner import run_study  # noqa: E402
 
 __all__ = ["Body", "analysis", "exact", "flip_time_law", "inertia_triangle", "integrate", "io", "measure",
-           "regress_scan", "run_ensemble", "run_study", "sampling", "scan", "shapes", "theory", "__version__"]
+           "regress_scan", "rotations", "run_ensemble", "run_study", "sampling", "scan", "shapes", "study", "theory",
+           "__version__"]

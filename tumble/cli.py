@@ -92,13 +92,17 @@ class InputError(ValueError):
 
 
 def _run(args):
-    from . import config, runner
+    from . import checkpoint, config, runner
 
     overrides = {key: value for key, value in (("perturbation.samples", args.samples),
                                                ("perturbation.seed", args.seed)) if value is not None}
     for flag, value in (("--chunk-scenes", args.chunk_scenes), ("--workers", args.workers)):
         if value is not None and value < 1:
             raise InputError(f"{flag} must be >= 1, got {value}")
+    try:
+        runner.chunk_samples_size(args.chunk_samples)
+    except ValueError as err:
+        raise InputError(f"--chunk-samples: {err}") from None
     started = time.perf_counter()
     resolved = config.load_study(args.study, overrides=overrides)
     stem = runner.output_stem(args.study, resolved)
@@ -111,8 +115,13 @@ def _run(args):
     scenes = job["layout"]["scenes"]
     chunk = args.chunk_scenes or runner.default_chunk_scenes(scenes)
     if args.dry_run:
-        print(f"{args.study}: valid; {scenes} scene(s) of {job['samples']} samples in {-(-scenes // chunk)} "
-              f"chunk(s) of up to {chunk}; would write {directory / (stem + '.nc')}")
+        tasks = runner.plan_tasks(job, checkpoint.Finished({}, {}), chunk_scenes=chunk,
+                                  chunk_samples=args.chunk_samples)
+        split = sum(1 for task in tasks if task.start is not None)
+        ranges = (f" ({split} of them sample ranges of up to {runner.chunk_samples_size(args.chunk_samples)} samples)"
+                  if split else "")
+        print(f"{args.study}: valid; {scenes} scene(s) of {job['samples']} samples in {len(tasks)} "
+              f"chunk(s) of up to {chunk}{ranges}; would write {directory / (stem + '.nc')}")
         return
     print(f"tumble {__version__}: study {args.study!r} ({resolved['title']})", flush=True)
     if args.fresh:
@@ -120,7 +129,8 @@ def _run(args):
     log = lambda line: print(line, flush=True)  # noqa: E731
     try:
         if scheduler is None:
-            ds = runner._run(resolved, args.study, None, job=job, store=store, chunk_scenes=chunk, log=log)
+            ds = runner._run(resolved, args.study, None, job=job, store=store, chunk_scenes=chunk,
+                             chunk_samples=args.chunk_samples, log=log)
         else:
             from . import distributed
 
@@ -128,7 +138,7 @@ def _run(args):
                 print(f"dask scheduler {client.scheduler.address}: {len(client.scheduler_info()['workers'])} "
                       f"worker(s)", flush=True)
                 ds = runner._run(resolved, args.study, None, job=job, store=store, client=client,
-                                 chunk_scenes=chunk, log=log)
+                                 chunk_scenes=chunk, chunk_samples=args.chunk_samples, log=log)
     except OSError:
         raise
     except ValueError as err:  # a value the scene cannot take, found while planning it: still the input's fault
@@ -223,6 +233,10 @@ def _parser():
     run.add_argument("--workers", type=int, help="worker processes of --scheduler local (default: one per core)")
     run.add_argument("--chunk-scenes", type=int, metavar="N",
                      help="scenes per chunk: the unit of checkpointing and of dask tasks (default: about 32 chunks)")
+    run.add_argument("--chunk-samples", type=int, metavar="N",
+                     help="cut a scene of more than N samples into ranges of N samples, each its own chunk, so that "
+                          "one large scene is checkpointed in pieces and spread over dask workers (a multiple of "
+                          "4096; default 131072); the results do not depend on it")
     run.add_argument("--fresh", action="store_true",
                      help="discard finished chunks of an earlier interrupted run instead of resuming from them")
     run.add_argument("--dry-run", action="store_true",

@@ -91,7 +91,9 @@ _PROFILE_TIMES = {"sine": "period", "ramp": "duration", "pulse": "duration"}
 
 #: ``outputs.figures``, ``outputs.format`` and ``outputs.arrays``.
 FIGURES = ("stability_map", "norm_growth", "flip_law", "flip_components", "invariant_drift", "work_precision",
-           "summary")
+           "summary", "flip_animation", "flip_strip", "polhode", "herpolhode")
+#: Figures drawn from the traced attitude of the study's first scene (:func:`tumble.study.attitude_trace`).
+ATTITUDE_FIGURES = ("flip_animation", "flip_strip", "polhode", "herpolhode")
 FORMATS = ("png", "pdf")
 ARRAYS = ("sample_rate", "sample_status", "sample_first_flip", "sample_flip_spacing")
 

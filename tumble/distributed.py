@@ -2,8 +2,9 @@
 
 ``tumble run STUDY --scheduler local`` starts a LocalCluster on 127.0.0.1 (one worker process per core, one
 thread each); ``--scheduler tcp://HOST:PORT`` (or the environment variable ``DASK_SCHEDULER_ADDRESS``) uses a
-running scheduler. Each task is one chunk of scenes (:func:`tumble.runner.compute_chunk`); its result comes
-back to the client, which writes the chunk's checkpoint file, so workers need no shared file system, only
+running scheduler. Each task is one chunk — whole scenes, or one range of the samples of a large scene
+(:func:`tumble.runner.compute_task`); its result is the chunk file's bytes (a compact NumPy archive, made in the
+worker), which the client writes as the checkpoint and reads back, so workers need no shared file system, only
 tumble installed.
 
 Numba inside workers: every task sets numba's thread count to 1 for the thread it runs in (the cores are
@@ -30,6 +31,23 @@ PROTOCOLS = ("tcp://", "tls://", "ucx://", "ws://", "wss://", "inproc://")
 
 #: Seconds to wait for a running scheduler to answer.
 CONNECT_TIMEOUT = 30
+
+#: dask settings of a LocalCluster tumble starts. Its diagnostics sampled dask's own event loops 50 to 100 times a
+#: second (the worker's statistical profiler every 10 ms, the event-loop tick every 20 ms, the nannies' memory
+#: monitor every 100 ms, the system monitor every 500 ms): 17 % of a core with the cluster idle, on a machine
+#: whose cores the workers need. Sampled rarely (and without the profiler, which nobody reads without a
+#: dashboard), the idle cluster takes 2 %. And dask starts workers with ``MALLOC_TRIM_THRESHOLD_=65536``, which
+#: also switches off glibc's adaptive mmap threshold: every NumPy temporary above 128 KiB (the bootstrap's
+#: resamples, the phase fits) was then mapped and unmapped afresh, and a scene ran 10-15 % slower in a worker
+#: than in-process; the workers here keep glibc's default. Workers get these settings from their nannies.
+QUIET_LOCAL_CLUSTER = {
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "1s",
+    "distributed.admin.system-monitor.interval": "2s",
+    "distributed.admin.system-monitor.gil.enabled": False,
+    "distributed.worker.memory.monitor-interval": "1s",
+    "distributed.nanny.pre-spawn-environ": {"OMP_NUM_THREADS": 1, "MKL_NUM_THREADS": 1, "OPENBLAS_NUM_THREADS": 1},
+}
 
 
 class SchedulerError(ValueError):
@@ -103,15 +121,18 @@ def connect(address, *, workers=None):
         ``"local"`` or ``"tcp://HOST:PORT"`` (see :func:`scheduler_address`).
     workers : int, optional
         Worker processes of a LocalCluster (default: the number of cores), one thread each, bound to
-        127.0.0.1, no dashboard.
+        127.0.0.1, no dashboard, its diagnostics sampled rarely (:data:`QUIET_LOCAL_CLUSTER`).
     """
     address = scheduler_address(address)
     from distributed import Client, LocalCluster
 
     if address == "local":
+        import dask
+
         n = workers or os.cpu_count() or 1
-        with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                          dashboard_address=None, env={"NUMBA_NUM_THREADS": "1"}) as cluster, \
+        with dask.config.set(QUIET_LOCAL_CLUSTER), \
+                LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                             dashboard_address=None, env={"NUMBA_NUM_THREADS": "1"}) as cluster, \
                 Client(cluster) as client:
             client.register_plugin(_plugin())
             yield client
@@ -125,20 +146,22 @@ def connect(address, *, workers=None):
         yield client
 
 
-def run_chunks(client, compute_chunk, job, chunks):
-    """Submit every chunk to the cluster; yield each chunk's ``{index: scene}`` as it finishes.
+def run_chunks(client, compute_task, job, tasks, digest=""):
+    """Submit every task to the cluster; yield ``(task, chunk bytes)`` for each as it finishes.
 
-    On an error (or when the caller stops early) the chunks still queued are cancelled; the error of a task
-    is raised again here as it was raised on the worker.
+    The job is scattered to every worker once (tasks carry only a reference to it); each task returns its
+    chunk file's bytes (:func:`tumble.runner.compute_task`), which the caller writes and reads. On an error (or
+    when the caller stops early) the tasks still queued are cancelled; the error of a task is raised again here
+    as it was raised on the worker.
     """
     from distributed import as_completed
 
-    if not chunks:
+    if not tasks:
         return
     job_future = client.scatter(job, broadcast=True)
-    futures = [client.submit(compute_chunk, job_future, chunk, threads=1, pure=False) for chunk in chunks]
+    futures = {client.submit(compute_task, job_future, task, digest, threads=1, pure=False): task for task in tasks}
     try:
-        for _, result in as_completed(futures, with_results=True, loop=client.loop):
-            yield result
+        for future, data in as_completed(futures, with_results=True, loop=client.loop):
+            yield futures[future], data
     finally:
-        client.cancel(futures)
+        client.cancel(list(futures))

@@ -144,6 +144,7 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
             "n_nonfinite": n_bad,
             "sample_steps_computed": info["sample_steps_computed"],
             "sample_steps_skipped": info["sample_steps_skipped"],
+            "attitude": int(bool(attitude)),  # 0: no attitude code ran
         },
     )
     if attitude:

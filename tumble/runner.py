@@ -2,7 +2,9 @@
 
 The planner computes only what the study's ``outputs`` ask for: the per-sample arrays it keeps, the norm
 curves only for ``norm_growth``, one traced sample only for ``flip_components``, the per-method invariant
-record only for ``invariant_drift`` and the work-precision runs only for ``work_precision``.
+record only for ``invariant_drift``, the work-precision runs only for ``work_precision`` and one spin's
+orientation in space only for the attitude figures (``flip_animation``, ``flip_strip``, ``polhode``,
+``herpolhode``).
 
 Every check that can fail on the study's input runs before anything is computed or written, and every file
 is written atomically (:func:`tumble.io.write_dataset`, :func:`tumble.plots.save_figures`), so invalid input
@@ -17,6 +19,7 @@ import re
 import sys
 from collections.abc import Mapping
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 from tqdm.auto import tqdm
@@ -24,9 +27,11 @@ from tqdm.auto import tqdm
 from . import checkpoint, config, io, plots, study, theory
 from .config import StudyError
 from .kernels.methods import METHODS
+from .sampling import CHUNK
 
-__all__ = ["PER_SAMPLE", "compute_chunk", "compute_scene", "default_chunk_scenes", "open_checkpoint", "output_stem",
-           "plan", "run_scenes", "run_study", "scene_job", "summary_table", "write_outputs"]
+__all__ = ["DEFAULT_CHUNK_SAMPLES", "PER_SAMPLE", "Task", "chunk_samples_size", "compute_samples", "compute_scene",
+           "compute_task", "default_chunk_scenes", "open_checkpoint", "output_stem", "plan", "plan_tasks", "run_scenes",
+           "run_study", "sample_ranges", "scene_job", "summary_table", "write_outputs"]
 
 #: Per-sample variables a result may keep (``outputs.arrays``); the rest are dropped after the fit.
 PER_SAMPLE = ("sample_rate", "sample_status", "sample_first_flip", "sample_flip_spacing")
@@ -132,26 +137,66 @@ def scene_job(resolved, file="<mapping>"):
             "options": p["options"], "body_coords": p["body_coords"], "plan": p}
 
 
-def compute_scene(job, index, *, progress=False):
-    """Scene ``index`` of a :func:`scene_job`: a scan's scene, or the study's one :func:`~tumble.study.measure`."""
-    if job["scanned"]:
-        return study.scan_scene(job["layout"], index, samples=job["samples"], seed=job["seed"], **job["options"])
+class Task(NamedTuple):
+    """One chunk of a study — the unit of checkpointing and of dask tasks: the whole scenes ``scenes``, or
+    samples ``[start, stop)`` of the one scene in ``scenes``."""
+
+    scenes: tuple
+    start: int | None = None
+    stop: int | None = None
+
+    @property
+    def name(self):
+        """File name of the chunk's checkpoint."""
+        if self.start is None:
+            return checkpoint.scenes_name(self.scenes)
+        return checkpoint.samples_name(self.scenes[0], self.start, self.stop)
+
+
+def _scene_plan(job, index):
+    """:func:`tumble.study.scene_plan` of scene ``index`` of a :func:`scene_job`."""
     moments, params = study.scan_scene_parameters(job["layout"], index)
-    return study.measure(moments, params["axis"], params["spin"], params["amplitude"], job["samples"], job["seed"],
-                         params["method"], progress=progress, **job["options"])
+    return study.scene_plan(moments, params["axis"], params["spin"], params["amplitude"], job["samples"], job["seed"],
+                            params["method"], **job["options"])
 
 
-def compute_chunk(job, indices, *, threads=None, progress=False):
-    """Run a chunk of scenes: ``{index: scene dataset}``, normalised as a chunk file gives them back.
+def _scene_dataset(job, scene, parts):
+    """The normalised dataset of a scene from its sample ranges (a scan's scenes without ``I1..I3``, as
+    :func:`tumble.study.scan_scene`)."""
+    ds = study.scene_result(scene, parts)
+    return checkpoint.normalise_scene(ds.drop_vars(["I1", "I2", "I3"]) if job["scanned"] else ds)
 
-    This is the task a dask worker runs. ``threads`` sets numba's thread count for the calling thread first
+
+def compute_scene(job, index, *, progress=False):
+    """Scene ``index`` of a :func:`scene_job`, whole: a scan's scene, or the study's one measurement (normalised,
+    :func:`tumble.checkpoint.normalise_scene`)."""
+    scene = _scene_plan(job, index)
+    return _scene_dataset(job, scene, [study.scene_samples(scene, 0, job["samples"], progress=progress)])
+
+
+def compute_samples(job, index, start, stop, *, progress=False):
+    """Samples ``[start, stop)`` of scene ``index`` (:func:`tumble.study.scene_samples`)."""
+    return study.scene_samples(_scene_plan(job, index), start, stop, progress=progress)
+
+
+def compute_task(job, task, digest="", *, threads=None, progress=False):
+    """Run one :class:`Task`; return its chunk file's bytes (:mod:`tumble.checkpoint`), stamped with ``digest``.
+
+    This is what a dask worker runs: the result it sends back is the compact archive the client writes as it
+    is and reads without unpickling anything. ``threads`` sets numba's thread count for the calling thread
     (1 inside dask workers, so that workers do not oversubscribe the cores); the results do not depend on it.
     """
     if threads is not None:
         import numba
 
-        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
-    return {i: checkpoint.normalise_scene(compute_scene(job, i, progress=progress)) for i in indices}
+        threads = max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS))
+        if numba.get_num_threads() != threads:
+            numba.set_num_threads(threads)
+    if task.start is None:
+        return checkpoint.pack_scenes({i: compute_scene(job, i, progress=progress) for i in task.scenes}, digest)
+    index = task.scenes[0]
+    return checkpoint.pack_samples(index, task.stop, compute_samples(job, index, task.start, task.stop,
+                                                                      progress=progress), digest)
 
 
 def default_chunk_scenes(scenes):
@@ -160,7 +205,81 @@ def default_chunk_scenes(scenes):
     return max(1, math.ceil(scenes / 32))
 
 
-def run_scenes(job, *, store=None, client=None, chunk_scenes=None, progress=None, log=None):
+#: Samples per chunk of one scene when not given (``--chunk-samples``): a scene of more samples is cut into
+#: ranges of this many, run and checkpointed apart (1e6 samples: 8 ranges). A multiple of
+#: :data:`tumble.sampling.CHUNK`, like every range boundary.
+DEFAULT_CHUNK_SAMPLES = 32 * CHUNK
+
+
+def _count(value, name, default):
+    if value is None:
+        return default
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+    return int(value)
+
+
+def chunk_samples_size(chunk_samples=None):
+    """Samples per range of a split scene: ``chunk_samples`` checked (a positive multiple of
+    :data:`tumble.sampling.CHUNK`), or :data:`DEFAULT_CHUNK_SAMPLES`."""
+    size = _count(chunk_samples, "chunk_samples", DEFAULT_CHUNK_SAMPLES)
+    if size % CHUNK:
+        raise ValueError(f"chunk_samples must be a multiple of {CHUNK} (the sampler's block of samples), "
+                         f"got {chunk_samples!r}")
+    return size
+
+
+def sample_ranges(samples, size, *, first=0, done=()):
+    """The ``[start, stop)`` ranges that cover the samples of one scene not covered by ``done``.
+
+    Boundaries are the multiples of ``size`` (a multiple of :data:`tumble.sampling.CHUNK`), so every sample ``i``
+    is drawn and run exactly as in the whole scene; the range holding sample 0 reaches at least ``first``. The
+    ``done`` ranges (from a checkpoint, perhaps cut with another size) are kept as they are.
+    """
+    cuts = {0, samples, *(k for k in range(size, samples, size) if k >= first)}
+    for start, stop in done:
+        cuts.update((start, stop))
+    cuts = sorted(cuts)
+    return [(lo, hi) for lo, hi in zip(cuts[:-1], cuts[1:])
+            if not any(start <= lo and hi <= stop for start, stop in done)]
+
+
+def _usable_parts(parts, samples, first):
+    """The finished ranges of one scene a run can build on: inside the scene, not overlapping, aligned to
+    :data:`tumble.sampling.CHUNK`, none but the first starting before ``first`` (the norm curve's samples)."""
+    kept, end = {}, 0
+    for (start, stop), part in sorted(parts.items()):
+        if start >= end and stop <= samples and start % CHUNK == 0 and (start == 0 or start >= first):
+            kept[(start, stop)] = part
+            end = stop
+    return kept
+
+
+def plan_tasks(job, done, *, chunk_scenes=None, chunk_samples=None):
+    """The :class:`Task` list of what ``done`` (a :class:`tumble.checkpoint.Finished`) lacks.
+
+    Scenes of at most ``chunk_samples`` samples run whole, ``chunk_scenes`` to a task; a larger scene (or one
+    with finished ranges) runs as sample ranges (:func:`sample_ranges`), one to a task. Unusable finished ranges
+    are dropped from ``done``.
+    """
+    n, samples = job["layout"]["scenes"], job["samples"]
+    per_task = _count(chunk_scenes, "chunk_scenes", default_chunk_scenes(n))
+    size = chunk_samples_size(chunk_samples)
+    first = min(study.SLICE, samples) if "norm" in job["options"].get("curves", ()) else 0
+    whole, ranges = [], []
+    for i in range(n):
+        parts = done.parts.pop(i, {})
+        if i in done.scenes:
+            continue
+        if samples <= size and not parts:
+            whole.append(i)
+            continue
+        done.parts[i] = _usable_parts(parts, samples, first)
+        ranges += [Task((i,), lo, hi) for lo, hi in sample_ranges(samples, size, first=first, done=done.parts[i])]
+    return [Task(tuple(whole[k:k + per_task])) for k in range(0, len(whole), per_task)] + ranges
+
+
+def run_scenes(job, *, store=None, client=None, chunk_scenes=None, chunk_samples=None, progress=None, log=None):
     """Run every scene of a :func:`scene_job` not already in the checkpoint; return all of them, in order.
 
     Parameters
@@ -168,11 +287,14 @@ def run_scenes(job, *, store=None, client=None, chunk_scenes=None, progress=None
     job : dict
         From :func:`scene_job`.
     store : tumble.checkpoint.Checkpoint, optional
-        Finished scenes are read from it and every newly finished chunk is written to it (atomically).
+        Finished chunks are read from it and every newly finished chunk is written to it (atomically).
     client : distributed.Client, optional
         Run the chunks on this dask cluster (:mod:`tumble.distributed`); default: in this process.
     chunk_scenes : int, optional
         Scenes per chunk (default :func:`default_chunk_scenes`). The results do not depend on it.
+    chunk_samples : int, optional
+        Samples per chunk of a scene with more samples than this (a multiple of 4096; default
+        :data:`DEFAULT_CHUNK_SAMPLES`). The results do not depend on it.
     progress : bool, optional
         Progress bar over the scenes (default: on a terminal only).
     log : callable, optional
@@ -184,42 +306,60 @@ def run_scenes(job, *, store=None, client=None, chunk_scenes=None, progress=None
         The scenes, normalised (:func:`tumble.checkpoint.normalise_scene`).
     """
     n = job["layout"]["scenes"]
-    done = store.load() if store is not None else {}
+    digest = store.digest if store is not None else ""
+    done = store.load() if store is not None else checkpoint.Finished({}, {})
+    tasks = plan_tasks(job, done, chunk_scenes=chunk_scenes, chunk_samples=chunk_samples)
     if log and store is not None and store.stale:
         log(f"ignored and removed {store.stale} checkpoint file(s) of another study or tumble version")
-    if log and done:
-        log(f"resuming: {len(done)} of {n} scenes already finished in {store.folder}")
-    todo = [i for i in range(n) if i not in done]
-    size = chunk_scenes or default_chunk_scenes(n)
-    if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
-        raise ValueError(f"chunk_scenes must be an integer >= 1, got {chunk_scenes!r}")
-    chunks = [todo[k:k + size] for k in range(0, len(todo), size)]
-    save = store.write if store is not None else None
+    ranges_done = sum(len(parts) for parts in done.parts.values())
+    if log and (done.scenes or ranges_done):
+        started = sum(1 for parts in done.parts.values() if parts)
+        ranges = f" and {ranges_done} sample range(s) of {started} more" if ranges_done else ""
+        log(f"resuming: {len(done.scenes)} of {n} scenes{ranges} already finished in {store.folder}")
+    scenes, left = done.scenes, {i: 0 for i in done.parts}  # sample ranges still to run, by split scene
+    for task in tasks:
+        if task.start is not None:
+            left[task.scenes[0]] += 1
+
+    def reduce_finished_scenes():
+        for i in [i for i, count in left.items() if count == 0]:
+            scenes[i] = _scene_dataset(job, _scene_plan(job, i), list(done.parts.pop(i).values()))
+            del left[i]
+
+    def finish(task, data):
+        if store is not None:
+            store.write(task.name, data)
+        finished = checkpoint.unpack(data, digest, n)
+        scenes.update(finished.scenes)
+        for i, parts in finished.parts.items():
+            done.parts[i].update(parts)
+            left[i] -= 1
+        reduce_finished_scenes()
+
+    reduce_finished_scenes()  # resumed with every range of a scene finished
     if client is not None:
         from . import distributed
 
-        for scenes in distributed.run_chunks(client, compute_chunk, job, chunks):
-            if save:
-                save(scenes)
-            done.update(scenes)
+        for task, data in distributed.run_chunks(client, compute_task, job, tasks, digest):
+            finish(task, data)
     else:
         show = sys.stderr.isatty() if progress is None else progress
-        with tqdm(total=n, initial=len(done), unit="scenes", disable=not (show and n > 1), desc="scan") as bar:
-            for chunk in chunks:
-                scenes = compute_chunk(job, chunk, progress=progress if n == 1 else False)
-                if save:
-                    save(scenes)
-                done.update(scenes)
-                bar.update(len(chunk))
-    return [done[i] for i in range(n)]
+        with tqdm(total=n, initial=len(scenes), unit="scenes", disable=not (show and n > 1), desc="scan") as bar:
+            for task in tasks:
+                before = len(scenes)
+                finish(task, compute_task(job, task, digest, progress=progress if n == 1 else False))
+                bar.update(len(scenes) - before)
+    return [scenes[i] for i in range(n)]
 
 
-def _run(resolved, file, progress, *, job=None, store=None, client=None, chunk_scenes=None, log=None):
+def _run(resolved, file, progress, *, job=None, store=None, client=None, chunk_scenes=None, chunk_samples=None,
+         log=None):
     """The result dataset of a resolved study (nothing written but the checkpoint's chunks)."""
     job = job or scene_job(resolved, file)
     p = job["plan"]
     values, options = p["values"], p["options"]
-    scenes = run_scenes(job, store=store, client=client, chunk_scenes=chunk_scenes, progress=progress, log=log)
+    scenes = run_scenes(job, store=store, client=client, chunk_scenes=chunk_scenes, chunk_samples=chunk_samples,
+                        progress=progress, log=log)
     ds = study.assemble_scan(job["layout"], scenes, p["body_coords"]) if job["scanned"] else scenes[0]
     keep = resolved["outputs"]["arrays"]
     ds = ds.drop_vars([name for name in PER_SAMPLE if name in ds and name not in keep])
@@ -237,6 +377,12 @@ def _run(resolved, file, progress, *, job=None, store=None, client=None, chunk_s
 
         ds = ds.merge(precision.work_precision(*scene, samples=p["samples"], t_end=options["horizon"] or 20.0,
                                                seed=p["seed"], progress=progress))
+    if any(name in config.ATTITUDE_FIGURES for name in figures):
+        body = resolved["body"] if "body" not in resolved["scan"] else {}
+        method = _first(values["method"])
+        ds = ds.merge(study.attitude_trace(*scene, method if method in METHODS else "auto", seed=p["seed"],
+                                           torque=options["torque"], horizon=options["horizon"],
+                                           shape=body.get("shape", ""), shape_parameters=body.get("dimensions")))
     ds.attrs["title"] = resolved["title"]
     return ds
 
@@ -270,7 +416,8 @@ def write_outputs(ds, resolved, directory, stem, *, action=None):
     return stored, [path, *figures]
 
 
-def run_study(source, *, overrides=None, out=None, progress=None, scheduler=None, chunk_scenes=None):
+def run_study(source, *, overrides=None, out=None, progress=None, scheduler=None, chunk_scenes=None,
+              chunk_samples=None):
     """Run a study and return its result dataset.
 
     Parameters
@@ -293,6 +440,9 @@ def run_study(source, *, overrides=None, out=None, progress=None, scheduler=None
         Default: in this process. The results are the same bits either way.
     chunk_scenes : int, optional
         Scenes per chunk (checkpoint and dask task); the results do not depend on it.
+    chunk_samples : int, optional
+        A scene of more samples than this is cut into ranges of this many samples, each its own chunk (a
+        multiple of 4096; default :data:`DEFAULT_CHUNK_SAMPLES`); the results do not depend on it.
 
     Returns
     -------
@@ -315,7 +465,8 @@ def run_study(source, *, overrides=None, out=None, progress=None, scheduler=None
     stem = output_stem(source, resolved)
     store = open_checkpoint(resolved, job, directory, stem) if directory is not None else None
     with _scheduler(scheduler) as client:
-        ds = _run(resolved, file, progress, job=job, store=store, client=client, chunk_scenes=chunk_scenes)
+        ds = _run(resolved, file, progress, job=job, store=store, client=client, chunk_scenes=chunk_scenes,
+                  chunk_samples=chunk_samples)
     if directory is None:
         return ds
     stored, _ = write_outputs(ds, resolved, directory, stem)

@@ -18,7 +18,11 @@ Planning a scene (what is computed and why):
   log-slope inside the linear regime (:func:`tumble.analysis.growth_rates`), and locate the first
   ``flips`` sign changes of the spin-axis component; on a stepping path each sample stops once its norm has
   saturated and it has flipped ``flips`` times;
-* samples run in slices of :data:`SLICE` (memory stays O(samples), whatever the ensemble size).
+* samples run in slices of :data:`SLICE` (memory stays O(samples), whatever the ensemble size);
+* a scene is planned once (:func:`scene_plan`), its samples run in any ranges that start at multiples of
+  :data:`tumble.sampling.CHUNK` (:func:`scene_samples`: per-sample fits only, in any process) and the ranges
+  are reduced once (:func:`scene_result`: median, bootstrap interval, fit window and flip medians over all the
+  samples) — the same bits as the whole scene; ``tumble run`` cuts large scenes this way.
 
 What the scene skipped is on the dataset (``path``, ``sample_steps_computed``, ``sample_steps_skipped``).
 """
@@ -43,7 +47,8 @@ from .kernels.methods import METHODS
 from .sampling import CHUNK, perturbed_spins, seed_entropy
 
 __all__ = ["CURVES", "SAMPLE_STATUS_NAMES", "assemble_scan", "flip_time_law", "inertia_triangle", "invariant_drift",
-           "measure", "regress_scan", "scan", "scan_layout", "scan_scene", "scan_scene_parameters"]
+           "measure", "regress_scan", "scan", "scan_layout", "scan_scene", "scan_scene_parameters", "scene_plan",
+           "scene_result", "scene_samples"]
 
 #: Per-sample status in a measurement: the engine's (ok, non-finite, invariant drift), then the fit's.
 SAMPLE_STATUS_NAMES = STATUS_NAMES + analysis.FIT_NAMES[1:]
@@ -248,6 +253,25 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
     >>> str(ds.kind.values), bool(ds.rel_error < 5e-3)
     ('exponential', True)
     """
+    scene = scene_plan(body, axis, spin, amplitude, samples, seed, method, dt=dt, flips=flips,
+                       distribution=distribution, torque=torque, horizon=horizon, curves=curves)
+    return scene_result(scene, [scene_samples(scene, 0, scene["samples"], progress=progress)])
+
+
+def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="auto", *, dt=None, flips=3,
+               distribution="cone", torque=None, horizon=None, curves=()):
+    """Validate and plan one scene of :func:`measure` (same arguments, no ``progress``): plain data.
+
+    A scene is measured in two steps that can run apart: :func:`scene_samples` runs any range of its samples
+    (each sample depends only on the plan and its index), :func:`scene_result` reduces the ranges to the scene
+    dataset. ``measure`` is ``scene_result(plan, [scene_samples(plan, 0, samples)])``; a scene cut into ranges
+    at multiples of :data:`tumble.sampling.CHUNK` reduces to the same bits.
+
+    Raises
+    ------
+    ValueError
+        As :func:`measure`.
+    """
     moments, axis, spin, amplitude, samples, flips = _validate_scene(body, axis, spin, amplitude, samples,
                                                                      method, flips)
     if dt is not None and (not np.isfinite(dt) or dt <= 0):
@@ -275,72 +299,141 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
                               distribution=distribution)
     plan = _plan(moments, a, kind, value, spin, amplitude, chosen, dt, flips if kind == "exponential" else 0,
                  w_probe, horizon, spin_max)
-    growth = kind == "exponential"
-    n_flips = flips if growth else 0
+    return {"moments": moments, "axis": axis, "spin": spin, "amplitude": amplitude, "samples": samples,
+            "method": method, "chosen": chosen, "kind": kind, "value": value, "spin_up": spin_up,
+            "torque": torque if spin_up is not None else None, "plan": plan,
+            "flips": flips if kind == "exponential" else 0, "entropy": entropy, "distribution": distribution,
+            "curves": curves}
 
-    rate = np.empty(samples)
-    code = np.empty(samples, dtype=np.int8)
-    extra = {name: np.empty(samples) for name in
-             (("t_start", "t_stop", "norm_start", "norm_stop") if growth else ("radius",))}
-    flip_first = np.full(samples, np.nan)
-    flip_spacing = np.full(samples, np.nan)
-    flip_exact = np.full(samples, np.nan)
-    flip_asymptote = np.full(samples, np.nan)
-    info = {}
-    kept = {}
-    value_free = value
+
+#: Per-sample arrays of a :func:`scene_samples` range, by scene kind (and the flip times, when timed).
+_GROWTH_FIT = ("t_start", "t_stop", "norm_start", "norm_stop")
+_FLIP_ARRAYS = ("flip_first", "flip_spacing", "flip_exact", "flip_asymptote")
+
+
+def scene_samples(scene, start, stop, *, progress=False):
+    """Run samples ``[start, stop)`` of a :func:`scene_plan`: per-sample fits, no reduction.
+
+    ``start`` must be a multiple of :data:`tumble.sampling.CHUNK` (the engine and the sampler work in whole
+    chunks, so that the samples of a range are the same bits as in the unsplit scene); the range holding sample
+    0 keeps the norm curve (``curves`` with ``"norm"``), which needs the first :data:`SLICE` samples, so it
+    must then reach ``min(SLICE, samples)``.
+
+    Returns
+    -------
+    dict of ndarray
+        ``start``; per sample (length ``stop - start``): ``rate``, ``code`` (int8, :data:`SAMPLE_STATUS_NAMES`),
+        the fit's
+        ``t_start``/``t_stop``/``norm_start``/``norm_stop`` (exponential) or ``radius``, the flip times
+        (exponential with ``flips``); scalars ``sample_steps_computed``, ``sample_steps_skipped``,
+        ``rate_theory``, ``path`` and ``torque``; from sample 0 the ``norm_*`` curve. Only plain arrays: it
+        pickles and stores in a NumPy archive.
+    """
+    samples, kind, plan = scene["samples"], scene["kind"], scene["plan"]
+    if not (0 <= start < stop <= samples and start % CHUNK == 0):
+        raise ValueError(f"a sample range must lie in [0, {samples}) and start at a multiple of {CHUNK}, "
+                         f"got [{start}, {stop})")
+    keep_norm = start == 0 and "norm" in scene["curves"] and kind == "exponential"
+    if keep_norm and stop < min(SLICE, samples):
+        raise ValueError(f"the sample range holding sample 0 keeps the norm curve: it must reach "
+                         f"{min(SLICE, samples)}, got [{start}, {stop})")
+    moments, axis, spin = scene["moments"], scene["axis"], scene["spin"]
+    growth, n_flips, a = kind == "exponential", scene["flips"], scene["axis"] - 1
+    n = stop - start
+    out = {"start": np.int64(start), "rate": np.empty(n), "code": np.empty(n, dtype=np.int8)}
+    out.update((name, np.empty(n)) for name in (_GROWTH_FIT if growth else ("radius",)))
+    out.update((name, np.full(n, np.nan)) for name in (_FLIP_ARRAYS if n_flips else ()))
+    value = scene["value"]
     computed = skipped = 0
-    for lo in range(0, samples, SLICE):
-        hi = min(lo + SLICE, samples)
-        w0 = perturbed_spins(moments, axis, spin, amplitude, samples, seed=entropy, distribution=distribution,
-                             start=lo, stop=hi)
-        result = run_ensemble(moments, w0, plan["t_end"], plan["dt"], method=chosen, axis=axis, final=False,
+    for lo in range(start, stop, SLICE):
+        hi = min(lo + SLICE, stop)
+        w0 = perturbed_spins(moments, axis, spin, scene["amplitude"], samples, seed=scene["entropy"],
+                             distribution=scene["distribution"], start=lo, stop=hi)
+        result = run_ensemble(moments, w0, plan["t_end"], plan["dt"], method=scene["chosen"], axis=axis, final=False,
                               save_every=None if growth else plan["save_every"],
                               probe_times=plan["probe_times"] if growth else None,
                               norm_weights=plan["weights"] if growth else None, max_flips=n_flips,
                               stop_norm=plan["saturation"] if growth else 0.0, stop_flips=n_flips,
-                              torque=torque if spin_up is not None else None, progress=progress)
+                              torque=scene["torque"], progress=progress)
         info = result.info
         computed += info["sample_steps_computed"]
         skipped += info["sample_steps_skipped"]
+        rows = slice(lo - start, hi - start)
         if growth:
             fit = analysis.growth_rates(result.probe_times, result.probes, plan["saturation"])
-            if "norm" in curves and lo == 0:
-                kept["norm"] = (result.probe_times, result.probes)
-            rate[lo:hi] = fit.rate
-            for name in extra:
-                extra[name][lo:hi] = getattr(fit, name)
+            if keep_norm and lo == 0:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns after every sample stopped
+                    quartiles = np.nanquantile(result.probes, [0.25, 0.5, 0.75], axis=0)
+                out.update(norm_time=result.probe_times, norm_q1=quartiles[0], norm_median=quartiles[1],
+                           norm_q3=quartiles[2])
+            out["rate"][rows] = fit.rate
+            for name in _GROWTH_FIT:
+                out[name][rows] = getattr(fit, name)
         else:
             b, c = plan.get("plane", ((a + 1) % 3, (a + 2) % 3))
             weights = (analysis.invariant_weights(moments, axis)[[b, c]] if kind == "periodic" else np.ones(2))
             fit = analysis.oscillation_frequencies(result.times, result.trajectory[..., [b, c]], weights, spin)
-            rate[lo:hi] = fit.frequency
-            extra["radius"][lo:hi] = fit.radius
-            if spin_up is not None:
-                value = _spin_up_rate(spin_up, value_free, spin, result.times)
-        code[lo:hi] = np.where(result.status != STATUS_OK, result.status,
-                               np.where(fit.code != analysis.FIT_OK, fit.code + _FIT_OFFSET, 0))
+            out["rate"][rows] = fit.frequency
+            out["radius"][rows] = fit.radius
+            if scene["spin_up"] is not None:
+                value = _spin_up_rate(scene["spin_up"], scene["value"], spin, result.times)
+        out["code"][rows] = np.where(result.status != STATUS_OK, result.status,
+                                     np.where(fit.code != analysis.FIT_OK, fit.code + _FIT_OFFSET, 0))
         if n_flips:
             stats = analysis.flip_statistics(result.flips)
-            flip_first[lo:hi], flip_spacing[lo:hi] = stats.first, stats.spacing
-            flip_exact[lo:hi] = exact.flip_spacing(moments, w0)
-            flip_asymptote[lo:hi] = theory.flip_time_asymptote(moments, w0)
+            out["flip_first"][rows], out["flip_spacing"][rows] = stats.first, stats.spacing
+            out["flip_exact"][rows] = exact.flip_spacing(moments, w0)
+            out["flip_asymptote"][rows] = theory.flip_time_asymptote(moments, w0)
+    out.update(sample_steps_computed=np.int64(computed), sample_steps_skipped=np.int64(skipped),
+               rate_theory=np.float64(value), path=np.array(info["path"]), torque=np.array(info.get("torque", "")))
+    return out
+
+
+def scene_result(scene, parts):
+    """The dataset of :func:`measure` from the :func:`scene_samples` ranges of a scene (in any order, together
+    covering every sample once): per-sample arrays concatenated, the scene's values computed from them once."""
+    parts = sorted(parts, key=lambda part: int(part["start"]))
+    samples, kind, plan = scene["samples"], scene["kind"], scene["plan"]
+    covered = 0
+    for part in parts:
+        if int(part["start"]) != covered:
+            raise ValueError(f"the sample ranges of a scene of {samples} samples do not follow each other: one "
+                             f"starts at {int(part['start'])}, expected {covered}")
+        covered += len(part["rate"])
+    if covered != samples:
+        raise ValueError(f"the sample ranges of a scene of {samples} samples end at {covered}")
+    moments, axis, spin, amplitude = scene["moments"], scene["axis"], scene["spin"], scene["amplitude"]
+    growth, n_flips, entropy = kind == "exponential", scene["flips"], scene["entropy"]
+    joined = {name: np.concatenate([part[name] for part in parts]) for name in
+              ("rate", "code", *(_GROWTH_FIT if growth else ("radius",)), *(_FLIP_ARRAYS if n_flips else ()))}
+    code = joined["code"]
+    computed = int(sum(int(part["sample_steps_computed"]) for part in parts))
+    skipped = int(sum(int(part["sample_steps_skipped"]) for part in parts))
+    first, last = parts[0], parts[-1]
+    value = float(first["rate_theory"])
+    info = {"path": str(last["path"]), "torque": str(last["torque"])}
+    kept = {}
+    if "norm_time" in first:
+        kept["norm"] = tuple(first[f"norm_{name}"] for name in ("time", "q1", "median", "q3"))
+    curves = scene["curves"]
     if "trace" in curves:
-        w_trace = perturbed_spins(moments, axis, spin, amplitude, 1, seed=entropy, distribution=distribution)
-        kept["trace"] = _trace(moments, w_trace, plan, chosen, torque if spin_up is not None else None)
+        w_trace = perturbed_spins(moments, axis, spin, amplitude, 1, seed=entropy, distribution=scene["distribution"])
+        kept["trace"] = _trace(moments, w_trace, plan, scene["chosen"], scene["torque"])
     valid = code == 0
-    rate = np.where(valid, rate, np.nan)
+    rate = np.where(valid, joined["rate"], np.nan)
     summary = analysis.summarize(rate, confidence=CONFIDENCE, resamples=BOOTSTRAP, seed=entropy % 2**63)
     if summary.used == 0:
         counts = np.bincount(code, minlength=len(SAMPLE_STATUS_NAMES))
         warnings.warn(f"no sample of the scene (axis {axis}, amplitude {amplitude}) gave a rate; statuses: "
                       + ", ".join(f"{SAMPLE_STATUS_NAMES[k]} {n}" for k, n in enumerate(counts) if n),
-                      RuntimeWarning, stacklevel=2)
-    ds = _scene_dataset(moments, axis, spin, amplitude, samples, method, chosen, kind, value, summary, rate,
-                        code, extra, valid, (flip_first, flip_spacing, flip_exact, flip_asymptote) if n_flips
-                        else None, plan, info, computed, skipped, entropy, distribution)
-    if spin_up is not None:
-        ds.attrs["torque"] = info.get("torque", "")
+                      RuntimeWarning, stacklevel=3)
+    ds = _scene_dataset(moments, axis, spin, amplitude, samples, scene["method"], scene["chosen"], kind, value,
+                        summary, rate, code, joined, valid,
+                        tuple(joined[name] for name in _FLIP_ARRAYS) if n_flips else None, plan, info, computed,
+                        skipped, entropy, scene["distribution"])
+    if scene["spin_up"] is not None:
+        ds.attrs["torque"] = info["torque"]
     ds = ds.assign(_curves(kept, curves))
     if "trace" in curves:
         ds = ds.assign_coords(component=_var(np.array([1, 2, 3]), "1", "body-frame component (principal axis)",
@@ -396,10 +489,8 @@ def _curves(kept, curves):
     """Dataset variables of the kept curves (NaN where the scene has none, so that scans stack)."""
     out = {}
     if "norm" in curves:
-        times, probes = kept.get("norm", (np.full(PROBES + 1, np.nan), np.full((1, PROBES + 1), np.nan)))
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns after every sample stopped
-            q1, median, q3 = np.nanquantile(probes, [0.25, 0.5, 0.75], axis=0)
+        nan = np.full(PROBES + 1, np.nan)
+        times, q1, median, q3 = kept.get("norm", (nan, nan, nan, nan))
         dims = ("growth_point",)
         out.update(
             growth_time=_var(times, "s", "probe time of the transverse norm", dims),
@@ -635,16 +726,43 @@ def scan_scene(layout, index, *, samples=256, seed=0, **options):
 
 
 def assemble_scan(layout, scenes, body_coords=None):
-    """Stack the scene datasets of a :func:`scan_layout` (all of them, in order) into the scan's dataset."""
+    """Stack the scene datasets of a :func:`scan_layout` (all of them, in order) into the scan's dataset.
+
+    Every data variable and every coordinate that differs between scenes (the swept parameters) gains the scan
+    dimensions ``(body, *swept)`` in front of its own; a variable some scenes lack (a periodic scene has no growth
+    fit window) is NaN there; attributes are the first scene's. The arrays are stacked with NumPy in one pass
+    (nested ``xarray.concat`` gives the same dataset, ten times slower).
+    """
     moments, swept = layout["moments"], layout["swept"]
     if len(scenes) != layout["scenes"]:
         raise ValueError(f"a scan of {layout['scenes']} scenes cannot be assembled from {len(scenes)}")
-    per_body = layout["scenes"] // len(moments)
-    shape = [len(v) for v in swept.values()]
-    stacked = [_combine(_nest(scenes[b * per_body:(b + 1) * per_body], shape), list(swept))
-               for b in range(len(moments))]
-    out = xr.concat(stacked, dim="body", data_vars="all", coords="different", compat="equals",
-                    combine_attrs="override")
+    shape, dims = (len(moments), *(len(v) for v in swept.values())), ("body", *swept)
+    first_seen = {}
+    for ds in scenes:
+        for name in (*ds.data_vars, *ds.coords):
+            first_seen.setdefault(name, ds)
+    data, coords = {}, {}
+    for name, owner in first_seen.items():
+        var = owner.variables[name]
+        is_coord = name in owner.coords
+        if is_coord and name not in swept and all(
+                name in ds.coords and ds.variables[name].equals(var) for ds in scenes):
+            coords[name] = var  # the same in every scene (the sample index, a fixed parameter)
+            continue
+        values = [ds.variables[name].values if name in ds.variables else None for ds in scenes]
+        if any(v is None for v in values):
+            if var.dtype.kind not in "biuf":
+                raise ValueError(f"scene variable {name!r} ({var.dtype}) is missing from some scenes")
+            dtype = np.result_type(var.dtype, np.float64) if var.dtype.kind in "biu" else var.dtype
+            values = [np.full(var.shape, np.nan, dtype) if v is None else v for v in values]
+        stacked = np.stack(values).reshape(shape + var.shape)
+        if name in swept:  # a swept parameter: the coordinate of its dimension
+            axis = dims.index(name)
+            coords[name] = xr.Variable((name,), stacked[(0,) * axis + (slice(None),) + (0,) * (len(dims) - axis - 1)],
+                                       var.attrs)
+            continue
+        (coords if is_coord else data)[name] = xr.Variable(dims + var.dims, stacked, var.attrs)
+    out = xr.Dataset(data, coords=coords, attrs=dict(scenes[0].attrs))
     out = out.assign_coords(
         I1=("body", moments[:, 0], {"units": "kg m2", "long_name": "principal moment of inertia 1"}),
         I2=("body", moments[:, 1], {"units": "kg m2", "long_name": "principal moment of inertia 2"}),
@@ -700,22 +818,6 @@ def scan(bodies, axis=(1, 2, 3), spin=1.0, amplitude=1e-3, method="auto", *, sam
             scenes.append(scan_scene(layout, index, samples=samples, seed=seed, **options))
             bar.update()
     return assemble_scan(layout, scenes, body_coords)
-
-
-def _nest(items, shape):
-    """A flat list in C order as nested lists of ``shape`` (the item itself for an empty shape)."""
-    if not shape:
-        return items[0]
-    size = len(items) // shape[0]
-    return [_nest(items[i * size:(i + 1) * size], shape[1:]) for i in range(shape[0])]
-
-
-def _combine(nested, dims):
-    """Concatenate nested lists of scene datasets along ``dims``, outermost first."""
-    if not dims:
-        return nested
-    return xr.concat([_combine(part, dims[1:]) for part in nested], dim=dims[0], data_vars="all",
-                     coords="different", compat="equals", combine_attrs="override")
 
 
 def regress_scan(ds):
@@ -807,3 +909,84 @@ def flip_time_law(ds):
     result["rel_error"] = (abs(result["slope"] - result["slope_theory"]) / result["slope_theory"]).assign_attrs(
         units="1", long_name="|slope - 1/lambda| / (1/lambda)")
     return result.drop_vars([c for c in result.coords if c not in result.dims and c != "method"], errors="ignore")
+
+
+#: Stored times of the attitude trace (the flip animation, strip, polhode and herpolhode figures).
+ATTITUDE_POINTS = 1200
+#: Steps per turn of the fastest component when a fixed-step method traces the attitude.
+_ATTITUDE_STEPS_PER_TURN = 400
+
+
+def _attitude_horizon(moments, w0, axis):
+    """Three flips about the intermediate axis, else three body-frame periods (three turns for a steady spin)."""
+    spacing = float(exact.flip_spacing(moments, w0))
+    if axis - 1 == int(np.argsort(moments, kind="stable")[1]) and np.isfinite(spacing):
+        return float(exact.first_flip_time(moments, w0)) + 2.5 * spacing
+    period = float(exact.period(moments, w0))
+    return 3.0 * (period if np.isfinite(period) else 2.0 * math.pi / float(np.linalg.norm(w0)))
+
+
+def attitude_trace(body, axis=2, spin=1.0, amplitude=1e-3, method="auto", *, horizon=None, seed=0, torque=None,
+                   shape="", shape_parameters=None, points=ATTITUDE_POINTS):
+    """The orientation of one perturbed spin in space, as the attitude figures read it.
+
+    The spin is sample 0 of :func:`tumble.sampling.perturbed_spins` (the same seed gives the same spin as a
+    scene's first sample). Torque-free with ``method="auto"`` the closed form runs
+    (:func:`tumble.exact.attitude`); otherwise ``method`` (``rk4`` when ``"auto"``) steps the angular
+    velocity and the attitude together (:mod:`tumble.kernels.attitude`), about 400 steps per turn.
+
+    Parameters
+    ----------
+    body : Body or array_like, shape (3,)
+    axis, spin, amplitude
+        The unperturbed spin (1-based axis, rad/s) and the tilt, rad.
+    method : str
+        ``"auto"``, ``"exact"`` or a fixed-step method.
+    horizon : float, optional
+        Time span, s; default three flips about the intermediate axis (the first flip time plus 2.5 flip
+        spacings), else three periods of the body-frame motion.
+    torque : optional
+        As :func:`tumble.integrate`.
+    shape, shape_parameters : str, mapping
+        The :mod:`tumble.shapes` function the body came from and its arguments, for drawing it.
+    points : int
+        Stored times (about; the fixed-step path stores every k-th step).
+
+    Returns
+    -------
+    xarray.Dataset
+        ``attitude_quaternion(attitude_time, quaternion_component)`` (body-to-space, scalar first; the
+        space frame is the body frame at t = 0), ``attitude_omega(attitude_time, component)`` (rad/s) and
+        ``attitude_moments(component)`` (kg m²); ``component`` is the principal axis (1, 2, 3), as in
+        ``trace_omega``.
+    """
+    import json
+
+    moments = one_body(body)
+    w0 = perturbed_spins(moments, axis, spin, amplitude, 1, seed=seed)
+    torque_free = torque_spec(torque)[1] is None and torque_spec(torque)[2] is None
+    chosen = method
+    if method == "auto":
+        chosen = "exact" if torque_free else AUTO_FORCED_METHOD
+    t_end = float(horizon) if horizon is not None else _attitude_horizon(moments, w0[0], axis)
+    if chosen == "exact":
+        ds = integrate(moments, w0, t_end, t_end / (points - 1), method="exact", save_every=1, attitude=True)
+    else:
+        dt = 2.0 * math.pi / (_ATTITUDE_STEPS_PER_TURN * float(np.abs(w0).max()))
+        n_steps = max(1, math.ceil(t_end / dt))
+        ds = integrate(moments, w0, t_end, t_end / n_steps, method=chosen, torque=torque,
+                       save_every=max(1, n_steps // (points - 1)), attitude=True)
+    if ds.status.values[0] != STATUS_OK:
+        raise FloatingPointError(f"the attitude trace with {chosen} became non-finite; use a smaller step")
+    attrs = {"units": "1", "long_name": "body-to-space rotation of the traced spin, unit quaternion, scalar first",
+             "method": chosen, "spin_axis": int(axis), "body_shape": shape or "",
+             "body_shape_json": json.dumps(dict(shape_parameters or {}), sort_keys=True)}
+    return xr.Dataset(
+        {"attitude_quaternion": (("attitude_time", "quaternion_component"), ds.quaternion.values[0], attrs),
+         "attitude_omega": (("attitude_time", "component"), ds.omega.values[0],
+                            {"units": "rad/s", "long_name": "body-frame angular velocity of the traced spin"}),
+         "attitude_moments": ("component", moments, {"units": "kg m2", "long_name": "principal moments of inertia"})},
+        coords={"attitude_time": ("attitude_time", ds.time.values, {"units": "s", "long_name": "time"}),
+                "quaternion_component": ("quaternion_component", np.arange(4),
+                                         {"long_name": "quaternion component (0: scalar part)"}),
+                "component": ("component", np.array([1, 2, 3]), {"long_name": "principal axis (1-based)"})})
