@@ -95,7 +95,7 @@ def test_a_full_disk_exits_1_and_leaves_the_earlier_results_intact(earlier_resul
     if where == "result":
         monkeypatch.setattr(xr.Dataset, "to_netcdf", _disk_full)
     else:
-        monkeypatch.setattr(checkpoint.os, "fsync", _disk_full)  # the first chunk file cannot be flushed
+        monkeypatch.setattr(checkpoint.Path, "write_bytes", _disk_full)  # the first chunk file cannot be written
     status = cli.main(["run", str(study), "--out", str(out), "--seed", "5"])
     err = capsys.readouterr().err
     assert status == 1 and "No space left on device" in err and "Traceback" not in err

@@ -34,12 +34,9 @@ Nothing here uses pyplot: figures are :class:`matplotlib.figure.Figure` objects;
 
 from __future__ import annotations
 
-import contextlib
 import inspect
 import json
 import math
-import os
-import tempfile
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -56,7 +53,7 @@ from matplotlib.ticker import MaxNLocator
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 from PIL import Image
 
-from . import shapes
+from . import io, shapes
 
 __all__ = ["ATTITUDE_VARIABLES", "AttitudeTrace", "FlipAnimation", "animation_format", "box_proportions",
            "flip_animation", "flip_strip", "flip_times", "herpolhode", "herpolhode_points", "invariable_frame",
@@ -716,16 +713,8 @@ def save_animation(anim, path):
     if fmt not in ("gif", "mp4"):
         raise ValueError(f"an animation is written as .gif or .mp4, got {path.name!r}")
     # the temporary file keeps the extension: Pillow and ffmpeg pick the container from it
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=f".part.{fmt}")
-    os.close(fd)
-    try:
+    with io.replaced_atomically(path, suffix=f".part.{fmt}") as tmp:
         anim.save(tmp, writer=_writer(fmt, anim.fps), dpi=anim.figure.dpi)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
     return path
 
 

@@ -30,11 +30,9 @@ import hashlib
 import io as io_module
 import json
 import math
-import os
 import re
 import shutil
 import sys
-import tempfile
 from pathlib import Path
 from typing import NamedTuple
 
@@ -337,20 +335,13 @@ class Checkpoint:
         path = self.folder / name
         try:
             self.folder.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(dir=self.folder, prefix="." + path.name + ".", suffix=".part")
         except OSError as err:
             raise _write_error(self.folder, err) from err
         try:
-            with os.fdopen(fd, "wb") as f:
-                f.write(data)
-                f.flush()
-                os.fsync(f.fileno())
-            os.replace(tmp, path)
-        except BaseException as err:
-            Path(tmp).unlink(missing_ok=True)
-            if isinstance(err, OSError):
-                raise _write_error(path, err) from err
-            raise
+            with io.replaced_atomically(path, durable=True) as tmp:
+                Path(tmp).write_bytes(data)
+        except OSError as err:
+            raise _write_error(path, err) from err
         return path
 
     def remove(self):

@@ -34,6 +34,7 @@ Safety: only netCDF and JSON are ever read; nothing is unpickled or evaluated.
 
 from __future__ import annotations
 
+import contextlib
 import datetime
 import json
 import numbers
@@ -347,26 +348,37 @@ def write_dataset(ds, path, *, compression=4, **provenance_kwargs):
     encoding = _encoding(stored, compression)
 
     path = Path(os.fspath(path))
-    folder = path.parent
-    folder.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=folder, prefix="." + path.name + ".", suffix=".part")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with replaced_atomically(path, durable=True) as tmp:
+        stored.to_netcdf(tmp, mode="w", format="NETCDF4", engine="netcdf4", encoding=encoding)
+    return stored
+
+
+@contextlib.contextmanager
+def replaced_atomically(path, *, suffix=".part", durable=False):
+    """A temporary file beside ``path`` that takes its place when the ``with`` block ends without error.
+
+    Yields the temporary file's name (``.<name>.<random><suffix>`` in the same folder, so that the rename
+    stays on one file system); the block writes it. Then it gets the permissions of a plainly created file,
+    is flushed to disk when ``durable``, and is renamed onto ``path`` (``os.replace``): a reader sees the old
+    file or the complete new one, never part of one. On any error, Ctrl-C included, it is removed.
+    """
+    path = Path(os.fspath(path))
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=suffix)
     os.close(fd)
     try:
-        stored.to_netcdf(tmp, mode="w", format="NETCDF4", engine="netcdf4", encoding=encoding)
+        yield tmp
         os.chmod(tmp, 0o666 & ~_UMASK)
-        _fsync_path(tmp)
+        if durable:
+            _fsync_path(tmp)
         os.replace(tmp, path)
     except BaseException:
-        try:
+        with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
-        except FileNotFoundError:
-            pass
         raise
-    try:  # make the rename itself durable; not possible on every platform / file system
-        _fsync_path(folder)
-    except OSError:
-        pass
-    return stored
+    if durable:
+        with contextlib.suppress(OSError):  # make the rename durable; not possible on every file system
+            _fsync_path(path.parent)
 
 
 # ------------------------------------------------------------------------------------------- reading

@@ -21,10 +21,7 @@ a GIF (an MP4 when matplotlib finds ffmpeg), whatever image formats are asked fo
 
 from __future__ import annotations
 
-import contextlib
 import functools
-import os
-import tempfile
 import warnings
 from pathlib import Path
 
@@ -39,7 +36,7 @@ from matplotlib.patches import Patch
 from matplotlib.ticker import MaxNLocator
 from matplotlib.tri import Triangulation
 
-from . import attitude_plots, theory
+from . import attitude_plots, io, theory
 
 __all__ = ["ANIMATIONS", "DOUBLE", "FIGURES", "SINGLE", "can_draw", "flip_animation", "flip_components",
            "flip_law", "flip_strip", "herpolhode", "invariant_drift", "norm_growth", "polhode", "save_figures",
@@ -781,18 +778,9 @@ def can_draw(ds, name):
 
 
 def _save_atomic(fig, path, fmt, dpi):
-    """Write ``fig`` to a temporary file beside ``path``, then rename it onto ``path`` (removed on failure)."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".part")
-    os.close(fd)
-    try:
-        with matplotlib.rc_context(_STYLE):
-            fig.savefig(tmp, format=fmt, dpi=dpi, metadata={"CreationDate": None} if fmt == "pdf" else None)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
+    """Write ``fig`` to ``path`` atomically (:func:`tumble.io.replaced_atomically`)."""
+    with io.replaced_atomically(path) as tmp, matplotlib.rc_context(_STYLE):
+        fig.savefig(tmp, format=fmt, dpi=dpi, metadata={"CreationDate": None} if fmt == "pdf" else None)
 
 
 def save_figures(ds, names, directory, stem, formats=("png",), dpi=200):
