@@ -593,10 +593,10 @@ def rotation_per_period(body, w0, *, nodes=256, max_nodes=1 << 16, tol=1e-13):
     body rotate? A Berry's phase from the 18th century", Am. J. Phys. 59, 394 (1991)), with ``S`` the solid
     angle enclosed by the path of ``L / |L|`` in the body frame: the cap about the pole ``±e_p`` it circles
     (``p`` the axis whose component keeps its sign), counted positive when ``L / |L|`` circles that pole
-    clockwise seen from outside the sphere, negative otherwise.
+    counterclockwise seen from outside the sphere (right-handed about it), negative when clockwise.
 
-    ``S = -s ∮ (1 - s cos θ) dψ`` (``s = ±1`` the pole) is computed here from the closed-form motion (:func:`omega`) with the trapezoid
-    rule over one period, which converges geometrically for this smooth periodic integrand; ``ψ' = (n_b
+    ``S = -s ∮ (1 - s cos θ) dψ`` (``s = ±1`` the pole) is computed here from the closed-form motion
+    (:func:`omega`) with the trapezoid rule over one period, which converges geometrically for this smooth periodic integrand; ``ψ' = (n_b
     n_a' - n_a n_b') / (n_a² + n_b²)`` with ``n' = n × w`` (``n = L/|L|`` in body axes ``(a, b, p)``, ``p``
     the axis the polhode circles, ``cos θ = n_p``). The nodes double until two estimates agree to ``tol``.
     It is independent of :func:`attitude`, which gives the same angle from an elliptic integral of the third
