@@ -30,6 +30,7 @@ What the scene skipped is on the dataset (``path``, ``sample_steps_computed``, `
 from __future__ import annotations
 
 import itertools
+import json
 import math
 import sys
 import warnings
@@ -960,11 +961,10 @@ def attitude_trace(body, axis=2, spin=1.0, amplitude=1e-3, method="auto", *, hor
         ``attitude_moments(component)`` (kg m²); ``component`` is the principal axis (1, 2, 3), as in
         ``trace_omega``.
     """
-    import json
-
     moments = one_body(body)
     w0 = perturbed_spins(moments, axis, spin, amplitude, 1, seed=seed)
-    torque_free = torque_spec(torque)[1] is None and torque_spec(torque)[2] is None
+    _, params, fn, _ = torque_spec(torque)
+    torque_free = params is None and fn is None
     chosen = method
     if method == "auto":
         chosen = "exact" if torque_free else AUTO_FORCED_METHOD
