@@ -38,9 +38,10 @@ import numpy as np
 import xarray as xr
 
 import tumble
-from tumble import exact
-from tumble.sampling import perturbed_spins, seed_entropy
-from tumble.study import SAMPLE_STATUS_NAMES
+from tumble.physics import exact
+from tumble.engine.sampling import perturbed_spins, seed_entropy
+from tumble.measure import estimators
+from tumble.measure.scenes import SAMPLE_STATUS_NAMES
 
 from provenance import source_digest  # benchmarks/provenance.py
 
@@ -185,7 +186,7 @@ def _worst_exponential_check(worst, samples, method):
     """The worst exponential scene again at smaller amplitudes: is its error the nonlinear correction (falls
     as ε²) or something else? Also where its fit window ends, in plain transverse components."""
     moments = np.array([worst["I1_over_I3"], worst["I2_over_I3"], 1.0])
-    weights = tumble.analysis.invariant_weights(moments, 2)
+    weights = estimators.invariant_weights(moments, 2)
     g_min = float(min(weights[0], weights[2]))
     rows = []
     for amp in WORST_CHECK_AMPLITUDES:

@@ -26,7 +26,7 @@ import numba
 import numpy as np
 
 import tumble
-from tumble import exact
+from tumble.physics import exact
 from tumble.kernels import methods as kernel_methods
 from tumble.kernels.methods import METHODS
 

@@ -30,7 +30,7 @@ from pathlib import Path
 import numba
 
 import tumble
-from tumble import config, distributed, runner
+from tumble.pipeline import config, distributed, runner
 
 RESULTS = Path(__file__).with_name("results")
 REPEATS = 3

@@ -53,12 +53,12 @@ import numpy as np
 import xarray as xr
 
 import tumble
-from tumble import exact, theory
-from tumble.engine import DEFAULT_DRIFT_LIMIT, run_ensemble
+from tumble.physics import exact, theory
+from tumble.engine.ensemble import DEFAULT_DRIFT_LIMIT, run_ensemble
 from tumble.kernels import tableaux
 from tumble.kernels.drivers import STATUS_DRIFT, STATUS_NAMES, STATUS_OK
 from tumble.kernels.methods import METHODS as _KERNEL_METHODS
-from tumble.sampling import perturbed_spins
+from tumble.engine.sampling import perturbed_spins
 
 from provenance import source_digest  # benchmarks/provenance.py
 

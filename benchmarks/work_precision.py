@@ -35,8 +35,8 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from tumble.io import write_dataset
-from tumble.precision import speedups, work_precision
+from tumble.output.io import write_dataset
+from tumble.measure.precision import speedups, work_precision
 
 RESULTS = Path(__file__).with_name("results")
 
@@ -180,7 +180,7 @@ def main(argv=None):
     (out / "work_precision.json").write_text(json.dumps(numbers, indent=1, default=str))
     figure = ""
     try:
-        from tumble import plots
+        from tumble.output import figures as plots
 
         written = plots.save_figures(ds, ["work_precision"], out, stem="work_precision")
         figure = ", ".join(str(p) for p in written)

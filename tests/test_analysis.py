@@ -10,8 +10,10 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from tumble import analysis, exact, sampling, theory
-from tumble.analysis import FIT_NO_SIGNAL, FIT_OK, FIT_SHORT_WINDOW, FIT_UNDERSAMPLED
+from tumble.measure import estimators as analysis
+from tumble.physics import exact, theory
+from tumble.engine import sampling
+from tumble.measure.estimators import FIT_NO_SIGNAL, FIT_OK, FIT_SHORT_WINDOW, FIT_UNDERSAMPLED
 
 MOMENTS = np.array([1.0, 2.0, 3.0])
 SQRT3 = np.sqrt(3.0)

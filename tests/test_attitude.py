@@ -6,7 +6,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import tumble
-from tumble import exact, rotations, shapes
+from tumble.physics import exact, rotations, shapes
 from tumble.kernels import methods as kernel_methods
 from tumble.kernels.methods import METHODS
 
@@ -251,7 +251,7 @@ def test_the_dzhanibekov_flip_study_draws_its_attitude_figures_and_plot_redraws_
 
 
 def test_attitude_trace_by_a_fixed_step_method_matches_the_closed_form():
-    from tumble import study
+    from tumble.measure import scenes as study
 
     handle = shapes.t_handle()
     closed = study.attitude_trace(handle, 2, 10.0, 1e-3)

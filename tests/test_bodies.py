@@ -6,7 +6,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from tumble.bodies import Body, as_moments, validate_moments
+from tumble.physics.bodies import Body, as_moments, validate_moments
 
 
 def random_rotation(rng):

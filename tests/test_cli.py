@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 
 import tumble
-from tumble import cli, config, io, runner
+from tumble import cli
+from tumble.pipeline import config, runner
+from tumble.output import io
 
 # A study small enough to run in a second on the closed-form path.
 TINY = """

@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 import tumble
-from tumble import config
-from tumble.config import StudyError, load_study
+from tumble.engine import sampling
+from tumble.pipeline import config
+from tumble.pipeline.config import StudyError, load_study
 
 
 def write(tmp_path, text, name="study.toml"):
@@ -57,7 +58,7 @@ def test_defaults_file_has_every_section_and_key_the_validator_knows():
 def test_defaults_file_documents_every_allowed_name():
     text = config.DEFAULTS_PATH.read_text(encoding="utf-8")
     names = (*config.SHAPES, *config.METHOD_NAMES, *config.PROFILES, *config.FIGURES, *config.FORMATS,
-             *config.ARRAYS, *tumble.sampling.DISTRIBUTIONS, *config.SCAN_KEYS)
+             *config.ARRAYS, *sampling.DISTRIBUTIONS, *config.SCAN_KEYS)
     missing = [name for name in names if not re.search(rf"\b{name}\b", text)]
     assert not missing
 

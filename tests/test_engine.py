@@ -9,10 +9,10 @@ import textwrap
 import numpy as np
 import pytest
 
-from tumble import exact
-from tumble.engine import run_ensemble
+from tumble.physics import exact
+from tumble.engine.ensemble import run_ensemble
 from tumble.kernels.drivers import CHECK_EVERY, STATUS_DRIFT, STATUS_NONFINITE, STATUS_OK
-from tumble.sampling import perturbed_spins
+from tumble.engine.sampling import perturbed_spins
 
 MOMENTS = np.array([1.0, 2.0, 3.0])
 AXIS = 2  # the spins below are about the intermediate axis
@@ -111,8 +111,8 @@ def test_results_do_not_depend_on_the_chunk_size(method, spins):
 def test_results_are_bit_identical_with_one_or_two_numba_threads(tmp_path):
     script = textwrap.dedent("""
         import sys, numpy as np
-        from tumble.engine import run_ensemble
-        from tumble.sampling import perturbed_spins
+        from tumble.engine.ensemble import run_ensemble
+        from tumble.engine.sampling import perturbed_spins
         w0 = perturbed_spins((1.0, 2.0, 3.0), 2, 1.0, 1e-3, 700, seed=3)
         for method in ("rk4", "splitting2"):
             r = run_ensemble((1.0, 2.0, 3.0), w0, 3.0, 0.01, method=method, axis=2, probe_times=[1.5, 3.0])
@@ -172,7 +172,7 @@ def test_ctrl_c_stops_between_chunks(spins, monkeypatch, path):
     """SIGINT during the second chunk lets that chunk finish, starts no other, and restores the handler."""
     import signal
 
-    import tumble.engine as engine
+    from tumble.engine import ensemble as engine
 
     target = "exact" if path == "closed form" else "run"
     real = getattr(engine.exact, "omega") if target == "exact" else engine.run

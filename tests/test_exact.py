@@ -14,7 +14,7 @@ from scipy.integrate import solve_ivp
 import scipy.special as sc
 
 import tumble
-from tumble import exact
+from tumble.physics import exact
 
 mpmath = pytest.importorskip("mpmath")
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import tumble
-from tumble import theory
+from tumble.physics import theory
 from tumble.kernels import tableaux
 from tumble.kernels.methods import METHODS, run
 

@@ -11,8 +11,8 @@ import pytest
 import xarray as xr
 from xarray.testing import assert_identical
 
-from tumble import __version__
-from tumble.io import check_tumble_result, netcdf_safe_attrs, provenance, read_dataset, write_dataset
+from tumble._version import __version__
+from tumble.output.io import check_tumble_result, netcdf_safe_attrs, provenance, read_dataset, write_dataset
 
 STUDY = {
     "body": {"moments": [1.0, 2.0, 3.0], "shape": "cuboid"},

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from tumble.precision import default_steps, speedups, time_to_error, work_precision
+from tumble.measure.precision import default_steps, speedups, time_to_error, work_precision
 
 TINY_STEPS = {"rk4": [8, 16, 32, 64], "splitting2": [8, 16, 32]}
 TINY_RTOLS = [1e-3, 1e-6, 1e-9]

@@ -14,7 +14,8 @@ import xarray as xr
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from tumble import checkpoint, cli, config, runner
+from tumble.pipeline import checkpoint, config, runner
+from tumble import cli
 
 from test_resume import _toml, assert_same_result, finished_chunks
 

@@ -9,9 +9,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import stats
 
-from tumble import sampling
-from tumble.bodies import Body
-from tumble.sampling import (
+from tumble.engine import sampling
+from tumble.physics.bodies import Body
+from tumble.engine.sampling import (
     CHUNK,
     DISTRIBUTIONS,
     chunk_count,

@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tumble import shapes
-from tumble.bodies import Body
+from tumble.physics import shapes
+from tumble.physics.bodies import Body
 
 M, L = 2.5, 1.7  # arbitrary mass (kg) and length (m) so that factors of M and L are checked too
 

@@ -6,8 +6,11 @@ import pytest
 import xarray as xr
 
 import tumble
-from tumble import exact, io, shapes, theory
-from tumble.study import SAMPLE_STATUS_NAMES, flip_time_law, inertia_triangle, measure, regress_scan, scan
+from tumble.physics import exact, shapes, theory
+from tumble.output import io
+from tumble.engine import sampling
+from tumble.measure import scenes as study
+from tumble.measure.scenes import SAMPLE_STATUS_NAMES, flip_time_law, inertia_triangle, measure, regress_scan, scan
 
 MOMENTS = (1.0, 2.0, 3.0)
 
@@ -54,7 +57,7 @@ def test_periodic_rate_error_is_the_nonlinear_correction_of_order_amplitude_squa
 def test_periodic_sample_rates_are_the_exact_frequencies():
     """The invariant phase advances by 2π per period of the exact motion: each sample's rate is 2π/period."""
     ds = measure(MOMENTS, 3, amplitude=0.05, samples=64, seed=5)
-    w0 = tumble.sampling.perturbed_spins(MOMENTS, 3, 1.0, 0.05, 64, seed=5)
+    w0 = sampling.perturbed_spins(MOMENTS, 3, 1.0, 0.05, 64, seed=5)
     np.testing.assert_allclose(ds.sample_rate, 2 * np.pi / exact.period(MOMENTS, w0), rtol=2e-3)
 
 
@@ -105,7 +108,7 @@ def test_degenerate_bodies_get_a_clear_answer(body, axis, kind):
 def test_neutral_symmetric_top_measures_the_precession_of_its_equal_pair():
     """I1 = I2: w3 is constant and (w1, w2) turns at w3 (I3 - I1)/I1 — the rate a neutral scene reports."""
     ds = measure((1.0, 1.0, 2.0), 1, amplitude=1e-2, samples=64, seed=2)
-    w0 = tumble.sampling.perturbed_spins((1.0, 1.0, 2.0), 1, 1.0, 1e-2, 64, seed=2)
+    w0 = sampling.perturbed_spins((1.0, 1.0, 2.0), 1, 1.0, 1e-2, 64, seed=2)
     np.testing.assert_allclose(ds.sample_rate, np.abs(w0[:, 2]) * (2.0 - 1.0) / 1.0, rtol=1e-6)
 
 
@@ -236,7 +239,7 @@ def test_curves_are_kept_only_when_asked_and_follow_the_theory():
 
 
 def test_invariant_drift_separates_geometric_methods_from_runge_kutta(warm_kernels):
-    ds = tumble.study.invariant_drift(MOMENTS, 2, methods=("rk4", "splitting2"), samples=4)
+    ds = study.invariant_drift(MOMENTS, 2, methods=("rk4", "splitting2"), samples=4)
     assert ds.drift_l2.dims == ("drift_method", "drift_time") and ds.drift_time.size == 201
     worst = ds.drift_l2.max("drift_time")
     assert float(worst.sel(drift_method="splitting2")) < 1e-14 < float(worst.sel(drift_method="rk4"))

@@ -8,8 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
-from tumble import shapes, theory
-from tumble.bodies import Body
+from tumble.physics import shapes, theory
+from tumble.physics.bodies import Body
 
 SQRT3 = np.sqrt(3.0)
 
@@ -330,7 +330,7 @@ def test_constant_torque_rejects_asymmetric_bodies_and_bad_shapes():
 
 def _exact_ready():
     try:
-        from tumble import exact
+        from tumble.physics import exact
     except Exception:  # noqa: BLE001 - any import failure means "not ready"
         return False
     return all(hasattr(exact, name) for name in ("parameters", "first_flip_time", "flip_spacing"))
@@ -369,7 +369,7 @@ def w2_zero_crossings(moments, w0, t_end):
 @needs_exact
 @pytest.mark.parametrize("side", ["around_3", "around_1"])
 def test_exact_parameters_use_the_landau_modulus(side):
-    from tumble import exact
+    from tumble.physics import exact
 
     w0 = flip_start(1e-2, side)
     assert float(exact.parameters(FLIP_MOMENTS, w0).kc) == pytest.approx(landau_kc(FLIP_MOMENTS, w0), rel=1e-8)
@@ -378,7 +378,7 @@ def test_exact_parameters_use_the_landau_modulus(side):
 @needs_exact
 @pytest.mark.parametrize("side", ["around_3", "around_1"])
 def test_first_flip_comes_a_quarter_period_after_the_w2_maximum_as_in_euler_integration(side):
-    from tumble import exact
+    from tumble.physics import exact
 
     w0 = flip_start(1e-3, side)
     p = exact.parameters(FLIP_MOMENTS, w0)
@@ -391,7 +391,7 @@ def test_first_flip_comes_a_quarter_period_after_the_w2_maximum_as_in_euler_inte
 @needs_exact
 @pytest.mark.parametrize("side", ["around_3", "around_1"])
 def test_flips_are_spaced_by_half_the_period_as_in_euler_integration(side):
-    from tumble import exact
+    from tumble.physics import exact
 
     w0 = flip_start(1e-3, side)
     p = exact.parameters(FLIP_MOMENTS, w0)

@@ -3,22 +3,37 @@
 Which spins of a rigid body are stable, and how fast do perturbations grow (intermediate axis) or
 oscillate (largest and smallest axes)? tumble integrates Euler's equations for large ensembles of perturbed
 spins with numba kernels and compares them with linear theory and the exact Jacobi-elliptic solution.
+
+This module is the public face: it re-exports what users call. The implementation lives in layers, bottom
+to top (imports point down only; see ``docs/architecture.md``): ``kernels`` (numba), ``physics`` (bodies,
+shapes, theory, the closed form), ``engine`` (ensemble runs, sampling, ``integrate``), ``measure``
+(estimators, scenes, scans, work precision), ``output`` (datasets, netCDF, figures) and ``pipeline``
+(study files, runs, checkpoints, dask), with ``cli`` on top.
+
+Note that ``tumble.measure`` is the function :func:`tumble.measure.scenes.measure`; the ``tumble/measure/``
+package's modules are reached with ``from tumble.measure import scenes`` (or ``import tumble.measure.scenes``
+followed by ``sys.modules``), never by attribute access through the face.
 """
 
-from importlib.metadata import PackageNotFoundError, version
+import sys
 
-try:
-    __version__ = version("tumble")
-except PackageNotFoundError:  # running from a source tree that was not installed
-    __version__ = "0+unknown"
+from ._version import __version__
+from .engine import sampling
+from .engine.ensemble import run_ensemble
+from .engine.integration import integrate
+from .measure.scenes import attitude_trace, flip_time_law, inertia_triangle, measure, regress_scan, scan
+from .output import io
+from .physics import exact, rotations, shapes, theory
+from .physics.bodies import Body
+from .pipeline.runner import run_study
 
-from . import analysis, exact, io, rotations, sampling, shapes, study, theory  # noqa: E402  (modules read __version__)
-from .bodies import Body  # noqa: E402
-from .engine import run_ensemble  # noqa: E402
-from .integration import integrate  # noqa: E402
-from .study import flip_time_law, inertia_triangle, measure, regress_scan, scan  # noqa: E402
-from .runner import run_study  # noqa: E402
+# The physics modules of the public contract keep their short import paths (`import tumble.exact`,
+# `from tumble.theory import linear`), as they had before the layers became folders.
+for _name, _module in (("exact", exact), ("theory", theory), ("shapes", shapes), ("rotations", rotations),
+                       ("io", io), ("sampling", sampling)):
+    sys.modules[f"{__name__}.{_name}"] = _module
+del _name, _module
 
-__all__ = ["Body", "analysis", "exact", "flip_time_law", "inertia_triangle", "integrate", "io", "measure",
-           "regress_scan", "rotations", "run_ensemble", "run_study", "sampling", "scan", "shapes", "study", "theory",
+__all__ = ["Body", "attitude_trace", "exact", "flip_time_law", "inertia_triangle", "integrate", "io", "measure",
+           "regress_scan", "rotations", "run_ensemble", "run_study", "sampling", "scan", "shapes", "theory",
            "__version__"]

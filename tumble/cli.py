@@ -15,8 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__, exact, shapes, theory
-from .integration import integrate
+from ._version import __version__
+from .physics import exact, shapes, theory
+from .engine.integration import integrate
 
 _METHODS = ("rk4", "rk8", "symplectic_euler", "splitting2", "splitting4", "implicit_midpoint", "exact")
 
@@ -92,7 +93,7 @@ class InputError(ValueError):
 
 
 def _run(args):
-    from . import checkpoint, config, runner
+    from .pipeline import checkpoint, config, runner
 
     overrides = {key: value for key, value in (("perturbation.samples", args.samples),
                                                ("perturbation.seed", args.seed)) if value is not None}
@@ -132,7 +133,7 @@ def _run(args):
             ds = runner._run(resolved, args.study, None, job=job, store=store, chunk_scenes=chunk,
                              chunk_samples=args.chunk_samples, log=log)
         else:
-            from . import distributed
+            from .pipeline import distributed
 
             with distributed.connect(scheduler, workers=args.workers) as client:
                 print(f"dask scheduler {client.scheduler.address}: {len(client.scheduler_info()['workers'])} "
@@ -155,7 +156,7 @@ def _run(args):
 
 def _scheduler(args):
     """The dask scheduler asked for (``--scheduler`` or ``$DASK_SCHEDULER_ADDRESS``), or None: in-process."""
-    from . import distributed
+    from .pipeline import distributed
 
     try:
         return distributed.scheduler_address(args.scheduler)
@@ -164,7 +165,7 @@ def _scheduler(args):
 
 
 def _studies(args):
-    from . import config
+    from .pipeline import config
 
     names = config.bundled_studies()
     width = max(map(len, names), default=0)
@@ -175,7 +176,7 @@ def _studies(args):
 
 
 def _plot(args):
-    from . import io, plots
+    from .output import io, figures as plots
 
     path = Path(args.file)
     if not path.is_file():
@@ -259,8 +260,8 @@ def _parser():
 
 def main(argv=None):
     """Entry point of ``tumble`` and ``python -m tumble``; returns the exit status."""
-    from .checkpoint import OutputError
-    from .config import StudyError
+    from .pipeline.checkpoint import OutputError
+    from .pipeline.config import StudyError
 
     args = _parser().parse_args(argv)
     try:

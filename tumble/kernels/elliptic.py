@@ -1,6 +1,6 @@
 """Jacobi elliptic functions that keep relative accuracy up to the parameter ``m = 1``.
 
-numba kernels for the exact torque-free solution (:mod:`tumble.exact`). Everything here takes the
+numba kernels for the exact torque-free solution (:mod:`tumble.physics.exact`). Everything here takes the
 *complementary modulus* ``kc = k' = sqrt(1 - m)`` instead of ``m``: near the separatrix of the free rigid
 body ``k'`` is proportional to the distance from the separatrix, and ``1 - m`` rounded to a double would
 already have lost it.

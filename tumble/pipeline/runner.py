@@ -7,7 +7,7 @@ orientation in space only for the attitude figures (``flip_animation``, ``flip_s
 ``herpolhode``).
 
 Every check that can fail on the study's input runs before anything is computed or written, and every file
-is written atomically (:func:`tumble.io.write_dataset`, :func:`tumble.plots.save_figures`), so invalid input
+is written atomically (:func:`tumble.output.io.write_dataset`, :func:`tumble.output.figures.save_figures`), so invalid input
 never leaves a file behind.
 """
 
@@ -24,10 +24,13 @@ from typing import NamedTuple
 import numpy as np
 from tqdm.auto import tqdm
 
-from . import checkpoint, config, io, plots, study, theory
+from . import checkpoint, config
+from ..output import io, figures as plots
+from ..measure import scenes as study
+from ..physics import theory
 from .config import StudyError
-from .kernels.methods import METHODS
-from .sampling import CHUNK
+from ..kernels.methods import METHODS
+from ..engine.sampling import CHUNK
 
 __all__ = ["DEFAULT_CHUNK_SAMPLES", "PER_SAMPLE", "Task", "chunk_samples_size", "compute_samples", "compute_scene",
            "compute_task", "default_chunk_scenes", "open_checkpoint", "output_stem", "plan", "plan_tasks", "run_scenes",
@@ -36,7 +39,7 @@ __all__ = ["DEFAULT_CHUNK_SAMPLES", "PER_SAMPLE", "Task", "chunk_samples_size", 
 #: Per-sample variables a result may keep (``outputs.arrays``); the rest are dropped after the fit.
 PER_SAMPLE = ("sample_rate", "sample_status", "sample_first_flip", "sample_flip_spacing")
 
-#: Figures that need curves :func:`tumble.study.measure` keeps only on request.
+#: Figures that need curves :func:`tumble.measure.scenes.measure` keeps only on request.
 _CURVES = {"norm_growth": "norm", "flip_components": "trace"}
 
 #: Samples of the per-method invariant record (``invariant_drift``).
@@ -67,9 +70,9 @@ def _bodies(resolved):
 
 
 def plan(resolved, file="<mapping>"):
-    """What a resolved study will run: a dict of :func:`tumble.study.scan` / ``measure`` arguments.
+    """What a resolved study will run: a dict of :func:`tumble.measure.scenes.scan` / ``measure`` arguments.
 
-    Raises :class:`~tumble.config.StudyError` for combinations that are valid field by field but cannot
+    Raises :class:`~tumble.pipeline.config.StudyError` for combinations that are valid field by field but cannot
     give what the study asks (a figure the scan cannot draw, a torque about an unstable axis).
     """
     scan = resolved["scan"]
@@ -121,13 +124,13 @@ def scene_job(resolved, file="<mapping>"):
     Returns
     -------
     dict
-        ``layout`` (:func:`tumble.study.scan_layout`; ``layout["scenes"]`` scenes), ``scanned`` (False: one
-        :func:`tumble.study.measure`), ``samples``, ``seed``, ``options`` (keyword arguments of ``measure``),
+        ``layout`` (:func:`tumble.measure.scenes.scan_layout`; ``layout["scenes"]`` scenes), ``scanned`` (False: one
+        :func:`tumble.measure.scenes.measure`), ``samples``, ``seed``, ``options`` (keyword arguments of ``measure``),
         ``body_coords`` and the :func:`plan` itself.
 
     Raises
     ------
-    tumble.config.StudyError
+    tumble.pipeline.config.StudyError
         As :func:`plan`.
     """
     p = plan(resolved, file)
@@ -154,7 +157,7 @@ class Task(NamedTuple):
 
 
 def _scene_plan(job, index):
-    """:func:`tumble.study.scene_plan` of scene ``index`` of a :func:`scene_job`."""
+    """:func:`tumble.measure.scenes.scene_plan` of scene ``index`` of a :func:`scene_job`."""
     moments, params = study.scan_scene_parameters(job["layout"], index)
     return study.scene_plan(moments, params["axis"], params["spin"], params["amplitude"], job["samples"], job["seed"],
                             params["method"], **job["options"])
@@ -162,25 +165,25 @@ def _scene_plan(job, index):
 
 def _scene_dataset(job, scene, parts):
     """The normalised dataset of a scene from its sample ranges (a scan's scenes without ``I1..I3``, as
-    :func:`tumble.study.scan_scene`)."""
+    :func:`tumble.measure.scenes.scan_scene`)."""
     ds = study.scene_result(scene, parts)
     return checkpoint.normalise_scene(ds.drop_vars(["I1", "I2", "I3"]) if job["scanned"] else ds)
 
 
 def compute_scene(job, index, *, progress=False):
     """Scene ``index`` of a :func:`scene_job`, whole: a scan's scene, or the study's one measurement (normalised,
-    :func:`tumble.checkpoint.normalise_scene`)."""
+    :func:`tumble.pipeline.checkpoint.normalise_scene`)."""
     scene = _scene_plan(job, index)
     return _scene_dataset(job, scene, [study.scene_samples(scene, 0, job["samples"], progress=progress)])
 
 
 def compute_samples(job, index, start, stop, *, progress=False):
-    """Samples ``[start, stop)`` of scene ``index`` (:func:`tumble.study.scene_samples`)."""
+    """Samples ``[start, stop)`` of scene ``index`` (:func:`tumble.measure.scenes.scene_samples`)."""
     return study.scene_samples(_scene_plan(job, index), start, stop, progress=progress)
 
 
 def compute_task(job, task, digest="", *, threads=None, progress=False):
-    """Run one :class:`Task`; return its chunk file's bytes (:mod:`tumble.checkpoint`), stamped with ``digest``.
+    """Run one :class:`Task`; return its chunk file's bytes (:mod:`tumble.pipeline.checkpoint`), stamped with ``digest``.
 
     This is what a dask worker runs: the result it sends back is the compact archive the client writes as it
     is and reads without unpickling anything. ``threads`` sets numba's thread count for the calling thread
@@ -207,7 +210,7 @@ def default_chunk_scenes(scenes):
 
 #: Samples per chunk of one scene when not given (``--chunk-samples``): a scene of more samples is cut into
 #: ranges of this many, run and checkpointed apart (1e6 samples: 8 ranges). A multiple of
-#: :data:`tumble.sampling.CHUNK`, like every range boundary.
+#: :data:`tumble.engine.sampling.CHUNK`, like every range boundary.
 DEFAULT_CHUNK_SAMPLES = 32 * CHUNK
 
 
@@ -221,7 +224,7 @@ def _count(value, name, default):
 
 def chunk_samples_size(chunk_samples=None):
     """Samples per range of a split scene: ``chunk_samples`` checked (a positive multiple of
-    :data:`tumble.sampling.CHUNK`), or :data:`DEFAULT_CHUNK_SAMPLES`."""
+    :data:`tumble.engine.sampling.CHUNK`), or :data:`DEFAULT_CHUNK_SAMPLES`."""
     size = _count(chunk_samples, "chunk_samples", DEFAULT_CHUNK_SAMPLES)
     if size % CHUNK:
         raise ValueError(f"chunk_samples must be a multiple of {CHUNK} (the sampler's block of samples), "
@@ -232,7 +235,7 @@ def chunk_samples_size(chunk_samples=None):
 def sample_ranges(samples, size, *, first=0, done=()):
     """The ``[start, stop)`` ranges that cover the samples of one scene not covered by ``done``.
 
-    Boundaries are the multiples of ``size`` (a multiple of :data:`tumble.sampling.CHUNK`), so every sample ``i``
+    Boundaries are the multiples of ``size`` (a multiple of :data:`tumble.engine.sampling.CHUNK`), so every sample ``i``
     is drawn and run exactly as in the whole scene; the range holding sample 0 reaches at least ``first``. The
     ``done`` ranges (from a checkpoint, perhaps cut with another size) are kept as they are.
     """
@@ -246,7 +249,7 @@ def sample_ranges(samples, size, *, first=0, done=()):
 
 def _usable_parts(parts, samples, first):
     """The finished ranges of one scene a run can build on: inside the scene, not overlapping, aligned to
-    :data:`tumble.sampling.CHUNK`, none but the first starting before ``first`` (the norm curve's samples)."""
+    :data:`tumble.engine.sampling.CHUNK`, none but the first starting before ``first`` (the norm curve's samples)."""
     kept, end = {}, 0
     for (start, stop), part in sorted(parts.items()):
         if start >= end and stop <= samples and start % CHUNK == 0 and (start == 0 or start >= first):
@@ -256,7 +259,7 @@ def _usable_parts(parts, samples, first):
 
 
 def plan_tasks(job, done, *, chunk_scenes=None, chunk_samples=None):
-    """The :class:`Task` list of what ``done`` (a :class:`tumble.checkpoint.Finished`) lacks.
+    """The :class:`Task` list of what ``done`` (a :class:`tumble.pipeline.checkpoint.Finished`) lacks.
 
     Scenes of at most ``chunk_samples`` samples run whole, ``chunk_scenes`` to a task; a larger scene (or one
     with finished ranges) runs as sample ranges (:func:`sample_ranges`), one to a task. Unusable finished ranges
@@ -286,10 +289,10 @@ def run_scenes(job, *, store=None, client=None, chunk_scenes=None, chunk_samples
     ----------
     job : dict
         From :func:`scene_job`.
-    store : tumble.checkpoint.Checkpoint, optional
+    store : tumble.pipeline.checkpoint.Checkpoint, optional
         Finished chunks are read from it and every newly finished chunk is written to it (atomically).
     client : distributed.Client, optional
-        Run the chunks on this dask cluster (:mod:`tumble.distributed`); default: in this process.
+        Run the chunks on this dask cluster (:mod:`tumble.pipeline.distributed`); default: in this process.
     chunk_scenes : int, optional
         Scenes per chunk (default :func:`default_chunk_scenes`). The results do not depend on it.
     chunk_samples : int, optional
@@ -303,7 +306,7 @@ def run_scenes(job, *, store=None, client=None, chunk_scenes=None, chunk_samples
     Returns
     -------
     list of xarray.Dataset
-        The scenes, normalised (:func:`tumble.checkpoint.normalise_scene`).
+        The scenes, normalised (:func:`tumble.pipeline.checkpoint.normalise_scene`).
     """
     n = job["layout"]["scenes"]
     digest = store.digest if store is not None else ""
@@ -373,7 +376,7 @@ def _run(resolved, file, progress, *, job=None, store=None, client=None, chunk_s
         ds = ds.merge(study.invariant_drift(*scene, methods, samples=min(_DRIFT_SAMPLES, p["samples"]),
                                             seed=p["seed"], horizon=options["horizon"]))
     if "work_precision" in figures:
-        from . import precision  # scipy's solve_ivp runs: imported only when asked for
+        from ..measure import precision  # scipy's solve_ivp runs: imported only when asked for
 
         ds = ds.merge(precision.work_precision(*scene, samples=p["samples"], t_end=options["horizon"] or 20.0,
                                                seed=p["seed"], progress=progress))
@@ -388,7 +391,7 @@ def _run(resolved, file, progress, *, job=None, store=None, client=None, chunk_s
 
 
 def open_checkpoint(resolved, job, directory, stem):
-    """The :class:`~tumble.checkpoint.Checkpoint` of a study writing ``<directory>/<stem>.nc``."""
+    """The :class:`~tumble.pipeline.checkpoint.Checkpoint` of a study writing ``<directory>/<stem>.nc``."""
     return checkpoint.Checkpoint(directory, stem, checkpoint.study_hash(resolved), job["layout"]["scenes"])
 
 
@@ -397,7 +400,7 @@ def write_outputs(ds, resolved, directory, stem, *, action=None):
 
     Raises
     ------
-    tumble.checkpoint.OutputError
+    tumble.pipeline.checkpoint.OutputError
         A file cannot be written (unwritable folder, disk full): an earlier ``<stem>.nc`` is left as it was.
     """
     directory = Path(directory)
@@ -431,12 +434,12 @@ def run_study(source, *, overrides=None, out=None, progress=None, scheduler=None
         Folder to write ``<stem>.nc`` and the figures to. Without it, files are written only when the study
         sets ``outputs.directory``; otherwise nothing is written (the command line's ``tumble run`` writes
         to ``data/runs/<stem>/`` by default). When writing, finished chunks of scenes are checkpointed in
-        ``<out>/.<stem>.chunks/`` and a rerun resumes from them (:mod:`tumble.checkpoint`).
+        ``<out>/.<stem>.chunks/`` and a rerun resumes from them (:mod:`tumble.pipeline.checkpoint`).
     progress : bool, optional
         Progress bars (default: on a terminal only).
     scheduler : str or distributed.Client, optional
         Run the scenes on a dask cluster: ``"local"`` (a LocalCluster on 127.0.0.1), a scheduler address
-        ``"tcp://HOST:PORT"``, or a connected ``distributed.Client`` (see :mod:`tumble.distributed`).
+        ``"tcp://HOST:PORT"``, or a connected ``distributed.Client`` (see :mod:`tumble.pipeline.distributed`).
         Default: in this process. The results are the same bits either way.
     chunk_scenes : int, optional
         Scenes per chunk (checkpoint and dask task); the results do not depend on it.
@@ -453,9 +456,9 @@ def run_study(source, *, overrides=None, out=None, progress=None, scheduler=None
 
     Raises
     ------
-    tumble.config.StudyError
+    tumble.pipeline.config.StudyError
         Invalid study (the message names the file, the field path and what is wrong); nothing is written.
-    tumble.checkpoint.OutputError
+    tumble.pipeline.checkpoint.OutputError
         The output folder cannot be written; earlier results there are left as they were.
     """
     resolved = config.load_study(source, overrides=overrides)
@@ -520,7 +523,7 @@ def summary_table(ds, limit=24):
                 lines.append(f"{kind:11s} {np.count_nonzero(kinds == kind):7d} {np.nanmedian(picked):18.2e} "
                              f"{picked[worst]:10.2e}  {_scene_label(ds, worst)}")
     if "wp_error" in ds:
-        from . import precision
+        from ..measure import precision
 
         fast = precision.speedups(ds)
         lines.append(f"\n{'error':>8s} {'best tumble method':>20s} {'x DOP853':>9s} {'exact x DOP853':>15s}")

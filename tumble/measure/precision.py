@@ -9,7 +9,7 @@
   ensemble (one state vector of length ``3 N``) with a right-hand side written in numpy array operations —
   the fastest way a SciPy user has to integrate many spins at once,
 
-and measures, per point, the error at ``t_end`` against the exact solution (:func:`tumble.exact.omega`)
+and measures, per point, the error at ``t_end`` against the exact solution (:func:`tumble.physics.exact.omega`)
 and the wall time (median of ``repeats`` runs, compile time excluded and reported separately).
 :func:`speedups` reads the resulting curves off at given errors and forms ratios against a baseline.
 
@@ -50,11 +50,12 @@ import numba
 import numpy as np
 import xarray as xr
 
-from . import __version__, exact
-from .bodies import one_body
-from .integration import integrate
-from .kernels.methods import METHODS
-from .sampling import perturbed_spins
+from .._version import __version__
+from ..physics import exact
+from ..physics.bodies import one_body
+from ..engine.integration import integrate
+from ..kernels.methods import METHODS
+from ..engine.sampling import perturbed_spins
 
 __all__ = ["ATOL_FACTOR", "DEFAULT_RTOLS", "SCIPY_METHODS", "default_steps", "euler_rhs_stacked", "speedups",
            "time_to_error", "work_precision"]
@@ -256,7 +257,7 @@ def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, sampl
           order (NaN for exact and SciPy).
 
         Attributes describe the ensemble, the machine, numba threads, versions and the date, and what the
-        closed-form point's time is made of: ``exact_omega_wall_s`` (:func:`tumble.exact.omega` alone) and
+        closed-form point's time is made of: ``exact_omega_wall_s`` (:func:`tumble.physics.exact.omega` alone) and
         ``integrate_one_step_rk4_wall_s`` (``tumble.integrate`` with one rk4 step: its fixed cost; NaN
         without rk4).
 

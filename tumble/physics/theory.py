@@ -1,6 +1,6 @@
 """Linear stability theory and closed-form special cases of Euler's equations.
 
-Everything here is vectorised with numpy broadcasting: a body is a :class:`~tumble.bodies.Body` or an
+Everything here is vectorised with numpy broadcasting: a body is a :class:`~tumble.physics.bodies.Body` or an
 array of principal moments of shape ``(..., 3)`` (kg m²), spins and other arguments broadcast against the
 leading shape. Axis arguments are 1-based (1, 2, 3) as in the physics.
 
@@ -9,7 +9,7 @@ leading shape. Axis arguments are 1-based (1, 2, 3) as in the physics.
 * :func:`symmetric_top_precession`: torque-free symmetric top (L&L §33, §36).
 * :func:`constant_torque_symmetric_top`: symmetric top under a constant body torque about its symmetry
   axis (problem sheet "Part 8: Rigid Body Dynamics", problem 6, "the wobbly space station").
-* :func:`first_flip_time`, :func:`flip_spacing` (from :mod:`tumble.exact`) and
+* :func:`first_flip_time`, :func:`flip_spacing` (from :mod:`tumble.physics.exact`) and
   :func:`flip_time_asymptote`: timing of the flips of a spin near the intermediate axis.
 
 Degenerate axes
@@ -333,18 +333,18 @@ def constant_torque_symmetric_top(body, w0, torque, t, *, axis=3, rtol=1e-10, pr
 
 
 # --- Flip timing near the intermediate axis -----------------------------------------------------------
-# The closed form lives in tumble.exact; these thin wrappers import it when called (so theory never fails
+# The closed form lives in tumble.physics.exact; these thin wrappers import it when called (so theory never fails
 # to import because of exact) and carry the physics in their docstrings.
 
 
 def first_flip_time(body, w0):
-    """Time of the first flip of a spin, s (re-exported from :func:`tumble.exact.first_flip_time`).
+    """Time of the first flip of a spin, s (re-exported from :func:`tumble.physics.exact.first_flip_time`).
 
     A flip is a sign change of the spin component along the intermediate axis, ``w_mid`` (the body turns
     over). In the exact solution (Landau & Lifshitz §37) ``w_mid ∝ sn(u)``, ``u = u0 + ν t``, with quarter
     period ``K(m)``; the first flip is at the first zero of ``sn`` after ``u0``. Started at a maximum of
     ``|w_mid|`` (the other small component zero) it comes exactly at ``K/|ν|``, which tends to
-    :func:`flip_time_asymptote` near the separatrix. See :func:`tumble.exact.parameters` for ``K``, ``ν``,
+    :func:`flip_time_asymptote` near the separatrix. See :func:`tumble.physics.exact.parameters` for ``K``, ``ν``,
     ``u0``.
 
     Parameters
@@ -366,7 +366,7 @@ def first_flip_time(body, w0):
 
 
 def flip_spacing(body, w0):
-    """Time between successive flips, ``2K(m)/|ν|``, s (re-exported from :func:`tumble.exact.flip_spacing`).
+    """Time between successive flips, ``2K(m)/|ν|``, s (re-exported from :func:`tumble.physics.exact.flip_spacing`).
 
     Half the period ``4K/|ν|`` of the body-frame motion: ``w_mid ∝ sn(u)`` changes sign at every
     ``u = 2Kj`` (Landau & Lifshitz §37).
@@ -394,7 +394,7 @@ def flip_time_asymptote(body, w0):
     Near the separatrix the complementary modulus ``k' = sqrt(1 − m)`` of the exact solution tends to 0,
     ``K(m) = ln(4/k') + O(k'² ln k')`` (Abramowitz & Stegun 17.3.26) and the elliptic frequency ``ν``
     tends to the linear growth rate ``λ`` about the intermediate axis, so ``K/|ν| → (1/λ) ln(4/k')``.
-    ``k'`` is taken from :func:`tumble.exact.parameters`.
+    ``k'`` is taken from :func:`tumble.physics.exact.parameters`.
 
     ``λ = (|L|/I2) sqrt(−q2)`` is the linear rate (:func:`linear`) for a spin about the intermediate axis
     ``I2`` (the median moment) with the same angular momentum, ``w = |L|/I2``, ``|L| = |I w0|``. ``|L|``

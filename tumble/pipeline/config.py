@@ -16,7 +16,7 @@ column).
 Studies are data, never code: nothing here evaluates, executes or unpickles anything; a time-dependent
 torque is one of the named :data:`PROFILES` with numeric parameters.
 
-This module validates and resolves; it does not run anything (:mod:`tumble.study` does).
+This module validates and resolves; it does not run anything (:mod:`tumble.measure.scenes` does).
 """
 
 from __future__ import annotations
@@ -34,10 +34,10 @@ from pathlib import Path
 
 import numpy as np
 
-from . import shapes
-from .bodies import Body, validate_moments
-from .kernels.methods import METHODS
-from .sampling import DISTRIBUTIONS
+from ..physics import shapes
+from ..physics.bodies import Body, validate_moments
+from ..kernels.methods import METHODS
+from ..engine.sampling import DISTRIBUTIONS
 
 __all__ = [
     "ARRAYS",
@@ -62,8 +62,8 @@ __all__ = [
 def _studies_dir():
     """The folder of bundled studies: ``studies/`` next to the package in a source tree (and an editable
     install), else ``tumble/studies/`` inside an installed package (shipped there as package data)."""
-    here = Path(__file__).resolve().parent
-    candidates = (here.parent / "studies", here / "studies")
+    package = Path(__file__).resolve().parents[1]
+    candidates = (package.parent / "studies", package / "studies")
     for folder in candidates:
         if (folder / "defaults.toml").is_file():
             return folder
@@ -76,7 +76,7 @@ STUDIES_DIR = _studies_dir()
 #: The documented defaults every study is merged over.
 DEFAULTS_PATH = STUDIES_DIR / "defaults.toml"
 
-#: Shape functions of :mod:`tumble.shapes` a study may name in ``body.shape``.
+#: Shape functions of :mod:`tumble.physics.shapes` a study may name in ``body.shape``.
 SHAPES = ("rod", "disc", "cylinder", "cone", "sphere", "ellipsoid", "cuboid", "cube_about_edge", "loaded_die",
           "t_handle")
 
@@ -92,7 +92,7 @@ _PROFILE_TIMES = {"sine": "period", "ramp": "duration", "pulse": "duration"}
 #: ``outputs.figures``, ``outputs.format`` and ``outputs.arrays``.
 FIGURES = ("stability_map", "norm_growth", "flip_law", "flip_components", "invariant_drift", "work_precision",
            "summary", "flip_animation", "flip_strip", "polhode", "herpolhode")
-#: Figures drawn from the traced attitude of the study's first scene (:func:`tumble.study.attitude_trace`).
+#: Figures drawn from the traced attitude of the study's first scene (:func:`tumble.measure.scenes.attitude_trace`).
 ATTITUDE_FIGURES = ("flip_animation", "flip_strip", "polhode", "herpolhode")
 FORMATS = ("png", "pdf")
 ARRAYS = ("sample_rate", "sample_status", "sample_first_flip", "sample_flip_spacing")
@@ -433,7 +433,7 @@ def _method(value, field, profile):
 
 
 def _shape_parameters(shape):
-    """Keyword parameters of ``tumble.shapes.<shape>``: name -> default (``inspect.Parameter.empty``)."""
+    """Keyword parameters of ``tumble.physics.shapes.<shape>``: name -> default (``inspect.Parameter.empty``)."""
     params = inspect.signature(getattr(shapes, shape)).parameters.values()
     return {p.name: p.default for p in params
             if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
@@ -756,7 +756,7 @@ def bundled_studies():
 
 
 def resolve_body(study):
-    """The :class:`~tumble.bodies.Body` of a resolved study (not of its scan).
+    """The :class:`~tumble.physics.bodies.Body` of a resolved study (not of its scan).
 
     Parameters
     ----------
@@ -766,7 +766,7 @@ def resolve_body(study):
     Returns
     -------
     Body
-        ``tumble.shapes.<body.shape>(**body.dimensions)`` when a shape is named, else
+        ``tumble.physics.shapes.<body.shape>(**body.dimensions)`` when a shape is named, else
         ``Body(*body.moments)``.
     """
     body = study["body"]

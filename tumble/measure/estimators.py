@@ -1,6 +1,6 @@
 """Estimators: growth rates, oscillation frequencies, flip statistics, scene summaries and scan regressions.
 
-Plain numpy in, plain numpy out (no xarray here; :mod:`tumble.study` builds the datasets).
+Plain numpy in, plain numpy out (no xarray here; :mod:`tumble.measure.scenes` builds the datasets).
 
 The coordinates every estimator works in come from an exact invariant. For a torque-free spin about
 principal axis ``a``, ``2 T I_a - |L|² = Σ_i I_i (I_a - I_i) w_i²`` is conserved, and its ``i = a`` term
@@ -193,7 +193,7 @@ def oscillation_frequencies(times, transverse, weights, spin):
     round-off is noise), those whose unwrapped phase steps by more than :data:`MAX_PHASE_STEP` between two
     stored times ``FIT_UNDERSAMPLED``; both get NaN and are left out of scene statistics. The check catches
     true steps between ``MAX_PHASE_STEP`` and ``π``; a step beyond ``π`` aliases and no check on the samples
-    alone can see it — the caller stores enough times per period (:mod:`tumble.study` stores 32).
+    alone can see it — the caller stores enough times per period (:mod:`tumble.measure.scenes` stores 32).
 
     Parameters
     ----------

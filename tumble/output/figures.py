@@ -14,8 +14,8 @@ with data and names it in its title; a figure that draws several picks at most :
 atomically.
 
 The attitude figures (``flip_animation``, ``flip_strip``, ``polhode``, ``herpolhode``) draw one traced spin's
-orientation as :func:`tumble.study.attitude_trace` stores it; their drawing lives in :mod:`tumble.attitude_plots`.
-``flip_animation`` gives a :class:`~tumble.attitude_plots.FlipAnimation`, which :func:`save_figures` writes as
+orientation as :func:`tumble.measure.scenes.attitude_trace` stores it; their drawing lives in :mod:`tumble.output.attitude_figures`.
+``flip_animation`` gives a :class:`~tumble.output.attitude_figures.FlipAnimation`, which :func:`save_figures` writes as
 a GIF (an MP4 when matplotlib finds ffmpeg), whatever image formats are asked for.
 """
 
@@ -36,7 +36,8 @@ from matplotlib.patches import Patch
 from matplotlib.ticker import MaxNLocator
 from matplotlib.tri import Triangulation
 
-from . import attitude_plots, io, theory
+from . import attitude_figures as attitude_plots, io
+from ..physics import theory
 
 __all__ = ["ANIMATIONS", "DOUBLE", "FIGURES", "SINGLE", "can_draw", "flip_animation", "flip_components",
            "flip_law", "flip_strip", "herpolhode", "invariant_drift", "norm_growth", "polhode", "save_figures",
@@ -702,7 +703,7 @@ def flip_strip(ds):
     intermediate axis red; each panel gives its time and the angle between that axis and ``L``.
 
     Reads ``attitude_quaternion``, ``attitude_omega``, ``attitude_moments`` along ``attitude_time`` (s) and the
-    attributes of ``attitude_quaternion`` (see :mod:`tumble.attitude_plots`). The body is the box with the same
+    attributes of ``attitude_quaternion`` (see :mod:`tumble.output.attitude_figures`). The body is the box with the same
     principal moments, or the T-handle when ``body_shape`` is ``"t_handle"``.
     """
     return attitude_plots.flip_strip(ds, width=DOUBLE)
@@ -713,7 +714,7 @@ def flip_animation(ds):
     """The body turning in the invariable frame (``L`` up, the intermediate axis red), one frame per stored time
     nearest to 160 times evenly spaced over the trace, at 20 frames per second.
 
-    Reads what :func:`flip_strip` reads. Returns a :class:`~tumble.attitude_plots.FlipAnimation` (a
+    Reads what :func:`flip_strip` reads. Returns a :class:`~tumble.output.attitude_figures.FlipAnimation` (a
     :class:`matplotlib.animation.FuncAnimation`), not a Figure; :func:`save_figures` writes it as a movie.
     """
     return attitude_plots.flip_animation(ds)
@@ -778,7 +779,7 @@ def can_draw(ds, name):
 
 
 def _save_atomic(fig, path, fmt, dpi):
-    """Write ``fig`` to ``path`` atomically (:func:`tumble.io.replaced_atomically`)."""
+    """Write ``fig`` to ``path`` atomically (:func:`tumble.output.io.replaced_atomically`)."""
     with io.replaced_atomically(path) as tmp, matplotlib.rc_context(_STYLE):
         fig.savefig(tmp, format=fmt, dpi=dpi, metadata={"CreationDate": None} if fmt == "pdf" else None)
 
@@ -788,7 +789,7 @@ def save_figures(ds, names, directory, stem, formats=("png",), dpi=200):
 
     Every name is checked (:func:`can_draw`) before anything is drawn, so an unsuitable request writes no file.
     An animation (:data:`ANIMATIONS`) is written once, as ``<stem>_<name>.gif`` or, when matplotlib finds
-    ffmpeg, ``.mp4`` (:func:`tumble.attitude_plots.animation_format`), at its own small resolution, whatever
+    ffmpeg, ``.mp4`` (:func:`tumble.output.attitude_figures.animation_format`), at its own small resolution, whatever
     ``formats`` and ``dpi`` say.
 
     Parameters

@@ -3,7 +3,7 @@
 ``tumble run STUDY --scheduler local`` starts a LocalCluster on 127.0.0.1 (one worker process per core, one
 thread each); ``--scheduler tcp://HOST:PORT`` (or the environment variable ``DASK_SCHEDULER_ADDRESS``) uses a
 running scheduler. Each task is one chunk — whole scenes, or one range of the samples of a large scene
-(:func:`tumble.runner.compute_task`); its result is the chunk file's bytes (a compact NumPy archive, made in the
+(:func:`tumble.pipeline.runner.compute_task`); its result is the chunk file's bytes (a compact NumPy archive, made in the
 worker), which the client writes as the checkpoint and reads back, so workers need no shared file system, only
 tumble installed.
 
@@ -91,7 +91,7 @@ def _numba_one_thread():
     import numba
 
     numba.set_num_threads(1)
-    import tumble  # noqa: F401  (import once per worker process, not per task)
+    from . import runner  # noqa: F401  (import once per worker process, not per task)
 
     return numba.get_num_threads()
 
@@ -150,7 +150,7 @@ def run_chunks(client, compute_task, job, tasks, digest=""):
     """Submit every task to the cluster; yield ``(task, chunk bytes)`` for each as it finishes.
 
     The job is scattered to every worker once (tasks carry only a reference to it); each task returns its
-    chunk file's bytes (:func:`tumble.runner.compute_task`), which the caller writes and reads. On an error (or
+    chunk file's bytes (:func:`tumble.pipeline.runner.compute_task`), which the caller writes and reads. On an error (or
     when the caller stops early) the tasks still queued are cancelled; the error of a task is raised again here
     as it was raised on the worker.
     """

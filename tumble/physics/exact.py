@@ -71,7 +71,7 @@ from scipy.special import elliprf, elliprj
 
 from . import rotations
 from .bodies import one_body, spin_vectors
-from .kernels import elliptic as _ell
+from ..kernels import elliptic as _ell
 
 __all__ = ["EllipticParameters", "attitude", "omega", "period", "parameters", "first_flip_time", "flip_spacing",
            "rotation_per_period"]

@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from . import __version__
+from .._version import __version__
 
 __all__ = ["check_tumble_result", "netcdf_safe_attrs", "provenance", "read_dataset", "write_dataset"]
 
@@ -223,7 +223,7 @@ def provenance(ds, *, title=None, study=None, seed_entropy=None, action=None):
         The resolved study; stored as ``study``, a JSON string with sorted keys.
     seed_entropy : int >= 0 or str of decimal digits, optional
         Stored as ``seed_entropy``, a string of decimal digits (it may exceed 64 bits, e.g.
-        :func:`tumble.sampling.seed_entropy` of ``None`` is 128-bit; netCDF integers are at most 64-bit).
+        :func:`tumble.engine.sampling.seed_entropy` of ``None`` is 128-bit; netCDF integers are at most 64-bit).
     action : str, optional
         What produced this version (default ``"created"``), recorded in the history line.
 

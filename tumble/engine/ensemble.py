@@ -4,15 +4,15 @@ A scene asks for some of: the final state, a decimated trajectory, the transvers
 given times (for growth fits), the times of the spin-axis sign changes (flips), the running invariant
 error. :func:`run_ensemble` picks the cheapest path that still delivers all of them:
 
-* torque-free with ``method="auto"`` (or ``"exact"``): the closed form (:mod:`tumble.exact`), no steps at all;
+* torque-free with ``method="auto"`` (or ``"exact"``): the closed form (:mod:`tumble.physics.exact`), no steps at all;
 * otherwise a fixed-step kernel with only the requested observers compiled in, the torque compiled out when
   it is zero, and — when the caller gives stop criteria — each sample stopping once its measurement is
   complete;
 * the attitude (orientation quaternion) only when asked (``attitude=True``): the closed form
-  (:func:`tumble.exact.attitude`) or the attitude kernels (:mod:`tumble.kernels.attitude`), which are never
+  (:func:`tumble.physics.exact.attitude`) or the attitude kernels (:mod:`tumble.kernels.attitude`), which are never
   compiled or run otherwise.
 
-Samples run in chunks of :data:`tumble.sampling.CHUNK`; a progress bar (tqdm, only on a terminal) advances
+Samples run in chunks of :data:`tumble.engine.sampling.CHUNK`; a progress bar (tqdm, only on a terminal) advances
 per chunk, and Ctrl-C stops between chunks. What ran and what was skipped is returned in ``info``.
 """
 
@@ -30,11 +30,11 @@ import numba
 import numpy as np
 from tqdm.auto import tqdm
 
-from . import exact
-from .bodies import one_body
-from .kernels.drivers import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK
-from .kernels.methods import BLOCK, METHODS, run, run_attitude
-from .kernels.steppers import TORQUE_CONSTANT, TORQUE_PULSE, TORQUE_RAMP, TORQUE_SINE, TORQUE_USER
+from ..physics import exact
+from ..physics.bodies import one_body
+from ..kernels.drivers import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK
+from ..kernels.methods import BLOCK, METHODS, run, run_attitude
+from ..kernels.steppers import TORQUE_CONSTANT, TORQUE_PULSE, TORQUE_RAMP, TORQUE_SINE, TORQUE_USER
 from .sampling import CHUNK
 
 __all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "Interrupted", "STATUS_NAMES", "run_ensemble", "torque_spec"]

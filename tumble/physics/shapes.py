@@ -1,7 +1,7 @@
-"""Principal moments of inertia of common shapes, as :class:`~tumble.bodies.Body` objects.
+"""Principal moments of inertia of common shapes, as :class:`~tumble.physics.bodies.Body` objects.
 
 Every constructor takes dimensions in m and masses in kg, checks them (positive and finite; a
-``ValueError`` names the offending argument) and returns a :class:`~tumble.bodies.Body` with ``name`` set.
+``ValueError`` names the offending argument) and returns a :class:`~tumble.physics.bodies.Body` with ``name`` set.
 Moments are about the centre of mass unless an ``about`` argument says otherwise.
 
 Axisymmetric shapes (rod, disc, cylinder, cone) have their symmetry axis along ``z`` and list its moment

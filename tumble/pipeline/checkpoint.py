@@ -1,19 +1,19 @@
 """Checkpoints of a running study: finished work on disk, so that a rerun resumes where a run stopped.
 
 A study runs in *chunks*: a group of whole scenes, or — for a scene of many samples — one range of its samples
-(:func:`tumble.runner.sample_ranges`). Each finished chunk is written atomically (a hidden ``.part`` file,
+(:func:`tumble.pipeline.runner.sample_ranges`). Each finished chunk is written atomically (a hidden ``.part`` file,
 flushed, renamed) into the hidden folder ``<out>/.<stem>.chunks/`` as ``scenes-<first>-<last>.chunk`` or
 ``samples-<scene>-<start>-<stop>.chunk``. A chunk file is a NumPy ``.npz`` archive of two members, read with
 ``allow_pickle=False``: a JSON manifest (the study's hash, :func:`study_hash`; what the chunk holds; the dtype,
 shape and offset of every array) and one byte blob holding the arrays — every variable and attribute of each
-scene with its exact dtype, or the per-sample arrays of a range (:func:`tumble.study.scene_samples`). (netCDF,
+scene with its exact dtype, or the per-sample arrays of a range (:func:`tumble.measure.scenes.scene_samples`). (netCDF,
 one group per scene, cost 35 ms a scene to write; one archive member per array cost 10 ms a scene; the blob
 costs well under 1 ms.) The bytes are made where the chunk ran (:func:`pack_scenes`, :func:`pack_samples`: in a
 dask worker, that is the task's result) and written by the process that runs the study.
 
 A rerun of the same study into the same folder reads the chunks whose hash matches and runs only what they
 lack; a chunk with another hash (another study, another tumble version) is never used, and is removed. The
-result file is assembled from the scenes and written atomically by :func:`tumble.io.write_dataset`; the
+result file is assembled from the scenes and written atomically by :func:`tumble.output.io.write_dataset`; the
 checkpoint folder is removed after that.
 
 Nothing in the folder can be mistaken for a result: it is hidden, its files are not named ``*.nc`` and are not
@@ -39,7 +39,8 @@ from typing import NamedTuple
 import numpy as np
 import xarray as xr
 
-from . import __version__, io
+from .._version import __version__
+from ..output import io
 
 __all__ = ["Checkpoint", "Finished", "OutputError", "chunk_folder", "local_file_locks", "normalise_scene",
            "pack_samples", "pack_scenes", "samples_name", "scenes_name", "study_hash", "unpack"]
@@ -67,7 +68,7 @@ def study_hash(resolved):
     Parameters
     ----------
     resolved : Mapping
-        A resolved study (:func:`tumble.config.load_study`).
+        A resolved study (:func:`tumble.pipeline.config.load_study`).
     """
     study = json.loads(json.dumps(resolved, sort_keys=True, default=io._json_default))
     for table, keys in _NOT_HASHED.items():
@@ -225,7 +226,7 @@ def pack_samples(scene, stop, part, digest):
     stop : int
         End of the range (the part holds ``stop - start`` samples).
     part : Mapping[str, ndarray]
-        What :func:`tumble.study.scene_samples` returned for the range.
+        What :func:`tumble.measure.scenes.scene_samples` returned for the range.
     digest : str
         :func:`study_hash` of the study.
     """
@@ -237,7 +238,7 @@ class Finished(NamedTuple):
     """What a chunk (or a whole checkpoint) holds: whole scenes and sample ranges of scenes.
 
     ``scenes``: ``{index: normalised scene dataset}``; ``parts``: ``{index: {(start, stop): part}}`` with each
-    part as :func:`tumble.study.scene_samples` returns it.
+    part as :func:`tumble.measure.scenes.scene_samples` returns it.
     """
 
     scenes: dict

@@ -6,11 +6,11 @@ import warnings
 import numpy as np
 import xarray as xr
 
-from . import exact
-from .bodies import finite_array, one_body, spin_vectors
-from .engine import run_ensemble
-from .kernels.drivers import STATUS_NAMES, STATUS_OK
-from .kernels.methods import METHODS
+from ..physics import exact
+from ..physics.bodies import finite_array, one_body, spin_vectors
+from .ensemble import run_ensemble
+from ..kernels.drivers import STATUS_NAMES, STATUS_OK
+from ..kernels.methods import METHODS
 
 __all__ = ["integrate", "METHOD_NAMES"]
 
@@ -79,7 +79,7 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
         Also integrate the orientation: ``quaternion(sample, time, component)``, the unit quaternion (scalar
         first) of the body-to-space rotation, ``v_space = q v_body q*``, with the space frame equal to the body
         frame at ``t = 0``. Every method carries it in its own way (:mod:`tumble.kernels.attitude`); ``"exact"``
-        gives it in closed form (:func:`tumble.exact.attitude`). Without it no attitude code runs.
+        gives it in closed form (:func:`tumble.physics.exact.attitude`). Without it no attitude code runs.
 
     Returns
     -------

@@ -7,20 +7,20 @@ dimensions; :func:`regress_scan` and :func:`flip_time_law` regress a scan.
 
 Planning a scene (what is computed and why):
 
-* the kind comes from linear theory (:func:`tumble.theory.linear`): ``periodic`` (largest or smallest
+* the kind comes from linear theory (:func:`tumble.physics.theory.linear`): ``periodic`` (largest or smallest
   axis), ``exponential`` (intermediate axis) or ``neutral`` (degenerate moments: symmetric top about an
   axis of its equal pair, sphere);
-* ``method="auto"``: torque-free scenes take the closed form (:mod:`tumble.exact`) — no steps; a named
+* ``method="auto"``: torque-free scenes take the closed form (:mod:`tumble.physics.exact`) — no steps; a named
   method steps with ``dt`` chosen from its order (:data:`STEPS_PER_RADIAN`) unless given;
 * periodic and neutral scenes store the transverse components at :data:`SAVES_PER_PERIOD` times per period
-  over :data:`PERIODS` periods and fit the phase (:func:`tumble.analysis.oscillation_frequencies`);
+  over :data:`PERIODS` periods and fit the phase (:func:`tumble.measure.estimators.oscillation_frequencies`);
 * exponential scenes record only the scaled transverse norm at :data:`PROBES` times (no trajectory), fit its
-  log-slope inside the linear regime (:func:`tumble.analysis.growth_rates`), and locate the first
+  log-slope inside the linear regime (:func:`tumble.measure.estimators.growth_rates`), and locate the first
   ``flips`` sign changes of the spin-axis component; on a stepping path each sample stops once its norm has
   saturated and it has flipped ``flips`` times;
 * samples run in slices of :data:`SLICE` (memory stays O(samples), whatever the ensemble size);
 * a scene is planned once (:func:`scene_plan`), its samples run in any ranges that start at multiples of
-  :data:`tumble.sampling.CHUNK` (:func:`scene_samples`: per-sample fits only, in any process) and the ranges
+  :data:`tumble.engine.sampling.CHUNK` (:func:`scene_samples`: per-sample fits only, in any process) and the ranges
   are reduced once (:func:`scene_result`: median, bootstrap interval, fit window and flip medians over all the
   samples) — the same bits as the whole scene; ``tumble run`` cuts large scenes this way.
 
@@ -39,13 +39,15 @@ import numpy as np
 import xarray as xr
 from tqdm.auto import tqdm
 
-from . import __version__, analysis, exact, theory
-from .bodies import Body, one_body
-from .engine import AUTO_FORCED_METHOD, TORQUE_PROFILES, run_ensemble, torque_spec
-from .integration import integrate
-from .kernels.drivers import STATUS_NAMES, STATUS_OK
-from .kernels.methods import METHODS
-from .sampling import CHUNK, perturbed_spins, seed_entropy
+from .._version import __version__
+from . import estimators as analysis
+from ..physics import exact, theory
+from ..physics.bodies import Body, one_body
+from ..engine.ensemble import AUTO_FORCED_METHOD, TORQUE_PROFILES, run_ensemble, torque_spec
+from ..engine.integration import integrate
+from ..kernels.drivers import STATUS_NAMES, STATUS_OK
+from ..kernels.methods import METHODS
+from ..engine.sampling import CHUNK, perturbed_spins, seed_entropy
 
 __all__ = ["CURVES", "SAMPLE_STATUS_NAMES", "assemble_scan", "flip_time_law", "inertia_triangle", "invariant_drift",
            "measure", "regress_scan", "scan", "scan_layout", "scan_scene", "scan_scene_parameters", "scene_plan",
@@ -204,7 +206,7 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
     spin : float
         Unperturbed spin about ``axis``, rad/s (non-zero).
     amplitude : float
-        Tilt of the perturbed spins from the axis, rad (see :func:`tumble.sampling.perturbed_spins`).
+        Tilt of the perturbed spins from the axis, rad (see :func:`tumble.engine.sampling.perturbed_spins`).
     samples : int
         Ensemble size.
     seed : int >= 0 or None
@@ -216,10 +218,10 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
     flips : int
         Exponential scenes: flips of the spin axis to time (first flip and spacing); 0 skips them.
     distribution : str
-        Tilt distribution, see :func:`tumble.sampling.perturbed_spins`.
+        Tilt distribution, see :func:`tumble.engine.sampling.perturbed_spins`.
     torque : None, array_like (3,) or mapping, optional
         A torque about the spin axis — three numbers (N m) or a named profile (see
-        :func:`tumble.engine.torque_spec`) — for periodic scenes: the spin then changes as
+        :func:`tumble.engine.ensemble.torque_spec`) — for periodic scenes: the spin then changes as
         ``w_a(t) = spin + (N_a/I_a) S(t)`` and linear theory's phase advances by ``sqrt(q) ∫|w_a| dt``; the
         theory rate is the least-squares slope of that phase over the observation times, exactly what the
         phase fit measures. (The wobbly space station of the problem sheet.)
@@ -266,7 +268,7 @@ def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, metho
     A scene is measured in two steps that can run apart: :func:`scene_samples` runs any range of its samples
     (each sample depends only on the plan and its index), :func:`scene_result` reduces the ranges to the scene
     dataset. ``measure`` is ``scene_result(plan, [scene_samples(plan, 0, samples)])``; a scene cut into ranges
-    at multiples of :data:`tumble.sampling.CHUNK` reduces to the same bits.
+    at multiples of :data:`tumble.engine.sampling.CHUNK` reduces to the same bits.
 
     Raises
     ------
@@ -315,7 +317,7 @@ _FLIP_ARRAYS = ("flip_first", "flip_spacing", "flip_exact", "flip_asymptote")
 def scene_samples(scene, start, stop, *, progress=False):
     """Run samples ``[start, stop)`` of a :func:`scene_plan`: per-sample fits, no reduction.
 
-    ``start`` must be a multiple of :data:`tumble.sampling.CHUNK` (the engine and the sampler work in whole
+    ``start`` must be a multiple of :data:`tumble.engine.sampling.CHUNK` (the engine and the sampler work in whole
     chunks, so that the samples of a range are the same bits as in the unsplit scene); the range holding sample
     0 keeps the norm curve (``curves`` with ``"norm"``), which needs the first :data:`SLICE` samples, so it
     must then reach ``min(SLICE, samples)``.
@@ -931,9 +933,9 @@ def attitude_trace(body, axis=2, spin=1.0, amplitude=1e-3, method="auto", *, hor
                    shape="", shape_parameters=None, points=ATTITUDE_POINTS):
     """The orientation of one perturbed spin in space, as the attitude figures read it.
 
-    The spin is sample 0 of :func:`tumble.sampling.perturbed_spins` (the same seed gives the same spin as a
+    The spin is sample 0 of :func:`tumble.engine.sampling.perturbed_spins` (the same seed gives the same spin as a
     scene's first sample). Torque-free with ``method="auto"`` the closed form runs
-    (:func:`tumble.exact.attitude`); otherwise ``method`` (``rk4`` when ``"auto"``) steps the angular
+    (:func:`tumble.physics.exact.attitude`); otherwise ``method`` (``rk4`` when ``"auto"``) steps the angular
     velocity and the attitude together (:mod:`tumble.kernels.attitude`), about 400 steps per turn.
 
     Parameters
@@ -949,7 +951,7 @@ def attitude_trace(body, axis=2, spin=1.0, amplitude=1e-3, method="auto", *, hor
     torque : optional
         As :func:`tumble.integrate`.
     shape, shape_parameters : str, mapping
-        The :mod:`tumble.shapes` function the body came from and its arguments, for drawing it.
+        The :mod:`tumble.physics.shapes` function the body came from and its arguments, for drawing it.
     points : int
         Stored times (about; the fixed-step path stores every k-th step).
 

@@ -30,7 +30,7 @@ import operator
 
 import numpy as np
 
-from .bodies import finite_array, one_body
+from ..physics.bodies import finite_array, one_body
 
 __all__ = [
     "CHUNK",

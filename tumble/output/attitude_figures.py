@@ -1,6 +1,6 @@
 """Pictures of one traced spin's attitude: the body flipping in space, and Poinsot's polhode and herpolhode.
 
-Reads the attitude of one spin, as :func:`tumble.study.attitude_trace` stores it:
+Reads the attitude of one spin, as :func:`tumble.measure.scenes.attitude_trace` stores it:
 
 ========================================================  ==============================================
 ``attitude_time`` (coordinate)                            time, s, increasing
@@ -15,11 +15,11 @@ attributes of ``attitude_quaternion``                     ``method``, ``spin_axi
 
 Other variables of the dataset are ignored; extra (scan) dimensions are taken at the first scene with a finite
 trace. :func:`read_attitude` turns the variables into an :class:`AttitudeTrace`; the drawing functions take
-either. :mod:`tumble.plots` registers them as the figures ``flip_animation``, ``flip_strip``, ``polhode`` and
+either. :mod:`tumble.output.figures` registers them as the figures ``flip_animation``, ``flip_strip``, ``polhode`` and
 ``herpolhode`` in the paper style; call them from there.
 
 The body is drawn as the uniform box with the same principal moments (edge ``a_i = sqrt(6 (I_j + I_k − I_i)
-/ M)``), or, when ``body_shape`` is ``"t_handle"``, as the T-handle of :func:`tumble.shapes.t_handle` built
+/ M)``), or, when ``body_shape`` is ``"t_handle"``, as the T-handle of :func:`tumble.physics.shapes.t_handle` built
 from ``body_shape_json``. Every 3-D view is drawn in the *invariable frame*: ``L`` (fixed in space) points up.
 The intermediate principal axis is red, so a flip is the red axis turning from up to down.
 
@@ -53,7 +53,8 @@ from matplotlib.ticker import MaxNLocator
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 from PIL import Image
 
-from . import io, shapes
+from . import io
+from ..physics import shapes
 
 __all__ = ["ATTITUDE_VARIABLES", "AttitudeTrace", "FlipAnimation", "animation_format", "box_proportions",
            "flip_animation", "flip_strip", "flip_times", "herpolhode", "herpolhode_points", "invariable_frame",
@@ -63,7 +64,7 @@ __all__ = ["ATTITUDE_VARIABLES", "AttitudeTrace", "FlipAnimation", "animation_fo
 #: The variables an attitude trace is made of.
 ATTITUDE_VARIABLES = ("attitude_quaternion", "attitude_omega", "attitude_moments")
 
-#: Figure widths, inches (those of :mod:`tumble.plots`: one journal column, two columns).
+#: Figure widths, inches (those of :mod:`tumble.output.figures`: one journal column, two columns).
 _SINGLE, _DOUBLE = 3.4, 7.0
 
 #: Animation defaults: frames, frames per second, size (inches) and resolution (dots per inch). 160 frames of
@@ -71,7 +72,7 @@ _SINGLE, _DOUBLE = 3.4, 7.0
 FRAMES, FPS, ANIMATION_SIZE, ANIMATION_DPI = 160, 20, (2.8, 3.0), 80
 
 #: Body shapes drawn as themselves (others are drawn as the box of equal moments). Only names listed here are
-#: ever looked up in :mod:`tumble.shapes`: a dataset names a shape, it never names code to run.
+#: ever looked up in :mod:`tumble.physics.shapes`: a dataset names a shape, it never names code to run.
 _DRAWN_SHAPES = ("t_handle",)
 
 _INTERMEDIATE = "#d62728"   # the intermediate axis and what marks it
@@ -105,7 +106,7 @@ class AttitudeTrace:
     method : str
         How the trace was computed.
     body_shape : str
-        Name of a :mod:`tumble.shapes` constructor, or "" when only the moments are known.
+        Name of a :mod:`tumble.physics.shapes` constructor, or "" when only the moments are known.
     shape_params : dict
         Keyword arguments of that constructor.
     label : str
@@ -149,7 +150,7 @@ def missing_attitude(ds):
         have = "has none" if len(absent) == len(ATTITUDE_VARIABLES) else f"lacks {', '.join(map(repr, absent))}"
         return ("the attitude of one traced spin: 'attitude_quaternion' (attitude_time, quaternion_component), "
                 "'attitude_omega' (attitude_time, component) and 'attitude_moments' (component), as "
-                f"tumble.study.attitude_trace gives; this dataset {have}")
+                f"tumble.measure.scenes.attitude_trace gives; this dataset {have}")
     for name, dims in (("attitude_quaternion", ("attitude_time", "quaternion_component")),
                        ("attitude_omega", ("attitude_time", "component")), ("attitude_moments", ("component",))):
         lacking = [d for d in dims if d not in ds[name].dims]
@@ -469,7 +470,7 @@ def _prism(centre, direction, radius, length, sides=_PRISM_SIDES):
 
 
 def _t_handle(trace, intermediate):
-    """The T-handle of :func:`tumble.shapes.t_handle` in the trace's principal frame, or None when its moments
+    """The T-handle of :func:`tumble.physics.shapes.t_handle` in the trace's principal frame, or None when its moments
     are not the trace's (up to the order of the axes)."""
     params = {k: float(v) for k, v in trace.shape_params.items()}
     body = shapes.t_handle(**params)

@@ -1,0 +1,100 @@
+"""The layers are folders and imports point down only (docs/architecture.md).
+
+Every module of the package is parsed (never imported) and each of its imports of tumble — at the top or
+inside a function — is checked against the layer order below. ``output`` sits above ``measure`` in the
+order but may not import it, nor the engine: a dataset or a figure is built from records and arrays alone.
+"""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parents[1] / "tumble"
+
+# Bottom to top; a module may import its own layer and the layers below it.
+LAYERS = ("_version", "registry", "kernels", "physics", "engine", "measure", "output", "pipeline", "cli",
+          "__main__", "__init__")
+FORBIDDEN = {"output": {"engine", "measure"}}
+# Third-party packages a layer must not import.
+FORBIDDEN_EXTERNAL = {"kernels": {"xarray", "matplotlib", "tqdm", "dask", "netCDF4", "scipy"},
+                      "physics": {"xarray", "matplotlib", "dask"}}
+
+
+def _layer(parts):
+    """Layer of a module given as the parts of its dotted path below ``tumble``."""
+    return parts[0] if parts else "__init__"
+
+
+def _modules():
+    for path in sorted(PACKAGE.rglob("*.py")):
+        parts = path.relative_to(PACKAGE).with_suffix("").parts
+        yield path, parts
+
+
+def _imports(path, parts):
+    """(dotted module below tumble as parts, line) for every tumble import; external roots separately."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    package = parts[:-1] if parts[-1] != "__init__" else parts[:-1]
+    inside, outside = [], []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package[: len(package) - (node.level - 1)]
+                target = list(base) + (node.module.split(".") if node.module else [])
+                if not node.module:  # from . import a, b: each name may be a module
+                    for alias in node.names:
+                        inside.append((tuple(target + [alias.name]), node.lineno))
+                    continue
+                inside.append((tuple(target), node.lineno))
+            elif node.module and node.module.split(".")[0] == "tumble":
+                inside.append((tuple(node.module.split(".")[1:]), node.lineno))
+            elif node.module:
+                outside.append((node.module.split(".")[0], node.lineno))
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                root = alias.name.split(".")
+                if root[0] == "tumble":
+                    inside.append((tuple(root[1:]), node.lineno))
+                else:
+                    outside.append((root[0], node.lineno))
+    return inside, outside
+
+
+MODULES = list(_modules())
+
+
+def test_every_module_sits_in_a_known_layer():
+    assert MODULES
+    unknown = [str(p) for p, parts in MODULES if _layer(parts) not in LAYERS]
+    assert not unknown, f"modules outside the layers of docs/architecture.md: {unknown}"
+
+
+@pytest.mark.parametrize("path, parts", MODULES, ids=[".".join(parts) for _, parts in MODULES])
+def test_imports_point_down(path, parts):
+    own = _layer(parts)
+    inside, outside = _imports(path, parts)
+    wrong = []
+    for target, line in inside:
+        layer = _layer(target)
+        if layer not in LAYERS:
+            wrong.append(f"line {line}: tumble.{'.'.join(target)} is in no layer")
+        elif LAYERS.index(layer) > LAYERS.index(own) or layer in FORBIDDEN.get(own, ()):
+            wrong.append(f"line {line}: {own} imports {layer} (tumble.{'.'.join(target)})")
+        elif own != "__init__" and layer == "__init__":
+            wrong.append(f"line {line}: imports the package face")
+    for root, line in outside:
+        if root in FORBIDDEN_EXTERNAL.get(own, ()):
+            wrong.append(f"line {line}: {own} imports {root}")
+    assert not wrong, f"{path.relative_to(PACKAGE.parent)}: " + "; ".join(wrong)
+
+
+def test_the_checker_sees_an_upward_import(tmp_path):
+    """The test above can fail: an engine module importing the pipeline is caught."""
+    bad = tmp_path / "bad.py"
+    bad.write_text("from ..pipeline import config\nfrom . import sampling\nimport xarray\n")
+    inside, outside = _imports(bad, ("engine", "bad"))
+    assert (("pipeline",), 1) in inside and (("engine", "sampling"), 2) in inside
+    assert ("xarray", 3) in outside
+    layers = {_layer(target) for target, _ in inside}
+    assert any(LAYERS.index(layer) > LAYERS.index("engine") for layer in layers)
