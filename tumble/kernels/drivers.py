@@ -5,8 +5,10 @@ copied into three contiguous component arrays (structure of arrays) so that the 
 (:mod:`tumble.kernels.fused`) vectorises across samples. Samples never interact, so the results do not
 depend on the number of threads or on the block size.
 
-Observers are compiled in only when asked: every optional output is ``None`` when not requested, and numba
-prunes its branch at compile time. Memory is O(samples) unless a trajectory is stored.
+Observers are runtime switches: an output that was not asked for is an empty array (a zero-length axis), and
+its branch, outside the loop over the samples of a block, is skipped. One compiled driver per method and
+torque type therefore serves every combination of observers (fewer variants to compile: the branches cost
+nothing measurable, see ``benchmarks/engine.py``). Memory is O(samples) unless a trajectory is stored.
 
 Per-sample status: ``STATUS_OK``, ``STATUS_NONFINITE`` (a component became NaN or inf) or ``STATUS_DRIFT``
 (torque-free only: ``|L|**2`` or the energy drifted by more than ``drift_limit``, relative). A sample with a
@@ -17,7 +19,7 @@ is complete (early stop, see ``stop_norm`` and ``stop_flips``).
 import math
 
 import numpy as np
-from numba import prange
+from numba import prange, types
 
 from .fused import rk4_block, rk8_block, splitting2_block, splitting4_block, symplectic_euler_block
 from .jit import jit
@@ -102,7 +104,7 @@ def _observe_drift(ys, active, body, e0, l0, drift, lo, drift_limit, k, frozen, 
             continue
         de = abs(energy(ys[0, i], ys[1, i], ys[2, i], body) / e0[i] - 1.0)
         dl = abs(l_squared(ys[0, i], ys[1, i], ys[2, i], body) / l0[i] - 1.0)
-        if drift is not None:
+        if drift.shape[0] > 0:
             drift[0, lo + i] = max(drift[0, lo + i], de)
             drift[1, lo + i] = max(drift[1, lo + i], dl)
         if drift_limit > 0.0 and not (de <= drift_limit and dl <= drift_limit):
@@ -130,7 +132,7 @@ def _observe_norm(ys, active, axis, weights, probes, lo, row, stop_norm, reached
     gb, gc = weights[b], weights[c]
     for i in range(ys.shape[1]):
         norm = math.sqrt(gb * ys[b, i] * ys[b, i] + gc * ys[c, i] * ys[c, i])
-        if probes is not None:
+        if probes.shape[0] > 0:
             probes[row, lo + i] = norm if active[i] else np.nan
         if active[i] and stop_norm > 0.0 and norm >= stop_norm:
             reached[i] = True
@@ -180,19 +182,19 @@ def make_propagate(method):
             Steps to take; samples per block.
         save_every : int
             With ``saved`` (shape ``(n_saved, 3, N)``): store the initial state, every ``save_every``-th state and
-            the final one. ``saved=None`` stores nothing.
+            the final one. ``n_saved = 0`` stores nothing.
         axis : int
             0-based spin axis.
         norm_weights : ndarray (3,)
             Weights ``g`` of the transverse norm ``sqrt(g_b w_b² + g_c w_c²)`` of the two other components.
-        probe_steps, probes : ndarray (P,) int64 increasing, ndarray (P, N) or None
+        probe_steps, probes : ndarray (P,) int64 increasing, ndarray (P, N) or (0, N)
             Weighted transverse norm (rad/s) after each step listed in ``probe_steps`` (0 = the initial state); NaN once a
             sample has stopped.
-        flips, flip_count : ndarray (N, F) or None, ndarray (N,) int64
+        flips, flip_count : ndarray (N, F), ndarray (N,) int64
             Times (s) of the first ``F`` sign changes of the ``axis`` component, located inside the step by cubic
-            Hermite interpolation; ``flip_count`` counts all of them.
-        drift : ndarray (2, N) or None
-            Running maximum of ``|E/E0 - 1|`` and ``||L|²/|L0|² - 1|``.
+            Hermite interpolation; ``flip_count`` counts all of them. ``F = 0``: flips are not observed.
+        drift : ndarray (2, N) or (0, N)
+            Running maximum of ``|E/E0 - 1|`` and ``||L|²/|L0|² - 1|`` (not recorded when empty).
         status, steps_taken : ndarray (N,) int8, ndarray (N,) int64
             Outputs: per-sample status and the number of steps each sample took.
         stop_norm, stop_flips : float, int
@@ -208,6 +210,9 @@ def make_propagate(method):
         early_stop = stop_norm > 0.0 or stop_flips > 0
         limit = drift_limit if torque_params is None else 0.0
         n_probes = probe_steps.shape[0]
+        store = saved.shape[0] > 0
+        track_flips = flips.shape[1] > 0
+        track_drift = drift.shape[0] > 0
         for ib in prange(n_blocks):
             lo = ib * block
             hi = min(lo + block, n)
@@ -230,7 +235,7 @@ def make_propagate(method):
             previous = np.empty((3, m))
             n_frozen = 0
             slot = 0
-            if saved is not None:
+            if store:
                 saved[0, :, lo:hi] = ys
                 slot = 1
             probe = 0
@@ -240,7 +245,7 @@ def make_propagate(method):
             ran = 0
             for k in range(n_steps):
                 t = t0 + k * h
-                if flips is not None:
+                if track_flips:
                     previous[:, :] = ys
                 if method == RK4:
                     rk4_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
@@ -261,15 +266,15 @@ def make_propagate(method):
                 if n_frozen:
                     _restore_frozen(y1, y2, y3, active, frozen)
                 ran = k + 1
-                if flips is not None:
+                if track_flips:
                     _observe_flips(ys, previous, active, axis, t, h, body, flips, flip_count, lo, torque_kind,
                                    torque_params, torque_fn)
-                if drift is not None or limit > 0.0:
+                if track_drift or limit > 0.0:
                     n_frozen += _observe_drift(ys, active, body, e0, target, drift, lo, limit, ran, frozen,
                                                block_status, last)
-                if flips is not None or ran % CHECK_EVERY == 0 or ran == n_steps:
+                if track_flips or ran % CHECK_EVERY == 0 or ran == n_steps:
                     n_frozen += _check_finite(ys, active, ran, frozen, block_status, last)
-                if saved is not None and (ran % save_every == 0 or ran == n_steps):
+                if store and (ran % save_every == 0 or ran == n_steps):
                     saved[slot, :, lo:hi] = ys
                     slot += 1
                 while probe < n_probes and probe_steps[probe] == ran:
@@ -283,13 +288,13 @@ def make_propagate(method):
                         break
             # A block that stopped early fills the rest of its requested outputs: trajectories hold the frozen
             # state, probes are NaN (no measurement after a sample stopped).
-            if saved is not None:
+            if store:
                 for k in range(ran, n_steps):
                     if (k + 1) % save_every == 0 or k + 1 == n_steps:
                         saved[slot, :, lo:hi] = ys
                         slot += 1
             while probe < n_probes:
-                if probes is not None:
+                if probes.shape[0] > 0:
                     probes[probe, lo:hi] = np.nan
                 probe += 1
             w[:, lo:hi] = ys
@@ -298,5 +303,40 @@ def make_propagate(method):
     return propagate
 
 
-# One driver per method, compiled lazily on first use.
+# One driver per method, compiled lazily on first use: once torque-free and once per built-in torque profile.
 PROPAGATE = tuple(make_propagate(i) for i in range(len(METHOD_ORDER)))
+
+# A user's torque function ``f(t, w1, w2, w3) -> (N1, N2, N3)`` is passed as a first-class function of this
+# type, so one compiled (and cached) driver per method serves every torque function instead of one variant
+# per function (which numba could not cache). The price is an indirect call per sample and stage, which keeps
+# the step from vectorising across samples (measured in benchmarks/engine.py).
+TORQUE_SIGNATURE = types.UniTuple(types.float64, 3)(types.float64, types.float64, types.float64, types.float64)
+_USER_TORQUE_DRIVERS = {}
+
+
+def driver(method, torque_fn=None):
+    """The compiled driver of ``method`` (an index of METHOD_ORDER) for a call with ``torque_fn``.
+
+    Without a torque function this is ``PROPAGATE[method]``. With one, the function is compiled for
+    :data:`TORQUE_SIGNATURE` and a second dispatcher of the same driver, compiled only for the first-class
+    function type and then closed to further compilation, takes it: numba converts any jitted function of that
+    signature to the first-class type instead of compiling a variant for it.
+    """
+    if torque_fn is None:
+        return PROPAGATE[method]
+    torque_fn.compile(TORQUE_SIGNATURE)
+    dispatcher = _USER_TORQUE_DRIVERS.get(method)
+    if dispatcher is None:
+        dispatcher = jit(parallel=True)(PROPAGATE[method].py_func)
+        dispatcher.compile(_user_torque_types())
+        dispatcher.disable_compile()
+        _USER_TORQUE_DRIVERS[method] = dispatcher
+    return dispatcher
+
+
+def _user_torque_types():
+    """Argument types of the driver for a user torque function (see :func:`make_propagate`)."""
+    f8, i8 = types.float64, types.int64
+    return (f8[:, ::1], types.UniTuple(f8, 12), f8, f8, i8, i8, i8, f8[:, :, ::1], i8, f8[::1], i8[::1], f8[:, ::1],
+            f8[:, ::1], i8[::1], f8[:, ::1], types.int8[::1], i8[::1], f8, i8, f8, i8, f8[::1],
+            types.FunctionType(TORQUE_SIGNATURE))

@@ -6,7 +6,7 @@ import numpy as np
 
 from . import tableaux
 from .attitude import FAMILY_MIDPOINT, FAMILY_RUNGE_KUTTA, FAMILY_SPLITTING, propagate_attitude
-from .drivers import PROPAGATE
+from .drivers import driver
 from .steppers import TORQUE_CONSTANT, body_constants
 
 __all__ = ["BLOCK", "METHODS", "Method", "Observed", "run", "run_attitude"]
@@ -123,25 +123,27 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
     n_saved = 0
     if save_every > 0:
         n_saved = 1 + n_steps // save_every + (1 if n_steps % save_every else 0)
-    saved = np.empty((n_saved, 3, n)) if save_every > 0 else None
+    # Outputs not asked for are empty arrays: the driver's observers are runtime switches (one compiled variant).
+    saved = np.empty((n_saved, 3, n))
     probe_steps = _NO_STEPS if probe_steps is None else np.ascontiguousarray(probe_steps, dtype=np.int64)
-    probes = np.empty((len(probe_steps), n)) if len(probe_steps) else None
-    flips = np.full((n, max_flips), np.nan) if max_flips > 0 else None
+    probes = np.empty((len(probe_steps), n))
+    flips = np.full((n, max(int(max_flips), 0)), np.nan)
     flip_count = np.zeros(n, dtype=np.int64)
-    drifts = np.zeros((2, n)) if drift else None
+    drifts = np.zeros((2 if drift else 0, n))
     status = np.zeros(n, dtype=np.int8)
     steps_taken = np.zeros(n, dtype=np.int64)
-    PROPAGATE[method.kernel_id](kernel_w, body_constants(moments), float(t0), float(h), int(n_steps),
-                                int(block),
-              int(save_every), saved, int(kernel_axis), np.ascontiguousarray(weights), probe_steps, probes, flips,
-              flip_count, drifts, status, steps_taken, float(stop_norm), int(stop_flips), float(drift_limit), int(torque_kind),
-              torque_params, torque_fn)
+    args = (kernel_w, body_constants(moments), float(t0), float(h), int(n_steps), int(block), int(save_every), saved,
+            int(kernel_axis), np.ascontiguousarray(weights), probe_steps, probes, flips, flip_count, drifts, status,
+            steps_taken, float(stop_norm), int(stop_flips), float(drift_limit), int(torque_kind), torque_params,
+            torque_fn)
+    driver(method.kernel_id, torque_fn)(*args)
     if relabel is not None:
         inverse = np.argsort(perm)
         w[:] = sign * kernel_w[inverse]
-        if saved is not None:
-            saved = sign * saved[:, inverse]
-    return Observed(saved, probes, flips, flip_count if max_flips > 0 else None, drifts, status, steps_taken)
+        saved = sign * saved[:, inverse]
+    return Observed(saved if save_every > 0 else None, probes if len(probe_steps) else None,
+                    flips if max_flips > 0 else None, flip_count if max_flips > 0 else None, drifts if drift else None,
+                    status, steps_taken)
 
 
 _NO_TABLE = np.zeros((0, 0))
