@@ -172,7 +172,7 @@ def test_an_interrupted_run_leaves_no_file_named_like_a_result(tmp_path, monkeyp
     study = tmp_path / "resume.toml"
     study.write_text(_toml(SCAN))
     status = cli.main(["run", str(study), "--out", str(tmp_path / "out"), "--chunk-scenes", "4"])
-    assert status == 1 and "interrupted" in capsys.readouterr().err
+    assert status == cli.EXIT_INTERRUPTED == 130 and "interrupted" in capsys.readouterr().err
     out = tmp_path / "out"
     assert [p.name for p in out.iterdir()] == [".resume.chunks"]
     assert finished_chunks(out) == ["scenes-000000-000003.chunk", "scenes-000004-000007.chunk",

@@ -223,3 +223,87 @@ def test_tumble_run_on_a_generated_study_exits_0_or_2_never_a_traceback(tmp_path
     else:
         assert "valid;" in out
     assert not (tmp_path / "out").exists()
+
+
+# --- bad input and failures, one row a case (issue 17) ---------------------------------------------------
+# Each row: what the user gives, the exit status and a fragment of the one line on standard error. Nothing
+# may be written under --out for a refused run.
+
+ONE_VALUE_SCAN = {"title": "one", "body": {"moments": [1.0, 2.0, 3.0]}, "spin": {"axis": 2},
+                  "perturbation": {"samples": 32}, "scan": {"amplitude": [1e-3]}, "integration": {"flips": 0},
+                  "outputs": {"figures": [], "arrays": []}}
+# Valid field by field, but a periodic scene cannot keep 1e7 s of phase samples: refused while planning it.
+LONG_HORIZON = {"title": "long", "body": {"moments": [1.0, 2.0, 3.0]}, "spin": {"axis": 1},
+                "perturbation": {"samples": 8}, "integration": {"horizon": 1e7},
+                "outputs": {"figures": [], "arrays": []}}
+DEEP_TOML = "[perturbation]\namplitude = " + "[" * 2000 + "1e-3" + "]" * 2000 + "\n"
+
+CLI_CASES = [
+    # (id, study (dict, TOML text or bundled name), extra arguments, exit status, fragment of the message)
+    ("deep-toml", DEEP_TOML, [], 2, "nested too deeply"),
+    ("deep-toml-dry-run", DEEP_TOML, ["--dry-run"], 2, "nested too deeply"),
+    ("scene-refused-while-planning", LONG_HORIZON, [], 2, "choose a shorter horizon"),
+    ("workers-without-local", "intermediate_axis", ["--workers", "2"], 2, "needs --scheduler local"),
+    ("workers-with-remote", "intermediate_axis", ["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], 2,
+     "needs --scheduler local"),
+    ("port-out-of-range", "intermediate_axis", ["--scheduler", "tcp://127.0.0.1:99999"], 2, "from 1 to 65535"),
+    ("port-not-a-number", "intermediate_axis", ["--scheduler", "tcp://127.0.0.1:http"], 2, "from 1 to 65535"),
+    ("scheduler-without-host", "intermediate_axis", ["--scheduler", "tcp://:8786"], 2, "names no host"),
+]
+
+
+@pytest.mark.parametrize("study, args, status, fragment", [case[1:] for case in CLI_CASES],
+                         ids=[case[0] for case in CLI_CASES])
+def test_refused_input_exits_with_one_line_and_writes_nothing(tmp_path, capsys, study, args, status, fragment):
+    if isinstance(study, dict):
+        path = tmp_path / "study.toml"
+        path.write_text(_toml(study))
+        study = str(path)
+    elif "\n" in study:
+        path = tmp_path / "study.toml"
+        path.write_text(study)
+        study = str(path)
+    out = tmp_path / "out"
+    got = cli.main(["run", study, "--out", str(out), *args])
+    err = capsys.readouterr().err
+    assert got == status, err
+    assert fragment in err and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert not out.exists() or not any(out.iterdir()), sorted(p.name for p in out.rglob("*"))
+
+
+def test_a_scan_of_one_value_per_key_runs_and_prints_its_summary(tmp_path, capsys):
+    """The summary table read a (1,)-shaped scan's values with float(), which fails on numpy >= 2.4."""
+    study = tmp_path / "one.toml"
+    study.write_text(_toml(ONE_VALUE_SCAN))
+    status = cli.main(["run", str(study), "--out", str(tmp_path / "out")])
+    out, err = capsys.readouterr()
+    assert status == 0, err
+    assert "95% bootstrap interval of the median" in out and (tmp_path / "out" / "one.nc").is_file()
+
+
+def test_an_internal_value_error_is_not_reported_as_the_users_input(tmp_path, monkeypatch, capsys):
+    def broken(*args, **kwargs):
+        raise ValueError("an internal inconsistency")
+
+    monkeypatch.setattr(runner, "_run", broken)
+    status = cli.main(["run", "intermediate_axis", "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert status == 1 and "tumble: failed: ValueError: an internal inconsistency" in err
+
+
+def test_ctrl_c_exits_130(tmp_path, monkeypatch, capsys):
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(runner, "_run", interrupted)
+    status = cli.main(["run", "intermediate_axis", "--out", str(tmp_path / "out")])
+    assert status == 130 and "interrupted" in capsys.readouterr().err
+
+
+def test_dry_run_checks_that_the_output_folder_can_be_written(tmp_path, capsys):
+    (tmp_path / "file").write_text("not a folder")
+    status = cli.main(["run", "intermediate_axis", "--dry-run", "--out", str(tmp_path / "file" / "sub")])
+    err = capsys.readouterr().err
+    assert status == 1 and "is not a folder" in err and "Traceback" not in err
+    assert cli.main(["run", "intermediate_axis", "--dry-run", "--out", str(tmp_path / "new" / "sub")]) == 0
+    assert not (tmp_path / "new").exists(), "a dry run creates nothing"

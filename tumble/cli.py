@@ -19,6 +19,9 @@ from ._version import __version__
 from .physics import exact, shapes, theory
 from .engine.integration import integrate
 
+#: Exit status after Ctrl-C (128 + SIGINT, as shells report it).
+EXIT_INTERRUPTED = 130
+
 _METHODS = ("rk4", "rk8", "symplectic_euler", "splitting2", "splitting4", "implicit_midpoint", "exact")
 
 
@@ -100,6 +103,8 @@ def _run(args):
     for flag, value in (("--chunk-scenes", args.chunk_scenes), ("--workers", args.workers)):
         if value is not None and value < 1:
             raise InputError(f"{flag} must be >= 1, got {value}")
+    if args.workers is not None and args.scheduler != "local":
+        raise InputError("--workers sets the worker processes of --scheduler local; it needs --scheduler local")
     try:
         runner.chunk_samples_size(args.chunk_samples)
     except ValueError as err:
@@ -116,6 +121,7 @@ def _run(args):
     scenes = job["layout"]["scenes"]
     chunk = args.chunk_scenes or runner.default_chunk_scenes(scenes)
     if args.dry_run:
+        checkpoint.check_writable(directory)
         tasks = runner.plan_tasks(job, checkpoint.Finished({}, {}), chunk_scenes=chunk,
                                   chunk_samples=args.chunk_samples)
         split = sum(1 for task in tasks if task.start is not None)
@@ -128,22 +134,17 @@ def _run(args):
     if args.fresh:
         store.remove()
     log = lambda line: print(line, flush=True)  # noqa: E731
-    try:
-        if scheduler is None:
-            ds = runner._run(resolved, args.study, None, job=job, store=store, chunk_scenes=chunk,
-                             chunk_samples=args.chunk_samples, log=log)
-        else:
-            from .pipeline import distributed
+    if scheduler is None:
+        ds = runner._run(resolved, args.study, None, job=job, store=store, chunk_scenes=chunk,
+                         chunk_samples=args.chunk_samples, log=log)
+    else:
+        from .pipeline import distributed
 
-            with distributed.connect(scheduler, workers=args.workers) as client:
-                print(f"dask scheduler {client.scheduler.address}: {len(client.scheduler_info()['workers'])} "
-                      f"worker(s)", flush=True)
-                ds = runner._run(resolved, args.study, None, job=job, store=store, client=client,
-                                 chunk_scenes=chunk, chunk_samples=args.chunk_samples, log=log)
-    except OSError:
-        raise
-    except ValueError as err:  # a value the scene cannot take, found while planning it: still the input's fault
-        raise InputError(f"{args.study}: {err}") from None
+        with distributed.connect(scheduler, workers=args.workers) as client:
+            print(f"dask scheduler {client.scheduler.address}: {len(client.scheduler_info()['workers'])} "
+                  f"worker(s)", flush=True)
+            ds = runner._run(resolved, args.study, None, job=job, store=store, client=client,
+                             chunk_scenes=chunk, chunk_samples=args.chunk_samples, log=log)
     command = " ".join(["tumble run", args.study] + [f"--{k.split('.')[1]} {v}" for k, v in overrides.items()])
     stored, paths = runner.write_outputs(ds, resolved, directory, stem, action=command)
     store.remove()
@@ -290,7 +291,7 @@ def main(argv=None):
     except KeyboardInterrupt as err:
         print(f"tumble: interrupted{': ' + str(err) if str(err) else ''}; no result was written (finished chunks "
               "are kept: rerun to resume)", file=sys.stderr)
-        return 1
+        return EXIT_INTERRUPTED
     except Exception as err:  # noqa: BLE001 - the command line reports every failure as one line (exit 1)
         if os.environ.get("TUMBLE_DEBUG"):
             traceback.print_exc()

@@ -26,10 +26,12 @@ evaluated.
 from __future__ import annotations
 
 import contextlib
+import errno
 import hashlib
 import io as io_module
 import json
 import math
+import os
 import re
 import shutil
 import sys
@@ -60,6 +62,19 @@ _NOT_HASHED = {"outputs": ("format", "directory")}
 
 class OutputError(OSError):
     """A result or checkpoint file could not be written (unwritable folder, disk full)."""
+
+
+def check_writable(directory):
+    """Raise :class:`OutputError` unless ``directory`` exists as a writable folder or can be made one (its
+    nearest existing ancestor is a writable folder). Creates nothing."""
+    directory = Path(directory)
+    existing = directory
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise OutputError(errno.ENOTDIR, f"cannot write the results to {directory}: {existing} is not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise OutputError(errno.EACCES, f"cannot write the results to {directory}: Permission denied ({existing})")
 
 
 def study_hash(resolved):

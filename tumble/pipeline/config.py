@@ -202,6 +202,9 @@ def _read_toml(path, shown):
         raise StudyError(shown, "<toml>", f"not valid TOML: {err}") from None
     except UnicodeDecodeError as err:
         raise StudyError(shown, "<toml>", f"not UTF-8 text ({err.reason} at byte {err.start})") from None
+    except RecursionError:  # tomllib parses nested arrays and inline tables recursively
+        raise StudyError(shown, "<toml>", "arrays or tables nested too deeply (a study nests a few levels at "
+                                          "most)") from None
     except OSError as err:
         raise StudyError(shown, "<file>", f"cannot be read: {err.strerror or err}") from None
 
@@ -227,20 +230,26 @@ def _locate(source):
     raise StudyError(text, "<file>", f"no such file, and no bundled study of that name (bundled: {names})")
 
 
-def _plain(value, field):
+#: Deepest nesting of tables and arrays a study may have (a study nests three levels at most).
+_MAX_DEPTH = 16
+
+
+def _plain(value, field, depth=0):
     """A copy of a mapping-given study with tuples as lists, ndarrays as lists, numpy scalars as Python
     scalars and mappings as dicts (keys must be strings)."""
+    if depth > _MAX_DEPTH and isinstance(value, (Mapping, list, tuple, np.ndarray)):
+        raise _Invalid(field or "<study>", f"nested more than {_MAX_DEPTH} levels deep")
     if isinstance(value, Mapping):
         out = {}
         for key, item in value.items():
             if not isinstance(key, str):
                 raise _Invalid(field or "<study>", f"keys must be strings, got {key!r}")
-            out[key] = _plain(item, f"{field}.{key}" if field else key)
+            out[key] = _plain(item, f"{field}.{key}" if field else key, depth + 1)
         return out
     if isinstance(value, np.ndarray):
         value = value.tolist()
     if isinstance(value, (list, tuple)):
-        return [_plain(item, f"{field}[{i}]") for i, item in enumerate(value)]
+        return [_plain(item, f"{field}[{i}]", depth + 1) for i, item in enumerate(value)]
     if isinstance(value, np.generic):
         return value.item()
     return value

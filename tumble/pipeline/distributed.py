@@ -79,11 +79,28 @@ def scheduler_address(option=None):
     if not isinstance(address, str) or not (address == "local" or address.startswith(PROTOCOLS)):
         raise SchedulerError(f"{where}: expected 'local' or a scheduler address like tcp://HOST:PORT, "
                              f"got {address!r}")
+    if address != "local":
+        _check_host_and_port(address, where)
     if not available():
         raise SchedulerError(f"{where} {address}: dask.distributed is not installed; install it with "
                              f"pip install \"tumble[distributed]\" (or \"dask[distributed]\"), or run without "
                              f"--scheduler")
     return address
+
+
+def _check_host_and_port(address, where):
+    """Refuse an address whose host is empty or whose port is not a number in 1..65535."""
+    from urllib.parse import urlsplit
+
+    try:
+        parts = urlsplit(address)
+        port = parts.port
+    except ValueError as err:  # a port that is not a number, or out of range
+        raise SchedulerError(f"{where}: {address!r}: the port must be a number from 1 to 65535 ({err})") from None
+    if not parts.hostname:
+        raise SchedulerError(f"{where}: {address!r} names no host; expected tcp://HOST:PORT")
+    if port is not None and not 1 <= port <= 65535:
+        raise SchedulerError(f"{where}: {address!r}: the port must be a number from 1 to 65535")
 
 
 def _numba_one_thread():

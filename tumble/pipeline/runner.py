@@ -137,7 +137,7 @@ def scene_job(resolved, file="<mapping>"):
     values = p["values"]
     layout = study.scan_layout(p["moments"], values["axis"], values["spin"], values["amplitude"], values["method"])
     return {"layout": layout, "scanned": bool(p["scanned"]), "samples": p["samples"], "seed": p["seed"],
-            "options": p["options"], "body_coords": p["body_coords"], "plan": p}
+            "options": p["options"], "body_coords": p["body_coords"], "plan": p, "file": str(file)}
 
 
 class Task(NamedTuple):
@@ -159,8 +159,12 @@ class Task(NamedTuple):
 def _scene_plan(job, index):
     """:func:`tumble.measure.scenes.scene_plan` of scene ``index`` of a :func:`scene_job`."""
     moments, params = study.scan_scene_parameters(job["layout"], index)
-    return study.scene_plan(moments, params["axis"], params["spin"], params["amplitude"], job["samples"], job["seed"],
-                            params["method"], **job["options"])
+    try:
+        return study.scene_plan(moments, params["axis"], params["spin"], params["amplitude"], job["samples"],
+                                job["seed"], params["method"], **job["options"])
+    except ValueError as err:  # a value this scene cannot take: the study's fault, named as such (exit 2)
+        label = " ".join(f"{key}={value}" for key, value in params.items())
+        raise StudyError(job.get("file", "<mapping>"), f"scene {index} ({label})", str(err)) from None
 
 
 def _scene_dataset(job, scene, parts):
@@ -493,7 +497,7 @@ def _scheduler(scheduler):
 def _scene_label(ds, index):
     """``axis=2 amplitude=0.001``: the scan coordinates of one scene (dimensions of length 1 left out)."""
     if not index:
-        return f"axis={int(ds.axis)} spin={float(ds.spin):g} amplitude={float(ds.amplitude):g}"
+        return f"axis={int(_only(ds.axis))} spin={_only(ds.spin):g} amplitude={_only(ds.amplitude):g}"
     parts = []
     for dim, i in zip(ds.rate.dims, index):
         if ds.sizes[dim] == 1:
@@ -501,6 +505,11 @@ def _scene_label(ds, index):
         value = (ds["body_label"] if dim == "body" and "body_label" in ds.coords else ds[dim]).values[i]
         parts.append(f"{dim}={value:g}" if isinstance(value, float) else f"{dim}={value}")
     return " ".join(parts) or "scene"
+
+
+def _only(variable):
+    """The value of a variable holding one value, whatever its number of (length-1) dimensions."""
+    return float(np.asarray(variable).reshape(-1)[0])
 
 
 def summary_table(ds, limit=24):
@@ -533,11 +542,11 @@ def summary_table(ds, limit=24):
     bad = int(np.count_nonzero(~np.isfinite(rate)))
     if bad:
         lines.append(f"{bad} scene(s) gave no rate: every sample was excluded (see sample_status)")
-    if rate.size == 1 and "rate_ci_low" in ds and "samples_used" in ds:
-        lines.append(f"95% bootstrap interval of the median [{float(ds.rate_ci_low):.8g}, {float(ds.rate_ci_high):.8g}] "
-                     f"{ds.rate.attrs.get('units', '')}; {int(ds.samples_used)} samples used, "
-                     f"{int(ds.samples_excluded)} excluded")
+    if rate.size == 1 and "rate_ci_low" in ds and "samples_used" in ds:  # one scene, perhaps a scan of one value
+        lines.append(f"95% bootstrap interval of the median [{_only(ds.rate_ci_low):.8g}, {_only(ds.rate_ci_high):.8g}] "
+                     f"{ds.rate.attrs.get('units', '')}; {int(_only(ds.samples_used))} samples used, "
+                     f"{int(_only(ds.samples_excluded))} excluded")
     if "flip_first" in ds and np.isfinite(ds.flip_first.values).any() and ds.flip_first.size == 1:
-        lines.append(f"first flip {float(ds.flip_first):.4g} s (asymptote {float(ds.flip_first_asymptote):.4g} s), "
-                     f"then every {float(ds.flip_spacing):.6g} s (exact 2K/nu {float(ds.flip_spacing_exact):.6g} s)")
+        lines.append(f"first flip {_only(ds.flip_first):.4g} s (asymptote {_only(ds.flip_first_asymptote):.4g} s), "
+                     f"then every {_only(ds.flip_spacing):.6g} s (exact 2K/nu {_only(ds.flip_spacing_exact):.6g} s)")
     return "\n".join(lines)
