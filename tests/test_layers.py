@@ -98,3 +98,59 @@ def test_the_checker_sees_an_upward_import(tmp_path):
     assert ("xarray", 3) in outside
     layers = {_layer(target) for target, _ in inside}
     assert any(LAYERS.index(layer) > LAYERS.index("engine") for layer in layers)
+
+
+# --- one owner per concept: the registry's tables and the kernels agree ---------------------------------------
+
+def test_the_kernels_coefficient_tables_are_the_registrys_stepping_methods():
+    from tumble import registry
+    from tumble.kernels import METHODS, tableaux
+
+    assert tuple(METHODS) == registry.STEPPING
+    assert sorted(tableaux.METHOD_ORDER) == sorted(registry.STEPPING)
+    for name, kernel in METHODS.items():
+        assert kernel.order == registry.method(name).order == kernel.coefficients.order, name
+        assert registry.STEPPING[kernel.kernel_id] == name
+    assert registry.STATUS_NAMES[registry.STATUS_OK] == "ok"
+
+
+def test_only_the_engine_and_the_closed_form_open_the_kernels_door():
+    """Outside tumble/kernels/, modules import `tumble.kernels` itself (its __init__), never a module inside,
+    and only the engine and physics/exact.py do."""
+    wrong = []
+    for path, parts in MODULES:
+        if parts[0] == "kernels":
+            continue
+        inside, _ = _imports(path, parts)
+        for target, line in inside:
+            if target[:1] != ("kernels",):
+                continue
+            door = len(target) == 1 or (len(target) == 2 and target[1] == "elliptic" and parts == ("physics", "exact"))
+            allowed = parts[0] == "engine" or parts == ("physics", "exact")
+            if not (door and allowed):
+                wrong.append(f"{'.'.join(parts)} line {line}: tumble.{'.'.join(target)}")
+    assert not wrong, wrong
+
+
+@pytest.mark.parametrize("name, torque_free, intermediate, flips, chosen", [
+    ("auto", True, True, 3, "exact"),
+    ("auto", True, False, 0, "exact"),
+    ("auto", True, False, 3, "rk4"),
+    ("auto", False, True, 0, "rk4"),
+    ("splitting4", False, True, 0, "splitting4"),
+    ("exact", True, False, 3, "exact"),
+])
+def test_auto_is_decided_in_one_place(name, torque_free, intermediate, flips, chosen):
+    from tumble import registry
+
+    assert registry.choose_method(name, torque_free=torque_free, axis_is_intermediate=intermediate,
+                                  flips=flips)[0] == chosen
+
+
+@pytest.mark.parametrize("name, torque_free, message", [
+    ("exact", False, "cannot take a torque"), ("rk5", True, "method must be one of"), (None, True, "method must be")])
+def test_choose_method_refuses_what_cannot_run(name, torque_free, message):
+    from tumble import registry
+
+    with pytest.raises(ValueError, match=message):
+        registry.choose_method(name, torque_free=torque_free)

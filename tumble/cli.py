@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import registry
 from ._version import __version__
 from .physics import exact, shapes, theory
 from .engine.integration import integrate
@@ -22,7 +23,7 @@ from .engine.integration import integrate
 #: Exit status after Ctrl-C (128 + SIGINT, as shells report it).
 EXIT_INTERRUPTED = 130
 
-_METHODS = ("rk4", "rk8", "symplectic_euler", "splitting2", "splitting4", "implicit_midpoint", "exact")
+_METHODS = tuple(m.name for m in registry.METHODS)
 
 
 def _spins_near_intermediate_axis(body, spin, amplitude, samples, seed):

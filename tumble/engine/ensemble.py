@@ -31,18 +31,16 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ..physics import exact
+from ..registry import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK, choose_method
 from ..physics.bodies import one_body
-from ..kernels.drivers import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK
-from ..kernels.methods import BLOCK, METHODS, run, run_attitude
-from ..kernels.steppers import TORQUE_CONSTANT, TORQUE_PULSE, TORQUE_RAMP, TORQUE_SINE, TORQUE_USER
+from .. import registry
+from ..kernels import BLOCK, METHODS, TORQUE_CONSTANT, TORQUE_USER, run, run_attitude
 from .sampling import CHUNK
 
 __all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "Interrupted", "STATUS_NAMES", "run_ensemble", "torque_spec"]
 
 # Torque-free samples whose energy or |L|^2 drift by more than this (relative) are flagged, not trusted.
 DEFAULT_DRIFT_LIMIT = 1e-2
-# Method for scenes with a torque when the caller says "auto": the fastest fourth-order kernel.
-AUTO_FORCED_METHOD = "rk4"
 
 _warmed = set()
 
@@ -62,13 +60,6 @@ class EnsembleResult(NamedTuple):
     steps_taken: np.ndarray  # (N,) steps each sample took (0 on the closed-form path)
     info: dict
     quaternion: np.ndarray | None = None  # (N, T, 4), body-to-space rotation, scalar first (attitude=True)
-
-
-#: Named torque profiles a study may use (studies are data: a profile name and numbers, never code).
-TORQUE_PROFILES = {"constant": TORQUE_CONSTANT, "ramp": TORQUE_RAMP, "sine": TORQUE_SINE, "pulse": TORQUE_PULSE}
-_PROFILE_TIME = {"ramp": "duration", "sine": "period", "pulse": "duration"}
-_PROFILE_TEXT = {"constant": "constant {v} N m", "ramp": "ramp {v} N m x min(t / {tau} s, 1)",
-                 "sine": "sine {v} N m x sin(2 pi t / {tau} s)", "pulse": "pulse {v} N m for 0 <= t < {tau} s"}
 
 
 def _torque_vector(vector):
@@ -97,40 +88,23 @@ def torque_spec(torque):
     if callable(torque):
         fn = torque if isinstance(torque, numba.core.registry.CPUDispatcher) else numba.njit(torque)
         return TORQUE_USER, None, fn, f"function {getattr(torque, '__name__', repr(torque))}(t, w1, w2, w3)"
-    profile, tau = "constant", 0.0
+    profile, tau = registry.torque_profile("constant"), 0.0
     if isinstance(torque, Mapping):
-        profile = torque.get("profile", "constant")
-        if profile == "none":
+        if torque.get("profile", "constant") == "none":
             return TORQUE_CONSTANT, None, None, "none"
-        if profile not in TORQUE_PROFILES:
-            raise ValueError(f"torque profile must be one of none, {', '.join(TORQUE_PROFILES)}; got {profile!r}")
-        if profile in _PROFILE_TIME:
-            key = _PROFILE_TIME[profile]
+        profile = registry.torque_profile(torque.get("profile", "constant"))
+        if profile.time:
+            key = profile.time
             tau = float(torque.get(key, 0.0))
             if not (np.isfinite(tau) and tau > 0):
-                raise ValueError(f"torque profile {profile!r} needs {key} > 0 s, got {torque.get(key)!r}")
+                raise ValueError(f"torque profile {profile.name!r} needs {key} > 0 s, got {torque.get(key)!r}")
         vector = _torque_vector(torque.get("vector", (0.0, 0.0, 0.0)))
     else:
         vector = _torque_vector(torque)
     if not vector.any():
         return TORQUE_CONSTANT, None, None, "none"
-    text = _PROFILE_TEXT[profile].format(v=vector.tolist(), tau=f"{tau:g}")
-    return TORQUE_PROFILES[profile], np.append(vector, tau), None, text
-
-
-def _choose_path(method, torque_free, axis_is_intermediate, max_flips):
-    """(method actually run, reason)."""
-    if method == "exact":
-        if not torque_free:
-            raise ValueError("method 'exact' is the torque-free closed form; it cannot take a torque")
-        return "exact", "closed form requested"
-    if method != "auto":
-        return method, "method requested"
-    if torque_free and (max_flips == 0 or axis_is_intermediate):
-        return "exact", "torque-free: closed form, no steps"
-    if torque_free:
-        return AUTO_FORCED_METHOD, "flips of a non-intermediate axis are located by stepping"
-    return AUTO_FORCED_METHOD, "a torque acts: fixed-step kernel"
+    text = profile.text.format(v=vector.tolist(), tau=f"{tau:g}")
+    return profile.code, np.append(vector, tau), None, text
 
 
 def _warm(method, torque_params, torque_fn, save_every, probe_steps, max_flips, drift):
@@ -249,9 +223,8 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
     kind, params, fn, torque_text = torque_spec(torque)
     torque_free = params is None and fn is None
     axis_is_intermediate = a == int(np.argsort(moments, kind="stable")[1])
-    chosen, reason = _choose_path(method, torque_free, axis_is_intermediate, max_flips)
-    if chosen != "exact" and chosen not in METHODS:
-        raise ValueError(f"method must be 'auto', 'exact' or one of {', '.join(METHODS)}; got {method!r}")
+    chosen, reason = choose_method(method, torque_free=torque_free, axis_is_intermediate=axis_is_intermediate,
+                                   flips=max_flips)
     if attitude and (not save_every or probe_times is not None or max_flips or drift or stop_norm or stop_flips):
         raise ValueError("attitude=True is stored with the trajectory: it needs save_every and no other observer")
     save = int(save_every or 0)

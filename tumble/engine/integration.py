@@ -9,12 +9,13 @@ import xarray as xr
 from ..physics import exact
 from ..physics.bodies import finite_array, one_body, spin_vectors
 from .ensemble import run_ensemble
-from ..kernels.drivers import STATUS_NAMES, STATUS_OK
-from ..kernels.methods import METHODS
+from ..kernels import METHODS
+from .. import registry
+from ..registry import STATUS_NAMES, STATUS_OK
 
 __all__ = ["integrate", "METHOD_NAMES"]
 
-METHOD_NAMES = (*METHODS, "exact")
+METHOD_NAMES = tuple(m.name for m in registry.METHODS)
 
 # t_end / dt within this relative distance of an integer counts as that integer (no extra short step).
 _STEP_COUNT_SLACK = 1e-9

@@ -1,0 +1,13 @@
+"""numba kernels: plain float64 arrays and scalars in, arrays written in place; no xarray, no configuration.
+
+This package's face is the one door to the kernels: the engine (:mod:`tumble.engine`) and the closed form
+(:mod:`tumble.physics.exact`) import from here, never from the modules inside (``tests/test_layers.py``
+checks it). Tests and benchmarks of the kernels themselves may reach the modules.
+"""
+
+from . import elliptic
+from .methods import BLOCK, METHODS, Method, Observed, run, run_attitude
+from .steppers import TORQUE_CONSTANT, TORQUE_PULSE, TORQUE_RAMP, TORQUE_SINE, TORQUE_USER
+
+__all__ = ["BLOCK", "METHODS", "Method", "Observed", "TORQUE_CONSTANT", "TORQUE_PULSE", "TORQUE_RAMP", "TORQUE_SINE",
+           "TORQUE_USER", "elliptic", "run", "run_attitude"]

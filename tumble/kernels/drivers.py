@@ -21,19 +21,16 @@ import math
 import numpy as np
 from numba import prange, types
 
+from ..registry import STATUS_DRIFT, STATUS_NAMES, STATUS_NONFINITE, STATUS_OK, STEPPING  # noqa: F401
 from .fused import rk4_block, rk8_block, splitting2_block, splitting4_block, symplectic_euler_block
 from .jit import jit
 from .steppers import MIDPOINT_WORK, energy, euler_rate, implicit_midpoint_block, l_squared
-from .tableaux import METHOD_ORDER
 
+# Kernel ids: a method's index in the registry's table of fixed-step methods.
 RK4, RK8, SYMPLECTIC_EULER, SPLITTING2, SPLITTING4, IMPLICIT_MIDPOINT = (
-    METHOD_ORDER.index(name)
+    STEPPING.index(name)
     for name in ("rk4", "rk8", "symplectic_euler", "splitting2", "splitting4", "implicit_midpoint"))
 
-STATUS_OK = 0
-STATUS_NONFINITE = 1
-STATUS_DRIFT = 2
-STATUS_NAMES = ("ok", "non-finite", "invariant drift")
 
 # How often (in steps) samples are checked for non-finite values when no per-step observer runs anyway.
 CHECK_EVERY = 32
@@ -152,7 +149,7 @@ def _stop_complete(ys, active, reached, stop_norm, stop_flips, flip_count, lo, k
 
 
 def make_propagate(method):
-    """The driver for one method (an index of METHOD_ORDER).
+    """The driver for one method (an index of :data:`tumble.registry.STEPPING`).
 
     ``method`` is a constant of the returned closure, so numba prunes every other method's branch before
     compiling: each method compiles (and is cached) on its own, and only when it is used. The observers are
@@ -304,7 +301,7 @@ def make_propagate(method):
 
 
 # One driver per method, compiled lazily on first use: once torque-free and once per built-in torque profile.
-PROPAGATE = tuple(make_propagate(i) for i in range(len(METHOD_ORDER)))
+PROPAGATE = tuple(make_propagate(i) for i in range(len(STEPPING)))
 
 # A user's torque function ``f(t, w1, w2, w3) -> (N1, N2, N3)`` is passed as a first-class function of this
 # type, so one compiled (and cached) driver per method serves every torque function instead of one variant
@@ -315,7 +312,7 @@ _USER_TORQUE_DRIVERS = {}
 
 
 def driver(method, torque_fn=None):
-    """The compiled driver of ``method`` (an index of METHOD_ORDER) for a call with ``torque_fn``.
+    """The compiled driver of ``method`` (an index of :data:`tumble.registry.STEPPING`) for a call with ``torque_fn``.
 
     Without a torque function this is ``PROPAGATE[method]``. With one, the function is compiled for
     :data:`TORQUE_SIGNATURE` and a second dispatcher of the same driver, compiled only for the first-class

@@ -4,6 +4,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..registry import STEPPING
 from . import tableaux
 from .attitude import FAMILY_MIDPOINT, FAMILY_RUNGE_KUTTA, FAMILY_SPLITTING, propagate_attitude
 from .drivers import driver
@@ -36,7 +37,11 @@ class Method(NamedTuple):
         return not isinstance(self.coefficients, tableaux.ButcherTableau)
 
 
-METHODS = {m.name: Method(m.name, i, m.order, m) for i, m in enumerate(tableaux.ALL_METHODS)}
+_COEFFICIENTS = {m.name: m for m in tableaux.ALL_METHODS}
+
+#: The fixed-step methods of :data:`tumble.registry.STEPPING`, with their kernel ids (index in that table) and
+#: coefficients; ``tests/test_layers.py`` checks the tables agree (names, orders).
+METHODS = {name: Method(name, i, _COEFFICIENTS[name].order, _COEFFICIENTS[name]) for i, name in enumerate(STEPPING)}
 
 
 class Observed(NamedTuple):

@@ -16,16 +16,15 @@ Euler's equations with body torque ``N`` (Landau & Lifshitz §36):
 
 import math
 
+from ..registry import TORQUE_USER, torque_profile  # noqa: F401  (TORQUE_USER re-exported)
 from .jit import jit
 from .trig import sincos
 
 # Built-in torque profiles (numeric parameters only, so that studies stay data). params = (N1, N2, N3, tau):
 # the vector (N m, body frame) and the profile's time scale tau (s; unused by the constant profile).
-TORQUE_CONSTANT = 0  # N
-TORQUE_RAMP = 1  # N min(t / tau, 1): rises linearly over tau, then holds
-TORQUE_SINE = 2  # N sin(2 pi t / tau)
-TORQUE_PULSE = 3  # N for 0 <= t < tau, then 0 (a fixed step across the jump errs O(h) once)
-TORQUE_USER = -1  # torque_fn is called
+# Codes from the registry's table (a pulse: a fixed step across the jump errs O(h) once).
+TORQUE_CONSTANT, TORQUE_RAMP, TORQUE_SINE, TORQUE_PULSE = (torque_profile(name).code
+                                                           for name in ("constant", "ramp", "sine", "pulse"))
 
 # Implicit midpoint: fixed-point iterations stop once the update is below this many ulps of the state.
 _MIDPOINT_ULPS = 4.0

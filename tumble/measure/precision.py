@@ -2,7 +2,7 @@
 
 :func:`work_precision` integrates one ensemble of perturbed spins to ``t_end`` with
 
-* every fixed-step tumble method (:data:`tumble.kernels.methods.METHODS`) over a geometric ladder of step
+* every fixed-step tumble method (:data:`tumble.registry.STEPPING`) over a geometric ladder of step
   counts, each run through :func:`tumble.integrate`;
 * the closed form (``tumble.integrate(..., method="exact")``, one point);
 * SciPy's ``solve_ivp`` (``RK45``, ``DOP853``) over a ladder of relative tolerances, on the *stacked*
@@ -50,11 +50,12 @@ import numba
 import numpy as np
 import xarray as xr
 
+from .. import registry
+from ..registry import STEPPING
 from .._version import __version__
 from ..physics import exact
 from ..physics.bodies import one_body
 from ..engine.integration import integrate
-from ..kernels.methods import METHODS
 from ..engine.sampling import perturbed_spins
 
 __all__ = ["ATOL_FACTOR", "DEFAULT_RTOLS", "SCIPY_METHODS", "default_steps", "euler_rhs_stacked", "speedups",
@@ -93,7 +94,7 @@ def default_steps(method, t_end=20.0):
     Parameters
     ----------
     method : str
-        A key of :data:`tumble.kernels.methods.METHODS`.
+        A key of :data:`tumble.registry.STEPPING`.
     t_end : float
         Horizon, s. The ladders are tuned for ``t_end = 20 s`` at about 1 rad/s; they are scaled by
         ``t_end / 20`` (and kept >= 4 steps) so that the step sizes, not the counts, stay comparable.
@@ -103,7 +104,7 @@ def default_steps(method, t_end=20.0):
     ndarray of int
         Increasing step counts, doubling from one to the next.
     """
-    order = METHODS[method].order
+    order = registry.method(method).order
     lo, hi = _LADDER_EXPONENTS.get(order, _LADDER_EXPONENTS[min(_LADDER_EXPONENTS, key=lambda k: abs(k - order))])
     counts = (2.0 ** np.arange(lo, hi + 1)) * (t_end / 20.0)
     return np.unique(np.maximum(4, np.round(counts)).astype(np.int64))
@@ -221,7 +222,7 @@ def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, sampl
     seed : int
         Seed of the ensemble.
     methods : sequence of str, optional
-        Fixed-step tumble methods (default: all of :data:`~tumble.kernels.methods.METHODS`). The closed form
+        Fixed-step tumble methods (default: all of :data:`~tumble.registry.STEPPING`). The closed form
         ``"exact"`` is always measured (one point); naming it here is allowed and changes nothing.
     steps : sequence of int, or dict {method: sequence of int}, optional
         Step counts ``n`` (``dt = t_end / n``). Default (and for methods a dict leaves out): a doubling
@@ -272,10 +273,10 @@ def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, sampl
     t_end = float(t_end)
     if not (math.isfinite(t_end) and t_end > 0):
         raise ValueError(f"t_end must be a finite number > 0 s, got {t_end!r}")
-    methods = list(METHODS) if methods is None else [m for m in dict.fromkeys(methods) if m != _EXACT]
-    unknown = [m for m in methods if m not in METHODS]
+    methods = list(STEPPING) if methods is None else [m for m in dict.fromkeys(methods) if m != _EXACT]
+    unknown = [m for m in methods if m not in STEPPING]
     if unknown:
-        raise ValueError(f"methods must be among {', '.join((*METHODS, _EXACT))}; got {unknown}")
+        raise ValueError(f"methods must be among {', '.join((*STEPPING, _EXACT))}; got {unknown}")
     scipy_methods = list(dict.fromkeys(scipy_methods or ()))
     bad = [m for m in scipy_methods if m not in SCIPY_METHODS]
     if bad:
@@ -410,8 +411,8 @@ def _dataset(curves, compile_time, methods, moments, axis, spin, amplitude, samp
         for j, point in enumerate(curves[s]):
             for f in fields:
                 table[f][i, j] = point[f]
-    kind = ["tumble" if s in METHODS else _EXACT if s == _EXACT else "scipy" for s in solvers]
-    order = [float(METHODS[s].order) if s in METHODS else np.nan for s in solvers]
+    kind = ["tumble" if s in STEPPING else _EXACT if s == _EXACT else "scipy" for s in solvers]
+    order = [float(registry.method(s).order) if s in STEPPING else np.nan for s in solvers]
     dims = ("solver", "wp_point")
     data = {
         "wp_error": (dims, table["error"], {
@@ -549,7 +550,7 @@ def speedups(ds, errors=(1e-4, 1e-7, 1e-10), baseline="scipy_DOP853"):
     if "solver_kind" in ds:
         kinds = [str(k) for k in ds["solver_kind"].values]
     else:
-        kinds = ["tumble" if s in METHODS else _EXACT if s == _EXACT else "scipy" for s in solvers]
+        kinds = ["tumble" if s in STEPPING else _EXACT if s == _EXACT else "scipy" for s in solvers]
     tumble_rows = [i for i, k in enumerate(kinds) if k == "tumble"]
     best, best_ratio = [], []
     for j in range(targets.size):

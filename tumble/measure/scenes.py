@@ -39,14 +39,14 @@ import numpy as np
 import xarray as xr
 from tqdm.auto import tqdm
 
+from .. import registry
+from ..registry import STATUS_NAMES, STATUS_OK, STEPPING
 from .._version import __version__
 from . import estimators as analysis
 from ..physics import exact, theory
 from ..physics.bodies import Body, one_body
-from ..engine.ensemble import AUTO_FORCED_METHOD, TORQUE_PROFILES, run_ensemble, torque_spec
+from ..engine.ensemble import run_ensemble, torque_spec
 from ..engine.integration import integrate
-from ..kernels.drivers import STATUS_NAMES, STATUS_OK
-from ..kernels.methods import METHODS
 from ..engine.sampling import CHUNK, perturbed_spins, seed_entropy
 
 __all__ = ["CURVES", "SAMPLE_STATUS_NAMES", "assemble_scan", "flip_time_law", "inertia_triangle", "invariant_drift",
@@ -96,9 +96,8 @@ _KIND_UNITS = {"periodic": "rad/s", "exponential": "1/s", "neutral": "rad/s"}
 
 
 def _check_method(method):
-    names = ("auto", "exact", *METHODS)
-    if not isinstance(method, str) or method not in names:
-        raise ValueError(f"method must be one of {', '.join(names)}; got {method!r}")
+    if not isinstance(method, str) or method not in registry.CHOICES:
+        raise ValueError(f"method must be one of {', '.join(registry.CHOICES)}; got {method!r}")
     return method
 
 
@@ -132,7 +131,7 @@ def _plan(moments, a, kind, value, spin, amplitude, method, dt, flips, w0_probe,
     timescale = 1.0 / value if value > 0 else 1.0 / w
     if dt is None and method != "exact":
         fastest = max(w, spin_max or w)
-        dt = min(timescale * w / fastest, 1.0 / fastest) / STEPS_PER_RADIAN[METHODS[method].order]
+        dt = min(timescale * w / fastest, 1.0 / fastest) / STEPS_PER_RADIAN[registry.method(method).order]
     tilt = math.sin(min(amplitude, 0.5 * np.pi))
     plan = {}
     if kind == "exponential":
@@ -289,10 +288,7 @@ def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, metho
     a = axis - 1
     kind, value = theory.linear(moments, axis, spin)
     spin_up = _axial_spin_up(torque, moments, a, kind, spin)
-    chosen = ("exact" if spin_up is None else AUTO_FORCED_METHOD) if method == "auto" else method
-    if spin_up is not None and chosen == "exact":
-        raise ValueError("method 'exact' is the torque-free closed form; a scene with a torque needs a fixed-step "
-                         "method (or 'auto')")
+    chosen, _ = registry.choose_method(method, torque_free=spin_up is None)
     spin_max = None
     if spin_up is not None:
         span = horizon or PERIODS * 2 * np.pi / value
@@ -459,7 +455,7 @@ def _axial_spin_up(torque, moments, a, kind, spin):
     if params[others].any():
         raise ValueError(f"measure compares with linear theory for a torque about the spin axis only; torque "
                          f"components {[i + 1 for i in others]} must be 0, got {params[:3].tolist()}")
-    profile = next(name for name, k in TORQUE_PROFILES.items() if k == torque_kind)
+    profile = registry.TORQUE_PROFILES[torque_kind].name
     return {"profile": profile, "tau": float(params[3]), "gain": float(params[a]) / moments[a]}
 
 
@@ -609,7 +605,7 @@ def _scene_dataset(moments, axis, spin, amplitude, samples, method, chosen, kind
 DRIFT_POINTS = 200
 
 
-def invariant_drift(body, axis, spin=1.0, amplitude=1e-3, methods=tuple(METHODS), *, samples=16, seed=0,
+def invariant_drift(body, axis, spin=1.0, amplitude=1e-3, methods=tuple(STEPPING), *, samples=16, seed=0,
                     horizon=None, dt=None):
     """How each fixed-step method keeps the invariants ``|L|²`` and kinetic energy over a scene's horizon.
 
@@ -625,7 +621,7 @@ def invariant_drift(body, axis, spin=1.0, amplitude=1e-3, methods=tuple(METHODS)
     moments, axis, spin, amplitude, samples, _ = _validate_scene(body, axis, spin, amplitude, samples, "auto", 0)
     methods = [_check_method(m) for m in methods]
     if not methods or any(m in ("auto", "exact") for m in methods):
-        raise ValueError(f"methods must be fixed-step methods ({', '.join(METHODS)}), got {methods!r}")
+        raise ValueError(f"methods must be fixed-step methods ({', '.join(STEPPING)}), got {methods!r}")
     kind, value = theory.linear(moments, axis, spin)
     w0 = perturbed_spins(moments, axis, spin, amplitude, samples, seed=seed)
     t_end = horizon or _plan(moments, axis - 1, kind, value, spin, amplitude, "exact", None,
@@ -635,7 +631,7 @@ def invariant_drift(body, axis, spin=1.0, amplitude=1e-3, methods=tuple(METHODS)
     l2, energy, steps = [], [], []
     for m in methods:
         step = dt or min(1.0 / value if value > 0 else 1.0 / abs(spin), 1.0 / abs(spin)) / STEPS_PER_RADIAN[
-            METHODS[m].order]
+            registry.method(m).order]
         every = max(1, math.ceil(t_end / step / DRIFT_POINTS))
         ds = integrate(moments, w0, t_end, t_end / (every * DRIFT_POINTS), method=m, save_every=every)
         w = ds.omega.values
@@ -967,9 +963,7 @@ def attitude_trace(body, axis=2, spin=1.0, amplitude=1e-3, method="auto", *, hor
     w0 = perturbed_spins(moments, axis, spin, amplitude, 1, seed=seed)
     _, params, fn, _ = torque_spec(torque)
     torque_free = params is None and fn is None
-    chosen = method
-    if method == "auto":
-        chosen = "exact" if torque_free else AUTO_FORCED_METHOD
+    chosen, _ = registry.choose_method(method, torque_free=torque_free)
     t_end = float(horizon) if horizon is not None else _attitude_horizon(moments, w0[0], axis)
     if chosen == "exact":
         ds = integrate(moments, w0, t_end, t_end / (points - 1), method="exact", save_every=1, attitude=True)

@@ -36,6 +36,7 @@ from matplotlib.patches import Patch
 from matplotlib.ticker import MaxNLocator
 from matplotlib.tri import Triangulation
 
+from .. import registry
 from . import attitude_figures as attitude_plots, io
 from ..physics import theory
 
@@ -44,8 +45,7 @@ __all__ = ["ANIMATIONS", "DOUBLE", "FIGURES", "SINGLE", "can_draw", "flip_animat
            "stability_map", "summary", "work_precision"]
 
 #: Names of the figures, in the order a report shows them.
-FIGURES = ("stability_map", "norm_growth", "flip_law", "flip_components", "invariant_drift", "work_precision",
-           "summary", "flip_strip", "flip_animation", "polhode", "herpolhode")
+FIGURES = registry.FIGURES
 
 #: Figures that are movies: written as ``<stem>_<name>.gif`` (``.mp4`` when ffmpeg is found), whatever formats.
 ANIMATIONS = ("flip_animation",)
@@ -61,7 +61,7 @@ MAX_SERIES = 6
 FLOOR = 1e-17
 
 #: File formats :func:`save_figures` writes.
-FORMATS = ("png", "pdf")
+FORMATS = registry.FORMATS
 
 _STYLE = {
     "font.size": 8, "axes.labelsize": 9, "axes.titlesize": 9, "legend.fontsize": 8, "xtick.labelsize": 8,

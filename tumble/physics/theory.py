@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import registry
 from .bodies import as_moments, finite_array
 
 __all__ = [
@@ -235,8 +236,7 @@ def symmetric_top_precession(body, w3, *, axis=3, rtol=1e-10):
 
 
 #: Scale s(t) of the named torque profiles (N(t) = vector * s(t); tau the profile's time scale, s).
-TORQUE_PROFILE_FORMULAS = {"constant": "1", "ramp": "min(t / tau, 1)", "sine": "sin(2 pi t / tau)",
-                           "pulse": "1 for 0 <= t < tau, else 0"}
+TORQUE_PROFILE_FORMULAS = {p.name: p.formula for p in registry.TORQUE_PROFILES}
 
 
 def profile_integrals(profile, tau, t):

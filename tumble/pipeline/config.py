@@ -34,9 +34,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import registry
 from ..physics import shapes
 from ..physics.bodies import Body, validate_moments
-from ..kernels.methods import METHODS
 from ..engine.sampling import DISTRIBUTIONS
 
 __all__ = [
@@ -81,21 +81,20 @@ SHAPES = ("rod", "disc", "cylinder", "cone", "sphere", "ellipsoid", "cuboid", "c
           "t_handle")
 
 #: ``integration.method``: the planner's choice, the closed form, or a fixed-step method.
-METHOD_NAMES = ("auto", "exact", *METHODS)
+METHOD_NAMES = registry.CHOICES
 
 #: ``torque.profile``: named time dependences of the body-frame torque (see ``defaults.toml``).
-PROFILES = ("none", "constant", "ramp", "sine", "pulse")
+PROFILES = ("none", *(p.name for p in registry.TORQUE_PROFILES))
 
 #: Which profile needs which time parameter (> 0); the other one must stay 0.
-_PROFILE_TIMES = {"sine": "period", "ramp": "duration", "pulse": "duration"}
+_PROFILE_TIMES = {p.name: p.time for p in registry.TORQUE_PROFILES if p.time}
 
-#: ``outputs.figures``, ``outputs.format`` and ``outputs.arrays``.
-FIGURES = ("stability_map", "norm_growth", "flip_law", "flip_components", "invariant_drift", "work_precision",
-           "summary", "flip_animation", "flip_strip", "polhode", "herpolhode")
+#: ``outputs.figures``, ``outputs.format`` and ``outputs.arrays`` (from :mod:`tumble.registry`).
+FIGURES = registry.FIGURES
 #: Figures drawn from the traced attitude of the study's first scene (:func:`tumble.measure.scenes.attitude_trace`).
-ATTITUDE_FIGURES = ("flip_animation", "flip_strip", "polhode", "herpolhode")
-FORMATS = ("png", "pdf")
-ARRAYS = ("sample_rate", "sample_status", "sample_first_flip", "sample_flip_spacing")
+ATTITUDE_FIGURES = registry.ATTITUDE_FIGURES
+FORMATS = registry.FORMATS
+ARRAYS = registry.PER_SAMPLE_ARRAYS
 
 #: Keys of the ``[scan]`` table, and the field each one replaces (``scan.body`` replaces the whole ``[body]``
 #: table: moments, shape and dimensions).
@@ -437,7 +436,7 @@ def _method(value, field, profile):
     name = _choice(value, field, METHOD_NAMES)
     if name == "exact" and profile != "none":
         raise _Invalid(field, f"'exact' is the torque-free closed form, but torque.profile is {profile!r}; "
-                              f"use 'auto' or a fixed-step method ({', '.join(METHODS)})")
+                              f"use 'auto' or a fixed-step method ({', '.join(registry.STEPPING)})")
     return name
 
 

@@ -24,12 +24,13 @@ from typing import NamedTuple
 import numpy as np
 from tqdm.auto import tqdm
 
+from .. import registry
+from ..registry import STEPPING
 from . import checkpoint, config
 from ..output import io, figures as plots
 from ..measure import scenes as study
 from ..physics import theory
 from .config import StudyError
-from ..kernels.methods import METHODS
 from ..engine.sampling import CHUNK
 
 __all__ = ["DEFAULT_CHUNK_SAMPLES", "PER_SAMPLE", "Task", "chunk_samples_size", "compute_samples", "compute_scene",
@@ -37,7 +38,7 @@ __all__ = ["DEFAULT_CHUNK_SAMPLES", "PER_SAMPLE", "Task", "chunk_samples_size", 
            "run_study", "sample_ranges", "scene_job", "summary_table", "write_outputs"]
 
 #: Per-sample variables a result may keep (``outputs.arrays``); the rest are dropped after the fit.
-PER_SAMPLE = ("sample_rate", "sample_status", "sample_first_flip", "sample_flip_spacing")
+PER_SAMPLE = registry.PER_SAMPLE_ARRAYS
 
 #: Figures that need curves :func:`tumble.measure.scenes.measure` keeps only on request.
 _CURVES = {"norm_growth": "norm", "flip_components": "trace"}
@@ -376,7 +377,7 @@ def _run(resolved, file, progress, *, job=None, store=None, client=None, chunk_s
     first_body = np.atleast_2d(p["moments"])[0]
     scene = (first_body, _first(values["axis"]), _first(values["spin"]), _first(values["amplitude"]))
     if "invariant_drift" in figures:
-        methods = [m for m in np.atleast_1d(values["method"]) if m in METHODS] or list(METHODS)
+        methods = [m for m in np.atleast_1d(values["method"]) if m in STEPPING] or list(STEPPING)
         ds = ds.merge(study.invariant_drift(*scene, methods, samples=min(_DRIFT_SAMPLES, p["samples"]),
                                             seed=p["seed"], horizon=options["horizon"]))
     if "work_precision" in figures:
@@ -387,7 +388,7 @@ def _run(resolved, file, progress, *, job=None, store=None, client=None, chunk_s
     if any(name in config.ATTITUDE_FIGURES for name in figures):
         body = resolved["body"] if "body" not in resolved["scan"] else {}
         method = _first(values["method"])
-        ds = ds.merge(study.attitude_trace(*scene, method if method in METHODS else "auto", seed=p["seed"],
+        ds = ds.merge(study.attitude_trace(*scene, method if method in STEPPING else "auto", seed=p["seed"],
                                            torque=options["torque"], horizon=options["horizon"],
                                            shape=body.get("shape", ""), shape_parameters=body.get("dimensions")))
     ds.attrs["title"] = resolved["title"]

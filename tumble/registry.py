@@ -1,0 +1,153 @@
+"""What tumble knows by name, in one place: plain data at the bottom of the layers.
+
+This module imports nothing of tumble. The kernels (a stepping method's kernel id is its index in
+:data:`STEPPING`), the engine's choice of path, the study checks, the command line, the docs' tables, the
+tests and the benchmarks all read these tables instead of keeping lists of their own; ``tests/test_registry.py``
+checks that the kernels' coefficient tables agree with them.
+"""
+
+from typing import NamedTuple
+
+__all__ = ["ATTITUDE_FIGURES", "AUTO", "AUTO_STEPPING", "CHOICES", "FIGURES", "FORMATS", "METHODS", "Method",
+           "PER_SAMPLE_ARRAYS", "STATUSES", "STATUS_DRIFT", "STATUS_NAMES", "STATUS_NONFINITE", "STATUS_OK", "STEPPING",
+           "Status", "TORQUE_PROFILES", "TORQUE_USER", "TorqueProfile", "choose_method", "method", "torque_profile"]
+
+
+class Method(NamedTuple):
+    """An integration method: its name and what a user may rely on."""
+
+    name: str
+    order: int  # nominal order of the global error in the step (0: exact, no step)
+    family: str  # "runge_kutta" | "splitting" | "implicit" | "closed_form"
+    keeps: str  # what it conserves to round-off, in words
+    torque: bool  # can take a body torque
+    attitude: bool  # integrates the orientation too (integrate(attitude=True))
+
+
+#: Every method, the fixed-step ones first, in kernel-id order.
+METHODS = (
+    Method("rk4", 4, "runge_kutta", "nothing exactly: |L| and energy drift at O(h^4)", True, True),
+    Method("rk8", 8, "runge_kutta", "nothing exactly: |L| and energy drift at O(h^8) (DOP853 tableau)", True, True),
+    Method("symplectic_euler", 1, "splitting", "|L| (exact sub-rotations); energy bounded, O(h)", True, True),
+    Method("splitting2", 2, "splitting", "|L|; energy bounded, O(h^2) (Strang composition)", True, True),
+    Method("splitting4", 4, "splitting", "|L|; energy bounded, O(h^4) (Yoshida composition)", True, True),
+    Method("implicit_midpoint", 2, "implicit", "|L| and energy (to the fixed-point solver's tolerance)", True,
+           True),
+    Method("exact", 0, "closed_form", "everything: the torque-free Jacobi-elliptic solution", False, True),
+)
+
+_BY_NAME = {m.name: m for m in METHODS}
+
+#: Fixed-step methods by kernel id.
+STEPPING = tuple(m.name for m in METHODS if m.family != "closed_form")
+
+#: The word that lets tumble choose (:func:`choose_method`).
+AUTO = "auto"
+
+#: Every value a user may give as a method.
+CHOICES = (AUTO, *_BY_NAME)
+
+#: The stepping method ``"auto"`` takes when the closed form cannot serve: the fastest fourth-order kernel.
+AUTO_STEPPING = "rk4"
+
+
+def method(name):
+    """The :class:`Method` called ``name``.
+
+    Raises
+    ------
+    ValueError
+        ``name`` is not a method (the message lists the methods).
+    """
+    found = _BY_NAME.get(name) if isinstance(name, str) else None
+    if found is None:
+        raise ValueError(f"method must be one of {', '.join(_BY_NAME)}; got {name!r}")
+    return found
+
+
+def choose_method(name, *, torque_free, axis_is_intermediate=True, flips=0):
+    """The method a run uses for ``name`` (``"auto"`` or a method), and why: ``(method, reason)``.
+
+    ``"auto"`` is the closed form whenever it can deliver everything asked: the scene is torque-free, and flips
+    (sign changes of the spin-axis component) are asked only about the intermediate axis, whose flip times the
+    closed form gives exactly. Otherwise it is :data:`AUTO_STEPPING`.
+
+    Raises
+    ------
+    ValueError
+        ``name`` is neither ``"auto"`` nor a method, or is ``"exact"`` with a torque.
+    """
+    if name == AUTO:
+        if torque_free and (flips == 0 or axis_is_intermediate):
+            return "exact", "torque-free: closed form, no steps"
+        if torque_free:
+            return AUTO_STEPPING, "flips of a non-intermediate axis are located by stepping"
+        return AUTO_STEPPING, "a torque acts: fixed-step kernel"
+    chosen = method(name)
+    if not chosen.torque and not torque_free:
+        raise ValueError(f"method {name!r} is the torque-free closed form; it cannot take a torque (a scene with a "
+                         f"torque needs a fixed-step method, or {AUTO!r})")
+    return chosen.name, "closed form requested" if chosen.family == "closed_form" else "method requested"
+
+
+class Status(NamedTuple):
+    """A per-sample outcome of a run: its name (as written in files) and what it means."""
+
+    name: str
+    message: str
+
+
+#: Per-sample statuses of the engine, by code (the kernels write the codes).
+STATUSES = (
+    Status("ok", "ran to the end, or stopped because its measurement was complete"),
+    Status("non-finite", "a component became NaN or infinite (step too large for the spin rate?)"),
+    Status("invariant drift", "torque-free: |L|^2 or the energy drifted beyond the drift limit"),
+)
+STATUS_NAMES = tuple(s.name for s in STATUSES)
+STATUS_OK, STATUS_NONFINITE, STATUS_DRIFT = (STATUS_NAMES.index(name) for name in ("ok", "non-finite", "invariant drift"))
+
+
+class TorqueProfile(NamedTuple):
+    """A named time dependence ``s(t)`` of a body torque ``N(t) = vector * s(t)`` (studies are data: a name
+    and numbers, never code)."""
+
+    name: str
+    code: int  # the kernels' torque_kind
+    time: str  # the study key of its time scale tau, s ("" when it has none)
+    formula: str  # s(t)
+    text: str  # how a run describes it: {v} the vector, N m; {tau} the time scale, s
+
+
+#: The built-in torque profiles, by kernel code.
+TORQUE_PROFILES = (
+    TorqueProfile("constant", 0, "", "1", "constant {v} N m"),
+    TorqueProfile("ramp", 1, "duration", "min(t / tau, 1)", "ramp {v} N m x min(t / {tau} s, 1)"),
+    TorqueProfile("sine", 2, "period", "sin(2 pi t / tau)", "sine {v} N m x sin(2 pi t / {tau} s)"),
+    TorqueProfile("pulse", 3, "duration", "1 for 0 <= t < tau, else 0", "pulse {v} N m for 0 <= t < {tau} s"),
+)
+_PROFILE_BY_NAME = {p.name: p for p in TORQUE_PROFILES}
+
+#: The kernels' torque_kind when a user's torque function is called.
+TORQUE_USER = -1
+
+
+def torque_profile(name):
+    """The :class:`TorqueProfile` called ``name``; ValueError naming the profiles otherwise."""
+    found = _PROFILE_BY_NAME.get(name) if isinstance(name, str) else None
+    if found is None:
+        raise ValueError(f"torque profile must be one of none, {', '.join(_PROFILE_BY_NAME)}; got {name!r}")
+    return found
+
+
+#: Figures of a result, in the order a report shows them (``outputs.figures``).
+FIGURES = ("stability_map", "norm_growth", "flip_law", "flip_components", "invariant_drift", "work_precision",
+           "summary", "flip_strip", "flip_animation", "polhode", "herpolhode")
+
+#: Figures drawn from the traced attitude of a study's first scene.
+ATTITUDE_FIGURES = ("flip_animation", "flip_strip", "polhode", "herpolhode")
+
+#: Image formats of the figures (``outputs.format``).
+FORMATS = ("png", "pdf")
+
+#: Per-sample variables a result may keep (``outputs.arrays``); the rest are dropped after the fit.
+PER_SAMPLE_ARRAYS = ("sample_rate", "sample_status", "sample_first_flip", "sample_flip_spacing")
