@@ -36,14 +36,13 @@ from pathlib import Path
 import numba
 import numpy as np
 import xarray as xr
+from provenance import source_digest  # benchmarks/provenance.py
 
 import tumble
-from tumble.physics import exact
 from tumble.engine.sampling import perturbed_spins, seed_entropy
 from tumble.measure import estimators
 from tumble.measure.scenes import SAMPLE_STATUS_NAMES
-
-from provenance import source_digest  # benchmarks/provenance.py
+from tumble.physics import exact
 
 RESULTS = Path(__file__).with_name("results")
 

@@ -26,9 +26,9 @@ import numba
 import numpy as np
 
 import tumble
-from tumble.physics import exact
 from tumble.kernels import methods as kernel_methods
 from tumble.kernels.methods import METHODS
+from tumble.physics import exact
 
 sys.path.insert(0, str(Path(__file__).parent))
 from provenance import source_digest  # noqa: E402

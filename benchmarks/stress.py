@@ -51,16 +51,15 @@ from pathlib import Path
 import numba
 import numpy as np
 import xarray as xr
+from provenance import source_digest  # benchmarks/provenance.py
 
 import tumble
-from tumble.physics import exact, theory
 from tumble.engine.ensemble import DEFAULT_DRIFT_LIMIT, run_ensemble
+from tumble.engine.sampling import perturbed_spins
 from tumble.kernels import tableaux
 from tumble.kernels.drivers import STATUS_DRIFT, STATUS_NAMES, STATUS_OK
 from tumble.kernels.methods import METHODS as _KERNEL_METHODS
-from tumble.engine.sampling import perturbed_spins
-
-from provenance import source_digest  # benchmarks/provenance.py
+from tumble.physics import exact, theory
 
 RESULTS = Path(__file__).with_name("results")
 

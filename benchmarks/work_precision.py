@@ -35,8 +35,8 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from tumble.output.io import write_dataset
 from tumble.measure.precision import speedups, work_precision
+from tumble.output.io import write_dataset
 
 RESULTS = Path(__file__).with_name("results")
 

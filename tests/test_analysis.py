@@ -10,10 +10,10 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from tumble.measure import estimators as analysis
-from tumble.physics import exact, theory
 from tumble.engine import sampling
+from tumble.measure import estimators as analysis
 from tumble.measure.estimators import FIT_NO_SIGNAL, FIT_OK, FIT_SHORT_WINDOW, FIT_UNDERSAMPLED
+from tumble.physics import exact, theory
 
 MOMENTS = np.array([1.0, 2.0, 3.0])
 SQRT3 = np.sqrt(3.0)

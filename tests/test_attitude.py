@@ -6,9 +6,9 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import tumble
-from tumble.physics import exact, rotations, shapes
 from tumble.kernels import methods as kernel_methods
 from tumble.kernels.methods import METHODS
+from tumble.physics import exact, rotations, shapes
 
 BODY = tumble.Body(1.0, 2.0, 3.0)
 # both regimes, near the separatrix, a negative component, a spin near the largest axis

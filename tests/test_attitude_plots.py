@@ -19,7 +19,8 @@ from matplotlib.figure import Figure
 from PIL import Image
 from scipy.integrate import solve_ivp
 
-from tumble.output import attitude_figures as attitude_plots, figures as plots
+from tumble.output import attitude_figures as attitude_plots
+from tumble.output import figures as plots
 from tumble.physics import shapes
 
 ATTITUDE_FIGURES = ("flip_strip", "flip_animation", "polhode", "herpolhode")

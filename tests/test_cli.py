@@ -8,8 +8,8 @@ import pytest
 
 import tumble
 from tumble import cli
-from tumble.pipeline import config, runner
 from tumble.output import io
+from tumble.pipeline import config, runner
 
 # A study small enough to run in a second on the closed-form path.
 TINY = """

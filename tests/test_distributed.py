@@ -7,14 +7,12 @@ pytest.importorskip("distributed")
 
 import numba  # noqa: E402
 import xarray as xr  # noqa: E402
+from test_resume import BIG, BIG_RANGES, SCAN, STEPPED, _toml, assert_same_result, finished_chunks, write_chunk  # noqa: E402
 
 import tumble  # noqa: E402
 from tumble import cli
-from tumble.pipeline import config, distributed, runner
 from tumble.output import io  # noqa: E402
-
-from test_resume import (BIG, BIG_RANGES, SCAN, STEPPED, _toml, assert_same_result, finished_chunks,  # noqa: E402
-                         write_chunk)
+from tumble.pipeline import config, distributed, runner
 
 
 @pytest.fixture(scope="module")

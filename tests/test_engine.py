@@ -9,10 +9,10 @@ import textwrap
 import numpy as np
 import pytest
 
-from tumble.physics import exact
 from tumble.engine.ensemble import run_ensemble
-from tumble.kernels.drivers import CHECK_EVERY, STATUS_DRIFT, STATUS_NONFINITE, STATUS_OK
 from tumble.engine.sampling import perturbed_spins
+from tumble.kernels.drivers import CHECK_EVERY, STATUS_DRIFT, STATUS_NONFINITE, STATUS_OK
+from tumble.physics import exact
 
 MOMENTS = np.array([1.0, 2.0, 3.0])
 AXIS = 2  # the spins below are about the intermediate axis

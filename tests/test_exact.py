@@ -10,8 +10,8 @@ sets an absolute floor. ``vector_error`` is ``|w - w_ref| / |w_ref|``.
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
 import scipy.special as sc
+from scipy.integrate import solve_ivp
 
 import tumble
 from tumble.physics import exact

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 import tumble
-from tumble.physics import theory
 from tumble.kernels import tableaux
 from tumble.kernels.methods import METHODS, run
+from tumble.physics import theory
 
 STEPPING = ["rk4", "rk8", "symplectic_euler", "splitting2", "splitting4", "implicit_midpoint"]
 GEOMETRIC = ["symplectic_euler", "splitting2", "splitting4", "implicit_midpoint"]

@@ -10,10 +10,10 @@ import pytest
 import xarray as xr
 
 import tumble
-from tumble.pipeline import checkpoint, config, runner
 from tumble import cli
-from tumble.output import io
 from tumble.measure import scenes as study
+from tumble.output import io
+from tumble.pipeline import checkpoint, config, runner
 
 # 27 closed-form scenes (3 x 3 inertia triangle x 3 axes) of 64 samples: about a second.
 SCAN = {"title": "resume", "perturbation": {"samples": 64}, "scan": {"triangle": 3, "axis": [1, 2, 3]},

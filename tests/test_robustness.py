@@ -13,11 +13,10 @@ import pytest
 import xarray as xr
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-
-from tumble.pipeline import checkpoint, config, runner
-from tumble import cli
-
 from test_resume import _toml, assert_same_result, finished_chunks
+
+from tumble import cli
+from tumble.pipeline import checkpoint, config, runner
 
 # 48 closed-form scenes of 256 samples: about 3 s, cut into 24 chunks.
 KILLED = {"title": "killed", "perturbation": {"samples": 256}, "scan": {"triangle": 4, "axis": [1, 2, 3]},

@@ -10,7 +10,6 @@ from hypothesis import strategies as st
 from scipy import stats
 
 from tumble.engine import sampling
-from tumble.physics.bodies import Body
 from tumble.engine.sampling import (
     CHUNK,
     DISTRIBUTIONS,
@@ -20,6 +19,7 @@ from tumble.engine.sampling import (
     seed_entropy,
     transverse_axes,
 )
+from tumble.physics.bodies import Body
 
 BODY = (1.0, 2.0, 3.0)
 # Long enough for three chunk boundaries and a partial last chunk.

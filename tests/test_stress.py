@@ -18,12 +18,12 @@ import numpy as np
 import pytest
 
 import tumble
-from tumble.physics import exact, theory
 from tumble.engine.ensemble import run_ensemble
 from tumble.engine.integration import METHOD_NAMES
+from tumble.engine.sampling import perturbed_spins
 from tumble.kernels import tableaux
 from tumble.kernels.drivers import STATUS_DRIFT, STATUS_NONFINITE, STATUS_OK
-from tumble.engine.sampling import perturbed_spins
+from tumble.physics import exact, theory
 
 STEPPERS = [m for m in METHOD_NAMES if m != "exact"]
 BODY = np.array([1.0, 2.0, 3.0])

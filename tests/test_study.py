@@ -6,11 +6,11 @@ import pytest
 import xarray as xr
 
 import tumble
-from tumble.physics import exact, shapes, theory
-from tumble.output import io
 from tumble.engine import sampling
 from tumble.measure import scenes as study
 from tumble.measure.scenes import SAMPLE_STATUS_NAMES, flip_time_law, inertia_triangle, measure, regress_scan, scan
+from tumble.output import io
+from tumble.physics import exact, shapes, theory
 
 MOMENTS = (1.0, 2.0, 3.0)
 

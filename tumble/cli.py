@@ -17,8 +17,8 @@ import numpy as np
 
 from . import registry
 from ._version import __version__
-from .physics import exact, shapes, theory
 from .engine.integration import integrate
+from .physics import exact, shapes, theory
 
 #: Exit status after Ctrl-C (128 + SIGINT, as shells report it).
 EXIT_INTERRUPTED = 130
@@ -178,7 +178,8 @@ def _studies(args):
 
 
 def _plot(args):
-    from .output import io, figures as plots
+    from .output import figures as plots
+    from .output import io
 
     path = Path(args.file)
     if not path.is_file():

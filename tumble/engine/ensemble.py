@@ -30,11 +30,11 @@ import numba
 import numpy as np
 from tqdm.auto import tqdm
 
-from ..physics import exact
-from ..registry import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK, choose_method
-from ..physics.bodies import one_body
 from .. import registry
 from ..kernels import BLOCK, METHODS, TORQUE_CONSTANT, TORQUE_USER, run, run_attitude
+from ..physics import exact
+from ..physics.bodies import one_body
+from ..registry import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK, choose_method
 from .sampling import CHUNK
 
 __all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "Interrupted", "STATUS_NAMES", "run_ensemble", "torque_spec"]

@@ -6,12 +6,12 @@ import warnings
 import numpy as np
 import xarray as xr
 
+from .. import registry
+from ..kernels import METHODS
 from ..physics import exact
 from ..physics.bodies import finite_array, one_body, spin_vectors
-from .ensemble import run_ensemble
-from ..kernels import METHODS
-from .. import registry
 from ..registry import STATUS_NAMES, STATUS_OK
+from .ensemble import run_ensemble
 
 __all__ = ["integrate", "METHOD_NAMES"]
 

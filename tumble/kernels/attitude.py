@@ -27,8 +27,16 @@ import numpy as np
 from numba import prange
 
 from .jit import jit
-from .steppers import (_EPS, _MIDPOINT_MAX_ITERATIONS, _MIDPOINT_ULPS, euler_rate, l_squared, project_l_squared,
-                       rotate, torque_subflow)
+from .steppers import (
+    _EPS,
+    _MIDPOINT_MAX_ITERATIONS,
+    _MIDPOINT_ULPS,
+    euler_rate,
+    l_squared,
+    project_l_squared,
+    rotate,
+    torque_subflow,
+)
 from .tableaux import ROTATE_1, ROTATE_2, ROTATE_3
 from .trig import sincos
 

@@ -7,7 +7,6 @@ from .jit import jit
 from .steppers import euler_rate, project_l_squared, rotate, torque_subflow
 
 
-
 @jit(inline=True)
 def rk4_sample(w1, w2, w3, t, h, body, torque_kind, torque_params, torque_fn):
     """One step of rk4 (order 4, 4 stages) for one sample."""

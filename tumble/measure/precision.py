@@ -51,12 +51,12 @@ import numpy as np
 import xarray as xr
 
 from .. import registry
-from ..registry import STEPPING
 from .._version import __version__
-from ..physics import exact
-from ..physics.bodies import one_body
 from ..engine.integration import integrate
 from ..engine.sampling import perturbed_spins
+from ..physics import exact
+from ..physics.bodies import one_body
+from ..registry import STEPPING
 
 __all__ = ["ATOL_FACTOR", "DEFAULT_RTOLS", "SCIPY_METHODS", "default_steps", "euler_rhs_stacked", "speedups",
            "time_to_error", "work_precision"]

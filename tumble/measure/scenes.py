@@ -40,14 +40,14 @@ import xarray as xr
 from tqdm.auto import tqdm
 
 from .. import registry
-from ..registry import STATUS_NAMES, STATUS_OK, STEPPING
 from .._version import __version__
-from . import estimators as analysis
-from ..physics import exact, theory
-from ..physics.bodies import Body, one_body
 from ..engine.ensemble import run_ensemble, torque_spec
 from ..engine.integration import integrate
 from ..engine.sampling import CHUNK, perturbed_spins, seed_entropy
+from ..physics import exact, theory
+from ..physics.bodies import Body, one_body
+from ..registry import STATUS_NAMES, STATUS_OK, STEPPING
+from . import estimators as analysis
 
 __all__ = ["CURVES", "SAMPLE_STATUS_NAMES", "assemble_scan", "flip_time_law", "inertia_triangle", "invariant_drift",
            "measure", "regress_scan", "scan", "scan_layout", "scan_scene", "scan_scene_parameters", "scene_plan",

@@ -53,8 +53,8 @@ from matplotlib.ticker import MaxNLocator
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 from PIL import Image
 
-from . import io
 from ..physics import shapes
+from . import io
 
 __all__ = ["ATTITUDE_VARIABLES", "AttitudeTrace", "FlipAnimation", "animation_format", "box_proportions",
            "flip_animation", "flip_strip", "flip_times", "herpolhode", "herpolhode_points", "invariable_frame",

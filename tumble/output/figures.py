@@ -37,8 +37,9 @@ from matplotlib.ticker import MaxNLocator
 from matplotlib.tri import Triangulation
 
 from .. import registry
-from . import attitude_figures as attitude_plots, io
 from ..physics import theory
+from . import attitude_figures as attitude_plots
+from . import io
 
 __all__ = ["ANIMATIONS", "DOUBLE", "FIGURES", "SINGLE", "can_draw", "flip_animation", "flip_components",
            "flip_law", "flip_strip", "herpolhode", "invariant_drift", "norm_growth", "polhode", "save_figures",

@@ -69,9 +69,9 @@ from typing import NamedTuple
 import numpy as np
 from scipy.special import elliprf, elliprj
 
+from ..kernels import elliptic as _ell
 from . import rotations
 from .bodies import one_body, spin_vectors
-from ..kernels import elliptic as _ell
 
 __all__ = ["EllipticParameters", "attitude", "omega", "period", "parameters", "first_flip_time", "flip_spacing",
            "rotation_per_period"]

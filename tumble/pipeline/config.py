@@ -35,9 +35,9 @@ from pathlib import Path
 import numpy as np
 
 from .. import registry
+from ..engine.sampling import DISTRIBUTIONS
 from ..physics import shapes
 from ..physics.bodies import Body, validate_moments
-from ..engine.sampling import DISTRIBUTIONS
 
 __all__ = [
     "ARRAYS",

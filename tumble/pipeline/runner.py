@@ -25,13 +25,14 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .. import registry
+from ..engine.sampling import CHUNK
+from ..measure import scenes as study
+from ..output import figures as plots
+from ..output import io
+from ..physics import theory
 from ..registry import STEPPING
 from . import checkpoint, config
-from ..output import io, figures as plots
-from ..measure import scenes as study
-from ..physics import theory
 from .config import StudyError
-from ..engine.sampling import CHUNK
 
 __all__ = ["DEFAULT_CHUNK_SAMPLES", "PER_SAMPLE", "Task", "chunk_samples_size", "compute_samples", "compute_scene",
            "compute_task", "default_chunk_scenes", "open_checkpoint", "output_stem", "plan", "plan_tasks", "run_scenes",
