@@ -20,7 +20,7 @@ import sys
 from ._version import __version__
 from .engine import sampling
 from .engine.ensemble import run_ensemble
-from .engine.integration import integrate
+from .engine.integration import integrate, propagate
 from .measure.scenes import attitude_trace, flip_time_law, inertia_triangle, measure, regress_scan, scan
 from .output import io
 from .physics import exact, rotations, shapes, theory
@@ -35,5 +35,5 @@ for _name, _module in (("exact", exact), ("theory", theory), ("shapes", shapes),
 del _name, _module
 
 __all__ = ["Body", "attitude_trace", "exact", "flip_time_law", "inertia_triangle", "integrate", "io", "measure",
-           "regress_scan", "rotations", "run_ensemble", "run_study", "sampling", "scan", "shapes", "theory",
+           "propagate", "regress_scan", "rotations", "run_ensemble", "run_study", "sampling", "scan", "shapes", "theory",
            "__version__"]

@@ -1,4 +1,9 @@
-"""``tumble.integrate``: validate, run a fixed-step kernel or the closed form, return an xarray Dataset."""
+"""``tumble.integrate`` and ``tumble.propagate``: validate, run a fixed-step kernel or the closed form.
+
+:func:`integrate` returns an xarray Dataset with provenance; :func:`propagate` is the lean array path (the
+same validation and kernels, a plain ndarray back, no Dataset, no progress bar, no signal handling), for
+calls inside a user's own loop.
+"""
 
 import math
 import warnings
@@ -7,13 +12,13 @@ import numpy as np
 import xarray as xr
 
 from .. import registry
-from ..kernels import METHODS
+from ..kernels import METHODS, run
 from ..physics import exact
 from ..physics.bodies import finite_array, one_body, spin_vectors
 from ..registry import STATUS_NAMES, STATUS_OK
-from .ensemble import run_ensemble
+from .ensemble import run_ensemble, torque_spec
 
-__all__ = ["integrate", "METHOD_NAMES"]
+__all__ = ["integrate", "propagate", "METHOD_NAMES"]
 
 METHOD_NAMES = tuple(m.name for m in registry.METHODS)
 
@@ -48,6 +53,84 @@ def _step_plan(t_end, dt):
     if n_steps == 0 or abs(ratio - n_steps) > _STEP_COUNT_SLACK * ratio:
         n_steps = math.ceil(ratio)
     return n_steps, t_end / n_steps
+
+
+def _save_every(save_every):
+    if save_every is not None:
+        if isinstance(save_every, bool) or not isinstance(save_every, (int, np.integer)) or save_every < 1:
+            raise ValueError(f"save_every must be None or an integer >= 1 (steps), got {save_every!r}")
+    return save_every
+
+
+def _horizon_and_step(t_end, dt):
+    t_end = _scalar(t_end, "t_end")
+    if t_end < 0:
+        raise ValueError(f"t_end must be >= 0 s, got {t_end}")
+    dt = _scalar(dt, "dt")
+    if dt <= 0:
+        raise ValueError(f"dt must be > 0 s, got {dt}")
+    return t_end, dt
+
+
+def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None):
+    """Integrate Euler's equations and return the spins as an array: the lean path of :func:`integrate`.
+
+    The same validation, step plan and kernels as :func:`integrate` (the results are the same bits), without
+    building a Dataset: for a user's own loops, where the per-call cost matters (measured in
+    ``benchmarks/overhead.py``).
+
+    Parameters
+    ----------
+    body : Body or array_like, shape (3,)
+        Principal moments of inertia, kg m².
+    w0 : array_like, shape (N, 3) or (3,)
+        Initial body-frame angular velocities, rad/s.
+    t_end, dt : float
+        Horizon (>= 0) and step (> 0), s; the step is shortened to ``t_end / ceil(t_end / dt)`` when
+        ``t_end / dt`` is not a whole number, so that the run ends exactly at ``t_end``.
+    method : str
+        A fixed-step method, ``"exact"`` (:data:`tumble.registry.METHODS`) or ``"auto"`` (the closed form when
+        torque-free, else ``rk4``).
+    torque : None, array_like (3,), mapping or callable
+        As :func:`integrate` (``None`` or zero: torque-free).
+    save_every : int, optional
+        None: only the final state. ``k``: the initial state, every k-th step and the final one.
+
+    Returns
+    -------
+    ndarray
+        Shape ``(N, 3)`` (rad/s, final state) or ``(N, T, 3)`` with ``save_every``; a ``(3,)`` spin gives
+        ``(3,)`` or ``(T, 3)``. The states are stepped as they come: a sample that became non-finite is NaN
+        or inf (check with ``numpy.isfinite``).
+
+    Raises
+    ------
+    ValueError
+        Invalid moments, spins, horizon, step, method, torque or save interval, or ``"exact"`` with a torque.
+    """
+    moments = one_body(body)
+    single = np.ndim(w0) == 1
+    w = _initial_spins(w0)
+    t_end, dt = _horizon_and_step(t_end, dt)
+    save_every = _save_every(save_every)
+    kind, params, fn, _ = torque_spec(torque)
+    chosen, _ = registry.choose_method(method, torque_free=params is None and fn is None)
+    n_steps, step = _step_plan(t_end, dt)
+    if chosen == "exact":
+        times = np.array([t_end])
+        if save_every:  # the stepping path's store times: 0, k, 2k, ..., and the end
+            steps = np.arange(0, n_steps + 1, save_every)
+            times = np.append(steps, n_steps) if steps[-1] != n_steps else steps
+            times = times * step
+            times[-1] = t_end
+        out = exact.omega(moments, w, times)
+        out = out if save_every else out[:, -1, :]
+    else:
+        state = np.array(w.T, order="C")
+        observed = run(METHODS[chosen], state, moments, 0.0, step, n_steps, save_every=save_every or 0,
+                       torque_kind=kind, torque_params=params, torque_fn=fn)
+        out = observed.saved.transpose(2, 0, 1) if save_every else state.T
+    return out[0] if single else out
 
 
 def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=None, attitude=False):
@@ -96,17 +179,10 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
     """
     moments = one_body(body)
     w = _initial_spins(w0)
-    t_end = _scalar(t_end, "t_end")
-    if t_end < 0:
-        raise ValueError(f"t_end must be >= 0 s, got {t_end}")
-    dt = _scalar(dt, "dt")
-    if dt <= 0:
-        raise ValueError(f"dt must be > 0 s, got {dt}")
+    t_end, dt = _horizon_and_step(t_end, dt)
     if method not in METHOD_NAMES:
         raise ValueError(f"method must be one of {', '.join(METHOD_NAMES)}; got {method!r}")
-    if save_every is not None:
-        if isinstance(save_every, bool) or not isinstance(save_every, (int, np.integer)) or save_every < 1:
-            raise ValueError(f"save_every must be None or an integer >= 1 (steps), got {save_every!r}")
+    save_every = _save_every(save_every)
     n_steps, step = _step_plan(t_end, dt)
     # A plain integration returns what the method computes: no early stop, no drift flagging. The final
     # state alone is read off a trajectory of two states (start, end), so integrate() needs one compiled
