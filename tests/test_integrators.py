@@ -381,3 +381,35 @@ def test_bad_input_raises_a_value_error_that_says_what_is_wrong(change, message)
 def test_exact_path_with_a_torque_function_is_refused():
     with pytest.raises(ValueError, match="exact"):
         tumble.integrate((1.0, 2.0, 3.0), [[0.1, 1.0, 0.1]], 1.0, 0.1, method="exact", torque=wobbling_torque)
+
+
+# --- user torque functions: one compiled driver per method, whatever the function ---------------------------
+
+def test_torque_functions_share_one_compiled_driver_and_match_the_constant_profile():
+    from tumble.kernels import drivers
+
+    @numba.njit
+    def constant_spin_up(t, w1, w2, w3):
+        return 0.0, 0.0, 0.25
+
+    def same_as_python(t, w1, w2, w3):  # not jitted: tumble jits it
+        return 0.0, 0.0, 0.25
+
+    w0 = [[0.1, 0.05, 1.0], [-0.2, 0.1, 0.8]]
+    profile = tumble.integrate((1.0, 1.0, 2.0), w0, 2.0, 0.01, method="rk4", torque=(0.0, 0.0, 0.25))
+    for fn in (constant_spin_up, same_as_python, wobbling_torque):
+        ds = tumble.integrate((1.0, 1.0, 2.0), w0, 2.0, 0.01, method="rk4", torque=fn)
+        if fn is not wobbling_torque:
+            np.testing.assert_allclose(ds.omega.values, profile.omega.values, rtol=1e-14, atol=1e-15)
+    rk4 = METHODS["rk4"].kernel_id
+    assert len(drivers._USER_TORQUE_DRIVERS[rk4].signatures) == 1, "one variant serves every torque function"
+
+
+@pytest.mark.parametrize("fn, words", [
+    (lambda t, w1, w2, w3: (0.0, 1.0), "f(t, w1, w2, w3) -> (N1, N2, N3)"),
+    (lambda t, w1, w2, w3: "torque", "f(t, w1, w2, w3) -> (N1, N2, N3)"),
+    (lambda t, w1: (0.0, 0.0, 1.0), "f(t, w1, w2, w3) -> (N1, N2, N3)"),
+])
+def test_a_torque_function_of_the_wrong_form_is_refused_with_a_message(fn, words):
+    with pytest.raises(ValueError, match=words.replace("(", r"\(").replace(")", r"\)")):
+        tumble.integrate((1.0, 2.0, 3.0), [[0.1, 1.0, 0.1]], 1.0, 0.1, torque=fn)

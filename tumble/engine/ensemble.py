@@ -31,7 +31,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .. import registry
-from ..kernels import BLOCK, METHODS, TORQUE_CONSTANT, TORQUE_USER, run, run_attitude
+from ..kernels import BLOCK, METHODS, TORQUE_CONSTANT, TORQUE_SIGNATURE, TORQUE_USER, run, run_attitude
 from ..physics import exact
 from ..physics.bodies import one_body
 from ..registry import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK, choose_method
@@ -87,7 +87,14 @@ def torque_spec(torque):
         return TORQUE_CONSTANT, None, None, "none"
     if callable(torque):
         fn = torque if isinstance(torque, numba.core.registry.CPUDispatcher) else numba.njit(torque)
-        return TORQUE_USER, None, fn, f"function {getattr(torque, '__name__', repr(torque))}(t, w1, w2, w3)"
+        name = getattr(torque, "__name__", repr(torque))
+        try:  # the one signature the kernels call a torque function with (kernels.TORQUE_SIGNATURE)
+            fn.compile(TORQUE_SIGNATURE)
+        except Exception as err:  # numba's typing errors: the function cannot serve as a torque
+            first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+            raise ValueError(f"torque function {name} must compile in numba's nopython mode as f(t, w1, w2, w3) "
+                             f"-> (N1, N2, N3), all floats: {first}") from None
+        return TORQUE_USER, None, fn, f"function {name}(t, w1, w2, w3)"
     profile, tau = registry.torque_profile("constant"), 0.0
     if isinstance(torque, Mapping):
         if torque.get("profile", "constant") == "none":

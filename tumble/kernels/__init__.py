@@ -6,8 +6,9 @@ checks it). Tests and benchmarks of the kernels themselves may reach the modules
 """
 
 from . import elliptic
+from .drivers import TORQUE_SIGNATURE
 from .methods import BLOCK, METHODS, Method, Observed, run, run_attitude
 from .steppers import TORQUE_CONSTANT, TORQUE_PULSE, TORQUE_RAMP, TORQUE_SINE, TORQUE_USER
 
-__all__ = ["BLOCK", "METHODS", "Method", "Observed", "TORQUE_CONSTANT", "TORQUE_PULSE", "TORQUE_RAMP", "TORQUE_SINE",
-           "TORQUE_USER", "elliptic", "run", "run_attitude"]
+__all__ = ["BLOCK", "METHODS", "Method", "Observed", "TORQUE_CONSTANT", "TORQUE_PULSE", "TORQUE_RAMP", "TORQUE_SIGNATURE",
+           "TORQUE_SINE", "TORQUE_USER", "elliptic", "run", "run_attitude"]
