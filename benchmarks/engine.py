@@ -21,6 +21,7 @@ import numba
 import numpy as np
 from numba import prange
 
+import tumble
 from tumble import measure
 from tumble.kernels import fused, steppers
 from tumble.kernels.jit import jit
@@ -130,7 +131,63 @@ def warm_scene(samples=4096):
     return rows
 
 
-PARTS = {"throughput": throughput, "memory": peak_memory, "warm_scene": warm_scene}
+def _per_call(fn, calls=200):
+    """Median seconds per call of ``fn`` (medians of REPEATS batches of ``calls`` calls)."""
+    fn()
+    return median_seconds(lambda: [fn() for _ in range(calls)]) / calls
+
+
+def overhead():
+    """Fixed cost per call, one sample and one step (warm kernels): what a user's own loop pays."""
+    w1 = np.array([[0.1, 1.0, 0.1]])
+    t1 = np.array([0.5])
+    rows = [
+        dict(call="tumble.propagate(body, w0, dt, dt, 'rk4')", seconds=_per_call(
+            lambda: tumble.propagate(MOMENTS, w1, 1e-3, 1e-3, method="rk4"))),
+        dict(call="tumble.propagate(body, w0, t, t, 'exact')", seconds=_per_call(
+            lambda: tumble.propagate(MOMENTS, w1, 0.5, 0.5, method="exact"))),
+        dict(call="tumble.integrate(body, w0, dt, dt, 'rk4')", seconds=_per_call(
+            lambda: tumble.integrate(MOMENTS, w1, 1e-3, 1e-3, method="rk4"), calls=50)),
+        dict(call="tumble.exact.omega(body, w0, t)", seconds=_per_call(lambda: tumble.exact.omega(MOMENTS, w1, t1))),
+        dict(call="kernels.run(rk4, w, moments, 0, dt, 1) (the kernel call alone)", seconds=_per_call(
+            lambda: run(METHODS["rk4"], np.array([[0.1], [1.0], [0.1]]), MOMENTS, 0.0, 1e-3, 1))),
+    ]
+    for row in rows:
+        print(row, flush=True)
+    return rows
+
+
+@numba.njit
+def _spin_up(t, w1, w2, w3):
+    """A torque function equal to the constant profile (0, 0, 0.1) N m."""
+    return 0.0, 0.0, 0.1
+
+
+def torque_paths():
+    """Throughput with a built-in constant torque profile against the same torque as a function (called
+    through numba's first-class function type, one compiled driver for every function)."""
+    rng = np.random.default_rng(0)
+    w0 = np.ascontiguousarray((rng.normal(size=(SAMPLES, 3)) * 0.5).T)
+    rows = []
+    for name in ("rk4", "splitting4"):
+        method = METHODS[name]
+        n_steps = 500
+        for label, params, fn in (("profile", np.array([0.0, 0.0, 0.1, 0.0]), None), ("function", None, _spin_up)):
+            def go(w=w0, params=params, fn=fn, steps=n_steps):
+                return run(method, w.copy(), MOMENTS, 0.0, 1e-3, steps, torque_kind=-1 if fn else 0,
+                           torque_params=params, torque_fn=fn)
+
+            started = time.perf_counter()
+            go(w0[:, :8], steps=1)
+            compile_s = time.perf_counter() - started
+            rows.append(dict(method=name, torque=label, rate=SAMPLES * n_steps / median_seconds(go),
+                             compile=compile_s))
+            print(rows[-1], flush=True)
+    return rows
+
+
+PARTS = {"throughput": throughput, "memory": peak_memory, "warm_scene": warm_scene, "overhead": overhead,
+         "torque_paths": torque_paths}
 
 
 def main(parts=None):
@@ -161,6 +218,16 @@ def main(parts=None):
               "bootstrap, dataset):", ""]
     for r in report["warm_scene"]:
         lines.append(f"- method `{r['method']}` ({r['path']}): {r['seconds']:.3f} s (target < 1 s)")
+    if "overhead" in report:
+        lines += ["", "Fixed cost per call, one sample, one step, warm kernels (medians):", "",
+                  "| call | µs per call |", "|---|---|"]
+        lines += [f"| `{r['call']}` | {r['seconds'] * 1e6:.1f} |" for r in report["overhead"]]
+    if "torque_paths" in report:
+        lines += ["", f"A torque as a built-in profile against the same torque as a function ({SAMPLES} samples, "
+                  "500 steps; the function is an indirect call, so the step does not vectorise):", "",
+                  "| method | torque | sample-steps/s | compile (or cache load), s |", "|---|---|---|---|"]
+        lines += [f"| {r['method']} | {r['torque']} | {r['rate']:.2e} | {r['compile']:.1f} |"
+                  for r in report["torque_paths"]]
     (RESULTS / "engine.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 

@@ -248,6 +248,8 @@ CLI_CASES = [
     ("port-out-of-range", "intermediate_axis", ["--scheduler", "tcp://127.0.0.1:99999"], 2, "from 1 to 65535"),
     ("port-not-a-number", "intermediate_axis", ["--scheduler", "tcp://127.0.0.1:http"], 2, "from 1 to 65535"),
     ("scheduler-without-host", "intermediate_axis", ["--scheduler", "tcp://:8786"], 2, "names no host"),
+    ("zero-amplitude", "[perturbation]\namplitude = 0.0\n", [], 2, "perturbation.amplitude: must be > 0 rad"),
+    ("zero-amplitude-in-a-scan", "[scan]\namplitude = [1e-3, 0.0]\n", [], 2, "scan.amplitude[1]: must be > 0 rad"),
 ]
 
 
@@ -306,3 +308,10 @@ def test_dry_run_checks_that_the_output_folder_can_be_written(tmp_path, capsys):
     assert status == 1 and "is not a folder" in err and "Traceback" not in err
     assert cli.main(["run", "intermediate_axis", "--dry-run", "--out", str(tmp_path / "new" / "sub")]) == 0
     assert not (tmp_path / "new").exists(), "a dry run creates nothing"
+
+
+def test_measure_refuses_a_zero_amplitude_instead_of_returning_nan():
+    import tumble
+
+    with pytest.raises(ValueError, match="amplitude must be > 0 rad"):
+        tumble.measure((1.0, 2.0, 3.0), 2, amplitude=0.0, samples=8)

@@ -187,6 +187,9 @@ def _validate_scene(body, axis, spin, amplitude, samples, method, flips):
     _check_method(method)
     flips = _positive_int(flips, "flips")
     perturbed_spins(moments, axis, spin, amplitude, 1, seed=0)  # validates spin and amplitude
+    if float(amplitude) == 0.0:
+        raise ValueError("amplitude must be > 0 rad: a growth rate or frequency is measured on perturbed spins, "
+                         "and a spin exactly on its axis never moves off it")
     if isinstance(samples, (bool, np.bool_)) or not isinstance(samples, (int, np.integer)) or samples < 1:
         raise ValueError(f"samples must be an integer >= 1, got {samples!r}")
     return moments, int(axis), float(spin), float(amplitude), int(samples), flips

@@ -426,6 +426,9 @@ def _rate(value, field):
 
 def _amplitude(value, field, distribution):
     x = _at_least(value, field, 0, " rad")
+    if x == 0:
+        raise _Invalid(field, "must be > 0 rad: a growth rate or frequency is measured on perturbed spins, and "
+                              "a spin exactly on its axis never moves off it")
     if distribution != "gaussian" and x >= 0.5 * math.pi:
         raise _Invalid(field, f"must be < pi/2 rad for distribution {distribution!r} (the tilt of the "
                               f"perturbed spins), got {x!r}")
