@@ -12,6 +12,21 @@ from tumble.kernels.methods import METHODS, run
 from tumble.physics import theory
 
 STEPPING = ["rk4", "rk8", "symplectic_euler", "splitting2", "splitting4", "implicit_midpoint"]
+
+# Every method with a torque is a kernel variant of its own (about 15-30 s to compile cold). The default run
+# compiles one per family: a built-in profile with rk4, splitting4 and implicit_midpoint, a torque function
+# with rk4 and splitting2; the full method x torque matrix runs with `-m slow`.
+PROFILE_TIER = {"rk4", "splitting4", "implicit_midpoint"}
+FUNCTION_TIER = {"rk4", "splitting2"}
+
+
+def _tiered(method, torque="constant"):
+    """``pytest.param`` of a torque case, marked slow outside the default tier."""
+    tier = FUNCTION_TIER if torque == "function" else PROFILE_TIER
+    values = (method,) if torque is None else (method, torque)
+    return pytest.param(*values, marks=() if method in tier else pytest.mark.slow)
+
+
 GEOMETRIC = ["symplectic_euler", "splitting2", "splitting4", "implicit_midpoint"]
 
 pytestmark = pytest.mark.usefixtures("warm_kernels")
@@ -99,7 +114,7 @@ def space_station(t, moments, w0, gamma):
     return np.stack([eta.real, eta.imag, w3], axis=-1)
 
 
-@pytest.mark.parametrize("method", STEPPING)
+@pytest.mark.parametrize("method", [_tiered(m, None) for m in STEPPING])
 def test_every_method_matches_the_space_station_closed_form(method):
     moments, w0, gamma = np.array([2.0, 2.0, 1.0]), np.array([0.3, 0.0, 1.0]), 1.0
     dt = {"symplectic_euler": 1e-4}.get(method, 1e-3)
@@ -205,8 +220,9 @@ def test_torque_free_observed_order_matches_nominal(method):
     assert observed_order(method, "free") == pytest.approx(METHODS[method].order, abs=0.1)
 
 
-@pytest.mark.parametrize("torque", ["constant", "function"])
-@pytest.mark.parametrize("method", ["rk4", "symplectic_euler", "splitting2", "splitting4", "implicit_midpoint"])
+@pytest.mark.parametrize("method, torque", [_tiered(m, t) for t in ("constant", "function")
+                                            for m in ("rk4", "symplectic_euler", "splitting2", "splitting4",
+                                                      "implicit_midpoint")])
 def test_observed_order_holds_with_a_torque(method, torque):
     assert observed_order(method, torque) == pytest.approx(METHODS[method].order, abs=0.1)
 
