@@ -315,3 +315,41 @@ def test_measure_refuses_a_zero_amplitude_instead_of_returning_nan():
 
     with pytest.raises(ValueError, match="amplitude must be > 0 rad"):
         tumble.measure((1.0, 2.0, 3.0), 2, amplitude=0.0, samples=8)
+
+
+# --- cost bounds, up front ------------------------------------------------------------------------------------
+
+HUGE_SAMPLES = "[perturbation]\nsamples = 1_000_000_000_000\n"
+HUGE_SCAN = "[scan]\ntriangle = 200\naxis = [1, 2, 3]\namplitude = [" + ", ".join(f"{1e-4 * (k + 1):.6g}" for k in range(300)) + "]\n"
+HUGE_STEPS = ("[integration]\nmethod = 'rk4'\ndt = 1e-9\nhorizon = 1e5\n[perturbation]\nsamples = 1024\n")
+
+
+@pytest.mark.parametrize("text, args, field", [
+    (HUGE_SAMPLES, [], "perturbation.samples"),
+    (HUGE_SAMPLES, ["--dry-run"], "perturbation.samples"),
+    (HUGE_SCAN, ["--dry-run"], "scan"),
+    (HUGE_STEPS, [], "integration"),
+], ids=["1e12-samples", "1e12-samples-dry-run", "36-million-scenes", "1e14-steps"])
+def test_absurd_sizes_are_refused_within_a_second_with_the_estimate(tmp_path, capsys, text, args, field):
+    study = tmp_path / "huge.toml"
+    study.write_text(text)
+    started = time.perf_counter()
+    status = cli.main(["run", str(study), "--out", str(tmp_path / "out"), *args])
+    elapsed = time.perf_counter() - started
+    err = capsys.readouterr().err
+    assert status == 2 and f"huge.toml: {field}:" in err and "peak memory" in err, err
+    assert elapsed < 1.0, f"refused after {elapsed:.2f} s"
+    assert not (tmp_path / "out").exists()
+
+
+def test_dry_run_prints_the_estimate(tmp_path, capsys):
+    assert cli.main(["run", "stability_map", "--dry-run", "--out", str(tmp_path / "out")]) == 0
+    out = capsys.readouterr().out
+    assert "estimate: 1,200 scene(s) of 256 samples" in out and "peak memory" in out
+
+
+def test_measure_refuses_more_samples_than_memory_holds():
+    import tumble
+
+    with pytest.raises(ValueError, match=r"samples = 1000000000000: .*memory"):
+        tumble.measure((1.0, 2.0, 3.0), 2, samples=10**12)

@@ -97,6 +97,7 @@ class InputError(ValueError):
 
 
 def _run(args):
+    from .measure import cost
     from .pipeline import checkpoint, config, runner
 
     overrides = {key: value for key, value in (("perturbation.samples", args.samples),
@@ -130,6 +131,7 @@ def _run(args):
                   if split else "")
         print(f"{args.study}: valid; {scenes} scene(s) of {job['samples']} samples in {len(tasks)} "
               f"chunk(s) of up to {chunk}{ranges}; would write {directory / (stem + '.nc')}")
+        print(f"estimate: {cost.describe(runner.study_cost(resolved))}")
         return
     print(f"tumble {__version__}: study {args.study!r} ({resolved['title']})", flush=True)
     if args.fresh:

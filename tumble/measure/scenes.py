@@ -47,6 +47,7 @@ from ..engine.sampling import CHUNK, perturbed_spins, seed_entropy
 from ..physics import exact, theory
 from ..physics.bodies import Body, one_body
 from ..registry import STATUS_NAMES, STATUS_OK, STEPPING
+from . import cost
 from . import estimators as analysis
 
 __all__ = ["CURVES", "SAMPLE_STATUS_NAMES", "assemble_scan", "flip_time_law", "inertia_triangle", "invariant_drift",
@@ -192,6 +193,10 @@ def _validate_scene(body, axis, spin, amplitude, samples, method, flips):
                          "and a spin exactly on its axis never moves off it")
     if isinstance(samples, (bool, np.bool_)) or not isinstance(samples, (int, np.integer)) or samples < 1:
         raise ValueError(f"samples must be an integer >= 1, got {samples!r}")
+    try:
+        cost.check(cost.scene_cost(samples, 0))
+    except ValueError as err:
+        raise ValueError(f"samples = {samples}: {err}") from None
     return moments, int(axis), float(spin), float(amplitude), int(samples), flips
 
 

@@ -26,6 +26,7 @@ from tqdm.auto import tqdm
 
 from .. import registry
 from ..engine.sampling import CHUNK
+from ..measure import cost
 from ..measure import scenes as study
 from ..output import figures as plots
 from ..output import io
@@ -116,6 +117,48 @@ def plan(resolved, file="<mapping>"):
             "seed": resolved["perturbation"]["seed"]}
 
 
+#: The study field a refusal names, by the bound it broke (:class:`tumble.measure.cost.TooLarge`).
+_BOUND_FIELDS = {"scenes": "scan", "steps": "integration", "memory": "perturbation.samples",
+                 "size": "perturbation.samples"}
+
+
+def study_cost(resolved):
+    """:class:`tumble.measure.cost.Cost` of a resolved study, from its fields alone (no scene is planned, so
+    this takes microseconds whatever the study's size)."""
+    scan, integ = resolved["scan"], resolved["integration"]
+    if "triangle" in scan:
+        bodies = scan["triangle"] ** 2
+    else:
+        bodies = len(scan.get("moments", scan.get("body", [None])))
+    scenes = bodies * math.prod(len(scan[key]) for key in ("axis", "rate", "amplitude", "method") if key in scan)
+    methods = scan.get("method", [integ["method"]])
+    stepping = [m for m in methods if m in STEPPING]
+    if resolved["torque"]["profile"] != "none" and not stepping:
+        stepping = [registry.AUTO_STEPPING]
+    steps = 0.0
+    if stepping:
+        rate = max(scan.get("rate", [resolved["spin"]["rate"]]), key=abs)
+        per_radian = max(study.STEPS_PER_RADIAN[registry.method(m).order] for m in stepping)
+        if integ["dt"] and integ["horizon"]:
+            steps = integ["horizon"] / integ["dt"]
+        elif integ["horizon"]:
+            steps = integ["horizon"] * abs(rate) * per_radian
+        else:  # the planner's horizon: a few periods (or growth times) of the scene
+            steps = study.PERIODS * 2 * math.pi * per_radian
+    kept = 8 * len(resolved["outputs"]["arrays"])
+    return cost.scene_cost(resolved["perturbation"]["samples"], steps, scenes=scenes, kept_per_sample=kept)
+
+
+def check_cost(resolved, file="<mapping>"):
+    """:func:`study_cost`, refused with a :class:`~tumble.pipeline.config.StudyError` past the bounds of
+    :func:`tumble.measure.cost.check` (the message holds the estimate)."""
+    estimate = study_cost(resolved)
+    try:
+        return cost.check(estimate)
+    except cost.TooLarge as err:
+        raise StudyError(file, _BOUND_FIELDS[err.bound], str(err)) from None
+
+
 def _first(value):
     return value[0] if isinstance(value, list) else value
 
@@ -135,6 +178,7 @@ def scene_job(resolved, file="<mapping>"):
     tumble.pipeline.config.StudyError
         As :func:`plan`.
     """
+    check_cost(resolved, file)
     p = plan(resolved, file)
     values = p["values"]
     layout = study.scan_layout(p["moments"], values["axis"], values["spin"], values["amplitude"], values["method"])
