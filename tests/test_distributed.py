@@ -128,3 +128,58 @@ def test_results_on_the_cluster_are_datasets_xarray_can_compare(client, in_proce
     stored = io.read_dataset(in_process["scan"])
     xr.testing.assert_equal(ds[["rate", "rel_error", "sample_rate"]], stored[["rate", "rel_error", "sample_rate"]])
     assert finished_chunks(in_process["scan"].parent) == []
+
+
+def _silent_tcp_server():
+    """A server that accepts TCP connections and never says a word."""
+    import socket
+
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(8)
+    return server.getsockname()[1], server.close
+
+
+def _http_server():
+    import http.server
+    import threading
+
+    class Quiet(http.server.BaseHTTPRequestHandler):
+        def log_message(self, *args):
+            pass
+
+    server = http.server.HTTPServer(("127.0.0.1", 0), Quiet)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+
+    def close():
+        server.shutdown()
+        server.server_close()
+
+    return server.server_address[1], close
+
+
+@pytest.mark.parametrize("make", [_silent_tcp_server, _http_server], ids=["silent-tcp", "http"])
+def test_a_peer_that_is_not_a_dask_scheduler_ends_within_15_s_with_one_line(tmp_path, capsys, make):
+    import time
+
+    port, close = make()
+    try:
+        started = time.perf_counter()
+        status = cli.main(["run", "intermediate_axis", "--out", str(tmp_path / "out"), "--scheduler",
+                           f"tcp://127.0.0.1:{port}"])
+        elapsed = time.perf_counter() - started
+    finally:
+        close()
+    err = capsys.readouterr().err
+    assert status == 1 and f"cannot reach the dask scheduler at tcp://127.0.0.1:{port}" in err, err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1 and elapsed < 15, (elapsed, err)
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_closed_port_is_refused_at_once(tmp_path, capsys):
+    import time
+
+    started = time.perf_counter()
+    status = cli.main(["run", "intermediate_axis", "--out", str(tmp_path / "out"), "--scheduler",
+                       "tcp://127.0.0.1:9"])
+    assert status == 1 and time.perf_counter() - started < 5 and "Connection refused" in capsys.readouterr().err

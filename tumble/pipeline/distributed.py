@@ -30,7 +30,11 @@ ENV_ADDRESS = "DASK_SCHEDULER_ADDRESS"
 PROTOCOLS = ("tcp://", "tls://", "ucx://", "ws://", "wss://", "inproc://")
 
 #: Seconds to wait for a running scheduler to answer.
-CONNECT_TIMEOUT = 30
+CONNECT_TIMEOUT = 10
+
+#: Seconds the first contact may take: a TCP connection, then dask's handshake. A peer that accepts TCP but
+#: never answers (or answers in another protocol) is given up on after this, with one clear line.
+PROBE_TIMEOUT = 5
 
 #: dask settings of a LocalCluster tumble starts. Its diagnostics sampled dask's own event loops 50 to 100 times a
 #: second (the worker's statistical profiler every 10 ms, the event-loop tick every 20 ms, the nannies' memory
@@ -103,6 +107,53 @@ def _check_host_and_port(address, where):
         raise SchedulerError(f"{where}: {address!r}: the port must be a number from 1 to 65535")
 
 
+def probe(address, timeout=None):
+    """Check that a dask scheduler answers at ``address`` before a Client is made (which would retry for its
+    whole timeout, and hang on a peer that accepts TCP but never answers).
+
+    A TCP connection first (a closed port fails at once), then dask's handshake, both within ``timeout``
+    seconds (default :data:`PROBE_TIMEOUT`). Skipped inside a running event loop (a notebook's), where the
+    Client's own timeout applies.
+
+    Raises
+    ------
+    OSError
+        Nothing listens there, or the peer does not answer as a dask scheduler in time.
+    """
+    import asyncio
+    import socket
+    from urllib.parse import urlsplit
+
+    timeout = PROBE_TIMEOUT if timeout is None else timeout
+    where = f"cannot reach the dask scheduler at {address}"
+    parts = urlsplit(address)
+    if parts.scheme in ("tcp", "tls") and parts.hostname:
+        try:
+            socket.create_connection((parts.hostname, parts.port or 8786), timeout=timeout).close()
+        except OSError as err:
+            raise OSError(f"{where}: {err.strerror or err}") from None
+    try:
+        asyncio.get_running_loop()
+        return  # inside an event loop: leave it to the Client
+    except RuntimeError:
+        pass
+    from distributed.comm import connect as comm_connect
+
+    async def handshake():
+        comm = await comm_connect(address, timeout=timeout)
+        await comm.close()
+
+    try:
+        asyncio.run(asyncio.wait_for(handshake(), timeout + 1))
+    except (TimeoutError, asyncio.TimeoutError):
+        raise OSError(f"{where}: no answer in dask's protocol within {timeout} s (something listens there, but "
+                      f"it is not a dask scheduler, or it is stuck)") from None
+    except MemoryError:  # a peer of another protocol whose bytes read as an absurd frame length
+        raise OSError(f"{where}: the peer does not speak dask's protocol (not a dask scheduler)") from None
+    except OSError as err:
+        raise OSError(f"{where}: {err}") from None
+
+
 def _numba_one_thread():
     """Set numba to one thread in the calling thread (run on each worker at start-up)."""
     import numba
@@ -154,6 +205,7 @@ def connect(address, *, workers=None):
             client.register_plugin(_plugin())
             yield client
         return
+    probe(address)
     try:
         client = Client(address, timeout=CONNECT_TIMEOUT)
     except OSError as err:
