@@ -353,3 +353,36 @@ def test_measure_refuses_more_samples_than_memory_holds():
 
     with pytest.raises(ValueError, match=r"samples = 1000000000000: .*memory"):
         tumble.measure((1.0, 2.0, 3.0), 2, samples=10**12)
+
+
+# --- a result set appears whole or not at all ------------------------------------------------------------------
+
+@pytest.mark.parametrize("failure", [OSError(errno.ENOSPC, os.strerror(errno.ENOSPC)), KeyboardInterrupt()],
+                         ids=["disk-full-while-drawing", "ctrl-c-while-drawing"])
+def test_a_failure_after_the_netcdf_is_written_leaves_the_earlier_result_set(earlier_result, capsys, monkeypatch,
+                                                                             failure):
+    """The .nc used to be written before the figures: a failure while drawing left a new .nc beside old figures
+    (and, with Ctrl-C, a message that nothing was written)."""
+    study, out, before = earlier_result
+    real = runner.plots.save_figures
+
+    def draws_one_then_fails(ds, names, directory, stem, **kwargs):
+        real(ds, names[:1], directory, stem, **kwargs)
+        raise failure
+
+    monkeypatch.setattr(runner.plots, "save_figures", draws_one_then_fails)
+    status = cli.main(["run", str(study), "--out", str(out), "--seed", "5"])
+    err = capsys.readouterr().err
+    assert status == (130 if isinstance(failure, KeyboardInterrupt) else 1), err
+    assert "Traceback" not in err
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before, "the earlier set, bit for bit"
+    assert not checkpoint.staging_folder(out, "small").exists()
+
+
+def test_a_staging_folder_left_by_kill_9_is_removed_by_the_next_run(earlier_result, capsys):
+    study, out, before = earlier_result
+    leftover = checkpoint.staging_folder(out, "small")
+    leftover.mkdir()
+    (leftover / "small.nc").write_bytes(b"half")
+    assert cli.main(["run", str(study), "--out", str(out)]) == 0
+    assert not leftover.exists() and sorted(p.name for p in out.iterdir()) == sorted(before)

@@ -64,6 +64,12 @@ class OutputError(OSError):
     """A result or checkpoint file could not be written (unwritable folder, disk full)."""
 
 
+def staging_folder(directory, stem):
+    """The hidden folder where a result set (``<stem>.nc`` and its figures) is written before it is renamed
+    into ``directory``."""
+    return Path(directory) / f".{stem}.staging.part"
+
+
 def check_writable(directory):
     """Raise :class:`OutputError` unless ``directory`` exists as a writable folder or can be made one (its
     nearest existing ancestor is a writable folder). Creates nothing."""
@@ -365,7 +371,9 @@ class Checkpoint:
         shutil.rmtree(self.folder, ignore_errors=True)
 
     def clean_partial_results(self):
-        """Remove leftover hidden ``.<stem>.nc.*.part`` files of an interrupted result write."""
+        """Remove leftovers of an interrupted result write: hidden ``.<stem>.nc.*.part`` files and the staging
+        folder (:func:`staging_folder`)."""
         if self.directory.is_dir():
             for path in self.directory.glob(f".{self.stem}.nc.*.part"):
                 path.unlink(missing_ok=True)
+            shutil.rmtree(staging_folder(self.directory, self.stem), ignore_errors=True)

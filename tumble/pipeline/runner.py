@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
+import shutil
 import re
 import sys
 from collections.abc import Mapping
@@ -455,17 +457,30 @@ def write_outputs(ds, resolved, directory, stem, *, action=None):
     """
     directory = Path(directory)
     path = directory / f"{stem}.nc"
+    # The result set appears whole or not at all: the file and the figures are written into a hidden staging
+    # folder beside the results, then renamed into place, figures first and the .nc last (renames within a
+    # folder do not fail half-way); on any error or Ctrl-C before that, the staging folder goes and earlier
+    # results are left as they were. A staging folder left by kill -9 is removed by the next run.
+    staging = checkpoint.staging_folder(directory, stem)
     try:
+        shutil.rmtree(staging, ignore_errors=True)
+        staging.mkdir(parents=True)
         with checkpoint.local_file_locks():
-            stored = io.write_dataset(ds, path, title=resolved["title"], study=resolved,
+            stored = io.write_dataset(ds, staging / path.name, title=resolved["title"], study=resolved,
                                       seed_entropy=ds.attrs.get("seed_entropy"), action=action)
-        figures = plots.save_figures(stored, resolved["outputs"]["figures"], directory, stem,
-                                     formats=tuple(resolved["outputs"]["format"]))
+        staged = plots.save_figures(stored, resolved["outputs"]["figures"], staging, stem,
+                                    formats=tuple(resolved["outputs"]["format"]))
+        figures = [directory / figure.name for figure in staged]
+        for figure in staged:
+            os.replace(figure, directory / figure.name)
+        os.replace(staging / path.name, path)
     except checkpoint.OutputError:
         raise
     except OSError as err:
         raise checkpoint.OutputError(err.errno, f"cannot write the results to {directory}: "
                                                 f"{err.strerror or err}") from err
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
     return stored, [path, *figures]
 
 
