@@ -192,7 +192,9 @@ PARTS = {"throughput": throughput, "memory": peak_memory, "warm_scene": warm_sce
 
 def main(parts=None):
     RESULTS.mkdir(exist_ok=True)
-    machine = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, numba {numba.__version__}"
+    width = "AVX-512" if "avx512f" in Path("/proc/cpuinfo").read_text() else "AVX2"
+    machine = (f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, {width}, "
+               f"numba {numba.__version__}")
     store = RESULTS / "engine.json"
     report = json.loads(store.read_text()) if parts and store.exists() else {}
     report.update(date=str(date.today()), machine=machine, threads=numba.get_num_threads())
