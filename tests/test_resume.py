@@ -101,8 +101,9 @@ def test_a_rerun_skips_the_finished_chunks_and_gives_the_same_bits(reference, tm
     assert not list(tmp_path.glob("*.nc"))  # finished chunks are never named like a result
 
     computed = []
-    compute = runner.compute_scene
-    monkeypatch.setattr(runner, "compute_scene", lambda job, i, **kw: computed.append(i) or compute(job, i, **kw))
+    compute = runner.compute_scenes
+    monkeypatch.setattr(runner, "compute_scenes",
+                        lambda job, indices, **kw: computed.extend(indices) or compute(job, indices, **kw))
     logged = []
     scenes = runner.run_scenes(job, store=runner.open_checkpoint(resolved, job, tmp_path, "resume"), chunk_scenes=5,
                                log=logged.append)
@@ -110,7 +111,7 @@ def test_a_rerun_skips_the_finished_chunks_and_gives_the_same_bits(reference, tm
     assert "resuming: 12 of 27 scenes" in logged[0]
     assert len(scenes) == 27
 
-    monkeypatch.setattr(runner, "compute_scene", compute)
+    monkeypatch.setattr(runner, "compute_scenes", compute)
     tumble.run_study(SCAN, out=tmp_path)
     assert_same_result(reference, tmp_path / "resume.nc")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["resume.nc"]  # checkpoint removed after the result
@@ -124,8 +125,9 @@ def test_a_chunk_of_another_study_is_never_reused(reference, tmp_path, monkeypat
     write_chunk(runner.open_checkpoint(resolved, job, tmp_path, "resume"), job, range(27))
 
     computed = []
-    compute = runner.compute_scene
-    monkeypatch.setattr(runner, "compute_scene", lambda job, i, **kw: computed.append(i) or compute(job, i, **kw))
+    compute = runner.compute_scenes
+    monkeypatch.setattr(runner, "compute_scenes",
+                        lambda job, indices, **kw: computed.extend(indices) or compute(job, indices, **kw))
     tumble.run_study(SCAN, out=tmp_path)
     assert sorted(computed) == list(range(27))
     assert_same_result(reference, tmp_path / "resume.nc")
@@ -161,14 +163,14 @@ def test_an_unreadable_chunk_is_recomputed_not_trusted(reference, tmp_path):
 
 
 def test_an_interrupted_run_leaves_no_file_named_like_a_result(tmp_path, monkeypatch, capsys):
-    compute = runner.compute_scene
+    compute = runner.compute_scenes
 
-    def fail_at_scene_12(job, i, **kw):
-        if i == 12:
+    def fail_at_scene_12(job, indices, **kw):
+        if 12 in indices:
             raise KeyboardInterrupt
-        return compute(job, i, **kw)
+        return compute(job, indices, **kw)
 
-    monkeypatch.setattr(runner, "compute_scene", fail_at_scene_12)
+    monkeypatch.setattr(runner, "compute_scenes", fail_at_scene_12)
     study = tmp_path / "resume.toml"
     study.write_text(_toml(SCAN))
     status = cli.main(["run", str(study), "--out", str(tmp_path / "out"), "--chunk-scenes", "4"])

@@ -279,7 +279,7 @@ def test_a_scan_of_one_value_per_key_runs_and_prints_its_summary(tmp_path, capsy
     status = cli.main(["run", str(study), "--out", str(tmp_path / "out")])
     out, err = capsys.readouterr()
     assert status == 0, err
-    assert "95% bootstrap interval of the median" in out and (tmp_path / "out" / "one.nc").is_file()
+    assert "95% interval of the median (order statistics)" in out and (tmp_path / "out" / "one.nc").is_file()
 
 
 def test_an_internal_value_error_is_not_reported_as_the_users_input(tmp_path, monkeypatch, capsys):

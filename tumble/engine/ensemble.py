@@ -165,13 +165,39 @@ def _stop_between_chunks():
 
 def _exact_flips(body, w0, axis, max_flips, t_end):
     """Flip times of the intermediate-axis component from the closed form: first flip, then every 2K/nu."""
-    first = np.atleast_1d(exact.first_flip_time(body, w0))
-    spacing = np.atleast_1d(exact.flip_spacing(body, w0))
+    return flip_times(np.atleast_1d(exact.first_flip_time(body, w0)), np.atleast_1d(exact.flip_spacing(body, w0)),
+                      max_flips, t_end)
+
+
+def flip_times(first, spacing, max_flips, t_end):
+    """``(times (n, max_flips), count (n,))`` of flips at ``first + j spacing`` up to ``t_end`` (scalar or per
+    sample), NaN past it; ``count`` is every flip up to ``t_end``, beyond ``max_flips`` too."""
+    t_end = np.asarray(t_end, dtype=float)
     later = np.arange(1, max_flips)[None, :] * spacing[:, None]  # inf where the spin never flips again
     times = np.concatenate([first[:, None], first[:, None] + later], axis=1)
     with np.errstate(invalid="ignore"):  # inf - inf where the spin never flips at all
         count = np.where(first <= t_end, np.floor((t_end - first) / spacing) + 1, 0)
-    return np.where(times <= t_end, times, np.nan), count.astype(np.int64)
+    end = t_end[:, None] if t_end.ndim else t_end
+    return np.where(times <= end, times, np.nan), count.astype(np.int64)
+
+
+def observation_times(t_end, dt, save_every=None, probe_times=None):
+    """``(saved times or None, probe steps or None, probe times or None)`` of a run of ``round(t_end / dt)``
+    steps: every ``save_every``-th step and the last one (exactly ``t_end``), and the probe times rounded to
+    whole steps — the times the kernels and the closed form observe at."""
+    n_steps = int(round(t_end / dt)) if t_end > 0 else 0
+    times = None
+    if save_every:
+        steps = list(range(0, n_steps + 1, int(save_every)))
+        if steps[-1] != n_steps:
+            steps.append(n_steps)
+        times = np.array(steps, dtype=float) * dt
+        times[-1] = t_end  # exactly, not n_steps * dt rounded
+    probe_steps = None
+    if probe_times is not None:
+        probe_steps = np.clip(np.rint(np.asarray(probe_times, dtype=float) / dt), 0, n_steps).astype(np.int64)
+        probe_times = probe_steps * dt
+    return times, probe_steps, probe_times
 
 
 def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, final=True, save_every=None,
@@ -235,18 +261,8 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
     if attitude and (not save_every or probe_times is not None or max_flips or drift or stop_norm or stop_flips):
         raise ValueError("attitude=True is stored with the trajectory: it needs save_every and no other observer")
     save = int(save_every or 0)
-    times = None
-    if save:
-        steps = list(range(0, n_steps + 1, save))
-        if steps[-1] != n_steps:
-            steps.append(n_steps)
-        times = np.array(steps, dtype=float) * dt
-        times[-1] = t_end  # exactly, not n_steps * dt rounded
+    times, probe_steps, probe_times = observation_times(t_end, dt, save, probe_times)
     weights = np.ones(3) if norm_weights is None else np.asarray(norm_weights, dtype=float)
-    probe_steps = None
-    if probe_times is not None:
-        probe_steps = np.clip(np.rint(np.asarray(probe_times, dtype=float) / dt), 0, n_steps).astype(np.int64)
-        probe_times = probe_steps * dt
     early = (stop_norm > 0 or stop_flips > 0) and not final and not save
     info = {"path": "closed form" if chosen == "exact" else "fixed-step kernel", "method": chosen,
             "reason": reason, "dt": dt, "n_steps": n_steps, "torque": torque_text, "early_stop": early,

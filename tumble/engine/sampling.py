@@ -25,6 +25,7 @@ makes differences between scenes of a scan far less noisy than independent draws
 
 from __future__ import annotations
 
+import functools
 import math
 import operator
 
@@ -208,6 +209,17 @@ def _unit_directions(u, axis, distribution, amplitude):
     return out
 
 
+@functools.lru_cache(maxsize=32)
+def _chunk_directions(entropy, j, axis, distribution, amplitude):
+    """The unit directions of chunk ``j`` (read-only, shape (CHUNK, 3)), kept for reuse: the scenes of a scan share
+    their seed (common random numbers), so every scene about the same axis with the same tilt draws the same
+    directions; drawing and transforming a chunk costs far more than the scene's use of it."""
+    u = _chunk_rng(entropy, j).random((CHUNK, 2))
+    directions = _unit_directions(u, axis, distribution, amplitude)
+    directions.flags.writeable = False
+    return directions
+
+
 def _constraint_scale(directions, moments, axis, constraint):
     """Factor, shape (m,), that rescales ``spin * directions`` onto the constraint surface."""
     # Plain elementwise arithmetic (no BLAS), so the result is the same bits on every run.
@@ -323,10 +335,9 @@ def perturbed_spins(body, axis, spin=1.0, amplitude=1e-3, samples=1024, *, seed=
         lo, hi = j * CHUNK, (j + 1) * CHUNK
         # Always the whole chunk's block of uniforms, and the whole chunk's transform: the rows kept are
         # then the same bits however the ensemble is sliced.
-        u = _chunk_rng(entropy, j).random((CHUNK, 2))
-        directions = _unit_directions(u, axis, distribution, amplitude)
+        directions = _chunk_directions(entropy, j, axis, distribution, amplitude)
         if constraint is not None:
-            directions *= _constraint_scale(directions, moments, axis, constraint)[:, None]
+            directions = directions * _constraint_scale(directions, moments, axis, constraint)[:, None]
         keep_lo, keep_hi = max(lo, start), min(hi, stop)
         out[keep_lo - start:keep_hi - start] = spin * directions[keep_lo - lo:keep_hi - lo]
     return (out, entropy) if return_entropy else out

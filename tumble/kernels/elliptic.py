@@ -290,12 +290,12 @@ def torque_free_setup(I, perm, parity, w, spin_scale, delta, kind, amp, cols, kc
 
     Parameters
     ----------
-    I : ndarray, shape (3,)
-        Sorted principal moments (any common scale), ``I[0] <= I[1] <= I[2]``.
-    perm : ndarray of int64, shape (3,)
-        ``perm[j]``: the caller's axis holding sorted moment ``j``.
-    parity : float
-        +1 if ``perm`` is an even permutation, else -1.
+    I : ndarray, shape (n, 3)
+        Sorted principal moments of each sample's body (any common scale), ``I[i, 0] <= I[i, 1] <= I[i, 2]``.
+    perm : ndarray of int64, shape (n, 3)
+        ``perm[i, j]``: the caller's axis holding sorted moment ``j`` of sample ``i``'s body.
+    parity : ndarray, shape (n,)
+        +1 where ``perm[i]`` is an even permutation, else -1.
     w : ndarray, shape (n, 3)
         Initial angular velocities in the caller's axis order, rad/s.
     spin_scale : ndarray, shape (n,)
@@ -308,28 +308,29 @@ def torque_free_setup(I, perm, parity, w, spin_scale, delta, kind, amp, cols, kc
     e2, L2 : ndarray, shape (n,)
         Receive ``2E`` and ``L²`` of the scaled spins.
     """
-    I1, I2, I3 = I[0], I[1], I[2]
     for i in range(w.shape[0]):
+        I1, I2, I3 = I[i, 0], I[i, 1], I[i, 2]
+        p0, p1, p2 = perm[i, 0], perm[i, 1], perm[i, 2]
         sc = spin_scale[i]
-        w1 = w[i, perm[0]] / sc
-        w2 = w[i, perm[1]] / sc
-        w3 = w[i, perm[2]] / sc
+        w1 = w[i, p0] / sc
+        w2 = w[i, p1] / sc
+        w3 = w[i, p2] / sc
         e2[i] = I1 * w1 * w1 + I2 * w2 * w2 + I3 * w3 * w3
         L2[i] = (I1 * w1) ** 2 + (I2 * w2) ** 2 + (I3 * w3) ** 2
         d = delta[i]
         # steady rotation: every term of w x (I w) vanishes exactly (zeros of the unscaled spin)
-        z1 = w[i, perm[0]] == 0.0
-        z2 = w[i, perm[1]] == 0.0
-        z3 = w[i, perm[2]] == 0.0
+        z1 = w[i, p0] == 0.0
+        z2 = w[i, p1] == 0.0
+        z3 = w[i, p2] == 0.0
         stationary = (I2 == I3 or z2 or z3) and (I3 == I1 or z3 or z1) and (I1 == I2 or z1 or z2)
-        cols[i, 0] = perm[0]
-        cols[i, 1] = perm[1]
-        cols[i, 2] = perm[2]
+        cols[i, 0] = p0
+        cols[i, 1] = p1
+        cols[i, 2] = p2
         if stationary:
             kind[i] = KIND_STATIONARY
-            amp[i, 0] = w[i, perm[0]]
-            amp[i, 1] = w[i, perm[1]]
-            amp[i, 2] = w[i, perm[2]]
+            amp[i, 0] = w[i, p0]
+            amp[i, 1] = w[i, p1]
+            amp[i, 2] = w[i, p2]
             kc[i] = 1.0
             m[i] = 0.0
             K[i] = 0.5 * math.pi
@@ -338,8 +339,8 @@ def torque_free_setup(I, perm, parity, w, spin_scale, delta, kind, amp, cols, kc
             continue
         if d < 0.0:  # dn on the smallest-moment axis
             Ip, Iq, wp, wq = I1, I3, w1, w3
-            cols[i, 0] = perm[2]
-            cols[i, 2] = perm[0]
+            cols[i, 0] = p2
+            cols[i, 2] = p0
         else:
             Ip, Iq, wp, wq = I3, I1, w3, w1
         dpq = I3 - I1
@@ -359,7 +360,7 @@ def torque_free_setup(I, perm, parity, w, spin_scale, delta, kind, amp, cols, kc
             m[i] = 1.0
             K[i] = math.inf
             phase0[i] = math.asinh((w2 / a_mid) * (a_q / abs(wq)))
-            nu[i] = s_p * s_q * parity * nu_abs * sc
+            nu[i] = s_p * s_q * parity[i] * nu_abs * sc
             amp[i, 0] = s_q * a_q * sc
             amp[i, 1] = a_mid * sc
             amp[i, 2] = s_p * a_p * sc
@@ -378,7 +379,7 @@ def torque_free_setup(I, perm, parity, w, spin_scale, delta, kind, amp, cols, kc
         kc[i] = k_c
         m[i] = mi
         K[i] = 0.5 * math.pi / agm(1.0, k_c)
-        nu[i] = s_p * parity * nu_abs * sc
+        nu[i] = s_p * parity[i] * nu_abs * sc
         amp[i, 0] = sigma * a_q * sc
         amp[i, 1] = sigma * a_mid * sc
         # dn = 1 when m = 0 (a symmetric top): the symmetry-axis component is then exactly constant

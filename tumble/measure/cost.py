@@ -28,7 +28,7 @@ MAX_SAMPLE_STEPS = 1e14
 MEMORY_SHARE = 0.5
 
 #: Throughputs for the time estimate: fixed-step sample-steps/s, closed-form sample evaluations/s, and the
-#: fixed cost of a scene (planning, fits, bootstrap, dataset), s.
+#: fixed cost of a scene (planning, fits, summaries, dataset), s.
 _STEPS_PER_SECOND = 3e8
 _EXACT_PER_SECOND = 2e6
 _SCENE_SECONDS = 0.03

@@ -21,7 +21,7 @@ Planning a scene (what is computed and why):
 * samples run in slices of :data:`SLICE` (memory stays O(samples), whatever the ensemble size);
 * a scene is planned once (:func:`scene_plan`), its samples run in any ranges that start at multiples of
   :data:`tumble.engine.sampling.CHUNK` (:func:`scene_samples`: per-sample fits only, in any process) and the ranges
-  are reduced once (:func:`scene_result`: median, bootstrap interval, fit window and flip medians over all the
+  are reduced once (:func:`scene_result`: median, confidence interval, fit window and flip medians over all the
   samples) — the same bits as the whole scene; ``tumble run`` cuts large scenes this way.
 
 What the scene skipped is on the dataset (``path``, ``sample_steps_computed``, ``sample_steps_skipped``).
@@ -41,7 +41,7 @@ from tqdm.auto import tqdm
 
 from .. import registry
 from .._version import __version__
-from ..engine.ensemble import run_ensemble, torque_spec
+from ..engine.ensemble import flip_times, observation_times, run_ensemble, torque_spec
 from ..engine.integration import integrate
 from ..engine.sampling import CHUNK, perturbed_spins, seed_entropy
 from ..physics import exact, theory
@@ -50,9 +50,10 @@ from ..registry import STATUS_NAMES, STATUS_OK, STEPPING
 from . import cost
 from . import estimators as analysis
 
-__all__ = ["CURVES", "SAMPLE_STATUS_NAMES", "assemble_scan", "flip_time_law", "inertia_triangle", "invariant_drift",
+__all__ = ["CURVES", "SAMPLE_STATUS_NAMES", "assemble_scan", "closed_form_samples", "flip_time_law", "inertia_triangle",
+           "invariant_drift",
            "measure", "regress_scan", "scan", "scan_layout", "scan_scene", "scan_scene_parameters", "scene_plan",
-           "scene_result", "scene_samples"]
+           "scene_batch", "scene_dataset", "scene_records", "scene_result", "scene_samples"]
 
 #: Per-sample status in a measurement: the engine's (ok, non-finite, invariant drift), then the fit's.
 SAMPLE_STATUS_NAMES = STATUS_NAMES + analysis.FIT_NAMES[1:]
@@ -89,8 +90,8 @@ SATURATION_TILTS = 10.0
 #: Samples per engine call (bounds the memory of stored components and probes).
 SLICE = 8 * CHUNK
 
-#: Bootstrap resamples of a scene's confidence interval, and its level.
-BOOTSTRAP = 1000
+#: Level of a scene's confidence interval of the median (distribution-free, from order statistics:
+#: :func:`tumble.measure.estimators.summarize`).
 CONFIDENCE = 0.95
 
 _KIND_UNITS = {"periodic": "rad/s", "exponential": "1/s", "neutral": "rad/s"}
@@ -246,7 +247,7 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
     xarray.Dataset
         Scalars ``rate`` (median over valid samples), ``rate_theory``, ``rel_error``
         (``|rate − rate_theory| / rate_theory``; for a neutral scene, whose theory is 0, relative to
-        ``|spin|``), ``kind``; its bootstrap interval ``rate_ci_low``/``rate_ci_high`` and ``rate_spread``;
+        ``|spin|``), ``kind``; its 95 % confidence interval (order statistics) ``rate_ci_low``/``rate_ci_high`` and ``rate_spread``;
         ``samples_used``/``samples_excluded``; the fit window (exponential); flip statistics (exponential,
         ``flips > 0``); per sample ``sample_rate(sample)`` and ``sample_status(sample)``; the scene's
         parameters as scalar coordinates (``I1``, ``I2``, ``I3``, ``axis``, ``spin``, ``amplitude``,
@@ -344,12 +345,11 @@ def scene_samples(scene, start, stop, *, progress=False):
     if keep_norm and stop < min(SLICE, samples):
         raise ValueError(f"the sample range holding sample 0 keeps the norm curve: it must reach "
                          f"{min(SLICE, samples)}, got [{start}, {stop})")
+    if scene["chosen"] == "exact":
+        return closed_form_samples([scene], start, stop)[0]
     moments, axis, spin = scene["moments"], scene["axis"], scene["spin"]
     growth, n_flips, a = kind == "exponential", scene["flips"], scene["axis"] - 1
-    n = stop - start
-    out = {"start": np.int64(start), "rate": np.empty(n), "code": np.empty(n, dtype=np.int8)}
-    out.update((name, np.empty(n)) for name in (_GROWTH_FIT if growth else ("radius",)))
-    out.update((name, np.full(n, np.nan)) for name in (_FLIP_ARRAYS if n_flips else ()))
+    out = _empty_part(scene, start, stop)
     value = scene["value"]
     computed = skipped = 0
     for lo in range(start, stop, SLICE):
@@ -397,11 +397,131 @@ def scene_samples(scene, start, stop, *, progress=False):
     return out
 
 
+def _empty_part(scene, start, stop):
+    n = stop - start
+    out = {"start": np.int64(start), "rate": np.empty(n), "code": np.empty(n, dtype=np.int8)}
+    out.update((name, np.empty(n)) for name in (_GROWTH_FIT if scene["kind"] == "exponential" else ("radius",)))
+    out.update((name, np.full(n, np.nan)) for name in (_FLIP_ARRAYS if scene["flips"] else ()))
+    return out
+
+
+def _observation_grid(scene):
+    """The times the closed form evaluates a scene at: its probe times (exponential) or stored times."""
+    plan = scene["plan"]
+    if scene["kind"] == "exponential":
+        return observation_times(plan["t_end"], plan["dt"], probe_times=plan["probe_times"])[2]
+    return observation_times(plan["t_end"], plan["dt"], save_every=plan["save_every"])[0]
+
+
+def closed_form_samples(scenes, start, stop):
+    """:func:`scene_samples` of torque-free scenes run in closed form, many scenes at once.
+
+    The samples of every scene go through one set-up (:func:`tumble.physics.exact.solve_rows`), one kernel call
+    (:func:`tumble.physics.exact.omega_rows`, each scene on its own time grid) and one call of each estimator,
+    in batches of at most :data:`SLICE` samples of scenes with the same kind and number of times: a scan pays
+    no per-scene kernel launch or estimator call. Each sample's arithmetic is the one it gets alone, so the
+    parts are the same bits as scene by scene (``scene_samples`` of a closed-form scene is this with one scene).
+
+    Parameters
+    ----------
+    scenes : list of dict
+        :func:`scene_plan` results with ``chosen == "exact"`` and the same ``samples``.
+    start, stop : int
+        The sample range of every scene (as :func:`scene_samples`).
+
+    Returns
+    -------
+    list of dict
+        One part per scene, as :func:`scene_samples` returns it.
+    """
+    parts = [_empty_part(scene, start, stop) for scene in scenes]
+    grids = [_observation_grid(scene) for scene in scenes]
+    groups = {}
+    for k, scene in enumerate(scenes):
+        key = (scene["kind"] == "exponential", len(grids[k]), scene["flips"])
+        groups.setdefault(key, []).extend((k, lo, min(lo + SLICE, stop)) for lo in range(start, stop, SLICE))
+    for items in groups.values():
+        batch, size = [], 0
+        for item in items:
+            if batch and size + item[2] - item[1] > SLICE:
+                _closed_form_batch(scenes, grids, batch, parts, start)
+                batch, size = [], 0
+            batch.append(item)
+            size += item[2] - item[1]
+        _closed_form_batch(scenes, grids, batch, parts, start)
+    for scene, part in zip(scenes, parts):
+        part.update(sample_steps_computed=np.int64(0),
+                    sample_steps_skipped=np.int64((stop - start) * scene["plan"]["n_steps"]),
+                    rate_theory=np.float64(scene["value"]), path=np.array("closed form"),
+                    torque=np.array(torque_spec(None)[3]))
+    return parts
+
+
+def _closed_form_batch(scenes, grids, batch, parts, start):
+    """Run the sample slices ``batch`` (``(scene, lo, hi)``) of :func:`closed_form_samples` together."""
+    sizes = [hi - lo for _, lo, hi in batch]
+    row = np.repeat(np.arange(len(batch)), sizes)
+    per_sample = [scenes[k] for k, _, _ in batch]
+
+    def each(values):
+        return np.repeat(np.asarray(values), sizes, axis=0)
+
+    moments = each([scene["moments"] for scene in per_sample])
+    w0 = np.concatenate([perturbed_spins(scene["moments"], scene["axis"], scene["spin"], scene["amplitude"],
+                                         scene["samples"], seed=scene["entropy"], distribution=scene["distribution"],
+                                         start=lo, stop=hi) for scene, (_, lo, hi) in zip(per_sample, batch)])
+    times = np.stack([grids[k] for k, _, _ in batch])
+    sol = exact.solve_rows(moments, w0)
+    omega = exact.omega_rows(sol, times, row)
+    everyone = np.arange(len(row))
+    first = per_sample[0]
+    if first["kind"] == "exponential":
+        b, c = each([((s["axis"]) % 3, (s["axis"] + 1) % 3) for s in per_sample]).T
+        weights = each([s["plan"]["weights"] for s in per_sample])
+        probes = np.sqrt(weights[everyone, b][:, None] * omega[everyone, :, b] ** 2
+                         + weights[everyone, c][:, None] * omega[everyone, :, c] ** 2)
+        fit = analysis.growth_rates(times[row], probes, each([s["plan"]["saturation"] for s in per_sample]))
+        results = {"rate": fit.rate, **{name: getattr(fit, name) for name in _GROWTH_FIT}}
+        if first["flips"]:
+            spacing = exact._flip_spacing(sol)
+            flips, _ = flip_times(exact._first_flip(sol), spacing, first["flips"],
+                                  each([s["plan"]["t_end"] for s in per_sample]))
+            stats = analysis.flip_statistics(flips)
+            results.update(flip_first=stats.first, flip_spacing=stats.spacing, flip_exact=spacing,
+                           flip_asymptote=theory.flip_asymptote_from(moments, w0, sol.kc))
+    else:
+        planes = [s["plan"].get("plane", (s["axis"] % 3, (s["axis"] + 1) % 3)) for s in per_sample]
+        b, c = each(planes).T
+        weights = each([analysis.invariant_weights(s["moments"], s["axis"])[list(plane)] if s["kind"] == "periodic"
+                        else np.ones(2) for s, plane in zip(per_sample, planes)])
+        transverse = np.stack([omega[everyone, :, b], omega[everyone, :, c]], axis=-1)
+        fit = analysis.oscillation_frequencies(times[row], transverse, weights, each([s["spin"] for s in per_sample]))
+        results = {"rate": fit.frequency, "radius": fit.radius}
+    code = np.where(fit.code != analysis.FIT_OK, fit.code + _FIT_OFFSET, 0)
+    offset = 0
+    for (k, lo, hi), size in zip(batch, sizes):
+        rows, into = slice(offset, offset + size), slice(lo - start, hi - start)
+        part, scene = parts[k], scenes[k]
+        for name, values in results.items():
+            part[name][into] = values[rows]
+        part["code"][into] = code[rows]
+        if lo == 0 and "norm" in scene["curves"] and scene["kind"] == "exponential":
+            quartiles = np.nanquantile(probes[rows], [0.25, 0.5, 0.75], axis=0)
+            part.update(norm_time=times[row[offset]], norm_q1=quartiles[0], norm_median=quartiles[1],
+                        norm_q3=quartiles[2])
+        offset += size
+
+
 def scene_result(scene, parts):
     """The dataset of :func:`measure` from the :func:`scene_samples` ranges of a scene (in any order, together
     covering every sample once): per-sample arrays concatenated, the scene's values computed from them once."""
+    return scene_dataset(scene_records([scene], [parts])[0])
+
+
+def _joined(scene, parts):
+    """The per-sample arrays of a scene's ranges, checked and concatenated, and the ranges' scalars."""
     parts = sorted(parts, key=lambda part: int(part["start"]))
-    samples, kind, plan = scene["samples"], scene["kind"], scene["plan"]
+    samples = scene["samples"]
     covered = 0
     for part in parts:
         if int(part["start"]) != covered:
@@ -410,42 +530,114 @@ def scene_result(scene, parts):
         covered += len(part["rate"])
     if covered != samples:
         raise ValueError(f"the sample ranges of a scene of {samples} samples end at {covered}")
+    growth = scene["kind"] == "exponential"
+    names = ("rate", "code", *(_GROWTH_FIT if growth else ("radius",)), *(_FLIP_ARRAYS if scene["flips"] else ()))
+    joined = {name: np.concatenate([part[name] for part in parts]) for name in names}
+    joined.update(computed=sum(int(part["sample_steps_computed"]) for part in parts),
+                  skipped=sum(int(part["sample_steps_skipped"]) for part in parts),
+                  value=float(parts[0]["rate_theory"]), path=str(parts[-1]["path"]), torque=str(parts[-1]["torque"]))
+    if "norm_time" in parts[0]:
+        joined["norm"] = tuple(parts[0][f"norm_{name}"] for name in ("time", "q1", "median", "q3"))
+    return joined
+
+
+def _medians(values, mask):
+    """Median over the samples of each row where ``mask`` (and the value is finite); NaN for none."""
+    return analysis.summarize(np.where(mask, values, np.nan)).median
+
+
+def scene_records(scenes, parts):
+    """The scene records of :func:`scene_plan` results from their :func:`scene_samples` ranges.
+
+    A record is a flat dict of NumPy values — every variable, coordinate and attribute (``@name``) of the scene's
+    dataset (:func:`scene_dataset`), nothing else — so that it pickles, checkpoints as plain arrays, and a scan is
+    assembled from records in one pass (:func:`assemble_scan`). The statistics over samples (median, interval,
+    spread, fit window, flips) of all scenes of one kind are computed in one vectorised call each: the same bits
+    as one scene at a time.
+
+    Parameters
+    ----------
+    scenes : list of dict
+        :func:`scene_plan` results.
+    parts : list of list of dict
+        For each scene, its ranges (together covering every sample once).
+    """
+    joined = [_joined(scene, ranges) for scene, ranges in zip(scenes, parts)]
+    groups = {}
+    for i, scene in enumerate(scenes):
+        groups.setdefault((scene["kind"], scene["flips"] > 0, scene["samples"]), []).append(i)
+    records = [None] * len(scenes)
+    for (kind, flipping, _), members in groups.items():
+        stacked = {name: np.stack([joined[i][name] for i in members]) for name in joined[members[0]]
+                   if isinstance(joined[members[0]][name], np.ndarray)}
+        code = stacked["code"]
+        valid = code == 0
+        rate = np.where(valid, stacked["rate"], np.nan)
+        summary = analysis.summarize(rate, confidence=CONFIDENCE)
+        extras = _GROWTH_FIT if kind == "exponential" else ("radius",)
+        medians = {name: _medians(stacked[name], valid) for name in extras}
+        flips = None
+        if flipping:
+            ok = (code == 0) | (code > _FIT_OFFSET)  # flips need a sound trajectory, not a successful rate fit
+            first, spacing = stacked["flip_first"], stacked["flip_spacing"]
+            has_spacing = ok & np.isfinite(spacing)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                spacing_error = np.abs(spacing / stacked["flip_exact"] - 1.0)
+            worst = np.where(has_spacing, spacing_error, -np.inf).max(axis=1)
+            flips = {"first": _medians(first, ok), "asymptote": _medians(stacked["flip_asymptote"], ok),
+                     "spacing": _medians(spacing, ok), "exact": _medians(stacked["flip_exact"], ok),
+                     "worst": np.where(has_spacing.any(axis=1), worst, np.nan), "timed": has_spacing.sum(axis=1),
+                     "sample_first": np.where(ok, first, np.nan), "sample_spacing": np.where(ok, spacing, np.nan)}
+        for j, i in enumerate(members):
+            records[i] = _scene_record(scenes[i], joined[i], analysis.Summary(*(field[j] for field in summary)), rate[j],
+                                       code[j], {name: m[j] for name, m in medians.items()},
+                                       None if flips is None else {name: v[j] for name, v in flips.items()})
+    return records
+
+
+def _scene_record(scene, joined, summary, rate, code, medians, flips):
+    """The record (see :func:`scene_records`) of one scene from its joined arrays and statistics."""
     moments, axis, spin, amplitude = scene["moments"], scene["axis"], scene["spin"], scene["amplitude"]
-    growth, n_flips, entropy = kind == "exponential", scene["flips"], scene["entropy"]
-    joined = {name: np.concatenate([part[name] for part in parts]) for name in
-              ("rate", "code", *(_GROWTH_FIT if growth else ("radius",)), *(_FLIP_ARRAYS if n_flips else ()))}
-    code = joined["code"]
-    computed = int(sum(int(part["sample_steps_computed"]) for part in parts))
-    skipped = int(sum(int(part["sample_steps_skipped"]) for part in parts))
-    first, last = parts[0], parts[-1]
-    value = float(first["rate_theory"])
-    info = {"path": str(last["path"]), "torque": str(last["torque"])}
-    kept = {}
-    if "norm_time" in first:
-        kept["norm"] = tuple(first[f"norm_{name}"] for name in ("time", "q1", "median", "q3"))
-    curves = scene["curves"]
-    if "trace" in curves:
-        w_trace = perturbed_spins(moments, axis, spin, amplitude, 1, seed=entropy, distribution=scene["distribution"])
-        kept["trace"] = _trace(moments, w_trace, plan, scene["chosen"], scene["torque"])
-    valid = code == 0
-    rate = np.where(valid, joined["rate"], np.nan)
-    summary = analysis.summarize(rate, confidence=CONFIDENCE, resamples=BOOTSTRAP, seed=entropy % 2**63)
+    kind, plan, value = scene["kind"], scene["plan"], joined["value"]
     if summary.used == 0:
         counts = np.bincount(code, minlength=len(SAMPLE_STATUS_NAMES))
         warnings.warn(f"no sample of the scene (axis {axis}, amplitude {amplitude}) gave a rate; statuses: "
                       + ", ".join(f"{SAMPLE_STATUS_NAMES[k]} {n}" for k, n in enumerate(counts) if n),
-                      RuntimeWarning, stacklevel=3)
-    ds = _scene_dataset(moments, axis, spin, amplitude, samples, scene["method"], scene["chosen"], kind, value,
-                        summary, rate, code, joined, valid,
-                        tuple(joined[name] for name in _FLIP_ARRAYS) if n_flips else None, plan, info, computed,
-                        skipped, entropy, scene["distribution"])
+                      RuntimeWarning, stacklevel=4)
+    theory_scale = value if value > 0 else abs(spin)
+    record = {"rate": summary.median, "rate_theory": value, "rel_error": abs(summary.median - value) / theory_scale,
+              "kind": kind, "rate_ci_low": summary.ci_low, "rate_ci_high": summary.ci_high,
+              "rate_spread": summary.spread, "samples_used": summary.used, "samples_excluded": summary.excluded,
+              "sample_rate": rate, "sample_status": code, "dt": plan["dt"], "t_end": plan["t_end"],
+              "n_steps": np.int64(plan["n_steps"]), "sample_steps_computed": np.int64(joined["computed"]),
+              "sample_steps_skipped": np.int64(joined["skipped"]), "path": joined["path"]}
+    if kind == "exponential":
+        record.update({f"fit_{name}": medians[name] for name in _GROWTH_FIT}, fit_saturation=plan["saturation"])
+    else:
+        record["signal_radius"] = medians["radius"]
+    record["flips_timed"] = np.int64(0)
+    if flips is not None:
+        record.update(flip_first=flips["first"], flip_first_asymptote=flips["asymptote"], flip_spacing=flips["spacing"],
+                      flip_spacing_exact=flips["exact"], flip_spacing_asymptote=2 * flips["asymptote"],
+                      flip_spacing_rel_error=flips["worst"], flips_timed=np.int64(flips["timed"]),
+                      sample_first_flip=flips["sample_first"], sample_flip_spacing=flips["sample_spacing"])
+    kept = {"norm": joined["norm"]} if "norm" in joined else {}
+    if "trace" in scene["curves"]:
+        w_trace = perturbed_spins(moments, axis, spin, amplitude, 1, seed=scene["entropy"],
+                                  distribution=scene["distribution"])
+        kept["trace"] = _trace(moments, w_trace, plan, scene["chosen"], scene["torque"])
+    record.update(_curves(kept, scene["curves"]))
+    record.update(I1=moments[0], I2=moments[1], I3=moments[2], axis=np.int64(axis), spin=spin, amplitude=amplitude,
+                  method=scene["method"], sample=np.arange(scene["samples"], dtype=np.int64))
+    if "trace" in scene["curves"]:
+        record["component"] = np.array([1, 2, 3])
+    record.update({"@title": f"tumble measurement: {kind} rate about axis {axis}", "@method_run": scene["chosen"],
+                   "@samples": scene["samples"], "@seed_entropy": str(scene["entropy"]),
+                   "@distribution": scene["distribution"], "@median_interval": _INTERVAL_TEXT,
+                   "@source": f"tumble {__version__}"})
     if scene["spin_up"] is not None:
-        ds.attrs["torque"] = info["torque"]
-    ds = ds.assign(_curves(kept, curves))
-    if "trace" in curves:
-        ds = ds.assign_coords(component=_var(np.array([1, 2, 3]), "1", "body-frame component (principal axis)",
-                                             ("component",)))
-    return ds
+        record["@torque"] = joined["torque"]
+    return {name: np.asarray(v) for name, v in record.items()}
 
 
 def _axial_spin_up(torque, moments, a, kind, spin):
@@ -493,26 +685,18 @@ def _trace(moments, w0, plan, method, torque):
 
 
 def _curves(kept, curves):
-    """Dataset variables of the kept curves (NaN where the scene has none, so that scans stack)."""
+    """Values of the kept curves (NaN where the scene has none, so that scans stack)."""
     out = {}
     if "norm" in curves:
         nan = np.full(PROBES + 1, np.nan)
         times, q1, median, q3 = kept.get("norm", (nan, nan, nan, nan))
-        dims = ("growth_point",)
-        out.update(
-            growth_time=_var(times, "s", "probe time of the transverse norm", dims),
-            growth_norm=_var(median, "rad/s", "scaled transverse norm, median over samples", dims),
-            growth_norm_q1=_var(q1, "rad/s", "scaled transverse norm, lower quartile over samples", dims),
-            growth_norm_q3=_var(q3, "rad/s", "scaled transverse norm, upper quartile over samples", dims))
+        out.update(growth_time=times, growth_norm=median, growth_norm_q1=q1, growth_norm_q3=q3)
     if "trace" in curves:
         times, omega = kept["trace"]
         n = TRACE_POINTS + 2  # fixed length (NaN padded), so that scenes of a scan stack
         t_pad, w_pad = np.full(n, np.nan), np.full((n, 3), np.nan)
         t_pad[:len(times)], w_pad[:len(times)] = times, omega
-        out.update(
-            trace_time=_var(t_pad, "s", "time along the traced sample (NaN: padding)", ("trace_point",)),
-            trace_omega=_var(w_pad, "rad/s", "body-frame angular velocity of the first sample",
-                             ("trace_point", "component")))
+        out.update(trace_time=t_pad, trace_omega=w_pad)
     return out
 
 
@@ -520,92 +704,93 @@ def _var(value, units, long_name, dims=(), **attrs):
     return xr.Variable(dims, value, {"units": units, "long_name": long_name, **attrs})
 
 
-def _median(values, valid):
-    picked = values[valid & np.isfinite(values)]
-    return float(np.median(picked)) if len(picked) else np.nan
+_INTERVAL_TEXT = (f"{CONFIDENCE:.0%} distribution-free interval of the median: order statistics x_(l), x_(n+1-l) with "
+                  "l from Binomial(n, 1/2)")
 
 
-def _scene_dataset(moments, axis, spin, amplitude, samples, method, chosen, kind, value, summary, rate, code,
-                   extra, valid, flip_data, plan, info, computed, skipped, entropy, distribution):
+def _metadata(kind, value):
+    """``name -> (dims, attrs)`` of every variable and coordinate a scene record may hold."""
     unit = _KIND_UNITS[kind]
-    theory_scale = value if value > 0 else abs(spin)
-    rel_error = abs(summary.median - value) / theory_scale
-    data = {
-        "rate": _var(summary.median, unit, f"measured {kind} rate: median over valid samples"),
-        "rate_theory": _var(value, unit, f"linear-theory {kind} rate"),
-        "rel_error": _var(rel_error, "1", "relative error of the measured rate, |rate - rate_theory| / "
-                          + ("rate_theory" if value > 0 else "|spin| (neutral: theory is 0)")),
-        "kind": _var(kind, "1", "linear-theory kind: periodic, exponential or neutral"),
-        "rate_ci_low": _var(summary.ci_low, unit, f"lower bound of the {CONFIDENCE:.0%} bootstrap interval of "
-                            "the median rate"),
-        "rate_ci_high": _var(summary.ci_high, unit, f"upper bound of the {CONFIDENCE:.0%} bootstrap interval of "
-                             "the median rate"),
-        "rate_spread": _var(summary.spread, unit, "half the interquartile range of the sample rates"),
-        "samples_used": _var(np.int64(summary.used), "1", "samples with a valid rate"),
-        "samples_excluded": _var(np.int64(summary.excluded), "1", "samples left out (bad status or failed fit)"),
-        "sample_rate": _var(rate, unit, f"measured {kind} rate of each sample (NaN: excluded)", ("sample",)),
-        "sample_status": _var(code, "1", "status of each sample", ("sample",),
-                              flag_values=np.arange(len(SAMPLE_STATUS_NAMES), dtype=np.int8),
-                              flag_meanings=" ".join(name.replace(" ", "_").replace("-", "_")
-                                                     for name in SAMPLE_STATUS_NAMES)),
-        "dt": _var(plan["dt"], "s", "time step (closed form: spacing of the evaluation times)"),
-        "t_end": _var(plan["t_end"], "s", "horizon of the scene"),
-        "n_steps": _var(np.int64(plan["n_steps"]), "1", "fixed steps to the horizon"),
-        "sample_steps_computed": _var(np.int64(computed), "1", "sample-steps the kernel computed"),
-        "sample_steps_skipped": _var(np.int64(skipped), "1", "sample-steps skipped (closed form, early stop)"),
-        "path": _var(info.get("path", ""), "1", "how the scene ran"),
+    flag_names = " ".join(name.replace(" ", "_").replace("-", "_") for name in SAMPLE_STATUS_NAMES)
+    table = {
+        "rate": (unit, f"measured {kind} rate: median over valid samples"),
+        "rate_theory": (unit, f"linear-theory {kind} rate"),
+        "rel_error": ("1", "relative error of the measured rate, |rate - rate_theory| / "
+                      + ("rate_theory" if value > 0 else "|spin| (neutral: theory is 0)")),
+        "kind": ("1", "linear-theory kind: periodic, exponential or neutral"),
+        "rate_ci_low": (unit, f"lower bound of the {CONFIDENCE:.0%} confidence interval of the median rate "
+                              "(order statistics)"),
+        "rate_ci_high": (unit, f"upper bound of the {CONFIDENCE:.0%} confidence interval of the median rate "
+                               "(order statistics)"),
+        "rate_spread": (unit, "half the interquartile range of the sample rates"),
+        "samples_used": ("1", "samples with a valid rate"),
+        "samples_excluded": ("1", "samples left out (bad status or failed fit)"),
+        "sample_rate": (unit, f"measured {kind} rate of each sample (NaN: excluded)", ("sample",)),
+        "sample_status": ("1", "status of each sample", ("sample",),
+                          {"flag_values": np.arange(len(SAMPLE_STATUS_NAMES), dtype=np.int8),
+                           "flag_meanings": flag_names}),
+        "dt": ("s", "time step (closed form: spacing of the evaluation times)"),
+        "t_end": ("s", "horizon of the scene"),
+        "n_steps": ("1", "fixed steps to the horizon"),
+        "sample_steps_computed": ("1", "sample-steps the kernel computed"),
+        "sample_steps_skipped": ("1", "sample-steps skipped (closed form, early stop)"),
+        "path": ("1", "how the scene ran"),
+        "fit_t_start": ("s", "start of the fit window (median over samples)"),
+        "fit_t_stop": ("s", "end of the fit window (median over samples)"),
+        "fit_norm_start": ("rad/s", "scaled transverse norm at the start of the fit window (median over samples)"),
+        "fit_norm_stop": ("rad/s", "scaled transverse norm at the end of the fit window (median over samples)"),
+        "fit_saturation": ("rad/s", "end of the linear regime (scaled norm)"),
+        "signal_radius": ("rad/s", "median scaled transverse radius (the signal of the phase fit)"),
+        "flips_timed": ("1", "samples with at least two flips timed"),
+        "flip_first": ("s", "time of the first flip (median over samples)"),
+        "flip_first_asymptote": ("s", "linear-theory first flip time (1/lambda) ln(4/k') (median)"),
+        "flip_spacing": ("s", "time between flips (median over samples)"),
+        "flip_spacing_exact": ("s", "exact time between flips 2K/nu (median)"),
+        "flip_spacing_asymptote": ("s", "linear-theory time between flips (2/lambda) ln(4/k') (median)"),
+        "flip_spacing_rel_error": ("1", "largest |spacing / (2K/nu) - 1| over samples"),
+        "sample_first_flip": ("s", "time of the first flip", ("sample",)),
+        "sample_flip_spacing": ("s", "mean time between flips", ("sample",)),
+        "growth_time": ("s", "probe time of the transverse norm", ("growth_point",)),
+        "growth_norm": ("rad/s", "scaled transverse norm, median over samples", ("growth_point",)),
+        "growth_norm_q1": ("rad/s", "scaled transverse norm, lower quartile over samples", ("growth_point",)),
+        "growth_norm_q3": ("rad/s", "scaled transverse norm, upper quartile over samples", ("growth_point",)),
+        "trace_time": ("s", "time along the traced sample (NaN: padding)", ("trace_point",)),
+        "trace_omega": ("rad/s", "body-frame angular velocity of the first sample", ("trace_point", "component")),
+        "I1": ("kg m2", "principal moment of inertia 1"),
+        "I2": ("kg m2", "principal moment of inertia 2"),
+        "I3": ("kg m2", "principal moment of inertia 3"),
+        "axis": ("1", "spin axis (1-based principal axis)"),
+        "spin": ("rad/s", "unperturbed spin about the axis"),
+        "amplitude": ("rad", "tilt of the perturbed spins from the axis"),
+        "method": ("1", "integration method asked for"),
+        "sample": ("1", "sample index", ("sample",)),
+        "component": ("1", "body-frame component (principal axis)", ("component",)),
     }
-    if kind == "exponential":
-        for name, units, text in (("t_start", "s", "start of the fit window"),
-                                  ("t_stop", "s", "end of the fit window"),
-                                  ("norm_start", "rad/s", "scaled transverse norm at the start of the fit window"),
-                                  ("norm_stop", "rad/s", "scaled transverse norm at the end of the fit window")):
-            data[f"fit_{name}"] = _var(_median(extra[name], valid), units, f"{text} (median over samples)")
-        data["fit_saturation"] = _var(plan["saturation"], "rad/s", "end of the linear regime (scaled norm)")
-    else:
-        data["signal_radius"] = _var(_median(extra["radius"], valid), "rad/s",
-                                     "median scaled transverse radius (the signal of the phase fit)")
-    data["flips_timed"] = _var(np.int64(0), "1", "samples with at least two flips timed")
-    if flip_data is not None:
-        first, spacing, spacing_exact, asymptote = flip_data
-        ok = (code == 0) | (code > _FIT_OFFSET)  # flips need a sound trajectory, not a successful rate fit
-        has_spacing = ok & np.isfinite(spacing)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            spacing_error = np.abs(spacing / spacing_exact - 1.0)
-        data.update(
-            flip_first=_var(_median(first, ok), "s", "time of the first flip (median over samples)"),
-            flip_first_asymptote=_var(_median(asymptote, ok), "s",
-                                      "linear-theory first flip time (1/lambda) ln(4/k') (median)"),
-            flip_spacing=_var(_median(spacing, ok), "s", "time between flips (median over samples)"),
-            flip_spacing_exact=_var(_median(spacing_exact, ok), "s", "exact time between flips 2K/nu (median)"),
-            flip_spacing_asymptote=_var(2 * _median(asymptote, ok), "s",
-                                        "linear-theory time between flips (2/lambda) ln(4/k') (median)"),
-            flip_spacing_rel_error=_var(float(np.max(spacing_error[has_spacing])) if has_spacing.any() else np.nan,
-                                        "1", "largest |spacing / (2K/nu) - 1| over samples"),
-            flips_timed=_var(np.int64(has_spacing.sum()), "1", "samples with at least two flips timed"),
-            sample_first_flip=_var(np.where(ok, first, np.nan), "s", "time of the first flip", ("sample",)),
-            sample_flip_spacing=_var(np.where(ok, spacing, np.nan), "s", "mean time between flips",
-                                     ("sample",)),
-        )
-    coords = {
-        "I1": _var(moments[0], "kg m2", "principal moment of inertia 1"),
-        "I2": _var(moments[1], "kg m2", "principal moment of inertia 2"),
-        "I3": _var(moments[2], "kg m2", "principal moment of inertia 3"),
-        "axis": _var(np.int64(axis), "1", "spin axis (1-based principal axis)"),
-        "spin": _var(spin, "rad/s", "unperturbed spin about the axis"),
-        "amplitude": _var(amplitude, "rad", "tilt of the perturbed spins from the axis"),
-        "method": _var(method, "1", "integration method asked for"),
-        "sample": _var(np.arange(samples, dtype=np.int64), "1", "sample index", ("sample",)),
-    }
-    attrs = {
-        "title": f"tumble measurement: {kind} rate about axis {axis}",
-        "method_run": chosen,
-        "samples": samples,
-        "seed_entropy": str(entropy),
-        "distribution": distribution,
-        "bootstrap_resamples": BOOTSTRAP,
-        "source": f"tumble {__version__}",
-    }
+    return {name: (entry[2] if len(entry) > 2 else (), {"units": entry[0], "long_name": entry[1],
+                                                        **(entry[3] if len(entry) > 3 else {})})
+            for name, entry in table.items()}
+
+
+#: Record entries that are coordinates of the scene's dataset (the rest are variables, or ``@`` attributes).
+_COORDS = ("I1", "I2", "I3", "axis", "spin", "amplitude", "method", "sample", "component")
+
+
+def _record_variables(record):
+    """``(data variables, coordinates, attributes)`` of a scene record, as xarray Variables and a dict."""
+    meta = _metadata(str(record["kind"]), float(record["rate_theory"]))
+    data, coords, attrs = {}, {}, {}
+    for name, value in record.items():
+        if name.startswith("@"):
+            attrs[name[1:]] = value.item() if value.ndim == 0 else value
+            continue
+        dims, var_attrs = meta[name]
+        (coords if name in _COORDS else data)[name] = xr.Variable(dims, value, var_attrs)
+    return data, coords, attrs
+
+
+def scene_dataset(record):
+    """The dataset of one scene (:func:`measure`) from its record (:func:`scene_records`)."""
+    data, coords, attrs = _record_variables(record)
     return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
@@ -719,7 +904,7 @@ def scan_scene_parameters(layout, index):
 
 
 def scan_scene(layout, index, *, samples=256, seed=0, **options):
-    """Measure scene ``index`` of a :func:`scan_layout` exactly as :func:`scan` does (without ``I1..I3``).
+    """The :func:`scene_plan` of scene ``index`` of a :func:`scan_layout` (``options`` as for :func:`measure`).
 
     A scene depends only on its parameters, ``samples``, ``seed`` and ``options``, never on which other
     scenes run, where or in which order (common random numbers from ``seed``), so a scan cut into chunks of
@@ -727,36 +912,56 @@ def scan_scene(layout, index, *, samples=256, seed=0, **options):
     """
     moments, params = scan_scene_parameters(layout, index)
     options.pop("progress", None)
-    ds = measure(moments, params["axis"], params["spin"], params["amplitude"], samples, seed, params["method"],
-                 progress=False, **options)
-    return ds.drop_vars(["I1", "I2", "I3"])
+    return scene_plan(moments, params["axis"], params["spin"], params["amplitude"], samples, seed, params["method"],
+                      **options)
 
 
-def assemble_scan(layout, scenes, body_coords=None):
-    """Stack the scene datasets of a :func:`scan_layout` (all of them, in order) into the scan's dataset.
+def scene_batch(scenes, *, progress=False):
+    """The records (:func:`scene_records`) of whole scenes, every closed-form scene of them in batches
+    (:func:`closed_form_samples`), the others one by one."""
+    parts = [None] * len(scenes)
+    exact_ones = [i for i, scene in enumerate(scenes) if scene["chosen"] == "exact"]
+    by_samples = {}
+    for i in exact_ones:
+        by_samples.setdefault(scenes[i]["samples"], []).append(i)
+    for samples, members in by_samples.items():
+        for i, part in zip(members, closed_form_samples([scenes[i] for i in members], 0, samples)):
+            parts[i] = [part]
+    for i, scene in enumerate(scenes):
+        if parts[i] is None:
+            parts[i] = [scene_samples(scene, 0, scene["samples"], progress=progress)]
+    return scene_records(scenes, parts)
 
-    Every data variable and every coordinate that differs between scenes (the swept parameters) gains the scan
-    dimensions ``(body, *swept)`` in front of its own; a variable some scenes lack (a periodic scene has no growth
-    fit window) is NaN there; attributes are the first scene's. The arrays are stacked with NumPy in one pass
-    (nested ``xarray.concat`` gives the same dataset, ten times slower).
+
+def assemble_scan(layout, records, body_coords=None):
+    """The scan's dataset from the records (:func:`scene_records`) of every scene of a :func:`scan_layout`, in order.
+
+    Every variable and coordinate that differs between scenes (the swept parameters) gains the scan dimensions
+    ``(body, *swept)`` in front of its own; a variable some scenes lack (a periodic scene has no growth fit window)
+    is NaN there; attributes are the first scene's. The values are stacked from the records with NumPy, once per
+    variable; the variables' metadata comes from the first scene holding each (no per-scene dataset is made).
     """
     moments, swept = layout["moments"], layout["swept"]
-    if len(scenes) != layout["scenes"]:
-        raise ValueError(f"a scan of {layout['scenes']} scenes cannot be assembled from {len(scenes)}")
+    if len(records) != layout["scenes"]:
+        raise ValueError(f"a scan of {layout['scenes']} scenes cannot be assembled from {len(records)}")
     shape, dims = (len(moments), *(len(v) for v in swept.values())), ("body", *swept)
-    first_seen = {}
-    for ds in scenes:
-        for name in (*ds.data_vars, *ds.coords):
-            first_seen.setdefault(name, ds)
+    owners, seen = {}, set()
+    for record in records:  # one set of Variables per distinct layout of record (kind, fields)
+        key = (str(record["kind"]), tuple(record))
+        if key not in seen:
+            seen.add(key)
+            data, coords, attrs = _record_variables(record)
+            for name, var in (*data.items(), *coords.items()):
+                owners.setdefault(name, (var, name in coords))
+    first_attrs = _record_variables(records[0])[2]
     data, coords = {}, {}
-    for name, owner in first_seen.items():
-        var = owner.variables[name]
-        is_coord = name in owner.coords
-        if is_coord and name not in swept and all(
-                name in ds.coords and ds.variables[name].equals(var) for ds in scenes):
+    for name, (var, is_coord) in owners.items():
+        if name in ("I1", "I2", "I3"):
+            continue
+        values = [record.get(name) for record in records]
+        if is_coord and name not in swept and all(v is not None and np.array_equal(v, var.values) for v in values):
             coords[name] = var  # the same in every scene (the sample index, a fixed parameter)
             continue
-        values = [ds.variables[name].values if name in ds.variables else None for ds in scenes]
         if any(v is None for v in values):
             if var.dtype.kind not in "biuf":
                 raise ValueError(f"scene variable {name!r} ({var.dtype}) is missing from some scenes")
@@ -769,7 +974,7 @@ def assemble_scan(layout, scenes, body_coords=None):
                                        var.attrs)
             continue
         (coords if is_coord else data)[name] = xr.Variable(dims + var.dims, stacked, var.attrs)
-    out = xr.Dataset(data, coords=coords, attrs=dict(scenes[0].attrs))
+    out = xr.Dataset(data, coords=coords, attrs=first_attrs)
     out = out.assign_coords(
         I1=("body", moments[:, 0], {"units": "kg m2", "long_name": "principal moment of inertia 1"}),
         I2=("body", moments[:, 1], {"units": "kg m2", "long_name": "principal moment of inertia 2"}),
@@ -812,19 +1017,21 @@ def scan(bodies, axis=(1, 2, 3), spin=1.0, amplitude=1e-3, method="auto", *, sam
 
     Notes
     -----
-    The same scan cut into chunks of scenes: :func:`scan_layout`, :func:`scan_scene`, :func:`assemble_scan`
-    (what ``tumble run`` does to checkpoint a scan and to run it on a dask cluster).
+    Closed-form scenes run in batches (:func:`scene_batch`). The same scan cut into chunks of scenes:
+    :func:`scan_layout`, :func:`scan_scene`, :func:`scene_batch`, :func:`assemble_scan` (what ``tumble run``
+    does to checkpoint a scan and to run it on a dask cluster).
     """
     layout = scan_layout(bodies, axis, spin, amplitude, method)
-    # One bar over the scenes (on a terminal unless progress says otherwise), none per scene.
     progress = options.pop("progress", None)
     show = sys.stderr.isatty() if progress is None else progress
-    scenes = []
-    with tqdm(total=layout["scenes"], unit="scenes", disable=not show, desc="scan") as bar:
-        for index in range(layout["scenes"]):
-            scenes.append(scan_scene(layout, index, samples=samples, seed=seed, **options))
-            bar.update()
-    return assemble_scan(layout, scenes, body_coords)
+    plans = [scan_scene(layout, index, samples=samples, seed=seed, **options) for index in range(layout["scenes"])]
+    records = []
+    step = max(1, math.ceil(len(plans) / 32))
+    with tqdm(total=len(plans), unit="scenes", disable=not show, desc="scan") as bar:
+        for lo in range(0, len(plans), step):
+            records += scene_batch(plans[lo:lo + step])
+            bar.update(len(plans[lo:lo + step]))
+    return assemble_scan(layout, records, body_coords)
 
 
 def regress_scan(ds):

@@ -214,26 +214,38 @@ def _check_t(t):
 
 
 def _solve(body, w0):
-    """Everything the closed form needs, per sample (flattened)."""
+    """Everything the closed form needs, per sample (flattened), for one body."""
     moments = one_body(body)
     w = spin_vectors(w0)
     shape = w.shape[:-1]
     w = np.ascontiguousarray(w.reshape(-1, 3))
-    n = w.shape[0]
+    sol = solve_rows(np.broadcast_to(moments, w.shape), w)
+    return sol._replace(shape=shape, mid_axis=int(np.argsort(moments, kind="stable")[1]))
 
-    perm = np.argsort(moments, kind="stable")
-    parity = 1.0 if tuple(int(i) for i in perm) in ((0, 1, 2), (1, 2, 0), (2, 0, 1)) else -1.0  # even/odd
+
+_EVEN = np.array([[0, 1, 2], [1, 2, 0], [2, 0, 1]])
+
+
+def solve_rows(moments, w):
+    """The closed form's per-sample set-up for spins ``w`` (n, 3) of bodies ``moments`` (n, 3), one body per row
+    (validated by the caller): what :func:`omega_rows` evaluates, computed once per sample.
+
+    Returns a private ``_Solution`` (fields per sample; ``shape = (n,)``, ``mid_axis`` per sample).
+    """
+    moments = np.asarray(moments, dtype=float)
+    n = w.shape[0]
+    perm = np.argsort(moments, axis=1, kind="stable")
+    parity = np.where((perm[:, None, :] == _EVEN[None]).all(axis=2).any(axis=1), 1.0, -1.0)  # even/odd
     # Euler's equations are homogeneous: w(t) -> c w(c t) and I -> c I map solutions to solutions. Work
     # with moments and spins divided by powers of two (exact), so that no invariant under- or overflows.
-    moment_scale = np.ldexp(1.0, int(np.frexp(moments.max())[1]))
+    moment_scale = np.ldexp(1.0, np.frexp(moments.max(axis=1))[1])
     spin_scale = np.ldexp(1.0, np.frexp(np.abs(w).max(axis=1))[1])  # (n,); |w| / spin_scale < 1
-    I_sorted = np.ascontiguousarray(moments[perm] / moment_scale)
-    I1, I2, I3 = (float(x) for x in I_sorted)
-    mid_axis = int(perm[1])
+    I_sorted = np.ascontiguousarray(np.take_along_axis(moments, perm, axis=1) / moment_scale[:, None])
+    I1, I2, I3 = I_sorted[:, 0], I_sorted[:, 1], I_sorted[:, 2]
 
     # L² - 2E I2 = I3 (I3 - I2) w3² - I1 (I2 - I1) w1², in double-double
-    w1 = w[:, perm[0]] / spin_scale
-    w3 = w[:, perm[2]] / spin_scale
+    w1 = w[np.arange(n), perm[:, 0]] / spin_scale
+    w3 = w[np.arange(n), perm[:, 2]] / spin_scale
     d32h, d32l = _two_sum(I3, -I2)
     d21h, d21l = _two_sum(I2, -I1)
     ah, al = _dd_term(I3, d32h, d32l, w3)
@@ -246,32 +258,51 @@ def _solve(body, w0):
     amp = np.empty((n, 3))
     cols = np.empty((n, 3), dtype=np.int64)
     kc, m, K, phase0, nu, e2, L2 = (np.empty(n) for _ in range(7))
-    _ell.torque_free_setup(
-        I_sorted, perm.astype(np.int64), parity, w, spin_scale, delta, kind, amp, cols, kc, m, K, phase0, nu, e2, L2
-    )
+    _ell.torque_free_setup(I_sorted, perm.astype(np.int64), parity, np.ascontiguousarray(w), spin_scale, delta, kind,
+                           amp, cols, kc, m, K, phase0, nu, e2, L2)
     stationary = kind == _ell.KIND_STATIONARY
 
     with np.errstate(over="ignore", under="ignore"):  # invariants in SI units may overflow; spins do not
         energy = 0.5 * e2 * moment_scale * spin_scale * spin_scale
         L2 = L2 * moment_scale * moment_scale * spin_scale * spin_scale
         delta = delta * moment_scale * moment_scale * spin_scale * spin_scale
-    return _Solution(
-        shape=shape,
-        kind=kind,
-        amp=amp,
-        cols=cols,
-        kc=kc,
-        m=m,
-        K=K,
-        phase0=phase0,
-        nu=nu,
-        regime=regime,
-        stationary=stationary,
-        energy=energy,
-        L2=L2,
-        delta=delta,
-        mid_axis=mid_axis,
-    )
+    return _Solution(shape=(n,), kind=kind, amp=amp, cols=cols, kc=kc, m=m, K=K, phase0=phase0, nu=nu, regime=regime,
+                     stationary=stationary, energy=energy, L2=L2, delta=delta, mid_axis=perm[:, 1])
+
+
+def omega_rows(sol, times, row):
+    """Angular velocity (n, T, 3), rad/s, of the samples of :func:`solve_rows`, sample ``i`` at ``times[row[i]]``
+    (``times`` of shape (R, T): one time grid per scene of a batch). The bits of a sample do not depend on the
+    batch it is evaluated in."""
+    times = np.ascontiguousarray(times, dtype=float)
+    out = np.empty((sol.kind.shape[0], times.shape[1], 3))
+    for r in np.unique(row):
+        pick = np.flatnonzero(row == r)
+        part = np.empty((len(pick), times.shape[1], 3))
+        _ell.torque_free_omega(sol.kind[pick], sol.amp[pick], sol.cols[pick], sol.kc[pick], sol.phase0[pick],
+                               sol.nu[pick], times[r], part)
+        out[pick] = part
+    return out
+
+
+def _flip_spacing(sol):
+    with np.errstate(divide="ignore"):
+        return np.where(sol.kind == _ell.KIND_ELLIPTIC, 2.0 * sol.K / np.abs(sol.nu), np.inf)
+
+
+def _first_flip(sol):
+    elliptic = sol.kind == _ell.KIND_ELLIPTIC
+    separatrix = sol.kind == _ell.KIND_SEPARATRIX
+    out = np.full(sol.kind.shape, np.inf)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sgn = np.sign(sol.nu)
+        K = sol.K
+        gap = K - sgn * sol.phase0  # phase still to go to the next zero of sn, in [0, 2K]
+        gap = np.where(gap > 0, gap, gap + 2.0 * K)
+        out = np.where(elliptic, gap / np.abs(sol.nu), out)
+        tsep = -sol.phase0 / sol.nu
+        out = np.where(separatrix & (tsep > 0), tsep, out)
+    return out
 
 
 def omega(body, w0, t):
@@ -400,9 +431,7 @@ def flip_spacing(body, w0):
         separatrix).
     """
     sol = _solve(body, w0)
-    with np.errstate(divide="ignore"):
-        out = np.where(sol.kind == _ell.KIND_ELLIPTIC, 2.0 * sol.K / np.abs(sol.nu), np.inf)
-    return out.reshape(sol.shape)
+    return _flip_spacing(sol).reshape(sol.shape)
 
 
 def first_flip_time(body, w0):
@@ -428,18 +457,7 @@ def first_flip_time(body, w0):
         spins; separatrix spins already past their flip).
     """
     sol = _solve(body, w0)
-    elliptic = sol.kind == _ell.KIND_ELLIPTIC
-    separatrix = sol.kind == _ell.KIND_SEPARATRIX
-    out = np.full(sol.kind.shape, np.inf)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        sgn = np.sign(sol.nu)
-        K = sol.K
-        gap = K - sgn * sol.phase0  # phase still to go to the next zero of sn, in [0, 2K]
-        gap = np.where(gap > 0, gap, gap + 2.0 * K)
-        out = np.where(elliptic, gap / np.abs(sol.nu), out)
-        tsep = -sol.phase0 / sol.nu
-        out = np.where(separatrix & (tsep > 0), tsep, out)
-    return out.reshape(sol.shape)
+    return _first_flip(sol).reshape(sol.shape)
 
 
 # ---------------------------------------------------------------------------------------------------

@@ -420,11 +420,16 @@ def flip_time_asymptote(body, w0):
     w0 = finite_array(w0, "w0")
     if w0.ndim == 0 or w0.shape[-1] != 3:
         raise ValueError(f"w0 must have shape (..., 3), got {w0.shape}")
-    kc = np.asarray(exact.parameters(body, w0).kc, dtype=float)
+    out = flip_asymptote_from(moments, w0, np.asarray(exact.parameters(body, w0).kc, dtype=float))
+    return float(out) if out.ndim == 0 else out
+
+
+def flip_asymptote_from(moments, w0, kc):
+    """:func:`flip_time_asymptote` from the complementary moduli ``kc`` of the spins ``w0`` (..., 3) of bodies
+    ``moments`` (broadcast against ``w0``), already known (the closed form of a batch of scenes has them)."""
     mid = np.argsort(moments, axis=-1)[..., 1]
     i_mid = _pick(moments, mid)
     spin = np.linalg.norm(moments * w0, axis=-1) / i_mid
     lam = spin * np.sqrt(np.maximum(-stability_exponent(moments, mid + 1), 0.0))
     with np.errstate(divide="ignore", invalid="ignore"):
-        out = np.where((lam > 0) & (kc > 0), np.log(4.0 / kc) / lam, np.inf)
-    return float(out) if out.ndim == 0 else out
+        return np.where((lam > 0) & (kc > 0), np.log(4.0 / kc) / lam, np.inf)

@@ -5,8 +5,8 @@ A study runs in *chunks*: a group of whole scenes, or — for a scene of many sa
 flushed, renamed) into the hidden folder ``<out>/.<stem>.chunks/`` as ``scenes-<first>-<last>.chunk`` or
 ``samples-<scene>-<start>-<stop>.chunk``. A chunk file is a NumPy ``.npz`` archive of two members, read with
 ``allow_pickle=False``: a JSON manifest (the study's hash, :func:`study_hash`; what the chunk holds; the dtype,
-shape and offset of every array) and one byte blob holding the arrays — every variable and attribute of each
-scene with its exact dtype, or the per-sample arrays of a range (:func:`tumble.measure.scenes.scene_samples`). (netCDF,
+shape and offset of every array) and one byte blob holding the arrays — each scene's record (every value of its
+dataset, :func:`tumble.measure.scenes.scene_records`) with its exact dtype, or the per-sample arrays of a range (:func:`tumble.measure.scenes.scene_samples`). (netCDF,
 one group per scene, cost 35 ms a scene to write; one archive member per array cost 10 ms a scene; the blob
 costs well under 1 ms.) The bytes are made where the chunk ran (:func:`pack_scenes`, :func:`pack_samples`: in a
 dask worker, that is the task's result) and written by the process that runs the study.
@@ -184,57 +184,22 @@ def _unpack(source):
     return manifest, arrays
 
 
-def _pack_attrs(attrs, prefix, arrays):
-    """Attribute names, their values stored as arrays ``<prefix>@<name>`` (exact dtypes, no JSON typing)."""
-    for name, value in attrs.items():
-        arrays[f"{prefix}@{name}"] = np.asarray(value)
-    return list(attrs)
-
-
-def _unpack_attrs(arrays, prefix, names):
-    out = {}
-    for name in names:
-        value = arrays[f"{prefix}@{name}"]
-        if value.ndim == 0:
-            value = str(value[()]) if value.dtype.kind == "U" else value[()]
-        out[name] = value
-    return out
-
-
-def _pack_scene(ds, index, arrays):
-    """Store a normalised scene's variables and attributes in ``arrays``; return its layout (JSON-able)."""
-    variables = []
-    for name, var in ds.variables.items():
-        key = f"{index}/{name}"
-        arrays[key] = var.values
-        variables.append({"name": name, "dims": list(var.dims), "coord": name in ds.coords,
-                          "attrs": _pack_attrs(var.attrs, key, arrays)})
-    return {"variables": variables, "attrs": _pack_attrs(ds.attrs, f"{index}/", arrays)}
-
-
-def _unpack_scene(arrays, index, layout):
-    """The scene dataset :func:`_pack_scene` stored, variable order, dtypes and attributes included."""
-    data, coords = {}, {}
-    for entry in layout["variables"]:
-        key = f"{index}/{entry['name']}"
-        var = xr.Variable(tuple(entry["dims"]), arrays[key], _unpack_attrs(arrays, key, entry["attrs"]))
-        (coords if entry["coord"] else data)[entry["name"]] = var
-    return xr.Dataset(data, coords=coords, attrs=_unpack_attrs(arrays, f"{index}/", layout["attrs"]))
-
-
 def pack_scenes(scenes, digest):
     """The bytes of a chunk of whole scenes.
 
     Parameters
     ----------
-    scenes : Mapping[int, xarray.Dataset]
-        Normalised scene datasets (:func:`normalise_scene`) by scene index (at least one).
+    scenes : Mapping[int, dict]
+        Scene records (:func:`tumble.measure.scenes.scene_records`: flat dicts of NumPy values) by scene index
+        (at least one).
     digest : str
         :func:`study_hash` of the study.
     """
-    arrays = {}
-    layouts = {str(i): _pack_scene(scenes[i], i, arrays) for i in sorted(scenes)}
-    return _pack({HASH_ATTR: digest, "kind": "scenes", "scenes": layouts}, arrays)
+    arrays, names = {}, {}
+    for index in sorted(scenes):
+        names[str(index)] = list(scenes[index])
+        arrays.update((f"{index}/{name}", value) for name, value in scenes[index].items())
+    return _pack({HASH_ATTR: digest, "kind": "scenes", "scenes": names}, arrays)
 
 
 def pack_samples(scene, stop, part, digest):
@@ -258,7 +223,7 @@ def pack_samples(scene, stop, part, digest):
 class Finished(NamedTuple):
     """What a chunk (or a whole checkpoint) holds: whole scenes and sample ranges of scenes.
 
-    ``scenes``: ``{index: normalised scene dataset}``; ``parts``: ``{index: {(start, stop): part}}`` with each
+    ``scenes``: ``{index: scene record}`` (:func:`tumble.measure.scenes.scene_records`); ``parts``: ``{index: {(start, stop): part}}`` with each
     part as :func:`tumble.measure.scenes.scene_samples` returns it.
     """
 
@@ -286,11 +251,11 @@ def unpack(source, digest, scenes):
         raise ValueError("a chunk of another study or tumble version")
     if manifest["kind"] == "scenes":
         out = {}
-        for key, layout in manifest["scenes"].items():
+        for key, names in manifest["scenes"].items():
             index = int(key)
             if not 0 <= index < scenes:
                 raise ValueError(f"scene {index} is not one of the study's {scenes}")
-            out[index] = _unpack_scene(arrays, index, layout)
+            out[index] = {name: arrays[f"{index}/{name}"] for name in names}
         return Finished(out, {})
     index, start, stop = int(manifest["scene"]), int(manifest["start"]), int(manifest["stop"])
     if not (0 <= index < scenes and 0 <= start < stop and start == int(arrays["start"])

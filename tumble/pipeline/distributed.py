@@ -41,8 +41,8 @@ PROBE_TIMEOUT = 5
 #: monitor every 100 ms, the system monitor every 500 ms): 17 % of a core with the cluster idle, on a machine
 #: whose cores the workers need. Sampled rarely (and without the profiler, which nobody reads without a
 #: dashboard), the idle cluster takes 2 %. And dask starts workers with ``MALLOC_TRIM_THRESHOLD_=65536``, which
-#: also switches off glibc's adaptive mmap threshold: every NumPy temporary above 128 KiB (the bootstrap's
-#: resamples, the phase fits) was then mapped and unmapped afresh, and a scene ran 10-15 % slower in a worker
+#: also switches off glibc's adaptive mmap threshold: every NumPy temporary above 128 KiB (the phase fits,
+#: the sorts of the summaries) was then mapped and unmapped afresh, and a scene ran 10-15 % slower in a worker
 #: than in-process; the workers here keep glibc's default. Workers get these settings from their nannies.
 QUIET_LOCAL_CLUSTER = {
     "distributed.worker.profile.enabled": False,

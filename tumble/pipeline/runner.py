@@ -37,7 +37,7 @@ from ..registry import STEPPING
 from . import checkpoint, config
 from .config import StudyError
 
-__all__ = ["DEFAULT_CHUNK_SAMPLES", "PER_SAMPLE", "Task", "chunk_samples_size", "compute_samples", "compute_scene",
+__all__ = ["DEFAULT_CHUNK_SAMPLES", "PER_SAMPLE", "Task", "chunk_samples_size", "compute_samples", "compute_scenes",
            "compute_task", "default_chunk_scenes", "open_checkpoint", "output_stem", "plan", "plan_tasks", "run_scenes",
            "run_study", "sample_ranges", "scene_job", "summary_table", "write_outputs"]
 
@@ -215,18 +215,16 @@ def _scene_plan(job, index):
         raise StudyError(job.get("file", "<mapping>"), f"scene {index} ({label})", str(err)) from None
 
 
-def _scene_dataset(job, scene, parts):
-    """The normalised dataset of a scene from its sample ranges (a scan's scenes without ``I1..I3``, as
-    :func:`tumble.measure.scenes.scan_scene`)."""
-    ds = study.scene_result(scene, parts)
-    return checkpoint.normalise_scene(ds.drop_vars(["I1", "I2", "I3"]) if job["scanned"] else ds)
+def _scene_record(job, scene, parts):
+    """The record (:func:`tumble.measure.scenes.scene_records`) of a scene from its sample ranges."""
+    return study.scene_records([scene], [parts])[0]
 
 
-def compute_scene(job, index, *, progress=False):
-    """Scene ``index`` of a :func:`scene_job`, whole: a scan's scene, or the study's one measurement (normalised,
-    :func:`tumble.pipeline.checkpoint.normalise_scene`)."""
-    scene = _scene_plan(job, index)
-    return _scene_dataset(job, scene, [study.scene_samples(scene, 0, job["samples"], progress=progress)])
+def compute_scenes(job, indices, *, progress=False):
+    """``{index: record}`` of the whole scenes ``indices`` of a :func:`scene_job`: a scan's scenes, or the study's one
+    measurement; closed-form scenes run together (:func:`tumble.measure.scenes.scene_batch`)."""
+    records = study.scene_batch([_scene_plan(job, i) for i in indices], progress=progress)
+    return dict(zip(indices, records))
 
 
 def compute_samples(job, index, start, stop, *, progress=False):
@@ -248,7 +246,7 @@ def compute_task(job, task, digest="", *, threads=None, progress=False):
         if numba.get_num_threads() != threads:
             numba.set_num_threads(threads)
     if task.start is None:
-        return checkpoint.pack_scenes({i: compute_scene(job, i, progress=progress) for i in task.scenes}, digest)
+        return checkpoint.pack_scenes(compute_scenes(job, task.scenes, progress=progress), digest)
     index = task.scenes[0]
     return checkpoint.pack_samples(index, task.stop, compute_samples(job, index, task.start, task.stop,
                                                                       progress=progress), digest)
@@ -357,8 +355,8 @@ def run_scenes(job, *, store=None, client=None, chunk_scenes=None, chunk_samples
 
     Returns
     -------
-    list of xarray.Dataset
-        The scenes, normalised (:func:`tumble.pipeline.checkpoint.normalise_scene`).
+    list of dict
+        The scene records (:func:`tumble.measure.scenes.scene_records`).
     """
     n = job["layout"]["scenes"]
     digest = store.digest if store is not None else ""
@@ -378,7 +376,7 @@ def run_scenes(job, *, store=None, client=None, chunk_scenes=None, chunk_samples
 
     def reduce_finished_scenes():
         for i in [i for i, count in left.items() if count == 0]:
-            scenes[i] = _scene_dataset(job, _scene_plan(job, i), list(done.parts.pop(i).values()))
+            scenes[i] = _scene_record(job, _scene_plan(job, i), list(done.parts.pop(i).values()))
             del left[i]
 
     def finish(task, data):
@@ -415,7 +413,8 @@ def _run(resolved, file, progress, *, job=None, store=None, client=None, chunk_s
     values, options = p["values"], p["options"]
     scenes = run_scenes(job, store=store, client=client, chunk_scenes=chunk_scenes, chunk_samples=chunk_samples,
                         progress=progress, log=log)
-    ds = study.assemble_scan(job["layout"], scenes, p["body_coords"]) if job["scanned"] else scenes[0]
+    ds = study.assemble_scan(job["layout"], scenes, p["body_coords"]) if job["scanned"] else study.scene_dataset(scenes[0])
+    ds = checkpoint.normalise_scene(ds)
     keep = resolved["outputs"]["arrays"]
     ds = ds.drop_vars([name for name in PER_SAMPLE if name in ds and name not in keep])
     if not any(name in ds for name in PER_SAMPLE):
@@ -604,7 +603,7 @@ def summary_table(ds, limit=24):
     if bad:
         lines.append(f"{bad} scene(s) gave no rate: every sample was excluded (see sample_status)")
     if rate.size == 1 and "rate_ci_low" in ds and "samples_used" in ds:  # one scene, perhaps a scan of one value
-        lines.append(f"95% bootstrap interval of the median [{_only(ds.rate_ci_low):.8g}, {_only(ds.rate_ci_high):.8g}] "
+        lines.append(f"95% interval of the median (order statistics) [{_only(ds.rate_ci_low):.8g}, {_only(ds.rate_ci_high):.8g}] "
                      f"{ds.rate.attrs.get('units', '')}; {int(_only(ds.samples_used))} samples used, "
                      f"{int(_only(ds.samples_excluded))} excluded")
     if "flip_first" in ds and np.isfinite(ds.flip_first.values).any() and ds.flip_first.size == 1:

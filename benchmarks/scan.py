@@ -1,0 +1,92 @@
+"""Scan benchmark: the bundled ``stability_map`` study end to end, and its scenes batched against scene by scene.
+
+    python benchmarks/scan.py          # writes benchmarks/results/scan.md and scan.json
+
+* ``study``: ``tumble.run_study("stability_map")`` in this process (20 x 20 bodies x 3 axes, 256 samples a
+  scene, closed form), warm: planning, the batched closed form, the estimators, the summaries and the dataset;
+  figures and the netCDF file are not written (no ``out``).
+* ``batched`` against ``one by one``: the same 1200 scene plans measured by :func:`tumble.measure.scenes.scene_batch`
+  in chunks of 38 scenes (what ``tumble run`` does) and one scene per call (the scene-by-scene path), in the
+  same run, on the same plans; the records are checked to be the same bits.
+
+Compile time is excluded (everything runs once first, and the first run's time is reported apart); each timing
+is the median of several runs.
+"""
+
+import json
+import os
+import platform
+import sys
+import time
+from datetime import date
+from pathlib import Path
+
+import numba
+import numpy as np
+
+import tumble
+from tumble.measure import scenes as study
+from tumble.pipeline import config, runner
+
+RESULTS = Path(__file__).with_name("results")
+REPEATS = 3
+
+
+def median_seconds(fn, repeats=REPEATS):
+    times = []
+    for _ in range(repeats):
+        started = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - started)
+    return float(np.median(times))
+
+
+def main():
+    RESULTS.mkdir(exist_ok=True)
+    width = "AVX-512" if "avx512f" in Path("/proc/cpuinfo").read_text() else "AVX2"
+    machine = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, {width}, numba {numba.__version__}"
+
+    started = time.perf_counter()
+    tumble.run_study("stability_map", progress=False)
+    first = time.perf_counter() - started
+    whole = median_seconds(lambda: tumble.run_study("stability_map", progress=False))
+
+    job = runner.scene_job(config.load_study("stability_map"))
+    n = job["layout"]["scenes"]
+    plans = [runner._scene_plan(job, i) for i in range(n)]
+    planning = median_seconds(lambda: [runner._scene_plan(job, i) for i in range(n)])
+    step = runner.default_chunk_scenes(n)
+
+    def batched():
+        return [r for lo in range(0, n, step) for r in study.scene_batch(plans[lo:lo + step])]
+
+    def one_by_one():
+        return [study.scene_batch([plan])[0] for plan in plans]
+
+    same = all(all(np.array_equal(a[k], b[k], equal_nan=a[k].dtype.kind == "f") for k in a)
+               for a, b in zip(batched(), one_by_one()))
+    t_batched, t_single = median_seconds(batched), median_seconds(one_by_one)
+    records = batched()
+    assemble = median_seconds(lambda: study.assemble_scan(job["layout"], records, job["body_coords"]))
+
+    report = {"date": str(date.today()), "machine": machine, "threads": numba.get_num_threads(), "scenes": n,
+              "samples": job["samples"], "study_first": first, "study": whole, "planning": planning,
+              "batched": t_batched, "one_by_one": t_single, "assemble": assemble, "same_bits": same}
+    (RESULTS / "scan.json").write_text(json.dumps(report, indent=1))
+    lines = [f"# Scan benchmark — {report['date']}", "",
+             f"Machine: {machine}; numba threads: {report['threads']}. Bundled `stability_map`: {n} scenes of "
+             f"{report['samples']} samples (closed form); medians of {REPEATS} runs, warm.", "",
+             "| part | seconds |", "|---|---|",
+             f"| `tumble.run_study(\"stability_map\")`, no files written (first run in the process: "
+             f"{first:.2f} s) | {whole:.2f} |",
+             f"| planning the {n} scenes | {planning:.2f} |",
+             f"| measuring the scenes batched ({step} a call, as `tumble run`) | {t_batched:.2f} |",
+             f"| measuring the scenes one by one (one scene a call) | {t_single:.2f} |",
+             f"| assembling the scan dataset from the records | {assemble:.3f} |", "",
+             f"Batched against one by one: **{t_single / t_batched:.1f}x**; records the same bits: {same}."]
+    (RESULTS / "scan.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
