@@ -44,6 +44,29 @@ Method
 Measured against mpmath (``tests/test_elliptic.py``): relative error of ``sn, cn, dn`` below
 ``4 eps (1 + |u|)`` for ``k'`` from 1 down to 1e-15, plus ``4 eps |u|`` times the slope near their zeros.
 
+Vectorised evaluation
+---------------------
+:func:`jacobi_sncndn` (and the kept scalar reference ``_torque_free_omega_reference``) follow steps 1-3
+literally, with ``asin``/``sin``/``exp`` from libm: a few 1e6 evaluations per second and core. The
+torque-free kernel :func:`torque_free_omega` computes the same functions in a form whose time loop is
+straight-line code that LLVM vectorises across times (AVX2: 4 doubles; ``tests/test_elliptic_vectorised.py``
+checks the assembly): everything that depends on ``k'`` only is computed once per sample, and the choices
+that depend on the time (``|r| <= K/2`` or not, the signs) are selects. Per time:
+
+* the reduction of step 1 with ``n = floor(s (1/2K) + 1/2)`` and the core at ``x = |r|`` or ``K - |r|``,
+  returning ``sn x = P S/D, cn x = C/D, dn x = E/D`` so that the quotients of step 1 cost one reciprocal;
+* ``k' >= KC_HYPERBOLIC``: four descending Gauss (Landen) transformations in rational form (DLMF
+  22.7.1-3; ``k_1 = (1 - k')/(1 + k') <= 1/3``, then ``k_(l+1) ~ k_l^2/4``, so ``k_4 <= 1.2e-8``), carried
+  projectively, from ``sin, cos`` of ``v = x/P`` (the branch-free :func:`tumble.kernels.trig.sincos`) with
+  the first-order terms in ``k_4^2`` (DLMF 22.10.4-6). ``dn = (1 - k_1 s^2)/(1 + k_1 s^2)`` has no
+  cancellation as ``k_1 s^2 <= 1/3``; for ``k' = 1`` every ``k_l`` is 0 and ``dn`` is exactly 1;
+* ``k' < KC_HYPERBOLIC``: the hyperbolic series regrouped as power series in ``q e^(+-y)`` with
+  per-sample coefficients (see :func:`_omega_row_hyperbolic`), from one branch-free ``exp``/``expm1``
+  pair (Cody-Waite reduction, Taylor polynomials, ``2^k`` built in the exponent bits).
+
+Measured against mpmath on a quarter period (``tests/test_elliptic_vectorised.py``): at most 3.9 eps
+relative (the scalar path: 3.8 eps), and within a few ulps of the scalar path everywhere.
+
 Kernels take plain float64 arrays and scalars and write into arrays they are given.
 """
 
@@ -51,8 +74,12 @@ import math
 
 import numba
 import numpy as np
+from llvmlite import ir
+from numba.core import types
+from numba.extending import intrinsic
 
 from .jit import jit
+from .trig import _fma, sincos
 
 __all__ = ["KC_HYPERBOLIC", "agm", "carlson_rf", "jacobi_sncndn", "torque_free_omega", "torque_free_setup"]
 
@@ -387,8 +414,11 @@ def torque_free_setup(I, perm, parity, w, spin_scale, delta, kind, amp, cols, kc
 
 
 @jit(parallel=True)
-def torque_free_omega(kind, amp, cols, kc, phase0, nu, t, out):
-    """Body-frame angular velocity of the free rigid body, sample by sample (Landau & Lifshitz §37).
+def _torque_free_omega_reference(kind, amp, cols, kc, phase0, nu, t, out):
+    """The scalar kernel :func:`torque_free_omega` replaced: one time grid, libm calls, per-sample arrays.
+
+    Kept as the reference the vectorised kernel is tested and benchmarked against (same arguments but a
+    single time grid ``t``, shape (T,)); it evaluates ``sn, cn, dn`` with :func:`_sncndn_shifted`.
 
     Parameters
     ----------
@@ -435,3 +465,400 @@ def torque_free_omega(kind, amp, cols, kc, phase0, nu, t, out):
                 out[i, j, cq] = aq
                 out[i, j, cm] = am
                 out[i, j, cp] = ap
+
+
+# ------------------------------------------------------------------------------------------------------
+# Vectorised kernel: straight-line code in the time loop (see "Vectorised evaluation" in the module
+# docstring). Everything below that runs per time is branch-free: selects, no libm calls, no division
+# other than one reciprocal (two more in the hyperbolic series).
+
+#: Descending Gauss (Landen) levels used for ``k' >= KC_HYPERBOLIC``: the bottom modulus is then at most
+#: 1.2e-8 (``k' = 0.5``), and the first-order correction in ``m = k_4^2 <= 1.4e-16`` leaves ``O(m^2)``.
+LANDEN_LEVELS = 4
+# The hyperbolic series keep 7 terms for dn, cn (powers z^1 .. z^13) and 6 for sn (j = 1 .. 6): enough
+# down to beta = pi K/K' = 4.02 (k' = 0.5), where the first omitted term is below e^-42 of the leading one.
+#: From this ``beta = pi K/K'`` on (``k' <~ 1.3e-3``, a spin near the intermediate axis) two terms of each
+#: hyperbolic series suffice (:func:`_omega_row_hyperbolic_short`).
+BETA_SHORT_SERIES = 16.0
+# Beyond this beta (k' < ~1e-17) every series correction is below e^-40 of the leading term: q is set to
+# 0, which also keeps the products of tiny powers of q out of the (slow) subnormal range.
+_BETA_NEGLIGIBLE = 80.0
+
+# exp(x) = 2^k exp(r), r = x - k ln 2 (Cody & Waite 1980, ch. 6): ln 2 = _LN2_HI + _LN2_LO + O(2^-110).
+_INV_LN2 = 1.4426950408889634
+_LN2_HI = 0.6931471805599453  # RN(ln 2): x - k _LN2_HI is exact by one FMA (|k| < 2^11)
+_LN2_LO = 2.3190468138462996e-17  # RN(ln 2 - _LN2_HI)
+# expm1(r) = r + r^2 (1/2! + r/3! + ... + r^11/13!) on |r| <= ln2/2 (+ rounding of k): the first omitted
+# term r^14/14! is below 1.2e-17 |r| there (Taylor; a minimax fit would save a term or two).
+_E2, _E3, _E4, _E5 = 0.5, 0.16666666666666666, 0.041666666666666664, 0.008333333333333333
+_E6, _E7, _E8, _E9 = 0.001388888888888889, 0.0001984126984126984, 2.48015873015873e-05, 2.7557319223985893e-06
+_E10, _E11, _E12, _E13 = 2.755731922398589e-07, 2.505210838544172e-08, 2.08767569878681e-09, 1.6059043836821613e-10
+_E14 = 1.1470745597729725e-11
+# Adding 1.5 * 2^52 to an integral double k (|k| < 2^51) leaves k in the low mantissa bits.
+_INT_SHIFTER = 6755399441055744.0
+# Arguments below this give exp = 0 (and expm1 = -1) in double precision.
+_EXP_XMIN = -1000.0
+
+
+@intrinsic
+def _float64_bits(typingctx, x):
+    """The IEEE-754 bits of a float64 as int64 (an LLVM ``bitcast``: free, and vectorisable)."""
+    if not isinstance(x, types.Float):
+        return None
+
+    def codegen(context, builder, signature, args):
+        value = context.cast(builder, args[0], signature.args[0], types.float64)
+        return builder.bitcast(value, ir.IntType(64))
+
+    return types.int64(x), codegen
+
+
+@intrinsic
+def _bits_float64(typingctx, i):
+    """The float64 whose IEEE-754 bits are the int64 ``i`` (an LLVM ``bitcast``)."""
+    if not isinstance(i, types.Integer):
+        return None
+
+    def codegen(context, builder, signature, args):
+        value = context.cast(builder, args[0], signature.args[0], types.int64)
+        return builder.bitcast(value, ir.DoubleType())
+
+    return types.float64(i), codegen
+
+
+@jit(inline=True)
+def _pow2(k):
+    """``2^k`` for an integral double ``-1022 <= k <= 1023``, built in the exponent field (no conversion
+    to an integer type, which AVX2 cannot vectorise for int64)."""
+    return _bits_float64((_float64_bits(k + _INT_SHIFTER) + 1023) << 52)
+
+
+@jit(inline=True)
+def _exp_expm1(x):
+    """``(exp x, exp x - 1)`` for ``x <= 0``, both to about 1 ulp relative, branch-free.
+
+    Cody-Waite reduction ``x = k ln 2 + r`` (``|r| <~ ln2/2``, ``r`` exact by one FMA), Taylor polynomial
+    for ``p = expm1 r``, then ``exp x = 2^k (1 + p)`` and ``expm1 x = (2^k - 1) + 2^k p`` (``2^k - 1`` is
+    exact for ``k >= -53``; for ``k = 0``, i.e. ``|x| <~ 0.35``, ``expm1 x = p`` keeps full relative
+    accuracy near 0). ``2^k`` is formed as ``2^k1 2^k2`` so that it may be subnormal; below ``_EXP_XMIN``
+    the results are 0 and -1. NaN in gives NaN out.
+    """
+    x = _EXP_XMIN if x < _EXP_XMIN else x  # noqa: FURB136 (max() need not keep a NaN)
+    k = np.floor(x * _INV_LN2 + 0.5)
+    r = _fma(-k, _LN2_HI, x)  # exact
+    r = _fma(-k, _LN2_LO, r)
+    poly = _E9 + r * (_E10 + r * (_E11 + r * (_E12 + r * _E13)))
+    poly = _E2 + r * (_E3 + r * (_E4 + r * (_E5 + r * (_E6 + r * (_E7 + r * (_E8 + r * poly))))))
+    p = _fma(r * r, poly, r)
+    k1 = np.floor(0.5 * k)
+    scale = _pow2(k1) * _pow2(k - k1)  # exact while 2^k is normal
+    return _fma(scale, p, scale), _fma(scale, p, scale - 1.0)
+
+
+@jit(inline=True)
+def _quarter_period_reduction(s, K, two_k, inv_two_k):
+    """``s = u - K = 2 K n + r``: returns ``(x, near, par, sg)`` with ``x = |r|`` (``near``, ``|r| <= K/2``)
+    or ``K - |r|``, ``par = (-1)^n``, ``sg = sign r`` (module docstring, step 1); selects only."""
+    n = np.floor(s * inv_two_k + 0.5)
+    r = s - two_k * n
+    par = 1.0 - 2.0 * (n - 2.0 * np.floor(0.5 * n))
+    ar = abs(r)
+    sg = 1.0 if r >= 0.0 else -1.0
+    near = ar <= 0.5 * K
+    far_x = K - ar
+    far_x = 0.0 if far_x < 0.0 else far_x  # noqa: FURB136 (a NaN must stay NaN)
+    x = ar if near else far_x
+    return x, near, par, sg
+
+
+@jit(inline=True)
+def _unreduce(S, C, E, D, P, kc, near, par, sg):
+    """``sn, cn, dn`` of ``u`` from ``sn x = P S/D, cn x = C/D, dn x = E/D`` (module docstring, step 1):
+    ``near``: ``(cd, -k' sd, k' nd)(x)``, else ``(sn, -cn, dn)(x)``, signs by ``par, sg``; one reciprocal."""
+    PS = P * S
+    den = E if near else D
+    a = C if near else PS
+    b = kc * PS if near else C
+    c = kc * D if near else E
+    inv = 1.0 / den
+    return par * (a * inv), -(par * sg) * (b * inv), c * inv
+
+
+@jit(inline=True)
+def _column_weights(cq, cm, cp, aq, am, ap):
+    """The amplitudes as a 3x3 matrix, flat: ``W[3c + f]`` multiplies function ``f`` (0: the ``cq``
+    component, 1: ``cm``, 2: ``cp``) in output column ``c``; one non-zero per row and column."""
+    return (aq if cq == 0 else 0.0, am if cm == 0 else 0.0, ap if cp == 0 else 0.0,
+            aq if cq == 1 else 0.0, am if cm == 1 else 0.0, ap if cp == 1 else 0.0,
+            aq if cq == 2 else 0.0, am if cm == 2 else 0.0, ap if cp == 2 else 0.0)
+
+
+@jit(inline=True)
+def _store(out, j, W, fq, fm, fp):
+    """``out[3j + c] = sum_f W[3c + f] f``: the amplitude times the one function that goes to column ``c``,
+    exactly (the other two products are zeros). Written as arithmetic with a stride known to be 3 so that
+    the stores vectorise: selects on the columns (or indexing by them) keep LLVM from vectorising the loop.
+    (A non-finite value spreads to the sample's other columns at that time.)"""
+    out[3 * j] = W[0] * fq + W[1] * fm + W[2] * fp
+    out[3 * j + 1] = W[3] * fq + W[4] * fm + W[5] * fp
+    out[3 * j + 2] = W[6] * fq + W[7] * fm + W[8] * fp
+
+
+@jit
+def _landen_constants(kc):
+    """Per-modulus constants of the descending Gauss transformation (DLMF 22.7.1-3) from ``k' >= 1/2``.
+
+    Returns ``(kap, quarter_m, P)``: ``kap[l - 1] = k_l (prod_{i > l} (1 + k_i))^2`` for the levels
+    ``l = 1 .. LANDEN_LEVELS``, ``quarter_m = k_L^2 / 4`` for the bottom correction and
+    ``P = prod_l (1 + k_l)``. ``k_1 = (1 - k')/(1 + k')`` (exact difference), then without cancellation
+    ``k_{l+1} = k_l^2/(1 + k_l')^2`` and ``k_{l+1}' = 2 sqrt(k_l')/(1 + k_l')``.
+    """
+    k1 = (1.0 - kc) / (1.0 + kc)
+    c1 = 2.0 * math.sqrt(kc) / (1.0 + kc)
+    k2 = k1 * k1 / ((1.0 + c1) * (1.0 + c1))
+    c2 = 2.0 * math.sqrt(c1) / (1.0 + c1)
+    k3 = k2 * k2 / ((1.0 + c2) * (1.0 + c2))
+    c3 = 2.0 * math.sqrt(c2) / (1.0 + c2)
+    k4 = k3 * k3 / ((1.0 + c3) * (1.0 + c3))
+    f4 = 1.0 + k4
+    f3 = (1.0 + k3) * f4
+    f2 = (1.0 + k2) * f3
+    kap = (k1 * f2 * f2, k2 * f3 * f3, k3 * f4 * f4, k4)
+    return kap, 0.25 * k4 * k4, (1.0 + k1) * f2
+
+
+@jit
+def _series_constants(q):
+    """Coefficients of the hyperbolic series regrouped as power series in ``z = q e^(+-y)`` (see
+    :func:`_omega_row_hyperbolic`): ``(-1)^i/(1 -+ q^(2i+1))`` for dn and cn, ``(-1)^(j-1)/(1 + q^(2j))``
+    for sn."""
+    q2 = q * q
+    q4 = q2 * q2
+    q6 = q4 * q2
+    q8 = q4 * q4
+    q10 = q8 * q2
+    q12 = q8 * q4
+    odd = (q, q * q2, q * q4, q * q6, q * q8, q * q10, q * q12)
+    dcoef = (1.0 / (1.0 - odd[0]), -1.0 / (1.0 - odd[1]), 1.0 / (1.0 - odd[2]), -1.0 / (1.0 - odd[3]),
+             1.0 / (1.0 - odd[4]), -1.0 / (1.0 - odd[5]), 1.0 / (1.0 - odd[6]))
+    ccoef = (1.0 / (1.0 + odd[0]), -1.0 / (1.0 + odd[1]), 1.0 / (1.0 + odd[2]), -1.0 / (1.0 + odd[3]),
+             1.0 / (1.0 + odd[4]), -1.0 / (1.0 + odd[5]), 1.0 / (1.0 + odd[6]))
+    scoef = (1.0 / (1.0 + q2), -1.0 / (1.0 + q4), 1.0 / (1.0 + q6), -1.0 / (1.0 + q8), 1.0 / (1.0 + q10),
+             -1.0 / (1.0 + q12))
+    return dcoef, ccoef, scoef
+
+
+@jit(inline=True)
+def _horner7(w, c):
+    return c[0] + w * (c[1] + w * (c[2] + w * (c[3] + w * (c[4] + w * (c[5] + w * c[6])))))
+
+
+@jit
+def _omega_row_landen(ph, nu, t, K, kc, kap, quarter_m, P, out, W):
+    """One elliptic sample with ``k' >= KC_HYPERBOLIC`` at the times ``t`` into ``out`` (3T,).
+
+    Core on ``[0, K/2]``: ``LANDEN_LEVELS`` descending Gauss transformations in rational form (DLMF 22.7.1-3),
+    ``sn(x|k) = (1 + k1) s/(1 + k1 s^2)``, ``cn = c d/(1 + k1 s^2)``, ``dn = (1 - k1 s^2)/(1 + k1 s^2)`` with
+    ``s, c, d`` at ``x/(1 + k1)`` and modulus ``k1``, carried projectively as ``sn = P S/D, cn = C/D,
+    dn = E/D`` (no division per level); at the bottom ``sin v, cos v`` with the first-order terms in
+    ``m = k_L^2`` (DLMF 22.10.4-6, here below 1.4e-16).
+    """
+    two_k = 2.0 * K
+    inv_two_k = 1.0 / two_k
+    inv_p = 1.0 / P
+    k1, k2, k3, k4 = kap
+    for j in range(t.shape[0]):
+        x, near, par, sg = _quarter_period_reduction(ph + nu * t[j], K, two_k, inv_two_k)
+        v = x * inv_p
+        sv, cv = sincos(v)
+        w = quarter_m * (v - sv * cv)
+        S = sv - w * cv
+        C = cv + w * sv
+        E = 1.0 - 2.0 * quarter_m * sv * sv
+        D = 1.0
+        # level 4 .. 1: (S, C, E, D) <- (S D, C E, D^2 - kap S^2, D^2 + kap S^2)
+        t2 = k4 * (S * S)
+        d2 = D * D
+        S, C, E, D = S * D, C * E, d2 - t2, d2 + t2
+        t2 = k3 * (S * S)
+        d2 = D * D
+        S, C, E, D = S * D, C * E, d2 - t2, d2 + t2
+        t2 = k2 * (S * S)
+        d2 = D * D
+        S, C, E, D = S * D, C * E, d2 - t2, d2 + t2
+        t2 = k1 * (S * S)
+        d2 = D * D
+        S, C, E, D = S * D, C * E, d2 - t2, d2 + t2
+        sn, cn, dn = _unreduce(S, C, E, D, P, kc, near, par, sg)
+        _store(out, j, W, cn, sn, dn)
+
+
+@jit(inline=True)
+def _exp_both(x):
+    """``(exp x, exp x - 1, exp -x)`` for ``-708 <= x <= 0`` (``2^k`` normal), each to about 1 ulp, branch-free.
+
+    As :func:`_exp_expm1`, but with ``exp(+-r) = cosh r +- r (sinh r / r)`` from one even and one odd
+    Taylor polynomial in ``r^2`` (the first omitted terms are ``r^14/14!`` and ``r^14/15!``, below 5e-18),
+    so ``exp -x = 2^-k exp -r`` costs no division; ``expm1 x = 2^k ((cosh r - 1) + r sinh r / r) + (2^k - 1)``.
+    """
+    k = np.floor(x * _INV_LN2 + 0.5)
+    r = _fma(-k, _LN2_HI, x)  # exact
+    r = _fma(-k, _LN2_LO, r)
+    z = r * r
+    cosh_m1 = z * (_E2 + z * (_E4 + z * (_E6 + z * (_E8 + z * (_E10 + z * (_E12 + z * _E14))))))
+    rsinh = r * (1.0 + z * (_E3 + z * (_E5 + z * (_E7 + z * (_E9 + z * (_E11 + z * _E13))))))
+    scale = _pow2(k)
+    em1 = cosh_m1 + rsinh  # exp r - 1
+    return _fma(scale, em1, scale), _fma(scale, em1, scale - 1.0), _pow2(-k) * (1.0 + (cosh_m1 - rsinh))
+
+
+@jit(inline=True)
+def _hyperbolic_core(x, h, hk, q):
+    """Leading terms of the hyperbolic series at ``y = h x``: returns ``(em, om, den, zp, zm)`` with
+    ``em = e^-y``, ``om = 1 - e^-2y``, ``den = 1 + e^-2y`` (``sech y = 2 em/den``, ``tanh y = om/den``),
+    ``zp = q e^y``, ``zm = q e^-y``."""
+    em, em_m1, ep = _exp_both(-(h * x))
+    return em, -em_m1 * (1.0 + em), 1.0 + em * em, q * ep, q * em
+
+
+@jit(inline=True)
+def _hyperbolic_unreduce(em, om, den, zp, zm, dser, cser, hsum, h, hk, kc, near, par, sg):
+    """``sn, cn, dn`` from the series sums (see :func:`_omega_row_hyperbolic`), all over the common
+    denominator ``den``: ``sn x = hk (om - 2 (a - b) den hsum)/den``, ``cn x = hk (2 em - 2 cser den)/den``,
+    ``dn x = h (2 em + 2 dser den)/den``, with ``(a - b) den = zp^2 om den^2``."""
+    S = hk * (om - 2.0 * ((zp * zp) * om * (den * den)) * hsum)
+    C = hk * (2.0 * em - 2.0 * cser * den)
+    E = h * (2.0 * em + 2.0 * dser * den)
+    return _unreduce(S, C, E, den, 1.0, kc, near, par, sg)
+
+
+@jit
+def _omega_row_hyperbolic(ph, nu, t, K, kc, h, hk, q, dcoef, ccoef, scoef, out, W):
+    """One elliptic sample with ``k' < KC_HYPERBOLIC`` at the times ``t`` into ``out`` (3T,).
+
+    The sech/tanh series of the module docstring with each term expanded geometrically in
+    ``z_n = q^n e^(+-y)`` (all ``< e^(-3 beta/4)``) and summed over ``n`` first, which turns them into
+    power series in ``zp = q e^y`` and ``zm = q e^-y`` with per-modulus coefficients (no division per
+    term)::
+
+        dn x / h       = sech y + 2 sum_i (-1)^i (zp^(2i+1) + zm^(2i+1)) / (1 - q^(2i+1))
+        cn x k / h     = sech y - 2 sum_i (-1)^i (zp^(2i+1) + zm^(2i+1)) / (1 + q^(2i+1))
+        sn x k / h     = tanh y - 2 sum_j (-1)^(j-1) (a^j - b^j) / (1 + q^(2j)),   a = zp^2, b = zm^2,
+
+    with ``a^j - b^j = (a - b) sum_i a^(j-1-i) b^i``, ``a - b = a (1 - e^-4y)`` (no cancellation at small
+    ``y``). Every correction is below ``e^(-beta/2) <= 0.14`` of the leading term, so no sum cancels.
+    Kept: ``i <= 6`` and ``j <= 6``, enough for ``beta >= 4.02`` (``k' <= 0.5``: the first omitted term is
+    below ``e^-42`` of the leading one). One ``exp`` pair (:func:`_exp_both`) and one reciprocal per time.
+    """
+    two_k = 2.0 * K
+    inv_two_k = 1.0 / two_k
+    g1, g2, g3, g4, g5, g6 = scoef
+    for j in range(t.shape[0]):
+        x, near, par, sg = _quarter_period_reduction(ph + nu * t[j], K, two_k, inv_two_k)
+        em, om, den, zp, zm = _hyperbolic_core(x, h, hk, q)
+        a = zp * zp
+        b = zm * zm
+        dser = zp * _horner7(a, dcoef) + zm * _horner7(b, dcoef)
+        cser = zp * _horner7(a, ccoef) + zm * _horner7(b, ccoef)
+        p5 = g5 + a * g6  # P_i(a) = g_(i+1) + a P_(i+1)(a)
+        p4 = g4 + a * p5
+        p3 = g3 + a * p4
+        p2 = g2 + a * p3
+        p1 = g1 + a * p2
+        hsum = p1 + b * (p2 + b * (p3 + b * (p4 + b * (p5 + b * g6))))
+        sn, cn, dn = _hyperbolic_unreduce(em, om, den, zp, zm, dser, cser, hsum, h, hk, kc, near, par, sg)
+        _store(out, j, W, cn, sn, dn)
+
+
+@jit
+def _omega_row_hyperbolic_short(ph, nu, t, K, kc, h, hk, q, dcoef, ccoef, scoef, out, W):
+    """:func:`_omega_row_hyperbolic` for ``beta >= BETA_SHORT_SERIES`` (``k' <~ 1.3e-3``), keeping
+    ``i <= 1`` and ``j <= 2``: the first omitted terms are below ``e^-56`` and ``e^-72`` of the leading one."""
+    two_k = 2.0 * K
+    inv_two_k = 1.0 / two_k
+    d0, d1 = dcoef[0], dcoef[1]
+    c0, c1 = ccoef[0], ccoef[1]
+    g1, g2 = scoef[0], scoef[1]
+    for j in range(t.shape[0]):
+        x, near, par, sg = _quarter_period_reduction(ph + nu * t[j], K, two_k, inv_two_k)
+        em, om, den, zp, zm = _hyperbolic_core(x, h, hk, q)
+        a = zp * zp
+        b = zm * zm
+        dser = zp * (d0 + a * d1) + zm * (d0 + b * d1)
+        cser = zp * (c0 + a * c1) + zm * (c0 + b * c1)
+        hsum = g1 + (a + b) * g2
+        sn, cn, dn = _hyperbolic_unreduce(em, om, den, zp, zm, dser, cser, hsum, h, hk, kc, near, par, sg)
+        _store(out, j, W, cn, sn, dn)
+
+
+@jit
+def _omega_row_separatrix(ph, nu, t, out, W):
+    """One separatrix sample: ``(sech, tanh, sech)(u0 + nu t)`` into ``out`` (3T,), branch-free:
+    ``tanh|v| = (1 - e^-2|v|)/(1 + e^-2|v|)``, ``sech v = 2 e^-|v|/(1 + e^-2|v|)``."""
+    for j in range(t.shape[0]):
+        v = ph + nu * t[j]
+        em, em_m1 = _exp_expm1(-abs(v))
+        inv_den = 1.0 / (1.0 + em * em)
+        sech = 2.0 * em * inv_den
+        tanh = -em_m1 * (1.0 + em) * inv_den
+        tanh = tanh if v >= 0.0 else -tanh
+        _store(out, j, W, sech, tanh, sech)
+
+
+@jit(parallel=True)
+def torque_free_omega(kind, amp, cols, kc, phase0, nu, times, row, out):
+    """Body-frame angular velocity of the free rigid body, sample by sample (Landau & Lifshitz §37).
+
+    Samples run in parallel; each sample's time loop is straight-line code that LLVM vectorises across
+    times (module docstring, "Vectorised evaluation"). The value at one (sample, time) does not depend on
+    the other samples, rows or times of the call.
+
+    Parameters
+    ----------
+    kind : ndarray of int64, shape (n,)
+        ``KIND_STATIONARY`` (constant), ``KIND_ELLIPTIC`` or ``KIND_SEPARATRIX``.
+    amp : ndarray, shape (n, 3)
+        Signed amplitudes, rad/s, of the components proportional to ``(cn, sn, dn)`` (elliptic),
+        ``(sech, tanh, sech)`` (separatrix), or the constant components (stationary).
+    cols : ndarray of int64, shape (n, 3)
+        Output column of each of those three components (a permutation of 0, 1, 2).
+    kc : ndarray, shape (n,)
+        Complementary modulus ``k'`` (elliptic samples).
+    phase0 : ndarray, shape (n,)
+        Initial argument: ``u0 - K`` (elliptic) or ``u0`` (separatrix).
+    nu : ndarray, shape (n,)
+        Rate of the argument, rad/s: ``u = u0 + nu t``.
+    times : ndarray, shape (R, T), C-contiguous
+        Time grids, s; several samples may share a row.
+    row : ndarray of int64, shape (n,)
+        Sample ``i`` is evaluated at the times ``times[row[i], :]``.
+    out : ndarray, shape (n, T, 3)
+        Receives the angular velocity, rad/s.
+    """
+    rows = out.reshape(out.shape[0], 3 * out.shape[1])  # (n, T, 3) -> (n, 3T), a view
+    for i in numba.prange(kind.shape[0]):
+        t = times[row[i]]
+        o = rows[i]
+        W = _column_weights(cols[i, 0], cols[i, 1], cols[i, 2], amp[i, 0], amp[i, 1], amp[i, 2])
+        if kind[i] == KIND_ELLIPTIC:
+            k_c = kc[i]
+            K = 0.5 * math.pi / agm(1.0, k_c)
+            if k_c >= KC_HYPERBOLIC:
+                kap, quarter_m, P = _landen_constants(k_c)
+                _omega_row_landen(phase0[i], nu[i], t, K, k_c, kap, quarter_m, P, o, W)
+            else:
+                k = math.sqrt((1.0 - k_c) * (1.0 + k_c))
+                h = agm(1.0, k)  # = pi / (2 K')
+                beta = 2.0 * K * h  # = pi K / K'
+                q = math.exp(-beta) if beta < _BETA_NEGLIGIBLE else 0.0
+                dcoef, ccoef, scoef = _series_constants(q)
+                if beta >= BETA_SHORT_SERIES:
+                    _omega_row_hyperbolic_short(phase0[i], nu[i], t, K, k_c, h, h / k, q, dcoef, ccoef, scoef,
+                                                o, W)
+                else:
+                    _omega_row_hyperbolic(phase0[i], nu[i], t, K, k_c, h, h / k, q, dcoef, ccoef, scoef, o, W)
+        elif kind[i] == KIND_SEPARATRIX:
+            _omega_row_separatrix(phase0[i], nu[i], t, o, W)
+        else:
+            for j in range(t.shape[0]):
+                _store(o, j, W, 1.0, 1.0, 1.0)

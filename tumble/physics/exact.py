@@ -336,7 +336,8 @@ def omega(body, w0, t):
     sol = _solve(body, w0)
     times = np.ascontiguousarray(np.atleast_1d(tt))
     out = np.empty((sol.kind.shape[0], times.shape[0], 3))
-    _ell.torque_free_omega(sol.kind, sol.amp, sol.cols, sol.kc, sol.phase0, sol.nu, times, out)
+    _ell.torque_free_omega(sol.kind, sol.amp, sol.cols, sol.kc, sol.phase0, sol.nu, times[None, :],
+                           np.zeros(sol.kind.shape[0], dtype=np.int64), out)
     if not np.all(np.isfinite(out)):  # the one cheap check at the layer boundary
         raise FloatingPointError("exact.omega produced non-finite values; please report this spin")
     out = out.reshape(sol.shape + (times.shape[0], 3))
@@ -545,7 +546,8 @@ def attitude(body, w0, t):
     w = np.ascontiguousarray(spin_vectors(w0).reshape(-1, 3))
     n = w.shape[0]
     w_t = np.empty((n, times.shape[0], 3))
-    _ell.torque_free_omega(sol.kind, sol.amp, sol.cols, sol.kc, sol.phase0, sol.nu, times, w_t)
+    _ell.torque_free_omega(sol.kind, sol.amp, sol.cols, sol.kc, sol.phase0, sol.nu, times[None, :],
+                           np.zeros(n, dtype=np.int64), w_t)
     out = np.empty((n, times.shape[0], 4))
 
     steady = sol.kind == _ell.KIND_STATIONARY
@@ -556,7 +558,8 @@ def attitude(body, w0, t):
     moving = ~steady
     if moving.any():  # t = 0 is prepended: the attitude is taken relative to the start
         start = np.empty((n, 1, 3))
-        _ell.torque_free_omega(sol.kind, sol.amp, sol.cols, sol.kc, sol.phase0, sol.nu, np.zeros(1), start)
+        _ell.torque_free_omega(sol.kind, sol.amp, sol.cols, sol.kc, sol.phase0, sol.nu, np.zeros((1, 1)),
+                               np.zeros(n, dtype=np.int64), start)
         out[moving] = _moving_attitude(moments, sol, moving, w[moving],
                                        np.concatenate([start[moving], w_t[moving]], axis=1),
                                        np.concatenate([[0.0], times]))[:, 1:]
