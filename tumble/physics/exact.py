@@ -276,12 +276,10 @@ def omega_rows(sol, times, row):
     batch it is evaluated in."""
     times = np.ascontiguousarray(times, dtype=float)
     out = np.empty((sol.kind.shape[0], times.shape[1], 3))
-    for r in np.unique(row):
-        pick = np.flatnonzero(row == r)
-        part = np.empty((len(pick), times.shape[1], 3))
-        _ell.torque_free_omega(sol.kind[pick], sol.amp[pick], sol.cols[pick], sol.kc[pick], sol.phase0[pick],
-                               sol.nu[pick], times[r], part)
-        out[pick] = part
+    _ell.torque_free_omega(sol.kind, sol.amp, sol.cols, sol.kc, sol.phase0, sol.nu, times,
+                           np.ascontiguousarray(row, dtype=np.int64), out)
+    if not np.all(np.isfinite(out)):  # the one cheap check at the layer boundary
+        raise FloatingPointError("exact.omega produced non-finite values; please report this spin")
     return out
 
 
