@@ -56,10 +56,11 @@ that depend on the time (``|r| <= K/2`` or not, the signs) are selects. Per time
 * the reduction of step 1 with ``n = floor(s (1/2K) + 1/2)`` and the core at ``x = |r|`` or ``K - |r|``,
   returning ``sn x = P S/D, cn x = C/D, dn x = E/D`` so that the quotients of step 1 cost one reciprocal;
 * ``k' >= KC_HYPERBOLIC``: four descending Gauss (Landen) transformations in rational form (DLMF
-  22.7.1-3; ``k_1 = (1 - k')/(1 + k') <= 1/3``, then ``k_(l+1) ~ k_l^2/4``, so ``k_4 <= 1.2e-8``), carried
-  projectively, from ``sin, cos`` of ``v = x/P <= pi/4`` (the polynomials of :func:`tumble.kernels.trig.sincos`) with
-  the first-order terms in ``k_4^2`` (DLMF 22.10.4-6). ``dn = (1 - k_1 s^2)/(1 + k_1 s^2)`` has no
-  cancellation as ``k_1 s^2 <= 1/3``; for ``k' = 1`` every ``k_l`` is 0 and ``dn`` is exactly 1;
+  22.7.1-3; ``k_1 = (1 - k')/(1 + k') <= 1/3``, then ``k_(l+1) ~ k_l^2/4``, so ``k_4 <= 1.2e-8``),
+  carried projectively, from ``sin, cos`` of ``v = x/P <= pi/4`` (the polynomials of
+  :func:`tumble.kernels.trig.sincos`) with the first-order terms in ``k_4^2`` (DLMF 22.10.4-6).
+  ``dn = (1 - k_1 s^2)/(1 + k_1 s^2)`` has no cancellation as ``k_1 s^2 <= 1/3``; for ``k' = 1`` every
+  ``k_l`` is 0 and ``dn`` is exactly 1;
 * ``k' < KC_HYPERBOLIC``: the hyperbolic series regrouped as power series in ``q e^(+-y)`` with
   per-sample coefficients (see :func:`_omega_row_hyperbolic`), from one branch-free ``exp``/``expm1``
   pair (Cody-Waite reduction, Taylor polynomials, ``2^k`` built in the exponent bits).
@@ -684,8 +685,8 @@ def _omega_row_landen(ph, nu, t, K, kc, kap, quarter_m, P, out, W):
     Core on ``[0, K/2]``: ``LANDEN_LEVELS`` descending Gauss transformations in rational form (DLMF 22.7.1-3),
     ``sn(x|k) = (1 + k1) s/(1 + k1 s^2)``, ``cn = c d/(1 + k1 s^2)``, ``dn = (1 - k1 s^2)/(1 + k1 s^2)`` with
     ``s, c, d`` at ``x/(1 + k1)`` and modulus ``k1``, carried projectively as ``sn = P S/D, cn = C/D,
-    dn = E/D`` (no division per level; see :func:`_gauss_level`); at the bottom ``sin v, cos v`` with the first-order terms in
-    ``m = k_L^2`` (DLMF 22.10.4-6, here below 1.4e-16).
+    dn = E/D`` (no division per level; see :func:`_gauss_level`); at the bottom ``sin v, cos v``
+    (:func:`_sin_cos_octant`) with the first-order terms in ``m = k_L^2`` (DLMF 22.10.4-6, here below 1.4e-16).
     """
     two_k = 2.0 * K
     inv_two_k = 1.0 / two_k
