@@ -56,15 +56,16 @@ that depend on the time (``|r| <= K/2`` or not, the signs) are selects. Per time
 * the reduction of step 1 with ``n = floor(s (1/2K) + 1/2)`` and the core at ``x = |r|`` or ``K - |r|``,
   returning ``sn x = P S/D, cn x = C/D, dn x = E/D`` so that the quotients of step 1 cost one reciprocal;
 * ``k' >= KC_HYPERBOLIC``: four descending Gauss (Landen) transformations in rational form (DLMF
-  22.7.1-3; ``k_1 = (1 - k')/(1 + k') <= 1/3``, then ``k_(l+1) ~ k_l^2/4``, so ``k_4 <= 1.2e-8``), carried
-  projectively, from ``sin, cos`` of ``v = x/P`` (the branch-free :func:`tumble.kernels.trig.sincos`) with
-  the first-order terms in ``k_4^2`` (DLMF 22.10.4-6). ``dn = (1 - k_1 s^2)/(1 + k_1 s^2)`` has no
-  cancellation as ``k_1 s^2 <= 1/3``; for ``k' = 1`` every ``k_l`` is 0 and ``dn`` is exactly 1;
+  22.7.1-3; ``k_1 = (1 - k')/(1 + k') <= 1/3``, then ``k_(l+1) ~ k_l^2/4``, so ``k_4 <= 1.2e-8``),
+  carried projectively, from ``sin, cos`` of ``v = x/P <= pi/4`` (the polynomials of
+  :func:`tumble.kernels.trig.sincos`) with the first-order terms in ``k_4^2`` (DLMF 22.10.4-6).
+  ``dn = (1 - k_1 s^2)/(1 + k_1 s^2)`` has no cancellation as ``k_1 s^2 <= 1/3``; for ``k' = 1`` every
+  ``k_l`` is 0 and ``dn`` is exactly 1;
 * ``k' < KC_HYPERBOLIC``: the hyperbolic series regrouped as power series in ``q e^(+-y)`` with
   per-sample coefficients (see :func:`_omega_row_hyperbolic`), from one branch-free ``exp``/``expm1``
   pair (Cody-Waite reduction, Taylor polynomials, ``2^k`` built in the exponent bits).
 
-Measured against mpmath on a quarter period (``tests/test_elliptic_vectorised.py``): at most 3.9 eps
+Measured against mpmath on a quarter period (``tests/test_elliptic_vectorised.py``): at most 3.7 eps
 relative (the scalar path: 3.8 eps), and within a few ulps of the scalar path everywhere.
 
 Kernels take plain float64 arrays and scalars and write into arrays they are given.
@@ -79,7 +80,7 @@ from numba.core import types
 from numba.extending import intrinsic
 
 from .jit import jit
-from .trig import _fma, sincos
+from .trig import _C1, _C2, _C3, _C4, _C5, _C6, _S1, _S2, _S3, _S4, _S5, _S6, _fma
 
 __all__ = ["KC_HYPERBOLIC", "agm", "carlson_rf", "jacobi_sncndn", "torque_free_omega", "torque_free_setup"]
 
@@ -469,12 +470,11 @@ def _torque_free_omega_reference(kind, amp, cols, kc, phase0, nu, t, out):
 
 # ------------------------------------------------------------------------------------------------------
 # Vectorised kernel: straight-line code in the time loop (see "Vectorised evaluation" in the module
-# docstring). Everything below that runs per time is branch-free: selects, no libm calls, no division
-# other than one reciprocal (two more in the hyperbolic series).
+# docstring). Everything below that runs per time is branch-free: selects, no libm calls, one reciprocal.
 
 #: Descending Gauss (Landen) levels used for ``k' >= KC_HYPERBOLIC``: the bottom modulus is then at most
 #: 1.2e-8 (``k' = 0.5``), and the first-order correction in ``m = k_4^2 <= 1.4e-16`` leaves ``O(m^2)``.
-LANDEN_LEVELS = 4
+LANDEN_LEVELS = 4  # unrolled by hand in _landen_constants and _omega_row_landen
 # The hyperbolic series keep 7 terms for dn, cn (powers z^1 .. z^13) and 6 for sn (j = 1 .. 6): enough
 # down to beta = pi K/K' = 4.02 (k' = 0.5), where the first omitted term is below e^-42 of the leading one.
 #: From this ``beta = pi K/K'`` on (``k' <~ 1.3e-3``, a spin near the intermediate axis) two terms of each
@@ -653,6 +653,32 @@ def _horner7(w, c):
     return c[0] + w * (c[1] + w * (c[2] + w * (c[3] + w * (c[4] + w * (c[5] + w * c[6])))))
 
 
+@jit(inline=True)
+def _sin_cos_octant(v):
+    """``sin v, cos v`` for ``|v| <= pi/4`` (a little beyond is fine): the polynomials of
+    :func:`tumble.kernels.trig.sincos` (fdlibm ``k_sin``, FreeBSD ``k_cos``) without its argument
+    reduction, which the Landen core does not need (``0 <= v <= K/(2P) = pi/4 (1 + O(k_5))``)."""
+    z = v * v
+    ps = _S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))
+    sin_v = v + (z * v) * (_S1 + z * ps)
+    w = z * z
+    pc = z * (_C1 + z * (_C2 + z * _C3)) + w * w * (_C4 + z * (_C5 + z * _C6))
+    hz = 0.5 * z
+    one_hz = 1.0 - hz
+    return sin_v, one_hz + (((1.0 - one_hz) - hz) + z * pc)
+
+
+@jit(inline=True)
+def _gauss_level(s_b, f, g, d, e, kap):
+    """One descending Gauss transformation in projective form, ``(S, C, E, D) <- (S D, C E, D^2 - kap S^2,
+    D^2 + kap S^2)``, on the deviations ``S = s_b (1 + f)``, ``C = c_b (1 + g)``, ``E = 1 + e``,
+    ``D = 1 + d``: each rounding is then relative to a deviation (at most ~1/3) rather than to 1."""
+    S = s_b + s_b * f
+    t = kap * (S * S)
+    dd = d * (2.0 + d)
+    return f + d + f * d, g + e + g * e, dd + t, dd - t
+
+
 @jit
 def _omega_row_landen(ph, nu, t, K, kc, kap, quarter_m, P, out, W):
     """One elliptic sample with ``k' >= KC_HYPERBOLIC`` at the times ``t`` into ``out`` (3T,).
@@ -660,8 +686,8 @@ def _omega_row_landen(ph, nu, t, K, kc, kap, quarter_m, P, out, W):
     Core on ``[0, K/2]``: ``LANDEN_LEVELS`` descending Gauss transformations in rational form (DLMF 22.7.1-3),
     ``sn(x|k) = (1 + k1) s/(1 + k1 s^2)``, ``cn = c d/(1 + k1 s^2)``, ``dn = (1 - k1 s^2)/(1 + k1 s^2)`` with
     ``s, c, d`` at ``x/(1 + k1)`` and modulus ``k1``, carried projectively as ``sn = P S/D, cn = C/D,
-    dn = E/D`` (no division per level); at the bottom ``sin v, cos v`` with the first-order terms in
-    ``m = k_L^2`` (DLMF 22.10.4-6, here below 1.4e-16).
+    dn = E/D`` (no division per level; see :func:`_gauss_level`); at the bottom ``sin v, cos v``
+    (:func:`_sin_cos_octant`) with the first-order terms in ``m = k_L^2`` (DLMF 22.10.4-6, here below 1.4e-16).
     """
     two_k = 2.0 * K
     inv_two_k = 1.0 / two_k
@@ -670,25 +696,19 @@ def _omega_row_landen(ph, nu, t, K, kc, kap, quarter_m, P, out, W):
     for j in range(t.shape[0]):
         x, near, par, sg = _quarter_period_reduction(ph + nu * t[j], K, two_k, inv_two_k)
         v = x * inv_p
-        sv, cv = sincos(v)
+        sv, cv = _sin_cos_octant(v)
         w = quarter_m * (v - sv * cv)
-        S = sv - w * cv
-        C = cv + w * sv
-        E = 1.0 - 2.0 * quarter_m * sv * sv
-        D = 1.0
-        # level 4 .. 1: (S, C, E, D) <- (S D, C E, D^2 - kap S^2, D^2 + kap S^2)
-        t2 = k4 * (S * S)
-        d2 = D * D
-        S, C, E, D = S * D, C * E, d2 - t2, d2 + t2
-        t2 = k3 * (S * S)
-        d2 = D * D
-        S, C, E, D = S * D, C * E, d2 - t2, d2 + t2
-        t2 = k2 * (S * S)
-        d2 = D * D
-        S, C, E, D = S * D, C * E, d2 - t2, d2 + t2
-        t2 = k1 * (S * S)
-        d2 = D * D
-        S, C, E, D = S * D, C * E, d2 - t2, d2 + t2
+        s_b = sv - w * cv
+        c_b = cv + w * sv
+        # levels 4 .. 1 on the deviations S = s_b (1 + f), C = c_b (1 + g), E = 1 + e, D = 1 + d
+        f, g, d, e = _gauss_level(s_b, 0.0, 0.0, 0.0, -2.0 * quarter_m * sv * sv, k4)
+        f, g, d, e = _gauss_level(s_b, f, g, d, e, k3)
+        f, g, d, e = _gauss_level(s_b, f, g, d, e, k2)
+        f, g, d, e = _gauss_level(s_b, f, g, d, e, k1)
+        S = s_b + s_b * f
+        C = c_b + c_b * g
+        E = 1.0 + e
+        D = 1.0 + d
         sn, cn, dn = _unreduce(S, C, E, D, P, kc, near, par, sg)
         _store(out, j, W, cn, sn, dn)
 

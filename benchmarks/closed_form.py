@@ -1,0 +1,120 @@
+"""Closed-form (exact torque-free) kernel benchmark: evaluations per second of the vectorised
+``torque_free_omega`` against the scalar kernel it replaced, near the largest and near the intermediate axis.
+
+    python benchmarks/closed_form.py            # writes benchmarks/results/closed_form.{json,md}
+
+One evaluation is one sample at one time (three components). Both kernels get the same per-sample inputs
+(from ``tumble.physics.exact``) and run in the same process; compile time (or the load from numba's cache)
+is excluded and reported separately; each rate is the median of several runs, with 1 numba thread and with
+all of them. Other processes on the machine slow the multi-thread runs most (a prange call waits for its
+slowest thread): the load average at the start is recorded with the results.
+"""
+
+import json
+import os
+import platform
+import time
+from datetime import date
+from pathlib import Path
+
+import numba
+import numpy as np
+
+from tumble.kernels import elliptic as ell
+from tumble.physics import exact
+
+RESULTS = Path(__file__).with_name("results")
+MOMENTS = (1.0, 2.0, 3.0)
+SAMPLES = 4096
+TIMES = 257
+REPEATS = 7
+
+
+def median_seconds(fn, repeats=REPEATS):
+    times = []
+    for _ in range(repeats):
+        started = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - started)
+    return float(np.median(times))
+
+
+def regimes(rng):
+    """Spins near the largest axis (k' ~ 0.9 .. 1, the Landen core) and near the intermediate axis at
+    distances 1e-3 .. 1e-8 (k' ~ 1e-3 .. 1e-8, the hyperbolic series), both senses."""
+    eps = 10.0 ** rng.uniform(-8, -3, (SAMPLES, 1))
+    near_mid = np.column_stack([rng.uniform(-1, 1, SAMPLES), rng.choice([-1.0, 1.0], SAMPLES),
+                                rng.uniform(-1, 1, SAMPLES)])
+    near_mid[:, [0, 2]] *= eps
+    near_largest = np.column_stack([rng.uniform(-0.2, 0.2, (SAMPLES, 2)), rng.choice([-1.0, 1.0], SAMPLES)])
+    return {"largest axis": near_largest, "intermediate axis": near_mid}
+
+
+def measure(w0, t):
+    sol = exact._solve(MOMENTS, w0)
+    args = (sol.kind, sol.amp, sol.cols, sol.kc, sol.phase0, sol.nu)
+    out = np.empty((SAMPLES, TIMES, 3))
+    times, row = np.ascontiguousarray(t[None, :]), np.zeros(SAMPLES, dtype=np.int64)
+
+    def new():
+        ell.torque_free_omega(*args, times, row, out)
+
+    def old():
+        ell._torque_free_omega_reference(*args, t, out)
+
+    row_ = {"kc_min": float(sol.kc.min()), "kc_max": float(sol.kc.max())}
+    for name, fn in (("new", new), ("old", old)):
+        started = time.perf_counter()
+        fn()
+        row_[f"compile_{name}"] = time.perf_counter() - started
+    check_new, check_old = np.empty_like(out), np.empty_like(out)
+    ell.torque_free_omega(*args, times, row, check_new)
+    ell._torque_free_omega_reference(*args, t, check_old)
+    row_["max_rel_diff_vs_old"] = float(np.max(np.abs(check_new - check_old) / np.max(np.abs(check_old), axis=1,
+                                                                                        keepdims=True)))
+    for threads in sorted({1, numba.config.NUMBA_NUM_THREADS}):
+        numba.set_num_threads(threads)
+        for name, fn in (("new", new), ("old", old)):
+            row_[f"{name}_{threads}"] = SAMPLES * TIMES / median_seconds(fn, REPEATS if name == "new" else 3)
+        row_[f"speedup_{threads}"] = row_[f"new_{threads}"] / row_[f"old_{threads}"]
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    return row_
+
+
+def main():
+    RESULTS.mkdir(exist_ok=True)
+    width = "AVX-512" if "avx512f" in Path("/proc/cpuinfo").read_text() else "AVX2"
+    machine = (f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, {width}, "
+               f"numba {numba.__version__}")
+    load = os.getloadavg()[0]
+    rng = np.random.default_rng(0)
+    t = np.linspace(0.0, 40.0, TIMES)
+    report = {"date": str(date.today()), "machine": machine, "threads": numba.config.NUMBA_NUM_THREADS,
+              "load_average": load, "samples": SAMPLES, "times": TIMES, "regimes": {}}
+    for label, w0 in regimes(rng).items():
+        report["regimes"][label] = measure(w0, t)
+        print(label, report["regimes"][label], flush=True)
+    (RESULTS / "closed_form.json").write_text(json.dumps(report, indent=1))
+    nt = report["threads"]
+    lines = [f"# Closed-form kernel benchmark — {report['date']}", "",
+             (f"Machine: {machine}; load average at start {load:.2f}. {SAMPLES} samples × {TIMES} times, "
+              f"I = (1, 2, 3); evaluations (one sample at one time) per second, medians of {REPEATS} runs "
+              "(old: 3), compile time excluded. *new*: the vectorised `torque_free_omega`; *old*: the scalar "
+              "kernel it replaced (`_torque_free_omega_reference`), same inputs, same process. A load "
+              "average above about 1 means other processes shared the cores: the multi-thread columns are "
+              "then lower bounds (a prange call waits for its slowest thread)."), "",
+             (f"| spins | k' | new, 1 thread | old, 1 thread | speed-up | new, {nt} threads | old, {nt} threads "
+              "| speed-up | compile new / old, s |"), "|---|---|---|---|---|---|---|---|---|"]
+    for label, r in report["regimes"].items():
+        lines.append(f"| near the {label} | {r['kc_min']:.1e} … {r['kc_max']:.2g} | {r['new_1']:.2e} | "
+                     f"{r['old_1']:.2e} | {r['speedup_1']:.1f}× | {r[f'new_{nt}']:.2e} | {r[f'old_{nt}']:.2e} | "
+                     f"{r[f'speedup_{nt}']:.1f}× | {r['compile_new']:.1f} / {r['compile_old']:.1f} |")
+    lines += ["", ("Largest difference new − old over each run, relative to the largest |ω| component of the "
+                   "sample: ") + ", ".join(f"{label} {r['max_rel_diff_vs_old']:.1e}"
+                                     for label, r in report["regimes"].items()) + "."]
+    (RESULTS / "closed_form.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
