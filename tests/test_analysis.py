@@ -551,3 +551,52 @@ def test_fewer_than_two_usable_points_or_constant_x_give_nan_fields(x, y):
 def test_mismatched_sizes_raise_a_clear_error():
     with pytest.raises(ValueError, match="same size"):
         analysis.regression([1.0, 2.0, 3.0], [1.0, 2.0])
+
+
+# --- the phase fit's kernel against its numpy formulation --------------------------------------------------
+
+
+def _phase_fit_numpy(times, transverse, weights, spin):
+    """The numpy formulation the kernel replaced (np.unwrap, least squares about the means, np.median)."""
+    x = np.sqrt(weights[0]) * transverse[..., 0]
+    y = np.sqrt(weights[1]) * transverse[..., 1]
+    radius = np.hypot(x, y)
+    phase = np.unwrap(np.arctan2(y, x), axis=1)
+    finite = np.all(np.isfinite(phase), axis=1)
+    signal = np.min(np.where(np.isfinite(radius), radius, 0.0), axis=1) > analysis.NO_SIGNAL * abs(spin)
+    with np.errstate(invalid="ignore"):
+        steps_ok = np.all(np.abs(np.diff(phase, axis=1)) <= analysis.MAX_PHASE_STEP, axis=1)
+    y_fit = np.where(np.isfinite(phase), phase, 0.0)
+    dt = times - times.mean()
+    slope = ((y_fit - y_fit.mean(axis=1, keepdims=True)) * dt).sum(axis=1) / (dt * dt).sum()
+    code = np.where(~signal | ~finite, FIT_NO_SIGNAL, np.where(steps_ok, FIT_OK, FIT_UNDERSAMPLED))
+    return np.where(code == FIT_OK, np.abs(slope), np.nan), np.median(radius, axis=1), code
+
+
+def test_phase_fit_kernel_agrees_with_its_numpy_formulation_on_every_outcome():
+    rng = np.random.default_rng(5)
+    times = np.sort(rng.uniform(0.0, 20.0, 200))
+    omega = rng.uniform(0.2, 3.0, (300, 1))
+    phase = omega * times + rng.uniform(-np.pi, np.pi, (300, 1)) + 0.05 * np.sin(3 * times)
+    transverse = np.stack([np.cos(phase), 0.3 * np.sin(phase)], axis=-1) * rng.uniform(1e-6, 1.0, (300, 1, 1))
+    transverse[0] *= 1e-14  # round-off: no signal
+    transverse[1, 50:] = np.nan  # a broken sample
+    transverse[2] = np.stack([np.cos(9 * phase[2]), np.sin(9 * phase[2])], axis=-1)  # aliased: undersampled
+    weights, spin = np.array([3.0, 1 / 3.0]), 2.0
+    fit = analysis.oscillation_frequencies(times, transverse, weights, spin)
+    frequency, radius, code = _phase_fit_numpy(times, transverse, weights, spin)
+    np.testing.assert_array_equal(fit.code, code)
+    assert {FIT_OK, FIT_NO_SIGNAL, FIT_UNDERSAMPLED} <= set(code.tolist())
+    np.testing.assert_allclose(fit.frequency, frequency, rtol=1e-12, atol=0.0, equal_nan=True)
+    np.testing.assert_allclose(fit.radius, radius, rtol=1e-15, atol=0.0, equal_nan=True)
+
+
+def test_phase_fit_rows_of_several_time_grids_are_each_grid_alone():
+    rng = np.random.default_rng(6)
+    grids = np.stack([np.linspace(0.0, 10.0, 65), np.linspace(0.0, 3.0, 65)])
+    phase = rng.uniform(0.5, 2.0, (8, 1)) * grids[np.arange(8) % 2]
+    transverse = np.stack([np.cos(phase), np.sin(phase)], axis=-1)
+    together = analysis.oscillation_frequencies(grids[np.arange(8) % 2], transverse, np.ones(2), 1.0)
+    for i in range(8):
+        alone = analysis.oscillation_frequencies(grids[i % 2], transverse[i:i + 1], np.ones(2), 1.0)
+        assert together.frequency[i] == alone.frequency[0] and together.radius[i] == alone.radius[0]

@@ -1,14 +1,14 @@
 """numba kernels: plain float64 arrays and scalars in, arrays written in place; no xarray, no configuration.
 
-This package's face is the one door to the kernels: the engine (:mod:`tumble.engine`) and the closed form
-(:mod:`tumble.physics.exact`) import from here, never from the modules inside (``tests/test_layers.py``
+This package's face is the one door to the kernels: the engine (:mod:`tumble.engine`), the closed form
+(:mod:`tumble.physics.exact`) and the phase fit's inner loop (:mod:`tumble.measure.estimators`) import from here, never from the modules inside (``tests/test_layers.py``
 checks it). Tests and benchmarks of the kernels themselves may reach the modules.
 """
 
-from . import elliptic
+from . import elliptic, fits
 from .drivers import TORQUE_SIGNATURE
 from .methods import BLOCK, METHODS, Method, Observed, run, run_attitude
 from .steppers import TORQUE_CONSTANT, TORQUE_PULSE, TORQUE_RAMP, TORQUE_SINE, TORQUE_USER
 
 __all__ = ["BLOCK", "METHODS", "Method", "Observed", "TORQUE_CONSTANT", "TORQUE_PULSE", "TORQUE_RAMP", "TORQUE_SIGNATURE",
-           "TORQUE_SINE", "TORQUE_USER", "elliptic", "run", "run_attitude"]
+           "TORQUE_SINE", "TORQUE_USER", "elliptic", "fits", "run", "run_attitude"]

@@ -90,6 +90,11 @@ SATURATION_TILTS = 10.0
 #: Samples per engine call (bounds the memory of stored components and probes).
 SLICE = 8 * CHUNK
 
+#: Samples of closed-form scenes run together (:func:`closed_form_samples`): small enough that the batch's
+#: arrays stay in the processor's cache between the kernel and the estimators, large enough that a kernel call
+#: and an estimator call cost little next to their work. A slice of one scene may be larger (it runs alone).
+BATCH = 4096
+
 #: Level of a scene's confidence interval of the median (distribution-free, from order statistics:
 #: :func:`tumble.measure.estimators.summarize`).
 CONFIDENCE = 0.95
@@ -443,7 +448,7 @@ def closed_form_samples(scenes, start, stop):
     for items in groups.values():
         batch, size = [], 0
         for item in items:
-            if batch and size + item[2] - item[1] > SLICE:
+            if batch and size + item[2] - item[1] > BATCH:
                 _closed_form_batch(scenes, grids, batch, parts, start)
                 batch, size = [], 0
             batch.append(item)
@@ -494,8 +499,8 @@ def _closed_form_batch(scenes, grids, batch, parts, start):
         b, c = each(planes).T
         weights = each([analysis.invariant_weights(s["moments"], s["axis"])[list(plane)] if s["kind"] == "periodic"
                         else np.ones(2) for s, plane in zip(per_sample, planes)])
-        transverse = np.stack([omega[everyone, :, b], omega[everyone, :, c]], axis=-1)
-        fit = analysis.oscillation_frequencies(times[row], transverse, weights, each([s["spin"] for s in per_sample]))
+        fit = analysis.oscillation_frequencies(times, omega, weights, each([s["spin"] for s in per_sample]),
+                                               columns=np.stack([b, c], axis=1), row=row)
         results = {"rate": fit.frequency, "radius": fit.radius}
     code = np.where(fit.code != analysis.FIT_OK, fit.code + _FIT_OFFSET, 0)
     offset = 0
