@@ -12,7 +12,6 @@ slowest thread): the load average at the start is recorded with the results.
 
 import json
 import os
-import platform
 import time
 from datetime import date
 from pathlib import Path
@@ -23,6 +22,8 @@ import numpy as np
 from tumble.kernels import elliptic as ell
 from tumble.physics import exact
 
+import timing  # benchmarks/timing.py (the script's folder is on sys.path)
+
 RESULTS = Path(__file__).with_name("results")
 MOMENTS = (1.0, 2.0, 3.0)
 SAMPLES = 4096
@@ -31,12 +32,7 @@ REPEATS = 7
 
 
 def median_seconds(fn, repeats=REPEATS):
-    times = []
-    for _ in range(repeats):
-        started = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - started)
-    return float(np.median(times))
+    return timing.median_seconds(fn, repeats)
 
 
 def regimes(rng):
@@ -83,9 +79,7 @@ def measure(w0, t):
 
 def main():
     RESULTS.mkdir(exist_ok=True)
-    width = "AVX-512" if "avx512f" in Path("/proc/cpuinfo").read_text() else "AVX2"
-    machine = (f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, {width}, "
-               f"numba {numba.__version__}")
+    machine = timing.machine()
     load = os.getloadavg()[0]
     rng = np.random.default_rng(0)
     t = np.linspace(0.0, 40.0, TIMES)

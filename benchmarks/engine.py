@@ -9,8 +9,6 @@ timing is the median of several runs; the naive loop is measured in the same run
 """
 
 import json
-import os
-import platform
 import subprocess
 import sys
 import time
@@ -26,6 +24,8 @@ from tumble import measure
 from tumble.kernels import fused, steppers
 from tumble.kernels.jit import jit
 from tumble.kernels.methods import METHODS, run
+
+import timing  # benchmarks/timing.py (the script's folder is on sys.path)
 
 RESULTS = Path(__file__).with_name("results")
 MOMENTS = np.array([1.0, 2.0, 3.0])
@@ -63,12 +63,7 @@ def _naive_sample(method):
 
 
 def median_seconds(fn, repeats=REPEATS):
-    times = []
-    for _ in range(repeats):
-        started = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - started)
-    return float(np.median(times))
+    return timing.median_seconds(fn, repeats)
 
 
 def throughput():
@@ -192,9 +187,7 @@ PARTS = {"throughput": throughput, "memory": peak_memory, "warm_scene": warm_sce
 
 def main(parts=None):
     RESULTS.mkdir(exist_ok=True)
-    width = "AVX-512" if "avx512f" in Path("/proc/cpuinfo").read_text() else "AVX2"
-    machine = (f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, {width}, "
-               f"numba {numba.__version__}")
+    machine = timing.machine()
     store = RESULTS / "engine.json"
     report = json.loads(store.read_text()) if parts and store.exists() else {}
     report.update(date=str(date.today()), machine=machine, threads=numba.get_num_threads())

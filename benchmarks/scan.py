@@ -14,9 +14,6 @@ is the median of several runs.
 """
 
 import json
-import os
-import platform
-import sys
 import time
 from datetime import date
 from pathlib import Path
@@ -28,23 +25,19 @@ import tumble
 from tumble.measure import scenes as study
 from tumble.pipeline import config, runner
 
+import timing  # benchmarks/timing.py (the script's folder is on sys.path)
+
 RESULTS = Path(__file__).with_name("results")
 REPEATS = 3
 
 
 def median_seconds(fn, repeats=REPEATS):
-    times = []
-    for _ in range(repeats):
-        started = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - started)
-    return float(np.median(times))
+    return timing.median_seconds(fn, repeats)
 
 
 def main():
     RESULTS.mkdir(exist_ok=True)
-    width = "AVX-512" if "avx512f" in Path("/proc/cpuinfo").read_text() else "AVX2"
-    machine = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, {width}, numba {numba.__version__}"
+    machine = timing.machine()
 
     started = time.perf_counter()
     tumble.run_study("stability_map", progress=False)

@@ -250,3 +250,39 @@ def test_invariant_drift_separates_geometric_methods_from_runge_kutta(warm_kerne
     worst = ds.drift_l2.max("drift_time")
     assert float(worst.sel(drift_method="splitting2")) < 1e-14 < float(worst.sel(drift_method="rk4"))
     assert float(ds.drift_energy.isel(drift_time=0).max()) == 0.0
+
+
+# --- scans in batches ------------------------------------------------------------------------------------------
+
+
+def _same_records(a, b):
+    assert list(a) == list(b)
+    for name in a:
+        assert a[name].dtype == b[name].dtype, name
+        assert np.array_equal(a[name], b[name], equal_nan=a[name].dtype.kind == "f"), name
+
+
+def test_closed_form_scenes_batched_are_the_same_bits_as_one_by_one():
+    """Periodic, exponential (with flips and the norm curve) and neutral scenes of several bodies, mixed in one
+    batch, against each scene alone and against a scene cut into sample ranges."""
+    bodies = [(0.6, 0.8, 1.0), (1.0, 2.0, 3.0), (1.0, 1.0, 2.0), (2.0, 3.0, 4.5)]
+    plans = [study.scene_plan(body, axis, 1.5, amplitude, 96, 3, flips=2, curves=("norm",))
+             for body in bodies for axis in (1, 2, 3) for amplitude in (1e-3, 1e-2)]
+    assert {plan["kind"] for plan in plans} == {"periodic", "exponential", "neutral"}
+    batched = study.scene_batch(plans)
+    for plan, record in zip(plans, batched):
+        _same_records(record, study.scene_batch([plan])[0])
+    plan = study.scene_plan((1.0, 2.0, 3.0), 2, 1.0, 1e-3, 3 * sampling.CHUNK, 0, flips=2)
+    cut = study.scene_records([plan], [[study.scene_samples(plan, lo, lo + sampling.CHUNK)
+                                        for lo in range(0, 3 * sampling.CHUNK, sampling.CHUNK)]])[0]
+    _same_records(cut, study.scene_batch([plan])[0])
+
+
+def test_a_scan_is_its_scenes_measured_alone():
+    moments, coords = inertia_triangle(2)
+    ds = scan(moments, axis=[1, 2, 3], samples=64, seed=1, body_coords=coords)
+    for b, axis in [(0, 1), (1, 2), (3, 3)]:
+        alone = measure(moments[b], axis, samples=64, seed=1)
+        for name in ("rate", "rate_ci_low", "rate_ci_high", "rate_spread", "sample_rate", "sample_status"):
+            np.testing.assert_array_equal(ds[name].sel(body=b, axis=axis).values, alone[name].values)
+        assert ds.rate.attrs == measure(moments[0], 1, samples=8).rate.attrs  # metadata of the first scene

@@ -2,7 +2,7 @@
 
 One pass over each sample's stored times: the scaled transverse components, their radius and phase, the
 phase unwrapped as it goes (the rule of ``numpy.unwrap``: a jump beyond π is taken modulo 2π), and the
-least-squares slope of phase against time from running sums about the mean time. The numpy formulation this
+least-squares slope of phase against time about the mean time and the mean phase. The numpy formulation this
 replaces made eight full-size temporaries per call (``arctan2``, ``unwrap``, ``hypot``, masks and sums), about
 130 ns per sample and time; here it is one ``atan2`` and one ``hypot`` per point, in parallel over samples.
 
@@ -60,6 +60,7 @@ def phase_fit(times, row, states, columns, weights, floor, max_step, frequency, 
         gc = math.sqrt(weights[i, 1])
         b, c = columns[i, 0], columns[i, 1]
         radii = np.empty(t_count)
+        phases = np.empty(t_count)
         smallest = math.inf
         any_nan = False
         finite = True
@@ -67,8 +68,6 @@ def phase_fit(times, row, states, columns, weights, floor, max_step, frequency, 
         correction = 0.0
         previous_raw = 0.0
         previous = 0.0
-        sxy = 0.0
-        sxx = 0.0
         for j in range(t_count):
             x = gb * states[i, j, b]
             y = gc * states[i, j, c]
@@ -92,8 +91,18 @@ def phase_fit(times, row, states, columns, weights, floor, max_step, frequency, 
             elif j > 0 and not abs(phase - previous) <= max_step:
                 steps_ok = False
             previous = phase
+            phases[j] = phase
+        # the least-squares slope about both means (two passes): a phase that does not move gives 0 to round-off
+        # of its own size, not of the size of the times
+        phase_mean = 0.0
+        for j in range(t_count):
+            phase_mean += phases[j]
+        phase_mean /= t_count
+        sxy = 0.0
+        sxx = 0.0
+        for j in range(t_count):
             dt = t[j] - t_mean
-            sxy += dt * phase
+            sxy += dt * (phases[j] - phase_mean)
             sxx += dt * dt
         radius[i] = np.nan if any_nan else np.median(radii)
         if not finite or not smallest > floor[i]:

@@ -1,0 +1,26 @@
+"""What every benchmark here shares: the median of timed runs and the machine line of a report."""
+
+import os
+import platform
+import time
+from pathlib import Path
+
+import numba
+import numpy as np
+
+
+def median_seconds(fn, repeats):
+    """Median wall time of ``repeats`` calls of ``fn`` (the caller runs it once first: compile time is apart)."""
+    times = []
+    for _ in range(repeats):
+        started = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - started)
+    return float(np.median(times))
+
+
+def machine():
+    """``"<processor>, <cores> cores, AVX2 | AVX-512, numba <version>"``: the vector width goes beside every
+    throughput figure (machines here differ)."""
+    width = "AVX-512" if "avx512f" in Path("/proc/cpuinfo").read_text() else "AVX2"
+    return f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, {width}, numba {numba.__version__}"
