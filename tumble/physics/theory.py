@@ -52,6 +52,8 @@ KINDS = ("periodic", "exponential", "neutral")
 
 def _axis_index(axis, name="axis"):
     """Validate a 1-based axis (int or integer array) and return it 0-based."""
+    if type(axis) is int and axis in (1, 2, 3):  # the common case, without array machinery
+        return np.intp(axis - 1)
     arr = np.asarray(axis)
     if arr.dtype == bool or arr.dtype.kind not in "iu":
         raise ValueError(f"{name} must be 1, 2 or 3 (an integer), got {axis!r}")
@@ -62,6 +64,8 @@ def _axis_index(axis, name="axis"):
 
 def _pick(moments, index):
     """``moments[..., index]`` with ``index`` broadcast against the leading shape of ``moments``."""
+    if moments.shape == (3,) and np.ndim(index) == 0:
+        return moments[index]
     shape = np.broadcast_shapes(moments.shape[:-1], np.shape(index))
     moments = np.broadcast_to(moments, shape + (3,))
     index = np.broadcast_to(index, shape)
@@ -103,7 +107,7 @@ def stability_exponent(body, axis):
     ia = _pick(moments, k)
     ib = _pick(moments, (k + 1) % 3)
     ic = _pick(moments, (k + 2) % 3)
-    scale = np.max(np.broadcast_to(moments, ia.shape + (3,)), axis=-1)
+    scale = moments.max() if moments.shape == (3,) else np.max(np.broadcast_to(moments, ia.shape + (3,)), axis=-1)
     return _differences(ia, ib, scale) * _differences(ia, ic, scale) / (ib * ic)
 
 

@@ -93,7 +93,7 @@ def plan(resolved, file="<mapping>"):
                "curves": tuple(sorted({_CURVES[f] for f in figures if f in _CURVES}))}
     bodies = np.atleast_2d(moments)
     axes = values["axis"] if isinstance(values["axis"], list) else [values["axis"]]
-    kinds = {theory.linear(m, a, 1.0)[0] for m in bodies for a in axes}
+    kinds = set(np.atleast_1d(theory.linear(bodies[:, None, :], np.asarray(axes)[None, :], 1.0)[0]).ravel().tolist())
 
     def refuse(field, problem):
         raise StudyError(file, field, problem)
@@ -239,6 +239,12 @@ def compute_task(job, task, digest="", *, threads=None, progress=False):
     is and reads without unpickling anything. ``threads`` sets numba's thread count for the calling thread
     (1 inside dask workers, so that workers do not oversubscribe the cores); the results do not depend on it.
     """
+    return _pack(task, _compute(job, task, threads=threads, progress=progress), digest)
+
+
+def _compute(job, task, *, threads=None, progress=False):
+    """What one :class:`Task` finishes, as a :class:`tumble.pipeline.checkpoint.Finished` (no bytes: a run in this
+    process packs a chunk only to write it to a checkpoint)."""
     if threads is not None:
         import numba
 
@@ -246,10 +252,18 @@ def compute_task(job, task, digest="", *, threads=None, progress=False):
         if numba.get_num_threads() != threads:
             numba.set_num_threads(threads)
     if task.start is None:
-        return checkpoint.pack_scenes(compute_scenes(job, task.scenes, progress=progress), digest)
+        return checkpoint.Finished(compute_scenes(job, task.scenes, progress=progress), {})
     index = task.scenes[0]
-    return checkpoint.pack_samples(index, task.stop, compute_samples(job, index, task.start, task.stop,
-                                                                      progress=progress), digest)
+    part = compute_samples(job, index, task.start, task.stop, progress=progress)
+    return checkpoint.Finished({}, {index: {(task.start, task.stop): part}})
+
+
+def _pack(task, finished, digest):
+    """The chunk file's bytes of what ``task`` finished."""
+    if task.start is None:
+        return checkpoint.pack_scenes(finished.scenes, digest)
+    index = task.scenes[0]
+    return checkpoint.pack_samples(index, task.stop, finished.parts[index][(task.start, task.stop)], digest)
 
 
 def default_chunk_scenes(scenes):
@@ -379,10 +393,9 @@ def run_scenes(job, *, store=None, client=None, chunk_scenes=None, chunk_samples
             scenes[i] = _scene_record(job, _scene_plan(job, i), list(done.parts.pop(i).values()))
             del left[i]
 
-    def finish(task, data):
+    def finish(task, finished, data=None):
         if store is not None:
-            store.write(task.name, data)
-        finished = checkpoint.unpack(data, digest, n)
+            store.write(task.name, data if data is not None else _pack(task, finished, digest))
         scenes.update(finished.scenes)
         for i, parts in finished.parts.items():
             done.parts[i].update(parts)
@@ -394,13 +407,13 @@ def run_scenes(job, *, store=None, client=None, chunk_scenes=None, chunk_samples
         from . import distributed
 
         for task, data in distributed.run_chunks(client, compute_task, job, tasks, digest):
-            finish(task, data)
+            finish(task, checkpoint.unpack(data, digest, n), data)
     else:
         show = sys.stderr.isatty() if progress is None else progress
         with tqdm(total=n, initial=len(scenes), unit="scenes", disable=not (show and n > 1), desc="scan") as bar:
             for task in tasks:
                 before = len(scenes)
-                finish(task, compute_task(job, task, digest, progress=progress if n == 1 else False))
+                finish(task, _compute(job, task, progress=progress if n == 1 else False))
                 bar.update(len(scenes) - before)
     return [scenes[i] for i in range(n)]
 
