@@ -19,7 +19,8 @@ from tumble import cli
 from tumble.pipeline import checkpoint, config, runner
 
 # 48 closed-form scenes of 256 samples: about 3 s, cut into 24 chunks.
-KILLED = {"title": "killed", "perturbation": {"samples": 256}, "scan": {"triangle": 4, "axis": [1, 2, 3]},
+# Big enough that the run (150 chunks of 2 scenes of 1024 samples, several seconds) outlasts the random delay.
+KILLED = {"title": "killed", "perturbation": {"samples": 1024}, "scan": {"triangle": 10, "axis": [1, 2, 3]},
           "integration": {"flips": 0}, "outputs": {"figures": [], "arrays": ["sample_rate"]}}
 
 # One closed-form scene of 16 sampler blocks, cut into 16 sample ranges by --chunk-samples 4096.
@@ -66,7 +67,7 @@ def _kill_9_then_rerun(tmp_path, capsys, spec, stem, chunk_flag, chunks):
 
 
 def test_kill_9_at_a_random_point_then_a_rerun_gives_the_uninterrupted_result(tmp_path, capsys):
-    _kill_9_then_rerun(tmp_path, capsys, KILLED, "killed", ["--chunk-scenes", "2"], 24)
+    _kill_9_then_rerun(tmp_path, capsys, KILLED, "killed", ["--chunk-scenes", "2"], 150)
 
 
 @pytest.mark.slow
