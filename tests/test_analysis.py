@@ -600,3 +600,38 @@ def test_phase_fit_rows_of_several_time_grids_are_each_grid_alone():
     for i in range(8):
         alone = analysis.oscillation_frequencies(grids[i % 2], transverse[i:i + 1], np.ones(2), 1.0)
         assert together.frequency[i] == alone.frequency[0] and together.radius[i] == alone.radius[0]
+
+
+def _growth_numpy(times, norms, saturation):
+    """The numpy formulation the growth kernel replaced: (rate, points, code)."""
+    n, p = norms.shape
+    h = (times[-1] - times[0]) / (p - 1)
+    finite = np.isfinite(norms) & (norms > 0)
+    beyond = ~finite | (norms > saturation)
+    stop = np.where(beyond.any(axis=1), beyond.argmax(axis=1), p)
+    s = np.where(finite, norms, 1.0) ** 2
+    interior = np.arange(1, p - 1)[None, :] + 1 < stop[:, None]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        d = (s[:, 2:] + s[:, :-2] - 2.0 * s[:, 1:-1]) / (2.0 * s[:, 1:-1])
+        mean = np.where(interior, d, 0.0).sum(axis=1) / interior.sum(axis=1)
+        rate = np.arcsinh(np.sqrt(mean / 2.0)) / h
+    good = (stop >= analysis.MIN_POINTS) & (mean > 0) & np.isfinite(rate)
+    return np.where(good, rate, np.nan), np.where(good, stop, 0), np.where(good, FIT_OK, FIT_SHORT_WINDOW)
+
+
+def test_growth_kernel_agrees_with_its_numpy_formulation_on_every_outcome():
+    rng = np.random.default_rng(7)
+    times = np.arange(257) * 0.05
+    lam = rng.uniform(0.3, 2.0, (400, 1))
+    a, b = rng.uniform(1e-6, 1e-3, (400, 1)), rng.uniform(0.0, 1e-3, (400, 1))
+    norms = np.sqrt(2 * (a**2 * np.exp(2 * lam * times) + b**2 * np.exp(-2 * lam * times)))
+    norms[0, 3:] = np.nan  # stopped early: too short a window
+    norms[1] = 1e-3  # no growth at all
+    norms[2, 100:] = np.nan  # stopped inside its window
+    saturation = 1e-2
+    fit = analysis.growth_rates(times, norms, saturation)
+    rate, points, code = _growth_numpy(times, norms, saturation)
+    np.testing.assert_array_equal(fit.code, code)
+    np.testing.assert_array_equal(fit.points, points)
+    assert {FIT_OK, FIT_SHORT_WINDOW} <= set(code.tolist())
+    np.testing.assert_allclose(fit.rate, rate, rtol=1e-11, atol=0.0, equal_nan=True)

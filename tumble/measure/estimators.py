@@ -48,7 +48,7 @@ __all__ = [
 
 #: Per-sample outcome of a fit (the engine's statuses, non-finite and drift, come before these).
 FIT_OK = fits.FIT_OK
-FIT_SHORT_WINDOW = 1  # fewer than MIN_POINTS before saturation, or no growth
+FIT_SHORT_WINDOW = fits.FIT_SHORT_WINDOW  # fewer than MIN_POINTS before saturation, or no growth
 FIT_NO_SIGNAL = fits.FIT_NO_SIGNAL  # the transverse perturbation is at round-off level: its phase means nothing
 FIT_UNDERSAMPLED = fits.FIT_UNDERSAMPLED  # the phase moved by more than MAX_PHASE_STEP between two samples: unwrapping is unsafe
 FIT_NAMES = ("ok", "fit window too short", "no signal", "undersampled")
@@ -92,20 +92,6 @@ def invariant_weights(moments, axis):
     return weights
 
 
-def _masked_slope(times, values, mask):
-    """Least-squares slope of ``values`` against ``times`` over ``mask``, row by row (NaN rows: < 2 points)."""
-    t = np.where(mask, times, 0.0)
-    y = np.where(mask, values, 0.0)
-    count = mask.sum(axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        t_mean = t.sum(axis=1) / count
-        y_mean = y.sum(axis=1) / count
-        dt = np.where(mask, times - t_mean[:, None], 0.0)
-        dy = np.where(mask, values - y_mean[:, None], 0.0)
-        slope = (dt * dy).sum(axis=1) / (dt * dt).sum(axis=1)
-    return np.where(count >= 2, slope, np.nan)
-
-
 class GrowthFit(NamedTuple):
     """Per-sample exponential fits (arrays of shape (N,))."""
 
@@ -118,7 +104,7 @@ class GrowthFit(NamedTuple):
     code: np.ndarray  # int8, FIT_OK or FIT_SHORT_WINDOW
 
 
-def growth_rates(times, norms, saturation):
+def growth_rates(times, norms, saturation, *, row=None):
     """Exponential growth rate of each sample's scaled transverse norm, inside its linear regime.
 
     In the scaled coordinates (module docstring) the linearised motion gives
@@ -143,6 +129,8 @@ def growth_rates(times, norms, saturation):
         Scaled transverse norm (:func:`invariant_weights`), rad/s; NaN where a sample had stopped.
     saturation : float or ndarray (N,)
         End of the linear regime, rad/s (scaled norm).
+    row : ndarray of int, shape (N,), optional
+        With it, ``times`` is one row per time grid (R, P) and sample ``i`` was probed at ``times[row[i]]``.
 
     Returns
     -------
@@ -153,31 +141,26 @@ def growth_rates(times, norms, saturation):
     ValueError
         Times that are not equally spaced.
     """
-    norms = np.asarray(norms, dtype=float)
+    norms = np.ascontiguousarray(norms, dtype=float)
     n, p = norms.shape
-    times = np.broadcast_to(np.asarray(times, dtype=float), (n, p))
     if p < 3:
         raise ValueError(f"growth_rates needs at least 3 times, got {p}")
+    times = np.ascontiguousarray(np.asarray(times, dtype=float).reshape(-1, p))
+    if row is None:
+        row = np.zeros(n, dtype=np.int64) if len(times) == 1 else np.arange(n, dtype=np.int64)
     h = (times[:, -1] - times[:, 0]) / (p - 1)
     if not np.allclose(np.diff(times, axis=1), h[:, None], rtol=1e-9, atol=0.0):
         raise ValueError("growth_rates needs equally spaced times (linear prediction)")
-    saturation = np.broadcast_to(np.asarray(saturation, dtype=float), (n,))
-    finite = np.isfinite(norms) & (norms > 0)
-    beyond = ~finite | (norms > saturation[:, None])  # a stopped (NaN) sample is past its window too
-    stop = np.where(beyond.any(axis=1), beyond.argmax(axis=1), p)  # the window is [0, stop)
-    s = np.where(finite, norms, 1.0) ** 2
-    interior = np.arange(1, p - 1)[None, :] + 1 < stop[:, None]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        d = (s[:, 2:] + s[:, :-2] - 2.0 * s[:, 1:-1]) / (2.0 * s[:, 1:-1])
-        mean = np.where(interior, d, 0.0).sum(axis=1) / interior.sum(axis=1)
-        rate = np.arcsinh(np.sqrt(mean / 2.0)) / h
-    good = (stop >= MIN_POINTS) & (mean > 0) & np.isfinite(rate)
-    last = np.clip(stop - 1, 0, p - 1)
+    saturation = np.ascontiguousarray(np.broadcast_to(np.asarray(saturation, dtype=float), (n,)))
+    rate, points, code = np.empty(n), np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int8)
+    row = np.ascontiguousarray(row, dtype=np.int64)
+    fits.growth_fit(times, row, norms, saturation, MIN_POINTS, rate, points, code)
+    good = code == FIT_OK
+    last = np.clip(points - 1, 0, p - 1)
     rows = np.arange(n)
     nan = np.full(n, np.nan)
-    return GrowthFit(np.where(good, rate, nan), np.where(good, times[:, 0], nan), np.where(good, times[rows, last], nan),
-                     np.where(good, norms[:, 0], nan), np.where(good, norms[rows, last], nan),
-                     np.where(good, stop, 0), np.where(good, FIT_OK, FIT_SHORT_WINDOW).astype(np.int8))
+    return GrowthFit(rate, np.where(good, times[row, 0], nan), np.where(good, times[row, last], nan),
+                     np.where(good, norms[:, 0], nan), np.where(good, norms[rows, last], nan), points, code)
 
 
 class PhaseFit(NamedTuple):

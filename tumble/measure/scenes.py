@@ -127,7 +127,7 @@ def _neutral_plane(moments, a):
     return (a, d), abs(moments[e] - moments[a]) / moments[a]
 
 
-def _plan(moments, a, kind, value, spin, amplitude, method, dt, flips, w0_probe, horizon=None, spin_max=None):
+def _plan(moments, a, kind, value, spin, amplitude, method, dt, flips, probe_spins, horizon=None, spin_max=None):
     """Horizon, step and observation times of a scene.
 
     Observations (probes or stored states) are ``spacing`` apart, a whole number of steps: the growth estimator
@@ -156,6 +156,7 @@ def _plan(moments, a, kind, value, spin, amplitude, method, dt, flips, w0_probe,
         if flips and horizon:
             t_end = horizon
         elif flips:
+            w0_probe = probe_spins()
             first = exact.first_flip_time(moments, w0_probe)
             last = first + (flips - 1) * exact.flip_spacing(moments, w0_probe)
             last = last[np.isfinite(last)]
@@ -308,10 +309,12 @@ def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, metho
         span = horizon or PERIODS * 2 * np.pi / value
         spin_max = float(np.abs(spin + spin_up["gain"] * _spin_up_integrals(spin_up, np.linspace(0, span, 1001))[0])
                          .max())
-    w_probe = perturbed_spins(moments, axis, spin, amplitude, min(samples, CHUNK), seed=entropy,
-                              distribution=distribution)
+    def probe_spins():  # the first samples, whose flips set the horizon (drawn only when flips are timed)
+        return perturbed_spins(moments, axis, spin, amplitude, min(samples, CHUNK), seed=entropy,
+                               distribution=distribution)
+
     plan = _plan(moments, a, kind, value, spin, amplitude, chosen, dt, flips if kind == "exponential" else 0,
-                 w_probe, horizon, spin_max)
+                 probe_spins, horizon, spin_max)
     return {"moments": moments, "axis": axis, "spin": spin, "amplitude": amplitude, "samples": samples,
             "method": method, "chosen": chosen, "kind": kind, "value": value, "spin_up": spin_up,
             "torque": torque if spin_up is not None else None, "plan": plan,
@@ -485,7 +488,7 @@ def _closed_form_batch(scenes, grids, batch, parts, start):
         weights = each([s["plan"]["weights"] for s in per_sample])
         probes = np.sqrt(weights[everyone, b][:, None] * omega[everyone, :, b] ** 2
                          + weights[everyone, c][:, None] * omega[everyone, :, c] ** 2)
-        fit = analysis.growth_rates(times[row], probes, each([s["plan"]["saturation"] for s in per_sample]))
+        fit = analysis.growth_rates(times, probes, each([s["plan"]["saturation"] for s in per_sample]), row=row)
         results = {"rate": fit.rate, **{name: getattr(fit, name) for name in _GROWTH_FIT}}
         if first["flips"]:
             spacing = exact._flip_spacing(sol)
@@ -823,7 +826,7 @@ def invariant_drift(body, axis, spin=1.0, amplitude=1e-3, methods=tuple(STEPPING
     kind, value = theory.linear(moments, axis, spin)
     w0 = perturbed_spins(moments, axis, spin, amplitude, samples, seed=seed)
     t_end = horizon or _plan(moments, axis - 1, kind, value, spin, amplitude, "exact", None,
-                             2 if kind == "exponential" else 0, w0)["t_end"]
+                             2 if kind == "exponential" else 0, lambda: w0)["t_end"]
     l2_0 = np.sum((moments * w0) ** 2, axis=1)[:, None]
     e_0 = np.sum(moments * w0**2, axis=1)[:, None]
     l2, energy, steps = [], [], []
