@@ -635,3 +635,13 @@ def test_growth_kernel_agrees_with_its_numpy_formulation_on_every_outcome():
     np.testing.assert_array_equal(fit.points, points)
     assert {FIT_OK, FIT_SHORT_WINDOW} <= set(code.tolist())
     np.testing.assert_allclose(fit.rate, rate, rtol=1e-11, atol=0.0, equal_nan=True)
+
+
+def test_the_phase_fits_median_by_selection_is_numpys_median_with_ties_and_even_lengths():
+    from tumble.kernels.fits import _median_in_place
+
+    rng = np.random.default_rng(8)
+    for n in [*range(1, 30), 256, 257]:
+        for _ in range(20):
+            values = np.round(rng.normal(size=n), 1)  # many ties
+            assert _median_in_place(values.copy()) == np.median(values)

@@ -5,7 +5,8 @@ One pass over each sample's stored times: the scaled transverse components, thei
 phase unwrapped as it goes (the rule of ``numpy.unwrap``: a jump beyond π is taken modulo 2π), and the
 least-squares slope of phase against time about the mean time and the mean phase. The numpy formulation it
 replaced made eight full-size temporaries per call (``arctan2``, ``unwrap``, ``hypot``, masks and sums), about
-130 ns per sample and time; here it is one ``atan2`` and one ``hypot`` per point, in parallel over samples.
+130 ns per sample and time; here it is one ``atan2`` and one square root per point, in parallel over samples,
+and the median radius by selection in place.
 
 Kernels take plain float64 arrays and scalars and write into arrays they are given.
 """
@@ -24,6 +25,53 @@ FIT_OK = 0
 FIT_SHORT_WINDOW = 1
 FIT_NO_SIGNAL = 2
 FIT_UNDERSAMPLED = 3
+
+
+# Beyond these magnitudes x² + y² could overflow or lose precision to underflow: hypot there.
+_SQUARE_MAX = 1e150
+_SQUARE_MIN = 1e-150
+
+
+@jit(inline=True)
+def _radius(x, y):
+    """``sqrt(x² + y²)``: one square root where the squares are safe (a scaled perturbation's usual range),
+    ``math.hypot`` (a libm call, ten times the cost) outside it."""
+    m = max(abs(x), abs(y))
+    if _SQUARE_MIN < m < _SQUARE_MAX:
+        return math.sqrt(x * x + y * y)
+    return math.hypot(x, y)
+
+
+@jit
+def _median_in_place(a):
+    """Median of ``a`` (no NaN), reordering ``a``: Hoare's selection (FIND) of the middle element(s), no copy."""
+    n = a.shape[0]
+    k = (n - 1) // 2
+    lo, hi = 0, n - 1
+    while lo < hi:
+        pivot = a[(lo + hi) // 2]
+        i, j = lo, hi
+        while i <= j:
+            while a[i] < pivot:
+                i += 1
+            while a[j] > pivot:
+                j -= 1
+            if i <= j:
+                a[i], a[j] = a[j], a[i]
+                i += 1
+                j -= 1
+        if k <= j:
+            hi = j
+        elif k >= i:
+            lo = i
+        else:
+            break
+    if n % 2:
+        return a[k]
+    upper = a[k + 1]
+    for j in range(k + 2, n):  # the next order statistic: the smallest above position k
+        upper = min(upper, a[j])
+    return 0.5 * a[k] + 0.5 * upper
 
 
 @jit(parallel=True)
@@ -73,7 +121,7 @@ def phase_fit(times, row, states, columns, weights, floor, max_step, frequency, 
         for j in range(t_count):
             x = gb * states[i, j, b]
             y = gc * states[i, j, c]
-            r = math.hypot(x, y)
+            r = _radius(x, y)
             radii[j] = r
             smallest = min(smallest, r if math.isfinite(r) else 0.0)
             any_nan = any_nan or r != r
@@ -106,7 +154,7 @@ def phase_fit(times, row, states, columns, weights, floor, max_step, frequency, 
             dt = t[j] - t_mean
             sxy += dt * (phases[j] - phase_mean)
             sxx += dt * dt
-        radius[i] = np.nan if any_nan else np.median(radii)
+        radius[i] = np.nan if any_nan else _median_in_place(radii)
         if not finite or not smallest > floor[i]:
             code[i] = FIT_NO_SIGNAL
         elif steps_ok:
