@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from tumble.measure import precision
 from tumble.measure.precision import default_steps, speedups, time_to_error, work_precision
 
 TINY_STEPS = {"rk4": [8, 16, 32, 64], "splitting2": [8, 16, 32]}
@@ -15,9 +16,10 @@ TINY_RTOLS = [1e-3, 1e-6, 1e-9]
 
 @pytest.fixture(scope="module")
 def tiny():
-    """64 spins about the intermediate axis of (1, 2, 3) to t = 2 s: rk4, splitting2, exact, RK45, DOP853."""
+    """64 spins about the intermediate axis of (1, 2, 3) to t = 2 s: rk4, splitting2, exact, RK45, DOP853
+    (heyoka left out, whether installed or not: the closed form is the reference)."""
     return work_precision(samples=64, t_end=2.0, repeats=1, methods=["rk4", "splitting2"], steps=TINY_STEPS,
-                          rtols=TINY_RTOLS)
+                          rtols=TINY_RTOLS, heyoka_tols=())
 
 
 def test_tiny_run_has_the_documented_schema(tiny):
@@ -66,6 +68,43 @@ def test_splitting2_error_falls_at_second_order(tiny):
 
 def test_closed_form_is_accurate_to_round_off(tiny):
     assert 0 <= float(tiny.wp_error.sel(solver="exact")[0]) <= 1e-12
+
+
+def test_without_heyoka_the_closed_form_is_the_reference(tiny):
+    assert tiny.attrs["reference"].startswith("closed form")
+    assert tiny.attrs["heyoka"] in ("left out", "not installed (pip install 'tumble[bench]')")
+    assert math.isnan(tiny.attrs["reference_vs_exact_max"])
+
+
+def test_missing_heyoka_leaves_its_rows_out_with_a_note(monkeypatch):
+    monkeypatch.setattr(precision, "_import_heyoka", lambda: None)
+    ds = work_precision(samples=8, t_end=1.0, repeats=1, methods=["rk4"], steps=[8], scipy_methods=())
+    assert list(ds.solver.values) == ["rk4", "exact"]
+    assert ds.attrs["heyoka"].startswith("not installed")
+    assert ds.attrs["reference"].startswith("closed form")
+    with pytest.raises(ImportError, match="heyoka"):
+        work_precision(samples=8, t_end=1.0, repeats=1, methods=["rk4"], steps=[8], scipy_methods=(),
+                       heyoka_tols=[1e-6])
+
+
+def test_heyoka_is_a_peer_and_its_long_double_run_the_reference():
+    hy = pytest.importorskip("heyoka")
+    tols = [1e-3, 1e-7, 1e-11, 1e-15]
+    ds = work_precision(samples=50, t_end=5.0, repeats=1, methods=["rk4"], steps=[16, 64], scipy_methods=(),
+                        heyoka_tols=tols)
+    assert list(ds.solver.values) == ["rk4", "exact", "heyoka"]
+    assert str(ds.solver_kind.sel(solver="heyoka").values) == "heyoka"
+    assert ds.attrs["reference"].startswith("heyoka") and ds.attrs["heyoka_batch_size"] == hy.recommended_simd_size()
+    # the long-double reference and the closed form agree to round-off; the closed form's error is that distance
+    assert 0 < ds.attrs["reference_vs_exact_max"] < 1e-13
+    assert float(ds.wp_error.sel(solver="exact")[0]) == ds.attrs["reference_vs_exact_max"]
+    np.testing.assert_allclose(ds.wp_setting.sel(solver="heyoka")[:4], tols)
+    err = ds.wp_error.sel(solver="heyoka").values[:4]
+    assert (np.diff(err) < 0).all() and err[-1] < 1e-13, err
+    assert (ds.wp_steps.sel(solver="heyoka")[:4] > 0).all() and (ds.wp_wall.sel(solver="heyoka")[:4] > 0).all()
+    assert float(ds.compile_time.sel(solver="heyoka")) > 0
+    table = speedups(ds, errors=(1e-6,), baseline="heyoka")
+    assert np.isfinite(table.exact_speedup).all()
 
 
 def test_scipy_error_falls_as_rtol_tightens(tiny):

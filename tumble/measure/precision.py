@@ -7,24 +7,32 @@
 * the closed form (``tumble.integrate(..., method="exact")``, one point);
 * SciPy's ``solve_ivp`` (``RK45``, ``DOP853``) over a ladder of relative tolerances, on the *stacked*
   ensemble (one state vector of length ``3 N``) with a right-hand side written in numpy array operations —
-  the fastest way a SciPy user has to integrate many spins at once,
+  the fastest way a SciPy user has to integrate many spins at once;
+* heyoka's Taylor integrator in SIMD batch mode (``heyoka.taylor_adaptive_batch``, Biscani & Izzo 2021),
+  when heyoka is installed (the optional ``bench`` extra), over a ladder of tolerances,
 
-and measures, per point, the error at ``t_end`` against the exact solution (:func:`tumble.physics.exact.omega`)
-and the wall time (median of ``repeats`` runs, compile time excluded and reported separately).
-:func:`speedups` reads the resulting curves off at given errors and forms ratios against a baseline.
+and measures, per point, the error at ``t_end`` against a reference solution and the wall time (median of
+``repeats`` runs, compile time excluded and reported separately). :func:`speedups` reads the resulting
+curves off at given errors and forms ratios against a baseline.
 
 Error measure
 -------------
-Per sample ``i``: ``e_i = |w_i(t_end) - w_exact,i(t_end)| / |w_i(0)|`` (Euclidean norms, dimensionless).
+Per sample ``i``: ``e_i = |w_i(t_end) - w_ref,i(t_end)| / |w_i(0)|`` (Euclidean norms, dimensionless).
 ``wp_error`` is ``max_i e_i``, ``wp_error_median`` the median. The perturbed spins lie on a cone about the
 intermediate axis; the cone crosses the separatrix, so the worst sample is one whose motion is nearly
 heteroclinic and whose phase error is amplified most — the max is the hard, honest measure.
 
-The closed form is the reference, so its error against itself is zero by construction. Its point carries
-instead an *estimate* of its own error: the closed form composed over two halves,
-``omega(omega(w0, t_end/2), t_end/2)``, against ``omega(w0, t_end)`` (the flow property, which any
-round-off or parameter error breaks). The estimate is what it costs to trust the closed form: the
-error of the parameters (``K``, ``nu``) amplified by the flow, about 1e-14 … 1e-13 here.
+The reference, when heyoka is used, is heyoka's (non-batch) Taylor integrator in x87 *long double*
+(64-bit significand) at its default tolerance, the type's epsilon (1.1e-19), rounded to double: accurate to
+about 1e-16 (it agrees with the same run in heyoka's ``high_accuracy`` mode to 2e-16). It is computed once,
+not timed; its agreement with the closed form is recorded (attribute ``reference_vs_exact_max``, about 5e-15
+here), and the closed form's point carries its true error against it.
+
+Without heyoka the closed form (:func:`tumble.physics.exact.omega`) is the reference, so its error against
+itself is zero by construction. Its point carries instead an *estimate* of its own error: the closed form
+composed over two halves, ``omega(omega(w0, t_end/2), t_end/2)``, against ``omega(w0, t_end)`` (the flow
+property, which any round-off or parameter error breaks): about 1e-14 … 1e-13 here, pessimistic beside the
+long-double reference's 5e-15.
 
 SciPy settings
 --------------
@@ -34,10 +42,21 @@ over all ``3 N`` components, so one tolerance governs the whole ensemble: that i
 form gets. ``vectorized=False`` (the flag means several *time points* per call, not several samples), but
 the right-hand side computes all samples at once. SciPy runs in one thread; tumble's kernels use
 ``numba.get_num_threads()`` threads (recorded in the attributes).
+
+heyoka settings
+---------------
+``taylor_adaptive_batch`` on Euler's equations written as heyoka expressions (:func:`euler_heyoka`), batch
+size ``heyoka.recommended_simd_size()`` (4 doubles on AVX2), ``tol`` from the ladder (heyoka's one
+tolerance, relative and absolute; it also picks the Taylor order), ``propagate_until(t_end)`` per batch. The
+batches run over ``numba.get_num_threads()`` Python threads, one integrator each (heyoka releases the GIL
+while it integrates), so heyoka has the cores tumble has. Building the integrators (LLVM compilation) is
+the compile time, excluded from the wall time like numba's. A batch whose sample count does not fill the
+last batch is padded with copies of the last spin.
 """
 
 from __future__ import annotations
 
+import copy
 import datetime
 import math
 import os
@@ -45,6 +64,7 @@ import platform
 import sys
 import time
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 
 import numba
 import numpy as np
@@ -58,8 +78,8 @@ from ..physics import exact
 from ..physics.bodies import one_body
 from ..registry import STEPPING
 
-__all__ = ["ATOL_FACTOR", "DEFAULT_RTOLS", "SCIPY_METHODS", "default_steps", "euler_rhs_stacked", "speedups",
-           "time_to_error", "work_precision"]
+__all__ = ["ATOL_FACTOR", "DEFAULT_HEYOKA_TOLS", "DEFAULT_RTOLS", "SCIPY_METHODS", "default_steps", "euler_heyoka",
+           "euler_rhs_stacked", "heyoka_reference", "speedups", "time_to_error", "work_precision"]
 
 #: SciPy's absolute tolerance is ``rtol * ATOL_FACTOR * |spin|`` (rad/s): the transverse components start
 #: at ``amplitude * |spin|`` and the relative tolerance should govern, so atol sits well below them.
@@ -67,6 +87,9 @@ ATOL_FACTOR = 1e-3
 
 #: Default relative tolerances for SciPy: 1e-3 … 1e-13, one per decade.
 DEFAULT_RTOLS = tuple(10.0 ** -k for k in range(3, 14))
+
+#: Default tolerances for heyoka's Taylor integrator: 1e-3 … 1e-15, one per decade.
+DEFAULT_HEYOKA_TOLS = tuple(10.0 ** -k for k in range(3, 16))
 
 #: SciPy methods accepted: the explicit Runge–Kutta pairs (implicit ones would build a 3N × 3N Jacobian).
 SCIPY_METHODS = ("RK23", "RK45", "DOP853")
@@ -85,6 +108,7 @@ MAX_POINT_SECONDS = 3.0
 
 _EXACT = "exact"
 _SCIPY_PREFIX = "scipy_"
+_HEYOKA = "heyoka"
 
 
 # ------------------------------------------------------------------------------------------------- helpers
@@ -111,18 +135,22 @@ def default_steps(method, t_end=20.0):
 
 
 def _machine():
-    """CPU model (from /proc/cpuinfo where there is one), architecture and core count, as one line."""
-    model = None
+    """CPU model and vector width (from /proc/cpuinfo where there is one), architecture and core count."""
+    model, flags = None, set()
     try:
         with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
             for line in f:
-                if line.lower().startswith("model name"):
+                key = line.split(":", 1)[0].strip().lower()
+                if key == "model name" and model is None:
                     model = line.split(":", 1)[1].strip()
-                    break
+                elif key == "flags" and not flags:
+                    flags = set(line.split(":", 1)[1].split())
     except OSError:
         pass
+    width = "AVX-512" if "avx512f" in flags else "AVX2" if "avx2" in flags else "no AVX2"
     arch = platform.processor() or platform.machine()
-    return f"{model or 'unknown CPU'} ({arch}), {os.cpu_count()} logical cores, {platform.system()}"
+    cpu = f"{model or 'unknown CPU'}, {width}" if flags else model or "unknown CPU"
+    return f"{cpu} ({arch}), {os.cpu_count()} logical cores, {platform.system()}"
 
 
 def _errors(w, reference, norm0):
@@ -165,6 +193,124 @@ def euler_rhs_stacked(moments):
     return rhs
 
 
+def _import_heyoka():
+    """heyoka, or None when it is not installed (it is an optional benchmark dependency: the ``bench`` extra)."""
+    try:
+        import heyoka
+    except ImportError:
+        return None
+    return heyoka
+
+
+def euler_heyoka(moments, fp_type=float):
+    """Euler's equations as a heyoka ODE system, ``[(w1, (I2 - I3) / I1 * w2 * w3), ...]`` (cyclic).
+
+    Parameters
+    ----------
+    moments : ndarray, shape (3,)
+        Principal moments, kg m².
+    fp_type : type
+        Floating-point type of the integrator (``float`` or ``numpy.longdouble``). The coefficients
+        ``(I2 - I3) / I1`` and cyclic are computed in that type, so that a long-double integrator solves the
+        equations of the given moments, not those of coefficients rounded to double.
+
+    Returns
+    -------
+    list of (heyoka.expression, heyoka.expression)
+        The system over state variables ``w1, w2, w3`` (rad/s), for ``heyoka.taylor_adaptive[_batch]``.
+    """
+    hy = _import_heyoka()
+    if hy is None:
+        raise ImportError("euler_heyoka needs heyoka (pip install 'tumble[bench]' or pip install heyoka)")
+    i1, i2, i3 = (fp_type(x) for x in moments)
+    w1, w2, w3 = hy.make_vars("w1", "w2", "w3")
+    c1, c2, c3 = (hy.expression(fp_type(c)) for c in ((i2 - i3) / i1, (i3 - i1) / i2, (i1 - i2) / i3))
+    return [(w1, c1 * w2 * w3), (w2, c2 * w3 * w1), (w3, c3 * w1 * w2)]
+
+
+def heyoka_reference(moments, w0, t_end):
+    """Reference solution: heyoka's Taylor integrator in long double, one spin at a time, rounded to double.
+
+    Parameters
+    ----------
+    moments : ndarray, shape (3,)
+        Principal moments, kg m².
+    w0 : ndarray, shape (n, 3)
+        Initial body-frame angular velocities, rad/s.
+    t_end : float
+        Horizon, s.
+
+    Returns
+    -------
+    ndarray, shape (n, 3)
+        ``w(t_end)``, rad/s, from ``heyoka.taylor_adaptive(..., fp_type=numpy.longdouble)`` at heyoka's default
+        tolerance (the epsilon of long double, 1.1e-19 on x86); accurate to about 1e-16 relative here.
+
+    Raises
+    ------
+    ImportError
+        Without heyoka.
+    RuntimeError
+        If a propagation stops before ``t_end``.
+    """
+    hy = _import_heyoka()
+    if hy is None:
+        raise ImportError("heyoka_reference needs heyoka (pip install 'tumble[bench]' or pip install heyoka)")
+    ld = np.longdouble
+    ta = hy.taylor_adaptive(euler_heyoka(moments, ld), np.zeros(3, dtype=ld), fp_type=ld)
+    out = np.empty((len(w0), 3))
+    for i, w in enumerate(np.asarray(w0, dtype=float)):
+        ta.time = ld(0)
+        ta.state[:] = w
+        outcome = ta.propagate_until(ld(t_end))[0]
+        if outcome != hy.taylor_outcome.time_limit:
+            raise RuntimeError(f"heyoka long-double reference: sample {i} stopped with {outcome}")
+        out[i] = ta.state
+    return out
+
+
+def _heyoka_ensemble(moments, w0, t_end, tol, pool, threads):
+    """heyoka's batch-mode Taylor integrator over the ensemble: build (compile) now, run later on ``threads``
+    threads of ``pool`` (a ``ThreadPoolExecutor``, or None for one thread).
+
+    Returns ``run(record=False)``, which integrates every spin to ``t_end`` and returns ``w(t_end)`` of shape
+    ``(n, 3)``; with ``record=True`` it returns ``(w, steps, order)``: the most steps any sample took and the
+    Taylor order, and raises if a batch stopped before ``t_end``. ``run`` is timed without ``record``.
+    """
+    hy = _import_heyoka()
+    size = hy.recommended_simd_size()
+    n = len(w0)
+    batches = -(-n // size)
+    padded = np.concatenate([w0, np.repeat(w0[-1:], batches * size - n, axis=0)])
+    states = np.ascontiguousarray(padded.reshape(batches, size, 3).transpose(0, 2, 1))  # (batch, 3, lane)
+    first = hy.taylor_adaptive_batch(euler_heyoka(moments), np.zeros((3, size)), tol=tol)
+    integrators = [first] + [copy.deepcopy(first) for _ in range(threads - 1)]
+    out = np.empty_like(states)
+
+    def lane(k, record):
+        ta, steps = integrators[k], 0
+        for b in range(k, batches, threads):
+            ta.set_time(0.0)
+            ta.state[:] = states[b]
+            ta.propagate_until(t_end)
+            out[b] = ta.state
+            if record:
+                if any(r[0] != hy.taylor_outcome.time_limit for r in ta.propagate_res):
+                    raise RuntimeError(f"heyoka batch {b} (tol {tol:g}) stopped early: {ta.propagate_res}")
+                steps = max(steps, *(r[3] for r in ta.propagate_res))
+        return steps
+
+    def run(record=False):
+        if pool is None or threads == 1:
+            steps = [lane(0, record)]
+        else:
+            steps = list(pool.map(lane, range(threads), [record] * threads))
+        w = out.transpose(0, 2, 1).reshape(-1, 3)[:n]
+        return (w.copy(), max(steps), first.order) if record else w
+
+    return run
+
+
 def _check_positive_int(value, name):
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < 1:
         raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
@@ -202,8 +348,8 @@ def _say(progress, text):
 # ----------------------------------------------------------------------------------------- the benchmark
 def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, samples=2000, t_end=20.0, seed=0,
                    methods=None, steps=None, rtols=None, repeats=3, scipy_methods=("RK45", "DOP853"),
-                   progress=False):
-    """Work-precision data: wall time against error at ``t_end`` for tumble's integrators and SciPy.
+                   heyoka_tols=None, progress=False):
+    """Work-precision data: wall time against error at ``t_end`` for tumble's integrators, SciPy and heyoka.
 
     Parameters
     ----------
@@ -238,34 +384,46 @@ def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, sampl
         point of every solver in turn, so that load from other processes falls on all solvers alike.
     scipy_methods : sequence of str
         ``solve_ivp`` methods (of :data:`SCIPY_METHODS`); empty to leave SciPy out.
+    heyoka_tols : sequence of float, optional
+        Tolerances of heyoka's batch-mode Taylor integrator. Default: :data:`DEFAULT_HEYOKA_TOLS` (1e-3 …
+        1e-15) when heyoka is installed, else heyoka is left out (attribute ``heyoka`` says so). Empty to
+        leave heyoka out; tolerances given explicitly need heyoka. With heyoka, the reference of every error
+        is heyoka's long-double run (:func:`heyoka_reference`); without, the closed form.
     progress : bool
         Print one line per point to standard error.
 
     Returns
     -------
     xarray.Dataset
-        Dimensions ``solver`` (tumble method names, ``"exact"``, ``"scipy_<method>"``) and ``wp_point``
-        (index along each solver's curve, NaN-padded):
+        Dimensions ``solver`` (tumble method names, ``"exact"``, ``"scipy_<method>"``, ``"heyoka"``) and
+        ``wp_point`` (index along each solver's curve, NaN-padded):
 
-        * ``wp_error(solver, wp_point)``: max over samples of ``|w - w_exact| / |w0|`` at ``t_end``;
+        * ``wp_error(solver, wp_point)``: max over samples of ``|w - w_ref| / |w0|`` at ``t_end``;
         * ``wp_error_median(solver, wp_point)``: the median over samples;
         * ``wp_wall(solver, wp_point)``: wall time, s (median of ``repeats``, compile time excluded);
-        * ``wp_setting(solver, wp_point)``: ``dt`` (s) for tumble methods, ``rtol`` for SciPy, NaN for exact;
-        * ``wp_steps(solver, wp_point)``: steps taken (accepted steps for SciPy; NaN for exact);
+        * ``wp_setting(solver, wp_point)``: ``dt`` (s) for tumble methods, ``rtol`` for SciPy, ``tol`` for
+          heyoka, NaN for exact;
+        * ``wp_steps(solver, wp_point)``: steps taken (accepted steps for SciPy, most steps of any sample for
+          heyoka; NaN for exact);
         * ``wp_nfev(solver, wp_point)``: right-hand-side evaluations (SciPy only, else NaN);
-        * ``compile_time(solver)``: first call of each tumble method (compile or cache load), s; 0 for SciPy;
-        * ``solver_kind(solver)``: ``"tumble"``, ``"exact"`` or ``"scipy"``; ``order(solver)``: nominal
-          order (NaN for exact and SciPy).
+        * ``compile_time(solver)``: first call of each tumble method (compile or cache load), s; building
+          every integrator of heyoka's ladder (LLVM); 0 for SciPy;
+        * ``solver_kind(solver)``: ``"tumble"``, ``"exact"``, ``"scipy"`` or ``"heyoka"``; ``order(solver)``:
+          nominal order (NaN for exact, SciPy and heyoka, whose Taylor order follows the tolerance).
 
-        Attributes describe the ensemble, the machine, numba threads, versions and the date, and what the
-        closed-form point's time is made of: ``exact_omega_wall_s`` (:func:`tumble.physics.exact.omega` alone) and
-        ``integrate_one_step_rk4_wall_s`` (``tumble.integrate`` with one rk4 step: its fixed cost; NaN
-        without rk4).
+        Attributes describe the ensemble, the machine, threads, versions and the date; the reference
+        (``reference``, ``reference_wall_s``, ``reference_vs_exact_max`` and ``_median``: its distance to the
+        closed form, NaN when the closed form is the reference); heyoka's use (``heyoka``) and what the
+        closed-form point's time is made of: ``exact_omega_wall_s`` (:func:`tumble.physics.exact.omega`
+        alone) and ``integrate_one_step_rk4_wall_s`` (``tumble.integrate`` with one rk4 step: its fixed cost;
+        NaN without rk4).
 
     Raises
     ------
     ValueError
         Invalid body, ensemble, horizon, methods, step counts, tolerances or repeats.
+    ImportError
+        ``heyoka_tols`` given (not empty) without heyoka installed.
     """
     moments = one_body(body)
     samples = _check_positive_int(samples, "samples")
@@ -285,11 +443,29 @@ def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, sampl
     if scipy_methods and (rtols.size == 0 or not np.all(np.isfinite(rtols)) or np.any(rtols <= 0)):
         raise ValueError(f"rtols must be a non-empty sequence of finite numbers > 0, got {rtols!r}")
     rtols = np.sort(rtols)[::-1]  # loose to tight
+    hy = _import_heyoka()
+    if heyoka_tols is None:
+        heyoka_tols = DEFAULT_HEYOKA_TOLS if hy is not None else ()
+    heyoka_tols = np.sort(np.asarray(heyoka_tols, dtype=float).reshape(-1))[::-1]
+    if heyoka_tols.size and not (np.all(np.isfinite(heyoka_tols)) and np.all(heyoka_tols > 0)):
+        raise ValueError(f"heyoka_tols must be finite numbers > 0, got {heyoka_tols!r}")
+    if heyoka_tols.size and hy is None:
+        raise ImportError("heyoka_tols given but heyoka is not installed (pip install 'tumble[bench]')")
+    use_heyoka = bool(heyoka_tols.size)
     ladders = _step_ladders(methods, steps, t_end)
 
     w0 = perturbed_spins(moments, axis, spin, amplitude, samples, seed=seed)
     norm0 = np.linalg.norm(w0, axis=1)
-    reference = exact.omega(moments, w0, np.array([t_end]))[:, -1, :]
+    started = time.perf_counter()
+    if use_heyoka:
+        reference = heyoka_reference(moments, w0, t_end)
+        about_reference = "heyoka taylor_adaptive in long double (tol = its epsilon), rounded to double"
+    else:
+        reference = exact.omega(moments, w0, np.array([t_end]))[:, -1, :]
+        about_reference = "closed form (tumble.physics.exact.omega); heyoka " + (
+            "left out" if hy is not None else "not installed")
+    reference_wall = time.perf_counter() - started
+    _say(progress, f"  reference: {about_reference} ({reference_wall:.2f} s)")
 
     curves = {}  # solver -> list of dict(error, error_median, wall, setting, steps, nfev)
     timers = {}  # solver -> list of (callable, wall times of its runs)
@@ -342,12 +518,18 @@ def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, sampl
 
     wall, ds = timed(exact_run)
     w_exact = ds.omega.values[:, -1, :]
-    halves = exact.omega(moments, exact.omega(moments, w0, np.array([0.5 * t_end]))[:, -1, :],
-                         np.array([0.5 * t_end]))[:, -1, :]
-    err, err_med = _errors(halves, w_exact, norm0)
+    if use_heyoka:  # the closed form's true error
+        err, err_med = _errors(w_exact, reference, norm0)
+        reference_vs_exact = (err, err_med)
+    else:  # an estimate: the flow property over two halves of t_end
+        halves = exact.omega(moments, exact.omega(moments, w0, np.array([0.5 * t_end]))[:, -1, :],
+                             np.array([0.5 * t_end]))[:, -1, :]
+        err, err_med = _errors(halves, w_exact, norm0)
+        reference_vs_exact = (math.nan, math.nan)
     curves[_EXACT] = [dict(error=err, error_median=err_med, wall=wall, setting=np.nan, steps=np.nan, nfev=np.nan)]
     timers[_EXACT] = [(exact_run, [wall])]
-    _say(progress, f"  {_EXACT:18s} error estimate {err:.2e} (median {err_med:.2e})  {wall:.4f} s")
+    what = "error" if use_heyoka else "error estimate"
+    _say(progress, f"  {_EXACT:18s} {what} {err:.2e} (median {err_med:.2e})  {wall:.4f} s")
     # What the closed-form point's time is made of: the bare closed form, and integrate()'s own cost
     # (validation, Dataset) measured on a one-step rk4 run of the same ensemble.
     parts = {"exact_omega": [(lambda: exact.omega(moments, w0, np.array([t_end])), [])]}
@@ -382,6 +564,25 @@ def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, sampl
                                f"{wall:.4f} s  ({len(sol.t) - 1} steps, {sol.nfev} f-evals)")
             curves[name], timers[name] = points, runs
 
+    # --- heyoka's batch-mode Taylor integrator ----------------------------------------------------------------
+    threads = int(numba.get_num_threads())
+    pool = ThreadPoolExecutor(threads) if use_heyoka and threads > 1 else None
+    if use_heyoka:
+        compile_time[_HEYOKA] = 0.0
+        points, runs = [], []
+        for tol in heyoka_tols:
+            build, one_run = timed(lambda tol=tol: _heyoka_ensemble(moments, w0, t_end, float(tol), pool, threads))
+            compile_time[_HEYOKA] += build
+            w_end, n_steps, order = one_run(record=True)  # not timed: with bookkeeping, and starts the threads
+            wall, _ = timed(one_run)
+            err, err_med = _errors(w_end, reference, norm0)
+            points.append(dict(error=err, error_median=err_med, wall=wall, setting=float(tol), steps=n_steps,
+                               nfev=np.nan))
+            runs.append((one_run, [wall]))
+            _say(progress, f"  {_HEYOKA:18s} tol={tol:.0e}  error {err:.2e} (median {err_med:.2e})  "
+                           f"{wall:.4f} s  (order {order}, {n_steps} steps, build {build:.3f} s)")
+        curves[_HEYOKA], timers[_HEYOKA] = points, runs
+
     # --- passes 2 … repeats, then medians --------------------------------------------------------------------
     for runs in parts.values():  # the parts had no first pass
         for fn, walls in runs:
@@ -395,11 +596,29 @@ def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, sampl
         for point, (_, walls) in zip(curves[solver], runs):
             point["wall"] = float(np.median(walls))
     extra = {name: float(np.median(runs[0][1])) for name, runs in parts.items()}
+    if pool is not None:
+        pool.shutdown()
 
     ds = _dataset(curves, compile_time, methods, moments, axis, spin, amplitude, samples, t_end, seed, repeats)
     ds.attrs.update(exact_omega_wall_s=extra["exact_omega"],
-                    integrate_one_step_rk4_wall_s=extra.get("integrate_one_step_rk4", math.nan))
+                    integrate_one_step_rk4_wall_s=extra.get("integrate_one_step_rk4", math.nan),
+                    reference=about_reference, reference_wall_s=reference_wall,
+                    reference_vs_exact_max=reference_vs_exact[0], reference_vs_exact_median=reference_vs_exact[1])
+    if use_heyoka:
+        ds.attrs.update(heyoka=f"heyoka {hy.__version__}: taylor_adaptive_batch, batch size "
+                               f"{hy.recommended_simd_size()}, {threads} thread(s)",
+                        heyoka_threads=threads, heyoka_batch_size=int(hy.recommended_simd_size()))
+    else:
+        ds.attrs["heyoka"] = "left out" if hy is not None else "not installed (pip install 'tumble[bench]')"
     return ds
+
+
+def _kind(solver):
+    if solver in STEPPING:
+        return "tumble"
+    if solver in (_EXACT, _HEYOKA):
+        return solver
+    return "scipy"
 
 
 def _dataset(curves, compile_time, methods, moments, axis, spin, amplitude, samples, t_end, seed, repeats):
@@ -411,31 +630,35 @@ def _dataset(curves, compile_time, methods, moments, axis, spin, amplitude, samp
         for j, point in enumerate(curves[s]):
             for f in fields:
                 table[f][i, j] = point[f]
-    kind = ["tumble" if s in STEPPING else _EXACT if s == _EXACT else "scipy" for s in solvers]
+    kind = [_kind(s) for s in solvers]
     order = [float(registry.method(s).order) if s in STEPPING else np.nan for s in solvers]
     dims = ("solver", "wp_point")
     data = {
         "wp_error": (dims, table["error"], {
-            "units": "1", "long_name": "max over samples of |w - w_exact| / |w0| at t_end",
-            "comment": "for 'exact': estimate, the closed form composed over two halves of t_end against "
-                       "one evaluation over t_end"}),
+            "units": "1", "long_name": "max over samples of |w - w_ref| / |w0| at t_end",
+            "comment": "reference: attribute 'reference'; when it is the closed form, the error of 'exact' is "
+                       "an estimate, the closed form composed over two halves of t_end against one evaluation "
+                       "over t_end"}),
         "wp_error_median": (dims, table["error_median"], {
-            "units": "1", "long_name": "median over samples of |w - w_exact| / |w0| at t_end"}),
+            "units": "1", "long_name": "median over samples of |w - w_ref| / |w0| at t_end"}),
         "wp_wall": (dims, table["wall"], {
             "units": "s", "long_name": "wall time of one ensemble run",
             "comment": f"median of {repeats} runs (time.perf_counter) taken in {repeats} interleaved passes "
                        "over all solvers; compile time excluded"}),
         "wp_setting": (dims, table["setting"], {
-            "units": "s (tumble methods: step dt); 1 (scipy: rtol)",
-            "long_name": "step dt (tumble) or relative tolerance rtol (scipy); NaN for exact",
+            "units": "s (tumble methods: step dt); 1 (scipy: rtol; heyoka: tol)",
+            "long_name": "step dt (tumble), relative tolerance rtol (scipy) or tolerance tol (heyoka); NaN "
+                         "for exact",
             "comment": f"scipy atol = rtol * {ATOL_FACTOR:g} * |spin| rad/s"}),
         "wp_steps": (dims, table["steps"], {
-            "units": "1", "long_name": "steps (fixed steps for tumble, accepted steps for scipy)"}),
+            "units": "1", "long_name": "steps (fixed steps for tumble, accepted steps for scipy, most steps of "
+                                       "any sample for heyoka)"}),
         "wp_nfev": (dims, table["nfev"], {
             "units": "1", "long_name": "right-hand-side evaluations (scipy only)"}),
         "compile_time": ("solver", np.array([compile_time.get(s, 0.0) for s in solvers]), {
-            "units": "s", "long_name": "first call (compile or cache load), excluded from wp_wall; 0 for scipy"}),
-        "solver_kind": ("solver", np.array(kind), {"units": "1", "long_name": "tumble, exact or scipy"}),
+            "units": "s", "long_name": "first call (compile or cache load), excluded from wp_wall; 0 for scipy",
+            "comment": "heyoka: building the integrators of its whole tolerance ladder (LLVM)"}),
+        "solver_kind": ("solver", np.array(kind), {"units": "1", "long_name": "tumble, exact, scipy or heyoka"}),
         "order": ("solver", np.array(order), {"units": "1", "long_name": "nominal order of the fixed-step method"}),
     }
     coords = {
@@ -550,7 +773,7 @@ def speedups(ds, errors=(1e-4, 1e-7, 1e-10), baseline="scipy_DOP853"):
     if "solver_kind" in ds:
         kinds = [str(k) for k in ds["solver_kind"].values]
     else:
-        kinds = ["tumble" if s in STEPPING else _EXACT if s == _EXACT else "scipy" for s in solvers]
+        kinds = [_kind(s) for s in solvers]
     tumble_rows = [i for i, k in enumerate(kinds) if k == "tumble"]
     best, best_ratio = [], []
     for j in range(targets.size):

@@ -549,11 +549,11 @@ def _check_work_precision(ds):
 
 @_figure(_check_work_precision)
 def work_precision(ds):
-    """Relative error at the final time against median wall time (log-log), one curve per solver; SciPy
-    solvers dashed with open markers, the closed form ("exact") a star.
+    """Relative error at the final time against median wall time (log-log), one curve per solver; the peers
+    (SciPy, heyoka) dashed with open markers, the closed form ("exact") a star.
 
     Reads ``wp_error`` and ``wp_wall`` along ``solver`` and ``wp_point`` (NaN padding skipped); optional
-    ``solver_kind`` ("tumble", "exact", "scipy"; else a name starting "scipy" is SciPy) and attributes
+    ``solver_kind`` ("tumble", "exact", "scipy", "heyoka"; else a name starting "scipy" is SciPy) and attributes
     ``samples`` and ``t_end`` for the title.
     """
     where = _first_with_data(ds["wp_error"], ("solver", "wp_point"))
@@ -571,9 +571,9 @@ def work_precision(ds):
         if solver == "exact":
             handles += ax.plot(*points, ls="none", marker="*", ms=9, color="k", label="exact (closed form)")
         else:
-            scipy = kinds[j] == "scipy"
-            handles += ax.plot(*points, color=f"C{j % 10}", ls="--" if scipy else "-",
-                               marker="osD^v<>ph"[j % 9], mfc="none" if scipy else f"C{j % 10}", label=solver)
+            peer = kinds[j] in ("scipy", "heyoka")
+            handles += ax.plot(*points, color=f"C{j % 10}", ls="--" if peer else "-",
+                               marker="osD^v<>ph"[j % 9], mfc="none" if peer else f"C{j % 10}", label=solver)
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("median wall time (s)")

@@ -612,6 +612,9 @@ def summary_table(ds, limit=24):
         for i, error in enumerate(fast.error.values):
             lines.append(f"{error:8.0e} {str(fast.best_tumble.values[i]):>20s} "
                          f"{float(fast.best_tumble_speedup[i]):9.1f} {float(fast.exact_speedup[i]):15.1f}")
+        if "heyoka" not in [str(s) for s in ds["solver"].values]:
+            lines.append("heyoka not installed: no heyoka curve, errors against the closed form "
+                         "(pip install 'tumble[bench]')")
     bad = int(np.count_nonzero(~np.isfinite(rate)))
     if bad:
         lines.append(f"{bad} scene(s) gave no rate: every sample was excluded (see sample_status)")
