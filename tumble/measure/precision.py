@@ -3,8 +3,9 @@
 :func:`work_precision` integrates one ensemble of perturbed spins to ``t_end`` with
 
 * every fixed-step tumble method (:data:`tumble.registry.STEPPING`) over a geometric ladder of step
-  counts, each run through :func:`tumble.integrate`;
-* the closed form (``tumble.integrate(..., method="exact")``, one point);
+  counts, each run through :func:`tumble.propagate` (the array API: the final spins, no Dataset, as the
+  peers return arrays);
+* the closed form (``tumble.propagate(..., method="exact")``, one point);
 * SciPy's ``solve_ivp`` (``RK45``, ``DOP853``) over a ladder of relative tolerances, on the *stacked*
   ensemble (one state vector of length ``3 N``) with a right-hand side written in numpy array operations —
   the fastest way a SciPy user has to integrate many spins at once;
@@ -72,7 +73,7 @@ import xarray as xr
 
 from .. import registry
 from .._version import __version__
-from ..engine.integration import integrate
+from ..engine.integration import _step_plan, integrate, propagate
 from ..engine.sampling import perturbed_spins
 from ..physics import exact
 from ..physics.bodies import one_body
@@ -483,7 +484,7 @@ def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, sampl
 
     # --- tumble fixed-step methods -------------------------------------------------------------------------
     for m in methods:
-        compile_time[m], _ = timed(lambda m=m: integrate(moments, w0[:2], t_end / 4, t_end / 4, method=m))
+        compile_time[m], _ = timed(lambda m=m: propagate(moments, w0[:2], t_end / 4, t_end / 4, method=m))
         counts, adaptive = ladders[m]
         points, runs = [], []
         for n in counts:
@@ -496,12 +497,12 @@ def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, sampl
             def one_run(m=m, dt=dt):
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore", RuntimeWarning)  # coarse steps may blow up: error inf
-                    return integrate(moments, w0, t_end, dt, method=m)
+                    return propagate(moments, w0, t_end, dt, method=m)
 
-            wall, ds = timed(one_run)
-            err, err_med = _errors(ds.omega.values[:, -1, :], reference, norm0)
-            points.append(dict(error=err, error_median=err_med, wall=wall, setting=float(ds.attrs["dt"]),
-                               steps=int(ds.attrs["n_steps"]), nfev=np.nan))
+            wall, w_end = timed(one_run)
+            err, err_med = _errors(w_end, reference, norm0)
+            steps, step = _step_plan(t_end, dt)
+            points.append(dict(error=err, error_median=err_med, wall=wall, setting=step, steps=steps, nfev=np.nan))
             runs.append((one_run, [wall]))
             _say(progress, f"  {m:18s} n={n:7d} dt={dt:.3e} s  error {err:.2e} (median {err_med:.2e})  "
                            f"{wall:.4f} s")
@@ -511,13 +512,12 @@ def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, sampl
         curves[m], timers[m] = points, runs
 
     # --- the closed form ------------------------------------------------------------------------------------
-    compile_time[_EXACT], _ = timed(lambda: integrate(moments, w0[:2], t_end, t_end, method=_EXACT))
+    compile_time[_EXACT], _ = timed(lambda: propagate(moments, w0[:2], t_end, t_end, method=_EXACT))
 
     def exact_run():
-        return integrate(moments, w0, t_end, t_end, method=_EXACT)
+        return propagate(moments, w0, t_end, t_end, method=_EXACT)
 
-    wall, ds = timed(exact_run)
-    w_exact = ds.omega.values[:, -1, :]
+    wall, w_exact = timed(exact_run)
     if use_heyoka:  # the closed form's true error
         err, err_med = _errors(w_exact, reference, norm0)
         reference_vs_exact = (err, err_med)
@@ -530,8 +530,8 @@ def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, sampl
     timers[_EXACT] = [(exact_run, [wall])]
     what = "error" if use_heyoka else "error estimate"
     _say(progress, f"  {_EXACT:18s} {what} {err:.2e} (median {err_med:.2e})  {wall:.4f} s")
-    # What the closed-form point's time is made of: the bare closed form, and integrate()'s own cost
-    # (validation, Dataset) measured on a one-step rk4 run of the same ensemble.
+    # Beside the points (timed through the array API): the bare closed form, and what tumble.integrate (a
+    # Dataset) costs on top of the kernels, measured on a one-step rk4 run of the same ensemble.
     parts = {"exact_omega": [(lambda: exact.omega(moments, w0, np.array([t_end])), [])]}
     if "rk4" in methods:
         parts["integrate_one_step_rk4"] = [(lambda: integrate(moments, w0, t_end, t_end, method="rk4"), [])]
