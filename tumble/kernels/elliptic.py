@@ -82,7 +82,8 @@ from numba.extending import intrinsic
 from .jit import jit
 from .trig import _C1, _C2, _C3, _C4, _C5, _C6, _S1, _S2, _S3, _S4, _S5, _S6, _fma
 
-__all__ = ["KC_HYPERBOLIC", "agm", "carlson_rf", "jacobi_sncndn", "torque_free_omega", "torque_free_setup"]
+__all__ = ["KC_HYPERBOLIC", "agm", "carlson_rf", "jacobi_sncndn", "torque_free_invariants", "torque_free_omega",
+           "torque_free_setup"]
 
 #: Below this complementary modulus the hyperbolic series is used (11 terms a side just below 0.5, 3 at
 #: k' = 1e-3, 2 at 1e-8); above it the Landen/AGM recursion (<= 6 steps), whose ``cn`` on
@@ -298,7 +299,84 @@ def jacobi_sncndn(u, kc, out):
         out[i, 2] = dn
 
 
-@jit
+@jit(inline=True)
+def _two_sum(a, b):
+    """``a + b = s + e`` exactly (Knuth, TAOCP vol. 2 §4.2.2): no multiply, so fast-math ``contract`` cannot
+    touch it, and ``reassoc`` is not among tumble's flags."""
+    s = a + b
+    bb = s - a
+    return s, (a - (s - bb)) + (b - bb)
+
+
+@jit(inline=True)
+def _two_prod(a, b):
+    """``a b = p + e`` exactly, by one fused multiply-add (whatever the fast-math flags)."""
+    p = a * b
+    return p, _fma(a, b, -p)
+
+
+@jit(inline=True)
+def _dd_term(inertia, diff_hi, diff_lo, w):
+    """``inertia * (diff_hi + diff_lo) * w * w`` as a double-double."""
+    hi, lo = _two_prod(w, w)
+    p, e = _two_prod(hi, inertia)
+    hi, lo = _two_sum(p, e + lo * inertia)
+    p, e = _two_prod(hi, diff_hi)
+    return _two_sum(p, e + (lo * diff_hi + hi * diff_lo))
+
+
+@jit(parallel=True)
+def torque_free_invariants(moments, w, I, perm, parity, moment_scale, spin_scale, delta):
+    """Per sample: the sorted, scaled moments and the correctly rounded ``L² - 2E I2`` of the scaled spin — what
+    :func:`torque_free_setup` needs, for bodies and spins given one per row.
+
+    With the moments sorted (a stable sort: ties keep their order) as ``I1 <= I2 <= I3`` and both moments and
+    spin divided by powers of two (exact; :data:`moment_scale`, :data:`spin_scale`: ``|w| / spin_scale < 1``),
+    ``L² - 2E I2 = I3 (I3 - I2) w3² - I1 (I2 - I1) w1²`` is formed in double-double arithmetic (Dekker's
+    products by fused multiply-add, Knuth's sums), so that it keeps its sign and relative accuracy however close
+    the spin is to the separatrix.
+
+    Parameters
+    ----------
+    moments, w : ndarray, shape (n, 3)
+        Principal moments (kg m², validated) and body-frame spins (rad/s), one sample per row.
+    I : ndarray, shape (n, 3)
+        Receives the sorted moments divided by ``moment_scale``.
+    perm : ndarray of int64, shape (n, 3)
+        Receives the sorting permutation (``perm[i, j]``: the axis holding sorted moment ``j``).
+    parity : ndarray, shape (n,)
+        Receives +1 for an even permutation, -1 for an odd one.
+    moment_scale, spin_scale, delta : ndarray, shape (n,)
+        Receive the powers of two and ``L² - 2E I2`` of the scaled spin and moments.
+    """
+    for i in numba.prange(w.shape[0]):
+        a, b, c = 0, 1, 2  # a stable sort of three: strict comparisons never swap equal moments
+        if moments[i, a] > moments[i, b]:
+            a, b = b, a
+        if moments[i, b] > moments[i, c]:
+            b, c = c, b
+        if moments[i, a] > moments[i, b]:
+            a, b = b, a
+        perm[i, 0], perm[i, 1], perm[i, 2] = a, b, c
+        even = (a, b, c) == (0, 1, 2) or (a, b, c) == (1, 2, 0) or (a, b, c) == (2, 0, 1)
+        parity[i] = 1.0 if even else -1.0
+        ms = math.ldexp(1.0, math.frexp(moments[i, c])[1])
+        ss = math.ldexp(1.0, math.frexp(max(abs(w[i, 0]), abs(w[i, 1]), abs(w[i, 2])))[1])
+        moment_scale[i] = ms
+        spin_scale[i] = ss
+        I1, I2, I3 = moments[i, a] / ms, moments[i, b] / ms, moments[i, c] / ms
+        I[i, 0], I[i, 1], I[i, 2] = I1, I2, I3
+        w1, w3 = w[i, a] / ss, w[i, c] / ss
+        d32h, d32l = _two_sum(I3, -I2)
+        d21h, d21l = _two_sum(I2, -I1)
+        ah, al = _dd_term(I3, d32h, d32l, w3)
+        bh, bl = _dd_term(I1, d21h, d21l, w1)
+        s, e = _two_sum(ah, -bh)
+        dh, dl = _two_sum(s, e + (al - bl))
+        delta[i] = dh + dl
+
+
+@jit(parallel=True)
 def torque_free_setup(I, perm, parity, w, spin_scale, delta, kind, amp, cols, kc, m, K, phase0, nu, e2, L2):
     """Per-sample parameters of the torque-free motion (Landau & Lifshitz §37) for torque_free_omega.
 
@@ -336,7 +414,7 @@ def torque_free_setup(I, perm, parity, w, spin_scale, delta, kind, amp, cols, kc
     e2, L2 : ndarray, shape (n,)
         Receive ``2E`` and ``L²`` of the scaled spins.
     """
-    for i in range(w.shape[0]):
+    for i in numba.prange(w.shape[0]):
         I1, I2, I3 = I[i, 0], I[i, 1], I[i, 2]
         p0, p1, p2 = perm[i, 0], perm[i, 1], perm[i, 2]
         sc = spin_scale[i]

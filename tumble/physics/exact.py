@@ -25,8 +25,8 @@ The elliptic parameter approaches 1 as the spin approaches the separatrix, and e
 there is a *small difference*: ``k'² = 1 - m``, ``L² - 2E I2``, and the components ``cn u, dn u ~ k'`` of a
 spin near the intermediate axis. None of them is formed by subtraction here:
 
-* ``L² - 2E I2 = I3 (I3 - I2) w3² - I1 (I2 - I1) w1²`` is evaluated in double-double arithmetic (Dekker's
-  error-free products and Knuth's two-sum), so it is correctly rounded even on heavy cancellation;
+* ``L² - 2E I2 = I3 (I3 - I2) w3² - I1 (I2 - I1) w1²`` is evaluated in double-double arithmetic (error-free
+  products by fused multiply-add and Knuth's two-sum, :func:`tumble.kernels.elliptic.torque_free_invariants`), so it is correctly rounded even on heavy cancellation;
   ``2E I3 - L²`` and ``L² - 2E I1`` are sums of terms of one sign;
 * the complementary modulus comes directly from those, ``k'² = (I3 - I1)(L² - 2E I2) / ((I3 - I2)(L² -
   2E I1))``, never as ``sqrt(1 - m)``;
@@ -137,52 +137,6 @@ class EllipticParameters(NamedTuple):
 
 
 # ---------------------------------------------------------------------------------------------------
-# double-double helpers (Dekker 1971; Knuth TAOCP vol. 2 §4.2.2), numpy-vectorised
-_SPLITTER = 134217729.0  # 2**27 + 1
-
-
-def _split(a):
-    t = _SPLITTER * a
-    hi = t - (t - a)
-    return hi, a - hi
-
-
-def _two_prod(a, b):
-    p = a * b
-    ah, al = _split(a)
-    bh, bl = _split(b)
-    return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
-
-
-def _two_sum(a, b):
-    s = a + b
-    bb = s - a
-    return s, (a - (s - bb)) + (b - bb)
-
-
-def _dd_mul_d(hi, lo, b):
-    p, e = _two_prod(hi, b)
-    e = e + lo * b
-    return _two_sum(p, e)
-
-
-def _dd_sub(ahi, alo, bhi, blo):
-    s, e = _two_sum(ahi, -bhi)
-    e = e + (alo - blo)
-    return _two_sum(s, e)
-
-
-def _dd_term(inertia, diff_hi, diff_lo, w):
-    """``inertia * diff * w * w`` in double-double, diff given as double-double."""
-    hi, lo = _two_prod(w, w)
-    hi, lo = _dd_mul_d(hi, lo, inertia)
-    # times (diff_hi + diff_lo)
-    p, e = _two_prod(hi, diff_hi)
-    e = e + (lo * diff_hi + hi * diff_lo)
-    return _two_sum(p, e)
-
-
-# ---------------------------------------------------------------------------------------------------
 class _Solution(NamedTuple):
     shape: tuple
     kind: np.ndarray  # (n,) int64
@@ -223,43 +177,28 @@ def _solve(body, w0):
     return sol._replace(shape=shape, mid_axis=int(np.argsort(moments, kind="stable")[1]))
 
 
-_EVEN = np.array([[0, 1, 2], [1, 2, 0], [2, 0, 1]])
-
-
 def solve_rows(moments, w):
     """The closed form's per-sample set-up for spins ``w`` (n, 3) of bodies ``moments`` (n, 3), one body per row
     (validated by the caller): what :func:`omega_rows` evaluates, computed once per sample.
 
     Returns a private ``_Solution`` (fields per sample; ``shape = (n,)``, ``mid_axis`` per sample).
     """
-    moments = np.asarray(moments, dtype=float)
+    moments = np.ascontiguousarray(moments, dtype=float)
+    w = np.ascontiguousarray(w, dtype=float)
     n = w.shape[0]
-    perm = np.argsort(moments, axis=1, kind="stable")
-    parity = np.where((perm[:, None, :] == _EVEN[None]).all(axis=2).any(axis=1), 1.0, -1.0)  # even/odd
-    # Euler's equations are homogeneous: w(t) -> c w(c t) and I -> c I map solutions to solutions. Work
-    # with moments and spins divided by powers of two (exact), so that no invariant under- or overflows.
-    moment_scale = np.ldexp(1.0, np.frexp(moments.max(axis=1))[1])
-    spin_scale = np.ldexp(1.0, np.frexp(np.abs(w).max(axis=1))[1])  # (n,); |w| / spin_scale < 1
-    I_sorted = np.ascontiguousarray(np.take_along_axis(moments, perm, axis=1) / moment_scale[:, None])
-    I1, I2, I3 = I_sorted[:, 0], I_sorted[:, 1], I_sorted[:, 2]
-
-    # L² - 2E I2 = I3 (I3 - I2) w3² - I1 (I2 - I1) w1², in double-double
-    w1 = w[np.arange(n), perm[:, 0]] / spin_scale
-    w3 = w[np.arange(n), perm[:, 2]] / spin_scale
-    d32h, d32l = _two_sum(I3, -I2)
-    d21h, d21l = _two_sum(I2, -I1)
-    ah, al = _dd_term(I3, d32h, d32l, w3)
-    bh, bl = _dd_term(I1, d21h, d21l, w1)
-    dh, dl = _dd_sub(ah, al, bh, bl)
-    delta = dh + dl
+    # Euler's equations are homogeneous: w(t) -> c w(c t) and I -> c I map solutions to solutions. The kernel
+    # works with moments and spins divided by powers of two (exact), so that no invariant under- or overflows,
+    # and forms L² - 2E I2 in double-double arithmetic.
+    I_sorted, perm = np.empty((n, 3)), np.empty((n, 3), dtype=np.int64)
+    parity, moment_scale, spin_scale, delta = (np.empty(n) for _ in range(4))
+    _ell.torque_free_invariants(moments, w, I_sorted, perm, parity, moment_scale, spin_scale, delta)
     regime = np.sign(delta).astype(np.int8)
 
     kind = np.empty(n, dtype=np.int64)
     amp = np.empty((n, 3))
     cols = np.empty((n, 3), dtype=np.int64)
     kc, m, K, phase0, nu, e2, L2 = (np.empty(n) for _ in range(7))
-    _ell.torque_free_setup(I_sorted, perm.astype(np.int64), parity, np.ascontiguousarray(w), spin_scale, delta, kind,
-                           amp, cols, kc, m, K, phase0, nu, e2, L2)
+    _ell.torque_free_setup(I_sorted, perm, parity, w, spin_scale, delta, kind, amp, cols, kc, m, K, phase0, nu, e2, L2)
     stationary = kind == _ell.KIND_STATIONARY
 
     with np.errstate(over="ignore", under="ignore"):  # invariants in SI units may overflow; spins do not
