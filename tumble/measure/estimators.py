@@ -40,6 +40,7 @@ __all__ = [
     "flip_statistics",
     "growth_rates",
     "invariant_weights",
+    "medians",
     "median_interval_rank",
     "oscillation_frequencies",
     "regression",
@@ -284,6 +285,50 @@ def _lerp(a, b, t):
     return np.where(t >= 0.5, b - diff * (1.0 - t), a + diff * t)
 
 
+def _sorted_rows(values):
+    """``(rows sorted with the non-finite values as NaN at the end, valid count per row, leading shape)``."""
+    values = np.asarray(values, dtype=float)
+    if values.ndim == 0:
+        values = values.reshape(1)
+    shape = values.shape[:-1]
+    rows = values.reshape(int(np.prod(shape)), values.shape[-1])
+    finite = np.isfinite(rows)
+    return np.sort(np.where(finite, rows, np.nan), axis=1), finite.sum(axis=1), shape
+
+
+def _order_statistic(ordered, used):
+    """``at(index)``: each row's value at its (clipped) 0-based rank among its valid values."""
+    rank = np.arange(len(ordered))
+    top = np.maximum(used - 1, 0)
+
+    def at(index):
+        return ordered[rank, np.clip(index, 0, top)] if ordered.shape[1] else np.full(len(ordered), np.nan)
+
+    return at
+
+
+def _middle(at, used):
+    """The median from the order statistics ``at`` of rows of ``used`` valid values (numpy's: the mean of the two
+    middle values for an even count)."""
+    return 0.5 * at((np.maximum(used - 1, 0)) // 2) + 0.5 * at(used // 2)
+
+
+def medians(values):
+    """Median over the finite values of each row (NaN for a row with none): :func:`summarize`'s median, without
+    its spread and interval.
+
+    Parameters
+    ----------
+    values : array_like, shape (..., N)
+
+    Returns
+    -------
+    ndarray, shape (...)
+    """
+    ordered, used, shape = _sorted_rows(values)
+    return np.where(used == 0, np.nan, _middle(_order_statistic(ordered, used), used)).reshape(shape)
+
+
 def summarize(values, *, confidence=0.95):
     """Median, spread and a confidence interval of the median over the finite values of each row.
 
@@ -312,35 +357,25 @@ def summarize(values, *, confidence=0.95):
     >>> float(s.median), int(s.used), int(s.excluded)
     (2.0, 3, 1)
     """
-    values = np.asarray(values, dtype=float)
-    if values.ndim == 0:
-        values = values.reshape(1)
     if not 0.0 < confidence < 1.0:
         raise ValueError(f"confidence must be in (0, 1), got {confidence!r}")
-    shape = values.shape[:-1]
-    rows = values.reshape(int(np.prod(shape)), values.shape[-1])
-    finite = np.isfinite(rows)
-    used = finite.sum(axis=1)
-    ordered = np.sort(np.where(finite, rows, np.nan), axis=1)  # the valid values first, in order
-    rank = np.arange(len(rows))
+    ordered, used, shape = _sorted_rows(values)
+    at = _order_statistic(ordered, used)
     top = np.maximum(used - 1, 0)
-
-    def at(index):
-        return ordered[rank, np.clip(index, 0, top)] if rows.shape[1] else np.full(len(rows), np.nan)
 
     def percentile(q):
         position = q * top
         low = np.floor(position).astype(np.int64)
         return _lerp(at(low), at(np.minimum(low + 1, top)), position - low)
 
-    median = 0.5 * at(top // 2) + 0.5 * at(used // 2)
+    median = _middle(at, used)
     spread = 0.5 * (percentile(0.75) - percentile(0.25))
     counts, which = np.unique(np.maximum(used, 1), return_inverse=True)
     lower = np.array([median_interval_rank(int(n), confidence) for n in counts], dtype=np.int64)[which] - 1
     ci_low, ci_high = at(lower), at(used - 1 - lower)
     none = used == 0
     fields = [np.where(none, np.nan, x) for x in (median, spread, ci_low, ci_high)]
-    fields += [used.astype(np.int64), (rows.shape[1] - used).astype(np.int64)]
+    fields += [used.astype(np.int64), (ordered.shape[1] - used).astype(np.int64)]
     return Summary(*(field.reshape(shape) for field in fields))
 
 

@@ -484,15 +484,15 @@ def _closed_form_batch(scenes, grids, batch, parts, start):
     everyone = np.arange(len(row))
     first = per_sample[0]
     if first["kind"] == "exponential":
-        b, c = each([((s["axis"]) % 3, (s["axis"] + 1) % 3) for s in per_sample]).T
+        b, c = each([(s["axis"] % 3, (s["axis"] + 1) % 3) for s in per_sample]).T
         weights = each([s["plan"]["weights"] for s in per_sample])
         probes = np.sqrt(weights[everyone, b][:, None] * omega[everyone, :, b] ** 2
                          + weights[everyone, c][:, None] * omega[everyone, :, c] ** 2)
         fit = analysis.growth_rates(times, probes, each([s["plan"]["saturation"] for s in per_sample]), row=row)
         results = {"rate": fit.rate, **{name: getattr(fit, name) for name in _GROWTH_FIT}}
         if first["flips"]:
-            spacing = exact._flip_spacing(sol)
-            flips, _ = flip_times(exact._first_flip(sol), spacing, first["flips"],
+            spacing = exact.flip_spacings(sol)
+            flips, _ = flip_times(exact.first_flips(sol), spacing, first["flips"],
                                   each([s["plan"]["t_end"] for s in per_sample]))
             stats = analysis.flip_statistics(flips)
             results.update(flip_first=stats.first, flip_spacing=stats.spacing, flip_exact=spacing,
@@ -551,7 +551,7 @@ def _joined(scene, parts):
 
 def _medians(values, mask):
     """Median over the samples of each row where ``mask`` (and the value is finite); NaN for none."""
-    return analysis.summarize(np.where(mask, values, np.nan)).median
+    return analysis.medians(np.where(mask, values, np.nan))
 
 
 def scene_records(scenes, parts):

@@ -222,12 +222,14 @@ def omega_rows(sol, times, row):
     return out
 
 
-def _flip_spacing(sol):
+def flip_spacings(sol):
+    """Flip spacing ``2K/|nu|`` (s; inf where none) of each sample of a :func:`solve_rows` solution."""
     with np.errstate(divide="ignore"):
         return np.where(sol.kind == _ell.KIND_ELLIPTIC, 2.0 * sol.K / np.abs(sol.nu), np.inf)
 
 
-def _first_flip(sol):
+def first_flips(sol):
+    """First flip time (s; inf where none) of each sample of a :func:`solve_rows` solution."""
     elliptic = sol.kind == _ell.KIND_ELLIPTIC
     separatrix = sol.kind == _ell.KIND_SEPARATRIX
     out = np.full(sol.kind.shape, np.inf)
@@ -369,7 +371,7 @@ def flip_spacing(body, w0):
         separatrix).
     """
     sol = _solve(body, w0)
-    return _flip_spacing(sol).reshape(sol.shape)
+    return flip_spacings(sol).reshape(sol.shape)
 
 
 def first_flip_time(body, w0):
@@ -395,7 +397,7 @@ def first_flip_time(body, w0):
         spins; separatrix spins already past their flip).
     """
     sol = _solve(body, w0)
-    return _first_flip(sol).reshape(sol.shape)
+    return first_flips(sol).reshape(sol.shape)
 
 
 # ---------------------------------------------------------------------------------------------------
