@@ -27,6 +27,14 @@ _STEP_COUNT_SLACK = 1e-9
 
 
 def _scalar(value, name):
+    if type(value) is float or type(value) is int:  # the common case without an array round trip
+        try:
+            x = float(value)
+        except OverflowError:  # an int beyond the float range
+            x = math.inf
+        if not math.isfinite(x):
+            raise ValueError(f"{name} must be finite (found NaN or inf)")
+        return x
     x = finite_array(value, name)
     if x.ndim:
         raise ValueError(f"{name} must be a number, got shape {x.shape}")

@@ -16,6 +16,7 @@ __all__ = ["BLOCK", "METHODS", "Method", "Observed", "run", "run_attitude"]
 BLOCK = 256
 
 _NO_STEPS = np.zeros(0, dtype=np.int64)
+_UNIT_WEIGHTS = np.ones(3)  # the Euclidean transverse norm (read only by the kernels)
 
 
 class Method(NamedTuple):
@@ -112,7 +113,7 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
     moments = np.asarray(moments, dtype=float)
     relabel = _relabelling(method, moments, torque_params, torque_fn)
     kernel_w, kernel_axis = w, axis
-    weights = np.ones(3) if norm_weights is None else np.asarray(norm_weights, dtype=float)
+    weights = _UNIT_WEIGHTS if norm_weights is None else np.ascontiguousarray(norm_weights, dtype=float)
     if relabel is not None:
         perm, sign = relabel
         kernel_w = np.ascontiguousarray(sign * w[perm])
@@ -132,13 +133,14 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
     saved = np.empty((n_saved, 3, n))
     probe_steps = _NO_STEPS if probe_steps is None else np.ascontiguousarray(probe_steps, dtype=np.int64)
     probes = np.empty((len(probe_steps), n))
-    flips = np.full((n, max(int(max_flips), 0)), np.nan)
+    flips = np.empty((n, max(int(max_flips), 0)))
+    flips.fill(np.nan)
     flip_count = np.zeros(n, dtype=np.int64)
     drifts = np.zeros((2 if drift else 0, n))
     status = np.zeros(n, dtype=np.int8)
     steps_taken = np.zeros(n, dtype=np.int64)
     args = (kernel_w, body_constants(moments), float(t0), float(h), int(n_steps), int(block), int(save_every), saved,
-            int(kernel_axis), np.ascontiguousarray(weights), probe_steps, probes, flips, flip_count, drifts, status,
+            int(kernel_axis), weights, probe_steps, probes, flips, flip_count, drifts, status,
             steps_taken, float(stop_norm), int(stop_flips), float(drift_limit), int(torque_kind), torque_params,
             torque_fn)
     driver(method.kernel_id, torque_fn)(*args)

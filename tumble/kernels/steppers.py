@@ -16,6 +16,8 @@ Euler's equations with body torque ``N`` (Landau & Lifshitz §36):
 
 import math
 
+import numpy as np
+
 from ..registry import TORQUE_USER, torque_profile  # noqa: F401  (TORQUE_USER re-exported)
 from .jit import jit
 from .tableaux import ROTATE_1, ROTATE_2, ROTATE_3
@@ -39,7 +41,7 @@ def body_constants(moments):
     ``a1 = (I2 - I3)/I1`` and cyclic are the coefficients of Euler's equations; the ratios serve the exact
     rotations of the splittings.
     """
-    i1, i2, i3 = (float(x) for x in moments)
+    i1, i2, i3 = np.asarray(moments, dtype=float).tolist()
     return (i1, i2, i3, (i2 - i3) / i1, (i3 - i1) / i2, (i1 - i2) / i3,
             i2 / i1, i3 / i1, i1 / i2, i3 / i2, i1 / i3, i2 / i3)
 

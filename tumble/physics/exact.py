@@ -138,6 +138,10 @@ class EllipticParameters(NamedTuple):
 
 # ---------------------------------------------------------------------------------------------------
 class _Solution(NamedTuple):
+    """The closed form's per-sample set-up (flattened samples). The kernels read the first fields; the physical
+    invariants are derived from the scaled ones only when asked (the properties), so an evaluation pays for
+    none of them."""
+
     shape: tuple
     kind: np.ndarray  # (n,) int64
     amp: np.ndarray  # (n, 3) signed amplitudes of (cn, sn, dn) / (sech, tanh, sech) / constant parts
@@ -147,12 +151,39 @@ class _Solution(NamedTuple):
     K: np.ndarray
     phase0: np.ndarray  # u0 - K (elliptic), u0 (separatrix)
     nu: np.ndarray
-    regime: np.ndarray
-    stationary: np.ndarray
-    energy: np.ndarray
-    L2: np.ndarray
-    delta: np.ndarray
-    mid_axis: int
+    mid_axis: object  # int (one body) or (n,) int64 (one body per sample)
+    scaled: tuple  # five (n,) arrays: 2E, |L|², L² - 2E I2 of the scaled body and spin; moment and spin scales
+
+    @property
+    def regime(self):
+        """(n,) int8: sign of ``L² - 2E I_mid`` (``REGIME_*``)."""
+        return np.sign(self.scaled[2]).astype(np.int8)
+
+    @property
+    def stationary(self):
+        return self.kind == _ell.KIND_STATIONARY
+
+    def _unscaled(self, value, moment_power):
+        moment_scale, spin_scale = self.scaled[3], self.scaled[4]
+        with np.errstate(over="ignore", under="ignore"):  # invariants in SI units may overflow; spins do not
+            for _ in range(moment_power):
+                value = value * moment_scale
+            return value * spin_scale * spin_scale
+
+    @property
+    def energy(self):
+        """(n,) kinetic energy, J."""
+        return self._unscaled(0.5 * self.scaled[0], 1)
+
+    @property
+    def L2(self):
+        """(n,) ``|L|²``, (kg m² rad/s)²."""
+        return self._unscaled(self.scaled[1], 2)
+
+    @property
+    def delta(self):
+        """(n,) ``L² - 2E I_mid``."""
+        return self._unscaled(self.scaled[2], 2)
 
 
 def _check_t(t):
@@ -162,7 +193,7 @@ def _check_t(t):
         raise ValueError(f"t must be numbers (times, s), got {t!r}") from err
     if tt.ndim > 1:
         raise ValueError(f"t must be a scalar or have shape (T,) (times, s), got shape {tt.shape}")
-    if not np.all(np.isfinite(tt)):
+    if not np.isfinite(tt).all():
         raise ValueError("t must be finite (found NaN or inf)")
     return tt
 
@@ -173,8 +204,11 @@ def _solve(body, w0):
     w = spin_vectors(w0)
     shape = w.shape[:-1]
     w = np.ascontiguousarray(w.reshape(-1, 3))
-    sol = solve_rows(np.broadcast_to(moments, w.shape), w)
-    return sol._replace(shape=shape, mid_axis=int(np.argsort(moments, kind="stable")[1]))
+    rows = np.empty(w.shape)
+    rows[:] = moments
+    i1, i2, i3 = moments.tolist()
+    mid_axis = sorted(range(3), key=(i1, i2, i3).__getitem__)[1]  # as a stable argsort
+    return _setup(rows, w, shape, mid_axis)
 
 
 def solve_rows(moments, w):
@@ -185,28 +219,26 @@ def solve_rows(moments, w):
     """
     moments = np.ascontiguousarray(moments, dtype=float)
     w = np.ascontiguousarray(w, dtype=float)
+    return _setup(moments, w, (w.shape[0],), None)
+
+
+def _setup(moments, w, shape, mid_axis):
     n = w.shape[0]
     # Euler's equations are homogeneous: w(t) -> c w(c t) and I -> c I map solutions to solutions. The kernel
     # works with moments and spins divided by powers of two (exact), so that no invariant under- or overflows,
     # and forms L² - 2E I2 in double-double arithmetic.
     I_sorted, perm = np.empty((n, 3)), np.empty((n, 3), dtype=np.int64)
-    parity, moment_scale, spin_scale, delta = (np.empty(n) for _ in range(4))
+    parity = np.empty(n)
+    scaled = np.empty((5, n))  # 2E, L², delta (scaled); moment scale, spin scale
+    e2, L2, delta, moment_scale, spin_scale = scaled
     _ell.torque_free_invariants(moments, w, I_sorted, perm, parity, moment_scale, spin_scale, delta)
-    regime = np.sign(delta).astype(np.int8)
-
     kind = np.empty(n, dtype=np.int64)
     amp = np.empty((n, 3))
     cols = np.empty((n, 3), dtype=np.int64)
-    kc, m, K, phase0, nu, e2, L2 = (np.empty(n) for _ in range(7))
+    kc, m, K, phase0, nu = np.empty((5, n))
     _ell.torque_free_setup(I_sorted, perm, parity, w, spin_scale, delta, kind, amp, cols, kc, m, K, phase0, nu, e2, L2)
-    stationary = kind == _ell.KIND_STATIONARY
-
-    with np.errstate(over="ignore", under="ignore"):  # invariants in SI units may overflow; spins do not
-        energy = 0.5 * e2 * moment_scale * spin_scale * spin_scale
-        L2 = L2 * moment_scale * moment_scale * spin_scale * spin_scale
-        delta = delta * moment_scale * moment_scale * spin_scale * spin_scale
-    return _Solution(shape=(n,), kind=kind, amp=amp, cols=cols, kc=kc, m=m, K=K, phase0=phase0, nu=nu, regime=regime,
-                     stationary=stationary, energy=energy, L2=L2, delta=delta, mid_axis=perm[:, 1])
+    return _Solution(shape=shape, kind=kind, amp=amp, cols=cols, kc=kc, m=m, K=K, phase0=phase0, nu=nu,
+                     mid_axis=perm[:, 1] if mid_axis is None else mid_axis, scaled=scaled)
 
 
 def omega_rows(sol, times, row):
@@ -217,7 +249,7 @@ def omega_rows(sol, times, row):
     out = np.empty((sol.kind.shape[0], times.shape[1], 3))
     _ell.torque_free_omega(sol.kind, sol.amp, sol.cols, sol.kc, sol.phase0, sol.nu, times,
                            np.ascontiguousarray(row, dtype=np.int64), out)
-    if not np.all(np.isfinite(out)):  # the one cheap check at the layer boundary
+    if not np.isfinite(out).all():  # the one cheap check at the layer boundary
         raise FloatingPointError("exact.omega produced non-finite values; please report this spin")
     return out
 
@@ -273,13 +305,9 @@ def omega(body, w0, t):
     """
     tt = _check_t(t)
     sol = _solve(body, w0)
-    times = np.ascontiguousarray(np.atleast_1d(tt))
-    out = np.empty((sol.kind.shape[0], times.shape[0], 3))
-    _ell.torque_free_omega(sol.kind, sol.amp, sol.cols, sol.kc, sol.phase0, sol.nu, times[None, :],
-                           np.zeros(sol.kind.shape[0], dtype=np.int64), out)
-    if not np.all(np.isfinite(out)):  # the one cheap check at the layer boundary
-        raise FloatingPointError("exact.omega produced non-finite values; please report this spin")
-    out = out.reshape(sol.shape + (times.shape[0], 3))
+    times = tt.reshape(1, -1)
+    out = omega_rows(sol, times, np.zeros(sol.kind.shape[0], dtype=np.int64))
+    out = out.reshape(sol.shape + (times.shape[1], 3))
     return out[..., 0, :] if tt.ndim == 0 else out
 
 
