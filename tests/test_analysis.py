@@ -645,3 +645,6 @@ def test_the_phase_fits_median_by_selection_is_numpys_median_with_ties_and_even_
         for _ in range(20):
             values = np.round(rng.normal(size=n), 1)  # many ties
             assert _median_in_place(values.copy()) == np.median(values)
+        ramp = np.arange(n, dtype=float)
+        for values in (np.full(n, 0.5), ramp, ramp[::-1], np.sin(ramp), np.r_[np.zeros(n // 2), np.ones(n - n // 2)]):
+            assert _median_in_place(values.copy()) == np.median(values)

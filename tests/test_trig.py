@@ -1,4 +1,4 @@
-"""Branch-free sincos: accuracy in ulps against libm and mpmath, special values, symmetry, vectorisation."""
+"""Branch-free sincos and atan2: accuracy in ulps against libm and mpmath, special values, symmetry, vectorisation."""
 
 import math
 import re
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from tumble.kernels.jit import FASTMATH
-from tumble.kernels.trig import XMAX, sincos
+from tumble.kernels.trig import XMAX, atan2, sincos
 
 mpmath = pytest.importorskip("mpmath")
 
@@ -224,3 +224,86 @@ def test_rotation_loop_compiles_to_packed_fma_without_trig_calls():
 def test_vectorisation_check_flags_a_libm_loop():
     # the detector itself: the same loop with math.sin/math.cos keeps its libm calls
     assert TRIG_CALL.search(_asm(_rotate_libm))
+
+
+# --- atan2 -------------------------------------------------------------------------------------------
+
+
+@_njit
+def _atan2_array(y, x, out):
+    for i in range(x.shape[0]):
+        out[i] = atan2(y[i], x[i])
+
+
+def ours_atan2(y, x):
+    y, x = np.broadcast_arrays(np.asarray(y, dtype=float), np.asarray(x, dtype=float))
+    out = np.empty(x.shape)
+    _atan2_array(np.ascontiguousarray(y).ravel(), np.ascontiguousarray(x).ravel(), out.ravel())
+    return out
+
+
+def _scattered_points(rng, n):
+    """Points in every octant, over 20 decades of ratio and of scale, plus the diagonals and the axes."""
+    x = rng.standard_normal(n) * 10.0 ** rng.uniform(-150, 150, n)
+    y = x * rng.choice([-1.0, 1.0], n) * 10.0 ** rng.uniform(-10, 10, n)
+    diagonal = rng.standard_normal(200)
+    x = np.concatenate([x, diagonal, diagonal, diagonal * (1 + 1e-9), np.ones(4), -np.ones(4)])
+    y = np.concatenate([y, diagonal, -diagonal, diagonal, 1e-300 * np.ones(4), [1e-20, -1e-20, 1e-300, -1e-300]])
+    return y, x
+
+
+def test_atan2_within_two_ulps_of_libm(rng):
+    y, x = _scattered_points(rng, 200_000)
+    assert ulps(ours_atan2(y, x), np.arctan2(y, x)).max() <= 2.0
+
+
+def test_atan2_within_two_ulps_of_mpmath(rng):
+    y, x = _scattered_points(rng, 400)
+    got = ours_atan2(y, x)
+    with mpmath.workprec(200):
+        exact = [mpmath.atan2(mpmath.mpf(float(b)), mpmath.mpf(float(a))) for b, a in zip(y, x)]
+    errors = [float(abs(mpmath.mpf(float(g)) - e)) / math.ulp(float(e)) for g, e in zip(got, exact)]
+    assert max(errors) <= 2.0
+
+
+def test_atan2_axes_quadrants_and_special_values():
+    cases = {(0.0, 1.0): 0.0, (1.0, 0.0): math.pi / 2, (0.0, -1.0): math.pi, (-1.0, 0.0): -math.pi / 2,
+             (1.0, 1.0): math.pi / 4, (1.0, -1.0): 3 * math.pi / 4, (-1.0, -1.0): -3 * math.pi / 4,
+             (math.inf, 1.0): math.pi / 2, (1.0, math.inf): 0.0, (0.0, 0.0): 0.0, (1e-320, -1.0): math.pi}
+    y, x = np.array(list(cases)).T
+    assert ours_atan2(y, x).tolist() == list(cases.values())
+    assert np.isnan(ours_atan2([np.nan, 1.0, np.nan, math.inf], [1.0, np.nan, np.nan, math.inf])).all()
+
+
+def test_atan2_is_odd_in_y_bit_for_bit(rng):
+    y, x = _scattered_points(rng, 10_000)
+    assert np.array_equal(ours_atan2(-y, x), -ours_atan2(y, x))
+
+
+def _phases(y, x, out):
+    for i in range(x.shape[0]):
+        out[i] = atan2(y[i], x[i])
+
+
+def _phases_libm(y, x, out):
+    for i in range(x.shape[0]):
+        out[i] = math.atan2(y[i], x[i])
+
+
+PACKED_DIV = re.compile(r"\bvdivpd\s+[^\n]*%[yz]mm")
+ATAN_CALL = re.compile(r"(call\w*|jmp\w*|movabsq)\s+\$?_*atan2?(@\w+)?\b")
+
+
+@needs_avx2
+def test_atan2_loop_compiles_to_packed_code_without_libm_calls():
+    # as the phase fit compiles it: without contraction (tumble.kernels.fits)
+    f = numba.njit(cache=False, fastmath=set(FASTMATH - {"contract"}), error_model="numpy")(_phases)
+    a = np.ones(8)
+    f(a, a.copy(), a.copy())
+    asm = next(iter(f.inspect_asm().values()))
+    assert PACKED_DIV.search(asm), "no packed vdivpd on ymm/zmm: the loop did not vectorise"
+    assert not ATAN_CALL.search(asm), "an atan/atan2 call is left in the loop"
+    # the detector itself: the libm loop keeps its calls
+    g = _njit(_phases_libm)
+    g(a, a.copy(), a.copy())
+    assert ATAN_CALL.search(next(iter(g.inspect_asm().values())))

@@ -22,7 +22,7 @@ _NUMBA_IR_INLINE = True
 _OPTIONS = dict(cache=True, fastmath=set(FASTMATH), error_model="numpy", nogil=True)
 
 
-def jit(fn=None, *, parallel=False, inline=False):
+def jit(fn=None, *, parallel=False, inline=False, contract=True):
     """Compile ``fn`` with tumble's numba options.
 
     Parameters
@@ -31,8 +31,15 @@ def jit(fn=None, *, parallel=False, inline=False):
         Enable ``prange`` (only for ensemble drivers).
     inline : bool
         Inline at the numba IR level (for tiny helpers called in inner loops).
+    contract : bool
+        Allow fused multiply-adds. ``False`` for kernels whose bits must not depend on how the compiler
+        happened to fuse: numba optimises a ``parallel=True`` kernel differently when it compiles it than
+        when it loads it from the cache (numba issue #10617), and with contraction allowed the two fuse
+        different products, so a cold and a warm run would disagree in the last bits.
     """
     options = dict(_OPTIONS, parallel=parallel)
+    if not contract:
+        options["fastmath"] = set(FASTMATH - {"contract"})
     if inline and _NUMBA_IR_INLINE:
         options["inline"] = "always"
 
