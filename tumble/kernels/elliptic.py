@@ -932,8 +932,14 @@ def torque_free_omega(kind, amp, cols, kc, phase0, nu, times, row, out):
         Sample ``i`` is evaluated at the times ``times[row[i], :]``.
     out : ndarray, shape (n, T, 3)
         Receives the angular velocity, rad/s.
+
+    Returns
+    -------
+    int
+        The number of samples with a non-finite value (0 unless something is wrong).
     """
     rows = out.reshape(out.shape[0], 3 * out.shape[1])  # (n, T, 3) -> (n, 3T), a view
+    non_finite = 0
     for i in numba.prange(kind.shape[0]):
         t = times[row[i]]
         o = rows[i]
@@ -960,3 +966,8 @@ def torque_free_omega(kind, amp, cols, kc, phase0, nu, times, row, out):
         else:
             for j in range(t.shape[0]):
                 _store(o, j, W, 1.0, 1.0, 1.0)
+        bad = 0
+        for j in range(o.shape[0]):  # packed: an integer OR over the row just written, still in cache
+            bad |= 0 if abs(o[j]) < math.inf else 1
+        non_finite += bad
+    return non_finite

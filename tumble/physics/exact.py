@@ -247,9 +247,9 @@ def omega_rows(sol, times, row):
     batch it is evaluated in."""
     times = np.ascontiguousarray(times, dtype=float)
     out = np.empty((sol.kind.shape[0], times.shape[1], 3))
-    _ell.torque_free_omega(sol.kind, sol.amp, sol.cols, sol.kc, sol.phase0, sol.nu, times,
-                           np.ascontiguousarray(row, dtype=np.int64), out)
-    if not np.isfinite(out).all():  # the one cheap check at the layer boundary
+    non_finite = _ell.torque_free_omega(sol.kind, sol.amp, sol.cols, sol.kc, sol.phase0, sol.nu, times,
+                                        np.ascontiguousarray(row, dtype=np.int64), out)
+    if non_finite:  # the one check at the layer boundary (counted by the kernel)
         raise FloatingPointError("exact.omega produced non-finite values; please report this spin")
     return out
 
@@ -512,9 +512,7 @@ def attitude(body, w0, t):
     times = np.ascontiguousarray(np.atleast_1d(tt))
     w = np.ascontiguousarray(spin_vectors(w0).reshape(-1, 3))
     n = w.shape[0]
-    w_t = np.empty((n, times.shape[0], 3))
-    _ell.torque_free_omega(sol.kind, sol.amp, sol.cols, sol.kc, sol.phase0, sol.nu, times[None, :],
-                           np.zeros(n, dtype=np.int64), w_t)
+    w_t = omega_rows(sol, times[None, :], np.zeros(n, dtype=np.int64))
     out = np.empty((n, times.shape[0], 4))
 
     steady = sol.kind == _ell.KIND_STATIONARY
@@ -524,9 +522,7 @@ def attitude(body, w0, t):
 
     moving = ~steady
     if moving.any():  # t = 0 is prepended: the attitude is taken relative to the start
-        start = np.empty((n, 1, 3))
-        _ell.torque_free_omega(sol.kind, sol.amp, sol.cols, sol.kc, sol.phase0, sol.nu, np.zeros((1, 1)),
-                               np.zeros(n, dtype=np.int64), start)
+        start = omega_rows(sol, np.zeros((1, 1)), np.zeros(n, dtype=np.int64))
         out[moving] = _moving_attitude(moments, sol, moving, w[moving],
                                        np.concatenate([start[moving], w_t[moving]], axis=1),
                                        np.concatenate([[0.0], times]))[:, 1:]
