@@ -268,7 +268,7 @@ def test_closed_form_scenes_batched_are_the_same_bits_as_one_by_one():
     bodies = [(0.6, 0.8, 1.0), (1.0, 2.0, 3.0), (1.0, 1.0, 2.0), (2.0, 3.0, 4.5)]
     plans = [study.scene_plan(body, axis, 1.5, amplitude, 96, 3, flips=2, curves=("norm",))
              for body in bodies for axis in (1, 2, 3) for amplitude in (1e-3, 1e-2)]
-    assert {plan["kind"] for plan in plans} == {"periodic", "exponential", "neutral"}
+    assert {plan.kind for plan in plans} == {"periodic", "exponential", "neutral"}
     batched = study.scene_batch(plans)
     for plan, record in zip(plans, batched):
         _same_records(record, study.scene_batch([plan])[0])

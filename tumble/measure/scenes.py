@@ -34,6 +34,7 @@ import json
 import math
 import sys
 import warnings
+from dataclasses import dataclass, field
 
 import numpy as np
 import xarray as xr
@@ -114,6 +115,43 @@ def _positive_int(value, name):
     return int(value)
 
 
+@dataclass(frozen=True, eq=False)
+class StepPlan:
+    """Horizon, step and observation times of a scene (:func:`_plan`)."""
+
+    t_end: float  # s, a whole number of steps
+    dt: float  # s
+    n_steps: int
+    probe_times: np.ndarray | None = None  # exponential: the growth fit's equally spaced probes, s
+    weights: np.ndarray | None = None  # exponential: the transverse norm's invariant weights (3,)
+    saturation: float | None = None  # exponential: end of the linear regime (scaled norm), rad/s
+    save_every: int | None = None  # periodic and neutral: steps between stored states
+    plane: tuple | None = None  # neutral: the two axes whose phase is measured
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """One scene of :func:`measure`, validated and planned (:func:`scene_plan`): plain data that pickles (dask,
+    checkpoints) and is read, never changed, by every later step."""
+
+    moments: np.ndarray  # (3,) kg m²
+    axis: int  # 1, 2 or 3
+    spin: float  # rad/s
+    amplitude: float  # rad
+    samples: int
+    method: str  # as asked ("auto" included)
+    chosen: str  # the method that runs ("exact" for the closed form)
+    kind: str  # linear theory's "periodic", "exponential" or "neutral"
+    value: float  # linear theory's frequency (rad/s) or rate (1/s)
+    spin_up: dict | None  # an axial torque's spin-up (_axial_spin_up), None when torque-free
+    torque: object  # the torque as given, None when torque-free
+    plan: StepPlan
+    flips: int  # flips timed per sample (0 unless exponential)
+    entropy: int  # the seed's entropy
+    distribution: str
+    curves: tuple = field(default=())
+
+
 def _neutral_plane(moments, a):
     """The plane whose phase a neutral scene measures: ``(a, d)`` with ``I_d = I_a`` (the degenerate pair,
     which precesses slowly about the distinct axis), or the transverse pair for a sphere."""
@@ -140,7 +178,7 @@ def _plan(moments, a, kind, value, spin, amplitude, method, dt, flips, probe_spi
         fastest = max(w, spin_max or w)
         dt = min(timescale * w / fastest, 1.0 / fastest) / STEPS_PER_RADIAN[registry.method(method).order]
     tilt = math.sin(min(amplitude, 0.5 * np.pi))
-    plan = {}
+    plan = {}  # the kind's own fields of the StepPlan
     if kind == "exponential":
         weights = analysis.invariant_weights(moments, a + 1)
         b, c = (a + 1) % 3, (a + 2) % 3
@@ -184,8 +222,7 @@ def _plan(moments, a, kind, value, spin, amplitude, method, dt, flips, probe_spi
         plan["probe_times"] = np.arange(PROBES + 1) * spacing
     else:
         plan["save_every"] = every
-    plan.update(t_end=n_steps * dt, dt=dt, n_steps=n_steps)
-    return plan
+    return StepPlan(t_end=n_steps * dt, dt=dt, n_steps=n_steps, **plan)
 
 
 def _validate_scene(body, axis, spin, amplitude, samples, method, flips):
@@ -272,7 +309,7 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
     """
     scene = scene_plan(body, axis, spin, amplitude, samples, seed, method, dt=dt, flips=flips,
                        distribution=distribution, torque=torque, horizon=horizon, curves=curves)
-    return scene_result(scene, [scene_samples(scene, 0, scene["samples"], progress=progress)])
+    return scene_result(scene, [scene_samples(scene, 0, scene.samples, progress=progress)])
 
 
 def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="auto", *, dt=None, flips=3,
@@ -315,11 +352,11 @@ def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, metho
 
     plan = _plan(moments, a, kind, value, spin, amplitude, chosen, dt, flips if kind == "exponential" else 0,
                  probe_spins, horizon, spin_max)
-    return {"moments": moments, "axis": axis, "spin": spin, "amplitude": amplitude, "samples": samples,
-            "method": method, "chosen": chosen, "kind": kind, "value": value, "spin_up": spin_up,
-            "torque": torque if spin_up is not None else None, "plan": plan,
-            "flips": flips if kind == "exponential" else 0, "entropy": entropy, "distribution": distribution,
-            "curves": curves}
+    return Scene(moments=moments, axis=axis, spin=spin, amplitude=amplitude, samples=samples, method=method,
+                 chosen=chosen, kind=kind, value=value, spin_up=spin_up,
+                 torque=torque if spin_up is not None else None, plan=plan,
+                 flips=flips if kind == "exponential" else 0, entropy=entropy, distribution=distribution,
+                 curves=curves)
 
 
 #: Per-sample arrays of a :func:`scene_samples` range, by scene kind (and the flip times, when timed).
@@ -345,37 +382,37 @@ def scene_samples(scene, start, stop, *, progress=False):
         ``rate_theory``, ``path`` and ``torque``; from sample 0 the ``norm_*`` curve. Only plain arrays: it
         pickles and stores in a NumPy archive.
     """
-    samples, kind, plan = scene["samples"], scene["kind"], scene["plan"]
+    samples, kind, plan = scene.samples, scene.kind, scene.plan
     if not (0 <= start < stop <= samples and start % CHUNK == 0):
         raise ValueError(f"a sample range must lie in [0, {samples}) and start at a multiple of {CHUNK}, "
                          f"got [{start}, {stop})")
-    keep_norm = start == 0 and "norm" in scene["curves"] and kind == "exponential"
+    keep_norm = start == 0 and "norm" in scene.curves and kind == "exponential"
     if keep_norm and stop < min(SLICE, samples):
         raise ValueError(f"the sample range holding sample 0 keeps the norm curve: it must reach "
                          f"{min(SLICE, samples)}, got [{start}, {stop})")
-    if scene["chosen"] == "exact":
+    if scene.chosen == "exact":
         return closed_form_samples([scene], start, stop)[0]
-    moments, axis, spin = scene["moments"], scene["axis"], scene["spin"]
-    growth, n_flips, a = kind == "exponential", scene["flips"], scene["axis"] - 1
+    moments, axis, spin = scene.moments, scene.axis, scene.spin
+    growth, n_flips, a = kind == "exponential", scene.flips, scene.axis - 1
     out = _empty_part(scene, start, stop)
-    value = scene["value"]
+    value = scene.value
     computed = skipped = 0
     for lo in range(start, stop, SLICE):
         hi = min(lo + SLICE, stop)
-        w0 = perturbed_spins(moments, axis, spin, scene["amplitude"], samples, seed=scene["entropy"],
-                             distribution=scene["distribution"], start=lo, stop=hi)
-        result = run_ensemble(moments, w0, plan["t_end"], plan["dt"], method=scene["chosen"], axis=axis, final=False,
-                              save_every=None if growth else plan["save_every"],
-                              probe_times=plan["probe_times"] if growth else None,
-                              norm_weights=plan["weights"] if growth else None, max_flips=n_flips,
-                              stop_norm=plan["saturation"] if growth else 0.0, stop_flips=n_flips,
-                              torque=scene["torque"], progress=progress)
+        w0 = perturbed_spins(moments, axis, spin, scene.amplitude, samples, seed=scene.entropy,
+                             distribution=scene.distribution, start=lo, stop=hi)
+        result = run_ensemble(moments, w0, plan.t_end, plan.dt, method=scene.chosen, axis=axis, final=False,
+                              save_every=None if growth else plan.save_every,
+                              probe_times=plan.probe_times if growth else None,
+                              norm_weights=plan.weights if growth else None, max_flips=n_flips,
+                              stop_norm=plan.saturation if growth else 0.0, stop_flips=n_flips,
+                              torque=scene.torque, progress=progress)
         info = result.info
         computed += info["sample_steps_computed"]
         skipped += info["sample_steps_skipped"]
         rows = slice(lo - start, hi - start)
         if growth:
-            fit = analysis.growth_rates(result.probe_times, result.probes, plan["saturation"])
+            fit = analysis.growth_rates(result.probe_times, result.probes, plan.saturation)
             if keep_norm and lo == 0:
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns after every sample stopped
@@ -386,13 +423,13 @@ def scene_samples(scene, start, stop, *, progress=False):
             for name in _GROWTH_FIT:
                 out[name][rows] = getattr(fit, name)
         else:
-            b, c = plan.get("plane", ((a + 1) % 3, (a + 2) % 3))
+            b, c = plan.plane or ((a + 1) % 3, (a + 2) % 3)
             weights = (analysis.invariant_weights(moments, axis)[[b, c]] if kind == "periodic" else np.ones(2))
             fit = analysis.oscillation_frequencies(result.times, result.trajectory[..., [b, c]], weights, spin)
             out["rate"][rows] = fit.frequency
             out["radius"][rows] = fit.radius
-            if scene["spin_up"] is not None:
-                value = _spin_up_rate(scene["spin_up"], scene["value"], spin, result.times)
+            if scene.spin_up is not None:
+                value = _spin_up_rate(scene.spin_up, scene.value, spin, result.times)
         out["code"][rows] = np.where(result.status != STATUS_OK, result.status,
                                      np.where(fit.code != analysis.FIT_OK, fit.code + _FIT_OFFSET, 0))
         if n_flips:
@@ -408,17 +445,17 @@ def scene_samples(scene, start, stop, *, progress=False):
 def _empty_part(scene, start, stop):
     n = stop - start
     out = {"start": np.int64(start), "rate": np.empty(n), "code": np.empty(n, dtype=np.int8)}
-    out.update((name, np.empty(n)) for name in (_GROWTH_FIT if scene["kind"] == "exponential" else ("radius",)))
-    out.update((name, np.full(n, np.nan)) for name in (_FLIP_ARRAYS if scene["flips"] else ()))
+    out.update((name, np.empty(n)) for name in (_GROWTH_FIT if scene.kind == "exponential" else ("radius",)))
+    out.update((name, np.full(n, np.nan)) for name in (_FLIP_ARRAYS if scene.flips else ()))
     return out
 
 
 def _observation_grid(scene):
     """The times the closed form evaluates a scene at: its probe times (exponential) or stored times."""
-    plan = scene["plan"]
-    if scene["kind"] == "exponential":
-        return observation_times(plan["t_end"], plan["dt"], probe_times=plan["probe_times"])[2]
-    return observation_times(plan["t_end"], plan["dt"], save_every=plan["save_every"])[0]
+    plan = scene.plan
+    if scene.kind == "exponential":
+        return observation_times(plan.t_end, plan.dt, probe_times=plan.probe_times)[2]
+    return observation_times(plan.t_end, plan.dt, save_every=plan.save_every)[0]
 
 
 def closed_form_samples(scenes, start, stop):
@@ -446,7 +483,7 @@ def closed_form_samples(scenes, start, stop):
     grids = [_observation_grid(scene) for scene in scenes]
     groups = {}
     for k, scene in enumerate(scenes):
-        key = (scene["kind"] == "exponential", len(grids[k]), scene["flips"])
+        key = (scene.kind == "exponential", len(grids[k]), scene.flips)
         groups.setdefault(key, []).extend((k, lo, min(lo + SLICE, stop)) for lo in range(start, stop, SLICE))
     for items in groups.values():
         batch, size = [], 0
@@ -459,8 +496,8 @@ def closed_form_samples(scenes, start, stop):
         _closed_form_batch(scenes, grids, batch, parts, start)
     for scene, part in zip(scenes, parts):
         part.update(sample_steps_computed=np.int64(0),
-                    sample_steps_skipped=np.int64((stop - start) * scene["plan"]["n_steps"]),
-                    rate_theory=np.float64(scene["value"]), path=np.array("closed form"),
+                    sample_steps_skipped=np.int64((stop - start) * scene.plan.n_steps),
+                    rate_theory=np.float64(scene.value), path=np.array("closed form"),
                     torque=np.array(torque_spec(None)[3]))
     return parts
 
@@ -474,35 +511,35 @@ def _closed_form_batch(scenes, grids, batch, parts, start):
     def each(values):
         return np.repeat(np.asarray(values), sizes, axis=0)
 
-    moments = each([scene["moments"] for scene in per_sample])
-    w0 = np.concatenate([perturbed_spins(scene["moments"], scene["axis"], scene["spin"], scene["amplitude"],
-                                         scene["samples"], seed=scene["entropy"], distribution=scene["distribution"],
+    moments = each([scene.moments for scene in per_sample])
+    w0 = np.concatenate([perturbed_spins(scene.moments, scene.axis, scene.spin, scene.amplitude,
+                                         scene.samples, seed=scene.entropy, distribution=scene.distribution,
                                          start=lo, stop=hi) for scene, (_, lo, hi) in zip(per_sample, batch)])
     times = np.stack([grids[k] for k, _, _ in batch])
     sol = exact.solve_rows(moments, w0)
     omega = exact.omega_rows(sol, times, row)
     everyone = np.arange(len(row))
     first = per_sample[0]
-    if first["kind"] == "exponential":
-        b, c = each([(s["axis"] % 3, (s["axis"] + 1) % 3) for s in per_sample]).T
-        weights = each([s["plan"]["weights"] for s in per_sample])
+    if first.kind == "exponential":
+        b, c = each([(s.axis % 3, (s.axis + 1) % 3) for s in per_sample]).T
+        weights = each([s.plan.weights for s in per_sample])
         probes = np.sqrt(weights[everyone, b][:, None] * omega[everyone, :, b] ** 2
                          + weights[everyone, c][:, None] * omega[everyone, :, c] ** 2)
-        fit = analysis.growth_rates(times, probes, each([s["plan"]["saturation"] for s in per_sample]), row=row)
+        fit = analysis.growth_rates(times, probes, each([s.plan.saturation for s in per_sample]), row=row)
         results = {"rate": fit.rate, **{name: getattr(fit, name) for name in _GROWTH_FIT}}
-        if first["flips"]:
+        if first.flips:
             spacing = exact.flip_spacings(sol)
-            flips, _ = flip_times(exact.first_flips(sol), spacing, first["flips"],
-                                  each([s["plan"]["t_end"] for s in per_sample]))
+            flips, _ = flip_times(exact.first_flips(sol), spacing, first.flips,
+                                  each([s.plan.t_end for s in per_sample]))
             stats = analysis.flip_statistics(flips)
             results.update(flip_first=stats.first, flip_spacing=stats.spacing, flip_exact=spacing,
                            flip_asymptote=theory.flip_asymptote_from(moments, w0, sol.kc))
     else:
-        planes = [s["plan"].get("plane", (s["axis"] % 3, (s["axis"] + 1) % 3)) for s in per_sample]
+        planes = [s.plan.plane or (s.axis % 3, (s.axis + 1) % 3) for s in per_sample]
         b, c = each(planes).T
-        weights = each([analysis.invariant_weights(s["moments"], s["axis"])[list(plane)] if s["kind"] == "periodic"
+        weights = each([analysis.invariant_weights(s.moments, s.axis)[list(plane)] if s.kind == "periodic"
                         else np.ones(2) for s, plane in zip(per_sample, planes)])
-        fit = analysis.oscillation_frequencies(times, omega, weights, each([s["spin"] for s in per_sample]),
+        fit = analysis.oscillation_frequencies(times, omega, weights, each([s.spin for s in per_sample]),
                                                columns=np.stack([b, c], axis=1), row=row)
         results = {"rate": fit.frequency, "radius": fit.radius}
     code = np.where(fit.code != analysis.FIT_OK, fit.code + _FIT_OFFSET, 0)
@@ -513,7 +550,7 @@ def _closed_form_batch(scenes, grids, batch, parts, start):
         for name, values in results.items():
             part[name][into] = values[rows]
         part["code"][into] = code[rows]
-        if lo == 0 and "norm" in scene["curves"] and scene["kind"] == "exponential":
+        if lo == 0 and "norm" in scene.curves and scene.kind == "exponential":
             quartiles = np.nanquantile(probes[rows], [0.25, 0.5, 0.75], axis=0)
             part.update(norm_time=times[row[offset]], norm_q1=quartiles[0], norm_median=quartiles[1],
                         norm_q3=quartiles[2])
@@ -529,7 +566,7 @@ def scene_result(scene, parts):
 def _joined(scene, parts):
     """The per-sample arrays of a scene's ranges, checked and concatenated, and the ranges' scalars."""
     parts = sorted(parts, key=lambda part: int(part["start"]))
-    samples = scene["samples"]
+    samples = scene.samples
     covered = 0
     for part in parts:
         if int(part["start"]) != covered:
@@ -538,8 +575,8 @@ def _joined(scene, parts):
         covered += len(part["rate"])
     if covered != samples:
         raise ValueError(f"the sample ranges of a scene of {samples} samples end at {covered}")
-    growth = scene["kind"] == "exponential"
-    names = ("rate", "code", *(_GROWTH_FIT if growth else ("radius",)), *(_FLIP_ARRAYS if scene["flips"] else ()))
+    growth = scene.kind == "exponential"
+    names = ("rate", "code", *(_GROWTH_FIT if growth else ("radius",)), *(_FLIP_ARRAYS if scene.flips else ()))
     joined = {name: np.concatenate([part[name] for part in parts]) for name in names}
     joined.update(computed=sum(int(part["sample_steps_computed"]) for part in parts),
                   skipped=sum(int(part["sample_steps_skipped"]) for part in parts),
@@ -573,7 +610,7 @@ def scene_records(scenes, parts):
     joined = [_joined(scene, ranges) for scene, ranges in zip(scenes, parts)]
     groups = {}
     for i, scene in enumerate(scenes):
-        groups.setdefault((scene["kind"], scene["flips"] > 0, scene["samples"]), []).append(i)
+        groups.setdefault((scene.kind, scene.flips > 0, scene.samples), []).append(i)
     records = [None] * len(scenes)
     for (kind, flipping, _), members in groups.items():
         stacked = {name: np.stack([joined[i][name] for i in members]) for name in joined[members[0]]
@@ -605,8 +642,8 @@ def scene_records(scenes, parts):
 
 def _scene_record(scene, joined, summary, rate, code, medians, flips):
     """The record (see :func:`scene_records`) of one scene from its joined arrays and statistics."""
-    moments, axis, spin, amplitude = scene["moments"], scene["axis"], scene["spin"], scene["amplitude"]
-    kind, plan, value = scene["kind"], scene["plan"], joined["value"]
+    moments, axis, spin, amplitude = scene.moments, scene.axis, scene.spin, scene.amplitude
+    kind, plan, value = scene.kind, scene.plan, joined["value"]
     if summary.used == 0:
         counts = np.bincount(code, minlength=len(SAMPLE_STATUS_NAMES))
         warnings.warn(f"no sample of the scene (axis {axis}, amplitude {amplitude}) gave a rate; statuses: "
@@ -616,11 +653,11 @@ def _scene_record(scene, joined, summary, rate, code, medians, flips):
     record = {"rate": summary.median, "rate_theory": value, "rel_error": abs(summary.median - value) / theory_scale,
               "kind": kind, "rate_ci_low": summary.ci_low, "rate_ci_high": summary.ci_high,
               "rate_spread": summary.spread, "samples_used": summary.used, "samples_excluded": summary.excluded,
-              "sample_rate": rate, "sample_status": code, "dt": plan["dt"], "t_end": plan["t_end"],
-              "n_steps": np.int64(plan["n_steps"]), "sample_steps_computed": np.int64(joined["computed"]),
+              "sample_rate": rate, "sample_status": code, "dt": plan.dt, "t_end": plan.t_end,
+              "n_steps": np.int64(plan.n_steps), "sample_steps_computed": np.int64(joined["computed"]),
               "sample_steps_skipped": np.int64(joined["skipped"]), "path": joined["path"]}
     if kind == "exponential":
-        record.update({f"fit_{name}": medians[name] for name in _GROWTH_FIT}, fit_saturation=plan["saturation"])
+        record.update({f"fit_{name}": medians[name] for name in _GROWTH_FIT}, fit_saturation=plan.saturation)
     else:
         record["signal_radius"] = medians["radius"]
     record["flips_timed"] = np.int64(0)
@@ -630,20 +667,20 @@ def _scene_record(scene, joined, summary, rate, code, medians, flips):
                       flip_spacing_rel_error=flips["worst"], flips_timed=np.int64(flips["timed"]),
                       sample_first_flip=flips["sample_first"], sample_flip_spacing=flips["sample_spacing"])
     kept = {"norm": joined["norm"]} if "norm" in joined else {}
-    if "trace" in scene["curves"]:
-        w_trace = perturbed_spins(moments, axis, spin, amplitude, 1, seed=scene["entropy"],
-                                  distribution=scene["distribution"])
-        kept["trace"] = _trace(moments, w_trace, plan, scene["chosen"], scene["torque"])
-    record.update(_curves(kept, scene["curves"]))
+    if "trace" in scene.curves:
+        w_trace = perturbed_spins(moments, axis, spin, amplitude, 1, seed=scene.entropy,
+                                  distribution=scene.distribution)
+        kept["trace"] = _trace(moments, w_trace, plan, scene.chosen, scene.torque)
+    record.update(_curves(kept, scene.curves))
     record.update(I1=moments[0], I2=moments[1], I3=moments[2], axis=np.int64(axis), spin=spin, amplitude=amplitude,
-                  method=scene["method"], sample=np.arange(scene["samples"], dtype=np.int64))
-    if "trace" in scene["curves"]:
+                  method=scene.method, sample=np.arange(scene.samples, dtype=np.int64))
+    if "trace" in scene.curves:
         record["component"] = np.array([1, 2, 3])
-    record.update({"@title": f"tumble measurement: {kind} rate about axis {axis}", "@method_run": scene["chosen"],
-                   "@samples": scene["samples"], "@seed_entropy": str(scene["entropy"]),
-                   "@distribution": scene["distribution"], "@median_interval": _INTERVAL_TEXT,
+    record.update({"@title": f"tumble measurement: {kind} rate about axis {axis}", "@method_run": scene.chosen,
+                   "@samples": scene.samples, "@seed_entropy": str(scene.entropy),
+                   "@distribution": scene.distribution, "@median_interval": _INTERVAL_TEXT,
                    "@source": f"tumble {__version__}"})
-    if scene["spin_up"] is not None:
+    if scene.spin_up is not None:
         record["@torque"] = joined["torque"]
     return {name: np.asarray(v) for name, v in record.items()}
 
@@ -685,10 +722,10 @@ def _spin_up_rate(spin_up, value, spin, times):
 def _trace(moments, w0, plan, method, torque):
     """``(times, omega (T, 3))`` of one sample over the scene's horizon, about :data:`TRACE_POINTS` points."""
     if method == "exact":
-        times = np.linspace(0.0, plan["t_end"], TRACE_POINTS)
+        times = np.linspace(0.0, plan.t_end, TRACE_POINTS)
         return times, exact.omega(moments, w0, times)[0]
-    every = max(1, -(-plan["n_steps"] // TRACE_POINTS))
-    ds = integrate(moments, w0, plan["t_end"], plan["dt"], method=method, torque=torque, save_every=every)
+    every = max(1, -(-plan.n_steps // TRACE_POINTS))
+    ds = integrate(moments, w0, plan.t_end, plan.dt, method=method, torque=torque, save_every=every)
     return ds.time.values, ds.omega.values[0]
 
 
@@ -826,7 +863,7 @@ def invariant_drift(body, axis, spin=1.0, amplitude=1e-3, methods=tuple(STEPPING
     kind, value = theory.linear(moments, axis, spin)
     w0 = perturbed_spins(moments, axis, spin, amplitude, samples, seed=seed)
     t_end = horizon or _plan(moments, axis - 1, kind, value, spin, amplitude, "exact", None,
-                             2 if kind == "exponential" else 0, lambda: w0)["t_end"]
+                             2 if kind == "exponential" else 0, lambda: w0).t_end
     l2_0 = np.sum((moments * w0) ** 2, axis=1)[:, None]
     e_0 = np.sum(moments * w0**2, axis=1)[:, None]
     l2, energy, steps = [], [], []
@@ -928,16 +965,16 @@ def scene_batch(scenes, *, progress=False):
     """The records (:func:`scene_records`) of whole scenes, every closed-form scene of them in batches
     (:func:`closed_form_samples`), the others one by one."""
     parts = [None] * len(scenes)
-    exact_ones = [i for i, scene in enumerate(scenes) if scene["chosen"] == "exact"]
+    exact_ones = [i for i, scene in enumerate(scenes) if scene.chosen == "exact"]
     by_samples = {}
     for i in exact_ones:
-        by_samples.setdefault(scenes[i]["samples"], []).append(i)
+        by_samples.setdefault(scenes[i].samples, []).append(i)
     for samples, members in by_samples.items():
         for i, part in zip(members, closed_form_samples([scenes[i] for i in members], 0, samples)):
             parts[i] = [part]
     for i, scene in enumerate(scenes):
         if parts[i] is None:
-            parts[i] = [scene_samples(scene, 0, scene["samples"], progress=progress)]
+            parts[i] = [scene_samples(scene, 0, scene.samples, progress=progress)]
     return scene_records(scenes, parts)
 
 
