@@ -147,6 +147,66 @@ def test_tiny_transverse_components_are_reproduced_to_round_off_at_t0(eps):
             assert np.all(np.abs(got - w0) <= 8 * EPS * np.abs(w0))
 
 
+# --- spins within 1e-151 of an axis (issue 17, cause 15): the squares of their small components underflow ---
+
+
+TINY_SPINS = [[1e-170, 1.0, 0.0], [1e-170, 1.0, 1e-170], [0.0, -1.0, 1e-165], [3e-152, 2.0, -1e-152],
+              [-1e-300, -1.0, 2e-300]]
+
+
+@pytest.mark.parametrize("w0", TINY_SPINS)
+def test_a_spin_within_1e_151_of_the_intermediate_axis_flips_as_its_linear_growth_says(w0):
+    # The same spin with its small components 1e70 times larger (squares far from underflow) is the same motion
+    # shifted in time: in the linear regime w(t; c ε) = c w(t; ε), so every flip comes ln(1e70)/λ later for the
+    # tiny one (to relative O(ε²)), and near the flip the two states agree.
+    moments = np.array([1.0, 2.0, 3.0])
+    tiny = np.array(w0)
+    big = tiny.copy()
+    big[[0, 2]] *= 1e70
+    rate = abs(tiny[1]) * np.sqrt(1.0 / 3.0)  # w2 sqrt(-q)
+    delay = np.log(1e70) / rate
+    assert exact.omega(moments, tiny, 0.0) == pytest.approx(tiny, rel=1e-14, abs=0)
+    assert exact.first_flip_time(moments, tiny) == pytest.approx(exact.first_flip_time(moments, big) + delay,
+                                                                 rel=1e-12)
+    assert exact.flip_spacing(moments, tiny) == pytest.approx(exact.flip_spacing(moments, big) + 2 * delay,
+                                                              rel=1e-12)
+    near = exact.first_flip_time(moments, big) + np.linspace(-20.0, 20.0, 9)
+    np.testing.assert_allclose(exact.omega(moments, tiny, near + delay), exact.omega(moments, big, near),
+                               rtol=0, atol=1e-9 * abs(tiny[1]))
+    assert np.isfinite(tumble.integrate(moments, tiny, 4000.0, 4000.0, method="exact")["omega"]).all()
+
+
+def test_a_spin_within_1e_151_of_the_intermediate_axis_spins_steadily_until_it_flips():
+    moments = np.array([1.0, 2.0, 3.0])
+    t = np.array([0.0, 1.0, 100.0, 300.0])  # the perturbation is still below 1e-95 at 300 s
+    q = exact.attitude(moments, [1e-170, 1.0, 0.0], t)
+    steady = np.stack([np.cos(t / 2), 0 * t, np.sin(t / 2), 0 * t], axis=1)  # turning about e2 at 1 rad/s
+    np.testing.assert_allclose(q, steady, rtol=0, atol=1e-11)
+    dense = exact.attitude(moments, [1e-170, 1.0, 0.0], np.linspace(600.0, 800.0, 4001))  # through the flip
+    assert np.abs(np.linalg.norm(dense, axis=1) - 1).max() < 1e-12
+    assert np.abs(np.diff(dense, axis=0)).max() < 0.05  # continuous
+
+
+@pytest.mark.parametrize("w0, axis", [([1e-200, 0.0, 1.0], 2), ([1.0, 0.0, 1e-160], 0), ([0.0, 1e-300, -3.0], 2)])
+def test_a_spin_within_1e_151_of_a_stable_axis_follows_the_linearised_motion(w0, axis):
+    moments = np.array([1.0, 2.0, 3.0])
+    w0 = np.array(w0)
+    a, b, c = axis, (axis + 1) % 3, (axis + 2) % 3
+    alpha = (moments[c] - moments[a]) * w0[a] / moments[b]  # w_b' = alpha w_c, w_c' = beta w_b
+    beta = (moments[a] - moments[b]) * w0[a] / moments[c]
+    omega = np.sqrt(-alpha * beta)
+    t = np.linspace(0.0, 50.0, 11)
+    expected = np.empty((len(t), 3))
+    expected[:, a] = w0[a]
+    expected[:, b] = w0[b] * np.cos(omega * t) + alpha / omega * w0[c] * np.sin(omega * t)
+    expected[:, c] = w0[c] * np.cos(omega * t) + beta / omega * w0[b] * np.sin(omega * t)
+    got = exact.omega(moments, w0, t)
+    scale = np.abs(w0[[b, c]]).max()
+    np.testing.assert_allclose(got[:, [b, c]], expected[:, [b, c]], rtol=0, atol=1e-12 * scale)
+    np.testing.assert_allclose(got[:, a], w0[a], rtol=4 * EPS, atol=0)
+    assert np.isfinite(exact.attitude(moments, w0, t)).all()
+
+
 def test_transverse_components_grow_at_the_linear_rate_near_the_intermediate_axis():
     moments = np.array([1.0, 2.0, 3.0])
     w0 = np.array([1e-12, 1.0, 1e-12])

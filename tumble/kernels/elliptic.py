@@ -82,7 +82,7 @@ from numba.extending import intrinsic
 from .jit import jit
 from .trig import _C1, _C2, _C3, _C4, _C5, _C6, _S1, _S2, _S3, _S4, _S5, _S6, _fma
 
-__all__ = ["KC_HYPERBOLIC", "agm", "carlson_rf", "jacobi_sncndn", "torque_free_invariants", "torque_free_omega",
+__all__ = ["KC_HYPERBOLIC", "TINY_TRANSVERSE", "agm", "carlson_rf", "jacobi_sncndn", "torque_free_invariants", "torque_free_omega",
            "torque_free_setup"]
 
 #: Below this complementary modulus the hyperbolic series is used (11 terms a side just below 0.5, 3 at
@@ -97,6 +97,11 @@ _AGM_TOL = 1e-17
 _AGM_MAXITER = 64
 # Landen table size (descending Landen from k' >= KC_HYPERBOLIC needs at most 6 steps).
 _LANDEN_MAX = 16
+
+#: A spin whose two smaller components are both below this fraction of the largest (and not both zero) is
+#: too close to a principal axis for the invariants: their squares underflow. torque_free_invariants counts
+#: such samples; :mod:`tumble.physics.exact` moves them where the squares are safe (its ``_lift_tiny``).
+TINY_TRANSVERSE = 2.0**-500
 
 # Kinds of motion, per sample, understood by torque_free_omega.
 KIND_STATIONARY = 0
@@ -348,7 +353,14 @@ def torque_free_invariants(moments, w, I, perm, parity, moment_scale, spin_scale
         Receives +1 for an even permutation, -1 for an odd one.
     moment_scale, spin_scale, delta : ndarray, shape (n,)
         Receive the powers of two and ``L² - 2E I2`` of the scaled spin and moments.
+
+    Returns
+    -------
+    int
+        The number of samples whose two smaller components are below :data:`TINY_TRANSVERSE` of the largest,
+        not both zero: their ``delta`` has lost its accuracy to underflow.
     """
+    tiny = 0
     for i in numba.prange(w.shape[0]):
         a, b, c = 0, 1, 2  # a stable sort of three: strict comparisons never swap equal moments
         if moments[i, a] > moments[i, b]:
@@ -374,6 +386,10 @@ def torque_free_invariants(moments, w, I, perm, parity, moment_scale, spin_scale
         s, e = _two_sum(ah, -bh)
         dh, dl = _two_sum(s, e + (al - bl))
         delta[i] = dh + dl
+        x, y, z = abs(w[i, 0]), abs(w[i, 1]), abs(w[i, 2])
+        second = max(min(x, y), min(max(x, y), z))  # the middle of the three
+        tiny += 1 if 0.0 < second < TINY_TRANSVERSE * max(x, y, z) else 0
+    return tiny
 
 
 @jit(parallel=True)

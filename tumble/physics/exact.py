@@ -64,6 +64,7 @@ sense of ``w x (I w)``, so ``nu`` changes sign with the parity of the sorting pe
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -231,14 +232,70 @@ def _setup(moments, w, shape, mid_axis):
     parity = np.empty(n)
     scaled = np.empty((5, n))  # 2E, L², delta (scaled); moment scale, spin scale
     e2, L2, delta, moment_scale, spin_scale = scaled
-    _ell.torque_free_invariants(moments, w, I_sorted, perm, parity, moment_scale, spin_scale, delta)
+    given, lifted = w, None
+    if _ell.torque_free_invariants(moments, w, I_sorted, perm, parity, moment_scale, spin_scale, delta):
+        w, lifted = _lift_tiny(w)  # spins within 2^-500 of an axis (rare)
+        _ell.torque_free_invariants(moments, w, I_sorted, perm, parity, moment_scale, spin_scale, delta)
     kind = np.empty(n, dtype=np.int64)
     amp = np.empty((n, 3))
     cols = np.empty((n, 3), dtype=np.int64)
     kc, m, K, phase0, nu = np.empty((5, n))
     _ell.torque_free_setup(I_sorted, perm, parity, w, spin_scale, delta, kind, amp, cols, kc, m, K, phase0, nu, e2, L2)
+    if lifted is not None:
+        _lower_tiny(lifted, I_sorted, perm, given, kind, amp, cols, kc, K, phase0)
     return _Solution(shape=shape, kind=kind, amp=amp, cols=cols, kc=kc, m=m, K=K, phase0=phase0, nu=nu,
                      mid_axis=perm[:, 1] if mid_axis is None else mid_axis, scaled=scaled)
+
+
+# Where _lift_tiny moves a spin's two small components: their squares are then far from underflow, and the
+# terms of relative order (lifted component)^2 that the rescaling below neglects far below rounding.
+_LIFT = 2.0**-200
+
+
+def _lift_tiny(w):
+    """Spins within ``TINY_TRANSVERSE`` of a principal axis, their two small components multiplied by one power
+    of two (``factor``) so that the invariants of the lifted spin keep their accuracy (:func:`_lower_tiny`
+    undoes it on the set-up). Returns the lifted spins and ``(rows, dominant axis, factor)``."""
+    a = np.abs(w)
+    dominant = a.argmax(axis=1)
+    second = np.sort(a, axis=1)[:, 1]
+    rows = np.flatnonzero((second > 0) & (second < _ell.TINY_TRANSVERSE * a.max(axis=1)))
+    factor = np.ldexp(1.0, np.frexp(_LIFT * a.max(axis=1)[rows] / second[rows])[1])
+    lifted = w.copy()
+    transverse = np.arange(3)[None, :] != dominant[rows, None]
+    lifted[rows] = np.where(transverse, w[rows] * factor[:, None], w[rows])
+    return lifted, (rows, dominant[rows], factor)
+
+
+def _lower_tiny(lifted, I_sorted, perm, w, kind, amp, cols, kc, K, phase0):
+    """The closed form of spins within ``TINY_TRANSVERSE`` of an axis from that of the lifted spins.
+
+    Such a spin's two small components ``ε`` are so small that their squares underflow in ``L² - 2E I2``. To
+    relative order ``ε²`` (below rounding) they follow the linearised motion about the axis ``a``, linear in
+    them, so the lifted spin (components ``f ε``) gives the true one by scaling:
+
+    * about a stable or degenerate axis the small components stay small: the amplitudes of their output
+      columns are divided by ``f`` (a steady spin keeps its own components);
+    * about the intermediate axis (``I1 < I2 < I3`` strictly) they grow and the spin flips: the orbit of the
+      lifted spin passes ``f`` times farther from the unstable axis. Everything but the modulus is the same to
+      ``O(f ε)²`` (amplitudes, rate, the initial argument, whose ``sn r0, cn r0`` are ratios of the small
+      components), while ``k'`` is proportional to them: ``k' -> k'/f``, ``K`` recomputed (``K ≈ ln(4/k')``,
+      so the time spent near the unstable axis grows by ``ln(f)/ν``); on the separatrix the argument
+      ``asinh(c/ε) ≈ ln(2c/ε)`` moves by ``ln f``.
+    """
+    rows, dominant, factor = lifted
+    strict = (I_sorted[rows, 0] < I_sorted[rows, 1]) & (I_sorted[rows, 1] < I_sorted[rows, 2])
+    unstable = strict & (perm[rows, 1] == dominant) & (kind[rows] != _ell.KIND_STATIONARY)
+    for j, i in enumerate(rows):
+        if kind[i] == _ell.KIND_STATIONARY:
+            amp[i] = w[i, cols[i]]
+        elif not unstable[j]:
+            amp[i] = np.where(cols[i] != dominant[j], amp[i] / factor[j], amp[i])
+        elif kind[i] == _ell.KIND_SEPARATRIX:
+            phase0[i] += math.copysign(math.log(factor[j]), phase0[i])
+        else:
+            kc[i] /= factor[j]
+            K[i] = 0.5 * math.pi / _ell.agm(1.0, kc[i])
 
 
 def omega_rows(sol, times, row):
@@ -463,13 +520,21 @@ def _pi_integral(u, K, kc, n_char, separatrix):
         r = np.where(separatrix, u, u - 2.0 * K * j)
     s, c, d = _sncndn(r, np.where(separatrix, 0.0, kc))
     amplitude = j * np.pi + np.arctan2(s, c)
-    c2, d2 = c * c, d * d
-    incomplete = s * elliprf(c2, d2, 1.0) + (n_char / 3.0) * s**3 * elliprj(c2, d2, 1.0, 1.0 - n_char * s * s)
     a = np.sqrt(-n_char)
-    tangent = (u + a * np.arctan(a * np.tanh(u))) / (1.0 + a * a)  # separatrix: ∫ du / (1 + a² tanh² u)
-    with np.errstate(invalid="ignore"):  # the complete integral is infinite on the separatrix (unused there)
+
+    def tangent(v):  # ∫_0^v du / (1 + a² tanh² u): the separatrix's integral (sn = tanh)
+        return (v + a * np.arctan(a * np.tanh(v))) / (1.0 + a * a)
+
+    # k' below 1e-100 (a spin within about that of the intermediate axis): sn = tanh + O(k'²) on [-K, K], so the
+    # integrals take the separatrix form (Carlson's arguments cn², dn² would underflow there)
+    tiny = ~separatrix & (kc < 1e-100)
+    c2, d2 = c * c, d * d
+    with np.errstate(invalid="ignore", divide="ignore"):  # infinite on the separatrix and for tiny k' (unused)
+        incomplete = s * elliprf(c2, d2, 1.0) + (n_char / 3.0) * s**3 * elliprj(c2, d2, 1.0, 1.0 - n_char * s * s)
         complete = elliprf(0.0, kc * kc, 1.0) + (n_char / 3.0) * elliprj(0.0, kc * kc, 1.0, 1.0 - n_char)
-        integral = np.where(separatrix, tangent, 2.0 * j * complete + incomplete)
+        incomplete = np.where(tiny, tangent(r), incomplete)
+        complete = np.where(tiny, tangent(K), complete)
+        integral = np.where(separatrix, tangent(u), 2.0 * j * complete + incomplete)
     return integral, amplitude
 
 
