@@ -81,6 +81,9 @@ def invariant_weights(moments, axis):
     ndarray, shape (3,)
     """
     moments = np.asarray(moments, dtype=float)
+    # in units of the power of two nearest the largest moment (exact): the products neither under- nor overflow
+    # for moments anywhere in the float range, and the weights are the same bits as unscaled where those did not
+    moments = moments / np.ldexp(1.0, np.frexp(np.abs(moments).max())[1])
     a = int(axis) - 1
     b, c = (a + 1) % 3, (a + 2) % 3
     k = moments * (moments[a] - moments)

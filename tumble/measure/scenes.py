@@ -225,13 +225,13 @@ def _plan(moments, a, kind, value, spin, amplitude, method, dt, flips, probe_spi
     return StepPlan(t_end=n_steps * dt, dt=dt, n_steps=n_steps, **plan)
 
 
-def _validate_scene(body, axis, spin, amplitude, samples, method, flips):
+def _validate_scene(body, axis, spin, amplitude, samples, method, flips, distribution):
     moments = one_body(body)
     if isinstance(axis, (bool, np.bool_)) or axis not in (1, 2, 3):
         raise ValueError(f"axis must be 1, 2 or 3 (a principal axis, 1-based), got {axis!r}")
     _check_method(method)
     flips = _positive_int(flips, "flips")
-    perturbed_spins(moments, axis, spin, amplitude, 1, seed=0)  # validates spin and amplitude
+    perturbed_spins(moments, axis, spin, amplitude, 1, seed=0, distribution=distribution)  # checks all three
     if float(amplitude) == 0.0:
         raise ValueError("amplitude must be > 0 rad: a growth rate or frequency is measured on perturbed spins, "
                          "and a spin exactly on its axis never moves off it")
@@ -327,7 +327,7 @@ def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, metho
         As :func:`measure`.
     """
     moments, axis, spin, amplitude, samples, flips = _validate_scene(body, axis, spin, amplitude, samples,
-                                                                     method, flips)
+                                                                     method, flips, distribution)
     if dt is not None and (not np.isfinite(dt) or dt <= 0):
         raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
     if horizon is not None and (not np.isfinite(horizon) or horizon <= 0):
@@ -856,7 +856,8 @@ def invariant_drift(body, axis, spin=1.0, amplitude=1e-3, methods=tuple(STEPPING
         ``drift_l2(drift_method, drift_time)`` and ``drift_energy(drift_method, drift_time)``: the largest
         relative error ``|X(t)/X(0) − 1|`` over the samples; ``drift_dt(drift_method)``.
     """
-    moments, axis, spin, amplitude, samples, _ = _validate_scene(body, axis, spin, amplitude, samples, "auto", 0)
+    moments, axis, spin, amplitude, samples, _ = _validate_scene(body, axis, spin, amplitude, samples, "auto", 0,
+                                                                 "cone")
     methods = [_check_method(m) for m in methods]
     if not methods or any(m in ("auto", "exact") for m in methods):
         raise ValueError(f"methods must be fixed-step methods ({', '.join(STEPPING)}), got {methods!r}")
