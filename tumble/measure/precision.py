@@ -66,6 +66,7 @@ import sys
 import time
 import warnings
 from concurrent.futures import ThreadPoolExecutor
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -432,6 +433,62 @@ def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, sampl
     t_end = float(t_end)
     if not (math.isfinite(t_end) and t_end > 0):
         raise ValueError(f"t_end must be a finite number > 0 s, got {t_end!r}")
+    methods, scipy_methods, rtols = _check_solvers(methods, scipy_methods, rtols)
+    hy, heyoka_tols = _check_heyoka(heyoka_tols)
+    ladders = _step_ladders(methods, steps, t_end)
+
+    w0 = perturbed_spins(moments, axis, spin, amplitude, samples, seed=seed)
+    started = time.perf_counter()
+    if heyoka_tols.size:
+        reference = heyoka_reference(moments, w0, t_end)
+        about_reference = "heyoka taylor_adaptive in long double (tol = its epsilon), rounded to double"
+    else:
+        reference = exact.omega(moments, w0, np.array([t_end]))[:, -1, :]
+        about_reference = "closed form (tumble.physics.exact.omega); heyoka " + (
+            "left out" if hy is not None else "not installed")
+    reference_wall = time.perf_counter() - started
+    _say(progress, f"  reference: {about_reference} ({reference_wall:.2f} s)")
+    run = _Ensemble(moments, w0, t_end, reference, np.linalg.norm(w0, axis=1), progress)
+
+    # Pass 1 walks every solver's ladder once: it decides which points exist (errors, round-off, time cap)
+    # and gives each point its first wall time. Passes 2 … repeats then time every point again, all solvers
+    # in turn, so that a change of machine load during the run hits all solvers alike; each point's wall
+    # time is the median over the passes.
+    curves = {m: _tumble_curve(run, m, *ladders[m]) for m in methods}
+    curves[_EXACT], reference_vs_exact = _exact_curve(run, heyoka_tols.size > 0)
+    # Beside the points (timed through the array API): the bare closed form, and what tumble.integrate (a
+    # Dataset) costs on top of the kernels, measured on a one-step rk4 run of the same ensemble.
+    parts = {"exact_omega": _Curve([], [(lambda: exact.omega(moments, w0, np.array([t_end])), [])], 0.0)}
+    if "rk4" in methods:
+        parts["integrate_one_step_rk4"] = _Curve([], [(lambda: integrate(moments, w0, t_end, t_end, method="rk4"),
+                                                      [])], 0.0)
+    for sm in scipy_methods:
+        curves[_SCIPY_PREFIX + sm] = _scipy_curve(run, sm, rtols, atol_scale=ATOL_FACTOR * abs(float(spin)))
+    threads = int(numba.get_num_threads())
+    if heyoka_tols.size:
+        with ThreadPoolExecutor(threads) as pool:
+            curves[_HEYOKA] = _heyoka_curve(run, heyoka_tols, pool if threads > 1 else None, threads)
+            extra = _retime(curves, parts, repeats, progress)
+    else:
+        extra = _retime(curves, parts, repeats, progress)
+
+    ds = _dataset({name: c.points for name, c in curves.items()}, {name: c.compile_time for name, c in curves.items()},
+                  methods, moments, axis, spin, amplitude, samples, t_end, seed, repeats)
+    ds.attrs.update(exact_omega_wall_s=extra["exact_omega"],
+                    integrate_one_step_rk4_wall_s=extra.get("integrate_one_step_rk4", math.nan),
+                    reference=about_reference, reference_wall_s=reference_wall,
+                    reference_vs_exact_max=reference_vs_exact[0], reference_vs_exact_median=reference_vs_exact[1])
+    if heyoka_tols.size:
+        ds.attrs.update(heyoka=f"heyoka {hy.__version__}: taylor_adaptive_batch, batch size "
+                               f"{hy.recommended_simd_size()}, {threads} thread(s)",
+                        heyoka_threads=threads, heyoka_batch_size=int(hy.recommended_simd_size()))
+    else:
+        ds.attrs["heyoka"] = "left out" if hy is not None else "not installed (pip install 'tumble[bench]')"
+    return ds
+
+
+def _check_solvers(methods, scipy_methods, rtols):
+    """tumble's methods (without ``"exact"``, always measured), SciPy's and its tolerances (loose to tight)."""
     methods = list(STEPPING) if methods is None else [m for m in dict.fromkeys(methods) if m != _EXACT]
     unknown = [m for m in methods if m not in STEPPING]
     if unknown:
@@ -443,7 +500,11 @@ def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, sampl
     rtols = np.asarray(DEFAULT_RTOLS if rtols is None else rtols, dtype=float).reshape(-1)
     if scipy_methods and (rtols.size == 0 or not np.all(np.isfinite(rtols)) or np.any(rtols <= 0)):
         raise ValueError(f"rtols must be a non-empty sequence of finite numbers > 0, got {rtols!r}")
-    rtols = np.sort(rtols)[::-1]  # loose to tight
+    return methods, scipy_methods, np.sort(rtols)[::-1]
+
+
+def _check_heyoka(heyoka_tols):
+    """heyoka's module (None when not installed) and its tolerances, tight last (empty: heyoka left out)."""
     hy = _import_heyoka()
     if heyoka_tols is None:
         heyoka_tols = DEFAULT_HEYOKA_TOLS if hy is not None else ()
@@ -452,165 +513,145 @@ def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, sampl
         raise ValueError(f"heyoka_tols must be finite numbers > 0, got {heyoka_tols!r}")
     if heyoka_tols.size and hy is None:
         raise ImportError("heyoka_tols given but heyoka is not installed (pip install 'tumble[bench]')")
-    use_heyoka = bool(heyoka_tols.size)
-    ladders = _step_ladders(methods, steps, t_end)
+    return hy, heyoka_tols
 
-    w0 = perturbed_spins(moments, axis, spin, amplitude, samples, seed=seed)
-    norm0 = np.linalg.norm(w0, axis=1)
+
+class _Ensemble(NamedTuple):
+    """What every solver of :func:`work_precision` is measured on."""
+
+    moments: np.ndarray
+    w0: np.ndarray  # (N, 3) rad/s
+    t_end: float
+    reference: np.ndarray  # (N, 3) rad/s at t_end
+    norm0: np.ndarray  # (N,) |w0|
+    progress: bool
+
+    def point(self, w_end, wall, setting, steps, nfev=np.nan):
+        err, err_med = _errors(w_end, self.reference, self.norm0)
+        return dict(error=err, error_median=err_med, wall=wall, setting=setting, steps=steps, nfev=nfev)
+
+
+class _Curve(NamedTuple):
+    """A solver's points (dicts of :meth:`_Ensemble.point`), the runs that time them again and its compile time."""
+
+    points: list
+    runs: list  # (callable, wall times of its runs), one per point
+    compile_time: float
+
+
+def _timed(fn):
     started = time.perf_counter()
-    if use_heyoka:
-        reference = heyoka_reference(moments, w0, t_end)
-        about_reference = "heyoka taylor_adaptive in long double (tol = its epsilon), rounded to double"
-    else:
-        reference = exact.omega(moments, w0, np.array([t_end]))[:, -1, :]
-        about_reference = "closed form (tumble.physics.exact.omega); heyoka " + (
-            "left out" if hy is not None else "not installed")
-    reference_wall = time.perf_counter() - started
-    _say(progress, f"  reference: {about_reference} ({reference_wall:.2f} s)")
+    result = fn()
+    return time.perf_counter() - started, result
 
-    curves = {}  # solver -> list of dict(error, error_median, wall, setting, steps, nfev)
-    timers = {}  # solver -> list of (callable, wall times of its runs)
-    compile_time = {}
 
-    def timed(fn):
-        started = time.perf_counter()
-        result = fn()
-        return time.perf_counter() - started, result
+def _tumble_curve(run, method, counts, adaptive):
+    """A fixed-step method along its ladder of step counts; an adaptive (default) ladder stops at round-off
+    or before a run longer than :data:`MAX_POINT_SECONDS`."""
+    moments, w0, t_end = run.moments, run.w0, run.t_end
+    compile_time, _ = _timed(lambda: propagate(moments, w0[:2], t_end / 4, t_end / 4, method=method))
+    points, runs = [], []
+    for n in map(int, counts):
+        if adaptive and points and points[-1]["wall"] * n / points[-1]["steps"] > MAX_POINT_SECONDS:
+            _say(run.progress, f"  {method}: stop before n={n} (next run would exceed {MAX_POINT_SECONDS} s)")
+            break
+        dt = t_end / n
 
-    # Pass 1 walks every solver's ladder once: it decides which points exist (errors, round-off, time cap)
-    # and gives each point its first wall time. Passes 2 … repeats then time every point again, all solvers
-    # in turn, so that a change of machine load during the run hits all solvers alike; each point's wall
-    # time is the median over the passes.
+        def one_run(dt=dt):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)  # coarse steps may blow up: error inf
+                return propagate(moments, w0, t_end, dt, method=method)
 
-    # --- tumble fixed-step methods -------------------------------------------------------------------------
-    for m in methods:
-        compile_time[m], _ = timed(lambda m=m: propagate(moments, w0[:2], t_end / 4, t_end / 4, method=m))
-        counts, adaptive = ladders[m]
-        points, runs = [], []
-        for n in counts:
-            n = int(n)
-            if adaptive and points and points[-1]["wall"] * n / points[-1]["steps"] > MAX_POINT_SECONDS:
-                _say(progress, f"  {m}: stop before n={n} (next run would exceed {MAX_POINT_SECONDS} s)")
-                break
-            dt = t_end / n
+        wall, w_end = _timed(one_run)
+        steps, step = _step_plan(t_end, dt)
+        points.append(run.point(w_end, wall, step, steps))
+        runs.append((one_run, [wall]))
+        err = points[-1]["error"]
+        _say(run.progress, f"  {method:18s} n={n:7d} dt={dt:.3e} s  error {err:.2e} "
+                           f"(median {points[-1]['error_median']:.2e})  {wall:.4f} s")
+        if adaptive and (err < ROUND_OFF or (len(points) > 1 and err < _FLOOR_ERROR
+                                             and err > _FLOOR_GAIN * points[-2]["error"])):
+            break
+    return _Curve(points, runs, compile_time)
 
-            def one_run(m=m, dt=dt):
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore", RuntimeWarning)  # coarse steps may blow up: error inf
-                    return propagate(moments, w0, t_end, dt, method=m)
 
-            wall, w_end = timed(one_run)
-            err, err_med = _errors(w_end, reference, norm0)
-            steps, step = _step_plan(t_end, dt)
-            points.append(dict(error=err, error_median=err_med, wall=wall, setting=step, steps=steps, nfev=np.nan))
-            runs.append((one_run, [wall]))
-            _say(progress, f"  {m:18s} n={n:7d} dt={dt:.3e} s  error {err:.2e} (median {err_med:.2e})  "
-                           f"{wall:.4f} s")
-            if adaptive and (err < ROUND_OFF or (len(points) > 1 and err < _FLOOR_ERROR
-                                                   and err > _FLOOR_GAIN * points[-2]["error"])):
-                break
-        curves[m], timers[m] = points, runs
-
-    # --- the closed form ------------------------------------------------------------------------------------
-    compile_time[_EXACT], _ = timed(lambda: propagate(moments, w0[:2], t_end, t_end, method=_EXACT))
+def _exact_curve(run, heyoka_is_reference):
+    """The closed form's one point, and its distance to the reference (NaN, NaN when it is the reference: its
+    error is then estimated by the flow property over two halves of ``t_end``)."""
+    moments, w0, t_end = run.moments, run.w0, run.t_end
+    compile_time, _ = _timed(lambda: propagate(moments, w0[:2], t_end, t_end, method=_EXACT))
 
     def exact_run():
         return propagate(moments, w0, t_end, t_end, method=_EXACT)
 
-    wall, w_exact = timed(exact_run)
-    if use_heyoka:  # the closed form's true error
-        err, err_med = _errors(w_exact, reference, norm0)
-        reference_vs_exact = (err, err_med)
-    else:  # an estimate: the flow property over two halves of t_end
+    wall, w_exact = _timed(exact_run)
+    if heyoka_is_reference:  # the closed form's true error
+        point = run.point(w_exact, wall, np.nan, np.nan)
+        reference_vs_exact = (point["error"], point["error_median"])
+    else:
         halves = exact.omega(moments, exact.omega(moments, w0, np.array([0.5 * t_end]))[:, -1, :],
                              np.array([0.5 * t_end]))[:, -1, :]
-        err, err_med = _errors(halves, w_exact, norm0)
+        point = _Ensemble(moments, w0, t_end, w_exact, run.norm0, run.progress).point(halves, wall, np.nan, np.nan)
         reference_vs_exact = (math.nan, math.nan)
-    curves[_EXACT] = [dict(error=err, error_median=err_med, wall=wall, setting=np.nan, steps=np.nan, nfev=np.nan)]
-    timers[_EXACT] = [(exact_run, [wall])]
-    what = "error" if use_heyoka else "error estimate"
-    _say(progress, f"  {_EXACT:18s} {what} {err:.2e} (median {err_med:.2e})  {wall:.4f} s")
-    # Beside the points (timed through the array API): the bare closed form, and what tumble.integrate (a
-    # Dataset) costs on top of the kernels, measured on a one-step rk4 run of the same ensemble.
-    parts = {"exact_omega": [(lambda: exact.omega(moments, w0, np.array([t_end])), [])]}
-    if "rk4" in methods:
-        parts["integrate_one_step_rk4"] = [(lambda: integrate(moments, w0, t_end, t_end, method="rk4"), [])]
+    what = "error" if heyoka_is_reference else "error estimate"
+    _say(run.progress, f"  {_EXACT:18s} {what} {point['error']:.2e} (median {point['error_median']:.2e})  {wall:.4f} s")
+    return _Curve([point], [(exact_run, [wall])], compile_time), reference_vs_exact
 
-    # --- SciPy on the stacked ensemble ----------------------------------------------------------------------
-    if scipy_methods:
-        from scipy.integrate import solve_ivp
 
-        rhs = euler_rhs_stacked(moments)
-        y0 = np.ascontiguousarray(w0.T).reshape(-1)
-        for sm in scipy_methods:
-            name = _SCIPY_PREFIX + sm
-            compile_time[name] = 0.0
-            points, runs = [], []
-            for rtol in rtols:
-                atol = rtol * ATOL_FACTOR * abs(float(spin))
+def _scipy_curve(run, method, rtols, atol_scale):
+    """``solve_ivp(method)`` on the stacked ensemble at each relative tolerance (``atol = rtol * atol_scale``)."""
+    from scipy.integrate import solve_ivp
 
-                def one_run(sm=sm, rtol=rtol, atol=atol):
-                    return solve_ivp(rhs, (0.0, t_end), y0, method=sm, rtol=rtol, atol=atol)
+    rhs = euler_rhs_stacked(run.moments)
+    y0 = np.ascontiguousarray(run.w0.T).reshape(-1)
+    points, runs = [], []
+    for rtol in rtols:
+        def one_run(rtol=rtol):
+            return solve_ivp(rhs, (0.0, run.t_end), y0, method=method, rtol=rtol, atol=rtol * atol_scale)
 
-                wall, sol = timed(one_run)
-                if sol.status != 0:
-                    raise RuntimeError(f"solve_ivp({sm}, rtol={rtol:g}) failed: {sol.message}")
-                w_end = sol.y[:, -1].reshape(3, -1).T
-                err, err_med = _errors(w_end, reference, norm0)
-                points.append(dict(error=err, error_median=err_med, wall=wall, setting=float(rtol),
-                                   steps=len(sol.t) - 1, nfev=int(sol.nfev)))
-                runs.append((one_run, [wall]))
-                _say(progress, f"  {name:18s} rtol={rtol:.0e}  error {err:.2e} (median {err_med:.2e})  "
-                               f"{wall:.4f} s  ({len(sol.t) - 1} steps, {sol.nfev} f-evals)")
-            curves[name], timers[name] = points, runs
+        wall, sol = _timed(one_run)
+        if sol.status != 0:
+            raise RuntimeError(f"solve_ivp({method}, rtol={rtol:g}) failed: {sol.message}")
+        points.append(run.point(sol.y[:, -1].reshape(3, -1).T, wall, float(rtol), len(sol.t) - 1, int(sol.nfev)))
+        runs.append((one_run, [wall]))
+        _say(run.progress, f"  {_SCIPY_PREFIX + method:18s} rtol={rtol:.0e}  error {points[-1]['error']:.2e} "
+                           f"(median {points[-1]['error_median']:.2e})  {wall:.4f} s  ({len(sol.t) - 1} steps, "
+                           f"{sol.nfev} f-evals)")
+    return _Curve(points, runs, 0.0)
 
-    # --- heyoka's batch-mode Taylor integrator ----------------------------------------------------------------
-    threads = int(numba.get_num_threads())
-    pool = ThreadPoolExecutor(threads) if use_heyoka and threads > 1 else None
-    if use_heyoka:
-        compile_time[_HEYOKA] = 0.0
-        points, runs = [], []
-        for tol in heyoka_tols:
-            build, one_run = timed(lambda tol=tol: _heyoka_ensemble(moments, w0, t_end, float(tol), pool, threads))
-            compile_time[_HEYOKA] += build
-            w_end, n_steps, order = one_run(record=True)  # not timed: with bookkeeping, and starts the threads
-            wall, _ = timed(one_run)
-            err, err_med = _errors(w_end, reference, norm0)
-            points.append(dict(error=err, error_median=err_med, wall=wall, setting=float(tol), steps=n_steps,
-                               nfev=np.nan))
-            runs.append((one_run, [wall]))
-            _say(progress, f"  {_HEYOKA:18s} tol={tol:.0e}  error {err:.2e} (median {err_med:.2e})  "
-                           f"{wall:.4f} s  (order {order}, {n_steps} steps, build {build:.3f} s)")
-        curves[_HEYOKA], timers[_HEYOKA] = points, runs
 
-    # --- passes 2 … repeats, then medians --------------------------------------------------------------------
-    for runs in parts.values():  # the parts had no first pass
-        for fn, walls in runs:
-            walls.append(timed(fn)[0])
+def _heyoka_curve(run, tols, pool, threads):
+    """heyoka's batch-mode Taylor integrator at each tolerance; building the integrators is its compile time."""
+    points, runs, compile_time = [], [], 0.0
+    for tol in tols:
+        build, one_run = _timed(lambda tol=tol: _heyoka_ensemble(run.moments, run.w0, run.t_end, float(tol), pool,
+                                                                 threads))
+        compile_time += build
+        w_end, n_steps, order = one_run(record=True)  # not timed: with bookkeeping, and starts the threads
+        wall, _ = _timed(one_run)
+        points.append(run.point(w_end, wall, float(tol), n_steps))
+        runs.append((one_run, [wall]))
+        _say(run.progress, f"  {_HEYOKA:18s} tol={tol:.0e}  error {points[-1]['error']:.2e} "
+                           f"(median {points[-1]['error_median']:.2e})  {wall:.4f} s  (order {order}, {n_steps} "
+                           f"steps, build {build:.3f} s)")
+    return _Curve(points, runs, compile_time)
+
+
+def _retime(curves, parts, repeats, progress):
+    """Passes 2 … ``repeats`` over every point of every solver in turn; each point's wall time becomes the
+    median of its passes. Returns the median time of each of ``parts`` (timed in every pass, no first one)."""
+    for part in parts.values():
+        for fn, walls in part.runs:
+            walls.append(_timed(fn)[0])
     for k in range(1, repeats):
         _say(progress, f"  timing pass {k + 1} of {repeats}")
-        for runs in (*timers.values(), *parts.values()):
-            for fn, walls in runs:
-                walls.append(timed(fn)[0])
-    for solver, runs in timers.items():
-        for point, (_, walls) in zip(curves[solver], runs):
+        for curve in (*curves.values(), *parts.values()):
+            for fn, walls in curve.runs:
+                walls.append(_timed(fn)[0])
+    for curve in curves.values():
+        for point, (_, walls) in zip(curve.points, curve.runs):
             point["wall"] = float(np.median(walls))
-    extra = {name: float(np.median(runs[0][1])) for name, runs in parts.items()}
-    if pool is not None:
-        pool.shutdown()
-
-    ds = _dataset(curves, compile_time, methods, moments, axis, spin, amplitude, samples, t_end, seed, repeats)
-    ds.attrs.update(exact_omega_wall_s=extra["exact_omega"],
-                    integrate_one_step_rk4_wall_s=extra.get("integrate_one_step_rk4", math.nan),
-                    reference=about_reference, reference_wall_s=reference_wall,
-                    reference_vs_exact_max=reference_vs_exact[0], reference_vs_exact_median=reference_vs_exact[1])
-    if use_heyoka:
-        ds.attrs.update(heyoka=f"heyoka {hy.__version__}: taylor_adaptive_batch, batch size "
-                               f"{hy.recommended_simd_size()}, {threads} thread(s)",
-                        heyoka_threads=threads, heyoka_batch_size=int(hy.recommended_simd_size()))
-    else:
-        ds.attrs["heyoka"] = "left out" if hy is not None else "not installed (pip install 'tumble[bench]')"
-    return ds
+    return {name: float(np.median(part.runs[0][1])) for name, part in parts.items()}
 
 
 def _kind(solver):
