@@ -191,6 +191,9 @@ def _plot(args):
     except (ValueError, OSError) as err:
         raise InputError(f"{path}: not a tumble result file ({err})") from None
     names = args.figures or [name for name in plots.FIGURES if plots.can_draw(ds, name)[0]]
+    if not names:  # a file with tumble's attributes but none of the variables a figure reads (forged, or cut down)
+        raise InputError(f"{path}: nothing to draw: {plots.can_draw(ds, 'summary')[1]}, and the file holds none of "
+                         f"what the other figures read (figures: {', '.join(plots.FIGURES)})")
     for name in names:
         ok, reason = plots.can_draw(ds, name) if name in plots.FIGURES else (False, "unknown figure")
         if not ok:
