@@ -387,3 +387,140 @@ def test_a_staging_folder_left_by_kill_9_is_removed_by_the_next_run(earlier_resu
     (leftover / "small.nc").write_bytes(b"half")
     assert cli.main(["run", str(study), "--out", str(out)]) == 0
     assert not leftover.exists() and sorted(p.name for p in out.iterdir()) == sorted(before)
+
+
+# --- bad arguments of the public functions, one row a case (issue 17, cause 16) ----------------------------
+# Each row: the call, the exception and a fragment of its message, which names the argument. Every one is
+# refused before any kernel runs (the rows use one body and a step that no kernel variant is compiled for).
+
+def _api_cases():
+    import numpy as np
+
+    import tumble
+    from tumble import exact, sampling, theory
+
+    nan, inf = float("nan"), float("inf")
+    body, w, t = (1.0, 2.0, 3.0), np.array([[0.01, 1.0, 0.0]]), np.array([0.0, 1.0])
+
+    def ensemble(**kwargs):
+        args = {"w0": w, "t_end": 1.0, "dt": 0.1, "method": "rk4", **kwargs}
+        return lambda: tumble.run_ensemble(body, args.pop("w0"), args.pop("t_end"), args.pop("dt"), **args)
+
+    return [
+        ("run_ensemble-w0-nan", ensemble(w0=[[nan, 1.0, 0.0]]), ValueError, "w0 must be finite"),
+        ("run_ensemble-w0-inf", ensemble(w0=[[inf, 1.0, 0.0]]), ValueError, "w0 must be finite"),
+        ("run_ensemble-w0-empty", ensemble(w0=np.zeros((0, 3))), ValueError, "w0 holds no spins"),
+        ("run_ensemble-w0-shape", ensemble(w0=np.zeros((2, 4))), ValueError, "w0 must have shape"),
+        ("run_ensemble-w0-one-spin-1d", ensemble(w0=np.zeros(3)), ValueError, "w0 must have shape (N, 3)"),
+        ("run_ensemble-t_end-nan", ensemble(t_end=nan), ValueError, "t_end must be finite"),
+        ("run_ensemble-t_end-inf", ensemble(t_end=inf), ValueError, "t_end must be finite"),
+        ("run_ensemble-t_end-negative", ensemble(t_end=-1.0), ValueError, "t_end must be >= 0"),
+        ("run_ensemble-dt-zero", ensemble(dt=0.0), ValueError, "dt must be > 0"),
+        ("run_ensemble-dt-negative", ensemble(dt=-0.1), ValueError, "dt must be > 0"),
+        ("run_ensemble-dt-nan", ensemble(dt=nan), ValueError, "dt must be finite"),
+        ("run_ensemble-save_every-negative", ensemble(save_every=-2), ValueError, "save_every must be an integer"),
+        ("run_ensemble-max_flips-negative", ensemble(max_flips=-1), ValueError, "max_flips must be an integer"),
+        ("run_ensemble-chunk-zero", ensemble(chunk=0), ValueError, "chunk must be an integer >= 1"),
+        ("run_ensemble-chunk-negative", ensemble(chunk=-5), ValueError, "chunk must be an integer >= 1"),
+        ("run_ensemble-probe_times-nan", ensemble(probe_times=[0.0, nan]), ValueError, "probe_times must be finite"),
+        ("run_ensemble-norm_weights-nan", ensemble(probe_times=[0.0, 1.0], norm_weights=[nan, 1.0, 1.0]), ValueError,
+         "norm_weights must be finite"),
+        ("run_ensemble-stop_norm-nan", ensemble(final=False, stop_norm=nan), ValueError, "stop_norm must be finite"),
+        ("run_ensemble-axis-5", ensemble(axis=5), ValueError, "axis must be 1, 2 or 3"),
+        ("run_ensemble-drift_limit-nan", ensemble(drift=True, drift_limit=nan), ValueError, "drift_limit must be finite"),
+        ("integrate-w0-nan", lambda: tumble.integrate(body, [[nan, 1.0, 0.0]], 1.0, 0.1), ValueError, "w0 must be finite"),
+        ("integrate-w0-empty", lambda: tumble.integrate(body, np.zeros((0, 3)), 1.0, 0.1), ValueError, "w0 holds no"),
+        ("integrate-dt-zero", lambda: tumble.integrate(body, w, 1.0, 0.0), ValueError, "dt must be > 0"),
+        ("integrate-t_end-inf", lambda: tumble.integrate(body, w, inf, 0.1), ValueError, "t_end must be finite"),
+        ("integrate-save_every-negative", lambda: tumble.integrate(body, w, 1.0, 0.1, save_every=-1), ValueError,
+         "save_every must be"),
+        ("integrate-torque-nan", lambda: tumble.integrate(body, w, 1.0, 0.1, torque=(nan, 0, 0)), ValueError,
+         "torque must be finite"),
+        ("exact.omega-w0-nan", lambda: exact.omega(body, [nan, 1.0, 0.0], t), ValueError, "w0 must be finite"),
+        ("exact.omega-t-inf", lambda: exact.omega(body, w, [0.0, inf]), ValueError, "t must be finite"),
+        ("exact.omega-w0-shape", lambda: exact.omega(body, np.zeros(4), t), ValueError, "w0 must have shape"),
+        ("exact.period-w0-nan", lambda: exact.period(body, [nan, 1.0, 0.0]), ValueError, "w0 must be finite"),
+        ("theory.linear-spin-nan", lambda: theory.linear(body, 2, nan), ValueError, "spin must be finite"),
+        ("theory.linear-body-shape", lambda: theory.linear((1.0, 2.0), 2, 1.0), ValueError, "body moments must have"),
+        ("theory.first_flip_time-w0-inf", lambda: theory.first_flip_time(body, [inf, 1.0, 0.0]), ValueError,
+         "w0 must be finite"),
+        ("measure-spin-inf", lambda: tumble.measure(body, 2, spin=inf, samples=8), ValueError, "spin must be finite"),
+        ("measure-samples-negative", lambda: tumble.measure(body, 2, samples=-3), ValueError, "samples must be"),
+        ("measure-flips-negative", lambda: tumble.measure(body, 2, samples=8, flips=-1), ValueError, "flips must be"),
+        ("measure-dt-nan", lambda: tumble.measure(body, 2, samples=8, dt=nan, method="rk4"), ValueError, "dt must be"),
+        ("sampling.perturbed_spins-samples-negative", lambda: sampling.perturbed_spins(body, 2, samples=-1), ValueError,
+         "samples must be >= 1"),
+        ("sampling.perturbed_spins-amplitude-inf", lambda: sampling.perturbed_spins(body, 2, amplitude=inf, samples=4),
+         ValueError, "amplitude must be finite"),
+        ("sampling.chunk_ranges-negative", lambda: sampling.chunk_ranges(-1), ValueError, "samples must be >= 1"),
+        ("run_study-samples-negative", lambda: tumble.run_study({"perturbation": {"samples": -1}}), ValueError,
+         "perturbation.samples: must be >= 1"),
+        ("run_study-rate-inf", lambda: tumble.run_study({"spin": {"rate": inf}}), ValueError, "spin.rate: must be finite"),
+    ]
+
+
+_API_CASES = _api_cases()
+
+
+@pytest.mark.parametrize("call, error, fragment", [case[1:] for case in _API_CASES], ids=[case[0] for case in _API_CASES])
+def test_a_public_function_refuses_a_bad_argument_naming_it(monkeypatch, call, error, fragment):
+    from tumble.engine import ensemble
+
+    def no_kernel(*args, **kwargs):
+        raise AssertionError("a kernel ran before the arguments were checked")
+
+    monkeypatch.setattr(ensemble, "run", no_kernel)
+    monkeypatch.setattr(ensemble, "_run_exact", no_kernel)
+    with pytest.raises(error) as info:
+        call()
+    assert fragment in str(info.value) and "\n" not in str(info.value)
+
+
+# --- tumble plot on files that are not what they claim, one row a case (issue 17, cause 13) -------------------
+
+def _forged(path):
+    """A valid netCDF with tumble's global attributes and none of its variables."""
+    import numpy as np
+
+    xr.Dataset({"x": ("a", np.arange(3.0))}, attrs={"source": "tumble 0.1.0", "Conventions": "CF-1.8",
+                                                     "title": "forged"}).to_netcdf(path)
+
+
+def _foreign(path):
+    import numpy as np
+
+    xr.Dataset({"x": ("a", np.arange(3.0))}).to_netcdf(path)
+
+
+def _without_rate(path):
+    """A real result of SMALL with its variables dropped: tumble's attributes and coordinates, nothing a figure
+    reads."""
+    ds = runner.run_study(SMALL)
+    ds.drop_vars(list(ds.data_vars)).to_netcdf(path)
+
+
+PLOT_CASES = [
+    # (id, writer of the file, extra arguments, exit status, fragment of the message)
+    ("forged-tumble-attributes", _forged, [], 2, "nothing to draw: summary needs the variable 'rate'"),
+    ("forged-asked-for-summary", _forged, ["--figures", "summary"], 2, "figure 'summary'"),
+    ("foreign-netcdf", _foreign, [], 2, "not a tumble result"),
+    ("result-without-variables", _without_rate, [], 2, "nothing to draw"),
+    ("missing-file", None, [], 2, "no such file"),
+    ("truncated", lambda path: path.write_bytes(b"CDF\x01\x00"), [], 2, "not a tumble result file"),
+]
+
+
+@pytest.mark.parametrize("write, args, status, fragment", [case[1:] for case in PLOT_CASES],
+                         ids=[case[0] for case in PLOT_CASES])
+def test_plot_of_a_file_that_is_not_a_drawable_result_exits_non_zero_with_one_line(tmp_path, capsys, write, args,
+                                                                                    status, fragment):
+    path = tmp_path / "given.nc"
+    if write is not None:
+        write(path)
+    capsys.readouterr()
+    out = tmp_path / "figures"
+    got = cli.main(["plot", str(path), "--out", str(out), *args])
+    err = capsys.readouterr().err
+    assert got == status, err
+    assert fragment in err and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert not out.exists()

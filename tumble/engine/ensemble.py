@@ -202,9 +202,10 @@ def observation_times(t_end, dt, save_every=None, probe_times=None):
 
 
 def _number(value, name, *, low=None, positive=False):
-    """``value`` as a finite Python float (``>= low``, or ``> 0`` when ``positive``); ValueError naming ``name``."""
+    """``value`` as a finite Python float (``>= low``, or ``> 0`` when ``positive``); ValueError (TypeError for a
+    bool) naming ``name``."""
     if isinstance(value, (bool, np.bool_)):
-        raise ValueError(f"{name} must be a number, got {value!r}")
+        raise TypeError(f"{name} must be a number, got {value!r}")
     try:
         x = float(value)
     except (TypeError, ValueError, OverflowError):
