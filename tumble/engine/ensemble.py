@@ -319,6 +319,11 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
     a = int(axis) - 1
     kind, params, fn, torque_text = torque_spec(torque)
     torque_free = params is None and fn is None
+    if params is not None:
+        profile = registry.TORQUE_PROFILES[kind]
+        problem = registry.profile_step_problem(profile.name, float(params[3]), dt)
+        if problem:
+            raise ValueError(f"torque {profile.time}: {problem}")
     axis_is_intermediate = a == int(np.argsort(moments, kind="stable")[1])
     chosen, reason = choose_method(method, torque_free=torque_free, axis_is_intermediate=axis_is_intermediate,
                                    flips=max_flips)

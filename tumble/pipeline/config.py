@@ -647,6 +647,13 @@ def _resolve(study, given, title):
     }
     if resolved["integration"]["flips"] < 0:
         raise _Invalid("integration.flips", f"must be >= 0, got {resolved['integration']['flips']}")
+    torque = resolved["torque"]
+    if torque["profile"] in registry.RESOLVED_PROFILES:  # a given step must resolve a sine or a pulse
+        key = _PROFILE_TIMES[torque["profile"]]
+        problem = registry.profile_step_problem(torque["profile"], torque[key], resolved["integration"]["dt"],
+                                                "integration.dt")
+        if problem:
+            raise _Invalid(f"torque.{key}", problem)
     resolved["scan"] = _scan(study["scan"], resolved)
     out = study["outputs"]
     resolved["outputs"] = {
