@@ -15,13 +15,13 @@ from pathlib import Path
 
 import numpy as np
 
-from . import registry
+from . import _interrupt, registry
 from ._version import __version__
 from .engine.integration import integrate
 from .physics import exact, shapes, theory
 
 #: Exit status after Ctrl-C (128 + SIGINT, as shells report it).
-EXIT_INTERRUPTED = 130
+EXIT_INTERRUPTED = _interrupt.EXIT_INTERRUPTED
 
 _METHODS = tuple(m.name for m in registry.METHODS)
 
@@ -273,6 +273,7 @@ def main(argv=None):
 
     args = _parser().parse_args(argv)
     try:
+        _interrupt.release()  # from here on Ctrl-C is a KeyboardInterrupt, reported below
         if args.command == "run":
             _run(args)
         elif args.command == "studies":
