@@ -236,6 +236,9 @@ ONE_VALUE_SCAN = {"title": "one", "body": {"moments": [1.0, 2.0, 3.0]}, "spin": 
 LONG_HORIZON = {"title": "long", "body": {"moments": [1.0, 2.0, 3.0]}, "spin": {"axis": 1},
                 "perturbation": {"samples": 8}, "integration": {"horizon": 1e7},
                 "outputs": {"figures": [], "arrays": []}}
+# A pulse or a sine shorter than the step: silently wrong before (issue 17, cause 8).
+SHORT_PULSE = "[outputs]\nfigures = []\n[spin]\naxis = 3\n[torque]\nprofile = 'pulse'\nvector = [0.0, 0.0, 1e-3]\nduration = 1e-4\n"
+SHORT_SINE = "[outputs]\nfigures = []\n[spin]\naxis = 3\n[torque]\nprofile = 'sine'\nvector = [0.0, 0.0, 1e-3]\nperiod = 0.01\n"
 DEEP_TOML = "[perturbation]\namplitude = " + "[" * 2000 + "1e-3" + "]" * 2000 + "\n"
 
 CLI_CASES = [
@@ -251,6 +254,12 @@ CLI_CASES = [
     ("scheduler-without-host", "intermediate_axis", ["--scheduler", "tcp://:8786"], 2, "names no host"),
     ("zero-amplitude", "[perturbation]\namplitude = 0.0\n", [], 2, "perturbation.amplitude: must be > 0 rad"),
     ("zero-amplitude-in-a-scan", "[scan]\namplitude = [1e-3, 0.0]\n", [], 2, "scan.amplitude[1]: must be > 0 rad"),
+    ("pulse-shorter-than-the-planned-step", SHORT_PULSE, [], 2, "torque.duration: 0.0001 s spans"),
+    ("sine-shorter-than-the-planned-step", SHORT_SINE, [], 2, "torque.period: 0.01 s spans"),
+    ("pulse-shorter-than-the-given-step", SHORT_PULSE + "[integration]\ndt = 0.01\n", ["--dry-run"], 2,
+     "torque.duration: 0.0001 s spans 0.01 step(s) of 0.01 s"),
+    ("sine-shorter-than-the-given-step", SHORT_SINE + "[integration]\ndt = 0.005\n", ["--dry-run"], 2,
+     "set integration.dt <= 0.00125 s"),
 ]
 
 
@@ -434,6 +443,12 @@ def _api_cases():
         ("integrate-t_end-inf", lambda: tumble.integrate(body, w, inf, 0.1), ValueError, "t_end must be finite"),
         ("integrate-save_every-negative", lambda: tumble.integrate(body, w, 1.0, 0.1, save_every=-1), ValueError,
          "save_every must be"),
+        ("integrate-pulse-shorter-than-the-step",
+         lambda: tumble.integrate(body, w, 1.0, 0.1, torque={"profile": "pulse", "vector": (0, 0, 1), "duration": 0.05}),
+         ValueError, "torque duration: 0.05 s spans 0.5 step(s) of 0.1 s"),
+        ("integrate-sine-shorter-than-the-step",
+         lambda: tumble.integrate(body, w, 1.0, 0.1, torque={"profile": "sine", "vector": (0, 0, 1), "period": 0.3}),
+         ValueError, "torque period: 0.3 s spans 3 step(s)"),
         ("integrate-torque-nan", lambda: tumble.integrate(body, w, 1.0, 0.1, torque=(nan, 0, 0)), ValueError,
          "torque must be finite"),
         ("exact.omega-w0-nan", lambda: exact.omega(body, [nan, 1.0, 0.0], t), ValueError, "w0 must be finite"),
@@ -524,3 +539,35 @@ def test_plot_of_a_file_that_is_not_a_drawable_result_exits_non_zero_with_one_li
     assert got == status, err
     assert fragment in err and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
     assert not out.exists()
+
+
+# --- Ctrl-C while the command starts (issue 17, cause 12) -------------------------------------------------------
+
+def _commands():
+    script = os.path.join(os.path.dirname(sys.executable), "tumble")
+    yield pytest.param([sys.executable, "-m", "tumble"], id="python-m-tumble")
+    yield pytest.param([script], id="console-script",
+                       marks=pytest.mark.skipif(not os.path.isfile(script), reason="no tumble console script"))
+
+
+@pytest.mark.parametrize("command", list(_commands()))
+def test_ctrl_c_while_the_command_imports_prints_one_line_and_exits_130(tmp_path, command):
+    """SIGINT once numpy is imported, in the middle of tumble's own imports (numba, xarray, matplotlib follow)."""
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env = {**os.environ, "PYTHONPROFILEIMPORTTIME": "1", "TUMBLE_DEBUG": "",
+           "PYTHONPATH": os.pathsep.join([root, os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.Popen([*command, "studies"], cwd=tmp_path, env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
+    lines = []
+    try:
+        for line in proc.stderr:  # -X importtime: one line as each module finishes importing
+            lines.append(line)
+            if line.rstrip().endswith(" numpy"):
+                proc.send_signal(signal.SIGINT)
+                break
+        lines += proc.stderr.readlines()
+    finally:
+        proc.wait(timeout=60)
+    err = [line for line in lines if not line.startswith("import time:")]
+    assert proc.returncode == 130, "".join(err)
+    assert len(err) == 1 and "interrupted" in err[0] and "Traceback" not in "".join(err), "".join(err)
