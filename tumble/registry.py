@@ -127,6 +127,12 @@ TORQUE_PROFILES = (
 )
 _PROFILE_BY_NAME = {p.name: p for p in TORQUE_PROFILES}
 
+#: Spin rates a scene can measure, rad/s (magnitude): squares of spins and of transverse components must stay
+#: within the float range (beyond, the estimators give NaN). The motion is scale invariant: a spin of w rad/s
+#: is the motion of 1 rad/s with times divided by w, so rescale the time unit to study another range.
+SPIN_RANGE = (1e-150, 1e150)
+
+
 #: Steps a sine's period or a pulse's duration must span at least: a fixed step samples the profile only at its
 #: stage times, so a shorter one is aliased (sine) or its impulse is off by up to a whole step's worth (pulse).
 PROFILE_MIN_STEPS = 8

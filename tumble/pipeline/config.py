@@ -421,6 +421,11 @@ def _rate(value, field):
     x = _number(value, field)
     if x == 0:
         raise _Invalid(field, "must be non-zero, rad/s (the spin rate; its sign is the sense of rotation)")
+    low, high = registry.SPIN_RANGE
+    if not low <= abs(x) <= high:
+        raise _Invalid(field, f"must be within {low:g} to {high:g} rad/s in magnitude, got {x!r}: beyond, squares "
+                              f"leave the float range; the motion is scale invariant (w rad/s is 1 rad/s with "
+                              f"times / w)")
     return x
 
 
