@@ -254,6 +254,8 @@ CLI_CASES = [
     ("scheduler-without-host", "intermediate_axis", ["--scheduler", "tcp://:8786"], 2, "names no host"),
     ("zero-amplitude", "[perturbation]\namplitude = 0.0\n", [], 2, "perturbation.amplitude: must be > 0 rad"),
     ("zero-amplitude-in-a-scan", "[scan]\namplitude = [1e-3, 0.0]\n", [], 2, "scan.amplitude[1]: must be > 0 rad"),
+    ("spin-rate-1e200", "[spin]\nrate = 1e200\n", [], 2, "spin.rate: must be within 1e-150 to 1e+150 rad/s"),
+    ("scan-rate-1e-200", "[scan]\nrate = [1.0, 1e-200]\n", ["--dry-run"], 2, "scan.rate[1]: must be within"),
     ("pulse-shorter-than-the-planned-step", SHORT_PULSE, [], 2, "torque.duration: 0.0001 s spans"),
     ("sine-shorter-than-the-planned-step", SHORT_SINE, [], 2, "torque.period: 0.01 s spans"),
     ("pulse-shorter-than-the-given-step", SHORT_PULSE + "[integration]\ndt = 0.01\n", ["--dry-run"], 2,
@@ -460,6 +462,10 @@ def _api_cases():
         ("theory.first_flip_time-w0-inf", lambda: theory.first_flip_time(body, [inf, 1.0, 0.0]), ValueError,
          "w0 must be finite"),
         ("measure-spin-inf", lambda: tumble.measure(body, 2, spin=inf, samples=8), ValueError, "spin must be finite"),
+        ("measure-spin-1e200", lambda: tumble.measure(body, 2, spin=1e200, samples=8), ValueError,
+         "spin must be within 1e-150 to 1e+150 rad/s"),
+        ("sampling.perturbed_spins-spin-1e-200", lambda: sampling.perturbed_spins(body, 2, spin=-1e-200, samples=4),
+         ValueError, "spin must be within"),
         ("measure-samples-negative", lambda: tumble.measure(body, 2, samples=-3), ValueError, "samples must be"),
         ("measure-flips-negative", lambda: tumble.measure(body, 2, samples=8, flips=-1), ValueError, "flips must be"),
         ("measure-dt-nan", lambda: tumble.measure(body, 2, samples=8, dt=nan, method="rk4"), ValueError, "dt must be"),
@@ -571,3 +577,63 @@ def test_ctrl_c_while_the_command_imports_prints_one_line_and_exits_130(tmp_path
     err = [line for line in lines if not line.startswith("import time:")]
     assert proc.returncode == 130, "".join(err)
     assert len(err) == 1 and "interrupted" in err[0] and "Traceback" not in "".join(err), "".join(err)
+
+
+# --- extreme scales (issue 17, causes 6 and 9) ------------------------------------------------------------------
+
+@pytest.mark.parametrize("scale", [1e-170, 1e200, 1e-300, 1e300])
+def test_linear_theory_is_the_same_for_moments_scaled_to_the_ends_of_the_float_range(scale):
+    """q = (Ia-Ib)(Ia-Ic)/(Ib Ic) is scale invariant; its products under- or overflowed ("neutral", NaN)."""
+    import numpy as np
+
+    from tumble import theory
+
+    moments = np.array([1.0, 2.0, 3.0])
+    for axis in (1, 2, 3):  # the scaled moments are the products rounded: the same value to round-off
+        (kind, value), (expected_kind, expected) = theory.linear(moments * scale, axis, 1.0), theory.linear(moments, axis)
+        assert kind == expected_kind and value == pytest.approx(expected, rel=1e-14)
+    kinds, values = theory.linear(np.array([[1.0, 2.0, 3.0], [2.0, 2.0, 3.0]]) * scale, 1, 1.0)
+    assert kinds.tolist() == ["periodic", "neutral"] and values[0] == pytest.approx(theory.linear(moments, 1)[1])
+
+
+def _rates(ds):
+    return str(ds.kind.values), float(ds.rate_theory), float(ds.rate) / float(ds.rate_theory)
+
+
+@pytest.mark.parametrize("scale", [1e-170, 1e200])
+def test_measure_gives_the_same_kinds_and_theory_for_moments_scaled_far(scale):
+    import numpy as np
+
+    import tumble
+
+    moments = np.array([1.0, 2.0, 3.0])
+    for axis in (1, 2):
+        kind, theory_rate, _ = _rates(tumble.measure(moments * scale, axis, samples=64, flips=0))
+        expected_kind, expected, _ = _rates(tumble.measure(moments, axis, samples=64, flips=0))
+        assert kind == expected_kind and theory_rate == pytest.approx(expected, rel=1e-14)
+
+
+@pytest.mark.xfail(strict=True, reason="measure.estimators.invariant_weights forms I_i (I_a - I_i) unscaled: it "
+                                        "under- or overflows for moments of 1e-170 or 1e200 kg m² (the weights fall "
+                                        "back to 1 and the growth fit changes); estimators.py is not this change's")
+@pytest.mark.parametrize("scale", [1e-170, 1e200])
+def test_measure_gives_the_same_relative_rate_for_moments_scaled_far(scale):
+    import numpy as np
+
+    import tumble
+
+    moments = np.array([1.0, 2.0, 3.0])
+    scaled = _rates(tumble.measure(moments * scale, 2, samples=64, flips=0))[2]
+    assert scaled == pytest.approx(_rates(tumble.measure(moments, 2, samples=64, flips=0))[2], rel=1e-9)
+
+
+# --- the distribution's own message (issue 17, cause 5) -----------------------------------------------------------
+
+@pytest.mark.xfail(strict=True, reason="measure.scenes._validate_scene checks amplitude with perturbed_spins' default "
+                                        "distribution ('cone'); it must pass the scene's distribution (scenes.py is "
+                                        "not this change's)")
+def test_a_gaussian_amplitude_beyond_pi_over_2_is_not_refused_with_the_cones_message():
+    import tumble
+
+    ds = tumble.measure((1.0, 2.0, 3.0), 1, amplitude=1.6, samples=16, distribution="gaussian")
+    assert str(ds.kind.values) == "periodic"
