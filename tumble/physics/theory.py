@@ -204,6 +204,8 @@ def _linear_one(body, axis, spin):
     if moments.shape != (3,):
         return None
     i1, i2, i3 = moments.tolist()
+    e = -math.frexp(max(i1, i2, i3))[1]  # as in stability_exponent: exact scaling, same bits, no under/overflow
+    i1, i2, i3 = math.ldexp(i1, e), math.ldexp(i2, e), math.ldexp(i3, e)
     k = int(axis) - 1
     ia, ib, ic = (i1, i2, i3)[k], (i1, i2, i3)[(k + 1) % 3], (i1, i2, i3)[(k + 2) % 3]
     snap = DEGENERATE_RTOL * max(i1, i2, i3)
