@@ -236,6 +236,9 @@ ONE_VALUE_SCAN = {"title": "one", "body": {"moments": [1.0, 2.0, 3.0]}, "spin": 
 LONG_HORIZON = {"title": "long", "body": {"moments": [1.0, 2.0, 3.0]}, "spin": {"axis": 1},
                 "perturbation": {"samples": 8}, "integration": {"horizon": 1e7},
                 "outputs": {"figures": [], "arrays": []}}
+# A pulse or a sine shorter than the step: silently wrong before (issue 17, cause 8).
+SHORT_PULSE = "[outputs]\nfigures = []\n[spin]\naxis = 3\n[torque]\nprofile = 'pulse'\nvector = [0.0, 0.0, 1e-3]\nduration = 1e-4\n"
+SHORT_SINE = "[outputs]\nfigures = []\n[spin]\naxis = 3\n[torque]\nprofile = 'sine'\nvector = [0.0, 0.0, 1e-3]\nperiod = 0.01\n"
 DEEP_TOML = "[perturbation]\namplitude = " + "[" * 2000 + "1e-3" + "]" * 2000 + "\n"
 
 CLI_CASES = [
@@ -251,6 +254,14 @@ CLI_CASES = [
     ("scheduler-without-host", "intermediate_axis", ["--scheduler", "tcp://:8786"], 2, "names no host"),
     ("zero-amplitude", "[perturbation]\namplitude = 0.0\n", [], 2, "perturbation.amplitude: must be > 0 rad"),
     ("zero-amplitude-in-a-scan", "[scan]\namplitude = [1e-3, 0.0]\n", [], 2, "scan.amplitude[1]: must be > 0 rad"),
+    ("spin-rate-1e200", "[spin]\nrate = 1e200\n", [], 2, "spin.rate: must be within 1e-150 to 1e+150 rad/s"),
+    ("scan-rate-1e-200", "[scan]\nrate = [1.0, 1e-200]\n", ["--dry-run"], 2, "scan.rate[1]: must be within"),
+    ("pulse-shorter-than-the-planned-step", SHORT_PULSE, [], 2, "torque.duration: 0.0001 s spans"),
+    ("sine-shorter-than-the-planned-step", SHORT_SINE, [], 2, "torque.period: 0.01 s spans"),
+    ("pulse-shorter-than-the-given-step", SHORT_PULSE + "[integration]\ndt = 0.01\n", ["--dry-run"], 2,
+     "torque.duration: 0.0001 s spans 0.01 step(s) of 0.01 s"),
+    ("sine-shorter-than-the-given-step", SHORT_SINE + "[integration]\ndt = 0.005\n", ["--dry-run"], 2,
+     "set integration.dt <= 0.00125 s"),
 ]
 
 
@@ -387,3 +398,242 @@ def test_a_staging_folder_left_by_kill_9_is_removed_by_the_next_run(earlier_resu
     (leftover / "small.nc").write_bytes(b"half")
     assert cli.main(["run", str(study), "--out", str(out)]) == 0
     assert not leftover.exists() and sorted(p.name for p in out.iterdir()) == sorted(before)
+
+
+# --- bad arguments of the public functions, one row a case (issue 17, cause 16) ----------------------------
+# Each row: the call, the exception and a fragment of its message, which names the argument. Every one is
+# refused before any kernel runs (the rows use one body and a step that no kernel variant is compiled for).
+
+def _api_cases():
+    import numpy as np
+
+    import tumble
+    from tumble import exact, sampling, theory
+
+    nan, inf = float("nan"), float("inf")
+    body, w, t = (1.0, 2.0, 3.0), np.array([[0.01, 1.0, 0.0]]), np.array([0.0, 1.0])
+
+    def ensemble(**kwargs):
+        args = {"w0": w, "t_end": 1.0, "dt": 0.1, "method": "rk4", **kwargs}
+        return lambda: tumble.run_ensemble(body, args.pop("w0"), args.pop("t_end"), args.pop("dt"), **args)
+
+    return [
+        ("run_ensemble-w0-nan", ensemble(w0=[[nan, 1.0, 0.0]]), ValueError, "w0 must be finite"),
+        ("run_ensemble-w0-inf", ensemble(w0=[[inf, 1.0, 0.0]]), ValueError, "w0 must be finite"),
+        ("run_ensemble-w0-empty", ensemble(w0=np.zeros((0, 3))), ValueError, "w0 holds no spins"),
+        ("run_ensemble-w0-shape", ensemble(w0=np.zeros((2, 4))), ValueError, "w0 must have shape"),
+        ("run_ensemble-w0-one-spin-1d", ensemble(w0=np.zeros(3)), ValueError, "w0 must have shape (N, 3)"),
+        ("run_ensemble-t_end-nan", ensemble(t_end=nan), ValueError, "t_end must be finite"),
+        ("run_ensemble-t_end-inf", ensemble(t_end=inf), ValueError, "t_end must be finite"),
+        ("run_ensemble-t_end-negative", ensemble(t_end=-1.0), ValueError, "t_end must be >= 0"),
+        ("run_ensemble-dt-zero", ensemble(dt=0.0), ValueError, "dt must be > 0"),
+        ("run_ensemble-dt-negative", ensemble(dt=-0.1), ValueError, "dt must be > 0"),
+        ("run_ensemble-dt-nan", ensemble(dt=nan), ValueError, "dt must be finite"),
+        ("run_ensemble-save_every-negative", ensemble(save_every=-2), ValueError, "save_every must be an integer"),
+        ("run_ensemble-max_flips-negative", ensemble(max_flips=-1), ValueError, "max_flips must be an integer"),
+        ("run_ensemble-chunk-zero", ensemble(chunk=0), ValueError, "chunk must be an integer >= 1"),
+        ("run_ensemble-chunk-negative", ensemble(chunk=-5), ValueError, "chunk must be an integer >= 1"),
+        ("run_ensemble-probe_times-nan", ensemble(probe_times=[0.0, nan]), ValueError, "probe_times must be finite"),
+        ("run_ensemble-norm_weights-nan", ensemble(probe_times=[0.0, 1.0], norm_weights=[nan, 1.0, 1.0]), ValueError,
+         "norm_weights must be finite"),
+        ("run_ensemble-stop_norm-nan", ensemble(final=False, stop_norm=nan), ValueError, "stop_norm must be finite"),
+        ("run_ensemble-axis-5", ensemble(axis=5), ValueError, "axis must be 1, 2 or 3"),
+        ("run_ensemble-drift_limit-nan", ensemble(drift=True, drift_limit=nan), ValueError, "drift_limit must be finite"),
+        ("integrate-w0-nan", lambda: tumble.integrate(body, [[nan, 1.0, 0.0]], 1.0, 0.1), ValueError, "w0 must be finite"),
+        ("integrate-w0-empty", lambda: tumble.integrate(body, np.zeros((0, 3)), 1.0, 0.1), ValueError, "w0 holds no"),
+        ("integrate-dt-zero", lambda: tumble.integrate(body, w, 1.0, 0.0), ValueError, "dt must be > 0"),
+        ("integrate-t_end-inf", lambda: tumble.integrate(body, w, inf, 0.1), ValueError, "t_end must be finite"),
+        ("integrate-save_every-negative", lambda: tumble.integrate(body, w, 1.0, 0.1, save_every=-1), ValueError,
+         "save_every must be"),
+        ("integrate-pulse-shorter-than-the-step",
+         lambda: tumble.integrate(body, w, 1.0, 0.1, torque={"profile": "pulse", "vector": (0, 0, 1), "duration": 0.05}),
+         ValueError, "torque duration: 0.05 s spans 0.5 step(s) of 0.1 s"),
+        ("integrate-sine-shorter-than-the-step",
+         lambda: tumble.integrate(body, w, 1.0, 0.1, torque={"profile": "sine", "vector": (0, 0, 1), "period": 0.3}),
+         ValueError, "torque period: 0.3 s spans 3 step(s)"),
+        ("integrate-torque-nan", lambda: tumble.integrate(body, w, 1.0, 0.1, torque=(nan, 0, 0)), ValueError,
+         "torque must be finite"),
+        ("exact.omega-w0-nan", lambda: exact.omega(body, [nan, 1.0, 0.0], t), ValueError, "w0 must be finite"),
+        ("exact.omega-t-inf", lambda: exact.omega(body, w, [0.0, inf]), ValueError, "t must be finite"),
+        ("exact.omega-w0-shape", lambda: exact.omega(body, np.zeros(4), t), ValueError, "w0 must have shape"),
+        ("exact.period-w0-nan", lambda: exact.period(body, [nan, 1.0, 0.0]), ValueError, "w0 must be finite"),
+        ("theory.linear-spin-nan", lambda: theory.linear(body, 2, nan), ValueError, "spin must be finite"),
+        ("theory.linear-body-shape", lambda: theory.linear((1.0, 2.0), 2, 1.0), ValueError, "body moments must have"),
+        ("theory.first_flip_time-w0-inf", lambda: theory.first_flip_time(body, [inf, 1.0, 0.0]), ValueError,
+         "w0 must be finite"),
+        ("measure-spin-inf", lambda: tumble.measure(body, 2, spin=inf, samples=8), ValueError, "spin must be finite"),
+        ("measure-spin-1e200", lambda: tumble.measure(body, 2, spin=1e200, samples=8), ValueError,
+         "spin must be within 1e-150 to 1e+150 rad/s"),
+        ("sampling.perturbed_spins-spin-1e-200", lambda: sampling.perturbed_spins(body, 2, spin=-1e-200, samples=4),
+         ValueError, "spin must be within"),
+        ("measure-samples-negative", lambda: tumble.measure(body, 2, samples=-3), ValueError, "samples must be"),
+        ("measure-flips-negative", lambda: tumble.measure(body, 2, samples=8, flips=-1), ValueError, "flips must be"),
+        ("measure-dt-nan", lambda: tumble.measure(body, 2, samples=8, dt=nan, method="rk4"), ValueError, "dt must be"),
+        ("sampling.perturbed_spins-samples-negative", lambda: sampling.perturbed_spins(body, 2, samples=-1), ValueError,
+         "samples must be >= 1"),
+        ("sampling.perturbed_spins-amplitude-inf", lambda: sampling.perturbed_spins(body, 2, amplitude=inf, samples=4),
+         ValueError, "amplitude must be finite"),
+        ("sampling.chunk_ranges-negative", lambda: sampling.chunk_ranges(-1), ValueError, "samples must be >= 1"),
+        ("run_study-samples-negative", lambda: tumble.run_study({"perturbation": {"samples": -1}}), ValueError,
+         "perturbation.samples: must be >= 1"),
+        ("run_study-rate-inf", lambda: tumble.run_study({"spin": {"rate": inf}}), ValueError, "spin.rate: must be finite"),
+    ]
+
+
+_API_CASES = _api_cases()
+
+
+@pytest.mark.parametrize("call, error, fragment", [case[1:] for case in _API_CASES], ids=[case[0] for case in _API_CASES])
+def test_a_public_function_refuses_a_bad_argument_naming_it(monkeypatch, call, error, fragment):
+    from tumble.engine import ensemble
+
+    def no_kernel(*args, **kwargs):
+        raise AssertionError("a kernel ran before the arguments were checked")
+
+    monkeypatch.setattr(ensemble, "run", no_kernel)
+    monkeypatch.setattr(ensemble, "_run_exact", no_kernel)
+    with pytest.raises(error) as info:
+        call()
+    assert fragment in str(info.value) and "\n" not in str(info.value)
+
+
+# --- tumble plot on files that are not what they claim, one row a case (issue 17, cause 13) -------------------
+
+def _forged(path):
+    """A valid netCDF with tumble's global attributes and none of its variables."""
+    import numpy as np
+
+    xr.Dataset({"x": ("a", np.arange(3.0))}, attrs={"source": "tumble 0.1.0", "Conventions": "CF-1.8",
+                                                     "title": "forged"}).to_netcdf(path)
+
+
+def _foreign(path):
+    import numpy as np
+
+    xr.Dataset({"x": ("a", np.arange(3.0))}).to_netcdf(path)
+
+
+def _without_rate(path):
+    """A real result of SMALL with its variables dropped: tumble's attributes and coordinates, nothing a figure
+    reads."""
+    ds = runner.run_study(SMALL)
+    ds.drop_vars(list(ds.data_vars)).to_netcdf(path)
+
+
+PLOT_CASES = [
+    # (id, writer of the file, extra arguments, exit status, fragment of the message)
+    ("forged-tumble-attributes", _forged, [], 2, "nothing to draw: summary needs the variable 'rate'"),
+    ("forged-asked-for-summary", _forged, ["--figures", "summary"], 2, "figure 'summary'"),
+    ("foreign-netcdf", _foreign, [], 2, "not a tumble result"),
+    ("result-without-variables", _without_rate, [], 2, "nothing to draw"),
+    ("missing-file", None, [], 2, "no such file"),
+    ("truncated", lambda path: path.write_bytes(b"CDF\x01\x00"), [], 2, "not a tumble result file"),
+]
+
+
+@pytest.mark.parametrize("write, args, status, fragment", [case[1:] for case in PLOT_CASES],
+                         ids=[case[0] for case in PLOT_CASES])
+def test_plot_of_a_file_that_is_not_a_drawable_result_exits_non_zero_with_one_line(tmp_path, capsys, write, args,
+                                                                                    status, fragment):
+    path = tmp_path / "given.nc"
+    if write is not None:
+        write(path)
+    capsys.readouterr()
+    out = tmp_path / "figures"
+    got = cli.main(["plot", str(path), "--out", str(out), *args])
+    err = capsys.readouterr().err
+    assert got == status, err
+    assert fragment in err and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert not out.exists()
+
+
+# --- Ctrl-C while the command starts (issue 17, cause 12) -------------------------------------------------------
+
+def _commands():
+    script = os.path.join(os.path.dirname(sys.executable), "tumble")
+    yield pytest.param([sys.executable, "-m", "tumble"], id="python-m-tumble")
+    yield pytest.param([script], id="console-script",
+                       marks=pytest.mark.skipif(not os.path.isfile(script), reason="no tumble console script"))
+
+
+@pytest.mark.parametrize("command", list(_commands()))
+def test_ctrl_c_while_the_command_imports_prints_one_line_and_exits_130(tmp_path, command):
+    """SIGINT once numpy is imported, in the middle of tumble's own imports (numba, xarray, matplotlib follow)."""
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env = {**os.environ, "PYTHONPROFILEIMPORTTIME": "1", "TUMBLE_DEBUG": "",
+           "PYTHONPATH": os.pathsep.join([root, os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.Popen([*command, "studies"], cwd=tmp_path, env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
+    lines = []
+    try:
+        for line in proc.stderr:  # -X importtime: one line as each module finishes importing
+            lines.append(line)
+            if line.rstrip().endswith(" numpy"):
+                proc.send_signal(signal.SIGINT)
+                break
+        lines += proc.stderr.readlines()
+    finally:
+        proc.wait(timeout=60)
+    err = [line for line in lines if not line.startswith("import time:")]
+    assert proc.returncode == 130, "".join(err)
+    assert len(err) == 1 and "interrupted" in err[0] and "Traceback" not in "".join(err), "".join(err)
+
+
+# --- extreme scales (issue 17, causes 6 and 9) ------------------------------------------------------------------
+
+@pytest.mark.parametrize("scale", [1e-170, 1e200, 1e-300, 1e300])
+def test_linear_theory_is_the_same_for_moments_scaled_to_the_ends_of_the_float_range(scale):
+    """q = (Ia-Ib)(Ia-Ic)/(Ib Ic) is scale invariant; its products under- or overflowed ("neutral", NaN)."""
+    import numpy as np
+
+    from tumble import theory
+
+    moments = np.array([1.0, 2.0, 3.0])
+    for axis in (1, 2, 3):  # the scaled moments are the products rounded: the same value to round-off
+        (kind, value), (expected_kind, expected) = theory.linear(moments * scale, axis, 1.0), theory.linear(moments, axis)
+        assert kind == expected_kind and value == pytest.approx(expected, rel=1e-14)
+    kinds, values = theory.linear(np.array([[1.0, 2.0, 3.0], [2.0, 2.0, 3.0]]) * scale, 1, 1.0)
+    assert kinds.tolist() == ["periodic", "neutral"] and values[0] == pytest.approx(theory.linear(moments, 1)[1])
+
+
+def _rates(ds):
+    return str(ds.kind.values), float(ds.rate_theory), float(ds.rate) / float(ds.rate_theory)
+
+
+@pytest.mark.parametrize("scale", [1e-170, 1e200])
+def test_measure_gives_the_same_kinds_and_theory_for_moments_scaled_far(scale):
+    import numpy as np
+
+    import tumble
+
+    moments = np.array([1.0, 2.0, 3.0])
+    for axis in (1, 2):
+        kind, theory_rate, _ = _rates(tumble.measure(moments * scale, axis, samples=64, flips=0))
+        expected_kind, expected, _ = _rates(tumble.measure(moments, axis, samples=64, flips=0))
+        assert kind == expected_kind and theory_rate == pytest.approx(expected, rel=1e-14)
+
+
+@pytest.mark.xfail(strict=True, reason="measure.estimators.invariant_weights forms I_i (I_a - I_i) unscaled: it "
+                                        "under- or overflows for moments of 1e-170 or 1e200 kg m² (the weights fall "
+                                        "back to 1 and the growth fit changes); estimators.py is not this change's")
+@pytest.mark.parametrize("scale", [1e-170, 1e200])
+def test_measure_gives_the_same_relative_rate_for_moments_scaled_far(scale):
+    import numpy as np
+
+    import tumble
+
+    moments = np.array([1.0, 2.0, 3.0])
+    scaled = _rates(tumble.measure(moments * scale, 2, samples=64, flips=0))[2]
+    assert scaled == pytest.approx(_rates(tumble.measure(moments, 2, samples=64, flips=0))[2], rel=1e-9)
+
+
+# --- the distribution's own message (issue 17, cause 5) -----------------------------------------------------------
+
+@pytest.mark.xfail(strict=True, reason="measure.scenes._validate_scene checks amplitude with perturbed_spins' default "
+                                        "distribution ('cone'); it must pass the scene's distribution (scenes.py is "
+                                        "not this change's)")
+def test_a_gaussian_amplitude_beyond_pi_over_2_is_not_refused_with_the_cones_message():
+    import tumble
+
+    ds = tumble.measure((1.0, 2.0, 3.0), 1, amplitude=1.6, samples=16, distribution="gaussian")
+    assert str(ds.kind.values) == "periodic"

@@ -17,6 +17,8 @@ followed by ``sys.modules``), never by attribute access through the face.
 
 import sys
 
+# First: Ctrl-C while the tumble command imports the rest is one line and exit 130 (see tumble._interrupt).
+from . import _interrupt  # noqa: F401
 from ._version import __version__
 from .engine import sampling
 from .engine.ensemble import run_ensemble

@@ -15,13 +15,13 @@ from pathlib import Path
 
 import numpy as np
 
-from . import registry
+from . import _interrupt, registry
 from ._version import __version__
 from .engine.integration import integrate
 from .physics import exact, shapes, theory
 
 #: Exit status after Ctrl-C (128 + SIGINT, as shells report it).
-EXIT_INTERRUPTED = 130
+EXIT_INTERRUPTED = _interrupt.EXIT_INTERRUPTED
 
 _METHODS = tuple(m.name for m in registry.METHODS)
 
@@ -191,6 +191,9 @@ def _plot(args):
     except (ValueError, OSError) as err:
         raise InputError(f"{path}: not a tumble result file ({err})") from None
     names = args.figures or [name for name in plots.FIGURES if plots.can_draw(ds, name)[0]]
+    if not names:  # a file with tumble's attributes but none of the variables a figure reads (forged, or cut down)
+        raise InputError(f"{path}: nothing to draw: {plots.can_draw(ds, 'summary')[1]}, and the file holds none of "
+                         f"what the other figures read (figures: {', '.join(plots.FIGURES)})")
     for name in names:
         ok, reason = plots.can_draw(ds, name) if name in plots.FIGURES else (False, "unknown figure")
         if not ok:
@@ -270,6 +273,7 @@ def main(argv=None):
 
     args = _parser().parse_args(argv)
     try:
+        _interrupt.release()  # from here on Ctrl-C is a KeyboardInterrupt, reported below
         if args.command == "run":
             _run(args)
         elif args.command == "studies":

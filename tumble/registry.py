@@ -127,6 +127,31 @@ TORQUE_PROFILES = (
 )
 _PROFILE_BY_NAME = {p.name: p for p in TORQUE_PROFILES}
 
+#: Spin rates a scene can measure, rad/s (magnitude): squares of spins and of transverse components must stay
+#: within the float range (beyond, the estimators give NaN). The motion is scale invariant: a spin of w rad/s
+#: is the motion of 1 rad/s with times divided by w, so rescale the time unit to study another range.
+SPIN_RANGE = (1e-150, 1e150)
+
+
+#: Steps a sine's period or a pulse's duration must span at least: a fixed step samples the profile only at its
+#: stage times, so a shorter one is aliased (sine) or its impulse is off by up to a whole step's worth (pulse).
+PROFILE_MIN_STEPS = 8
+
+#: The profiles whose time scale the step must resolve (a ramp shorter than a step is a constant torque).
+RESOLVED_PROFILES = ("sine", "pulse")
+
+
+def profile_step_problem(name, tau, dt, dt_name="dt"):
+    """Why a step of ``dt`` s cannot resolve torque profile ``name`` with time scale ``tau`` s, or None when it
+    can (:data:`PROFILE_MIN_STEPS`); ``dt_name`` is what the message calls the step."""
+    if name not in RESOLVED_PROFILES or not tau > 0 or not dt > 0 or tau >= PROFILE_MIN_STEPS * dt:
+        return None
+    key = _PROFILE_BY_NAME[name].time
+    return (f"{tau:g} s spans {tau / dt:.3g} step(s) of {dt:g} s; a {name}'s {key} must span at least "
+            f"{PROFILE_MIN_STEPS} steps to be resolved: set {dt_name} <= {tau / PROFILE_MIN_STEPS:g} s, or a longer "
+            f"{key}")
+
+
 #: The kernels' torque_kind when a user's torque function is called.
 TORQUE_USER = -1
 

@@ -19,6 +19,7 @@ per chunk, and Ctrl-C stops between chunks. What ran and what was skipped is ret
 from __future__ import annotations
 
 import contextlib
+import math
 import signal
 import sys
 import threading
@@ -33,7 +34,7 @@ from tqdm.auto import tqdm
 from .. import registry
 from ..kernels import BLOCK, METHODS, TORQUE_CONSTANT, TORQUE_SIGNATURE, TORQUE_USER, run, run_attitude
 from ..physics import exact
-from ..physics.bodies import one_body
+from ..physics.bodies import finite_array, one_body, spin_vectors
 from ..registry import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK, choose_method
 from .sampling import CHUNK
 
@@ -200,6 +201,67 @@ def observation_times(t_end, dt, save_every=None, probe_times=None):
     return times, probe_steps, probe_times
 
 
+def _number(value, name, *, low=None, positive=False):
+    """``value`` as a finite Python float (``>= low``, or ``> 0`` when ``positive``); ValueError (TypeError for a
+    bool) naming ``name``."""
+    if isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be a number, got {value!r}")
+    try:
+        x = float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"{name} must be a finite number, got {value!r}") from None
+    if not math.isfinite(x):
+        raise ValueError(f"{name} must be finite, got {x!r}")
+    if positive and x <= 0:
+        raise ValueError(f"{name} must be > 0, got {x!r}")
+    if low is not None and x < low:
+        raise ValueError(f"{name} must be >= {low}, got {x!r}")
+    return x
+
+
+def _count(value, name, low=0):
+    """``value`` as an int ``>= low``; ValueError naming ``name``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < low:
+        raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+    return int(value)
+
+
+def _checked_arguments(w0, t_end, dt, axis, save_every, probe_times, norm_weights, max_flips, stop_norm,
+                       stop_flips, drift_limit, chunk):
+    """:func:`run_ensemble`'s arguments checked before any kernel runs (issue 17, cause 16): a ValueError naming
+    the argument for NaN or infinity, a wrong shape, no spins, a negative count or step. Returns ``(w0 (N, 3),
+    t_end, dt, probe_times or None, norm_weights or None)`` as floats."""
+    w0 = spin_vectors(w0)
+    if w0.ndim != 2:
+        raise ValueError(f"w0 must have shape (N, 3) (N spins, rad/s, body frame), got shape {w0.shape}")
+    if len(w0) == 0:
+        raise ValueError("w0 holds no spins (shape (0, 3))")
+    t_end = _number(t_end, "t_end", low=0)
+    dt = _number(dt, "dt", positive=True)
+    if t_end / dt > np.iinfo(np.int64).max:
+        raise ValueError(f"t_end / dt = {t_end / dt:.3g} steps: more than a run can count")
+    if isinstance(axis, (bool, np.bool_)) or axis not in (1, 2, 3):
+        raise ValueError(f"axis must be 1, 2 or 3 (a principal axis, 1-based), got {axis!r}")
+    if save_every is not None:
+        _count(save_every, "save_every")
+    if probe_times is not None:
+        probe_times = finite_array(probe_times, "probe_times")
+        if probe_times.ndim != 1 or not len(probe_times):
+            raise ValueError(f"probe_times must have shape (P,) with P >= 1 (times, s), got shape {probe_times.shape}")
+        if (probe_times < 0).any():
+            raise ValueError(f"probe_times must be >= 0 s, got {probe_times.min()!r}")
+    if norm_weights is not None:
+        norm_weights = finite_array(norm_weights, "norm_weights")
+        if norm_weights.shape != (3,) or (norm_weights < 0).any() or not norm_weights.any():
+            raise ValueError(f"norm_weights must be 3 numbers >= 0, not all 0, got {norm_weights.tolist()}")
+    _count(max_flips, "max_flips")
+    _number(stop_norm, "stop_norm", low=0)
+    _count(stop_flips, "stop_flips")
+    _number(drift_limit, "drift_limit", low=0)
+    _count(chunk, "chunk", low=1)
+    return w0, t_end, dt, probe_times, norm_weights
+
+
 def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, final=True, save_every=None,
                  probe_times=None, norm_weights=None, max_flips=0, drift=False, stop_norm=0.0, stop_flips=0,
                  drift_limit=DEFAULT_DRIFT_LIMIT, chunk=CHUNK, progress=None, attitude=False):
@@ -235,7 +297,7 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         Early stop once a sample's transverse norm reached ``stop_norm`` (rad/s) and it flipped ``stop_flips``
         times; only honoured when neither the final state nor a trajectory is asked for.
     drift_limit : float
-        Torque-free invariant drift that flags a sample as ``invariant drift``.
+        Torque-free invariant drift that flags a sample as ``invariant drift`` (0: no flagging).
     chunk : int
         Samples per kernel call (progress and Ctrl-C granularity).
     progress : bool, optional
@@ -249,12 +311,19 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
     EnsembleResult
     """
     moments = one_body(body)
-    w0 = np.asarray(w0, dtype=float)
+    w0, t_end, dt, probe_times, norm_weights = _checked_arguments(
+        w0, t_end, dt, axis, save_every, probe_times, norm_weights, max_flips, stop_norm, stop_flips, drift_limit,
+        chunk)
     n = len(w0)
     n_steps = int(round(t_end / dt)) if t_end > 0 else 0
     a = int(axis) - 1
     kind, params, fn, torque_text = torque_spec(torque)
     torque_free = params is None and fn is None
+    if params is not None:
+        profile = registry.TORQUE_PROFILES[kind]
+        problem = registry.profile_step_problem(profile.name, float(params[3]), dt)
+        if problem:
+            raise ValueError(f"torque {profile.time}: {problem}")
     axis_is_intermediate = a == int(np.argsort(moments, kind="stable")[1])
     chosen, reason = choose_method(method, torque_free=torque_free, axis_is_intermediate=axis_is_intermediate,
                                    flips=max_flips)

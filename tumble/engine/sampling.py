@@ -31,6 +31,7 @@ import operator
 
 import numpy as np
 
+from .. import registry
 from ..physics.bodies import finite_array, one_body
 
 __all__ = [
@@ -309,6 +310,10 @@ def perturbed_spins(body, axis, spin=1.0, amplitude=1e-3, samples=1024, *, seed=
     spin = _scalar(spin, "spin")
     if spin == 0.0:
         raise ValueError("spin must be non-zero (a steady spin about the axis), got 0")
+    low, high = registry.SPIN_RANGE
+    if not low <= abs(spin) <= high:
+        raise ValueError(f"spin must be within {low:g} to {high:g} rad/s in magnitude, got {spin!r}: beyond, squares "
+                         f"leave the float range; the motion is scale invariant (w rad/s is 1 rad/s with times / w)")
     if not isinstance(distribution, str) or distribution not in DISTRIBUTIONS:
         raise ValueError(f"distribution must be one of {', '.join(map(repr, DISTRIBUTIONS))}; "
                          f"got {distribution!r}")

@@ -106,6 +106,10 @@ def stability_exponent(body, axis):
     """
     moments = as_moments(body)
     k = _axis_index(axis)
+    # q is scale invariant: moments in units of the power of two nearest the largest one (exact, so the same bits
+    # as unscaled wherever those do not under- or overflow), so that moments of 1e-170 or 1e200 kg m², whose
+    # products leave the float range, give the q of moments of order 1 (issue 17, cause 9).
+    moments = np.ldexp(moments, -np.frexp(moments.max(axis=-1, keepdims=True))[1])
     ia = _pick(moments, k)
     ib = _pick(moments, (k + 1) % 3)
     ic = _pick(moments, (k + 2) % 3)
@@ -200,6 +204,8 @@ def _linear_one(body, axis, spin):
     if moments.shape != (3,):
         return None
     i1, i2, i3 = moments.tolist()
+    e = -math.frexp(max(i1, i2, i3))[1]  # as in stability_exponent: exact scaling, same bits, no under/overflow
+    i1, i2, i3 = math.ldexp(i1, e), math.ldexp(i2, e), math.ldexp(i3, e)
     k = int(axis) - 1
     ia, ib, ic = (i1, i2, i3)[k], (i1, i2, i3)[(k + 1) % 3], (i1, i2, i3)[(k + 2) % 3]
     snap = DEGENERATE_RTOL * max(i1, i2, i3)

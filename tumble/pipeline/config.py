@@ -421,6 +421,11 @@ def _rate(value, field):
     x = _number(value, field)
     if x == 0:
         raise _Invalid(field, "must be non-zero, rad/s (the spin rate; its sign is the sense of rotation)")
+    low, high = registry.SPIN_RANGE
+    if not low <= abs(x) <= high:
+        raise _Invalid(field, f"must be within {low:g} to {high:g} rad/s in magnitude, got {x!r}: beyond, squares "
+                              f"leave the float range; the motion is scale invariant (w rad/s is 1 rad/s with "
+                              f"times / w)")
     return x
 
 
@@ -647,6 +652,13 @@ def _resolve(study, given, title):
     }
     if resolved["integration"]["flips"] < 0:
         raise _Invalid("integration.flips", f"must be >= 0, got {resolved['integration']['flips']}")
+    torque = resolved["torque"]
+    if torque["profile"] in registry.RESOLVED_PROFILES:  # a given step must resolve a sine or a pulse
+        key = _PROFILE_TIMES[torque["profile"]]
+        problem = registry.profile_step_problem(torque["profile"], torque[key], resolved["integration"]["dt"],
+                                                "integration.dt")
+        if problem:
+            raise _Invalid(f"torque.{key}", problem)
     resolved["scan"] = _scan(study["scan"], resolved)
     out = study["outputs"]
     resolved["outputs"] = {

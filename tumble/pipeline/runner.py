@@ -207,12 +207,21 @@ class Task(NamedTuple):
 def _scene_plan(job, index):
     """:func:`tumble.measure.scenes.scene_plan` of scene ``index`` of a :func:`scene_job`."""
     moments, params = study.scan_scene_parameters(job["layout"], index)
+    file = job.get("file", "<mapping>")
     try:
-        return study.scene_plan(moments, params["axis"], params["spin"], params["amplitude"], job["samples"],
-                                job["seed"], params["method"], **job["options"])
+        scene = study.scene_plan(moments, params["axis"], params["spin"], params["amplitude"], job["samples"],
+                                 job["seed"], params["method"], **job["options"])
     except ValueError as err:  # a value this scene cannot take: the study's fault, named as such (exit 2)
         label = " ".join(f"{key}={value}" for key, value in params.items())
-        raise StudyError(job.get("file", "<mapping>"), f"scene {index} ({label})", str(err)) from None
+        raise StudyError(file, f"scene {index} ({label})", str(err)) from None
+    torque = scene.torque
+    if torque is not None:  # the planned step must resolve a sine or a pulse (issue 17, cause 8)
+        key = registry.torque_profile(torque["profile"]).time
+        problem = registry.profile_step_problem(torque["profile"], torque.get(key, 0.0), scene.plan.dt,
+                                                "integration.dt")
+        if problem:
+            raise StudyError(file, f"torque.{key}", f"{problem} (the step planned for scene {index})")
+    return scene
 
 
 def _scene_record(job, scene, parts):
