@@ -613,9 +613,6 @@ def test_measure_gives_the_same_kinds_and_theory_for_moments_scaled_far(scale):
         assert kind == expected_kind and theory_rate == pytest.approx(expected, rel=1e-14)
 
 
-@pytest.mark.xfail(strict=True, reason="measure.estimators.invariant_weights forms I_i (I_a - I_i) unscaled: it "
-                                        "under- or overflows for moments of 1e-170 or 1e200 kg m² (the weights fall "
-                                        "back to 1 and the growth fit changes); estimators.py is not this change's")
 @pytest.mark.parametrize("scale", [1e-170, 1e200])
 def test_measure_gives_the_same_relative_rate_for_moments_scaled_far(scale):
     import numpy as np
@@ -629,9 +626,7 @@ def test_measure_gives_the_same_relative_rate_for_moments_scaled_far(scale):
 
 # --- the distribution's own message (issue 17, cause 5) -----------------------------------------------------------
 
-@pytest.mark.xfail(strict=True, reason="measure.scenes._validate_scene checks amplitude with perturbed_spins' default "
-                                        "distribution ('cone'); it must pass the scene's distribution (scenes.py is "
-                                        "not this change's)")
+
 def test_a_gaussian_amplitude_beyond_pi_over_2_is_not_refused_with_the_cones_message():
     import tumble
 
