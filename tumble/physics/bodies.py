@@ -46,6 +46,8 @@ def validate_moments(moments, *, name="moments"):
         raise ValueError(f"{name} must have shape (..., 3) (three principal moments), got shape {arr.shape}")
     if arr.ndim == 1 and _one_valid_body(*arr.tolist()):
         return arr  # the common case, one valid body, checked on Python floats (a tenth of the array checks' cost)
+    if arr.size == 0:
+        raise ValueError(f"{name} hold no body (shape {arr.shape})")
     bad = ~np.isfinite(arr)
     if bad.any():
         idx = np.argwhere(bad)[0]
@@ -214,4 +216,6 @@ def spin_vectors(w0, name="w0"):
     if w.ndim == 0 or w.shape[-1] != 3:
         raise ValueError(f"{name} must have shape (..., 3) (body-frame angular velocity, rad/s), "
                          f"got shape {w.shape}")
+    if w.size == 0:
+        raise ValueError(f"{name} holds no spins (shape {w.shape})")
     return w

@@ -194,6 +194,8 @@ def _check_t(t):
         raise ValueError(f"t must be numbers (times, s), got {t!r}") from err
     if tt.ndim > 1:
         raise ValueError(f"t must be a scalar or have shape (T,) (times, s), got shape {tt.shape}")
+    if tt.size == 0:
+        raise ValueError("t holds no times (shape (0,))")
     if not np.isfinite(tt).all():
         raise ValueError("t must be finite (found NaN or inf)")
     return tt
