@@ -1,5 +1,6 @@
 """The fixed-step methods by name, and the call that runs one of them on an ensemble with its observers."""
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -70,6 +71,24 @@ def _relabelling(method, moments, torque_params, torque_fn):
     return perm, sign
 
 
+def _in_moment_units(moments, torque_params, torque_fn):
+    """Moments (and a built-in torque's vector) divided by the power of two nearest the largest moment.
+
+    Euler's equations ``I w' = (I w) x w + N`` do not change when ``I`` and ``N`` are multiplied by one number,
+    and a power of two changes no bit of the kernels' coefficients or relative drifts; it keeps ``|L|^2`` and the
+    energy of moments of 1e-170 or 1e200 kg m² in range. A torque function returns newton metres: then nothing
+    is rescaled.
+    """
+    moments = np.asarray(moments, dtype=float)
+    if torque_fn is not None:
+        return moments, torque_params
+    unit = math.ldexp(1.0, -math.frexp(float(moments.max()))[1])
+    if torque_params is not None:
+        torque_params = np.asarray(torque_params, dtype=float).copy()
+        torque_params[:3] *= unit
+    return moments * unit, torque_params
+
+
 def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weights=None, probe_steps=None,
         max_flips=0,
         drift=False, stop_norm=0.0, stop_flips=0, drift_limit=0.0, torque_kind=TORQUE_CONSTANT,
@@ -110,7 +129,7 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
     Observed
     """
     n = w.shape[1]
-    moments = np.asarray(moments, dtype=float)
+    moments, torque_params = _in_moment_units(moments, torque_params, torque_fn)
     relabel = _relabelling(method, moments, torque_params, torque_fn)
     kernel_w, kernel_axis = w, axis
     weights = _UNIT_WEIGHTS if norm_weights is None else np.ascontiguousarray(norm_weights, dtype=float)
@@ -183,7 +202,7 @@ def run_attitude(method, w, q, moments, t0, h, n_steps, *, save_every, torque_ki
     saved_q : ndarray, shape (N, n_saved, 4)
     status : ndarray, shape (N,), int8
     """
-    moments = np.asarray(moments, dtype=float)
+    moments, torque_params = _in_moment_units(moments, torque_params, torque_fn)
     n = w.shape[0]
     coefficients = method.coefficients
     relabel = _relabelling(method, moments, torque_params, torque_fn)

@@ -463,7 +463,8 @@ def flip_asymptote_from(moments, w0, kc):
     ``moments`` (broadcast against ``w0``), already known (the closed form of a batch of scenes has them)."""
     mid = np.argsort(moments, axis=-1)[..., 1]
     i_mid = _pick(moments, mid)
-    spin = np.linalg.norm(moments * w0, axis=-1) / i_mid
+    unit = np.ldexp(1.0, -np.frexp(np.max(moments, axis=-1))[1])  # a power of two: the same bits, no overflow
+    spin = np.linalg.norm((moments * unit[..., None]) * w0, axis=-1) / (i_mid * unit)
     lam = spin * np.sqrt(np.maximum(-stability_exponent(moments, mid + 1), 0.0))
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where((lam > 0) & (kc > 0), np.log(4.0 / kc) / lam, np.inf)
