@@ -62,7 +62,7 @@ def resume_cost(spec, chunk_scenes):
         started = time.perf_counter()
         done = runner.open_checkpoint(resolved, job, out, "scale_out").load()
         read = time.perf_counter() - started
-        assert len(done.scenes) == job["layout"]["scenes"]
+        assert len(done.scenes) == job.layout["scenes"]
         started = time.perf_counter()
         tumble.run_study(spec, out=out, chunk_scenes=chunk_scenes)
         return read, time.perf_counter() - started

@@ -68,7 +68,7 @@ def main(parts=()):
     whole = median_seconds(lambda: tumble.run_study("stability_map", progress=False))
 
     job = runner.scene_job(config.load_study("stability_map"))
-    n = job["layout"]["scenes"]
+    n = job.layout["scenes"]
     plans = [runner._scene_plan(job, i) for i in range(n)]
     planning = median_seconds(lambda: [runner._scene_plan(job, i) for i in range(n)])
     step = runner.default_chunk_scenes(n)
@@ -83,11 +83,11 @@ def main(parts=()):
                for a, b in zip(batched(), one_by_one()))
     t_batched, t_single = median_seconds(batched), median_seconds(one_by_one)
     records = batched()
-    assemble = median_seconds(lambda: study.assemble_scan(job["layout"], records, job["body_coords"]))
+    assemble = median_seconds(lambda: study.assemble_scan(job.layout, records, job.body_coords))
 
     big = big_map() if "big" in parts else None
     report = {"date": str(date.today()), "machine": machine, "threads": numba.get_num_threads(), "scenes": n,
-              "samples": job["samples"], "study_first": first, "study": whole, "planning": planning,
+              "samples": job.samples, "study_first": first, "study": whole, "planning": planning,
               "batched": t_batched, "one_by_one": t_single, "assemble": assemble, "same_bits": same, "big": big}
     (RESULTS / "scan.json").write_text(json.dumps(report, indent=1))
     lines = [f"# Scan benchmark — {report['date']}", "",

@@ -79,9 +79,9 @@ def test_the_chunk_size_changes_no_bit_of_the_result(reference, tmp_path, chunk_
 def test_a_chunked_run_gives_the_bits_of_the_plain_scan(reference):
     resolved = config.load_study(SCAN)
     p = runner.plan(resolved)
-    values = p["values"]
-    plain = tumble.scan(p["moments"], values["axis"], values["spin"], values["amplitude"], values["method"],
-                        samples=p["samples"], seed=p["seed"], body_coords=p["body_coords"], **p["options"])
+    values = p.values
+    plain = tumble.scan(p.moments, values["axis"], values["spin"], values["amplitude"], values["method"],
+                        samples=p.samples, seed=p.seed, body_coords=p.body_coords, **p.options)
     stored = io.read_dataset(reference)
     for name in ("rate", "rate_theory", "rel_error", "sample_rate", "rate_ci_low", "rate_ci_high"):
         assert plain[name].values.tobytes() == stored[name].values.tobytes(), name

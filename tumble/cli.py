@@ -120,7 +120,7 @@ def _run(args):
     job = runner.scene_job(resolved, args.study)
     scheduler = _scheduler(args)
     store = runner.open_checkpoint(resolved, job, directory, stem)
-    scenes = job["layout"]["scenes"]
+    scenes = job.layout["scenes"]
     chunk = args.chunk_scenes or runner.default_chunk_scenes(scenes)
     if args.dry_run:
         checkpoint.check_writable(directory)
@@ -129,7 +129,7 @@ def _run(args):
         split = sum(1 for task in tasks if task.start is not None)
         ranges = (f" ({split} of them sample ranges of up to {runner.chunk_samples_size(args.chunk_samples)} samples)"
                   if split else "")
-        print(f"{args.study}: valid; {scenes} scene(s) of {job['samples']} samples in {len(tasks)} "
+        print(f"{args.study}: valid; {scenes} scene(s) of {job.samples} samples in {len(tasks)} "
               f"chunk(s) of up to {chunk}{ranges}; would write {directory / (stem + '.nc')}")
         print(f"estimate: {cost.describe(runner.study_cost(resolved))}")
         return

@@ -58,6 +58,32 @@ def output_stem(source, resolved):
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", resolved["title"]).strip("_.") or "study"
 
 
+class StudyPlan(NamedTuple):
+    """What a resolved study runs (:func:`plan`): the arguments of :func:`tumble.measure.scenes.scan` (or of one
+    ``measure``)."""
+
+    moments: np.ndarray  # (B, 3) the scan's bodies, or (3,) the study's one body, kg m²
+    body_coords: dict | None  # coordinates of the body dimension (triangle fractions, labels)
+    values: dict  # axis, spin, amplitude, method: one value or a list (the scanned keys)
+    options: dict  # keyword arguments of measure: dt, flips, horizon, distribution, torque, curves
+    scanned: list  # the scan keys the study sets
+    samples: int
+    seed: int
+
+
+class Job(NamedTuple):
+    """The scenes of a study as plain data that pickles to a dask worker (:func:`scene_job`)."""
+
+    layout: dict  # tumble.measure.scenes.scan_layout; layout["scenes"] scenes
+    scanned: bool  # False: one measure
+    samples: int
+    seed: int
+    options: dict
+    body_coords: dict | None
+    plan: StudyPlan
+    file: str = "<mapping>"
+
+
 def _bodies(resolved):
     """``(moments (B, 3) or (3,), body coordinates or None)``: the scan's bodies, or the study's one body."""
     scan = resolved["scan"]
@@ -75,7 +101,8 @@ def _bodies(resolved):
 
 
 def plan(resolved, file="<mapping>"):
-    """What a resolved study will run: a dict of :func:`tumble.measure.scenes.scan` / ``measure`` arguments.
+    """What a resolved study will run: a :class:`StudyPlan` of :func:`tumble.measure.scenes.scan` / ``measure``
+    arguments.
 
     Raises :class:`~tumble.pipeline.config.StudyError` for combinations that are valid field by field but cannot
     give what the study asks (a figure the scan cannot draw, a torque about an unstable axis).
@@ -114,9 +141,8 @@ def plan(resolved, file="<mapping>"):
         if name in ("invariant_drift", "work_precision") and torque is not None:
             refuse(field, f"{name} measures torque-free invariants; set torque.profile = 'none'")
     scanned = [key for key in ("moments", "triangle", "body", "axis", "rate", "amplitude", "method") if key in scan]
-    return {"moments": moments, "body_coords": body_coords, "values": values, "options": options,
-            "scanned": scanned, "samples": resolved["perturbation"]["samples"],
-            "seed": resolved["perturbation"]["seed"]}
+    return StudyPlan(moments, body_coords, values, options, scanned, resolved["perturbation"]["samples"],
+                     resolved["perturbation"]["seed"])
 
 
 #: The study field a refusal names, by the bound it broke (:class:`tumble.measure.cost.TooLarge`).
@@ -170,10 +196,7 @@ def scene_job(resolved, file="<mapping>"):
 
     Returns
     -------
-    dict
-        ``layout`` (:func:`tumble.measure.scenes.scan_layout`; ``layout["scenes"]`` scenes), ``scanned`` (False: one
-        :func:`tumble.measure.scenes.measure`), ``samples``, ``seed``, ``options`` (keyword arguments of ``measure``),
-        ``body_coords`` and the :func:`plan` itself.
+    Job
 
     Raises
     ------
@@ -182,10 +205,9 @@ def scene_job(resolved, file="<mapping>"):
     """
     check_cost(resolved, file)
     p = plan(resolved, file)
-    values = p["values"]
-    layout = study.scan_layout(p["moments"], values["axis"], values["spin"], values["amplitude"], values["method"])
-    return {"layout": layout, "scanned": bool(p["scanned"]), "samples": p["samples"], "seed": p["seed"],
-            "options": p["options"], "body_coords": p["body_coords"], "plan": p, "file": str(file)}
+    values = p.values
+    layout = study.scan_layout(p.moments, values["axis"], values["spin"], values["amplitude"], values["method"])
+    return Job(layout, bool(p.scanned), p.samples, p.seed, p.options, p.body_coords, p, str(file))
 
 
 class Task(NamedTuple):
@@ -206,11 +228,11 @@ class Task(NamedTuple):
 
 def _scene_plan(job, index):
     """:func:`tumble.measure.scenes.scene_plan` of scene ``index`` of a :func:`scene_job`."""
-    moments, params = study.scan_scene_parameters(job["layout"], index)
-    file = job.get("file", "<mapping>")
+    moments, params = study.scan_scene_parameters(job.layout, index)
+    file = job.file
     try:
-        scene = study.scene_plan(moments, params["axis"], params["spin"], params["amplitude"], job["samples"],
-                                 job["seed"], params["method"], **job["options"])
+        scene = study.scene_plan(moments, params["axis"], params["spin"], params["amplitude"], job.samples,
+                                 job.seed, params["method"], **job.options)
     except ValueError as err:  # a value this scene cannot take: the study's fault, named as such (exit 2)
         label = " ".join(f"{key}={value}" for key, value in params.items())
         raise StudyError(file, f"scene {index} ({label})", str(err)) from None
@@ -338,10 +360,10 @@ def plan_tasks(job, done, *, chunk_scenes=None, chunk_samples=None):
     with finished ranges) runs as sample ranges (:func:`sample_ranges`), one to a task. Unusable finished ranges
     are dropped from ``done``.
     """
-    n, samples = job["layout"]["scenes"], job["samples"]
+    n, samples = job.layout["scenes"], job.samples
     per_task = _count(chunk_scenes, "chunk_scenes", default_chunk_scenes(n))
     size = chunk_samples_size(chunk_samples)
-    first = min(study.SLICE, samples) if "norm" in job["options"].get("curves", ()) else 0
+    first = min(study.SLICE, samples) if "norm" in job.options.get("curves", ()) else 0
     whole, ranges = [], []
     for i in range(n):
         parts = done.parts.pop(i, {})
@@ -381,7 +403,7 @@ def run_scenes(job, *, store=None, client=None, chunk_scenes=None, chunk_samples
     list of dict
         The scene records (:func:`tumble.measure.scenes.scene_records`).
     """
-    n = job["layout"]["scenes"]
+    n = job.layout["scenes"]
     digest = store.digest if store is not None else ""
     done = store.load() if store is not None else checkpoint.Finished({}, {})
     tasks = plan_tasks(job, done, chunk_scenes=chunk_scenes, chunk_samples=chunk_samples)
@@ -431,32 +453,32 @@ def _run(resolved, file, progress, *, job=None, store=None, client=None, chunk_s
          log=None):
     """The result dataset of a resolved study (nothing written but the checkpoint's chunks)."""
     job = job or scene_job(resolved, file)
-    p = job["plan"]
-    values, options = p["values"], p["options"]
+    p = job.plan
+    values, options = p.values, p.options
     scenes = run_scenes(job, store=store, client=client, chunk_scenes=chunk_scenes, chunk_samples=chunk_samples,
                         progress=progress, log=log)
-    ds = study.assemble_scan(job["layout"], scenes, p["body_coords"]) if job["scanned"] else study.scene_dataset(scenes[0])
+    ds = study.assemble_scan(job.layout, scenes, p.body_coords) if job.scanned else study.scene_dataset(scenes[0])
     ds = checkpoint.normalise_scene(ds)
     keep = resolved["outputs"]["arrays"]
     ds = ds.drop_vars([name for name in PER_SAMPLE if name in ds and name not in keep])
     if not any(name in ds for name in PER_SAMPLE):
         ds = ds.drop_vars("sample")
     figures = resolved["outputs"]["figures"]
-    first_body = np.atleast_2d(p["moments"])[0]
+    first_body = np.atleast_2d(p.moments)[0]
     scene = (first_body, _first(values["axis"]), _first(values["spin"]), _first(values["amplitude"]))
     if "invariant_drift" in figures:
         methods = [m for m in np.atleast_1d(values["method"]) if m in STEPPING] or list(STEPPING)
-        ds = ds.merge(study.invariant_drift(*scene, methods, samples=min(_DRIFT_SAMPLES, p["samples"]),
-                                            seed=p["seed"], horizon=options["horizon"]))
+        ds = ds.merge(study.invariant_drift(*scene, methods, samples=min(_DRIFT_SAMPLES, p.samples),
+                                            seed=p.seed, horizon=options["horizon"]))
     if "work_precision" in figures:
         from ..measure import precision  # scipy's solve_ivp runs: imported only when asked for
 
-        ds = ds.merge(precision.work_precision(*scene, samples=p["samples"], t_end=options["horizon"] or 20.0,
-                                               seed=p["seed"], progress=progress))
+        ds = ds.merge(precision.work_precision(*scene, samples=p.samples, t_end=options["horizon"] or 20.0,
+                                               seed=p.seed, progress=progress))
     if any(name in config.ATTITUDE_FIGURES for name in figures):
         body = resolved["body"] if "body" not in resolved["scan"] else {}
         method = _first(values["method"])
-        ds = ds.merge(study.attitude_trace(*scene, method if method in STEPPING else "auto", seed=p["seed"],
+        ds = ds.merge(study.attitude_trace(*scene, method if method in STEPPING else "auto", seed=p.seed,
                                            torque=options["torque"], horizon=options["horizon"],
                                            shape=body.get("shape", ""), shape_parameters=body.get("dimensions")))
     ds.attrs["title"] = resolved["title"]
@@ -465,7 +487,7 @@ def _run(resolved, file, progress, *, job=None, store=None, client=None, chunk_s
 
 def open_checkpoint(resolved, job, directory, stem):
     """The :class:`~tumble.pipeline.checkpoint.Checkpoint` of a study writing ``<directory>/<stem>.nc``."""
-    return checkpoint.Checkpoint(directory, stem, checkpoint.study_hash(resolved), job["layout"]["scenes"])
+    return checkpoint.Checkpoint(directory, stem, checkpoint.study_hash(resolved), job.layout["scenes"])
 
 
 def write_outputs(ds, resolved, directory, stem, *, action=None):
