@@ -6,9 +6,12 @@ copied into three contiguous component arrays (structure of arrays) so that the 
 depend on the number of threads or on the block size.
 
 Observers are runtime switches: an output that was not asked for is an empty array (a zero-length axis), and
-its branch, outside the loop over the samples of a block, is skipped. One compiled driver per method and
-torque type therefore serves every combination of observers (fewer variants to compile: the branches cost
-nothing measurable, see ``benchmarks/engine.py``). Memory is O(samples) unless a trajectory is stored.
+its branch, outside the loop over the samples of a block, is skipped. So is the method: the driver calls the
+step of the method it is given (``kernel``), once per block and step, outside the loop over the samples. One
+compiled driver per torque type (none, a built-in profile, a user's function) therefore serves every method
+and every combination of observers: three variants to compile instead of eighteen (about 15 s each on a
+2-core AVX2 machine); the branches cost nothing measurable (``benchmarks/engine.py``). Memory is O(samples)
+unless a trajectory is stored.
 
 Per-sample status: ``STATUS_OK``, ``STATUS_NONFINITE`` (a component became NaN or inf) or ``STATUS_DRIFT``
 (torque-free only: ``|L|**2`` or the energy drifted by more than ``drift_limit``, relative). A sample with a
@@ -24,7 +27,16 @@ from numba import prange, types
 from ..registry import STATUS_DRIFT, STATUS_NAMES, STATUS_NONFINITE, STATUS_OK, STEPPING  # noqa: F401
 from .fused import rk4_block, rk8_block, splitting2_block, splitting4_block, symplectic_euler_block
 from .jit import jit
-from .steppers import MIDPOINT_WORK, energy, euler_rate, implicit_midpoint_block, l_squared
+from .steppers import (
+    MIDPOINT_WORK,
+    energy,
+    euler_rate,
+    implicit_midpoint_block,
+    l_squared,
+    splitting2_torque_block,
+    splitting4_torque_block,
+    symplectic_euler_torque_block,
+)
 
 # Kernel ids: a method's index in the registry's table of fixed-step methods.
 RK4, RK8, SYMPLECTIC_EULER, SPLITTING2, SPLITTING4, IMPLICIT_MIDPOINT = (
@@ -148,16 +160,20 @@ def _stop_complete(ys, active, reached, stop_norm, stop_flips, flip_count, lo, k
     return remaining
 
 
-def make_propagate(method):
-    """The driver for one method (an index of :data:`tumble.registry.STEPPING`).
+def make_propagate(torque_free):
+    """The driver of every fixed-step method, for a torque-free run or for a run with a torque.
 
-    ``method`` is a constant of the returned closure, so numba prunes every other method's branch before
-    compiling: each method compiles (and is cached) on its own, and only when it is used. The observers are
-    block functions compiled once and shared by every variant of the driver.
+    ``torque_free`` is a constant of the returned closure, so numba prunes the other case before compiling: the
+    torque-free driver calls the generated steps of :mod:`tumble.kernels.fused` (the splittings spelled out,
+    ending on each sample's own ``|L|**2``), the driver with a torque calls the splittings through
+    :func:`tumble.kernels.steppers.make_splitting_torque_block`, the loop over their sub-flows with torque
+    sub-flows, and never compiles the spelled-out torque-free splittings (splitting4's alone costs about 40 s). The method
+    is a runtime argument, tested once per block and step outside the loop over the samples; the observers
+    are block functions compiled once and shared by both drivers.
     """
 
     @jit(parallel=True)
-    def propagate(w, body, t0, h, n_steps, block,
+    def propagate(kernel, w, body, t0, h, n_steps, block,
                   save_every, saved,
                   axis, norm_weights, probe_steps, probes,
                   flips, flip_count,
@@ -165,10 +181,12 @@ def make_propagate(method):
                   status, steps_taken,
                   stop_norm, stop_flips, drift_limit,
                   torque_kind, torque_params, torque_fn):
-        """Advance every sample ``n_steps`` fixed steps of size ``h``, observing as asked.
+        """Advance every sample ``n_steps`` fixed steps of size ``h`` of method ``kernel``, observing as asked.
 
         Parameters
         ----------
+        kernel : int
+            The method: its index in :data:`tumble.registry.STEPPING`.
         w : ndarray, shape (3, N)
             Body-frame angular velocity, rad/s; overwritten with the final (or frozen) state.
         body : tuple
@@ -185,8 +203,8 @@ def make_propagate(method):
         norm_weights : ndarray (3,)
             Weights ``g`` of the transverse norm ``sqrt(g_b w_b² + g_c w_c²)`` of the two other components.
         probe_steps, probes : ndarray (P,) int64 increasing, ndarray (P, N) or (0, N)
-            Weighted transverse norm (rad/s) after each step listed in ``probe_steps`` (0 = the initial state); NaN once a
-            sample has stopped.
+            Weighted transverse norm (rad/s) after each step listed in ``probe_steps`` (0 = the initial state);
+            NaN once a sample has stopped.
         flips, flip_count : ndarray (N, F), ndarray (N,) int64
             Times (s) of the first ``F`` sign changes of the ``axis`` component, located inside the step by cubic
             Hermite interpolation; ``flip_count`` counts all of them. ``F = 0``: flips are not observed.
@@ -228,7 +246,7 @@ def make_propagate(method):
             for i in range(m):
                 target[i] = l_squared(y1[i], y2[i], y3[i], body)
                 e0[i] = energy(y1[i], y2[i], y3[i], body)
-            work = np.empty((MIDPOINT_WORK if method == IMPLICIT_MIDPOINT else 0, m))
+            work = np.empty((MIDPOINT_WORK if kernel == IMPLICIT_MIDPOINT else 0, m))
             previous = np.empty((3, m))
             n_frozen = 0
             slot = 0
@@ -244,22 +262,29 @@ def make_propagate(method):
                 t = t0 + k * h
                 if track_flips:
                     previous[:, :] = ys
-                if method == RK4:
+                if kernel == RK4:
                     rk4_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
-                elif method == RK8:
+                elif kernel == RK8:
                     rk8_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
-                elif method == SYMPLECTIC_EULER:
-                    symplectic_euler_block(y1, y2, y3, active, t, h, body, target, work, torque_kind,
-                                           torque_params, torque_fn)
-                elif method == SPLITTING2:
-                    splitting2_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params,
-                                     torque_fn)
-                elif method == SPLITTING4:
-                    splitting4_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params,
-                                     torque_fn)
-                else:
+                elif kernel == IMPLICIT_MIDPOINT:
                     implicit_midpoint_block(y1, y2, y3, active, t, h, body, work, torque_kind, torque_params,
                                             torque_fn)
+                elif not torque_free:
+                    if kernel == SYMPLECTIC_EULER:
+                        symplectic_euler_torque_block(y1, y2, y3, t, h, body, torque_kind, torque_params, torque_fn)
+                    elif kernel == SPLITTING2:
+                        splitting2_torque_block(y1, y2, y3, t, h, body, torque_kind, torque_params, torque_fn)
+                    else:
+                        splitting4_torque_block(y1, y2, y3, t, h, body, torque_kind, torque_params, torque_fn)
+                elif kernel == SYMPLECTIC_EULER:
+                    symplectic_euler_block(y1, y2, y3, active, t, h, body, target, work, torque_kind,
+                                           torque_params, torque_fn)
+                elif kernel == SPLITTING2:
+                    splitting2_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params,
+                                     torque_fn)
+                else:
+                    splitting4_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params,
+                                     torque_fn)
                 if n_frozen:
                     _restore_frozen(y1, y2, y3, active, frozen)
                 ran = k + 1
@@ -300,40 +325,41 @@ def make_propagate(method):
     return propagate
 
 
-# One driver per method, compiled lazily on first use: once torque-free and once per built-in torque profile.
-PROPAGATE = tuple(make_propagate(i) for i in range(len(STEPPING)))
+# The two drivers, each compiled lazily on first use: torque-free, and with a built-in torque profile.
+PROPAGATE_FREE = make_propagate(True)
+PROPAGATE_TORQUE = make_propagate(False)
 
 # A user's torque function ``f(t, w1, w2, w3) -> (N1, N2, N3)`` is passed as a first-class function of this
-# type, so one compiled (and cached) driver per method serves every torque function instead of one variant
-# per function (which numba could not cache). The price is an indirect call per sample and stage, which keeps
-# the step from vectorising across samples (measured in benchmarks/engine.py).
+# type, so one compiled (and cached) driver serves every torque function instead of one variant per function
+# (which numba could not cache). The price is an indirect call per sample and stage, which keeps the step
+# from vectorising across samples (measured in benchmarks/engine.py).
 TORQUE_SIGNATURE = types.UniTuple(types.float64, 3)(types.float64, types.float64, types.float64, types.float64)
-_USER_TORQUE_DRIVERS = {}
+_USER_TORQUE_DRIVER = []  # the one dispatcher for torque functions, once made
 
 
-def driver(method, torque_fn=None):
-    """The compiled driver of ``method`` (an index of :data:`tumble.registry.STEPPING`) for a call with ``torque_fn``.
+def driver(torque_free, torque_fn=None):
+    """The compiled driver for a run: torque-free, with a built-in torque profile, or with ``torque_fn``.
 
-    Without a torque function this is ``PROPAGATE[method]``. With one, the function is compiled for
-    :data:`TORQUE_SIGNATURE` and a second dispatcher of the same driver, compiled only for the first-class
-    function type and then closed to further compilation, takes it: numba converts any jitted function of that
-    signature to the first-class type instead of compiling a variant for it.
+    Without a torque function this is :data:`PROPAGATE_FREE` or :data:`PROPAGATE_TORQUE`. With one, the
+    function is compiled for :data:`TORQUE_SIGNATURE` and a second dispatcher of the driver with a torque,
+    compiled only for the first-class function type and then closed to further compilation, takes it: numba
+    converts any jitted function of that signature to the first-class type instead of compiling a variant for
+    it.
     """
     if torque_fn is None:
-        return PROPAGATE[method]
+        return PROPAGATE_FREE if torque_free else PROPAGATE_TORQUE
     torque_fn.compile(TORQUE_SIGNATURE)
-    dispatcher = _USER_TORQUE_DRIVERS.get(method)
-    if dispatcher is None:
-        dispatcher = jit(parallel=True)(PROPAGATE[method].py_func)
+    if not _USER_TORQUE_DRIVER:
+        dispatcher = jit(parallel=True)(PROPAGATE_TORQUE.py_func)
         dispatcher.compile(_user_torque_types())
         dispatcher.disable_compile()
-        _USER_TORQUE_DRIVERS[method] = dispatcher
-    return dispatcher
+        _USER_TORQUE_DRIVER.append(dispatcher)
+    return _USER_TORQUE_DRIVER[0]
 
 
 def _user_torque_types():
     """Argument types of the driver for a user torque function (see :func:`make_propagate`)."""
     f8, i8 = types.float64, types.int64
-    return (f8[:, ::1], types.UniTuple(f8, 12), f8, f8, i8, i8, i8, f8[:, :, ::1], i8, f8[::1], i8[::1], f8[:, ::1],
-            f8[:, ::1], i8[::1], f8[:, ::1], types.int8[::1], i8[::1], f8, i8, f8, i8, f8[::1],
+    return (i8, f8[:, ::1], types.UniTuple(f8, 12), f8, f8, i8, i8, i8, f8[:, :, ::1], i8, f8[::1], i8[::1],
+            f8[:, ::1], f8[:, ::1], i8[::1], f8[:, ::1], types.int8[::1], i8[::1], f8, i8, f8, i8, f8[::1],
             types.FunctionType(TORQUE_SIGNATURE))

@@ -158,11 +158,12 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
     drifts = np.zeros((2 if drift else 0, n))
     status = np.zeros(n, dtype=np.int8)
     steps_taken = np.zeros(n, dtype=np.int64)
-    args = (kernel_w, body_constants(moments), float(t0), float(h), int(n_steps), int(block), int(save_every), saved,
-            int(kernel_axis), weights, probe_steps, probes, flips, flip_count, drifts, status,
+    torque_free = torque_params is None and torque_fn is None
+    args = (method.kernel_id, kernel_w, body_constants(moments), float(t0), float(h), int(n_steps), int(block),
+            int(save_every), saved, int(kernel_axis), weights, probe_steps, probes, flips, flip_count, drifts, status,
             steps_taken, float(stop_norm), int(stop_flips), float(drift_limit), int(torque_kind), torque_params,
             torque_fn)
-    driver(method.kernel_id, torque_fn)(*args)
+    driver(torque_free, torque_fn)(*args)
     if relabel is not None:
         inverse = np.argsort(perm)
         w[:] = sign * kernel_w[inverse]

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..registry import TORQUE_USER, torque_profile  # noqa: F401  (TORQUE_USER re-exported)
 from .jit import jit
-from .tableaux import ROTATE_1, ROTATE_2, ROTATE_3
+from .tableaux import ROTATE_1, ROTATE_2, ROTATE_3, SPLITTING2, SPLITTING4, SYMPLECTIC_EULER
 from .trig import sincos
 
 # Built-in torque profiles (numeric parameters only, so that studies stay data). params = (N1, N2, N3, tau):
@@ -131,6 +131,29 @@ def splitting_with_torque(w1, w2, w3, t, h, body, flows, fractions, torque_kind,
             w1, w2, w3 = torque_subflow(clock, tau, w1, w2, w3, body, torque_kind, torque_params, torque_fn)
             clock += tau
     return w1, w2, w3
+
+
+def make_splitting_torque_block(splitting):
+    """One step of ``splitting`` with torque sub-flows (:func:`splitting_with_torque`) for every sample of a block.
+
+    The drivers call these for the splittings with a torque, so that the spelled-out torque-free steps of
+    :mod:`tumble.kernels.fused` are compiled only for torque-free runs. The sub-flows and fractions are constants
+    of the closure (as the generated steps' tables are globals), so the compiler unrolls the loop over them.
+    """
+    flows, fractions = splitting.flows, splitting.fractions
+
+    @jit
+    def splitting_torque_block(y1, y2, y3, t, h, body, torque_kind, torque_params, torque_fn):
+        for i in range(y1.shape[0]):
+            y1[i], y2[i], y3[i] = splitting_with_torque(y1[i], y2[i], y3[i], t, h, body, flows, fractions,
+                                                        torque_kind, torque_params, torque_fn)
+
+    return splitting_torque_block
+
+
+symplectic_euler_torque_block = make_splitting_torque_block(SYMPLECTIC_EULER)
+splitting2_torque_block = make_splitting_torque_block(SPLITTING2)
+splitting4_torque_block = make_splitting_torque_block(SPLITTING4)
 
 
 @jit(inline=True)
