@@ -570,8 +570,11 @@ def test_ctrl_c_while_the_command_imports_prints_one_line_and_exits_130(tmp_path
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     env = {**os.environ, "PYTHONPROFILEIMPORTTIME": "1", "TUMBLE_DEBUG": "",
            "PYTHONPATH": os.pathsep.join([root, os.environ.get("PYTHONPATH", "")])}
+    # the child starts with Ctrl-C's default disposition, as from a shell, whatever an earlier test (or the
+    # test runner) left in this process: a child inherits an ignored SIGINT
     proc = subprocess.Popen([*command, "studies"], cwd=tmp_path, env=env, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     lines = []
     try:
         for line in proc.stderr:  # -X importtime: one line as each module finishes importing

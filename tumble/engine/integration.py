@@ -193,8 +193,8 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
     save_every = _save_every(save_every)
     n_steps, step = _step_plan(t_end, dt)
     # A plain integration returns what the method computes: no early stop, no drift flagging. The final
-    # state alone is read off a trajectory of two states (start, end), so integrate() needs one compiled
-    # kernel variant per method and torque, not two.
+    # state alone is read off a trajectory of two states (start, end), as a stored trajectory is: one code path
+    # in the driver for both.
     result = run_ensemble(moments, w, t_end, step, method=method, torque=torque, final=False,
                           save_every=save_every or max(n_steps, 1), drift_limit=0.0, progress=False,
                           attitude=bool(attitude))
