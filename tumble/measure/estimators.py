@@ -28,6 +28,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..kernels import fits
+from ..physics.bodies import moment_unit
 
 __all__ = [
     "FIT_NAMES",
@@ -81,9 +82,7 @@ def invariant_weights(moments, axis):
     ndarray, shape (3,)
     """
     moments = np.asarray(moments, dtype=float)
-    # in units of the power of two nearest the largest moment (exact): the products neither under- nor overflow
-    # for moments anywhere in the float range, and the weights are the same bits as unscaled where those did not
-    moments = moments / np.ldexp(1.0, np.frexp(np.abs(moments).max())[1])
+    moments = moments / moment_unit(moments)  # no under- or overflow anywhere in the float range, same bits
     a = int(axis) - 1
     b, c = (a + 1) % 3, (a + 2) % 3
     k = moments * (moments[a] - moments)

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-__all__ = ["Body", "as_moments", "finite_array", "one_body", "spin_vectors", "validate_moments"]
+__all__ = ["Body", "as_moments", "finite_array", "moment_unit", "one_body", "spin_vectors", "validate_moments"]
 
 # A flat lamina has I3 = I1 + I2 exactly; moments computed in floating point may miss the equality by a
 # few ulps, so the triangle inequality is checked with this relative slack.
@@ -197,6 +197,16 @@ def one_body(body):
         raise ValueError(f"body must be one body (a tumble.Body or three moments), got moments of shape "
                          f"{moments.shape}")
     return moments
+
+
+def moment_unit(moments):
+    """The power of two just above the largest moment of each body: shape (...) for moments (..., 3).
+
+    Linear theory and the closed form are scale invariant; dividing by this is exact, so the same bits as
+    unscaled wherever those stay in range, and keeps products of moments of 1e-170 or 1e200 kg m² from under-
+    or overflowing.
+    """
+    return np.ldexp(1.0, np.frexp(np.max(moments, axis=-1))[1])
 
 
 def finite_array(value, name):

@@ -153,7 +153,7 @@ class _Solution(NamedTuple):
     phase0: np.ndarray  # u0 - K (elliptic), u0 (separatrix)
     nu: np.ndarray
     mid_axis: object  # int (one body) or (n,) int64 (one body per sample)
-    scaled: tuple  # five (n,) arrays: 2E, |L|², L² - 2E I2 of the scaled body and spin; moment and spin scales
+    scaled: np.ndarray  # (5, n): 2E, |L|², L² - 2E I2 of the scaled body and spin; moment and spin scales
 
     @property
     def regime(self):

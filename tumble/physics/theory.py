@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from .. import registry
-from .bodies import as_moments, finite_array
+from .bodies import as_moments, finite_array, moment_unit
 
 __all__ = [
     "DEGENERATE_RTOL",
@@ -109,7 +109,7 @@ def stability_exponent(body, axis):
     # q is scale invariant: moments in units of the power of two nearest the largest one (exact, so the same bits
     # as unscaled wherever those do not under- or overflow), so that moments of 1e-170 or 1e200 kg m², whose
     # products leave the float range, give the q of moments of order 1 (issue 17, cause 9).
-    moments = np.ldexp(moments, -np.frexp(moments.max(axis=-1, keepdims=True))[1])
+    moments = moments / moment_unit(moments)[..., None]
     ia = _pick(moments, k)
     ib = _pick(moments, (k + 1) % 3)
     ic = _pick(moments, (k + 2) % 3)
@@ -463,8 +463,8 @@ def flip_asymptote_from(moments, w0, kc):
     ``moments`` (broadcast against ``w0``), already known (the closed form of a batch of scenes has them)."""
     mid = np.argsort(moments, axis=-1)[..., 1]
     i_mid = _pick(moments, mid)
-    unit = np.ldexp(1.0, -np.frexp(np.max(moments, axis=-1))[1])  # a power of two: the same bits, no overflow
-    spin = np.linalg.norm((moments * unit[..., None]) * w0, axis=-1) / (i_mid * unit)
+    unit = moment_unit(moments)  # no overflow for moments of 1e200 kg m², the same bits elsewhere
+    spin = np.linalg.norm((moments / unit[..., None]) * w0, axis=-1) / (i_mid / unit)
     lam = spin * np.sqrt(np.maximum(-stability_exponent(moments, mid + 1), 0.0))
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where((lam > 0) & (kc > 0), np.log(4.0 / kc) / lam, np.inf)
