@@ -285,8 +285,9 @@ def test_rk4_times_the_first_flip_from_a_tilt_of_1e_minus_12():
 # --- the full sweep ------------------------------------------------------------------------------------
 
 @pytest.mark.slow
-def test_the_stress_benchmark_writes_its_report(tmp_path):
+def test_the_stress_benchmark_writes_its_report(tmp_path, monkeypatch):
     path = Path(__file__).resolve().parent.parent / "benchmarks" / "stress.py"
+    monkeypatch.syspath_prepend(str(path.parent))  # as when run as a script: its sibling modules (provenance)
     spec = importlib.util.spec_from_file_location("stress_benchmark", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
