@@ -181,7 +181,7 @@ def test_ctrl_c_stops_between_chunks(spins, monkeypatch, path):
     from tumble.engine import ensemble as engine
 
     target = "exact" if path == "closed form" else "run"
-    real = getattr(engine.exact, "omega") if target == "exact" else engine.run
+    real = engine.exact.solve_rows if target == "exact" else engine.run
     calls = []
 
     def pressed_during_second_chunk(*args, **kwargs):
@@ -193,7 +193,7 @@ def test_ctrl_c_stops_between_chunks(spins, monkeypatch, path):
     method = "auto" if target == "exact" else "rk4"
     run_ensemble(MOMENTS, spins[:1], 0.01, 0.01, axis=AXIS, method=method)  # compiled: no warm-up call below
     if target == "exact":
-        monkeypatch.setattr(engine.exact, "omega", pressed_during_second_chunk)
+        monkeypatch.setattr(engine.exact, "solve_rows", pressed_during_second_chunk)
     else:
         monkeypatch.setattr(engine, "run", pressed_during_second_chunk)
     before = signal.getsignal(signal.SIGINT)

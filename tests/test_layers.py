@@ -155,3 +155,50 @@ def test_choose_method_refuses_what_cannot_run(name, torque_free, message):
 
     with pytest.raises(ValueError, match=message):
         registry.choose_method(name, torque_free=torque_free)
+
+
+# --- function size (issue 16: no function over ~60 lines or ~8 parameters without a reason beside it) ----------
+MAX_LINES, MAX_PARAMETERS = 60, 8
+
+
+def _oversized(source):
+    """``(name, line, why)`` of each function whose code (docstring excluded) runs over MAX_LINES lines or which
+    takes more than MAX_PARAMETERS parameters (``self`` aside), and has no ``# size:`` comment before its code."""
+    tree = ast.parse(source)
+    lines = source.splitlines()
+    found = []
+    for node in ast.walk(tree):
+        if not isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            continue
+        body = node.body
+        if (len(body) > 1 and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant)
+                and isinstance(body[0].value.value, str)):
+            body = body[1:]
+        length = body[-1].end_lineno - body[0].lineno + 1
+        args = node.args
+        count = sum(a.arg not in ("self", "cls") for a in args.posonlyargs + args.args + args.kwonlyargs)
+        head = lines[node.lineno - 1:body[0].lineno - 1]
+        if (length > MAX_LINES or count > MAX_PARAMETERS) and not any(
+                line.strip().startswith("# size:") for line in head):
+            found.append((node.name, node.lineno, f"{length} lines, {count} parameters"))
+    return found
+
+
+def test_long_functions_and_long_argument_lists_say_why():
+    """Kernels take flat arrays and scalars by design (DESIGN.md: records above the kernels' door, arrays below;
+    ``kernels.methods`` packs them), so a short kernel function may take many; anything else over the limits
+    carries a ``# size:`` comment saying why."""
+    offenders = []
+    for path, _ in _modules():
+        if path.name == "fused.py":  # generated from the coefficient tables (kernels/codegen.py)
+            continue
+        for name, line, why in _oversized(path.read_text()):
+            if path.parent.name == "kernels" and "lines" in why and int(why.split()[0]) <= MAX_LINES:
+                continue
+            offenders.append(f"{path.relative_to(PACKAGE)}:{line} {name} ({why})")
+    assert not offenders, "functions over the size limits with no '# size:' reason:\n" + "\n".join(offenders)
+
+
+def test_the_size_check_sees_a_long_argument_list():
+    source = "def f(a, b, c, d, e, f, g, h, i):\n    return a\n\n\ndef g(a, b, c, d, e, f, g, h, i):\n    # size: ok\n    return a\n"
+    assert [name for name, _, _ in _oversized(source)] == ["f"]

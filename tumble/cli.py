@@ -98,7 +98,7 @@ class InputError(ValueError):
 
 def _run(args):
     from .measure import cost
-    from .pipeline import checkpoint, config, runner
+    from .pipeline import checkpoint, runner
 
     overrides = {key: value for key, value in (("perturbation.samples", args.samples),
                                                ("perturbation.seed", args.seed)) if value is not None}
@@ -112,16 +112,11 @@ def _run(args):
     except ValueError as err:
         raise InputError(f"--chunk-samples: {err}") from None
     started = time.perf_counter()
-    resolved = config.load_study(args.study, overrides=overrides)
-    stem = runner.output_stem(args.study, resolved)
-    directory = Path(args.out or resolved["outputs"]["directory"] or Path("data", "runs", stem))
-    if args.format:
-        resolved["outputs"]["format"] = list(dict.fromkeys(args.format))
-    job = runner.scene_job(resolved, args.study)
+    prepared = runner.prepare_study(args.study, overrides=overrides, out=args.out, formats=args.format,
+                                    default_directory=True)
+    job, directory, stem = prepared.job, prepared.directory, prepared.stem
     scheduler = _scheduler(args)
-    store = runner.open_checkpoint(resolved, job, directory, stem)
-    scenes = job.layout["scenes"]
-    chunk = args.chunk_scenes or runner.default_chunk_scenes(scenes)
+    chunk = args.chunk_scenes or runner.default_chunk_scenes(job.layout["scenes"])
     if args.dry_run:
         checkpoint.check_writable(directory)
         tasks = runner.plan_tasks(job, checkpoint.Finished({}, {}), chunk_scenes=chunk,
@@ -129,29 +124,25 @@ def _run(args):
         split = sum(1 for task in tasks if task.start is not None)
         ranges = (f" ({split} of them sample ranges of up to {runner.chunk_samples_size(args.chunk_samples)} samples)"
                   if split else "")
-        print(f"{args.study}: valid; {scenes} scene(s) of {job.samples} samples in {len(tasks)} "
+        print(f"{args.study}: valid; {job.layout['scenes']} scene(s) of {job.samples} samples in {len(tasks)} "
               f"chunk(s) of up to {chunk}{ranges}; would write {directory / (stem + '.nc')}")
-        print(f"estimate: {cost.describe(runner.study_cost(resolved))}")
+        print(f"estimate: {cost.describe(runner.study_cost(prepared.resolved))}")
         return
-    print(f"tumble {__version__}: study {args.study!r} ({resolved['title']})", flush=True)
+    print(f"tumble {__version__}: study {args.study!r} ({prepared.resolved['title']})", flush=True)
     if args.fresh:
-        store.remove()
-    log = lambda line: print(line, flush=True)  # noqa: E731
+        prepared.store.remove()
+    command = " ".join(["tumble run", args.study] + [f"--{k.split('.')[1]} {v}" for k, v in overrides.items()])
+    options = {"chunk_scenes": chunk, "chunk_samples": args.chunk_samples, "action": command,
+               "log": lambda line: print(line, flush=True)}
     if scheduler is None:
-        ds = runner._run(resolved, args.study, None, job=job, store=store, chunk_scenes=chunk,
-                         chunk_samples=args.chunk_samples, log=log)
+        stored, paths = runner.execute_study(prepared, **options)
     else:
         from .pipeline import distributed
 
         with distributed.connect(scheduler, workers=args.workers) as client:
             print(f"dask scheduler {client.scheduler.address}: {len(client.scheduler_info()['workers'])} "
                   f"worker(s)", flush=True)
-            ds = runner._run(resolved, args.study, None, job=job, store=store, client=client,
-                             chunk_scenes=chunk, chunk_samples=args.chunk_samples, log=log)
-    command = " ".join(["tumble run", args.study] + [f"--{k.split('.')[1]} {v}" for k, v in overrides.items()])
-    stored, paths = runner.write_outputs(ds, resolved, directory, stem, action=command)
-    store.remove()
-    store.clean_partial_results()
+            stored, paths = runner.execute_study(prepared, client=client, **options)
     print(runner.summary_table(stored))
     print(f"\n{time.perf_counter() - started:.1f} s; wrote:")
     for path in paths:

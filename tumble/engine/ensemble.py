@@ -115,18 +115,18 @@ def torque_spec(torque):
     return profile.code, np.append(vector, tau), None, text
 
 
-def _warm(method, torque_params, torque_fn, save_every, probe_steps, max_flips, drift):
+def _warm(method, torque, observe):
     """Compile (or load from the cache) the kernel variant a run needs; seconds it took (0 if done before).
 
     One driver serves every method and observer for each torque type (none, a profile, a function)."""
-    key = (torque_params is None, torque_fn)
+    key = (torque.params is None, torque.fn)
     if key in _warmed:
         return 0.0
     started = time.perf_counter()
     w = np.array([[0.0], [1.0], [0.0]])
-    run(METHODS[method], w, np.array([1.0, 2.0, 3.0]), 0.0, 1e-3, 1, save_every=1 if save_every > 0 else 0,
-        probe_steps=None if probe_steps is None else [1], max_flips=max_flips, drift=drift,
-        torque_params=None if torque_params is None else np.zeros(4), torque_fn=torque_fn)
+    run(METHODS[method], w, np.array([1.0, 2.0, 3.0]), 0.0, 1e-3, 1, save_every=1 if observe.save > 0 else 0,
+        probe_steps=None if observe.probe_steps is None else [1], max_flips=observe.max_flips, drift=observe.drift,
+        torque_params=None if torque.params is None else np.zeros(4), torque_fn=torque.fn)
     _warmed.add(key)
     return time.perf_counter() - started
 
@@ -163,12 +163,6 @@ def _stop_between_chunks():
         yield lambda: bool(pressed)
     finally:
         signal.signal(signal.SIGINT, previous)
-
-
-def _exact_flips(body, w0, axis, max_flips, t_end):
-    """Flip times of the intermediate-axis component from the closed form: first flip, then every 2K/nu."""
-    return flip_times(np.atleast_1d(exact.first_flip_time(body, w0)), np.atleast_1d(exact.flip_spacing(body, w0)),
-                      max_flips, t_end)
 
 
 def flip_times(first, spacing, max_flips, t_end):
@@ -229,6 +223,7 @@ def _count(value, name, low=0):
 
 def _checked_arguments(w0, t_end, dt, axis, save_every, probe_times, norm_weights, max_flips, stop_norm,
                        stop_flips, drift_limit, chunk):
+    # size: one check for each argument of run_ensemble's public call, all before any kernel runs
     """:func:`run_ensemble`'s arguments checked before any kernel runs (issue 17, cause 16): a ValueError naming
     the argument for NaN or infinity, a wrong shape, no spins, a negative count or step. Returns ``(w0 (N, 3),
     t_end, dt, probe_times or None, norm_weights or None)`` as floats."""
@@ -266,6 +261,8 @@ def _checked_arguments(w0, t_end, dt, axis, save_every, probe_times, norm_weight
 def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, final=True, save_every=None,
                  probe_times=None, norm_weights=None, max_flips=0, drift=False, stop_norm=0.0, stop_flips=0,
                  drift_limit=DEFAULT_DRIFT_LIMIT, chunk=CHUNK, progress=None, attitude=False):
+    # size: 19 keywords, the engine's public call (tumble.run_ensemble); each is one observer or stop request a caller
+    # may name, checked at once by _checked_arguments and packed into the _Observe record below.
     """Run an ensemble of spins and observe it on the fly.
 
     Parameters
@@ -310,6 +307,12 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
     Returns
     -------
     EnsembleResult
+
+    Raises
+    ------
+    ValueError
+        An argument that is not finite, of the wrong shape or out of range (named in the message), an unknown
+        method, a method that cannot serve the request, a torque profile shorter than its steps.
     """
     moments = one_body(body)
     w0, t_end, dt, probe_times, norm_weights = _checked_arguments(
@@ -318,88 +321,127 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
     n = len(w0)
     n_steps = int(round(t_end / dt)) if t_end > 0 else 0
     a = int(axis) - 1
-    kind, params, fn, torque_text = torque_spec(torque)
-    torque_free = params is None and fn is None
-    if params is not None:
-        profile = registry.TORQUE_PROFILES[kind]
-        problem = registry.profile_step_problem(profile.name, float(params[3]), dt)
+    torque = _Torque(*torque_spec(torque))
+    if torque.params is not None:
+        profile = registry.TORQUE_PROFILES[torque.kind]
+        problem = registry.profile_step_problem(profile.name, float(torque.params[3]), dt)
         if problem:
             raise ValueError(f"torque {profile.time}: {problem}")
     axis_is_intermediate = a == int(np.argsort(moments, kind="stable")[1])
-    chosen, reason = choose_method(method, torque_free=torque_free, axis_is_intermediate=axis_is_intermediate,
+    chosen, reason = choose_method(method, torque_free=torque.free, axis_is_intermediate=axis_is_intermediate,
                                    flips=max_flips)
     if attitude and (not save_every or probe_times is not None or max_flips or drift or stop_norm or stop_flips):
         raise ValueError("attitude=True is stored with the trajectory: it needs save_every and no other observer")
     save = int(save_every or 0)
     times, probe_steps, probe_times = observation_times(t_end, dt, save, probe_times)
-    weights = np.ones(3) if norm_weights is None else np.asarray(norm_weights, dtype=float)
     early = (stop_norm > 0 or stop_flips > 0) and not final and not save
+    observe = _Observe(
+        final=final, save=save, times=times, probe_steps=probe_steps, probe_times=probe_times, axis=a,
+        weights=np.ones(3) if norm_weights is None else np.asarray(norm_weights, dtype=float), max_flips=max_flips,
+        drift=drift, attitude=attitude, stop_norm=stop_norm if early else 0.0, stop_flips=stop_flips if early else 0,
+        drift_limit=drift_limit if torque.free else 0.0)
     info = {"path": "closed form" if chosen == "exact" else "fixed-step kernel", "method": chosen,
-            "reason": reason, "dt": dt, "n_steps": n_steps, "torque": torque_text, "early_stop": early,
+            "reason": reason, "dt": dt, "n_steps": n_steps, "torque": torque.text, "early_stop": early,
             "samples": n}
     show = sys.stderr.isatty() if progress is None else progress
-    started_all = time.perf_counter()
-    bar = tqdm(total=n, unit="spins", disable=not show, desc=f"{chosen}")
+    started = time.perf_counter()
+    with tqdm(total=n, unit="spins", disable=not show, desc=f"{chosen}") as bar, \
+            _stop_between_chunks() as interrupted:
 
-    if chosen == "exact":
-        with bar, _stop_between_chunks() as interrupted:
-            result = _run_exact(moments, w0, t_end, final, times, probe_times, a, weights, max_flips, drift, bar,
-                                chunk, interrupted, attitude)
+        def chunks():  # sample ranges, the bar advanced and Ctrl-C honoured between them
+            for lo in range(0, n, chunk):
+                if interrupted():
+                    raise Interrupted(lo, n)
+                hi = min(lo + chunk, n)
+                yield lo, hi
+                bar.update(hi - lo)
             if interrupted():  # pressed during the last chunk: the run stops all the same
                 raise Interrupted(n, n)
-        info.update(sample_steps_computed=0, sample_steps_skipped=n * n_steps, jit_seconds=0.0)
-        return result._replace(info=info)
 
-    if attitude:
-        with bar, _stop_between_chunks() as interrupted:
-            result = _run_attitude(METHODS[chosen], moments, w0, dt, n_steps, save, times, final, kind, params, fn,
-                                   bar, chunk, interrupted)
-        info.update(run_seconds=time.perf_counter() - started_all, sample_steps_computed=n * n_steps,
-                    sample_steps_skipped=0)
-        return result._replace(info=info)
-    info["jit_seconds"] = _warm(chosen, params, fn, save, probe_steps, max_flips, drift)
-    final_w = np.empty((n, 3)) if final else None
-    trajectory = np.empty((n, len(times), 3)) if save else None
-    probes = np.empty((n, len(probe_steps))) if probe_steps is not None else None
-    flips = np.empty((n, max_flips)) if max_flips else None
-    flip_count = np.empty(n, dtype=np.int64) if max_flips else None
-    drifts = np.empty((n, 2)) if drift else None
+        if chosen == "exact":
+            result = _run_exact(moments, w0, t_end, observe, chunks())
+            info.update(sample_steps_computed=0, sample_steps_skipped=n * n_steps, jit_seconds=0.0)
+            return result._replace(info=info)
+        if attitude:
+            result = _run_attitude(METHODS[chosen], moments, w0, dt, n_steps, observe, torque, chunks())
+            info.update(run_seconds=time.perf_counter() - started, sample_steps_computed=n * n_steps,
+                        sample_steps_skipped=0)
+            return result._replace(info=info)
+        info["jit_seconds"] = _warm(chosen, torque, observe)
+        started = time.perf_counter()
+        result = _run_kernel(METHODS[chosen], moments, w0, dt, n_steps, observe, torque, chunks())
+    steps_taken = result.steps_taken
+    info.update(run_seconds=time.perf_counter() - started, sample_steps_computed=_block_steps(steps_taken),
+                sample_steps_skipped=int(n * n_steps - steps_taken.sum()))
+    return result._replace(info=info)
+
+
+class _Torque(NamedTuple):
+    """A run's torque as :func:`torque_spec` gives it: the kernels' torque code, ``(N1, N2, N3, tau)`` or None,
+    a jitted function or None, and its description."""
+
+    kind: int
+    params: np.ndarray | None
+    fn: object
+    text: str
+
+    @property
+    def free(self):
+        return self.params is None and self.fn is None
+
+
+class _Observe(NamedTuple):
+    """What a run records and when a sample may stop, resolved once by :func:`run_ensemble` (stops already
+    zeroed where they may not apply)."""
+
+    final: bool
+    save: int  # every save-th step stored (0: no trajectory)
+    times: np.ndarray | None  # (T,), s, of the trajectory
+    probe_steps: np.ndarray | None  # (P,) int
+    probe_times: np.ndarray | None  # (P,), s
+    axis: int  # 0-based
+    weights: np.ndarray  # (3,) of the transverse norm
+    max_flips: int
+    drift: bool
+    attitude: bool
+    stop_norm: float
+    stop_flips: int
+    drift_limit: float
+
+
+def _run_kernel(method, moments, w0, dt, n_steps, observe, torque, chunks):
+    """A fixed-step kernel over the samples, chunk by chunk, the observers' outputs gathered per sample."""
+    n = len(w0)
+    final_w = np.empty((n, 3)) if observe.final else None
+    trajectory = np.empty((n, len(observe.times), 3)) if observe.save else None
+    probes = np.empty((n, len(observe.probe_steps))) if observe.probe_steps is not None else None
+    flips = np.empty((n, observe.max_flips)) if observe.max_flips else None
+    flip_count = np.empty(n, dtype=np.int64) if observe.max_flips else None
+    drifts = np.empty((n, 2)) if observe.drift else None
     status = np.empty(n, dtype=np.int8)
     steps_taken = np.empty(n, dtype=np.int64)
-    computed = 0
-    started = time.perf_counter()
-    with bar, _stop_between_chunks() as interrupted:
-        for lo in range(0, n, chunk):
-            if interrupted():
-                raise Interrupted(lo, n)
-            hi = min(lo + chunk, n)
-            state = np.array(w0[lo:hi].T, order="C")
-            observed = run(METHODS[chosen], state, moments, 0.0, dt, n_steps, save_every=save, axis=a,
-                           norm_weights=weights, probe_steps=probe_steps, max_flips=max_flips, drift=drift,
-                           stop_norm=stop_norm if early else 0.0, stop_flips=stop_flips if early else 0,
-                           drift_limit=drift_limit if torque_free else 0.0, torque_kind=kind,
-                           torque_params=params, torque_fn=fn)
-            if final:
-                final_w[lo:hi] = state.T
-            if save:
-                trajectory[lo:hi] = observed.saved.transpose(2, 0, 1)
-            if probes is not None:
-                probes[lo:hi] = observed.probes.T
-            if flips is not None:
-                flips[lo:hi] = observed.flips
-                flip_count[lo:hi] = observed.flip_count
-            if drifts is not None:
-                drifts[lo:hi] = observed.drift.T
-            status[lo:hi] = observed.status
-            steps_taken[lo:hi] = observed.steps_taken
-            computed += _block_steps(observed.steps_taken)
-            bar.update(hi - lo)
-        if interrupted():
-            raise Interrupted(n, n)
-    info.update(run_seconds=time.perf_counter() - started, sample_steps_computed=int(computed),
-                sample_steps_skipped=int(n * n_steps - steps_taken.sum()))
-    return EnsembleResult(final_w, times, trajectory, probe_times, probes, flips, flip_count, drifts, status,
-                          steps_taken, info)
+    for lo, hi in chunks:
+        state = np.array(w0[lo:hi].T, order="C")
+        observed = run(method, state, moments, 0.0, dt, n_steps, save_every=observe.save, axis=observe.axis,
+                       norm_weights=observe.weights, probe_steps=observe.probe_steps, max_flips=observe.max_flips,
+                       drift=observe.drift, stop_norm=observe.stop_norm, stop_flips=observe.stop_flips,
+                       drift_limit=observe.drift_limit, torque_kind=torque.kind, torque_params=torque.params,
+                       torque_fn=torque.fn)
+        if final_w is not None:
+            final_w[lo:hi] = state.T
+        if trajectory is not None:
+            trajectory[lo:hi] = observed.saved.transpose(2, 0, 1)
+        if probes is not None:
+            probes[lo:hi] = observed.probes.T
+        if flips is not None:
+            flips[lo:hi] = observed.flips
+            flip_count[lo:hi] = observed.flip_count
+        if drifts is not None:
+            drifts[lo:hi] = observed.drift.T
+        status[lo:hi] = observed.status
+        steps_taken[lo:hi] = observed.steps_taken
+    return EnsembleResult(final_w, observe.times, trajectory, observe.probe_times, probes, flips, flip_count, drifts,
+                          status, steps_taken, {})
 
 
 def _block_steps(steps_taken):
@@ -408,65 +450,60 @@ def _block_steps(steps_taken):
     return sum(len(part) * int(part.max()) for part in np.split(steps_taken, range(BLOCK, len(steps_taken), BLOCK)))
 
 
-def _run_attitude(method, moments, w0, dt, n_steps, save, times, final, kind, params, fn, bar, chunk, interrupted):
+def _run_attitude(method, moments, w0, dt, n_steps, observe, torque, chunks):
     """Angular velocity and attitude by a fixed-step method, chunk by chunk, from the identity attitude."""
     n = len(w0)
-    trajectory = np.empty((n, len(times), 3))
-    quaternion = np.empty((n, len(times), 4))
+    trajectory = np.empty((n, len(observe.times), 3))
+    quaternion = np.empty((n, len(observe.times), 4))
     status = np.empty(n, dtype=np.int8)
-    for lo in range(0, n, chunk):
-        if interrupted():
-            raise Interrupted(lo, n)
-        hi = min(lo + chunk, n)
+    for lo, hi in chunks:
         identity = np.zeros((hi - lo, 4))
         identity[:, 0] = 1.0
         trajectory[lo:hi], quaternion[lo:hi], status[lo:hi] = run_attitude(
-            method, w0[lo:hi], identity, moments, 0.0, dt, n_steps, save_every=save, torque_kind=kind,
-            torque_params=params, torque_fn=fn)
-        bar.update(hi - lo)
-    if interrupted():
-        raise Interrupted(n, n)
-    final_w = trajectory[:, -1].copy() if final else None
-    return EnsembleResult(final_w, times, trajectory, None, None, None, None, None, status,
+            method, w0[lo:hi], identity, moments, 0.0, dt, n_steps, save_every=observe.save,
+            torque_kind=torque.kind, torque_params=torque.params, torque_fn=torque.fn)
+    final_w = trajectory[:, -1].copy() if observe.final else None
+    return EnsembleResult(final_w, observe.times, trajectory, None, None, None, None, None, status,
                           np.full(n, n_steps, dtype=np.int64), {}, quaternion)
 
 
-def _run_exact(moments, w0, t_end, final, times, probe_times, a, weights, max_flips, drift, bar, chunk,
-               interrupted, attitude=False):
+def _run_exact(moments, w0, t_end, observe, chunks):
+    """The closed form, chunk by chunk: each chunk's per-sample set-up computed once and evaluated at every time
+    the observers ask for (final state, trajectory, probe times) and for the flips."""
     n = len(w0)
-    b, c = (a + 1) % 3, (a + 2) % 3
-    final_w = np.empty((n, 3)) if final else None
+    b, c = (observe.axis + 1) % 3, (observe.axis + 2) % 3
+    times = observe.times
+    final_w = np.empty((n, 3)) if observe.final else None
     trajectory = np.empty((n, len(times), 3)) if times is not None else None
-    probes = np.empty((n, len(probe_times))) if probe_times is not None else None
-    flips = np.empty((n, max_flips)) if max_flips else None
-    flip_count = np.empty(n, dtype=np.int64) if max_flips else None
-    drifts = np.empty((n, 2)) if drift else None
-    quaternion = np.empty((n, len(times), 4)) if attitude else None
-    for lo in range(0, n, chunk):
-        if interrupted():
-            raise Interrupted(lo, n)
-        hi = min(lo + chunk, n)
+    probes = np.empty((n, len(observe.probe_times))) if observe.probe_times is not None else None
+    flips = np.empty((n, observe.max_flips)) if observe.max_flips else None
+    flip_count = np.empty(n, dtype=np.int64) if observe.max_flips else None
+    drifts = np.empty((n, 2)) if observe.drift else None
+    quaternion = np.empty((n, len(times), 4)) if observe.attitude else None
+    for lo, hi in chunks:
         w = w0[lo:hi]
-        if attitude:
+        if quaternion is not None:
             quaternion[lo:hi] = exact.attitude(moments, w, times)
-        if final or drift:
-            end = exact.omega(moments, w, np.array([t_end]))[:, 0]
-            if final:
+        sol = exact.solve_rows(np.broadcast_to(moments, w.shape), w)
+        row = np.zeros(hi - lo, dtype=np.int64)
+        if final_w is not None or drifts is not None:
+            end = exact.omega_rows(sol, np.array([[t_end]]), row)[:, 0]
+            if final_w is not None:
                 final_w[lo:hi] = end
-            if drift:
+            if drifts is not None:
                 e0, l0 = 0.5 * (moments * w**2).sum(1), ((moments * w) ** 2).sum(1)
                 e1, l1 = 0.5 * (moments * end**2).sum(1), ((moments * end) ** 2).sum(1)
                 drifts[lo:hi] = np.stack([np.abs(e1 / e0 - 1), np.abs(l1 / l0 - 1)], axis=1)
         if trajectory is not None:
-            trajectory[lo:hi] = exact.omega(moments, w, times)
+            trajectory[lo:hi] = exact.omega_rows(sol, times[None, :], row)
         if probes is not None:
-            at = exact.omega(moments, w, probe_times)
-            probes[lo:hi] = np.sqrt(weights[b] * at[..., b] ** 2 + weights[c] * at[..., c] ** 2)
+            at = exact.omega_rows(sol, observe.probe_times[None, :], row)
+            probes[lo:hi] = np.sqrt(observe.weights[b] * at[..., b] ** 2 + observe.weights[c] * at[..., c] ** 2)
         if flips is not None:
-            flips[lo:hi], flip_count[lo:hi] = _exact_flips(moments, w, a, max_flips, t_end)
-        bar.update(hi - lo)
+            flips[lo:hi], flip_count[lo:hi] = flip_times(exact.first_flips(sol), exact.flip_spacings(sol),
+                                                         observe.max_flips, t_end)
     status = np.full(n, STATUS_OK, dtype=np.int8)
     if final_w is not None:
         status[~np.all(np.isfinite(final_w), axis=1)] = STATUS_NONFINITE
-    return EnsembleResult(final_w, times, trajectory, probe_times, probes, flips, flip_count, drifts, status,
+    return EnsembleResult(final_w, times, trajectory, observe.probe_times, probes, flips, flip_count, drifts, status,
                           np.zeros(n, dtype=np.int64), {}, quaternion)

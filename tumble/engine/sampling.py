@@ -236,6 +236,7 @@ def _constraint_scale(directions, moments, axis, constraint):
 
 def perturbed_spins(body, axis, spin=1.0, amplitude=1e-3, samples=1024, *, seed=0, distribution="cone",
                     constraint=None, start=0, stop=None, return_entropy=False):
+    # size: a public call: each keyword is a documented sampling option (distribution, constraint, sample range)
     """Steady spins about a principal axis, each tilted by a small random angle; reproducible by index.
 
     Sample ``i`` is ``w_i = spin · s_i (cos θ_i e_a + sin θ_i (cos φ_i e_b + sin φ_i e_c))`` with

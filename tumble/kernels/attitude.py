@@ -175,6 +175,7 @@ def midpoint_step(y, t, h, body, torque_kind, torque_params, torque_fn):
 @jit(parallel=True)
 def propagate_attitude(family, A, b, c, flows, fractions, axes, sign, w, q, body, t0, h, n_steps, save_every, saved_w,
                        saved_q, status, torque_kind, torque_params, torque_fn):
+    # size: flat arrays and scalars (numba): the method's tableau, the state, the torque
     """Advance every sample's angular velocity and attitude ``n_steps`` fixed steps of size ``h``.
 
     Parameters

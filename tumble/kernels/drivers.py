@@ -161,6 +161,7 @@ def _stop_complete(ys, active, reached, stop_norm, stop_flips, flip_count, lo, k
 
 
 def make_propagate(torque_free):
+    # size: the closure holds the one driver below (see there)
     """The driver of every fixed-step method, for a torque-free run or for a run with a torque.
 
     ``torque_free`` is a constant of the returned closure, so numba prunes the other case before compiling: the
@@ -181,6 +182,9 @@ def make_propagate(torque_free):
                   status, steps_taken,
                   stop_norm, stop_flips, drift_limit,
                   torque_kind, torque_params, torque_fn):
+        # size: the one driver of every method and observer: numba takes flat arrays and scalars (kernels.methods.run
+        # packs them), and the step loop with its observer calls stays one prange body so that each block's samples
+        # move together in SIMD lanes (the observers are the helpers above)
         """Advance every sample ``n_steps`` fixed steps of size ``h`` of method ``kernel``, observing as asked.
 
         Parameters

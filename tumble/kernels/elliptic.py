@@ -394,6 +394,8 @@ def torque_free_invariants(moments, w, I, perm, parity, moment_scale, spin_scale
 
 @jit(parallel=True)
 def torque_free_setup(I, perm, parity, w, spin_scale, delta, kind, amp, cols, kc, m, K, phase0, nu, e2, L2):
+    # size: flat per-sample arrays in and out (numba); the four regimes (elliptic, separatrix, symmetric, stationary)
+    # set up in one pass per sample in one prange body
     """Per-sample parameters of the torque-free motion (Landau & Lifshitz §37) for torque_free_omega.
 
     With the sorted moments ``I1 <= I2 <= I3`` and ``p, q`` the axes whose components go as ``dn, cn``

@@ -106,6 +106,8 @@ def _median_in_place(a):
 
 @jit(parallel=True, contract=False)
 def phase_fit(times, row, states, columns, weights, floor, max_step, frequency, radius, code):
+    # size: flat arrays (numba); the fit's passes over one sample (phase, unwrapping, slope) in one prange body, so a
+    # sample's scratch stays in cache
     """Angular frequency of each sample's transverse oscillation from its unwrapped phase.
 
     Parameters

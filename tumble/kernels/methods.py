@@ -93,6 +93,8 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
         max_flips=0,
         drift=False, stop_norm=0.0, stop_flips=0, drift_limit=0.0, torque_kind=TORQUE_CONSTANT,
         torque_params=None, torque_fn=None, block=BLOCK):
+    # size: the kernels' door for the engine: keywords per observer and stop request, packed here into the driver's
+    # flat arrays
     """Integrate an ensemble with a named fixed-step method, observing only what is asked.
 
     Parameters
@@ -180,6 +182,7 @@ _NO_FLOWS = np.zeros(0, dtype=np.int64)
 
 def run_attitude(method, w, q, moments, t0, h, n_steps, *, save_every, torque_kind=TORQUE_CONSTANT,
                  torque_params=None, torque_fn=None):
+    # size: the kernels' door for attitude runs: keywords packed here into the kernel's flat arrays
     """Integrate angular velocity and attitude together (:mod:`tumble.kernels.attitude`).
 
     Parameters

@@ -351,6 +351,7 @@ def _say(progress, text):
 def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, samples=2000, t_end=20.0, seed=0,
                    methods=None, steps=None, rtols=None, repeats=3, scipy_methods=("RK45", "DOP853"),
                    heyoka_tols=None, progress=False):
+    # size: a public call: each keyword is one option of the benchmark (the scene, the ladders, the peers)
     """Work-precision data: wall time against error at ``t_end`` for tumble's integrators, SciPy and heyoka.
 
     Parameters
@@ -663,6 +664,8 @@ def _kind(solver):
 
 
 def _dataset(curves, compile_time, methods, moments, axis, spin, amplitude, samples, t_end, seed, repeats):
+    # size: the benchmark's curves and the scene's parameters, all recorded as the dataset's coordinates and
+    # attributes
     solvers = list(curves)
     width = max(len(p) for p in curves.values())
     fields = ("error", "error_median", "wall", "setting", "steps", "nfev")

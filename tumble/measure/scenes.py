@@ -166,6 +166,7 @@ def _neutral_plane(moments, a):
 
 
 def _plan(moments, a, kind, value, spin, amplitude, method, dt, flips, probe_spins, horizon=None, spin_max=None):
+    # size: the scene's resolved quantities the horizon and step depend on; called once per scene by scene_plan
     """Horizon, step and observation times of a scene.
 
     Observations (probes or stored states) are ``spacing`` apart, a whole number of steps: the growth estimator
@@ -246,6 +247,7 @@ def _validate_scene(body, axis, spin, amplitude, samples, method, flips, distrib
 
 def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="auto", *, dt=None, flips=3,
             distribution="cone", torque=None, horizon=None, curves=(), progress=None):
+    # size: a public call (tumble.measure): each keyword is a documented scene option
     """Measure one scene: how fast perturbations of a steady spin oscillate or grow, against linear theory.
 
     Parameters
@@ -314,6 +316,7 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
 
 def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="auto", *, dt=None, flips=3,
                distribution="cone", torque=None, horizon=None, curves=()):
+    # size: the arguments of measure (a public call), checked and frozen into a Scene record
     """Validate and plan one scene of :func:`measure` (same arguments, no ``progress``): plain data.
 
     A scene is measured in two steps that can run apart: :func:`scene_samples` runs any range of its samples
@@ -845,6 +848,7 @@ DRIFT_POINTS = 200
 
 def invariant_drift(body, axis, spin=1.0, amplitude=1e-3, methods=tuple(STEPPING), *, samples=16, seed=0,
                     horizon=None, dt=None):
+    # size: a public call: the scene's options and the methods to compare
     """How each fixed-step method keeps the invariants ``|L|²`` and kinetic energy over a scene's horizon.
 
     Every method integrates the same ``samples`` spins (torque-free) with its own step (from its order,
@@ -1188,6 +1192,7 @@ def _attitude_horizon(moments, w0, axis):
 
 def attitude_trace(body, axis=2, spin=1.0, amplitude=1e-3, method="auto", *, horizon=None, seed=0, torque=None,
                    shape="", shape_parameters=None, points=ATTITUDE_POINTS):
+    # size: a public call: the scene's options and the shape to draw
     """The orientation of one perturbed spin in space, as the attitude figures read it.
 
     The spin is sample 0 of :func:`tumble.engine.sampling.perturbed_spins` (the same seed gives the same spin as a

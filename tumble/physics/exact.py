@@ -270,6 +270,7 @@ def _lift_tiny(w):
 
 
 def _lower_tiny(lifted, I_sorted, perm, w, kind, amp, cols, kc, K, phase0):
+    # size: the closed form's per-sample set-up arrays, corrected in place for the rare spins it lifted
     """The closed form of spins within ``TINY_TRANSVERSE`` of an axis from that of the lifted spins.
 
     Such a spin's two small components ``ε`` are so small that their squares underflow in ``L² - 2E I2``. To

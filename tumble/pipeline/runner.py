@@ -37,9 +37,9 @@ from ..registry import STEPPING
 from . import checkpoint, config
 from .config import StudyError
 
-__all__ = ["DEFAULT_CHUNK_SAMPLES", "PER_SAMPLE", "Task", "chunk_samples_size", "compute_samples", "compute_scenes",
-           "compute_task", "default_chunk_scenes", "open_checkpoint", "output_stem", "plan", "plan_tasks", "run_scenes",
-           "run_study", "sample_ranges", "scene_job", "summary_table", "write_outputs"]
+__all__ = ["DEFAULT_CHUNK_SAMPLES", "PER_SAMPLE", "PreparedStudy", "Task", "chunk_samples_size", "compute_samples",
+           "compute_scenes", "compute_task", "default_chunk_scenes", "execute_study", "open_checkpoint", "output_stem",
+           "plan", "plan_tasks", "prepare_study", "run_scenes", "run_study", "sample_ranges", "scene_job", "summary_table", "write_outputs"]
 
 #: Per-sample variables a result may keep (``outputs.arrays``); the rest are dropped after the fit.
 PER_SAMPLE = registry.PER_SAMPLE_ARRAYS
@@ -451,6 +451,7 @@ def run_scenes(job, *, store=None, client=None, chunk_scenes=None, chunk_samples
 
 def _run(resolved, file, progress, *, job=None, store=None, client=None, chunk_scenes=None, chunk_samples=None,
          log=None):
+    # size: the prepared study's parts and the run's options (client, chunking, log), each passed on to run_scenes
     """The result dataset of a resolved study (nothing written but the checkpoint's chunks)."""
     job = job or scene_job(resolved, file)
     p = job.plan
@@ -527,6 +528,53 @@ def write_outputs(ds, resolved, directory, stem, *, action=None):
     return stored, [path, *figures]
 
 
+class PreparedStudy(NamedTuple):
+    """A study checked and planned, before anything runs (:func:`prepare_study`)."""
+
+    resolved: dict  # the study merged over the defaults, every field checked
+    file: str  # where it came from (for messages and provenance)
+    stem: str  # file stem of its outputs
+    directory: Path | None  # where it writes (None: nothing is written)
+    job: Job  # the scenes and what each computes
+    store: checkpoint.Checkpoint | None  # finished chunks of scenes (None when nothing is written)
+
+
+def prepare_study(source, *, overrides=None, out=None, formats=None, default_directory=False):
+    """Load, check and plan a study; nothing runs and nothing is written.
+
+    ``out`` (else the study's ``outputs.directory``, else ``data/runs/<stem>/`` when ``default_directory``, as
+    ``tumble run`` does, else nowhere) is where :func:`execute_study` writes; ``formats`` replaces
+    ``outputs.format``. Raises :class:`~tumble.pipeline.config.StudyError` as :func:`run_study`.
+    """
+    resolved = config.load_study(source, overrides=overrides)
+    if formats:
+        resolved["outputs"]["format"] = list(dict.fromkeys(formats))
+    file = "<mapping>" if isinstance(source, Mapping) else str(source)
+    job = scene_job(resolved, file)
+    stem = output_stem(source, resolved)
+    directory = out if out is not None else resolved["outputs"]["directory"] or None
+    if directory is None and default_directory:
+        directory = Path("data", "runs", stem)
+    directory = None if directory is None else Path(directory)
+    store = open_checkpoint(resolved, job, directory, stem) if directory is not None else None
+    return PreparedStudy(resolved, file, stem, directory, job, store)
+
+
+def execute_study(prepared, *, progress=None, client=None, chunk_scenes=None, chunk_samples=None, log=None,
+                  action=None):
+    """Run a prepared study's scenes (here, or on the dask ``client``), resuming from its checkpoint, and write
+    its outputs; return ``(dataset, paths written)`` — the stored dataset when written, else ``(dataset, [])``.
+    ``log`` receives one line per resumed or finished chunk; ``action`` is the provenance's command."""
+    ds = _run(prepared.resolved, prepared.file, progress, job=prepared.job, store=prepared.store, client=client,
+              chunk_scenes=chunk_scenes, chunk_samples=chunk_samples, log=log)
+    if prepared.directory is None:
+        return ds, []
+    stored, paths = write_outputs(ds, prepared.resolved, prepared.directory, prepared.stem, action=action)
+    prepared.store.remove()
+    prepared.store.clean_partial_results()
+    return stored, paths
+
+
 def run_study(source, *, overrides=None, out=None, progress=None, scheduler=None, chunk_scenes=None,
               chunk_samples=None):
     """Run a study and return its result dataset.
@@ -569,21 +617,11 @@ def run_study(source, *, overrides=None, out=None, progress=None, scheduler=None
     tumble.pipeline.checkpoint.OutputError
         The output folder cannot be written; earlier results there are left as they were.
     """
-    resolved = config.load_study(source, overrides=overrides)
-    file = "<mapping>" if isinstance(source, Mapping) else str(source)
-    job = scene_job(resolved, file)
-    directory = out if out is not None else resolved["outputs"]["directory"] or None
-    stem = output_stem(source, resolved)
-    store = open_checkpoint(resolved, job, directory, stem) if directory is not None else None
+    prepared = prepare_study(source, overrides=overrides, out=out)
     with _scheduler(scheduler) as client:
-        ds = _run(resolved, file, progress, job=job, store=store, client=client, chunk_scenes=chunk_scenes,
-                  chunk_samples=chunk_samples)
-    if directory is None:
-        return ds
-    stored, _ = write_outputs(ds, resolved, directory, stem)
-    store.remove()
-    store.clean_partial_results()
-    return stored
+        ds, _ = execute_study(prepared, progress=progress, client=client, chunk_scenes=chunk_scenes,
+                              chunk_samples=chunk_samples)
+    return ds
 
 
 @contextlib.contextmanager
