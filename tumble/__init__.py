@@ -25,17 +25,18 @@ from .engine.ensemble import run_ensemble
 from .engine.integration import integrate, propagate
 from .measure.scenes import attitude_trace, flip_time_law, inertia_triangle, measure, regress_scan, scan
 from .output import io
-from .physics import exact, rotations, shapes, theory
+from .physics import exact, models, rotations, shapes, theory
 from .physics.bodies import Body
 from .pipeline.runner import run_study
 
 # The physics modules of the public contract keep their short import paths (`import tumble.exact`,
-# `from tumble.theory import linear`), as they had before the layers became folders.
-for _name, _module in (("exact", exact), ("theory", theory), ("shapes", shapes), ("rotations", rotations),
-                       ("io", io), ("sampling", sampling)):
+# `from tumble.theory import linear`), as they had before the layers became folders; `tumble.models` (the systems
+# beyond the free body, `tumble.models.Gyrostat`) is physics/models.py under the same kind of short path.
+for _name, _module in (("exact", exact), ("theory", theory), ("models", models), ("shapes", shapes),
+                       ("rotations", rotations), ("io", io), ("sampling", sampling)):
     sys.modules[f"{__name__}.{_name}"] = _module
 del _name, _module
 
 __all__ = ["Body", "attitude_trace", "exact", "flip_time_law", "inertia_triangle", "integrate", "io", "measure",
-           "propagate", "regress_scan", "rotations", "run_ensemble", "run_study", "sampling", "scan", "shapes", "theory",
+           "models", "propagate", "regress_scan", "rotations", "run_ensemble", "run_study", "sampling", "scan", "shapes", "theory",
            "__version__"]

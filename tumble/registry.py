@@ -8,9 +8,11 @@ checks that the kernels' coefficient tables agree with them.
 
 from typing import NamedTuple
 
-__all__ = ["ATTITUDE_FIGURES", "AUTO", "AUTO_STEPPING", "CHOICES", "FIGURES", "FORMATS", "METHODS", "Method",
-           "PER_SAMPLE_ARRAYS", "STATUSES", "STATUS_DRIFT", "STATUS_NAMES", "STATUS_NONFINITE", "STATUS_OK", "STEPPING",
-           "Status", "TORQUE_PROFILES", "TORQUE_USER", "TorqueProfile", "choose_method", "method", "torque_profile"]
+__all__ = ["ATTITUDE_FIGURES", "AUTO", "AUTO_STEPPING", "CHOICES", "DEFAULT_MODEL", "FIGURES", "FORMATS", "METHODS",
+           "MODELS", "MODEL_KINDS", "MODEL_PARAMETERS", "Method", "Model", "ModelParameter", "PER_SAMPLE_ARRAYS",
+           "STATE_BLOCKS", "STATUSES", "STATUS_DRIFT", "STATUS_NAMES", "STATUS_NONFINITE", "STATUS_OK", "STEPPING",
+           "Status", "TORQUE_PROFILES", "TORQUE_USER", "TorqueProfile", "choose_method", "method", "model_kind",
+           "model_parameter", "state_blocks", "torque_profile"]
 
 
 class Method(NamedTuple):
@@ -176,3 +178,103 @@ FORMATS = ("png", "pdf")
 
 #: Per-sample variables a result may keep (``outputs.arrays``); the rest are dropped after the fit.
 PER_SAMPLE_ARRAYS = ("sample_rate", "sample_status", "sample_first_flip", "sample_flip_spacing")
+
+
+class ModelParameter(NamedTuple):
+    """A numeric parameter of a model: its study key (``[model]`` table, ``scan.<key>``) and what it must be."""
+
+    key: str
+    size: int  # 1: a number; 3: a body-frame vector
+    units: str
+    positive: bool  # must be > 0 (else: any finite value)
+    text: str
+
+
+#: Every numeric parameter of the models, by study key (keys of the ``[model]`` table other than ``kind``).
+MODEL_PARAMETERS = (
+    ModelParameter("rotor", 3, "N m s", False, "gyrostat: rotor angular momentum relative to the body, body frame"),
+    ModelParameter("mgl", 1, "N m", True, "heavy_top: M g l, weight times the pivot-to-centre-of-mass distance"),
+    ModelParameter("orbit_rate", 1, "rad/s", True, "gravity_gradient: orbital angular rate n of a circular orbit"),
+    ModelParameter("damper_inertia", 1, "kg m^2", True, "damper: moment of inertia J of the damper sphere"),
+    ModelParameter("damping", 1, "N m s", True, "damper: viscous coupling c between the sphere and the body"),
+)
+_PARAMETER_BY_KEY = {p.key: p for p in MODEL_PARAMETERS}
+
+
+class Model(NamedTuple):
+    """A system tumble can study (a study's ``[model]`` table, ``kind``).
+
+    The state of every model is a flat float64 vector whose first three components are the body-frame angular
+    velocity ``w1, w2, w3`` (rad/s); the model's own blocks follow, named by :data:`STATE_BLOCKS` (an attitude
+    quaternion, the direction of gravity, internal degrees of freedom). Kernels see the state as plain columns and
+    find a block by its offsets (:func:`state_blocks`).
+    """
+
+    name: str
+    parameters: tuple  # study keys of its numeric parameters (MODEL_PARAMETERS), in order
+    state: tuple  # names of the state components, in order (w1, w2, w3 first)
+    invariants: tuple  # names of the quantities the motion conserves
+    implemented: bool  # False: reserved (the name, keys and state are fixed; no right-hand side yet)
+    text: str
+
+
+#: The blocks a model's state is made of, by the letter its component names start with: (letter, meaning, units).
+STATE_BLOCKS = (
+    ("w", "body-frame angular velocity", "rad/s"),
+    ("g", "unit vector pointing up (against gravity), body frame", "1"),
+    ("q", "attitude: unit quaternion body to reference frame, scalar first", "1"),
+    ("s", "angular velocity of an internal body (damper sphere), body frame", "rad/s"),
+)
+
+#: Every model, the default first.
+MODELS = (
+    Model("free", (), ("w1", "w2", "w3"), ("energy", "momentum_squared"), True,
+          "torque-free rigid body: I w' = (I w) x w"),
+    Model("gyrostat", ("rotor",), ("w1", "w2", "w3"), ("energy", "momentum_squared"), True,
+          "rigid body with a rotor of constant relative angular momentum h: I w' = (I w + h) x w"),
+    Model("heavy_top", ("mgl",), ("w1", "w2", "w3", "g1", "g2", "g3"),
+          ("energy", "vertical_momentum", "up_squared"), True,
+          "top on a fixed pivot, centre of mass on body axis 3 (Euler-Poisson): I w' = (I w) x w + mgl (g x e3), "
+          "g' = g x w"),
+    Model("gravity_gradient", ("orbit_rate",), ("w1", "w2", "w3", "q0", "q1", "q2", "q3"),
+          ("jacobi_integral", "quaternion_squared"), False,
+          "satellite in a circular orbit under the gravity-gradient torque (axes: 1 roll, 2 pitch, 3 yaw)"),
+    Model("damper", ("damper_inertia", "damping"), ("w1", "w2", "w3", "s1", "s2", "s3"),
+          ("momentum_squared",), False,
+          "rigid body with a viscously coupled spherical damper (energy dissipates, |L| is kept)"),
+)
+_MODEL_BY_NAME = {m.name: m for m in MODELS}
+
+#: Model kinds, in the order of :data:`MODELS`.
+MODEL_KINDS = tuple(_MODEL_BY_NAME)
+
+#: The model of a study that names none.
+DEFAULT_MODEL = "free"
+
+
+def model_kind(name):
+    """The :class:`Model` called ``name`` (implemented or reserved); ValueError naming the kinds otherwise."""
+    found = _MODEL_BY_NAME.get(name) if isinstance(name, str) else None
+    if found is None:
+        raise ValueError(f"model kind must be one of {', '.join(MODEL_KINDS)}; got {name!r}")
+    return found
+
+
+def model_parameter(key):
+    """The :class:`ModelParameter` with study key ``key``; ValueError naming the keys otherwise."""
+    found = _PARAMETER_BY_KEY.get(key) if isinstance(key, str) else None
+    if found is None:
+        raise ValueError(f"model parameter must be one of {', '.join(_PARAMETER_BY_KEY)}; got {key!r}")
+    return found
+
+
+def state_blocks(name):
+    """The blocks of model ``name``'s state as ``(letter, start, stop)``: the components ``start:stop`` are the
+    block :data:`STATE_BLOCKS` names by ``letter`` (plain ints, for kernels that take a state as columns)."""
+    blocks = []
+    for i, component in enumerate(model_kind(name).state):
+        if blocks and blocks[-1][0] == component[0]:
+            blocks[-1][2] = i + 1
+        else:
+            blocks.append([component[0], i, i + 1])
+    return tuple(tuple(b) for b in blocks)

@@ -6,6 +6,9 @@ leading shape. Axis arguments are 1-based (1, 2, 3) as in the physics.
 
 * :func:`stability_exponent`, :func:`linear`: small perturbations of a steady spin about a principal axis
   (Landau & Lifshitz, *Mechanics*, §37; DESIGN.md "Physics").
+* :func:`eigenvalues`, and :func:`linear` of a model (:mod:`tumble.physics.models`): linear theory of any model,
+  from the eigenvalues of its Jacobian at the steady spin; :func:`gyrostat_linear`, :func:`sleeping_top_linear`
+  and :func:`sleeping_top_precession` are the closed forms it is tested against.
 * :func:`symmetric_top_precession`: torque-free symmetric top (L&L §33, §36).
 * :func:`constant_torque_symmetric_top`: symmetric top under a constant body torque about its symmetry
   axis (problem sheet "Part 8: Rigid Body Dynamics", problem 6, "the wobbly space station").
@@ -29,18 +32,24 @@ import numpy as np
 
 from .. import registry
 from .bodies import as_moments, finite_array, moment_unit
+from .models import Model
 
 __all__ = [
     "DEGENERATE_RTOL",
+    "EIGEN_RTOL",
     "KINDS",
     "TORQUE_PROFILE_FORMULAS",
     "constant_torque_symmetric_top",
+    "eigenvalues",
     "first_flip_time",
     "flip_spacing",
     "flip_time_asymptote",
+    "gyrostat_linear",
     "linear",
     "linear_rate",
     "profile_integrals",
+    "sleeping_top_linear",
+    "sleeping_top_precession",
     "stability_exponent",
     "symmetric_top_precession",
 ]
@@ -142,7 +151,12 @@ def linear_rate(body, axis, spin=1.0):
 
 
 def linear(body, axis, spin=1.0):
-    """Linear-theory behaviour of a perturbed steady spin about a principal axis.
+    """Linear-theory behaviour of a perturbed steady spin about a principal axis (of a free body or any model).
+
+    ``body`` may be a model (:class:`tumble.physics.models.Model`): then the answer comes from the eigenvalues of
+    the model's Jacobian at its steady spin (:func:`eigenvalues`; the rule is in :func:`_linear_model`), and for
+    a :class:`~tumble.physics.models.FreeBody` it equals the free body's answer below to round-off. For a body
+    (a Body or moments) the closed form below is used, as always.
 
     With ``q`` from :func:`stability_exponent` (Landau & Lifshitz §37; DESIGN.md "Physics"):
 
@@ -180,6 +194,8 @@ def linear(body, axis, spin=1.0):
     >>> linear((1.0, 2.0, 3.0), 2, 1.0)
     ('exponential', 0.5773502691896257)
     """
+    if isinstance(body, Model):
+        return _linear_model(body, axis, spin)
     one = _linear_one(body, axis, spin)
     if one is not None:
         return one
@@ -212,6 +228,248 @@ def _linear_one(body, axis, spin):
     d_b, d_c = ia - ib, ia - ic
     q = (0.0 if abs(d_b) <= snap else d_b) * (0.0 if abs(d_c) <= snap else d_c) / (ib * ic)
     return KINDS[0] if q > 0 else KINDS[1] if q < 0 else KINDS[2], abs(float(spin)) * math.sqrt(abs(q))
+
+
+#: Round-off scale of computed eigenvalues, relative (see :func:`_linear_model`).
+EIGEN_RTOL = 1e-9
+
+
+def _equilibrium_jacobian(model, axis, spin):
+    """The model's Jacobian at its steady spin about ``axis`` (one axis, or an array broadcast with ``spin``)."""
+    if not isinstance(model, Model):
+        raise TypeError(f"model must be a tumble.models model (FreeBody, Gyrostat, HeavyTop), got {model!r}")
+    k = _axis_index(axis)
+    if np.ndim(k) == 0:
+        return model.jacobian(model.equilibrium(int(k) + 1, spin))
+    spin = finite_array(spin, "spin")
+    shape = np.broadcast_shapes(k.shape, spin.shape)
+    k, spin = np.broadcast_to(k, shape), np.broadcast_to(spin, shape)
+    state = np.empty(shape + (model.state_size,))
+    for a in np.unique(k):
+        chosen = k == a
+        state[chosen] = model.equilibrium(int(a) + 1, spin[chosen])
+    return model.jacobian(state)
+
+
+def eigenvalues(model, axis, spin=1.0):
+    """Eigenvalues of a model's Jacobian at its steady spin about a principal axis.
+
+    The linearised motion about the equilibrium ``y*`` (:meth:`tumble.physics.models.Model.equilibrium`) is
+    ``δy' = J δy``, ``J = ∂f/∂y (y*)`` (the model's analytic :meth:`~tumble.physics.models.Model.jacobian`): a
+    perturbation is a sum of modes ``exp(λ t)``. Real parts are growth rates (1/s), imaginary parts angular
+    frequencies in the body frame (rad/s).
+
+    Parameters
+    ----------
+    model : tumble.physics.models.Model
+    axis : int or array_like of int
+        Spin axis, 1-based (3 only for a heavy top).
+    spin : float or array_like
+        Steady spin rate about ``axis``, rad/s, signed (for a gyrostat the sign relative to the rotor matters).
+        ``axis`` and ``spin`` broadcast together to the leading shape (...).
+
+    Returns
+    -------
+    ndarray of complex, shape (..., n)
+        ``numpy.linalg.eigvals`` of the Jacobian, ``n = model.state_size``, in LAPACK's order.
+
+    Raises
+    ------
+    TypeError
+        ``model`` is not a model (a Body or moments: use :func:`linear`).
+    ValueError
+        An axis the model has no steady spin about (heavy top: not 3; gyrostat: rotor across it); a non-finite
+        spin.
+    """
+    return np.linalg.eigvals(_equilibrium_jacobian(model, axis, spin))
+
+
+def _linear_model(model, axis, spin):
+    """:func:`linear` of a model, from the eigenvalues ``λ`` of its Jacobian at the steady spin.
+
+    * ``"exponential"``, ``max Re λ``, when the largest real part exceeds ``EIGEN_RTOL · max|λ|``;
+    * else ``"periodic"``, ``max |Im λ|``: the fastest body-frame frequency of the transverse components. For the
+      free body and the gyrostat there is one transverse pair ``±iν`` (and ``0``, the spin itself): the
+      components oscillate at ``ν`` — the frequency a phase fit of the transverse pair measures, and the free
+      body's ``|w| sqrt(q)``. The *norm* of the perturbation oscillates at ``2ν`` (an ellipse) or not at all
+      (circular, e.g. with the weights of :meth:`~tumble.physics.models.Model.transverse`), so ``ν`` is reported,
+      never the norm's frequency. A sleeping top has two transverse frequencies (body frame, ``|Ω± − w3|``);
+      the faster one is reported, and its tilt's norm beats at their difference, the nutation frequency;
+    * ``"neutral"``, ``0.0``, when every ``|λ|`` is round-off (``max|λ| <= EIGEN_RTOL · max|J|``) or there is
+      neither growth nor oscillation above round-off.
+
+    Why ``EIGEN_RTOL = 1e-9`` relative to ``max|λ|``: LAPACK's eigenvalues carry errors of a few ``eps · |J|``
+    times each eigenvalue's condition number, so a purely imaginary pair comes out with real parts of order
+    ``1e-16 … 1e-13`` of ``|λ|`` (ill-conditioned, very elliptic modes) — a threshold relative to the
+    eigenvalues' own magnitude is unit-free and scale-free, and 1e-9 leaves four orders of margin above that.
+    A true growth rate below ``1e-9 |λ|`` would take over a hundred million periods to e-fold: no run measures
+    it. Exactly at a collision of eigenvalues (a stability threshold: ``P = 0`` of a gyrostat, ``L3² = 4 I1 mgl``
+    of a sleeping top) the pair is defective and its computed real parts are ``~sqrt(eps) |λ| ≈ 1e-8 |λ|``, so
+    there the kind is round-off, as the physics is marginal.
+    """
+    jac = _equilibrium_jacobian(model, axis, spin)
+    lam = np.linalg.eigvals(jac)
+    size = np.abs(lam).max(axis=-1)
+    growth = lam.real.max(axis=-1)
+    frequency = np.abs(lam.imag).max(axis=-1)
+    matrix_scale = np.abs(jac).max(axis=(-2, -1))
+    exponential = (growth > EIGEN_RTOL * size) & (size > EIGEN_RTOL * matrix_scale)
+    periodic = ~exponential & (frequency > EIGEN_RTOL * size) & (size > EIGEN_RTOL * matrix_scale)
+    kind = np.where(exponential, KINDS[1], np.where(periodic, KINDS[0], KINDS[2]))
+    value = np.where(exponential, growth, np.where(periodic, frequency, 0.0))
+    if np.ndim(value) == 0:
+        return str(kind), float(value)
+    return kind, value
+
+
+def _kind_of(p):
+    """``"periodic"`` where ``p > 0``, ``"exponential"`` where ``p < 0``, ``"neutral"`` where 0."""
+    return np.where(p > 0, KINDS[0], np.where(p < 0, KINDS[1], KINDS[2]))
+
+
+def gyrostat_linear(body, h, axis, spin=1.0):
+    """Linear theory of a gyrostat spinning about a principal axis, rotor along that axis (closed form).
+
+    ``I w' = (I w + h) × w`` with ``h = h_a e_a`` and ``w = W e_a``; with ``(a, b, c)`` cyclic the transverse
+    perturbations obey ``δw_b'' = −(P / (I_b I_c)) δw_b`` with
+
+    ``P = [(I_a − I_b) W + h_a] [(I_a − I_c) W + h_a]``
+
+    (Hughes, *Spacecraft Attitude Dynamics*, §7.3; for ``a = 3``: ``[(I3 − I1)W + h3][(I3 − I2)W + h3]``).
+    ``P > 0`` → periodic, angular frequency ``sqrt(P / (I_b I_c))``; ``P < 0`` → exponential, rate
+    ``sqrt(−P / (I_b I_c))``; ``P = 0`` → neutral. With ``h_a = 0`` it is the free body's :func:`linear`. A
+    rotor with ``|h_a|`` beyond ``max(|(I_a − I_b) W|, |(I_a − I_c) W|)`` (same sign for both factors)
+    stabilises any axis, the intermediate one included.
+
+    Parameters
+    ----------
+    body : Body or array_like, shape (..., 3)
+        Principal moments, kg m².
+    h : float or array_like
+        Rotor angular momentum along ``axis``, N m s, signed (positive along ``+e_axis``).
+    axis : int or array_like of int
+        Spin axis, 1-based.
+    spin : float or array_like
+        ``W``, rad/s, signed. ``h``, ``axis``, ``spin`` and the body broadcast to (...).
+
+    Returns
+    -------
+    kind : str or ndarray of str
+    value : float or ndarray
+        Angular frequency (rad/s), growth rate (1/s) or 0.0.
+
+    Raises
+    ------
+    ValueError
+        Invalid moments or axis; non-finite ``h`` or ``spin``.
+    """
+    moments = as_moments(body)
+    k = _axis_index(axis)
+    ia, ib, ic = _pick(moments, k), _pick(moments, (k + 1) % 3), _pick(moments, (k + 2) % 3)
+    w = finite_array(spin, "spin")
+    h = finite_array(h, "h")
+    p = ((ia - ib) * w + h) * ((ia - ic) * w + h) / (ib * ic)
+    value = np.sqrt(np.abs(p))
+    kind = _kind_of(p)
+    if np.ndim(value) == 0:
+        return str(kind), float(value)
+    return kind, value
+
+
+def _sleeping_top(body, mgl, w3, rtol):
+    """``(A, C, L3, D)`` of a symmetric heavy top (``A = I1 = I2``, ``C = I3``, ``D = L3² − 4 A mgl``)."""
+    moments = as_moments(body)
+    c, a, _ = _symmetric_pair(moments, 3, rtol)
+    mgl = finite_array(mgl, "mgl")
+    if not np.all(mgl > 0):
+        raise ValueError(f"mgl must be > 0 N m, got {mgl.ravel()[:3].tolist()}")
+    l3 = c * finite_array(w3, "w3")
+    return a, c, l3, l3 * l3 - 4.0 * a * mgl
+
+
+def sleeping_top_linear(body, mgl, w3, *, rtol=1e-10):
+    """Linear theory of a sleeping symmetric top (upright heavy top spinning about its axis), closed form.
+
+    With ``A = I1 = I2`` (about the pivot), ``C = I3``, ``L3 = C w3``, the tilt ``δg1 + i δg2 ∝ exp(iσt)`` of the
+    Euler-Poisson equations (:class:`tumble.physics.models.HeavyTop`) linearised about ``w = (0, 0, w3)``,
+    ``g = (0, 0, 1)`` obeys ``A σ² + (2A − C) w3 σ − (C − A) w3² + mgl = 0``, i.e. ``σ = Ω − w3`` with
+    ``A Ω² − L3 Ω + mgl = 0`` (Goldstein §5.7, Arnold §30; ``Ω``: :func:`sleeping_top_precession`). Its
+    discriminant is ``D = L3² − 4 A mgl``:
+
+    * ``D < 0`` → ``("exponential", sqrt(4 A mgl − L3²) / (2A))``: the top wakes (falls);
+    * ``D >= 0`` → ``("periodic", (|(C − 2A) w3| + sqrt(D)) / (2A))``: the fastest body-frame frequency
+      ``max |Ω± − w3|``, as :func:`linear` of the model reports it (the "fast top" is stable for
+      ``L3² > 4 A mgl``).
+
+    Parameters
+    ----------
+    body : Body or array_like, shape (..., 3)
+        Principal moments about the pivot, kg m²; ``I1 = I2`` within ``rtol``.
+    mgl : float or array_like
+        ``M g l``, N m, > 0.
+    w3 : float or array_like
+        Spin about the symmetry axis, rad/s, signed.
+    rtol : float
+        Relative tolerance for ``I1 = I2``.
+
+    Returns
+    -------
+    kind : str or ndarray of str
+    value : float or ndarray
+        Growth rate (1/s) or angular frequency (rad/s).
+
+    Raises
+    ------
+    ValueError
+        Not symmetric about axis 3; ``mgl <= 0``; non-finite ``w3``.
+    """
+    a, c, _, d = _sleeping_top(body, mgl, w3, rtol)
+    w3 = finite_array(w3, "w3")
+    value = np.where(d < 0, np.sqrt(np.abs(d)) / (2 * a), (np.abs((c - 2 * a) * w3) + np.sqrt(np.abs(d))) / (2 * a))
+    kind = np.where(d < 0, KINDS[1], KINDS[0])
+    if np.ndim(value) == 0:
+        return str(kind), float(value)
+    return kind, value
+
+
+def sleeping_top_precession(body, mgl, w3, *, rtol=1e-10):
+    """Precession rates of the axis of a stable sleeping symmetric top, space frame: ``Ω±``, rad/s.
+
+    ``Ω± = (L3 ± sqrt(L3² − 4 A mgl)) / (2A)``, the roots of ``A Ω² − L3 Ω + mgl = 0`` (Goldstein §5.7):
+    the tilt of a slightly disturbed top turns about the vertical at a mix of these two rates (fast nutation
+    ``≈ L3/A`` and slow precession ``≈ mgl/L3`` for a fast top). In the body frame, which turns at ``w3``,
+    the same modes have frequencies ``Ω± − w3`` (the imaginary parts of the Jacobian's eigenvalues,
+    :func:`eigenvalues`). The smaller root is computed as ``mgl / (A Ω_large)`` (no cancellation).
+
+    Parameters
+    ----------
+    body : Body or array_like, shape (..., 3)
+        Principal moments about the pivot, kg m²; ``I1 = I2`` within ``rtol``.
+    mgl : float or array_like
+        ``M g l``, N m, > 0.
+    w3 : float or array_like
+        Spin about the symmetry axis, rad/s, signed.
+
+    Returns
+    -------
+    (omega_plus, omega_minus) : floats or ndarrays
+        rad/s; NaN where the top is not stable (``L3² < 4 A mgl``).
+
+    Raises
+    ------
+    ValueError
+        As :func:`sleeping_top_linear`.
+    """
+    a, _, l3, d = _sleeping_top(body, mgl, w3, rtol)
+    mgl = finite_array(mgl, "mgl")
+    root = np.sqrt(np.where(d >= 0, d, np.nan))
+    sign = np.where(l3 >= 0, 1.0, -1.0)
+    large = (l3 + sign * root) / (2 * a)
+    small = mgl / (a * large)
+    plus, minus = np.where(l3 >= 0, large, small), np.where(l3 >= 0, small, large)
+    if np.ndim(plus) == 0:
+        return float(plus), float(minus)
+    return plus, minus
 
 
 def _symmetric_pair(moments, axis, rtol):

@@ -1,0 +1,521 @@
+"""Models: the systems tumble studies, as right-hand sides with analytic Jacobians (numpy).
+
+A model is a frozen record of a body's principal moments (kg m², body frame = principal axes) and the model's
+parameters, validated once when it is built. Its state is a flat vector ``y`` of :attr:`Model.state_size`
+components; every function here is vectorised over leading axes, ``y`` of shape ``(..., n)``:
+
+* :meth:`Model.rhs` ``y' = f(y)``, :meth:`Model.jacobian` ``∂f/∂y`` (analytic, ``(..., n, n)``);
+* :meth:`Model.invariants`: the quantities the motion conserves, by name (``registry.MODELS``);
+* :meth:`Model.equilibrium`: the steady spin about a principal axis, the point linear theory expands about
+  (:func:`tumble.physics.theory.linear` of a model: eigenvalues of the Jacobian there);
+* :meth:`Model.transverse`: which components of a state measure a perturbation of that spin, and their
+  weights, as plain arrays (a kernel or an estimator takes them as columns and numbers).
+
+State layout (``registry.MODELS``, ``registry.STATE_BLOCKS``): the first three components are always the
+body-frame angular velocity ``w`` (rad/s); the model's own blocks follow, each named by the first letter of its
+components: ``g`` the unit vector pointing up in the body frame (heavy top), ``q`` an attitude quaternion,
+scalar first (gravity gradient, reserved), ``s`` an internal body's angular velocity (damper, reserved). A
+kernel finds a block by the offsets of ``registry.state_blocks(kind)``.
+
+Models (Landau & Lifshitz, *Mechanics*, §35-§37; Wittenburg, *Dynamics of Multibody Systems*, §3.6 for the
+gyrostat; Arnold, *Mathematical Methods of Classical Mechanics*, §30 and Goldstein §5.7 for the heavy top):
+
+* :class:`FreeBody`: ``I w' = (I w) × w``.
+* :class:`Gyrostat`: a rotor of constant angular momentum ``h`` relative to the body (N m s, body frame),
+  ``L = I w + h``, ``I w' = (I w + h) × w``.
+* :class:`HeavyTop` (Euler-Poisson): moments about the fixed pivot, centre of mass on body axis 3 at distance
+  ``l`` above the pivot, ``mgl = M g l`` (N m); ``g`` the unit up vector in the body frame:
+  ``I w' = (I w) × w + mgl (g × e3)``, ``g' = g × w``. The torque ``r × F = l e3 × (−M g g) = mgl (g × e3)``
+  tips the top away from upright: a top at rest upright falls at the rate ``sqrt(mgl / I1)`` (``I1 <= I2``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar, NamedTuple
+
+import numpy as np
+
+from .. import registry
+from .bodies import finite_array, one_body
+
+__all__ = ["IMPLEMENTED", "FreeBody", "Gyrostat", "HeavyTop", "Model", "Transverse", "from_kind"]
+
+#: A rotor component across the spin axis smaller than this fraction of |rotor| counts as 0 (equilibrium check).
+ROTOR_RTOL = 1e-12
+
+
+class Transverse(NamedTuple):
+    """How a perturbation of a steady spin is measured, as plain arrays (for kernels and estimators).
+
+    The perturbation's norm is ``sqrt(sum(weights * y[..., columns] ** 2))``: the equilibrium's value of every
+    listed component is 0, so this is the norm of the perturbation itself. ``phase`` is the pair of components
+    whose angle ``atan2(sqrt(wc) y[c], sqrt(wb) y[b])`` a phase fit follows (``wb, wc`` their weights).
+    """
+
+    columns: np.ndarray  # intp, shape (k,): state components of the norm
+    weights: np.ndarray  # float64, shape (..., k): weight of each squared component (units: (rad/s)² / unit²)
+    phase: np.ndarray  # intp, shape (2,): the pair of the phase fit, in the order (b, c)
+
+
+def _cross_matrix(v):
+    """``[v]×`` of shape (..., 3, 3) for ``v`` of shape (..., 3): ``[v]× @ u = v × u``."""
+    z = np.zeros_like(v[..., 0])
+    v1, v2, v3 = v[..., 0], v[..., 1], v[..., 2]
+    return np.stack([np.stack([z, -v3, v2], -1), np.stack([v3, z, -v1], -1), np.stack([-v2, v1, z], -1)], -2)
+
+
+def _one_axis(axis):
+    """A 1-based principal axis (one integer) as a 0-based int; ValueError naming ``axis`` otherwise."""
+    if isinstance(axis, bool) or not isinstance(axis, (int, np.integer)) or axis not in (1, 2, 3):
+        raise ValueError(f"axis must be 1, 2 or 3 (one integer), got {axis!r}")
+    return int(axis) - 1
+
+
+def _parameter(key, value):
+    """A model parameter checked against its row of ``registry.MODEL_PARAMETERS`` (size, finite, > 0)."""
+    spec = registry.model_parameter(key)
+    arr = finite_array(value, key)
+    shape = () if spec.size == 1 else (spec.size,)
+    if arr.shape != shape:
+        what = "a number" if spec.size == 1 else f"a {spec.size}-vector"
+        raise ValueError(f"{key} must be {what} ({spec.units}), got shape {arr.shape}")
+    if spec.positive and not arr > 0:
+        raise ValueError(f"{key} must be > 0 {spec.units}, got {float(arr)!r}")
+    arr = arr.copy()
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class Model:
+    """Base of the models: principal moments and what every model offers (see the module docstring).
+
+    Parameters
+    ----------
+    moments : Body or array_like, shape (3,)
+        Principal moments ``(I1, I2, I3)``, kg m², validated as :func:`tumble.physics.bodies.validate_moments`
+        does (finite, > 0, triangle inequality). Stored as a read-only float64 array.
+    """
+
+    moments: np.ndarray
+    kind: ClassVar[str] = ""
+    state_size: ClassVar[int] = 0
+
+    def __post_init__(self):
+        moments = one_body(self.moments).copy()
+        moments.setflags(write=False)
+        object.__setattr__(self, "moments", moments)
+
+    # --- what the registry says -------------------------------------------------------------------------------
+    @property
+    def spec(self):
+        """The model's row of ``registry.MODELS`` (name, parameters, state components, invariants)."""
+        return registry.model_kind(self.kind)
+
+    @property
+    def parameters(self):
+        """``{study key: value}`` of the model's numeric parameters (``registry.MODEL_PARAMETERS``)."""
+        return {key: getattr(self, key) for key in self.spec.parameters}
+
+    def __eq__(self, other):
+        if type(other) is not type(self):
+            return NotImplemented
+        return self._key() == other._key()
+
+    def __hash__(self):
+        return hash(self._key())
+
+    def __reduce__(self):  # rebuilt through the constructor: checked again, arrays read-only again
+        return type(self), (self.moments, *self.parameters.values())
+
+    def _key(self):
+        return (self.kind, self.moments.tobytes(), *(np.asarray(v).tobytes() for v in self.parameters.values()))
+
+    # --- states ---------------------------------------------------------------------------------------------
+    def _state(self, state, name="state"):
+        """``state`` as an array of shape (..., n): float64, or complex as given (complex-step derivatives)."""
+        arr = np.asarray(state)
+        if arr.dtype.kind == "f":
+            arr = arr.astype(float, copy=False)
+        elif arr.dtype.kind != "c":
+            arr = finite_array(arr, name)
+        if arr.ndim == 0 or arr.shape[-1] != self.state_size:
+            raise ValueError(f"{name} of a {self.kind} model must have shape (..., {self.state_size}) "
+                             f"({', '.join(self.spec.state)}), got shape {arr.shape}")
+        return arr
+
+    def angular_velocity(self, momentum):
+        """Body-frame angular velocity with the given angular momentum: ``w = I⁻¹ (L − h)``.
+
+        ``h`` is the gyrostat's rotor (0 for the other models; the heavy top's ``L`` is about the pivot).
+
+        Parameters
+        ----------
+        momentum : array_like, shape (..., 3)
+            Angular momentum ``L`` in the body frame, N m s (kg m²/s).
+
+        Returns
+        -------
+        ndarray, shape (..., 3)
+            ``w``, rad/s.
+
+        Raises
+        ------
+        ValueError
+            ``momentum`` not finite or not of shape (..., 3).
+        """
+        m = finite_array(momentum, "momentum")
+        if m.ndim == 0 or m.shape[-1] != 3:
+            raise ValueError(f"momentum must have shape (..., 3) (body frame, N m s), got shape {m.shape}")
+        return (m - self._rotor()) / self.moments
+
+    def _rotor(self):
+        return np.zeros(3)
+
+    def transverse_norm(self, state, axis, spin=1.0):
+        """Norm of the perturbation of the steady spin about ``axis`` in ``state`` (see :class:`Transverse`).
+
+        Parameters
+        ----------
+        state : array_like, shape (..., n)
+        axis : {1, 2, 3}
+        spin : float or array_like, broadcastable to (...)
+            The steady spin, rad/s (the gyrostat's weights depend on it).
+
+        Returns
+        -------
+        ndarray, shape (...)
+            rad/s.
+        """
+        state = self._state(state)
+        t = self.transverse(axis, spin)
+        return np.sqrt(np.sum(t.weights * state[..., t.columns] ** 2, axis=-1))
+
+    # Each model defines: rhs, jacobian, invariants, equilibrium, transverse.
+    def rhs(self, state):  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def jacobian(self, state):  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def invariants(self, state):  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def equilibrium(self, axis, spin=1.0):  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def transverse(self, axis, spin=1.0):  # pragma: no cover - abstract
+        raise NotImplementedError
+
+
+_CYCLIC = ((0, 1, 2), (1, 2, 0), (2, 0, 1))
+
+
+def _euler_rhs(moments, w, h):
+    """``I⁻¹ ((I w + h) × w)`` for ``w`` (..., 3), ``h`` (3,): ``w_i' = ((I_j − I_k) w_j w_k + h_j w_k − h_k w_j) / I_i``.
+
+    Written with the differences of the moments, as Euler's equations are: ``I_j − I_k`` is exact for close moments
+    (Sterbenz), where ``I_j w_j w_k − I_k w_k w_j`` would lose their common digits (a nearly symmetric body).
+    """
+    h = np.broadcast_to(np.asarray(h, dtype=float), (3,))
+    out = np.empty(w.shape, dtype=np.result_type(w, float))
+    for i, j, k in _CYCLIC:
+        wj, wk = w[..., j], w[..., k]
+        out[..., i] = ((moments[j] - moments[k]) * wj * wk + h[j] * wk - h[k] * wj) / moments[i]
+    return out
+
+
+def _euler_jacobian(moments, w, h):
+    """``∂/∂w`` of :func:`_euler_rhs`, shape (..., 3, 3): ``I⁻¹ ([I w + h]× − [w]× I)``, entry by entry from the
+    differences of the moments (as :func:`_euler_rhs`, so that linear theory of a nearly symmetric body keeps its
+    digits): ``J_ij = ((I_j − I_k) w_k − h_k) / I_i``, ``J_ik = ((I_j − I_k) w_j + h_j) / I_i`` for ``(i, j, k)``
+    cyclic, ``J_ii = 0``."""
+    h = np.broadcast_to(np.asarray(h, dtype=float), (3,))
+    jac = np.zeros(w.shape + (3,), dtype=np.result_type(w, float))
+    for i, j, k in _CYCLIC:
+        d = moments[j] - moments[k]
+        jac[..., i, j] = (d * w[..., k] - h[k]) / moments[i]
+        jac[..., i, k] = (d * w[..., j] + h[j]) / moments[i]
+    return jac
+
+
+def _spin_state(size, k, spin):
+    """States of shape (..., size), zero but for the spin (..., rad/s) in component ``k``."""
+    spin = finite_array(spin, "spin")
+    state = np.zeros(spin.shape + (size,))
+    state[..., k] = spin
+    return state
+
+
+def _circular_weights(moments, k, spin, h):
+    """Weights ``(g_b, g_c)`` that make the linearised transverse motion about axis ``k`` (0-based) circular.
+
+    Linearised about ``w = W e_a`` with the rotor along ``a``, ``k_b w_b² + k_c w_c²`` is conserved with
+    ``k_i = I_i ((I_a − I_i) W + h_a)`` (for ``h = 0`` the free body's ``I_i (I_a − I_i)`` times ``W``, as
+    ``measure.estimators.invariant_weights``); ``g_b = sqrt|k_b / k_c|``, ``g_c = 1 / g_b``. Degenerate
+    (``k_b`` or ``k_c`` within 1e-12 of its scale): 1, 1.
+    """
+    b, c = (k + 1) % 3, (k + 2) % 3
+    spin = np.asarray(spin, dtype=float)
+    p_b = (moments[k] - moments[b]) * spin + h
+    p_c = (moments[k] - moments[c]) * spin + h
+    k_b, k_c = moments[b] * p_b, moments[c] * p_c
+    scale = moments.max() * (moments.max() * np.abs(spin) + np.abs(h))
+    ok = np.minimum(np.abs(k_b), np.abs(k_c)) > 1e-12 * scale
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(ok, np.sqrt(np.abs(k_b / k_c)), 1.0)
+    return np.stack([ratio, 1.0 / ratio], axis=-1)
+
+
+@dataclass(frozen=True, eq=False)
+class FreeBody(Model):
+    """The torque-free rigid body: ``I w' = (I w) × w`` (Landau & Lifshitz §36). State ``w`` (3), rad/s.
+
+    Invariants: ``energy`` ``½ w·Iw`` (J) and ``momentum_squared`` ``|I w|²`` ((N m s)²).
+
+    Examples
+    --------
+    >>> FreeBody((1.0, 2.0, 3.0)).rhs([0.0, 1.0, 0.0])
+    array([0., 0., 0.])
+    """
+
+    kind: ClassVar[str] = "free"
+    state_size: ClassVar[int] = len(registry.model_kind("free").state)
+
+    def rhs(self, state):
+        """``w'`` (rad/s²) for states ``w`` of shape (..., 3), rad/s."""
+        return _euler_rhs(self.moments, self._state(state), 0.0)
+
+    def jacobian(self, state):
+        """``∂w'/∂w`` (1/s), shape (..., 3, 3), for states of shape (..., 3)."""
+        return _euler_jacobian(self.moments, self._state(state), 0.0)
+
+    def invariants(self, state):
+        """``{"energy": ½ w·Iw (J), "momentum_squared": |Iw|² ((N m s)²)}``, each of shape (...)."""
+        w = self._state(state)
+        lw = self.moments * w
+        return {"energy": 0.5 * np.sum(lw * w, axis=-1), "momentum_squared": np.sum(lw * lw, axis=-1)}
+
+    def equilibrium(self, axis, spin=1.0):
+        """The steady spin ``w = spin e_axis``: shape (..., 3) for ``spin`` (...) rad/s; ``axis`` 1, 2 or 3."""
+        return _spin_state(3, _one_axis(axis), spin)
+
+    def transverse(self, axis, spin=1.0):
+        """The two components across ``axis`` (cyclic order), weighted so that a linear oscillation is circular."""
+        k = _one_axis(axis)
+        weights = _circular_weights(self.moments, k, 1.0, 0.0)
+        return Transverse(np.array([(k + 1) % 3, (k + 2) % 3], dtype=np.intp), weights,
+                          np.array([(k + 1) % 3, (k + 2) % 3], dtype=np.intp))
+
+
+@dataclass(frozen=True, eq=False)
+class Gyrostat(Model):
+    """A rigid body carrying a rotor of constant relative angular momentum ``h``: ``I w' = (I w + h) × w``.
+
+    ``L = I w + h`` (Wittenburg §3.6; Hughes, *Spacecraft Attitude Dynamics*, ch. 7). State ``w`` (3), rad/s.
+    Invariants: ``energy`` ``½ w·Iw`` (J; the rotor's own energy is constant) and ``momentum_squared``
+    ``|I w + h|²``. A rotor along a principal axis stabilises a spin about it, the intermediate one included,
+    once ``|h|`` is large enough (:func:`tumble.physics.theory.gyrostat_linear`).
+
+    Parameters
+    ----------
+    moments : Body or array_like, shape (3,)
+        Principal moments of the whole body with the rotor, kg m².
+    rotor : array_like, shape (3,)
+        ``h``, N m s, body frame; finite.
+
+    Raises
+    ------
+    ValueError
+        Invalid moments, or a rotor that is not a finite 3-vector (the message names ``rotor``).
+    """
+
+    rotor: np.ndarray
+    kind: ClassVar[str] = "gyrostat"
+    state_size: ClassVar[int] = len(registry.model_kind("gyrostat").state)
+
+    def __post_init__(self):
+        super().__post_init__()
+        object.__setattr__(self, "rotor", _parameter("rotor", self.rotor))
+
+    def _rotor(self):
+        return self.rotor
+
+    def rhs(self, state):
+        """``w'`` (rad/s²) for states ``w`` of shape (..., 3), rad/s."""
+        return _euler_rhs(self.moments, self._state(state), self.rotor)
+
+    def jacobian(self, state):
+        """``∂w'/∂w`` (1/s), shape (..., 3, 3): ``I⁻¹ ([I w + h]× − [w]× I)``."""
+        return _euler_jacobian(self.moments, self._state(state), self.rotor)
+
+    def invariants(self, state):
+        """``{"energy": ½ w·Iw (J), "momentum_squared": |Iw + h|² ((N m s)²)}``, each of shape (...)."""
+        w = self._state(state)
+        lw = self.moments * w
+        total = lw + self.rotor
+        return {"energy": 0.5 * np.sum(lw * w, axis=-1), "momentum_squared": np.sum(total * total, axis=-1)}
+
+    def equilibrium(self, axis, spin=1.0):
+        """The steady spin ``w = spin e_axis`` (shape (..., 3)); it is one only with the rotor along ``axis``.
+
+        Raises
+        ------
+        ValueError
+            The rotor has a component across ``axis`` (beyond ``ROTOR_RTOL |h|``): ``(I w + h) × w ≠ 0``.
+        """
+        k = _one_axis(axis)
+        across = np.delete(self.rotor, k)
+        if np.abs(across).max() > ROTOR_RTOL * np.linalg.norm(self.rotor):
+            raise ValueError(f"rotor must lie along the spin axis {k + 1} for a steady spin about it, got rotor = "
+                             f"{self.rotor.tolist()} N m s")
+        return _spin_state(3, k, spin)
+
+    def transverse(self, axis, spin=1.0):
+        """The two components across ``axis``, weighted so that the linear motion is circular for that spin.
+
+        ``weights`` has shape ``spin.shape + (2,)``: ``k_i = I_i ((I_a − I_i) W + h_a)`` depend on the spin.
+        """
+        k = _one_axis(axis)
+        weights = _circular_weights(self.moments, k, finite_array(spin, "spin"), float(self.rotor[k]))
+        pair = np.array([(k + 1) % 3, (k + 2) % 3], dtype=np.intp)
+        return Transverse(pair, weights, pair.copy())
+
+
+_UP_CROSS = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])  # g × e3 = _UP_CROSS @ g
+
+
+@dataclass(frozen=True, eq=False)
+class HeavyTop(Model):
+    """A heavy top on a fixed pivot (Euler-Poisson equations; Arnold §30, Goldstein §5.7).
+
+    ``I w' = (I w) × w + mgl (g × e3)``, ``g' = g × w``: moments about the pivot, centre of mass on body axis 3
+    at distance ``l`` above it, ``g`` the unit vector pointing up (against gravity) in the body frame. State
+    ``(w1, w2, w3, g1, g2, g3)``: rad/s, then dimensionless. Invariants: ``energy`` ``½ w·Iw + mgl g3`` (J),
+    ``vertical_momentum`` ``L·g`` (N m s), ``up_squared`` ``|g|²`` (1); ``|L|²`` is not conserved.
+
+    Parameters
+    ----------
+    moments : Body or array_like, shape (3,)
+        Principal moments about the pivot, kg m².
+    mgl : float
+        ``M g l``, N m; finite and > 0.
+
+    Raises
+    ------
+    ValueError
+        Invalid moments, or ``mgl`` not a finite number > 0 (the message names ``mgl``).
+    """
+
+    mgl: float
+    kind: ClassVar[str] = "heavy_top"
+    state_size: ClassVar[int] = len(registry.model_kind("heavy_top").state)
+
+    def __post_init__(self):
+        super().__post_init__()
+        object.__setattr__(self, "mgl", float(_parameter("mgl", self.mgl)))
+
+    def rhs(self, state):
+        """``(w', g')`` for states of shape (..., 6): rad/s² then 1/s."""
+        y = self._state(state)
+        w, g = y[..., :3], y[..., 3:]
+        torque = self.mgl * np.stack([g[..., 1], -g[..., 0], np.zeros_like(g[..., 0])], axis=-1)  # mgl g × e3
+        return np.concatenate([_euler_rhs(self.moments, w, 0.0) + torque / self.moments, np.cross(g, w)], axis=-1)
+
+    def jacobian(self, state):
+        """``∂(w', g')/∂(w, g)`` (1/s), shape (..., 6, 6).
+
+        Blocks: ``∂w'/∂w = I⁻¹ ([Iw]× − [w]× I)``, ``∂w'/∂g = mgl I⁻¹ (−[e3]×)``, ``∂g'/∂w = [g]×``,
+        ``∂g'/∂g = −[w]×``.
+        """
+        y = self._state(state)
+        w, g = y[..., :3], y[..., 3:]
+        jac = np.zeros(y.shape + (6,), dtype=y.dtype)
+        jac[..., :3, :3] = _euler_jacobian(self.moments, w, 0.0)
+        jac[..., :3, 3:] = self.mgl * _UP_CROSS / self.moments[:, None]
+        jac[..., 3:, :3] = _cross_matrix(g)
+        jac[..., 3:, 3:] = -_cross_matrix(w)
+        return jac
+
+    def invariants(self, state):
+        """``energy`` (J), ``vertical_momentum`` ``L·g`` (N m s), ``up_squared`` ``|g|²``; each of shape (...)."""
+        y = self._state(state)
+        w, g = y[..., :3], y[..., 3:]
+        lw = self.moments * w
+        return {"energy": 0.5 * np.sum(lw * w, axis=-1) + self.mgl * g[..., 2],
+                "vertical_momentum": np.sum(lw * g, axis=-1), "up_squared": np.sum(g * g, axis=-1)}
+
+    def equilibrium(self, axis, spin=1.0):
+        """The sleeping top: ``w = (0, 0, spin)``, ``g = (0, 0, 1)`` (upright), shape (..., 6).
+
+        Raises
+        ------
+        ValueError
+            ``axis`` other than 3 (spin.axis: the centre of mass lies on body axis 3).
+        """
+        if _one_axis(axis) != 2:
+            raise ValueError(f"axis (spin.axis) must be 3 for a heavy_top: the centre of mass lies on body axis 3, "
+                             f"got {axis!r}")
+        state = _spin_state(6, 2, spin)
+        state[..., 5] = 1.0
+        return state
+
+    def transverse(self, axis, spin=1.0):
+        """``(w1, w2, g1, g2)`` with weights ``(1, 1, mgl/I1, mgl/I2)`` (all terms in (rad/s)²); phase: the tilt.
+
+        ``(g1, g2)`` is the tilt of the top's axis from the vertical (rad, to first order); ``mgl / I_i`` is the
+        squared rate at which an upright top at rest falls, which makes the two halves comparable whatever the
+        spin (also for a top at rest). The phase fit follows the tilt ``(g1, g2)``.
+        """
+        if _one_axis(axis) != 2:
+            raise ValueError(f"axis (spin.axis) must be 3 for a heavy_top, got {axis!r}")
+        weights = np.array([1.0, 1.0, self.mgl / self.moments[0], self.mgl / self.moments[1]])
+        return Transverse(np.array([0, 1, 3, 4], dtype=np.intp), weights, np.array([3, 4], dtype=np.intp))
+
+
+#: The implemented models by kind (``registry.MODELS`` lists the reserved ones too).
+IMPLEMENTED = {cls.kind: cls for cls in (FreeBody, Gyrostat, HeavyTop)}
+
+
+def from_kind(kind, body, **parameters):
+    """The model ``kind`` of ``body`` with its parameters, as a study's ``[model]`` table names them.
+
+    Parameters
+    ----------
+    kind : str
+        One of ``registry.MODEL_KINDS``: ``"free"``, ``"gyrostat"``, ``"heavy_top"`` (implemented),
+        ``"gravity_gradient"``, ``"damper"`` (reserved).
+    body : Body or array_like, shape (3,)
+        Principal moments, kg m².
+    **parameters
+        The kind's numeric parameters by study key (``rotor`` N m s, ``mgl`` N m), all of them, no others.
+
+    Returns
+    -------
+    Model
+
+    Raises
+    ------
+    ValueError
+        An unknown kind; a reserved kind (not implemented yet); a parameter the kind does not have, or lacks;
+        an invalid parameter or body. The message names the kind or the key.
+
+    Examples
+    --------
+    >>> from_kind("heavy_top", (1.0, 1.0, 0.5), mgl=2.0).state_size
+    6
+    """
+    spec = registry.model_kind(kind)
+    if not spec.implemented:
+        keys = ", ".join(spec.parameters)
+        raise ValueError(f"model kind {kind!r} is reserved but not implemented yet (parameters {keys}); "
+                         f"implemented: {', '.join(IMPLEMENTED)}")
+    for key in parameters:
+        if key not in spec.parameters:
+            raise ValueError(f"{key}: not a parameter of model kind {kind!r} "
+                             f"(its parameters: {', '.join(spec.parameters) or 'none'})")
+    for key in spec.parameters:
+        if key not in parameters:
+            raise ValueError(f"{key}: model kind {kind!r} needs it")
+    return IMPLEMENTED[kind](body, **parameters)
