@@ -16,5 +16,7 @@ def test_every_nonzero_coefficient_appears_as_an_exact_literal():
         for value in [*tableau.A[tableau.A != 0], *tableau.b[tableau.b != 0]]:
             assert f"({float(value)!r} * h)" in source
     for splitting in (tableaux.SPLITTING2, tableaux.SPLITTING4):
-        for value in splitting.without_torque().fractions:
-            assert f"{float(value)!r} * h" in source
+        free = splitting.without_torque()
+        prefix = f"_{splitting.name.upper()}_FREE"
+        assert f"{prefix}_FLOWS = np.array([{', '.join(str(int(f)) for f in free.flows)}], dtype=np.int64)" in source
+        assert f"{prefix}_FRACTIONS = np.array([{', '.join(repr(float(x)) for x in free.fractions)}])" in source

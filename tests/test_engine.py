@@ -173,6 +173,25 @@ def test_the_per_sample_step_compiles_to_packed_simd_code(method):
     assert re.search(r"vfmadd\w*pd\s+[^\n]*%[yz]mm", assembly)
 
 
+def test_a_splitting_sub_flow_turns_the_block_with_packed_simd_code():
+    """Each sub-flow of a splitting (steppers.rotate_block: sincos and the rotation) vectorises across the
+    samples of a block, for every axis."""
+    import re
+
+    import numba
+
+    from tumble.kernels import steppers
+    from tumble.kernels.jit import FASTMATH
+
+    if "+fma" not in numba.core.codegen.get_host_cpu_features():
+        pytest.skip("this CPU has no FMA")
+    fresh = numba.njit(cache=False, fastmath=set(FASTMATH), error_model="numpy")(steppers.rotate_block.py_func)
+    y = np.ones((3, 64))
+    fresh(0, 0.01, y[0], y[1], y[2], steppers.body_constants(MOMENTS))
+    assembly = "\n".join(fresh.inspect_asm().values())
+    assert len(re.findall(r"vfmadd\w*pd\s+[^\n]*%[yz]mm", assembly)) >= 3 * 10  # three loops, sincos in each
+
+
 @pytest.mark.parametrize("path", ["closed form", "kernel"])
 def test_ctrl_c_stops_between_chunks(spins, monkeypatch, path):
     """SIGINT during the second chunk lets that chunk finish, starts no other, and restores the handler."""

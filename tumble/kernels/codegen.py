@@ -1,9 +1,10 @@
 """Generate :mod:`tumble.kernels.fused` from the coefficient tables in :mod:`tumble.kernels.tableaux`.
 
-The fastest layout keeps one sample's whole step in registers and lets the compiler vectorise the loop over
-the samples of a block. That needs every stage spelled out with its coefficients as literals, so the
-per-sample step functions are generated from the tables, which stay the single source of truth; a test
-checks that the committed module is what this generator writes. Regenerate with::
+The fastest layout for a Runge–Kutta method keeps one sample's whole step in registers and lets the compiler
+vectorise the loop over the samples of a block. That needs every stage spelled out with its coefficients as
+literals, so the per-sample step functions are generated from the tables, which stay the single source of
+truth; a splitting's step is a loop over its sub-flows (constant arrays generated from its table), each turning
+the whole block. A test checks that the committed module is what this generator writes. Regenerate with::
 
     python tumble/kernels/codegen.py
 
@@ -21,8 +22,6 @@ METHOD_ORDER = tableaux.METHOD_ORDER
 
 TARGET = Path(__file__).with_name("fused.py")
 _COMPONENTS = ("w1", "w2", "w3")
-# body_constants index of I_c/I_b and I_b/I_c for a rotation about axis a (0-based), (a, b, c) cyclic.
-_RATIOS = {0: (9, 11), 1: (10, 7), 2: (6, 8)}
 _TORQUE_ARGS = "torque_kind, torque_params, torque_fn"
 
 
@@ -57,30 +56,9 @@ def explicit_rk_source(tableau):
     return "\n".join(lines)
 
 
-def splitting_source(splitting, name):
-    """Source of ``name(w1, w2, w3, t, h, body, target, torque...)`` for a torque-free composition of exact
-    sub-flows, spelled out (the loop over a block vectorises across samples)."""
-    assert tableaux.TORQUE not in splitting.flows, "torque compositions run as a loop (splitting_with_torque)"
-    lines = [
-        "@jit(inline=True)",
-        f"def {name}(w1, w2, w3, t, h, body, target, {_TORQUE_ARGS}):",
-        f'    """One step of {splitting.name} (order {splitting.order}) for one sample, torque-free: ends on the '
-        f'sample\'s own |L|**2."""',
-    ]
-    for flow, fraction in zip(splitting.flows, splitting.fractions):
-        tau = f"{float(fraction)!r} * h"
-        a = int(flow)  # ROTATE_1..3 are axes 0..2 of the kernel frame
-        wa, wb, wc = _COMPONENTS[a], _COMPONENTS[(a + 1) % 3], _COMPONENTS[(a + 2) % 3]
-        r_cb, r_bc = _RATIOS[a]
-        lines.append(f"    {wb}, {wc} = rotate({wa} * ({tau}), {wb}, {wc}, body[{r_cb}], body[{r_bc}])")
-    lines.append("    return project_l_squared(w1, w2, w3, target, body)")
-    return "\n".join(lines)
-
-
-def composition_source(splitting):
-    """The composition of ``splitting`` (torque sub-flows included) as two constant arrays, for the loop of
-    :func:`tumble.kernels.steppers.splitting_with_torque`."""
-    prefix = f"_{splitting.name.upper()}"
+def composition_source(splitting, prefix):
+    """The composition of ``splitting`` as two constant arrays ``<prefix>_FLOWS`` and ``<prefix>_FRACTIONS``: the
+    sub-flows the stage loops below run through."""
     flows = ", ".join(str(int(f)) for f in splitting.flows)
     fractions = ", ".join(repr(float(x)) for x in splitting.fractions)
     return "\n".join([f"{prefix}_FLOWS = np.array([{flows}], dtype=np.int64)",
@@ -109,7 +87,7 @@ def module_source():
         "import numpy as np",
         "",
         "from .jit import jit",
-        "from .steppers import euler_rate, project_l_squared, rotate, splitting_with_torque",
+        "from .steppers import euler_rate, project_l_squared, rotate_block, splitting_with_torque",
         "",
     ]
     sample_call = "y1[i], y2[i], y3[i], t, h, body"
@@ -122,14 +100,18 @@ def module_source():
             blocks += ["", "", explicit_rk_source(method)]
             body = _sample_loop(f"{name}_sample({sample_call}, {_TORQUE_ARGS})", 4)
         else:
-            # With a torque the sub-flows run as a loop over the composition: the step is bound by the torque
-            # calls anyway, and the spelled-out form took minutes to compile (splitting4: 110 s against 2 s,
-            # the same bits and the same speed, measured).
+            # A composition runs as a loop over its sub-flows, not spelled out: torque-free, each sub-flow turns
+            # the whole block (steppers.rotate_block, whose loop over the samples vectorises), so the step holds
+            # one copy of sincos per axis instead of one per sub-flow (splitting4: 20); with a torque, sample by
+            # sample (splitting_with_torque), bound by the torque calls anyway. Spelled out, splitting4 took
+            # 40 s to compile torque-free and 110 s with a torque, for the same bits and speed (measured).
             prefix = f"_{name.upper()}"
-            blocks += ["", "", splitting_source(method.without_torque(), f"{name}_free_sample")]
-            blocks += ["", composition_source(method)]
-            body = ["    if torque_params is None:"]
-            body += _sample_loop(f"{name}_free_sample({sample_call}, target[i], {_TORQUE_ARGS})", 8)
+            blocks += ["", composition_source(method.without_torque(), prefix + "_FREE")]
+            blocks += ["", composition_source(method, prefix)]
+            body = ["    if torque_params is None:",
+                    f"        for s in range({prefix}_FREE_FLOWS.shape[0]):",
+                    f"            rotate_block({prefix}_FREE_FLOWS[s], {prefix}_FREE_FRACTIONS[s] * h, y1, y2, y3, body)",
+                    *_sample_loop("project_l_squared(y1[i], y2[i], y3[i], target[i], body)", 8)]
             body.append("    else:")
             body += _sample_loop(f"splitting_with_torque({sample_call}, {prefix}_FLOWS, {prefix}_FRACTIONS, "
                                  f"{_TORQUE_ARGS})", 8)

@@ -87,6 +87,23 @@ def rotate(theta, wb, wc, r_cb, r_bc):
     return c * wb + s * r_cb * wc, c * wc - s * r_bc * wb
 
 
+@jit
+def rotate_block(axis, tau, y1, y2, y3, body):
+    """The exact flow of ``H_a`` (:func:`rotate`) over ``tau`` for every sample of a block: ``(w_b, w_c)`` turns
+    by ``w_a tau``, ``a = axis`` (0-based), ``(a, b, c)`` cyclic. One loop per axis, each vectorised across the
+    samples; a splitting's step is a sequence of these (:mod:`tumble.kernels.fused`)."""
+    n = y1.shape[0]
+    if axis == 0:
+        for i in range(n):
+            y2[i], y3[i] = rotate(y1[i] * tau, y2[i], y3[i], body[9], body[11])
+    elif axis == 1:
+        for i in range(n):
+            y3[i], y1[i] = rotate(y2[i] * tau, y3[i], y1[i], body[10], body[7])
+    else:
+        for i in range(n):
+            y1[i], y2[i] = rotate(y3[i] * tau, y1[i], y2[i], body[6], body[8])
+
+
 @jit  # not inlined: six inlined copies in splitting4 cost minutes of compile time for torque scenes
 def torque_subflow(t, tau, w1, w2, w3, body, torque_kind, torque_params, torque_fn):
     """Torque sub-flow ``w' = N(t, w) / I`` over ``tau`` by one classical RK4 step.
