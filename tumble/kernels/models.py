@@ -307,6 +307,7 @@ def _kind_constants(kind, moments, rotor, mgl):
     moments = np.asarray(moments, dtype=float)
     unit = math.ldexp(1.0, -math.frexp(float(moments.max()))[1])
     constants = model_constants(moments * unit, np.asarray(rotor, dtype=float) * unit, float(mgl) * unit)
+    assert constants.shape == (N_CONSTANTS,)
     return MODEL_CODES[kind], len(model_kind(kind).state), constants
 
 
