@@ -33,6 +33,7 @@ import numpy as np
 
 from .. import registry
 from ..physics.bodies import finite_array, one_body
+from ..physics.models import Model
 
 __all__ = [
     "CHUNK",
@@ -41,6 +42,7 @@ __all__ = [
     "chunk_count",
     "chunk_ranges",
     "perturbed_spins",
+    "perturbed_states",
     "seed_entropy",
     "transverse_axes",
 ]
@@ -347,3 +349,75 @@ def perturbed_spins(body, axis, spin=1.0, amplitude=1e-3, samples=1024, *, seed=
         keep_lo, keep_hi = max(lo, start), min(hi, stop)
         out[keep_lo - start:keep_hi - start] = spin * directions[keep_lo - lo:keep_hi - lo]
     return (out, entropy) if return_entropy else out
+
+
+#: The spawn key of the stream that tilts a heavy top's up vector: two entries, so it is none of the chunks' keys
+#: ``(j,)`` of :func:`perturbed_spins`, and the tilt of ``g`` is independent of the tilt of the spin.
+_UP_SPAWN_KEY = (0, 1)
+
+
+def _up_entropy(entropy):
+    """The entropy of the up vector's tilts, derived from the ensemble's (deterministic, 128 bits)."""
+    words = np.random.SeedSequence(entropy, spawn_key=_UP_SPAWN_KEY).generate_state(4, np.uint32)
+    return sum(int(word) << (32 * i) for i, word in enumerate(words))
+
+
+def perturbed_states(model, axis, spin=1.0, amplitude=1e-3, samples=1024, *, up_amplitude=None, seed=0,
+                     distribution="cone", start=0, stop=None):
+    # size: a public call: each keyword is a documented sampling option (the up vector's tilt, the sample range)
+    """States of a model near its steady spin about ``axis``, each tilted by small random angles; reproducible by
+    index.
+
+    The angular velocity is :func:`perturbed_spins` of the model's moments (no constraint): the steady spin tilted
+    by ``amplitude``. A heavy top's up vector ``g`` (its state's components 3-5) is ``e3`` tilted by an
+    independent angle of scale ``up_amplitude`` (the same distribution, a random stream derived from the seed).
+    Other components are the equilibrium's (:meth:`tumble.physics.models.Model.equilibrium`). As for
+    :func:`perturbed_spins`, sample ``i`` depends only on the seed, ``i`` and the physical arguments:
+    ``start``/``stop`` give bit for bit the rows of the whole draw.
+
+    Parameters
+    ----------
+    model : tumble.physics.models.Model
+        A free body, gyrostat or heavy top.
+    axis : {1, 2, 3}
+        The steady spin's axis, 1-based (a heavy top: 3; a gyrostat: the axis its rotor lies along).
+    spin : float
+        The steady spin rate, rad/s; finite, non-zero.
+    amplitude : float
+        Tilt scale of the spin, rad (see :func:`perturbed_spins`).
+    samples : int
+        Size of the whole ensemble, >= 1.
+    up_amplitude : float, optional
+        Tilt scale of a heavy top's up vector, rad; default ``amplitude``. Ignored by the other models.
+    seed : int >= 0 or None
+        Entropy of the ensemble (``None``: fresh entropy).
+    distribution : {"cone", "filled_cone", "gaussian"}
+        The tilts' distribution (:func:`perturbed_spins`).
+    start, stop : int
+        Rows ``[start, stop)`` of the ensemble to return.
+
+    Returns
+    -------
+    ndarray, shape (stop − start, model.state_size), float64
+        States: ``w`` (rad/s), then the model's own components.
+
+    Raises
+    ------
+    ValueError
+        ``model`` is not a model; an axis the model has no steady spin about; any argument
+        :func:`perturbed_spins` refuses (named in the message).
+    """
+    if not isinstance(model, Model):
+        raise ValueError(f"model must be a tumble.physics.models model (FreeBody, Gyrostat, HeavyTop), got "
+                         f"{type(model).__name__}")
+    equilibrium = model.equilibrium(axis, 1.0)
+    w, entropy = perturbed_spins(model.moments, axis, spin, amplitude, samples, seed=seed, distribution=distribution,
+                                 start=start, stop=stop, return_entropy=True)
+    states = np.empty((len(w), model.state_size))
+    states[:] = equilibrium
+    states[:, :3] = w
+    if model.state_size > 3:  # the heavy top's up vector: e3 tilted
+        tilt = amplitude if up_amplitude is None else _scalar(up_amplitude, "up_amplitude")
+        states[:, 3:6] = perturbed_spins(model.moments, 3, 1.0, tilt, samples, seed=_up_entropy(entropy),
+                                         distribution=distribution, start=start, stop=stop)
+    return states

@@ -1,0 +1,198 @@
+"""Ensembles of the models beyond the free body (issue 18): arguments checked, samples in chunks, the model kernels.
+
+:func:`run_model_ensemble` is :func:`tumble.engine.ensemble.run_ensemble` for a model of
+:mod:`tumble.physics.models` (a free body, a gyrostat, a heavy top): the same chunks of samples and observers
+(final state, decimated trajectory, the transverse norm at probe times, the invariants' drift, a status per
+sample), stepped by the models' SIMD kernels (:func:`tumble.kernels.run_model`: rk4 or rk8, one compiled driver
+for every model). The transverse norm is the model's own (:meth:`~tumble.physics.models.Model.transverse`, about
+:meth:`~tumble.physics.models.Model.equilibrium`). Initial states near a steady spin come from
+:func:`tumble.engine.sampling.perturbed_states`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import NamedTuple
+
+import numpy as np
+
+from ..kernels import MODEL_CODES, MODEL_METHODS, run_model
+from ..physics.models import Model
+from .ensemble import DEFAULT_DRIFT_LIMIT, observation_times
+from .sampling import CHUNK
+
+__all__ = ["ModelEnsembleResult", "run_model_ensemble"]
+
+
+class ModelEnsembleResult(NamedTuple):
+    """Arrays per sample (first axis) and what ran; an output that was not asked for is None."""
+
+    final: np.ndarray | None  # (N, n_state): rad/s, then the model's own units
+    times: np.ndarray | None  # (T,), s, of the trajectory
+    trajectory: np.ndarray | None  # (N, T, n_state)
+    probe_times: np.ndarray | None  # (P,), s
+    probes: np.ndarray | None  # (N, P), transverse norm, rad/s (NaN after a sample stopped)
+    drift: np.ndarray | None  # (N, n_invariants): running max drift of each invariant (registry's order)
+    status: np.ndarray  # (N,) int8, registry.STATUS_NAMES
+    steps_taken: np.ndarray  # (N,) int64
+    info: dict
+
+
+def _number(value, name, *, low=None, positive=False):
+    """``value`` as a finite float (``>= low``, or ``> 0``); ValueError naming ``name``."""
+    if isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    try:
+        x = float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"{name} must be a finite number, got {value!r}") from None
+    if not math.isfinite(x) or (positive and x <= 0) or (low is not None and x < low):
+        bound = "> 0" if positive else f">= {low}"
+        raise ValueError(f"{name} must be a finite number {bound}, got {value!r}")
+    return x
+
+
+def _count(value, name, low):
+    """``value`` as an int ``>= low``; ValueError naming ``name``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < low:
+        raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+    return int(value)
+
+
+def _flag(value, name):
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be True or False, got {value!r}")
+    return bool(value)
+
+
+def _states(model, y0):
+    """``y0`` as float64 of shape (N, n_state), N >= 1 (non-finite values allowed: those samples are flagged)."""
+    try:
+        y0 = np.array(y0, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"y0 must be an array of numbers of shape (N, {model.state_size}), got {y0!r}") from None
+    if y0.ndim != 2 or y0.shape[1] != model.state_size or len(y0) == 0:
+        raise ValueError(f"y0 must have shape (N, {model.state_size}) with N >= 1 ({', '.join(model.spec.state)} of "
+                         f"a {model.kind} model), got shape {y0.shape}")
+    return y0
+
+
+def _checked(model, y0, t_end, dt, method, axis, spin, save_every, probe_times, drift_limit, chunk):
+    # size: one check for each argument of run_model_ensemble's public call, all before any kernel runs
+    """The arguments of :func:`run_model_ensemble`, checked before anything runs; ValueError naming the argument."""
+    if not isinstance(model, Model) or model.kind not in MODEL_CODES:
+        raise ValueError(f"model must be a tumble.physics.models model ({', '.join(MODEL_CODES)}), got {model!r}")
+    if not isinstance(method, str) or method not in MODEL_METHODS:
+        raise ValueError(f"method must be one of {', '.join(MODEL_METHODS)} for a model, got {method!r}")
+    y0 = _states(model, y0)
+    t_end = _number(t_end, "t_end", low=0.0)
+    dt = _number(dt, "dt", positive=True)
+    if t_end / dt > np.iinfo(np.int64).max:
+        raise ValueError(f"t_end / dt = {t_end / dt:.3g} steps: more than a run can count")
+    if isinstance(axis, (bool, np.bool_)) or axis not in (1, 2, 3):
+        raise ValueError(f"axis must be 1, 2 or 3 (a principal axis, 1-based), got {axis!r}")
+    if spin is None:  # the ensemble's own spin: the median of the axis component of its finite states
+        column = y0[:, axis - 1]
+        column = column[np.isfinite(column)]
+        spin = float(np.median(column)) if len(column) else 1.0
+    spin = _number(spin, "spin")
+    if save_every is not None:
+        save_every = _count(save_every, "save_every", 0)
+    if probe_times is not None:
+        try:
+            probe_times = np.array(probe_times, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"probe_times must be times in s, got {probe_times!r}") from None
+        if probe_times.ndim != 1 or not len(probe_times) or not np.isfinite(probe_times).all() or (
+                probe_times < 0).any():
+            raise ValueError(f"probe_times must have shape (P,), P >= 1, finite times >= 0 s, got {probe_times!r}")
+    drift_limit = _number(drift_limit, "drift_limit", low=0.0)
+    chunk = _count(chunk, "chunk", 1)
+    return y0, t_end, dt, spin, save_every, probe_times, drift_limit, chunk
+
+
+def run_model_ensemble(model, y0, t_end, dt, *, method="rk4", axis, spin=None, save_every=None, probe_times=None,
+                       drift=False, drift_limit=DEFAULT_DRIFT_LIMIT, final=True, chunk=CHUNK):
+    # size: the engine's public call for the models: each keyword is one observer or option a caller may name
+    """Run an ensemble of a model with a fixed-step kernel and observe it on the fly.
+
+    Parameters
+    ----------
+    model : tumble.physics.models.Model
+        ``FreeBody``, ``Gyrostat`` or ``HeavyTop``.
+    y0 : array_like, shape (N, n_state)
+        Initial states (``n_state = model.state_size``): ``w`` (rad/s), then the model's own components (the heavy
+        top's unit up vector ``g``). A sample with a non-finite component is not run: its status is non-finite.
+    t_end, dt : float
+        Horizon and step, s; ``round(t_end / dt)`` steps are taken.
+    method : {"rk4", "rk8"}
+    axis : {1, 2, 3}
+        The steady spin's axis, 1-based: the transverse norm (the probes) measures the perturbation of the spin
+        about it (:meth:`~tumble.physics.models.Model.transverse`). A heavy top: 3.
+    spin : float, optional
+        The steady spin, rad/s (a gyrostat's norm weights depend on it); default: the median of ``y0[:, axis - 1]``.
+    save_every : int, optional
+        Store the initial state, every ``save_every``-th step and the final state (0 or None: no trajectory).
+    probe_times : array_like, shape (P,), optional
+        Times (s) at which to record the transverse norm (rad/s); rounded to whole steps.
+    drift : bool
+        Record the running maximum drift of each of the model's invariants (``model.spec.invariants``), relative to
+        its scale (:mod:`tumble.kernels.models`: the invariant itself, or the largest magnitude an invariant that may
+        vanish can take).
+    drift_limit : float
+        A drift beyond it flags a sample ``invariant drift`` and stops it (0: no flagging).
+    final : bool
+        Return the final states.
+    chunk : int
+        Samples per kernel call.
+
+    Returns
+    -------
+    ModelEnsembleResult
+        ``info`` holds the model, method, step, steps, samples, spin and the run time (s).
+
+    Raises
+    ------
+    ValueError
+        An argument of the wrong type, shape or range (named in the message); an axis the model has no steady
+        spin about (a heavy top: not 3; a gyrostat with probes: its rotor across the axis).
+    """
+    y0, t_end, dt, spin, save_every, probe_times, drift_limit, chunk = _checked(
+        model, y0, t_end, dt, method, axis, spin, save_every, probe_times, drift_limit, chunk)
+    drift, final = _flag(drift, "drift"), _flag(final, "final")
+    transverse = model.transverse(axis, spin)
+    y_eq = model.equilibrium(axis, spin) if probe_times is not None else None
+    n, n_state = y0.shape
+    n_steps = int(round(t_end / dt)) if t_end > 0 else 0
+    save = int(save_every or 0)
+    times, probe_steps, probe_times = observation_times(t_end, dt, save, probe_times)
+    parameters = {"rotor": getattr(model, "rotor", (0.0, 0.0, 0.0)), "mgl": getattr(model, "mgl", 0.0)}
+    n_invariants = len(model.spec.invariants)
+    out_final = np.empty((n, n_state)) if final else None
+    trajectory = np.empty((n, len(times), n_state)) if save else None
+    probes = np.empty((n, len(probe_steps))) if probe_steps is not None else None
+    drifts = np.empty((n, n_invariants)) if drift else None
+    status = np.empty(n, dtype=np.int8)
+    steps_taken = np.empty(n, dtype=np.int64)
+    started = time.perf_counter()
+    for lo in range(0, n, chunk):
+        hi = min(lo + chunk, n)
+        state = np.array(y0[lo:hi].T, order="C")
+        observed = run_model(model.kind, method, state, model.moments, dt, n_steps, save_every=save,
+                             columns=transverse.columns, weights=transverse.weights, y_eq=y_eq,
+                             probe_steps=probe_steps, drift=drift, drift_limit=drift_limit, **parameters)
+        if final:
+            out_final[lo:hi] = state.T
+        if save:
+            trajectory[lo:hi] = observed.saved.transpose(2, 0, 1)
+        if probes is not None:
+            probes[lo:hi] = observed.probes.T
+        if drift:
+            drifts[lo:hi] = observed.drift.T
+        status[lo:hi] = observed.status
+        steps_taken[lo:hi] = observed.steps_taken
+    info = {"path": "model kernel", "model": model.kind, "method": method, "dt": dt, "n_steps": n_steps,
+            "samples": n, "axis": int(axis), "spin": spin, "drift_limit": drift_limit,
+            "run_seconds": time.perf_counter() - started}
+    return ModelEnsembleResult(out_final, times, trajectory, probe_times, probes, drifts, status, steps_taken, info)
