@@ -89,6 +89,27 @@ def _in_moment_units(moments, torque_params, torque_fn):
     return moments * unit, torque_params
 
 
+# Moments in units (and their kernel constants) of the bodies torque-free Runge–Kutta runs have seen: a user's loop
+# of small calls on one body computes them once (the same numbers as _in_moment_units and body_constants give).
+_TORQUE_FREE_CONSTANTS = {}
+
+
+def _torque_free_constants(moments):
+    """``(moments in units, body_constants of them)`` of :func:`_in_moment_units` for a torque-free run, cached by
+    the moments' bytes (at most 64 bodies kept)."""
+    moments = np.asarray(moments, dtype=float)
+    key = moments.tobytes()
+    found = _TORQUE_FREE_CONSTANTS.get(key)
+    if found is None:
+        scaled = _in_moment_units(moments, None, None)[0]
+        scaled.setflags(write=False)
+        found = (scaled, body_constants(scaled))
+        if len(_TORQUE_FREE_CONSTANTS) >= 64:
+            _TORQUE_FREE_CONSTANTS.clear()
+        _TORQUE_FREE_CONSTANTS[key] = found
+    return found
+
+
 def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weights=None, probe_steps=None,
         max_flips=0,
         drift=False, stop_norm=0.0, stop_flips=0, drift_limit=0.0, torque_kind=TORQUE_CONSTANT,
@@ -131,8 +152,13 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
     Observed
     """
     n = w.shape[1]
-    moments, torque_params = _in_moment_units(moments, torque_params, torque_fn)
-    relabel = _relabelling(method, moments, torque_params, torque_fn)
+    constants = None
+    if torque_params is None and torque_fn is None and method.splitting is None:
+        moments, constants = _torque_free_constants(moments)  # the common case, without numpy round trips
+        relabel = None
+    else:
+        moments, torque_params = _in_moment_units(moments, torque_params, torque_fn)
+        relabel = _relabelling(method, moments, torque_params, torque_fn)
     kernel_w, kernel_axis = w, axis
     weights = _UNIT_WEIGHTS if norm_weights is None else np.ascontiguousarray(norm_weights, dtype=float)
     if relabel is not None:
@@ -161,7 +187,9 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
     status = np.zeros(n, dtype=np.int8)
     steps_taken = np.zeros(n, dtype=np.int64)
     torque_free = torque_params is None and torque_fn is None
-    args = (method.kernel_id, kernel_w, body_constants(moments), float(t0), float(h), int(n_steps), int(block),
+    if constants is None:
+        constants = body_constants(moments)
+    args = (method.kernel_id, kernel_w, constants, float(t0), float(h), int(n_steps), int(block),
             int(save_every), saved, int(kernel_axis), weights, probe_steps, probes, flips, flip_count, drifts, status,
             steps_taken, float(stop_norm), int(stop_flips), float(drift_limit), int(torque_kind), torque_params,
             torque_fn)
