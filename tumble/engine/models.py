@@ -11,7 +11,6 @@ for every model). The transverse norm is the model's own (:meth:`~tumble.physics
 
 from __future__ import annotations
 
-import math
 import time
 from typing import NamedTuple
 
@@ -19,7 +18,7 @@ import numpy as np
 
 from ..kernels import MODEL_CODES, MODEL_METHODS, run_model
 from ..physics.models import Model
-from .ensemble import DEFAULT_DRIFT_LIMIT, observation_times
+from .ensemble import DEFAULT_DRIFT_LIMIT, _count, _number, observation_times
 from .sampling import CHUNK
 
 __all__ = ["ModelEnsembleResult", "run_model_ensemble"]
@@ -37,27 +36,6 @@ class ModelEnsembleResult(NamedTuple):
     status: np.ndarray  # (N,) int8, registry.STATUS_NAMES
     steps_taken: np.ndarray  # (N,) int64
     info: dict
-
-
-def _number(value, name, *, low=None, positive=False):
-    """``value`` as a finite float (``>= low``, or ``> 0``); ValueError naming ``name``."""
-    if isinstance(value, (bool, np.bool_)):
-        raise ValueError(f"{name} must be a number, got {value!r}")
-    try:
-        x = float(value)
-    except (TypeError, ValueError, OverflowError):
-        raise ValueError(f"{name} must be a finite number, got {value!r}") from None
-    if not math.isfinite(x) or (positive and x <= 0) or (low is not None and x < low):
-        bound = "> 0" if positive else f">= {low}"
-        raise ValueError(f"{name} must be a finite number {bound}, got {value!r}")
-    return x
-
-
-def _count(value, name, low):
-    """``value`` as an int ``>= low``; ValueError naming ``name``."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < low:
-        raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
-    return int(value)
 
 
 def _flag(value, name):
