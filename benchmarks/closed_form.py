@@ -48,12 +48,13 @@ def regimes(rng):
 
 def measure(w0, t):
     sol = exact._solve(MOMENTS, w0)
-    args = (sol.kind, sol.amp, sol.cols, sol.kc, sol.phase0, sol.nu)
+    args = (sol.kind, sol.amp, sol.cols, sol.kc, sol.phase0, sol.nu)  # the scalar reference kernel's inputs
+    args_new = (sol.kind, sol.amp, sol.cols, sol.kc, sol.K, sol.nome, sol.phase0, sol.nu)
     out = np.empty((SAMPLES, TIMES, 3))
     times, row = np.ascontiguousarray(t[None, :]), np.zeros(SAMPLES, dtype=np.int64)
 
     def new():
-        ell.torque_free_omega(*args, times, row, out)
+        ell.torque_free_omega(*args_new, times, row, out)
 
     def old():
         ell._torque_free_omega_reference(*args, t, out)
@@ -64,7 +65,7 @@ def measure(w0, t):
         fn()
         row_[f"compile_{name}"] = time.perf_counter() - started
     check_new, check_old = np.empty_like(out), np.empty_like(out)
-    ell.torque_free_omega(*args, times, row, check_new)
+    ell.torque_free_omega(*args_new, times, row, check_new)
     ell._torque_free_omega_reference(*args, t, check_old)
     row_["max_rel_diff_vs_old"] = float(np.max(np.abs(check_new - check_old) / np.max(np.abs(check_old), axis=1,
                                                                                         keepdims=True)))

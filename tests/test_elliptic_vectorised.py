@@ -44,9 +44,21 @@ def kernel_inputs(body, w0):
     return sol.kind, sol.amp, sol.cols, sol.kc, sol.phase0, sol.nu
 
 
+def with_constants(args):
+    """The vectorised kernel's inputs from the reference kernel's: ``K`` and the hyperbolic ``(h, q)`` added, by
+    the set-up's own formulas."""
+    kind, amp, cols, kc, phase0, nu = args
+    elliptic = kind == ell.KIND_ELLIPTIC
+    K = np.array([0.5 * np.pi / ell.agm(1.0, k) if e else np.inf for k, e in zip(kc, elliptic)])
+    nome = np.zeros((2, kc.shape[0]))
+    for i in np.flatnonzero(elliptic & (kc < ell.KC_HYPERBOLIC)):
+        nome[:, i] = ell.hyperbolic_nome(kc[i], K[i])
+    return kind, amp, cols, kc, K, nome, phase0, nu
+
+
 def omega_rows(args, times, row):
     out = np.empty((row.shape[0], times.shape[1], 3))
-    ell.torque_free_omega(*args, np.ascontiguousarray(times), row.astype(np.int64), out)
+    ell.torque_free_omega(*with_constants(args), np.ascontiguousarray(times), row.astype(np.int64), out)
     return out
 
 

@@ -82,7 +82,7 @@ from numba.extending import intrinsic
 from .jit import jit
 from .trig import _C1, _C2, _C3, _C4, _C5, _C6, _S1, _S2, _S3, _S4, _S5, _S6, _fma
 
-__all__ = ["KC_HYPERBOLIC", "TINY_TRANSVERSE", "agm", "carlson_rf", "jacobi_sncndn", "torque_free_invariants", "torque_free_omega",
+__all__ = ["KC_HYPERBOLIC", "TINY_TRANSVERSE", "agm", "carlson_rf", "hyperbolic_nome", "jacobi_sncndn", "torque_free_invariants", "torque_free_omega",
            "torque_free_setup"]
 
 #: Below this complementary modulus the hyperbolic series is used (11 terms a side just below 0.5, 3 at
@@ -126,6 +126,18 @@ def agm(a, b):
 # Carlson's R_F by duplication (Carlson, Numer. Algorithms 10 (1995) 13; Numerical Recipes §6.11): the
 # series is cut after E2^2 and E2 E3; with |deviation| < _RF_TOL its remainder is below ~1e-19.
 _RF_TOL = 1e-3
+
+
+@jit
+def hyperbolic_nome(kc, K):
+    """``(h, q)`` of the hyperbolic series for complementary modulus ``kc < KC_HYPERBOLIC`` and ``K = K(k)``:
+    ``h = AGM(1, k) = pi/(2K')`` and the complementary nome ``q = exp(-pi K/K') = exp(-2 K h)`` (0 where every
+    term it scales is negligible). Computed once per sample by :func:`torque_free_setup`; :func:`torque_free_omega`
+    reads them."""
+    k = math.sqrt((1.0 - kc) * (1.0 + kc))
+    h = agm(1.0, k)  # = pi / (2 K')
+    beta = 2.0 * K * h  # = pi K / K'
+    return h, (math.exp(-beta) if beta < _BETA_NEGLIGIBLE else 0.0)
 
 
 @jit
@@ -393,7 +405,7 @@ def torque_free_invariants(moments, w, I, perm, parity, moment_scale, spin_scale
 
 
 @jit(parallel=True)
-def torque_free_setup(I, perm, parity, w, spin_scale, delta, kind, amp, cols, kc, m, K, phase0, nu, e2, L2):
+def torque_free_setup(I, perm, parity, w, spin_scale, delta, kind, amp, cols, kc, m, K, nome, phase0, nu, e2, L2):
     # size: flat per-sample arrays in and out (numba); the four regimes (elliptic, separatrix, symmetric, stationary)
     # set up in one pass per sample in one prange body
     """Per-sample parameters of the torque-free motion (Landau & Lifshitz §37) for torque_free_omega.
@@ -426,9 +438,10 @@ def torque_free_setup(I, perm, parity, w, spin_scale, delta, kind, amp, cols, kc
         Powers of two with ``|w| / spin_scale < 1``; the invariants are formed from ``w / spin_scale``.
     delta : ndarray, shape (n,)
         ``L² - 2E I2`` of the scaled spins, correctly rounded.
-    kind, amp, cols, kc, m, K, phase0, nu : ndarray
-        Receive the inputs of :func:`torque_free_omega`, ``m`` and ``K`` (shapes (n,), (n, 3), (n, 3),
-        (n,) ...).
+    kind, amp, cols, kc, m, K, nome, phase0, nu : ndarray
+        Receive the inputs of :func:`torque_free_omega` and ``m`` (shapes (n,), (n, 3), (n, 3), (n,), (n,),
+        (n,), (2, n), (n,), (n,)); ``nome`` holds :func:`hyperbolic_nome` of the samples with
+        ``k' < KC_HYPERBOLIC`` (else zeros).
     e2, L2 : ndarray, shape (n,)
         Receive ``2E`` and ``L²`` of the scaled spins.
     """
@@ -458,6 +471,8 @@ def torque_free_setup(I, perm, parity, w, spin_scale, delta, kind, amp, cols, kc
             kc[i] = 1.0
             m[i] = 0.0
             K[i] = 0.5 * math.pi
+            nome[0, i] = 0.0
+            nome[1, i] = 0.0
             phase0[i] = 0.0
             nu[i] = 0.0
             continue
@@ -483,6 +498,8 @@ def torque_free_setup(I, perm, parity, w, spin_scale, delta, kind, amp, cols, kc
             kc[i] = 0.0
             m[i] = 1.0
             K[i] = math.inf
+            nome[0, i] = 0.0
+            nome[1, i] = 0.0
             phase0[i] = math.asinh((w2 / a_mid) * (a_q / abs(wq)))
             nu[i] = s_p * s_q * parity[i] * nu_abs * sc
             amp[i, 0] = s_q * a_q * sc
@@ -503,6 +520,7 @@ def torque_free_setup(I, perm, parity, w, spin_scale, delta, kind, amp, cols, kc
         kc[i] = k_c
         m[i] = mi
         K[i] = 0.5 * math.pi / agm(1.0, k_c)
+        nome[0, i], nome[1, i] = hyperbolic_nome(k_c, K[i]) if k_c < KC_HYPERBOLIC else (0.0, 0.0)
         nu[i] = s_p * parity[i] * nu_abs * sc
         amp[i, 0] = sigma * a_q * sc
         amp[i, 1] = sigma * a_mid * sc
@@ -528,6 +546,10 @@ def _torque_free_omega_reference(kind, amp, cols, kc, phase0, nu, t, out):
         Output column of each of those three components.
     kc : ndarray, shape (n,)
         Complementary modulus ``k'`` (elliptic samples).
+    K : ndarray, shape (n,)
+        ``K(k)`` (elliptic samples), as :func:`torque_free_setup` computes it.
+    nome : ndarray, shape (2, n)
+        ``(h, q)`` of :func:`hyperbolic_nome` (elliptic samples with ``k' < KC_HYPERBOLIC``).
     phase0 : ndarray, shape (n,)
         Initial argument: ``u0 - K`` (elliptic) or ``u0`` (separatrix).
     nu : ndarray, shape (n,)
@@ -922,7 +944,7 @@ def _omega_row_separatrix(ph, nu, t, out, W):
 
 
 @jit(parallel=True)
-def torque_free_omega(kind, amp, cols, kc, phase0, nu, times, row, out):
+def torque_free_omega(kind, amp, cols, kc, K, nome, phase0, nu, times, row, out):
     """Body-frame angular velocity of the free rigid body, sample by sample (Landau & Lifshitz §37).
 
     Samples run in parallel; each sample's time loop is straight-line code that LLVM vectorises across
@@ -940,6 +962,10 @@ def torque_free_omega(kind, amp, cols, kc, phase0, nu, times, row, out):
         Output column of each of those three components (a permutation of 0, 1, 2).
     kc : ndarray, shape (n,)
         Complementary modulus ``k'`` (elliptic samples).
+    K : ndarray, shape (n,)
+        ``K(k)`` (elliptic samples), as :func:`torque_free_setup` computes it.
+    nome : ndarray, shape (2, n)
+        ``(h, q)`` of :func:`hyperbolic_nome` (elliptic samples with ``k' < KC_HYPERBOLIC``).
     phase0 : ndarray, shape (n,)
         Initial argument: ``u0 - K`` (elliptic) or ``u0`` (separatrix).
     nu : ndarray, shape (n,)
@@ -964,21 +990,21 @@ def torque_free_omega(kind, amp, cols, kc, phase0, nu, times, row, out):
         W = _column_weights(cols[i, 0], cols[i, 1], cols[i, 2], amp[i, 0], amp[i, 1], amp[i, 2])
         if kind[i] == KIND_ELLIPTIC:
             k_c = kc[i]
-            K = 0.5 * math.pi / agm(1.0, k_c)
+            K_i = K[i]
             if k_c >= KC_HYPERBOLIC:
                 kap, quarter_m, P = _landen_constants(k_c)
-                _omega_row_landen(phase0[i], nu[i], t, K, k_c, kap, quarter_m, P, o, W)
+                _omega_row_landen(phase0[i], nu[i], t, K_i, k_c, kap, quarter_m, P, o, W)
             else:
                 k = math.sqrt((1.0 - k_c) * (1.0 + k_c))
-                h = agm(1.0, k)  # = pi / (2 K')
-                beta = 2.0 * K * h  # = pi K / K'
-                q = math.exp(-beta) if beta < _BETA_NEGLIGIBLE else 0.0
+                h = nome[0, i]
+                beta = 2.0 * K_i * h  # = pi K / K'
+                q = nome[1, i]
                 dcoef, ccoef, scoef = _series_constants(q)
                 if beta >= BETA_SHORT_SERIES:
-                    _omega_row_hyperbolic_short(phase0[i], nu[i], t, K, k_c, h, h / k, q, dcoef, ccoef, scoef,
+                    _omega_row_hyperbolic_short(phase0[i], nu[i], t, K_i, k_c, h, h / k, q, dcoef, ccoef, scoef,
                                                 o, W)
                 else:
-                    _omega_row_hyperbolic(phase0[i], nu[i], t, K, k_c, h, h / k, q, dcoef, ccoef, scoef, o, W)
+                    _omega_row_hyperbolic(phase0[i], nu[i], t, K_i, k_c, h, h / k, q, dcoef, ccoef, scoef, o, W)
         elif kind[i] == KIND_SEPARATRIX:
             _omega_row_separatrix(phase0[i], nu[i], t, o, W)
         else:

@@ -150,6 +150,7 @@ class _Solution(NamedTuple):
     kc: np.ndarray
     m: np.ndarray
     K: np.ndarray
+    nome: np.ndarray  # (2, n): h = pi/(2K') and q = exp(-pi K/K') where k' < KC_HYPERBOLIC, else 0
     phase0: np.ndarray  # u0 - K (elliptic), u0 (separatrix)
     nu: np.ndarray
     mid_axis: object  # int (one body) or (n,) int64 (one body per sample)
@@ -242,10 +243,12 @@ def _setup(moments, w, shape, mid_axis):
     amp = np.empty((n, 3))
     cols = np.empty((n, 3), dtype=np.int64)
     kc, m, K, phase0, nu = np.empty((5, n))
-    _ell.torque_free_setup(I_sorted, perm, parity, w, spin_scale, delta, kind, amp, cols, kc, m, K, phase0, nu, e2, L2)
+    nome = np.empty((2, n))
+    _ell.torque_free_setup(I_sorted, perm, parity, w, spin_scale, delta, kind, amp, cols, kc, m, K, nome, phase0, nu,
+                           e2, L2)
     if lifted is not None:
-        _lower_tiny(lifted, I_sorted, perm, given, kind, amp, cols, kc, K, phase0)
-    return _Solution(shape=shape, kind=kind, amp=amp, cols=cols, kc=kc, m=m, K=K, phase0=phase0, nu=nu,
+        _lower_tiny(lifted, I_sorted, perm, given, kind, amp, cols, kc, K, nome, phase0)
+    return _Solution(shape=shape, kind=kind, amp=amp, cols=cols, kc=kc, m=m, K=K, nome=nome, phase0=phase0, nu=nu,
                      mid_axis=perm[:, 1] if mid_axis is None else mid_axis, scaled=scaled)
 
 
@@ -269,7 +272,7 @@ def _lift_tiny(w):
     return lifted, (rows, dominant[rows], factor)
 
 
-def _lower_tiny(lifted, I_sorted, perm, w, kind, amp, cols, kc, K, phase0):
+def _lower_tiny(lifted, I_sorted, perm, w, kind, amp, cols, kc, K, nome, phase0):
     # size: the closed form's per-sample set-up arrays, corrected in place for the rare spins it lifted
     """The closed form of spins within ``TINY_TRANSVERSE`` of an axis from that of the lifted spins.
 
@@ -299,6 +302,7 @@ def _lower_tiny(lifted, I_sorted, perm, w, kind, amp, cols, kc, K, phase0):
         else:
             kc[i] /= factor[j]
             K[i] = 0.5 * math.pi / _ell.agm(1.0, kc[i])
+            nome[:, i] = _ell.hyperbolic_nome(kc[i], K[i]) if kc[i] < _ell.KC_HYPERBOLIC else (0.0, 0.0)
 
 
 def omega_rows(sol, times, row):
@@ -307,7 +311,7 @@ def omega_rows(sol, times, row):
     batch it is evaluated in."""
     times = np.ascontiguousarray(times, dtype=float)
     out = np.empty((sol.kind.shape[0], times.shape[1], 3))
-    non_finite = _ell.torque_free_omega(sol.kind, sol.amp, sol.cols, sol.kc, sol.phase0, sol.nu, times,
+    non_finite = _ell.torque_free_omega(sol.kind, sol.amp, sol.cols, sol.kc, sol.K, sol.nome, sol.phase0, sol.nu, times,
                                         np.ascontiguousarray(row, dtype=np.int64), out)
     if non_finite:  # the one check at the layer boundary (counted by the kernel)
         raise FloatingPointError("exact.omega produced non-finite values; please report this spin")
