@@ -813,6 +813,9 @@ def _metadata(kind, value):
         "method": ("1", "integration method asked for"),
         "sample": ("1", "sample index", ("sample",)),
         "component": ("1", "body-frame component (principal axis)", ("component",)),
+        "model": ("1", "model kind (registry.MODELS): free, gyrostat, heavy_top"),
+        "rotor": ("N m s", "gyrostat: rotor angular momentum along the spin axis, body frame"),
+        "mgl": ("N m", "heavy_top: M g l, weight times the pivot-to-centre-of-mass distance"),
     }
     return {name: (entry[2] if len(entry) > 2 else (), {"units": entry[0], "long_name": entry[1],
                                                         **(entry[3] if len(entry) > 3 else {})})
@@ -820,7 +823,7 @@ def _metadata(kind, value):
 
 
 #: Record entries that are coordinates of the scene's dataset (the rest are variables, or ``@`` attributes).
-_COORDS = ("I1", "I2", "I3", "axis", "spin", "amplitude", "method", "sample", "component")
+_COORDS = ("I1", "I2", "I3", "axis", "spin", "amplitude", "method", "sample", "component", "model", "rotor", "mgl")
 
 
 def _record_variables(record):
