@@ -34,6 +34,12 @@ spinning about its figure axis): the slow-precession mode then carries ``(1 + s)
 ``s = sqrt(1 - 4 I1 mgl / (I3 w3)^2)`` (symmetric top), so the measured frequency is ``|ν-|`` = ``rate_theory``; the
 fast mode leaves a bounded wiggle in the phase whose effect on the slope falls as ``1/PERIODS``. Near the threshold
 (``s -> 0``) the two modes' tilts become equal and the phase's slope is ill-defined: expect errors of percents there.
+
+An asymmetric heavy top (``I1 != I2``) is planned and run the same way, but its measurement is not that of a
+symmetric top: its transverse motion is elliptical (the norm squared oscillates, the growth fit's linear prediction
+does not hold), and its two modes can have close frequencies that the tilt's phase cannot separate (samples then
+fail the phase fit as "undersampled"). The accuracy targets hold for a symmetric top (``I1 = I2``, the sleeping
+top of the bundled study); an asymmetric one is measured to percents, or not at all.
 """
 
 from __future__ import annotations

@@ -757,6 +757,7 @@ _INTERVAL_TEXT = (f"{CONFIDENCE:.0%} distribution-free interval of the median: o
 
 
 def _metadata(kind, value):
+    # size: a table with one row per variable a scene record may hold (the free body's and the models')
     """``name -> (dims, attrs)`` of every variable and coordinate a scene record may hold."""
     unit = _KIND_UNITS[kind]
     flag_names = " ".join(name.replace(" ", "_").replace("-", "_") for name in SAMPLE_STATUS_NAMES)
