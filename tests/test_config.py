@@ -66,9 +66,13 @@ def test_defaults_file_documents_every_allowed_name():
 def test_defaults_load_and_validate(default_study):
     defaults = tomllib.loads(config.DEFAULTS_PATH.read_text(encoding="utf-8"))
     assert default_study["title"] == config.UNTITLED
+    # A free-body study records no [model] table and no spin.momentum (its hash and file are as before the models)
+    assert "model" not in default_study and "momentum" not in default_study["spin"]
+    assert defaults["model"]["kind"] == "free" and defaults["spin"]["momentum"] == []
     for table in config._TABLES:
-        if table != "scan":
-            assert default_study[table] == defaults[table]
+        if table not in ("scan", "model"):
+            expected = {k: v for k, v in defaults[table].items() if not (table == "spin" and k == "momentum")}
+            assert default_study[table] == expected
     assert default_study["scan"] == {}
 
 

@@ -115,11 +115,18 @@ def benchmark_like(measured):
 
 
 @pytest.fixture(scope="module")
-def drawable(triangle_scan, amplitude_scan, benchmark_like):
+def drawable(triangle_scan, amplitude_scan, benchmark_like, model_scans):
     """For each figure, a dataset that can give it."""
     return {"stability_map": triangle_scan, "norm_growth": triangle_scan, "flip_law": amplitude_scan,
             "flip_components": benchmark_like, "invariant_drift": benchmark_like,
-            "work_precision": benchmark_like, "summary": triangle_scan}
+            "work_precision": benchmark_like, "summary": triangle_scan, **model_scans}
+
+
+@pytest.fixture(scope="module")
+def model_scans():
+    """The bundled model studies, run small: the datasets of the models' figures."""
+    return {name: tumble.run_study(name, overrides={"perturbation.samples": 8}, progress=False)
+            for name in ("gyrostat_map", "sleeping_top")}
 
 
 def _assert_paper_axes(fig):
@@ -269,7 +276,8 @@ def test_can_draw_rejects_unknown_names(measured):
     with pytest.raises(ValueError, match="unknown figure"):
         plots.can_draw(measured, "nope")
     assert plots.FIGURES == ("stability_map", "norm_growth", "flip_law", "flip_components", "invariant_drift",
-                             "work_precision", "summary", "flip_strip", "flip_animation", "polhode", "herpolhode")
+                             "work_precision", "summary", "flip_strip", "flip_animation", "polhode", "herpolhode",
+                             "gyrostat_map", "sleeping_top")
     assert set(plots.ANIMATIONS) <= set(plots.FIGURES)
 
 

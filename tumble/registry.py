@@ -168,7 +168,7 @@ def torque_profile(name):
 
 #: Figures of a result, in the order a report shows them (``outputs.figures``).
 FIGURES = ("stability_map", "norm_growth", "flip_law", "flip_components", "invariant_drift", "work_precision",
-           "summary", "flip_strip", "flip_animation", "polhode", "herpolhode")
+           "summary", "flip_strip", "flip_animation", "polhode", "herpolhode", "gyrostat_map", "sleeping_top")
 
 #: Figures drawn from the traced attitude of a study's first scene.
 ATTITUDE_FIGURES = ("flip_animation", "flip_strip", "polhode", "herpolhode")

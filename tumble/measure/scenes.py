@@ -757,6 +757,7 @@ _INTERVAL_TEXT = (f"{CONFIDENCE:.0%} distribution-free interval of the median: o
 
 
 def _metadata(kind, value):
+    # size: a table with one row per variable a scene record may hold (the free body's and the models')
     """``name -> (dims, attrs)`` of every variable and coordinate a scene record may hold."""
     unit = _KIND_UNITS[kind]
     flag_names = " ".join(name.replace(" ", "_").replace("-", "_") for name in SAMPLE_STATUS_NAMES)
@@ -813,6 +814,9 @@ def _metadata(kind, value):
         "method": ("1", "integration method asked for"),
         "sample": ("1", "sample index", ("sample",)),
         "component": ("1", "body-frame component (principal axis)", ("component",)),
+        "model": ("1", "model kind (registry.MODELS): free, gyrostat, heavy_top"),
+        "rotor": ("N m s", "gyrostat: rotor angular momentum along the spin axis, body frame"),
+        "mgl": ("N m", "heavy_top: M g l, weight times the pivot-to-centre-of-mass distance"),
     }
     return {name: (entry[2] if len(entry) > 2 else (), {"units": entry[0], "long_name": entry[1],
                                                         **(entry[3] if len(entry) > 3 else {})})
@@ -820,7 +824,7 @@ def _metadata(kind, value):
 
 
 #: Record entries that are coordinates of the scene's dataset (the rest are variables, or ``@`` attributes).
-_COORDS = ("I1", "I2", "I3", "axis", "spin", "amplitude", "method", "sample", "component")
+_COORDS = ("I1", "I2", "I3", "axis", "spin", "amplitude", "method", "sample", "component", "model", "rotor", "mgl")
 
 
 def _record_variables(record):

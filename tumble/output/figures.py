@@ -37,12 +37,12 @@ from matplotlib.ticker import MaxNLocator
 from matplotlib.tri import Triangulation
 
 from .. import registry
-from ..physics import theory
+from ..physics import models, theory
 from . import attitude_figures as attitude_plots
 from . import io
 
 __all__ = ["ANIMATIONS", "DOUBLE", "FIGURES", "SINGLE", "can_draw", "flip_animation", "flip_components",
-           "flip_law", "flip_strip", "herpolhode", "invariant_drift", "norm_growth", "polhode", "save_figures",
+           "flip_law", "flip_strip", "gyrostat_map", "herpolhode", "sleeping_top", "invariant_drift", "norm_growth", "polhode", "save_figures",
            "stability_map", "summary", "work_precision"]
 
 #: Names of the figures, in the order a report shows them.
@@ -695,6 +695,110 @@ def _summary_scan(ds):
     return fig
 
 
+# ------------------------------------------------------------------------------------------------- models
+
+
+def _check_gyrostat_map(ds):
+    if "rotor" not in ds.dims:
+        return "a 'rotor' dimension (a gyrostat study's scan.rotor)"
+    return _missing(ds, "rate", "rate_theory", "kind", "spin", "axis", "I1", "I2", "I3")
+
+
+def _model_theory(kinds, values):
+    """Growth rate and frequency curves from :func:`tumble.physics.theory.linear` results (NaN where the other)."""
+    kinds, values = np.asarray(kinds), np.asarray(values, dtype=float)
+    return np.where(kinds == "exponential", values, np.nan), np.where(kinds == "periodic", values, np.nan)
+
+
+def _measured(ax, x, ds_scene):
+    """Measured rates of a line of scenes against ``x``, marked by kind."""
+    kinds = np.asarray(ds_scene["kind"].values).astype(str)
+    rate = np.asarray(ds_scene["rate"].values, dtype=float)
+    for kind, (color, marker) in _KIND_STYLE.items():
+        pick = kinds == kind
+        if pick.any():
+            ax.plot(x[pick], rate[pick], marker, color=color, mfc="none", ls="none", label=f"measured, {kind}")
+
+
+def _theory_lines(ax, x, growth, frequency):
+    ax.plot(x, growth, color=_KIND_STYLE["exponential"][0], lw=1.0, label="theory: growth rate (1/s)")
+    ax.plot(x, frequency, color=_KIND_STYLE["periodic"][0], lw=1.0, ls="--", label="theory: frequency (rad/s)")
+
+
+@_figure(_check_gyrostat_map)
+def gyrostat_map(ds):
+    """A gyrostat's stability against its rotor: measured growth rate or frequency against the rotor's angular
+    momentum ``h`` along the spin axis, one panel per spin axis, with the linearisation's curves
+    (:func:`tumble.physics.theory.linear` of :class:`tumble.physics.models.Gyrostat`, 400 values of ``h``).
+
+    Reads ``rate``, ``kind``, ``spin``, ``axis``, ``rotor`` (a dimension, N m s) and the moments of the first body;
+    other scan dimensions at their first value.
+    """
+    first = {d: 0 for d in ds["rate"].dims if d not in ("rotor", "axis")}
+    scene = ds.isel(first)
+    moments = np.array([float(np.asarray(scene[n]).reshape(-1)[0]) for n in ("I1", "I2", "I3")])
+    spin = float(np.asarray(scene["spin"]).reshape(-1)[0])
+    axes = np.atleast_1d(scene["axis"].values)
+    h = np.asarray(scene["rotor"].values, dtype=float)
+    dense = np.linspace(min(h.min(), 0.0), h.max(), 400)
+    fig, panels = _subplots(DOUBLE, 2.5, len(axes), sharey=True)
+    for i, (ax, a) in enumerate(zip(panels, axes)):
+        line = scene.isel(axis=i) if "axis" in scene.dims else scene
+        kinds, values = [], []
+        for value in dense:
+            rotor = np.zeros(3)
+            rotor[int(a) - 1] = value
+            kind, rate = theory.linear(models.Gyrostat(moments, rotor), int(a), spin)
+            kinds.append(kind)
+            values.append(rate)
+        _theory_lines(ax, dense, *_model_theory(kinds, values))
+        _measured(ax, h, line)
+        ax.set_title(f"spin axis {int(a)} (I = {moments[int(a) - 1]:g} kg m²)")
+        ax.set_xlabel("rotor h along the axis (N m s)")
+    panels[0].set_ylabel(f"rate at spin {spin:g} rad/s")
+    seen = {}
+    for ax in panels:
+        for handle, label in zip(*ax.get_legend_handles_labels()):
+            seen.setdefault(label, handle)
+    _legend(fig, list(seen.values()))
+    return fig
+
+
+def _check_sleeping_top(ds):
+    if "spin" not in ds.dims:
+        return "a 'spin' dimension (a heavy top study's scan.rate)"
+    return _missing(ds, "rate", "rate_theory", "kind", "mgl", "I1", "I2", "I3")
+
+
+@_figure(_check_sleeping_top)
+def sleeping_top(ds):
+    """The top that wakes up as it slows: a heavy top's measured growth rate (below the threshold) or body-frame
+    precession frequency (above) against its spin ``w3``, with the linearisation's curves
+    (:class:`tumble.physics.models.HeavyTop`, 400 spins) and the threshold ``I3² w3² = 4 I1 mgl`` (``I1 = I2``).
+
+    Reads ``rate``, ``kind``, ``spin`` (a dimension, rad/s), ``mgl`` and the moments of the first body; other scan
+    dimensions at their first value.
+    """
+    first = {d: 0 for d in ds["rate"].dims if d != "spin"}
+    scene = ds.isel(first)
+    moments = np.array([float(np.asarray(scene[n]).reshape(-1)[0]) for n in ("I1", "I2", "I3")])
+    mgl = float(np.asarray(scene["mgl"]).reshape(-1)[0])
+    spin = np.asarray(scene["spin"].values, dtype=float)
+    dense = np.linspace(min(spin.min(), 0.0) or 1e-3, spin.max(), 400)
+    top = models.HeavyTop(moments, mgl)
+    kinds, values = zip(*(theory.linear(top, 3, w) for w in dense))
+    fig, (ax,) = _subplots(SINGLE, 2.6)
+    _theory_lines(ax, dense, *_model_theory(kinds, values))
+    _measured(ax, spin, scene)
+    threshold = 2.0 * np.sqrt(moments[0] * mgl) / moments[2]
+    ax.axvline(threshold, color="0.5", lw=0.7, ls=":", label=f"threshold w3 = {threshold:.4g} rad/s")
+    ax.set_xlabel("spin w3 (rad/s)")
+    ax.set_ylabel("rate (1/s or rad/s)")
+    ax.set_title(f"heavy top, I = ({', '.join(f'{m:g}' for m in moments)}) kg m², mgl = {mgl:g} N m")
+    _legend(fig, ax.get_legend_handles_labels()[0])
+    return fig
+
+
 # ----------------------------------------------------------------------------------------------- attitude
 
 
@@ -747,7 +851,7 @@ def herpolhode(ds):
 _DRAW = {"stability_map": stability_map, "norm_growth": norm_growth, "flip_law": flip_law,
          "flip_components": flip_components, "invariant_drift": invariant_drift, "work_precision": work_precision,
          "summary": summary, "flip_strip": flip_strip, "flip_animation": flip_animation, "polhode": polhode,
-         "herpolhode": herpolhode}
+         "herpolhode": herpolhode, "gyrostat_map": gyrostat_map, "sleeping_top": sleeping_top}
 
 
 def _check_name(name):

@@ -36,7 +36,7 @@ import numpy as np
 
 from .. import registry
 from ..engine.sampling import DISTRIBUTIONS
-from ..physics import shapes
+from ..physics import models, shapes
 from ..physics.bodies import Body, validate_moments
 
 __all__ = [
@@ -45,6 +45,10 @@ __all__ = [
     "FIGURES",
     "FORMATS",
     "METHOD_NAMES",
+    "MODEL_FIGURES",
+    "MODEL_KINDS",
+    "MODEL_METHODS",
+    "MODEL_SCAN_KEYS",
     "PROFILES",
     "SCAN_KEYS",
     "SHAPES",
@@ -106,7 +110,27 @@ SCAN_KEYS = {
     "rate": "spin.rate",
     "amplitude": "perturbation.amplitude",
     "method": "integration.method",
+    "rotor": "model.rotor",
+    "mgl": "model.mgl",
+    "orbit_rate": "model.orbit_rate",
+    "damper_inertia": "model.damper_inertia",
+    "damping": "model.damping",
 }
+
+#: ``model.kind``: every model of the registry (the reserved ones are refused with a message naming them).
+MODEL_KINDS = registry.MODEL_KINDS
+
+#: The scan keys of the models' numeric parameters (``scan.rotor``, ``scan.mgl``, ...).
+MODEL_SCAN_KEYS = tuple(p.key for p in registry.MODEL_PARAMETERS)
+
+#: Stepping methods of a model study (the model kernels'); ``"auto"`` means the first.
+MODEL_METHODS = ("rk4", "rk8")
+
+#: Figures of a model study (the free body's others read what only free-body scenes record).
+MODEL_FIGURES = ("gyrostat_map", "sleeping_top", "summary")
+
+#: A rotor component across the spin axis above this fraction of ``|rotor|`` breaks the steady spin.
+_ROTOR_RTOL = 1e-12
 
 #: ``scan.triangle``: the n x n inertia-triangle grid, n in this range.
 TRIANGLE_RANGE = (2, 200)
@@ -115,7 +139,8 @@ TRIANGLE_RANGE = (2, 200)
 #: are the shape function's arguments; ``scan`` holds only the keys a study gives.
 _TABLES = {
     "body": ("moments", "shape", "dimensions"),
-    "spin": ("axis", "rate"),
+    "spin": ("axis", "rate", "momentum"),
+    "model": ("kind", *(p.key for p in registry.MODEL_PARAMETERS)),
     "perturbation": ("amplitude", "samples", "seed", "distribution"),
     "integration": ("method", "dt", "horizon", "flips"),
     "torque": ("profile", "vector", "period", "duration"),
@@ -594,7 +619,7 @@ def _scan(table, resolved):
     if "triangle" in table and "moments" in table:
         raise _Invalid("scan.triangle", "not together with scan.moments: each gives the bodies of the scan")
     for key in SCAN_KEYS:
-        if key not in table:
+        if key not in table or key in MODEL_SCAN_KEYS:  # the models' keys: _model_scan
             continue
         field = f"scan.{key}"
         value = table[key]
@@ -624,12 +649,145 @@ def _scan(table, resolved):
     return out
 
 
+def _model(table, given, scan):
+    """The ``[model]`` table: its kind and the kind's own parameters (None for the free body, so that a study
+    without ``[model]`` resolves, hashes and runs as before). ``given``: the table as the study states it."""
+    kind = _choice(table["kind"], "model.kind", MODEL_KINDS)
+    spec = registry.model_kind(kind)
+    implemented = [m.name for m in registry.MODELS if m.implemented]
+    if not spec.implemented:
+        raise _Invalid("model.kind", f"{kind!r} is reserved for a later issue and not implemented yet; "
+                                     f"implemented: {', '.join(implemented)}")
+    for key in given:
+        if key != "kind" and key not in spec.parameters:
+            raise _Invalid(f"model.{key}", f"not a parameter of model kind {kind!r} (its parameters: "
+                                           f"{', '.join(spec.parameters) or 'none'}); remove it or change "
+                                           f"model.kind")
+    for key in MODEL_SCAN_KEYS:
+        if key in scan and key not in spec.parameters:
+            owner = next(m.name for m in registry.MODELS if key in m.parameters)
+            reserved = "" if registry.model_kind(owner).implemented else f" ({owner}: reserved, not implemented yet)"
+            raise _Invalid(f"scan.{key}", f"not a parameter of model kind {kind!r} (its parameters: "
+                                          f"{', '.join(spec.parameters) or 'none'}){reserved}")
+    if kind == registry.DEFAULT_MODEL:
+        return None
+    out = {"kind": kind}
+    if "rotor" in spec.parameters:
+        out["rotor"] = _vector(table["rotor"], "model.rotor")
+    if "mgl" in spec.parameters:
+        out["mgl"] = _number(table["mgl"], "model.mgl")
+        if out["mgl"] <= 0 and "mgl" not in scan:
+            raise _Invalid("model.mgl", f"must be > 0 N m for a heavy_top (M g l, weight times the pivot-to-"
+                                        f"centre-of-mass distance), got {out['mgl']!r}")
+    return out
+
+
+def _model_scan(table):
+    """``scan.rotor`` (3-vectors, or numbers: h along each scene's spin axis) and ``scan.mgl`` (> 0)."""
+    out = {}
+    if "rotor" in table:
+        items = _array(table["rotor"], "scan.rotor", empty=False)
+        vectors = isinstance(items[0], list)
+        values = []
+        for i, item in enumerate(items):
+            field = f"scan.rotor[{i}]"
+            if isinstance(item, list) != vectors:
+                raise _Invalid(field, "scan.rotor lists 3-vectors (N m s, body frame) or numbers (h along each "
+                                      "scene's spin axis, N m s), not both")
+            values.append(_vector(item, field) if vectors else _number(item, field))
+        out["rotor"] = _distinct(values, "scan.rotor", items)
+    if "mgl" in table:
+        items = _array(table["mgl"], "scan.mgl", empty=False)
+        values = []
+        for i, item in enumerate(items):
+            x = _number(item, f"scan.mgl[{i}]")
+            if x <= 0:
+                raise _Invalid(f"scan.mgl[{i}]", f"must be > 0 N m (M g l of a heavy_top), got {x!r}")
+            values.append(x)
+        out["mgl"] = _distinct(values, "scan.mgl", items)
+    return out
+
+
+def _spin(table, given, moments, model, scan):
+    """The ``[spin]`` table: axis and rate, or ``momentum`` (``w = I^-1 (L - h)`` along a principal axis, which
+    gives the axis and the rate; stated as well, they must agree)."""
+    axis, rate = _axis(table["axis"], "spin.axis"), _rate(table["rate"], "spin.rate")
+    momentum = _array(table["momentum"], "spin.momentum")
+    if not momentum:
+        return {"axis": axis, "rate": rate}
+    momentum = _vector(momentum, "spin.momentum")
+    for key in ("axis", "rate", "rotor", "body", "moments", "triangle"):
+        if key in scan:
+            raise _Invalid(f"scan.{key}", "not with spin.momentum: the scan would change the steady spin "
+                                          "w = I^-1 (L - h); give spin.axis and spin.rate instead")
+    rotor = (model or {}).get("rotor", [0.0, 0.0, 0.0])
+    w = models.Gyrostat(moments, rotor).angular_velocity(momentum)
+    scale = float(np.abs(w).max())
+    along = [i for i in range(3) if abs(w[i]) > 1e-12 * scale]
+    if len(along) != 1:
+        shown = ", ".join(f"{x:.6g}" for x in w)
+        raise _Invalid("spin.momentum", f"gives the spin w = I^-1 (L - h) = [{shown}] rad/s, which is not along a "
+                                        f"principal axis; a stability scene spins about one (e.g. L = [0, I2 w, 0] "
+                                        f"plus the rotor h)")
+    axis_from, rate_from = along[0] + 1, _rate(float(w[along[0]]), "spin.momentum")
+    if "axis" in given and axis != axis_from:
+        raise _Invalid("spin.axis", f"is {axis}, but spin.momentum spins the body about axis {axis_from}; state "
+                                    f"one of them")
+    if "rate" in given and not math.isclose(rate, rate_from, rel_tol=1e-9):
+        raise _Invalid("spin.rate", f"is {rate!r}, but spin.momentum gives {rate_from!r} rad/s; state one of them")
+    return {"axis": axis_from, "rate": rate_from, "momentum": momentum}
+
+
+def _check_model_scenes(resolved, given):
+    """What a model study's scenes need: a heavy top about axis 3, a gyrostat's rotor along the spin axis, a
+    model kernel's method, no torque, the models' figures (default ``["summary"]``)."""
+    model, scan, spin = resolved["model"], resolved["scan"], resolved["spin"]
+    kind = model["kind"]
+    axes = [(f"scan.axis[{i}]", a) for i, a in enumerate(scan["axis"])] if "axis" in scan else [
+        ("spin.axis", spin["axis"])]
+    if kind == "heavy_top":
+        for field, a in axes:
+            if a != 3:
+                raise _Invalid(field, f"must be 3 for a heavy_top (the centre of mass lies on body axis 3: the "
+                                      f"sleeping top spins about it), got {a}")
+    if kind == "gyrostat":
+        rotors = ([(f"scan.rotor[{i}]", h) for i, h in enumerate(scan["rotor"])] if "rotor" in scan
+                  else [("model.rotor", model["rotor"])])
+        for field, h in rotors:
+            if not isinstance(h, list):
+                continue  # a number: along each scene's axis
+            for axis_field, a in axes:
+                across = [x for i, x in enumerate(h) if i != a - 1]
+                if max(abs(x) for x in across) > _ROTOR_RTOL * math.hypot(*h):
+                    raise _Invalid(field, f"{h} N m s lies across the spin axis ({axis_field} = {a}); a steady "
+                                          f"spin needs the rotor along it (give h along axis {a} only, or numbers "
+                                          f"in scan.rotor: h along each scene's axis)")
+    if resolved["torque"]["profile"] != "none":
+        raise _Invalid("torque.profile", f"must be 'none' for model kind {kind!r}: model studies are torque-free "
+                                         f"(the model's own forces act)")
+    methods = ([(f"scan.method[{i}]", m) for i, m in enumerate(scan["method"])] if "method" in scan
+               else [("integration.method", resolved["integration"]["method"])])
+    for field, m in methods:
+        if m not in ("auto", *MODEL_METHODS):
+            raise _Invalid(field, f"model kind {kind!r} steps with {', '.join(MODEL_METHODS)} ('auto': "
+                                  f"{MODEL_METHODS[0]}), got {m!r}")
+    outputs = resolved["outputs"]
+    if "figures" not in given.get("outputs", {}):
+        outputs["figures"] = ["summary"]
+    for i, name in enumerate(outputs["figures"]):
+        if name not in MODEL_FIGURES:
+            raise _Invalid(f"outputs.figures[{i}]", f"{name!r} reads what only free-body scenes record; a model "
+                                                    f"study draws {', '.join(MODEL_FIGURES)}")
+
+
 def _resolve(study, given, title):
     """The resolved study from the merged mapping ``study`` (``given``: the study before merging)."""
     resolved = {"title": _string(study["title"], "title") or title}
     resolved["body"] = _body(study["body"], given.get("body", {}))
-    spin = study["spin"]
-    resolved["spin"] = {"axis": _axis(spin["axis"], "spin.axis"), "rate": _rate(spin["rate"], "spin.rate")}
+    scan_given = study["scan"]
+    resolved["model"] = _model(study["model"], given.get("model", {}), scan_given)
+    resolved["spin"] = _spin(study["spin"], given.get("spin", {}), resolved["body"]["moments"], resolved["model"],
+                             scan_given)
     pert = study["perturbation"]
     distribution = _choice(pert["distribution"], "perturbation.distribution", DISTRIBUTIONS)
     resolved["perturbation"] = {
@@ -660,6 +818,7 @@ def _resolve(study, given, title):
         if problem:
             raise _Invalid(f"torque.{key}", problem)
     resolved["scan"] = _scan(study["scan"], resolved)
+    resolved["scan"].update(_model_scan(study["scan"]))
     out = study["outputs"]
     resolved["outputs"] = {
         "figures": _names(out["figures"], "outputs.figures", FIGURES),
@@ -667,7 +826,9 @@ def _resolve(study, given, title):
         "arrays": _names(out["arrays"], "outputs.arrays", ARRAYS),
         "directory": _string(out["directory"], "outputs.directory"),
     }
-    return {key: resolved[key] for key in _TOP}
+    if resolved["model"] is not None:
+        _check_model_scenes(resolved, given)
+    return {key: resolved[key] for key in _TOP if resolved[key] is not None}
 
 
 # --------------------------------------------------------------------------------------------------------

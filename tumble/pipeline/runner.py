@@ -29,6 +29,7 @@ from tqdm.auto import tqdm
 from .. import registry
 from ..engine.sampling import CHUNK
 from ..measure import cost
+from ..measure import model_scenes
 from ..measure import scenes as study
 from ..output import figures as plots
 from ..output import io
@@ -107,6 +108,8 @@ def plan(resolved, file="<mapping>"):
     Raises :class:`~tumble.pipeline.config.StudyError` for combinations that are valid field by field but cannot
     give what the study asks (a figure the scan cannot draw, a torque about an unstable axis).
     """
+    if "model" in resolved:
+        return _model_plan(resolved, file)
     scan = resolved["scan"]
     figures = resolved["outputs"]["figures"]
     moments, body_coords = _bodies(resolved)
@@ -145,6 +148,31 @@ def plan(resolved, file="<mapping>"):
                      resolved["perturbation"]["seed"])
 
 
+def _model_plan(resolved, file):
+    """:func:`plan` of a model study: its values include the model's parameters (``rotor``, ``mgl``), its options
+    name the model kind (``options["model"]``, which sends its scenes to :mod:`tumble.measure.model_scenes`)."""
+    scan, model = resolved["scan"], resolved["model"]
+    moments, body_coords = _bodies(resolved)
+    values = {"axis": scan.get("axis", resolved["spin"]["axis"]), "spin": scan.get("rate", resolved["spin"]["rate"]),
+              "amplitude": scan.get("amplitude", resolved["perturbation"]["amplitude"]),
+              "method": scan.get("method", resolved["integration"]["method"])}
+    for key in registry.model_kind(model["kind"]).parameters:
+        values[key] = scan.get(key, model[key])
+    integ = resolved["integration"]
+    options = {"dt": integ["dt"] or None, "horizon": integ["horizon"] or None,
+               "distribution": resolved["perturbation"]["distribution"], "model": model["kind"]}
+    needs = {"gyrostat_map": ("gyrostat", "rotor", "scan.rotor (rotor momentum along the spin axis)"),
+             "sleeping_top": ("heavy_top", "rate", "scan.rate (the spin w3 through the threshold)")}
+    for i, name in enumerate(resolved["outputs"]["figures"]):
+        kind, key, what = needs.get(name, (model["kind"], None, ""))
+        if kind != model["kind"] or (key and key not in scan):
+            raise StudyError(file, f"outputs.figures[{i}]", f"{name} needs model.kind = {kind!r} and {what}")
+    scanned = [key for key in ("moments", "triangle", "body", "axis", "rate", "amplitude", "method", *values)
+               if key in scan]
+    return StudyPlan(moments, body_coords, values, options, list(dict.fromkeys(scanned)),
+                     resolved["perturbation"]["samples"], resolved["perturbation"]["seed"])
+
+
 #: The study field a refusal names, by the bound it broke (:class:`tumble.measure.cost.TooLarge`).
 _BOUND_FIELDS = {"scenes": "scan", "steps": "integration", "memory": "perturbation.samples",
                  "size": "perturbation.samples"}
@@ -159,10 +187,11 @@ def study_cost(resolved):
     else:
         bodies = len(scan.get("moments", scan.get("body", [None])))
     scenes = bodies * math.prod(len(scan[key]) for key in ("axis", "rate", "amplitude", "method") if key in scan)
+    scenes *= math.prod(len(scan[key]) for key in config.MODEL_SCAN_KEYS if key in scan)
     methods = scan.get("method", [integ["method"]])
     stepping = [m for m in methods if m in STEPPING]
-    if resolved["torque"]["profile"] != "none" and not stepping:
-        stepping = [registry.AUTO_STEPPING]
+    if (resolved["torque"]["profile"] != "none" or "model" in resolved) and not stepping:
+        stepping = [registry.AUTO_STEPPING]  # a model always steps (rk4 for "auto")
     steps = 0.0
     if stepping:
         rate = max(scan.get("rate", [resolved["spin"]["rate"]]), key=abs)
@@ -206,6 +235,10 @@ def scene_job(resolved, file="<mapping>"):
     check_cost(resolved, file)
     p = plan(resolved, file)
     values = p.values
+    if "model" in p.options:
+        swept = [key for key in values if key in p.scanned or (key == "spin" and "rate" in p.scanned)]
+        layout = model_scenes.scan_layout(p.moments, values, swept)
+        return Job(layout, bool(p.scanned), p.samples, p.seed, p.options, p.body_coords, p, str(file))
     layout = study.scan_layout(p.moments, values["axis"], values["spin"], values["amplitude"], values["method"])
     return Job(layout, bool(p.scanned), p.samples, p.seed, p.options, p.body_coords, p, str(file))
 
@@ -231,6 +264,8 @@ def _scene_plan(job, index):
     moments, params = study.scan_scene_parameters(job.layout, index)
     file = job.file
     try:
+        if "model" in job.options:
+            return _model_scene_plan(job, moments, params)
         scene = study.scene_plan(moments, params["axis"], params["spin"], params["amplitude"], job.samples,
                                  job.seed, params["method"], **job.options)
     except ValueError as err:  # a value this scene cannot take: the study's fault, named as such (exit 2)
@@ -246,20 +281,36 @@ def _scene_plan(job, index):
     return scene
 
 
+def _model_scene_plan(job, moments, params):
+    """:func:`tumble.measure.model_scenes.scene_plan` of one scene of a model study (``params``: its values)."""
+    kind = job.options["model"]
+    parameters = {key: params[key] for key in registry.model_kind(kind).parameters}
+    model = model_scenes.model_of(kind, moments, params["axis"], parameters)
+    options = {key: value for key, value in job.options.items() if key != "model"}
+    return model_scenes.scene_plan(model, params["axis"], params["spin"], params["amplitude"], job.samples, job.seed,
+                                   params["method"], **options)
+
+
 def _scene_record(job, scene, parts):
     """The record (:func:`tumble.measure.scenes.scene_records`) of a scene from its sample ranges."""
+    if "model" in job.options:
+        return model_scenes.scene_records([scene], [parts])[0]
     return study.scene_records([scene], [parts])[0]
 
 
 def compute_scenes(job, indices, *, progress=False):
     """``{index: record}`` of the whole scenes ``indices`` of a :func:`scene_job`: a scan's scenes, or the study's one
     measurement; closed-form scenes run together (:func:`tumble.measure.scenes.scene_batch`)."""
+    if "model" in job.options:
+        return dict(zip(indices, model_scenes.scene_batch([_scene_plan(job, i) for i in indices])))
     records = study.scene_batch([_scene_plan(job, i) for i in indices], progress=progress)
     return dict(zip(indices, records))
 
 
 def compute_samples(job, index, start, stop, *, progress=False):
     """Samples ``[start, stop)`` of scene ``index`` (:func:`tumble.measure.scenes.scene_samples`)."""
+    if "model" in job.options:
+        return model_scenes.scene_samples(_scene_plan(job, index), start, stop)
     return study.scene_samples(_scene_plan(job, index), start, stop, progress=progress)
 
 

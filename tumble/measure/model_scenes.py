@@ -1,0 +1,316 @@
+"""Scenes of the models beyond the free body (issue 18): a gyrostat's or a heavy top's steady spin, perturbed, measured.
+
+A model scene is a free-body scene (:mod:`tumble.measure.scenes`) for a model of :mod:`tumble.physics.models`: an
+ensemble of states near the model's steady spin (:func:`tumble.engine.sampling.perturbed_states`), stepped by the
+model kernels (:func:`tumble.engine.models.run_model_ensemble`, rk4 or rk8), measured with the free body's
+estimators, and reduced by the free body's :func:`tumble.measure.scenes.scene_records`, so that its record holds
+the same variables (``kind``, ``rate``, ``rate_theory``, ``rel_error``, the interval, ``sample_rate``, ...) plus the
+model's coordinates (``model``; ``rotor``, the rotor's angular momentum along the spin axis, N m s; ``mgl``, N m).
+
+Planning (:func:`scene_plan`):
+
+* kind and ``rate_theory`` from the model's linearisation, :func:`tumble.physics.theory.linear` (the largest real
+  part of the Jacobian's eigenvalues, else the largest imaginary part);
+* the step resolves the fastest eigenvalue and the spin (:data:`tumble.measure.scenes.STEPS_PER_RADIAN`);
+* exponential: the model's transverse norm (:meth:`~tumble.physics.models.Model.transverse`) is probed at
+  :data:`~tumble.measure.scenes.PROBES` + 1 equally spaced times up to ``2`` e-foldings past the end of the linear
+  regime (the norm reaching ``SATURATION`` (1 %) of the norm of a perturbation one radian large, or
+  ``SATURATION_TILTS`` times the tilt), and the growth rate is :func:`~tumble.measure.estimators.growth_rates`'
+  linear-prediction fit up to that end. A gyrostat's weighted norm squared is a sum of a growing and a decaying
+  exponential (the circular weights), as the free body's, so the fit starts at t = 0. A waking heavy top's modes
+  are ``±α + iβ`` with one ``β``: its norm squared is ``A e^{2αt} + B e^{-2αt} + C`` (a constant cross term
+  the linear prediction does not model), so its probes start :data:`SETTLE` e-foldings in, where ``C`` is
+  ``e^{-2 SETTLE}`` of the signal;
+* periodic: states stored :data:`~tumble.measure.scenes.SAVES_PER_PERIOD` times per period of ``rate_theory`` over
+  :data:`PERIODS` periods; the frequency is :func:`~tumble.measure.estimators.oscillation_frequencies` of the
+  transverse phase pair (``Transverse.phase``: a gyrostat's ``(w_b, w_c)``, a heavy top's tilt ``(g1, g2)``) with
+  their weights. That estimator is model-agnostic (a phase's least-squares slope) — nothing of the free body in it.
+
+The heavy top's two precession modes: a sleeping top has two body-frame frequencies ``|ν±|``; ``rate_theory`` is
+the larger, ``|ν-|`` (the slow precession in space, seen from the spinning body, about ``w3``). The phase of the
+tilt advances at the frequency of the mode with the larger tilt amplitude. The perturbation therefore tilts the up
+direction by ``amplitude`` and the spin by only ``amplitude`` x :data:`HEAVY_TOP_SPIN_TILT` (the top tilted while
+spinning about its figure axis): the slow-precession mode then carries ``(1 + s)/(1 - s)`` times the fast one's tilt,
+``s = sqrt(1 - 4 I1 mgl / (I3 w3)^2)`` (symmetric top), so the measured frequency is ``|ν-|`` = ``rate_theory``; the
+fast mode leaves a bounded wiggle in the phase whose effect on the slope falls as ``1/PERIODS``. Near the threshold
+(``s -> 0``) the two modes' tilts become equal and the phase's slope is ill-defined: expect errors of percents there.
+
+An asymmetric heavy top (``I1 != I2``) is planned and run the same way, but its measurement is not that of a
+symmetric top: its transverse motion is elliptical (the norm squared oscillates, the growth fit's linear prediction
+does not hold), and its two modes can have close frequencies that the tilt's phase cannot separate (samples then
+fail the phase fit as "undersampled"). The accuracy targets hold for a symmetric top (``I1 = I2``, the sleeping
+top of the bundled study); an asymmetric one is measured to percents, or not at all.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import registry
+from ..engine.models import run_model_ensemble
+from ..engine.sampling import CHUNK, perturbed_states, seed_entropy
+from ..physics import models, theory
+from ..physics.models import Model
+from ..registry import STATUS_OK
+from . import estimators as analysis
+from . import scenes
+
+__all__ = ["HEAVY_TOP_SPIN_TILT", "METHODS", "ModelScene", "PERIODS", "SETTLE", "model_of", "scan_layout",
+           "scene_batch", "scene_plan", "scene_records", "scene_samples"]
+
+#: The model kernels' methods; ``"auto"`` is the first.
+METHODS = ("rk4", "rk8")
+
+#: Periods of ``rate_theory`` a periodic model scene observes (more than the free body's 8: a heavy top's second
+#: mode wiggles the phase, and the slope's error falls as 1 / periods).
+PERIODS = 16
+
+#: E-foldings of the growth skipped before a heavy top's growth fit (see the module docstring).
+SETTLE = 3.0
+
+#: A heavy top's spin tilt, as a fraction of its up direction's tilt (``perturbation.amplitude``).
+HEAVY_TOP_SPIN_TILT = 1e-3
+
+#: Most samples per engine call (bounds the memory of stored states).
+SLICE = 2 * CHUNK
+
+
+@dataclass(frozen=True, eq=False)
+class ModelScene:
+    """One model scene, validated and planned (:func:`scene_plan`): plain data that pickles (dask, checkpoints).
+
+    Its fields are those of :class:`tumble.measure.scenes.Scene` that :func:`tumble.measure.scenes.scene_records`
+    reads (no torque, no flips, no curves), plus the model."""
+
+    model: Model
+    moments: np.ndarray  # (3,) kg m²
+    axis: int
+    spin: float  # rad/s
+    amplitude: float  # rad
+    samples: int
+    method: str  # as asked
+    chosen: str  # rk4 or rk8
+    kind: str  # "periodic" or "exponential"
+    value: float  # rate_theory: frequency (rad/s) or growth rate (1/s)
+    plan: scenes.StepPlan
+    entropy: int
+    distribution: str
+    flips: int = 0
+    spin_up: None = None
+    torque: None = None
+    curves: tuple = field(default=())
+
+
+def model_of(kind, moments, axis, parameters):
+    """The model ``kind`` of a scene: ``parameters`` by study key; a ``rotor`` given as a number is that angular
+    momentum along ``axis`` (N m s)."""
+    parameters = dict(parameters)
+    rotor = parameters.get("rotor")
+    if rotor is not None and np.ndim(rotor) == 0:
+        vector = np.zeros(3)
+        vector[axis - 1] = float(rotor)
+        parameters["rotor"] = vector
+    return models.from_kind(kind, moments, **parameters)
+
+
+def _initial_states(scene, start, stop):
+    """States ``[start, stop)`` of the scene's ensemble (see the module docstring for the heavy top's tilts)."""
+    spin_tilt = scene.amplitude * (HEAVY_TOP_SPIN_TILT if scene.model.kind == "heavy_top" else 1.0)
+    return perturbed_states(scene.model, scene.axis, scene.spin, spin_tilt, scene.samples,
+                            up_amplitude=scene.amplitude, seed=scene.entropy, distribution=scene.distribution,
+                            start=start, stop=stop)
+
+
+def _grid(t_first, t_last, points, dt):
+    """``(dt, first step, steps between points)``: ``points`` + 1 equally spaced times from about ``t_first`` to
+    ``t_last``, each a whole number of steps of at most ``dt``."""
+    every = max(1, math.ceil((t_last - t_first) / points / dt))
+    dt = (t_last - t_first) / points / every
+    return dt, math.ceil(t_first / dt - 1e-9), every
+
+
+def _plan(scene_args, kind, value, y0_norms, dt, horizon):
+    """The :class:`~tumble.measure.scenes.StepPlan` of a model scene (horizon, step, observation times)."""
+    model, axis, spin, amplitude, order = scene_args
+    lam = np.abs(theory.eigenvalues(model, axis, spin)).max()
+    if dt is None:
+        dt = 1.0 / max(lam, abs(spin)) / scenes.STEPS_PER_RADIAN[order]
+    if kind == "exponential":
+        tilt = math.sin(min(amplitude, 0.5 * np.pi))
+        start = float(np.median(y0_norms))
+        per_radian = start / tilt  # the norm of a perturbation one radian large
+        saturation = max(scenes.SATURATION, scenes.SATURATION_TILTS * tilt) * per_radian
+        settle = SETTLE / value if model.kind == "heavy_top" else 0.0
+        t_growth = (math.log(max(saturation / start, math.e)) + 2.0) / value + settle
+        if horizon:
+            t_growth = min(t_growth, horizon)
+        dt, first, every = _grid(settle, t_growth, scenes.PROBES, dt)
+        probes = (first + np.arange(scenes.PROBES + 1) * every) * dt
+        n_steps = first + scenes.PROBES * every
+        return scenes.StepPlan(t_end=n_steps * dt, dt=dt, n_steps=n_steps, probe_times=probes, saturation=saturation)
+    period = 2 * np.pi / value
+    t_end = horizon or PERIODS * period
+    spacing = period / scenes.SAVES_PER_PERIOD
+    if t_end / spacing > scenes.MAX_SAVES:
+        raise ValueError(f"horizon {t_end:g} s needs {t_end / spacing:.0f} stored states per sample for the phase "
+                         f"fit ({scenes.SAVES_PER_PERIOD} per period), more than {scenes.MAX_SAVES}; choose a "
+                         f"shorter horizon")
+    every = max(1, math.ceil(spacing / dt))
+    dt = spacing / every
+    n_steps = max(1, math.ceil(t_end / dt - 1e-9))
+    return scenes.StepPlan(t_end=n_steps * dt, dt=dt, n_steps=n_steps, save_every=every)
+
+
+def _checked(model, axis, amplitude, samples, method):
+    """The scene's arguments checked; ValueError naming the argument."""
+    if not isinstance(model, Model):
+        raise ValueError(f"model must be a tumble.models model (FreeBody, Gyrostat, HeavyTop), got {model!r}")
+    if isinstance(axis, (bool, np.bool_)) or axis not in (1, 2, 3):
+        raise ValueError(f"axis must be 1, 2 or 3 (a principal axis, 1-based), got {axis!r}")
+    if method != "auto" and method not in METHODS:
+        raise ValueError(f"method must be auto or one of {', '.join(METHODS)} for a model, got {method!r}")
+    if isinstance(amplitude, (bool, np.bool_)) or not float(amplitude) > 0:
+        raise ValueError(f"amplitude must be > 0 rad, got {amplitude!r}")
+    if isinstance(samples, (bool, np.bool_)) or not isinstance(samples, (int, np.integer)) or samples < 1:
+        raise ValueError(f"samples must be an integer >= 1, got {samples!r}")
+    return METHODS[0] if method == "auto" else method
+
+
+def scene_plan(model, axis, spin=1.0, amplitude=1e-3, samples=256, seed=0, method="auto", *, dt=None,
+               horizon=None, distribution="cone"):
+    # size: a public call: the scene's physics, its ensemble and the study's integration options
+    """Plan one model scene (nothing runs but the first samples' initial norms).
+
+    Parameters
+    ----------
+    model : tumble.physics.models.Model
+        ``FreeBody``, ``Gyrostat`` (rotor along ``axis``) or ``HeavyTop`` (``axis`` 3).
+    axis : {1, 2, 3}
+    spin : float
+        Steady spin rate, rad/s, signed (a gyrostat's stability depends on its sign relative to the rotor).
+    amplitude : float
+        Tilt of the perturbation, rad (a heavy top: its up direction's; see the module docstring).
+    samples, seed, distribution
+        The ensemble (:func:`tumble.engine.sampling.perturbed_states`).
+    method : {"auto", "rk4", "rk8"}
+    dt, horizon : float, optional
+        Step and horizon, s (default: planned from the linear theory).
+
+    Returns
+    -------
+    ModelScene
+
+    Raises
+    ------
+    ValueError
+        An invalid argument; an axis the model has no steady spin about; a neutral spin (no rate to measure).
+    """
+    chosen = _checked(model, axis, amplitude, samples, method)
+    spin, amplitude = float(spin), float(amplitude)
+    kind, value = theory.linear(model, axis, spin)
+    if kind == "neutral":
+        raise ValueError(f"the steady spin about axis {axis} of this {model.kind} is neutral in linear theory (no "
+                         f"growth rate or frequency to measure)")
+    entropy = seed_entropy(seed)
+    probe = ModelScene(model, model.moments, int(axis), spin, amplitude, int(samples), method, chosen, kind, value,
+                       None, entropy, distribution)
+    y0 = _initial_states(probe, 0, min(int(samples), 256))
+    norms = model.transverse_norm(y0, axis, spin)
+    order = registry.method(chosen).order
+    plan = _plan((model, int(axis), spin, amplitude, order), kind, value, norms, dt, horizon)
+    return ModelScene(model, model.moments, int(axis), spin, amplitude, int(samples), method, chosen, kind, value,
+                      plan, entropy, distribution)
+
+
+def _fit(scene, result):
+    """Per-sample rates of one engine call: ``(rate, code, extras)``."""
+    n = len(result.status)
+    if scene.kind == "exponential":
+        fit = analysis.growth_rates(result.probe_times, result.probes, scene.plan.saturation)
+        extras = {name: getattr(fit, name) for name in ("t_start", "t_stop", "norm_start", "norm_stop")}
+        rate = fit.rate
+    else:
+        transverse = scene.model.transverse(scene.axis, scene.spin)
+        where = [int(np.flatnonzero(transverse.columns == c)[0]) for c in transverse.phase]
+        weights = np.asarray(transverse.weights)[..., where]
+        columns = np.tile(transverse.phase.astype(np.int64), (n, 1))
+        fit = analysis.oscillation_frequencies(result.times, result.trajectory, weights, scene.spin,
+                                               columns=columns)
+        extras = {"radius": fit.radius}
+        rate = fit.frequency
+    offset = len(registry.STATUS_NAMES) - 1
+    code = np.where(result.status != STATUS_OK, result.status,
+                    np.where(fit.code != analysis.FIT_OK, fit.code + offset, 0)).astype(np.int8)
+    return rate, code, extras
+
+
+def scene_samples(scene, start, stop):
+    """Run samples ``[start, stop)`` of a :func:`scene_plan`: per-sample fits, no reduction — the part
+    :func:`tumble.measure.scenes.scene_samples` returns (same keys), so that scene records, checkpoints and dask
+    tasks take it as they take a free body's."""
+    if not (0 <= start < stop <= scene.samples and start % CHUNK == 0):
+        raise ValueError(f"a sample range must lie in [0, {scene.samples}) and start at a multiple of {CHUNK}, "
+                         f"got [{start}, {stop})")
+    plan, growth = scene.plan, scene.kind == "exponential"
+    names = ("t_start", "t_stop", "norm_start", "norm_stop") if growth else ("radius",)
+    out = {"start": np.int64(start), "rate": np.empty(stop - start), "code": np.empty(stop - start, dtype=np.int8),
+           **{name: np.empty(stop - start) for name in names}}
+    computed = 0
+    for lo in range(start, stop, SLICE):
+        hi = min(lo + SLICE, stop)
+        result = run_model_ensemble(scene.model, _initial_states(scene, lo, hi), plan.t_end, plan.dt,
+                                    method=scene.chosen, axis=scene.axis, spin=scene.spin, final=False,
+                                    save_every=None if growth else plan.save_every,
+                                    probe_times=plan.probe_times if growth else None)
+        rows = slice(lo - start, hi - start)
+        out["rate"][rows], out["code"][rows], extras = _fit(scene, result)
+        for name, values in extras.items():
+            out[name][rows] = values
+        computed += int(result.steps_taken.sum())
+    out.update(sample_steps_computed=np.int64(computed),
+               sample_steps_skipped=np.int64((stop - start) * plan.n_steps - computed),
+               rate_theory=np.float64(scene.value), path=np.array(f"model kernel ({scene.chosen})"),
+               torque=np.array(""))
+    return out
+
+
+def _model_coordinates(scene):
+    """The model's coordinates of a scene record: its kind and parameters (the rotor as h along the spin axis)."""
+    model = scene.model
+    coords = {"model": np.asarray(model.kind), "@model": model.kind}
+    if model.kind == "gyrostat":
+        coords["rotor"] = np.float64(model.rotor[scene.axis - 1])
+    if model.kind == "heavy_top":
+        coords["mgl"] = np.float64(model.mgl)
+    return coords
+
+
+def scene_records(model_scenes, parts):
+    """The records of model scenes from their :func:`scene_samples` ranges: the free body's
+    (:func:`tumble.measure.scenes.scene_records`) and the model's coordinates."""
+    records = scenes.scene_records(model_scenes, parts)
+    for scene, record in zip(model_scenes, records):
+        for name, value in _model_coordinates(scene).items():
+            record[name] = np.asarray(value)
+        record["@title"] = np.asarray(f"tumble measurement: {scene.model.kind}, {scene.kind} rate about axis "
+                                      f"{scene.axis}")
+    return records
+
+
+def scene_batch(model_scenes):
+    """The records of whole model scenes."""
+    return scene_records(model_scenes, [[scene_samples(scene, 0, scene.samples)] for scene in model_scenes])
+
+
+def scan_layout(moments, values, swept):
+    """The scenes of a model study in the form of :func:`tumble.measure.scenes.scan_layout` (``moments`` (B, 3) or
+    (3,); ``values`` by name: axis, spin, amplitude, method and the model's parameters; ``swept``: the names whose
+    value is a list of scene values, in the order of the scan's dimensions)."""
+    moments = np.atleast_2d(np.asarray(moments, dtype=float))
+    swept = {name: list(values[name]) for name in swept}
+    fixed = {name: v for name, v in values.items() if name not in swept}
+    per_body = math.prod(len(v) for v in swept.values())
+    return {"moments": moments, "swept": swept, "fixed": fixed, "scenes": len(moments) * per_body}
