@@ -301,6 +301,8 @@ def _scene_record(job, scene, parts):
 def compute_scenes(job, indices, *, progress=False):
     """``{index: record}`` of the whole scenes ``indices`` of a :func:`scene_job`: a scan's scenes, or the study's one
     measurement; closed-form scenes run together (:func:`tumble.measure.scenes.scene_batch`)."""
+    if not indices:  # an empty task (a worker's warm-up) needs no job
+        return {}
     if "model" in job.options:
         return dict(zip(indices, model_scenes.scene_batch([_scene_plan(job, i) for i in indices])))
     records = study.scene_batch([_scene_plan(job, i) for i in indices], progress=progress)
