@@ -214,7 +214,8 @@ class Model(NamedTuple):
     parameters: tuple  # study keys of its numeric parameters (MODEL_PARAMETERS), in order
     state: tuple  # names of the state components, in order (w1, w2, w3 first)
     invariants: tuple  # names of the quantities the motion conserves
-    implemented: bool  # False: reserved (the name, keys and state are fixed; no right-hand side yet)
+    implemented: bool  # True: the kernels step it and studies run it; False: reserved there (name, keys, state fixed)
+    physics: bool  # True: a class in physics/models.py (rhs, analytic Jacobian, invariants, linear theory)
     text: str
 
 
@@ -228,20 +229,22 @@ STATE_BLOCKS = (
 
 #: Every model, the default first.
 MODELS = (
-    Model("free", (), ("w1", "w2", "w3"), ("energy", "momentum_squared"), True,
+    Model("free", (), ("w1", "w2", "w3"), ("energy", "momentum_squared"), True, True,
           "torque-free rigid body: I w' = (I w) x w"),
-    Model("gyrostat", ("rotor",), ("w1", "w2", "w3"), ("energy", "momentum_squared"), True,
+    Model("gyrostat", ("rotor",), ("w1", "w2", "w3"), ("energy", "momentum_squared"), True, True,
           "rigid body with a rotor of constant relative angular momentum h: I w' = (I w + h) x w"),
     Model("heavy_top", ("mgl",), ("w1", "w2", "w3", "g1", "g2", "g3"),
-          ("energy", "vertical_momentum", "up_squared"), True,
+          ("energy", "vertical_momentum", "up_squared"), True, True,
           "top on a fixed pivot, centre of mass on body axis 3 (Euler-Poisson): I w' = (I w) x w + mgl (g x e3), "
           "g' = g x w"),
     Model("gravity_gradient", ("orbit_rate",), ("w1", "w2", "w3", "q0", "q1", "q2", "q3"),
-          ("jacobi_integral", "quaternion_squared"), False,
-          "satellite in a circular orbit under the gravity-gradient torque (axes: 1 roll, 2 pitch, 3 yaw)"),
+          ("jacobi_integral", "quaternion_squared"), False, True,
+          "satellite in a circular orbit under the gravity-gradient torque (axes: 1 roll, 2 pitch, 3 yaw): "
+          "I w' = (I w) x w + 3 n^2 (c3 x I c3), q' = q (0, w + n c2) / 2, c2, c3 the orbit's pitch and nadir axes"),
     Model("damper", ("damper_inertia", "damping"), ("w1", "w2", "w3", "s1", "s2", "s3"),
-          ("momentum_squared",), False,
-          "rigid body with a viscously coupled spherical damper (energy dissipates, |L| is kept)"),
+          ("momentum_squared",), False, True,
+          "rigid body with a viscously coupled spherical damper (energy dissipates, |L| is kept): "
+          "I w' = (I w) x w + c (s - w), J (s' + w x s) = -c (s - w)"),
 )
 _MODEL_BY_NAME = {m.name: m for m in MODELS}
 

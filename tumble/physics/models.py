@@ -14,8 +14,9 @@ components; every function here is vectorised over leading axes, ``y`` of shape 
 State layout (``registry.MODELS``, ``registry.STATE_BLOCKS``): the first three components are always the
 body-frame angular velocity ``w`` (rad/s); the model's own blocks follow, each named by the first letter of its
 components: ``g`` the unit vector pointing up in the body frame (heavy top), ``q`` an attitude quaternion,
-scalar first (gravity gradient, reserved), ``s`` an internal body's angular velocity (damper, reserved). A
-kernel finds a block by the offsets of ``registry.state_blocks(kind)``.
+scalar first (gravity gradient), ``s`` an internal body's angular velocity (damper). A kernel finds a block by
+the offsets of ``registry.state_blocks(kind)``. The gravity gradient and the damper are physics only so far
+(``registry.MODELS``' ``implemented`` is False: the kernels and the studies refuse them; ``physics`` is True).
 
 Models (Landau & Lifshitz, *Mechanics*, §35-§37; Wittenburg, *Dynamics of Multibody Systems*, §3.6 for the
 gyrostat; Arnold, *Mathematical Methods of Classical Mechanics*, §30 and Goldstein §5.7 for the heavy top):
@@ -27,6 +28,11 @@ gyrostat; Arnold, *Mathematical Methods of Classical Mechanics*, §30 and Goldst
   ``l`` above the pivot, ``mgl = M g l`` (N m); ``g`` the unit up vector in the body frame:
   ``I w' = (I w) × w + mgl (g × e3)``, ``g' = g × w``. The torque ``r × F = l e3 × (−M g g) = mgl (g × e3)``
   tips the top away from upright: a top at rest upright falls at the rate ``sqrt(mgl / I1)`` (``I1 <= I2``).
+* :class:`GravityGradient`: a satellite in a circular orbit of rate ``n``; ``w`` and the attitude ``q`` relative
+  to the orbit frame (roll, pitch, yaw): ``I w' = (I w) × w + 3 n² (c3 × I c3)``, ``q' = ½ q ⊗ (0, w + n c2)``.
+  Linear theory in a 3-angle attitude error (:meth:`Model.tangent_jacobian`), not the quaternion's 4 components.
+* :class:`Damper` (Kane's spherical damper): ``I w' = (I w) × w + c (s − w)``, ``J (s' + w × s) = −c (s − w)``;
+  ``|I w + J s|`` is kept, the energy decays.
 """
 
 from __future__ import annotations
@@ -39,7 +45,8 @@ import numpy as np
 from .. import registry
 from .bodies import finite_array, one_body
 
-__all__ = ["IMPLEMENTED", "FreeBody", "Gyrostat", "HeavyTop", "Model", "Transverse", "from_kind"]
+__all__ = ["CLASSES", "IMPLEMENTED", "Damper", "FreeBody", "GravityGradient", "Gyrostat", "HeavyTop", "Model", "Transverse",
+           "from_kind"]
 
 #: A rotor component across the spin axis smaller than this fraction of |rotor| counts as 0 (equilibrium check).
 ROTOR_RTOL = 1e-12
@@ -48,14 +55,19 @@ ROTOR_RTOL = 1e-12
 class Transverse(NamedTuple):
     """How a perturbation of a steady spin is measured, as plain arrays (for kernels and estimators).
 
-    The perturbation's norm is ``sqrt(sum(weights * y[..., columns] ** 2))``: the equilibrium's value of every
-    listed component is 0, so this is the norm of the perturbation itself. ``phase`` is the pair of components
-    whose angle ``atan2(sqrt(wc) y[c], sqrt(wb) y[b])`` a phase fit follows (``wb, wc`` their weights).
+    The perturbation's norm is ``sqrt(sum(weights * (y[..., columns] - centre) ** 2))``, ``centre`` the
+    equilibrium's value of the listed components (the model kernels subtract the whole equilibrium state,
+    ``y_eq``, the same thing). ``centre`` is None, i.e. 0, for the free body, the gyrostat and the heavy top: there
+    the norm is ``sqrt(sum(weights * y[..., columns] ** 2))``; the gravity gradient's pitch rate ``w2`` has
+    ``−n`` at its equilibrium. ``phase`` is the pair of components whose angle
+    ``atan2(sqrt(wc) y[c], sqrt(wb) y[b])`` a phase fit follows (``wb, wc`` their weights; both 0 at the
+    equilibrium).
     """
 
     columns: np.ndarray  # intp, shape (k,): state components of the norm
     weights: np.ndarray  # float64, shape (..., k): weight of each squared component (units: (rad/s)² / unit²)
     phase: np.ndarray  # intp, shape (2,): the pair of the phase fit, in the order (b, c)
+    centre: np.ndarray | None = None  # float64, shape (k,): the equilibrium's value of each column (None: all 0)
 
 
 def _cross_matrix(v):
@@ -190,7 +202,24 @@ class Model:
         """
         state = self._state(state)
         t = self.transverse(axis, spin)
-        return np.sqrt(np.sum(t.weights * state[..., t.columns] ** 2, axis=-1))
+        part = state[..., t.columns] if t.centre is None else state[..., t.columns] - t.centre
+        return np.sqrt(np.sum(t.weights * part ** 2, axis=-1))
+
+    @property
+    def tangent_size(self):
+        """Size of the coordinates of :meth:`tangent_jacobian`: :attr:`state_size`, less one per unit quaternion."""
+        return self.state_size
+
+    def tangent_jacobian(self, state):
+        """The Jacobian in the model's tangent coordinates, shape (..., m, m), ``m = tangent_size``: the one linear
+        theory takes the eigenvalues of (:func:`tumble.physics.theory.eigenvalues`).
+
+        For the models whose state is free (no constraint) it is :meth:`jacobian` itself. A model with a unit
+        quaternion in its state (the gravity gradient) linearises in a 3-parameter attitude error instead: the
+        quaternion's norm is a constraint, and the 4 components' Jacobian carries an eigenvalue 0 along it that
+        is no motion of the body.
+        """
+        return self.jacobian(state)
 
     # Each model defines: rhs, jacobian, invariants, equilibrium, transverse.
     def rhs(self, state):  # pragma: no cover - abstract
@@ -474,8 +503,316 @@ class HeavyTop(Model):
         return Transverse(np.array([0, 1, 3, 4], dtype=np.intp), weights, np.array([3, 4], dtype=np.intp))
 
 
-#: The implemented models by kind (``registry.MODELS`` lists the reserved ones too).
-IMPLEMENTED = {cls.kind: cls for cls in (FreeBody, Gyrostat, HeavyTop)}
+def _rows_of_attitude(q):
+    """``(c2, c3)``: the orbit frame's pitch axis ``o2`` and nadir ``o3`` in the body frame, each (..., 3), for
+    attitudes ``q`` (..., 4) (scalar first, body to orbit frame): the second and third rows of the rotation matrix
+    ``C(q)`` (``v_orbit = C v_body``), ``1 − 2(…)`` on the diagonal (the rotation's matrix on the unit sphere)."""
+    q0, q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    c2 = np.stack([2 * (q1 * q2 + q0 * q3), 1 - 2 * (q1 * q1 + q3 * q3), 2 * (q2 * q3 - q0 * q1)], axis=-1)
+    c3 = np.stack([2 * (q1 * q3 - q0 * q2), 2 * (q2 * q3 + q0 * q1), 1 - 2 * (q1 * q1 + q2 * q2)], axis=-1)
+    return c2, c3
+
+
+def _rows_derivatives(q):
+    """``(∂c2/∂q, ∂c3/∂q)`` of :func:`_rows_of_attitude`, each (..., 3, 4)."""
+    q0, q1, q2, q3 = (2 * q[..., i] for i in range(4))
+    z = np.zeros_like(q0)
+    d2 = np.stack([np.stack([q3, q2, q1, q0], -1), np.stack([z, -2 * q1, z, -2 * q3], -1),
+                   np.stack([-q1, -q0, q3, q2], -1)], -2)
+    d3 = np.stack([np.stack([-q2, q3, -q0, q1], -1), np.stack([q1, q0, q3, q2], -1),
+                   np.stack([z, -2 * q1, -2 * q2, z], -1)], -2)
+    return d2, d3
+
+
+def _xi(q):
+    """``Ξ(q)``, (..., 4, 3): ``q ⊗ (0, v) = Ξ(q) v`` (Hamilton product, scalar first)."""
+    q0, q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return np.stack([np.stack([-q1, -q2, -q3], -1), np.stack([q0, -q3, q2], -1), np.stack([q3, q0, -q1], -1),
+                     np.stack([-q2, q1, q0], -1)], -2)
+
+
+def _omega_right(v):
+    """``Ω(v)``, (..., 4, 4): ``q ⊗ (0, v) = Ω(v) q``."""
+    v1, v2, v3 = v[..., 0], v[..., 1], v[..., 2]
+    z = np.zeros_like(v1)
+    return np.stack([np.stack([z, -v1, -v2, -v3], -1), np.stack([v1, z, v3, -v2], -1),
+                     np.stack([v2, -v3, z, v1], -1), np.stack([v3, v2, -v1, z], -1)], -2)
+
+
+@dataclass(frozen=True, eq=False)
+class GravityGradient(Model):
+    """A rigid satellite in a circular orbit under the gravity-gradient torque (Hughes, *Spacecraft Attitude
+    Dynamics*, §8.1-8.3; Kane, Likins & Levinson, *Spacecraft Dynamics*, §2.7).
+
+    Orbit frame (DESIGN.md): ``o1`` along track (roll), ``o2`` along the negative orbit normal (pitch), ``o3`` to
+    nadir (yaw); ``o1 × o2 = o3``. It turns at the orbit rate ``n`` about the orbit normal, i.e. its angular
+    velocity is ``−n o2``. State ``(w1, w2, w3, q0, q1, q2, q3)``: ``w`` the body's (inertial) angular velocity in the
+    body frame, rad/s; ``q`` the attitude of the body relative to the orbit frame, a unit quaternion, scalar
+    first (``v_orbit = q v_body q*``). With ``c2``, ``c3`` the orbit's ``o2``, ``o3`` in the body frame (rows of
+    the rotation matrix of ``q``) and ``w_r = w + n c2`` the angular velocity relative to the orbit frame:
+
+    ``I w' = (I w) × w + 3 n² (c3 × I c3)``,  ``q' = ½ q ⊗ (0, w_r)``.
+
+    The equilibrium is the body's axes along the orbit's (``q = (1, 0, 0, 0)``) with ``w = (0, −n, 0)``: a body
+    that turns once per orbit. Invariants: ``jacobi_integral``
+    ``½ w_r·I w_r + (3/2) n² c3·I c3 − ½ n² c2·I c2`` (J; the energy in the rotating orbit frame: the kinetic energy
+    of the relative motion, the gravity-gradient potential ``(3/2) n² I_nadir`` (MacCullagh's formula less a
+    constant) and the centrifugal potential ``−½ n² I_pitch``), and ``quaternion_squared`` ``|q|²`` (1: the rhs
+    keeps it, ``q·q' = 0``).
+
+    Linear theory (:meth:`tangent_jacobian`, ``theory.gravity_gradient_pitch_frequency``,
+    ``theory.gravity_gradient_roll_yaw``): pitch ``θ2'' + 3 n² (I1 − I3)/I2 θ2 = 0``; roll-yaw
+    ``s⁴ + n² (1 + 3 k1 + k1 k3) s² + 4 n⁴ k1 k3 = 0``, ``k1 = (I2 − I3)/I1``, ``k3 = (I2 − I1)/I3``.
+
+    Parameters
+    ----------
+    moments : Body or array_like, shape (3,)
+        Principal moments ``(I1, I2, I3)`` about roll, pitch, yaw, kg m².
+    orbit_rate : float
+        ``n``, rad/s; finite and > 0.
+
+    Raises
+    ------
+    ValueError
+        Invalid moments, or ``orbit_rate`` not a finite number > 0 (the message names ``orbit_rate``).
+    """
+
+    orbit_rate: float
+    kind: ClassVar[str] = "gravity_gradient"
+    state_size: ClassVar[int] = len(registry.model_kind("gravity_gradient").state)
+
+    def __post_init__(self):
+        super().__post_init__()
+        object.__setattr__(self, "orbit_rate", float(_parameter("orbit_rate", self.orbit_rate)))
+
+    @property
+    def tangent_size(self):
+        """6: ``w`` and the attitude error ``θ`` (rad) of :meth:`tangent_jacobian`."""
+        return 6
+
+    def _parts(self, state):
+        y = self._state(state)
+        w, q = y[..., :3], y[..., 3:]
+        c2, c3 = _rows_of_attitude(q)
+        return y, w, q, c2, c3, w + self.orbit_rate * c2
+
+    def _torque_jacobian(self, c3):
+        """``∂/∂c3`` of ``3 n² I⁻¹ (c3 × I c3)``, (..., 3, 3): ``3 n² I⁻¹ ([c3]× I − [I c3]×)``."""
+        return (3 * self.orbit_rate ** 2 / self.moments[:, None]) * (
+            _cross_matrix(c3) * self.moments - _cross_matrix(self.moments * c3))
+
+    def rhs(self, state):
+        """``(w', q')`` for states of shape (..., 7): rad/s², then 1/s."""
+        _, w, q, _, c3, w_r = self._parts(state)
+        torque = 3 * self.orbit_rate ** 2 * np.cross(c3, self.moments * c3)
+        dq = 0.5 * np.einsum("...ij,...j->...i", _xi(q), w_r)
+        return np.concatenate([_euler_rhs(self.moments, w, 0.0) + torque / self.moments, dq], axis=-1)
+
+    def jacobian(self, state):
+        """``∂(w', q')/∂(w, q)`` (1/s), shape (..., 7, 7), in the state's own components.
+
+        Blocks: ``∂w'/∂w = I⁻¹ ([Iw]× − [w]× I)``; ``∂w'/∂q = 3 n² I⁻¹ ([c3]× I − [I c3]×) ∂c3/∂q``;
+        ``∂q'/∂w = ½ Ξ(q)``; ``∂q'/∂q = ½ Ω(w_r) + ½ n Ξ(q) ∂c2/∂q`` (``q ⊗ (0, v) = Ξ(q) v = Ω(v) q``). At the
+        equilibrium the row and the column of ``q0`` vanish: the quaternion's norm is a constraint, an eigenvalue
+        0 that is no motion (linear theory uses :meth:`tangent_jacobian`).
+        """
+        y, w, q, _, c3, w_r = self._parts(state)
+        d2, d3 = _rows_derivatives(q)
+        xi = _xi(q)
+        jac = np.zeros(y.shape + (7,), dtype=np.result_type(y, float))
+        jac[..., :3, :3] = _euler_jacobian(self.moments, w, 0.0)
+        jac[..., :3, 3:] = self._torque_jacobian(c3) @ d3
+        jac[..., 3:, :3] = 0.5 * xi
+        jac[..., 3:, 3:] = 0.5 * _omega_right(w_r) + 0.5 * self.orbit_rate * (xi @ d2)
+        return jac
+
+    def tangent_jacobian(self, state):
+        """The Jacobian in ``(w, θ)``, shape (..., 6, 6) (1/s): ``θ`` the attitude error in the body frame,
+        ``q_perturbed = q ⊗ (1, θ/2)`` to first order (rad).
+
+        ``δc = c × θ`` for ``c = c2, c3`` and ``θ' = δw_r − w_r × θ``, so: ``∂w'/∂w = I⁻¹ ([Iw]× − [w]× I)``,
+        ``∂w'/∂θ = 3 n² I⁻¹ ([c3]× I − [I c3]×) [c3]×``, ``∂θ'/∂w = 1``, ``∂θ'/∂θ = n [c2]× − [w_r]×``. Its eigenvalues
+        at the equilibrium are those of the 7×7 :meth:`jacobian` without the constraint's 0: at the equilibrium
+        ``θ = 2 (q1, q2, q3)``, and this is the lower-right 6×6 block of the 7×7 Jacobian in ``(w, q1, q2, q3)``
+        with the ``q`` columns doubled and rows halved.
+        """
+        y, w, _, c2, c3, w_r = self._parts(state)
+        jac = np.zeros(y.shape[:-1] + (6, 6), dtype=np.result_type(y, float))
+        jac[..., :3, :3] = _euler_jacobian(self.moments, w, 0.0)
+        jac[..., :3, 3:] = self._torque_jacobian(c3) @ _cross_matrix(c3)
+        jac[..., 3:, :3] = np.eye(3)
+        jac[..., 3:, 3:] = self.orbit_rate * _cross_matrix(c2) - _cross_matrix(w_r)
+        return jac
+
+    def invariants(self, state):
+        """``jacobi_integral`` (J) and ``quaternion_squared`` ``|q|²`` (1), each of shape (...).
+
+        ``jacobi_integral = ½ w_r·I w_r + (3/2) n² c3·I c3 − ½ n² c2·I c2`` with ``w_r = w + n c2``.
+        """
+        _, _, q, c2, c3, w_r = self._parts(state)
+        n2 = self.orbit_rate ** 2
+        moments = self.moments
+        jacobi = 0.5 * np.sum(moments * w_r * w_r, axis=-1) + 1.5 * n2 * np.sum(moments * c3 * c3, axis=-1) \
+            - 0.5 * n2 * np.sum(moments * c2 * c2, axis=-1)
+        return {"jacobi_integral": jacobi, "quaternion_squared": np.sum(q * q, axis=-1)}
+
+    def equilibrium(self, axis=2, spin=1.0):
+        """The orbit-following attitude: ``w = (0, −n, 0)``, ``q = (1, 0, 0, 0)``; shape ``spin.shape + (7,)``.
+
+        A study's ``spin.axis`` and ``spin.rate`` are not used (DESIGN.md): the equilibrium is fixed by the orbit.
+        ``axis`` must still be 1, 2 or 3 and ``spin`` finite (its shape gives the leading shape, as for the other
+        models, so that vectorised callers work unchanged).
+
+        Raises
+        ------
+        ValueError
+            ``axis`` not 1, 2 or 3; ``spin`` not finite.
+        """
+        _one_axis(axis)
+        state = _spin_state(7, 1, finite_array(spin, "spin") * 0.0 - self.orbit_rate)
+        state[..., 3] = 1.0
+        return state
+
+    def transverse(self, axis=2, spin=1.0):
+        """``(w1, w2 + n, w3, q1, q2, q3)`` with weights ``(1, 1, 1, 4n², 4n², 4n²)`` (every term in (rad/s)²).
+
+        The perturbation is ``w`` relative to ``(0, −n, 0)`` (``centre`` holds ``w2``'s ``−n``) and the attitude
+        error ``θ ≈ 2 (q1, q2, q3)`` (rad) of the body relative to the orbit frame, each angle weighted by ``n²``
+        (an error ``θ`` in the orbit's own time scale). The phase fit follows roll and yaw, ``(q1, q3)``.
+        ``axis`` and ``spin`` are not used (checked as by :meth:`equilibrium`).
+        """
+        self.equilibrium(axis, spin)
+        n2 = self.orbit_rate ** 2
+        return Transverse(np.array([0, 1, 2, 4, 5, 6], dtype=np.intp),
+                          np.array([1.0, 1.0, 1.0, 4 * n2, 4 * n2, 4 * n2]), np.array([4, 6], dtype=np.intp),
+                          np.array([0.0, -self.orbit_rate, 0.0, 0.0, 0.0, 0.0]))
+
+
+@dataclass(frozen=True, eq=False)
+class Damper(Model):
+    """A rigid body with a viscously coupled spherical damper (Kane's damper: Kane & Levinson, *Spacecraft
+    Dynamics*, §4.4 and §5.6; Hughes, *Spacecraft Attitude Dynamics*, §7.5).
+
+    A sphere of moment of inertia ``J`` (kg m²) turns in a spherical cavity at the centre of mass, coupled to the
+    body by a viscous torque ``c (s − w)``, ``c`` in N m s. State ``(w1, w2, w3, s1, s2, s3)``: the body's and the
+    sphere's angular velocities in the body frame, rad/s:
+
+    ``I w' = (I w) × w + c (s − w)``,  ``J (s' + w × s) = −c (s − w)``
+
+    (``I``: the body's principal moments without the sphere, which is symmetric, so the axes stay principal).
+    ``L = I w + J s`` is fixed in space: ``momentum_squared`` ``|L|²`` ((N m s)²) is the invariant; the energy
+    ``½ w·I w + ½ J |s|²`` (:meth:`energy`) decays at ``c |s − w|²`` (:meth:`dissipation`). A spin
+    ``s = w = W e_a`` about any principal axis is steady; about the major axis it is asymptotically stable, about
+    the minor one it slowly grows (the major-axis rule; weak-damping rate in
+    :func:`tumble.physics.theory.damper_nutation_rate`).
+
+    Parameters
+    ----------
+    moments : Body or array_like, shape (3,)
+        Principal moments of the body, sphere excluded, kg m².
+    damper_inertia : float
+        ``J``, kg m²; finite and > 0.
+    damping : float
+        ``c``, N m s; finite and > 0.
+
+    Raises
+    ------
+    ValueError
+        Invalid moments, or a parameter not a finite number > 0 (the message names ``damper_inertia`` or
+        ``damping``).
+    """
+
+    damper_inertia: float
+    damping: float
+    kind: ClassVar[str] = "damper"
+    state_size: ClassVar[int] = len(registry.model_kind("damper").state)
+
+    def __post_init__(self):
+        super().__post_init__()
+        object.__setattr__(self, "damper_inertia", float(_parameter("damper_inertia", self.damper_inertia)))
+        object.__setattr__(self, "damping", float(_parameter("damping", self.damping)))
+
+    def rhs(self, state):
+        """``(w', s')`` (rad/s²) for states of shape (..., 6), rad/s."""
+        y = self._state(state)
+        w, s = y[..., :3], y[..., 3:]
+        slip = self.damping * (s - w)
+        return np.concatenate([_euler_rhs(self.moments, w, 0.0) + slip / self.moments,
+                               np.cross(s, w) - slip / self.damper_inertia], axis=-1)
+
+    def jacobian(self, state):
+        """``∂(w', s')/∂(w, s)`` (1/s), shape (..., 6, 6).
+
+        Blocks (``C = c I⁻¹``, ``k = c / J``): ``∂w'/∂w = I⁻¹ ([Iw]× − [w]× I) − C``, ``∂w'/∂s = C``,
+        ``∂s'/∂w = [s]× + k``, ``∂s'/∂s = −[w]× − k``. At a steady spin one eigenvalue is 0: the steady spins
+        ``s = w = W e_a`` form a line (the spin rate, set by ``|L|``, is neutral).
+        """
+        y = self._state(state)
+        w, s = y[..., :3], y[..., 3:]
+        eye = np.eye(3)
+        k = self.damping / self.damper_inertia
+        jac = np.zeros(y.shape + (6,), dtype=np.result_type(y, float))
+        jac[..., :3, :3] = _euler_jacobian(self.moments, w, 0.0) - np.diag(self.damping / self.moments)
+        jac[..., :3, 3:] = np.diag(self.damping / self.moments)
+        jac[..., 3:, :3] = _cross_matrix(s) + k * eye
+        jac[..., 3:, 3:] = -_cross_matrix(w) - k * eye
+        return jac
+
+    def _momentum(self, y):
+        return self.moments * y[..., :3] + self.damper_inertia * y[..., 3:]
+
+    def invariants(self, state):
+        """``{"momentum_squared": |I w + J s|²}`` ((N m s)²), shape (...)."""
+        lm = self._momentum(self._state(state))
+        return {"momentum_squared": np.sum(lm * lm, axis=-1)}
+
+    def angular_velocity(self, momentum):
+        """The steady spin with angular momentum ``L``: ``w = s = (I + J)⁻¹ L`` (rad/s), shape (..., 3).
+
+        Only along a principal axis is this a steady state (with ``s = w``); ``w`` of other states is not a
+        function of ``L`` alone.
+
+        Raises
+        ------
+        ValueError
+            ``momentum`` not finite or not of shape (..., 3).
+        """
+        return super().angular_velocity(momentum) * self.moments / (self.moments + self.damper_inertia)
+
+    def energy(self, state):
+        """``½ w·I w + ½ J |s|²`` (J), shape (...): decreasing, at the rate :meth:`dissipation`."""
+        y = self._state(state)
+        w, s = y[..., :3], y[..., 3:]
+        return 0.5 * np.sum(self.moments * w * w, axis=-1) + 0.5 * self.damper_inertia * np.sum(s * s, axis=-1)
+
+    def dissipation(self, state):
+        """``c |s − w|²`` (W), shape (...): minus the rate of change of :meth:`energy`."""
+        y = self._state(state)
+        slip = y[..., 3:] - y[..., :3]
+        return self.damping * np.sum(slip * slip, axis=-1)
+
+    def equilibrium(self, axis, spin=1.0):
+        """The steady spin ``w = s = spin e_axis``: shape (..., 6) for ``spin`` (...) rad/s; ``axis`` 1, 2 or 3."""
+        k = _one_axis(axis)
+        state = _spin_state(6, k, spin)
+        state[..., k + 3] = state[..., k]
+        return state
+
+    def transverse(self, axis, spin=1.0):
+        """The body's two components ``w_b, w_c`` across ``axis``, weighted as the free body's of moments ``I``
+        (a weakly damped nutation is then circular); the sphere's components are not part of the norm (they follow
+        the body's nutation, and their relative motion decays at about ``c / J``)."""
+        k = _one_axis(axis)
+        pair = np.array([(k + 1) % 3, (k + 2) % 3], dtype=np.intp)
+        return Transverse(pair, _circular_weights(self.moments, k, 1.0, 0.0), pair.copy())
+
+
+#: Every model with a class here, by kind (``registry.MODELS``' ``physics`` flag).
+CLASSES = {cls.kind: cls for cls in (FreeBody, Gyrostat, HeavyTop, GravityGradient, Damper)}
+
+#: The models the kernels step and studies run (``registry.MODELS``' ``implemented`` flag); the others are physics
+#: only so far (:func:`from_kind` builds them, ``theory.linear`` linearises them).
+IMPLEMENTED = {kind: cls for kind, cls in CLASSES.items() if registry.model_kind(kind).implemented}
 
 
 def from_kind(kind, body, **parameters):
@@ -484,12 +821,13 @@ def from_kind(kind, body, **parameters):
     Parameters
     ----------
     kind : str
-        One of ``registry.MODEL_KINDS``: ``"free"``, ``"gyrostat"``, ``"heavy_top"`` (implemented),
-        ``"gravity_gradient"``, ``"damper"`` (reserved).
+        One of ``registry.MODEL_KINDS``: ``"free"``, ``"gyrostat"``, ``"heavy_top"`` (kernels and studies too),
+        ``"gravity_gradient"``, ``"damper"`` (physics only: the kernels and studies refuse them so far).
     body : Body or array_like, shape (3,)
         Principal moments, kg m².
     **parameters
-        The kind's numeric parameters by study key (``rotor`` N m s, ``mgl`` N m), all of them, no others.
+        The kind's numeric parameters by study key (``rotor`` N m s, ``mgl`` N m, ``orbit_rate`` rad/s,
+        ``damper_inertia`` kg m², ``damping`` N m s), all of them, no others.
 
     Returns
     -------
@@ -498,7 +836,8 @@ def from_kind(kind, body, **parameters):
     Raises
     ------
     ValueError
-        An unknown kind; a reserved kind (not implemented yet); a parameter the kind does not have, or lacks;
+        An unknown kind; a kind with no class yet (``registry.MODELS``' ``physics``); a parameter the kind does
+        not have, or lacks;
         an invalid parameter or body. The message names the kind or the key.
 
     Examples
@@ -507,10 +846,10 @@ def from_kind(kind, body, **parameters):
     6
     """
     spec = registry.model_kind(kind)
-    if not spec.implemented:
+    if not spec.physics or kind not in CLASSES:
         keys = ", ".join(spec.parameters)
         raise ValueError(f"model kind {kind!r} is reserved but not implemented yet (parameters {keys}); "
-                         f"implemented: {', '.join(IMPLEMENTED)}")
+                         f"implemented: {', '.join(CLASSES)}")
     for key in parameters:
         if key not in spec.parameters:
             raise ValueError(f"{key}: not a parameter of model kind {kind!r} "
@@ -518,4 +857,4 @@ def from_kind(kind, body, **parameters):
     for key in spec.parameters:
         if key not in parameters:
             raise ValueError(f"{key}: model kind {kind!r} needs it")
-    return IMPLEMENTED[kind](body, **parameters)
+    return CLASSES[kind](body, **parameters)

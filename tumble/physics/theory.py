@@ -7,8 +7,11 @@ leading shape. Axis arguments are 1-based (1, 2, 3) as in the physics.
 * :func:`stability_exponent`, :func:`linear`: small perturbations of a steady spin about a principal axis
   (Landau & Lifshitz, *Mechanics*, §37; DESIGN.md "Physics").
 * :func:`eigenvalues`, and :func:`linear` of a model (:mod:`tumble.physics.models`): linear theory of any model,
-  from the eigenvalues of its Jacobian at the steady spin; :func:`gyrostat_linear`, :func:`sleeping_top_linear`
-  and :func:`sleeping_top_precession` are the closed forms it is tested against.
+  from the eigenvalues of its Jacobian at the steady spin; :func:`gyrostat_linear`, :func:`sleeping_top_linear`,
+  :func:`sleeping_top_precession`, the gravity gradient's :func:`gravity_gradient_pitch_frequency`,
+  :func:`gravity_gradient_roll_yaw`, :func:`gravity_gradient_stable` (Lagrange and DeBra–Delp regions,
+  :func:`gravity_gradient_region`) and the damper's :func:`damper_nutation_rate` are the closed forms it is
+  tested against.
 * :func:`symmetric_top_precession`: torque-free symmetric top (L&L §33, §36).
 * :func:`constant_torque_symmetric_top`: symmetric top under a constant body torque about its symmetry
   axis (problem sheet "Part 8: Rigid Body Dynamics", problem 6, "the wobbly space station").
@@ -37,13 +40,20 @@ from .models import Model
 __all__ = [
     "DEGENERATE_RTOL",
     "EIGEN_RTOL",
+    "GRAVITY_GRADIENT_REGIONS",
     "KINDS",
     "TORQUE_PROFILE_FORMULAS",
     "constant_torque_symmetric_top",
+    "damper_nutation_rate",
     "eigenvalues",
     "first_flip_time",
     "flip_spacing",
     "flip_time_asymptote",
+    "gravity_gradient_k",
+    "gravity_gradient_pitch_frequency",
+    "gravity_gradient_region",
+    "gravity_gradient_roll_yaw",
+    "gravity_gradient_stable",
     "gyrostat_linear",
     "linear",
     "linear_rate",
@@ -237,10 +247,11 @@ EIGEN_RTOL = 1e-9
 def _equilibrium_jacobian(model, axis, spin):
     """The model's Jacobian at its steady spin about ``axis`` (one axis, or an array broadcast with ``spin``)."""
     if not isinstance(model, Model):
-        raise TypeError(f"model must be a tumble.models model (FreeBody, Gyrostat, HeavyTop), got {model!r}")
+        raise TypeError(f"model must be a tumble.models model (FreeBody, Gyrostat, HeavyTop, GravityGradient, "
+                        f"Damper), got {model!r}")
     k = _axis_index(axis)
     if np.ndim(k) == 0:
-        return model.jacobian(model.equilibrium(int(k) + 1, spin))
+        return model.tangent_jacobian(model.equilibrium(int(k) + 1, spin))
     spin = finite_array(spin, "spin")
     shape = np.broadcast_shapes(k.shape, spin.shape)
     k, spin = np.broadcast_to(k, shape), np.broadcast_to(spin, shape)
@@ -248,16 +259,19 @@ def _equilibrium_jacobian(model, axis, spin):
     for a in np.unique(k):
         chosen = k == a
         state[chosen] = model.equilibrium(int(a) + 1, spin[chosen])
-    return model.jacobian(state)
+    return model.tangent_jacobian(state)
 
 
 def eigenvalues(model, axis, spin=1.0):
     """Eigenvalues of a model's Jacobian at its steady spin about a principal axis.
 
     The linearised motion about the equilibrium ``y*`` (:meth:`tumble.physics.models.Model.equilibrium`) is
-    ``δy' = J δy``, ``J = ∂f/∂y (y*)`` (the model's analytic :meth:`~tumble.physics.models.Model.jacobian`): a
-    perturbation is a sum of modes ``exp(λ t)``. Real parts are growth rates (1/s), imaginary parts angular
-    frequencies in the body frame (rad/s).
+    ``δy' = J δy``, ``J = ∂f/∂y (y*)`` (the model's analytic
+    :meth:`~tumble.physics.models.Model.tangent_jacobian`: its :meth:`~tumble.physics.models.Model.jacobian`, but
+    for a gravity gradient, linearised in the 3 angles of the attitude error instead of the quaternion's 4
+    components, whose norm is a constraint): a perturbation is a sum of modes ``exp(λ t)``. Real parts are growth
+    rates (1/s), imaginary parts angular frequencies in the body frame (rad/s). A damper's steady spins form a
+    line (any rate ``W``): one ``λ`` is 0, a neutral direction :func:`linear` does not count.
 
     Parameters
     ----------
@@ -271,7 +285,8 @@ def eigenvalues(model, axis, spin=1.0):
     Returns
     -------
     ndarray of complex, shape (..., n)
-        ``numpy.linalg.eigvals`` of the Jacobian, ``n = model.state_size``, in LAPACK's order.
+        ``numpy.linalg.eigvals`` of the Jacobian, ``n = model.tangent_size`` (the state's size, 6 for a gravity
+        gradient), in LAPACK's order.
 
     Raises
     ------
@@ -298,6 +313,13 @@ def _linear_model(model, axis, spin):
     * ``"neutral"``, ``0.0``, when every ``|λ|`` is round-off (``max|λ| <= EIGEN_RTOL · max|J|``) or there is
       neither growth nor oscillation above round-off.
 
+    With damping (a :class:`~tumble.physics.models.Damper` about its major axis) every mode but the neutral
+    ``λ = 0`` decays, at different rates: the frequency reported is that of the least damped oscillation (largest
+    ``Re λ`` among the ``|Im λ| > EIGEN_RTOL · max|λ|``, the fastest of those within ``EIGEN_RTOL · max|λ|`` of it),
+    the one that remains — the nutation, not the damper's fast relative motion. Without damping every ``Re λ`` is
+    round-off and this is ``max |Im λ|`` as above. A neutral ``λ`` (the damper's line of steady spins, ``|λ|`` and
+    ``Re λ`` round-off) is counted neither as growth nor as an oscillation.
+
     Why ``EIGEN_RTOL = 1e-9`` relative to ``max|λ|``: LAPACK's eigenvalues carry errors of a few ``eps · |J|``
     times each eigenvalue's condition number, so a purely imaginary pair comes out with real parts of order
     ``1e-16 … 1e-13`` of ``|λ|`` (ill-conditioned, very elliptic modes) — a threshold relative to the
@@ -311,7 +333,11 @@ def _linear_model(model, axis, spin):
     lam = np.linalg.eigvals(jac)
     size = np.abs(lam).max(axis=-1)
     growth = lam.real.max(axis=-1)
-    frequency = np.abs(lam.imag).max(axis=-1)
+    tol = EIGEN_RTOL * size[..., None]
+    oscillating = np.abs(lam.imag) > tol
+    lead = np.where(oscillating, lam.real, -np.inf).max(axis=-1)
+    least_damped = oscillating & (lam.real >= lead[..., None] - tol)
+    frequency = np.where(least_damped, np.abs(lam.imag), 0.0).max(axis=-1)
     matrix_scale = np.abs(jac).max(axis=(-2, -1))
     exponential = (growth > EIGEN_RTOL * size) & (size > EIGEN_RTOL * matrix_scale)
     periodic = ~exponential & (frequency > EIGEN_RTOL * size) & (size > EIGEN_RTOL * matrix_scale)
@@ -470,6 +496,210 @@ def sleeping_top_precession(body, mgl, w3, *, rtol=1e-10):
     if np.ndim(plus) == 0:
         return float(plus), float(minus)
     return plus, minus
+
+
+def _orbit(body, orbit_rate):
+    """``(I1, I2, I3, n)`` of a gravity-gradient closed form, checked (``n`` > 0)."""
+    moments = as_moments(body)
+    n = finite_array(orbit_rate, "orbit_rate")
+    if not np.all(n > 0):
+        raise ValueError(f"orbit_rate must be > 0 rad/s, got {n.ravel()[:3].tolist()}")
+    return moments[..., 0], moments[..., 1], moments[..., 2], n
+
+
+def gravity_gradient_k(body):
+    """The inertia ratios of the gravity-gradient problem: ``k1 = (I2 − I3)/I1``, ``k3 = (I2 − I1)/I3``.
+
+    Axes as :class:`tumble.physics.models.GravityGradient`: 1 roll, 2 pitch (orbit normal), 3 yaw (nadir).
+    Hughes, *Spacecraft Attitude Dynamics*, §9.2 (his ``k1``, ``k3`` with the pitch axis 2); the triangle
+    inequality bounds both to ``[−1, 1]``, and every point of that square is a body.
+
+    Parameters
+    ----------
+    body : Body or array_like, shape (..., 3)
+        Principal moments ``(I1, I2, I3)``, kg m².
+
+    Returns
+    -------
+    (k1, k3) : floats or ndarrays, shape (...)
+        Dimensionless.
+    """
+    moments = as_moments(body)
+    i1, i2, i3 = moments[..., 0], moments[..., 1], moments[..., 2]
+    k1, k3 = (i2 - i3) / i1, (i2 - i1) / i3
+    if np.ndim(k1) == 0:
+        return float(k1), float(k3)
+    return k1, k3
+
+
+def gravity_gradient_pitch_frequency(body, orbit_rate):
+    """Linear pitch motion of a gravity-gradient satellite about its orbit-following attitude, closed form.
+
+    The pitch angle ``θ2`` (about the orbit normal) decouples: ``I2 θ2'' + 3 n² (I1 − I3) θ2 = 0`` (Hughes §9.2),
+    so ``w_p² = 3 n² (I1 − I3)/I2``: periodic at ``w_p`` when ``I1 > I3`` (``k1 > k3``), exponential at
+    ``n sqrt(3 (I3 − I1)/I2)`` when ``I1 < I3``, neutral when equal.
+
+    Parameters
+    ----------
+    body : Body or array_like, shape (..., 3)
+        Principal moments ``(I1, I2, I3)`` about roll, pitch, yaw, kg m².
+    orbit_rate : float or array_like
+        ``n``, rad/s, > 0; broadcast with the body's leading shape.
+
+    Returns
+    -------
+    kind : str or ndarray of str
+    value : float or ndarray
+        Angular frequency (rad/s) or growth rate (1/s).
+
+    Raises
+    ------
+    ValueError
+        Invalid moments; ``orbit_rate`` not finite and > 0.
+    """
+    i1, i2, i3, n = _orbit(body, orbit_rate)
+    p = 3.0 * (i1 - i3) / i2
+    value = n * np.sqrt(np.abs(p))
+    kind = np.broadcast_to(_kind_of(p), np.shape(value))
+    if np.ndim(value) == 0:
+        return str(kind), float(value)
+    return kind, value
+
+
+def gravity_gradient_roll_yaw(body, orbit_rate):
+    """The four exponents ``s`` of the linear roll-yaw motion of a gravity-gradient satellite, closed form.
+
+    Roll ``θ1`` and yaw ``θ3`` couple through the orbit's rotation (Hughes §9.2):
+    ``θ1'' + n (k1 − 1) θ3' + 4 n² k1 θ1 = 0``, ``θ3'' + n (1 − k3) θ1' + n² k3 θ3 = 0``, whose characteristic
+    equation is ``s⁴ + n² (1 + 3 k1 + k1 k3) s² + 4 n⁴ k1 k3 = 0`` (``k1``, ``k3``: :func:`gravity_gradient_k`).
+    The two roots ``x = s²`` of the quadratic are taken without cancellation (``x_small = c / x_large``).
+
+    Parameters
+    ----------
+    body : Body or array_like, shape (..., 3)
+        Principal moments ``(I1, I2, I3)``, kg m².
+    orbit_rate : float or array_like
+        ``n``, rad/s, > 0.
+
+    Returns
+    -------
+    ndarray of complex, shape (..., 4)
+        ``(+sqrt(x1), −sqrt(x1), +sqrt(x2), −sqrt(x2))``, 1/s: real parts are growth rates, imaginary parts
+        angular frequencies (stable: all four on the imaginary axis).
+
+    Raises
+    ------
+    ValueError
+        Invalid moments; ``orbit_rate`` not finite and > 0.
+    """
+    i1, i2, i3, n = _orbit(body, orbit_rate)
+    k1, k3 = (i2 - i3) / i1, (i2 - i1) / i3
+    b = (1.0 + 3.0 * k1 + k1 * k3) * n * n
+    c = 4.0 * k1 * k3 * n ** 4
+    root = np.sqrt((b * b - 4.0 * c).astype(complex))
+    large = -0.5 * (b + np.where(b >= 0, 1.0, -1.0) * root)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        small = np.where(large != 0, c / np.where(large != 0, large, 1.0), 0.0)
+    s1, s2 = np.sqrt(large + 0j), np.sqrt(small + 0j)
+    return np.stack([s1, -s1, s2, -s2], axis=-1)
+
+
+def gravity_gradient_stable(k1, k3):
+    """Whether the orbit-following attitude is linearly stable (strictly), from ``k1``, ``k3``.
+
+    Stable iff all three hold (Hughes §9.2): ``k1 > k3`` (pitch: ``I1 > I3``), ``k1 k3 > 0`` and
+    ``1 + 3 k1 + k1 k3 > 4 sqrt(k1 k3)`` (roll-yaw: both roots ``s²`` real and negative). The stable set is two
+    regions (:func:`gravity_gradient_region`): Lagrange's, ``k1 > k3 > 0`` (``I2 > I1 > I3``: pitch axis major,
+    yaw minor), where the third condition always holds; and DeBra–Delp's, ``0 > k1 > k3`` with the third condition
+    (``I1 > I3 > I2``: roll axis major, pitch minor), a thin strip next to ``k1 = 0``. A point on a boundary is
+    marginal, not stable.
+
+    Parameters
+    ----------
+    k1, k3 : float or array_like
+        :func:`gravity_gradient_k`; broadcast together.
+
+    Returns
+    -------
+    bool or ndarray of bool
+    """
+    k1, k3 = np.asarray(k1, dtype=float), np.asarray(k3, dtype=float)
+    product = k1 * k3
+    with np.errstate(invalid="ignore"):
+        stable = (k1 > k3) & (product > 0) & (1.0 + 3.0 * k1 + product > 4.0 * np.sqrt(np.maximum(product, 0.0)))
+    return bool(stable) if stable.ndim == 0 else stable
+
+
+#: The regions of :func:`gravity_gradient_region`.
+GRAVITY_GRADIENT_REGIONS = ("lagrange", "debra_delp", "unstable")
+
+
+def gravity_gradient_region(k1, k3):
+    """Which region of the ``(k1, k3)`` plane: ``"lagrange"`` (stable, ``k1 > k3 > 0``), ``"debra_delp"`` (stable,
+    ``0 > k1 > k3``) or ``"unstable"`` (anything else, boundaries included); see :func:`gravity_gradient_stable`.
+
+    Returns
+    -------
+    str or ndarray of str, shape of ``k1`` and ``k3`` broadcast
+    """
+    k1 = np.asarray(k1, dtype=float)
+    stable = np.asarray(gravity_gradient_stable(k1, k3))
+    region = np.where(stable, np.where(k1 > 0, GRAVITY_GRADIENT_REGIONS[0], GRAVITY_GRADIENT_REGIONS[1]),
+                      GRAVITY_GRADIENT_REGIONS[2])
+    return str(region) if region.ndim == 0 else region
+
+
+def damper_nutation_rate(body, damper_inertia, damping, axis):
+    """Growth rate of the nutation of a body with a weakly damped spherical damper, to first order in ``c``.
+
+    Spin ``s = w = W e_a`` (:class:`tumble.physics.models.Damper`), ``(a, b, c)`` cyclic:
+
+    ``σ = (c/2) (2/I_a − 1/I_b − 1/I_c)``  (1/s)
+
+    > 0 about the minor axis (slow growth: the nutation widens until the body turns over to its major axis),
+    < 0 about the major axis (decay): the major-axis rule. Derivation (first-order perturbation of the undamped
+    eigenvalue ``λ0 = iν``, ``ν² = W² (I_a − I_b)(I_a − I_c)/(I_b I_c)``, ``λ1 = l A1 r / (l r)`` with ``l``, ``r``
+    its left and right eigenvectors of the undamped linearisation and ``A1`` the damping's part): at ``c = 0``
+    the body's transverse ``δw`` is the free body's nutation ``r_w = (a_bc, iν)``, ``a_bc = (I_b − I_c) W / I_b``,
+    and forces the sphere's ``δs`` (turning at ``W`` in the body frame); ``l = (a_cb, iν, 0, 0)`` has no sphere part
+    since the sphere does not act on the body at ``c = 0``. Then ``l A1 r`` is the body's friction on the
+    relative motion, ``(δs − δw)_b / I_b`` and ``_c / I_c``, with ``W² − ν² = W² I_a (I_b + I_c − I_a)/(I_b I_c)`` in
+    the sphere's response; the common factor ``I_b + I_c − I_a`` cancels and ``λ1`` is real,
+    ``(2 I_b I_c − I_a (I_b + I_c)) / (2 I_a I_b I_c)``. ``J`` and ``W`` drop out: for weak damping the sphere keeps
+    its inertial spin, so the relative motion is fixed by the body's nutation alone. The next term is of order
+    ``c²``: the relative error goes as ``(c / (J W))²`` (measured against the Jacobian's eigenvalues for
+    ``I = (2, 2.5, 1)``, ``J = 0.1``, minor axis: 6 %, 0.06 %, 6e-6 at ``c / (J W) = 0.1, 0.01, 0.001``). Kane & Levinson, *Spacecraft
+    Dynamics*, §5.6 treat the same damper; the energy-sink argument (Hughes §7.5) gives the sign.
+
+    Parameters
+    ----------
+    body : Body or array_like, shape (..., 3)
+        Principal moments without the sphere, kg m².
+    damper_inertia : float or array_like
+        ``J``, kg m², > 0 (checked; it does not enter at this order).
+    damping : float or array_like
+        ``c``, N m s, > 0.
+    axis : int or array_like of int
+        Spin axis, 1-based.
+
+    Returns
+    -------
+    float or ndarray
+        ``σ``, 1/s.
+
+    Raises
+    ------
+    ValueError
+        Invalid moments or axis; ``damper_inertia`` or ``damping`` not finite and > 0 (named).
+    """
+    moments = as_moments(body)
+    k = _axis_index(axis)
+    for name, value in (("damper_inertia", damper_inertia), ("damping", damping)):
+        if not np.all(finite_array(value, name) > 0):
+            raise ValueError(f"{name} must be > 0, got {value!r}")
+    ia, ib, ic = _pick(moments, k), _pick(moments, (k + 1) % 3), _pick(moments, (k + 2) % 3)
+    rate = 0.5 * np.asarray(damping, dtype=float) * (2.0 / ia - 1.0 / ib - 1.0 / ic)
+    return float(rate) if np.ndim(rate) == 0 else rate
 
 
 def _symmetric_pair(moments, axis, rtol):
