@@ -1,10 +1,27 @@
 """Shared fixtures. Kernels are cached on disk by numba; the session fixture below compiles each kernel
-variant the suite uses once, up front, so individual tests measure physics, not the JIT."""
+variant the suite uses once, up front, so individual tests measure physics, not the JIT.
 
-import numpy as np
+Bytecode is cached even where ``PYTHONDONTWRITEBYTECODE`` is set (as on our CI machines): otherwise every run
+compiles tumble's modules and rewrites the assertions of every test module again, about 11 s per test worker
+(measured, 2 cores); ``__pycache__`` is git-ignored."""
+
+import sys
+
+sys.dont_write_bytecode = False  # before tumble and the test modules are imported
+
+import os  # noqa: E402
+
+import numba  # noqa: E402
+import numpy as np  # noqa: E402
 import pytest
 
-import tumble
+import tumble  # noqa: E402
+
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    # The suite runs on two worker processes (pyproject's addopts), one per core: each runs numba's parallel kernels
+    # on one thread unless a test asks for more, so that the two do not oversubscribe the cores (numba's OpenMP
+    # threads spin while they wait). Tests of thread counts set theirs explicitly.
+    numba.set_num_threads(1)
 
 
 @pytest.fixture(scope="session")

@@ -411,18 +411,18 @@ def test_weakly_damped_nutation_rate_matches_the_first_order_formula():
 
 
 def test_minor_axis_nutation_of_an_integration_grows_at_the_linear_rate():
-    model = Damper((2.0, 2.5, 1.0), 0.1, 0.01)
+    model = Damper((2.0, 2.5, 1.0), 0.1, 0.05)  # damping strong enough that e^8 takes a few hundred nutations
     kind, rate = linear(model, 3, 1.0)
     assert kind == "exponential"
     y0 = model.equilibrium(3, 1.0)
     y0[0] += 1e-7
     t_end = 8.0 / rate  # the norm grows by e^8, to about 3e-4 rad/s: still linear
-    t = np.linspace(0.3 * t_end, t_end, 4000)  # after the damper's relative motion (rate ~ c / J) has decayed
+    t = np.linspace(0.3 * t_end, t_end, 800)  # after the damper's relative motion (rate ~ c / J) has decayed
     sol = solve_ivp(lambda t, y: model.rhs(y), (0, t_end), y0, method="DOP853", rtol=1e-11, atol=1e-16, t_eval=t)
     assert sol.success
     norm = model.transverse_norm(sol.y.T, 3, 1.0)
     measured = np.polyfit(t, np.log(norm), 1)[0]
-    assert measured == pytest.approx(rate, rel=1e-3)  # measured: 8e-7
+    assert measured == pytest.approx(rate, rel=1e-3)
     assert norm[-1] < 1e-2
 
 
