@@ -425,7 +425,7 @@ def test_eigenvalues_need_a_model():
 
 
 def test_physics_only_models_are_built_but_not_marked_implemented_for_studies():
-    # issue 19 (physics layer): the gravity gradient and the damper have classes, no kernels nor studies yet
+    # issue 19: the gravity gradient and the damper have classes and kernels (kernels.MODEL_CODES), no studies yet
     for kind in ("gravity_gradient", "damper"):
         spec = registry.model_kind(kind)
         assert spec.physics and not spec.implemented

@@ -123,14 +123,12 @@ def test_the_new_models_are_physics_only_and_follow_their_registry_rows():
         assert from_kind(model.kind, model.moments, **model.parameters) == model
 
 
-def test_the_model_kernels_still_refuse_the_physics_only_models():
-    from tumble.engine.models import (
-        run_model_ensemble,  # refused before any kernel is called
-    )
+def test_the_model_kernels_have_codes_for_the_new_models_but_studies_do_not_run_them():
+    """Issue 19's kernels step both models (tests/test_model_kernels_19.py); the studies still refuse them."""
+    from tumble.kernels import MODEL_CODES
 
-    model = GravityGradient((2.0, 3.0, 1.5), 1e-3)
-    with pytest.raises(ValueError, match="model"):
-        run_model_ensemble(model, model.equilibrium(2)[None], 1.0, 0.1, axis=2)
+    assert {"gravity_gradient", "damper"} <= set(MODEL_CODES)
+    assert not registry.model_kind("gravity_gradient").implemented and not registry.model_kind("damper").implemented
 
 
 @pytest.mark.parametrize("build, field", [

@@ -214,7 +214,8 @@ class Model(NamedTuple):
     parameters: tuple  # study keys of its numeric parameters (MODEL_PARAMETERS), in order
     state: tuple  # names of the state components, in order (w1, w2, w3 first)
     invariants: tuple  # names of the quantities the motion conserves
-    implemented: bool  # True: the kernels step it and studies run it; False: reserved there (name, keys, state fixed)
+    implemented: bool  # True: studies run it; False: reserved there (name, keys, state fixed; kernels.MODEL_CODES
+    # says which models the kernels step, these included)
     physics: bool  # True: a class in physics/models.py (rhs, analytic Jacobian, invariants, linear theory)
     text: str
 

@@ -1,11 +1,13 @@
 """Ensembles of the models beyond the free body (issue 18): arguments checked, samples in chunks, the model kernels.
 
 :func:`run_model_ensemble` is :func:`tumble.engine.ensemble.run_ensemble` for a model of
-:mod:`tumble.physics.models` (a free body, a gyrostat, a heavy top): the same chunks of samples and observers
+:mod:`tumble.physics.models` (a free body, a gyrostat, a heavy top, a gravity-gradient satellite, a body with a
+damper): the same chunks of samples and observers
 (final state, decimated trajectory, the transverse norm at probe times, the invariants' drift, a status per
 sample), stepped by the models' SIMD kernels (:func:`tumble.kernels.run_model`: rk4 or rk8, one compiled driver
 for every model). The transverse norm is the model's own (:meth:`~tumble.physics.models.Model.transverse`, about
-:meth:`~tumble.physics.models.Model.equilibrium`). Initial states near a steady spin come from
+:meth:`~tumble.physics.models.Model.equilibrium`; the gravity gradient's ``Transverse.centre``, ``w2 = −n``, is that
+equilibrium's). Initial states near a steady spin come from
 :func:`tumble.engine.sampling.perturbed_states`.
 """
 
@@ -98,16 +100,20 @@ def run_model_ensemble(model, y0, t_end, dt, *, method="rk4", axis, spin=None, s
     Parameters
     ----------
     model : tumble.physics.models.Model
-        ``FreeBody``, ``Gyrostat`` or ``HeavyTop``.
+        ``FreeBody``, ``Gyrostat``, ``HeavyTop``, ``GravityGradient`` or ``Damper`` (the kernels step every model
+        with a kernel code, ``tumble.kernels.MODEL_CODES``; studies only the ``implemented`` ones of the registry).
     y0 : array_like, shape (N, n_state)
         Initial states (``n_state = model.state_size``): ``w`` (rad/s), then the model's own components (the heavy
-        top's unit up vector ``g``). A sample with a non-finite component is not run: its status is non-finite.
+        top's unit up vector ``g``, the gravity gradient's unit quaternion ``q`` relative to the orbit frame, put
+        back on the unit sphere after every step, the damper sphere's ``s``, rad/s). A sample with a non-finite
+        component is not run: its status is non-finite.
     t_end, dt : float
         Horizon and step, s; ``round(t_end / dt)`` steps are taken.
     method : {"rk4", "rk8"}
     axis : {1, 2, 3}
         The steady spin's axis, 1-based: the transverse norm (the probes) measures the perturbation of the spin
-        about it (:meth:`~tumble.physics.models.Model.transverse`). A heavy top: 3.
+        about it (:meth:`~tumble.physics.models.Model.transverse`). A heavy top: 3; a gravity gradient: any (its
+        equilibrium follows the orbit, ``w = (0, −n, 0)``, ``q = 1``, whatever the axis).
     spin : float, optional
         The steady spin, rad/s (a gyrostat's norm weights depend on it); default: the median of ``y0[:, axis - 1]``.
     save_every : int, optional
@@ -141,11 +147,13 @@ def run_model_ensemble(model, y0, t_end, dt, *, method="rk4", axis, spin=None, s
     drift, final = _flag(drift, "drift"), _flag(final, "final")
     transverse = model.transverse(axis, spin)
     y_eq = model.equilibrium(axis, spin) if probe_times is not None else None
+    if y_eq is not None and transverse.centre is not None:  # the kernels subtract y_eq: it must be the norm's centre
+        assert np.array_equal(y_eq[transverse.columns], transverse.centre), (y_eq, transverse)
     n, n_state = y0.shape
     n_steps = int(round(t_end / dt)) if t_end > 0 else 0
     save = int(save_every or 0)
     times, probe_steps, probe_times = observation_times(t_end, dt, save, probe_times)
-    parameters = {"rotor": getattr(model, "rotor", (0.0, 0.0, 0.0)), "mgl": getattr(model, "mgl", 0.0)}
+    parameters = model.parameters  # the kernels' keywords are the study keys (registry.MODEL_PARAMETERS)
     n_invariants = len(model.spec.invariants)
     out_final = np.empty((n, n_state)) if final else None
     trajectory = np.empty((n, len(times), n_state)) if save else None

@@ -362,6 +362,43 @@ def _up_entropy(entropy):
     return sum(int(word) << (32 * i) for i, word in enumerate(words))
 
 
+#: The spawn key of the streams that tilt a gravity-gradient satellite's attitude: chunk ``j`` draws from
+#: ``SeedSequence(entropy, spawn_key=(j, 2))`` (two entries: none of :func:`perturbed_spins`' chunk keys ``(j,)``,
+#: nor the up vector's ``(0, 1)``).
+_ATTITUDE_SPAWN = 2
+
+
+def _chunk_attitudes(entropy, j, distribution, amplitude):
+    """Chunk ``j``'s attitudes (CHUNK, 4): ``(cos(θ/2), sin(θ/2) u)``, ``u`` uniform on the sphere, ``θ`` the tilt.
+
+    One ``rng.random((CHUNK, 3))`` block per chunk, always whole (slices are then the same bits): ``u`` from the
+    first two uniforms (``u3 = 1 − 2 v``, azimuth ``2π v'``), ``θ`` from the third by :func:`_tilt` (a monotone
+    function of it: ensembles that differ only in ``amplitude`` are coupled sample by sample)."""
+    v = np.random.default_rng(np.random.SeedSequence(entropy=entropy, spawn_key=(j, _ATTITUDE_SPAWN))).random(
+        (CHUNK, 3))
+    z = 1.0 - 2.0 * v[:, 0]
+    r = np.sqrt(np.maximum(0.0, (1.0 - z) * (1.0 + z)))
+    phi = (2.0 * np.pi) * v[:, 1]
+    half = 0.5 * _tilt(v[:, 2], distribution, amplitude)
+    s = np.sin(half)
+    return np.stack([np.cos(half), s * r * np.cos(phi), s * r * np.sin(phi), s * z], axis=-1)
+
+
+def _tilted_attitudes(model, amplitude, samples, entropy, distribution, start, stop):
+    """Rows ``[start, stop)`` of a gravity-gradient ensemble: the attitude tilted, ``w`` following the orbit."""
+    if stop is None:
+        stop = samples
+    out = np.empty((stop - start, 7))
+    chunks = range(start // CHUNK, -(-stop // CHUNK)) if stop > start else range(0)
+    for j in chunks:
+        lo = j * CHUNK
+        keep_lo, keep_hi = max(lo, start), min(lo + CHUNK, stop)
+        q = _chunk_attitudes(entropy, j, distribution, amplitude)[keep_lo - lo:keep_hi - lo]
+        out[keep_lo - start:keep_hi - start, 3:] = q
+        out[keep_lo - start:keep_hi - start, :3] = model.following_velocity(q)
+    return out
+
+
 def perturbed_states(model, axis, spin=1.0, amplitude=1e-3, samples=1024, *, up_amplitude=None, seed=0,
                      distribution="cone", start=0, stop=None):
     # size: a public call: each keyword is a documented sampling option (the up vector's tilt, the sample range)
@@ -371,6 +408,12 @@ def perturbed_states(model, axis, spin=1.0, amplitude=1e-3, samples=1024, *, up_
     The angular velocity is :func:`perturbed_spins` of the model's moments (no constraint): the steady spin tilted
     by ``amplitude``. A heavy top's up vector ``g`` (its state's components 3-5) is ``e3`` tilted by an
     independent angle of scale ``up_amplitude`` (the same distribution, a random stream derived from the seed).
+    A damper's sphere moves with the body: ``s = w``. A gravity-gradient satellite's attitude relative to the orbit
+    frame is tilted by ``amplitude`` (the distribution's angle ``θ``: exactly ``amplitude`` for ``"cone"``) about a
+    uniformly random axis ``u``, ``q = (cos(θ/2), sin(θ/2) u)``, and its ``w`` is the orbit frame's rate at that
+    attitude, ``w = −n c2`` (:meth:`~tumble.physics.models.GravityGradient.following_velocity`: the body does not
+    turn relative to the orbit frame at first); ``axis`` and ``spin`` are not used (checked as by its
+    :meth:`~tumble.physics.models.GravityGradient.equilibrium`), the draw is its own stream of the seed.
     Other components are the equilibrium's (:meth:`tumble.physics.models.Model.equilibrium`). As for
     :func:`perturbed_spins`, sample ``i`` depends only on the seed, ``i`` and the physical arguments:
     ``start``/``stop`` give bit for bit the rows of the whole draw.
@@ -378,7 +421,7 @@ def perturbed_states(model, axis, spin=1.0, amplitude=1e-3, samples=1024, *, up_
     Parameters
     ----------
     model : tumble.physics.models.Model
-        A free body, gyrostat or heavy top.
+        A free body, gyrostat, heavy top, gravity-gradient satellite or body with a damper.
     axis : {1, 2, 3}
         The steady spin's axis, 1-based (a heavy top: 3; a gyrostat: the axis its rotor lies along).
     spin : float
@@ -408,15 +451,23 @@ def perturbed_states(model, axis, spin=1.0, amplitude=1e-3, samples=1024, *, up_
         :func:`perturbed_spins` refuses (named in the message).
     """
     if not isinstance(model, Model):
-        raise ValueError(f"model must be a tumble.physics.models model (FreeBody, Gyrostat, HeavyTop), got "
-                         f"{type(model).__name__}")
+        raise ValueError(f"model must be a tumble.physics.models model (FreeBody, Gyrostat, HeavyTop, "
+                         f"GravityGradient, Damper), got {type(model).__name__}")
+    if model.kind == "gravity_gradient":
+        model.equilibrium(axis, spin)
+        # the sampling arguments checked (and the seed's entropy drawn) as for every model; the spins are not used
+        _, entropy = perturbed_spins(model.moments, 3, 1.0, amplitude, samples, seed=seed, distribution=distribution,
+                                     start=start, stop=stop, return_entropy=True)
+        return _tilted_attitudes(model, amplitude, samples, entropy, distribution, start, stop)
     equilibrium = model.equilibrium(axis, 1.0)
     w, entropy = perturbed_spins(model.moments, axis, spin, amplitude, samples, seed=seed, distribution=distribution,
                                  start=start, stop=stop, return_entropy=True)
     states = np.empty((len(w), model.state_size))
     states[:] = equilibrium
     states[:, :3] = w
-    if model.state_size > 3:  # the heavy top's up vector: e3 tilted
+    if model.kind == "damper":  # the sphere moves with the body
+        states[:, 3:6] = w
+    elif model.state_size > 3:  # the heavy top's up vector: e3 tilted
         tilt = amplitude if up_amplitude is None else _scalar(up_amplitude, "up_amplitude")
         states[:, 3:6] = perturbed_spins(model.moments, 3, 1.0, tilt, samples, seed=_up_entropy(entropy),
                                          distribution=distribution, start=start, stop=stop)

@@ -4,7 +4,9 @@ As :mod:`tumble.kernels.codegen` does for the free body: a sample's whole step i
 coefficients as literals, so that the loop over the samples of a block keeps the state in registers and
 vectorises across samples; the tables stay the single source of truth and a test checks that the committed module
 is what this generator writes. One step per (right-hand side, method): the gyrostat's rate (which is also the
-free body's, ``h = 0``) and the heavy top's. Regenerate with::
+free body's, ``h = 0``), the heavy top's, the gravity gradient's (whose block loop puts the quaternion back on the
+unit sphere after each step: :func:`tumble.kernels.model_rates.gravity_gradient_unit`) and the damper's. Regenerate
+with::
 
     python tumble/kernels/model_codegen.py
 """
@@ -18,9 +20,13 @@ else:  # run as a script: import the tables beside this file without importing t
 
 TARGET = Path(__file__).with_name("model_steps.py")
 
-#: (name, state components, rate function of :mod:`tumble.kernels.model_rates`)
-RATES = (("gyrostat", ("w1", "w2", "w3"), "gyrostat_rate"),
-         ("heavy_top", ("w1", "w2", "w3", "g1", "g2", "g3"), "heavy_top_rate"))
+#: (name, state components, rate function of :mod:`tumble.kernels.model_rates`, the function that projects a
+#: sample's state after each step or None)
+RATES = (("gyrostat", ("w1", "w2", "w3"), "gyrostat_rate", None),
+         ("heavy_top", ("w1", "w2", "w3", "g1", "g2", "g3"), "heavy_top_rate", None),
+         ("gravity_gradient", ("w1", "w2", "w3", "q0", "q1", "q2", "q3"), "gravity_gradient_rate",
+          "gravity_gradient_unit"),
+         ("damper", ("w1", "w2", "w3", "s1", "s2", "s3"), "damper_rate", None))
 
 #: The methods with generated steps (their kernel ids are their indices in ``registry.STEPPING``).
 METHODS = (tableaux.RK4, tableaux.RK8)
@@ -56,22 +62,34 @@ def step_source(tableau, name, components, rate):
     return "\n".join(lines)
 
 
-def block_source(tableau, name, components):
-    """Source of ``<name>_<method>_block(y1, ..., h, c)``: every sample of a block advanced by one step."""
+def block_source(tableau, name, components, project=None):
+    """Source of ``<name>_<method>_block(y1, ..., h, c)``: every sample of a block advanced by one step (then
+    projected by ``project(*components)`` when one is given)."""
     arrays = ", ".join(f"y{i + 1}" for i in range(len(components)))
     items = ", ".join(f"y{i + 1}[i]" for i in range(len(components)))
+    if project is None:
+        return "\n".join([
+            "@jit",
+            f"def {name}_{tableau.name}_block({arrays}, h, c):",
+            f'    """Advance every sample of a block by one {tableau.name} step of the {name}."""',
+            "    for i in range(y1.shape[0]):",
+            f"        {items} = {name}_{tableau.name}_sample({items}, h, c)",
+        ])
+    values = ", ".join(components)
     return "\n".join([
         "@jit",
         f"def {name}_{tableau.name}_block({arrays}, h, c):",
-        f'    """Advance every sample of a block by one {tableau.name} step of the {name}."""',
+        "    # size: generated: one array per state component (the block's rows), the step and the constants",
+        f'    """Advance every sample of a block by one {tableau.name} step of the {name}, then {project}."""',
         "    for i in range(y1.shape[0]):",
-        f"        {items} = {name}_{tableau.name}_sample({items}, h, c)",
+        f"        {values} = {name}_{tableau.name}_sample({items}, h, c)",
+        f"        {items} = {project}({values})",
     ])
 
 
 def module_source():
     """The whole text of :mod:`tumble.kernels.model_steps`."""
-    rates = ", ".join(sorted(rate for _, _, rate in RATES))
+    rates = ", ".join(sorted([rate for _, _, rate, _ in RATES] + [p for _, _, _, p in RATES if p]))
     blocks = [
         '"""Per-sample rk4 and rk8 steps of the models, and the loop over a block for each.',
         "",
@@ -81,10 +99,10 @@ def module_source():
         "from .jit import jit",
         f"from .model_rates import {rates}",
     ]
-    for name, components, rate in RATES:
+    for name, components, rate, project in RATES:
         for tableau in METHODS:
-            blocks += ["", "", step_source(tableau, name, components, rate), "", "", block_source(tableau, name,
-                                                                                              components)]
+            blocks += ["", "", step_source(tableau, name, components, rate), "", "",
+                       block_source(tableau, name, components, project)]
     blocks.append("")
     return "\n".join(blocks)
 

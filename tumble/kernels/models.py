@@ -1,7 +1,8 @@
 """The models' ensemble kernels: one parallel driver for every model and method, observers on the fly (issue 18).
 
-The state of every sample is a column of ``y`` (shape ``(n_state, N)``: the model's components as
-``registry.MODELS`` lists them, ``w1 w2 w3`` first, then the heavy top's ``g1 g2 g3``). As in the free body's
+The state of every sample is a column of ``y`` (shape ``(n_state, N)``, ``n_state`` up to 7: the model's components
+as ``registry.MODELS`` lists them, ``w1 w2 w3`` first, then the heavy top's ``g1 g2 g3``, the gravity gradient's
+``q0 q1 q2 q3`` or the damper's ``s1 s2 s3``). As in the free body's
 driver (:mod:`tumble.kernels.drivers`) the samples are cut into blocks that run in parallel (``prange``); each
 block is copied into contiguous component rows (structure of arrays) and the generated per-sample step
 (:mod:`tumble.kernels.model_steps`, from the Butcher tableaux of :mod:`tumble.kernels.tableaux`) runs in a loop
@@ -10,16 +11,25 @@ over the block's samples that the compiler vectorises across samples (SIMD lanes
 **One compiled variant.** The model and the method are runtime codes, tested once per block and step, outside the
 loop over the samples; the observers are runtime switches on arrays that are empty when not asked for; a model's
 parameters are one float array of a single layout (:func:`tumble.kernels.model_rates.model_constants`). So one
-compiled (and cached) driver serves the free body, the gyrostat and the heavy top, rk4 and rk8, and every
-combination of outputs. The free body runs as the gyrostat with ``h = 0`` (the free body keeps its own, faster
+compiled (and cached) driver serves the free body, the gyrostat, the heavy top, the gravity gradient and the damper,
+rk4 and rk8, and every combination of outputs. The free body runs as the gyrostat with ``h = 0`` (the free body keeps its own, faster
 driver for everything else: :func:`tumble.kernels.run`).
 
 **Observers.** The final state (in place); the state every ``save_every`` steps; the transverse norm
 ``sqrt(sum_j weights[j] (y[columns[j]] − y_eq[columns[j]])²)`` at given steps (the arrays of
 :class:`tumble.physics.models.Transverse`); the running maximum of each invariant's drift ``|x − x0| / scale0``
-(:func:`tumble.kernels.model_rates.gyrostat_invariants`, :func:`~tumble.kernels.model_rates.heavy_top_invariants`:
-the scale is the invariant itself where it is sign-definite, else the largest magnitude it can take, so that an
-invariant that starts at 0 does not divide by 0).
+(the ``*_invariants`` of :mod:`tumble.kernels.model_rates`: the scale is the invariant itself where it is
+sign-definite, else the largest magnitude it can take, so that an invariant that starts at 0 does not divide by 0;
+the gravity gradient's Jacobi integral: the sum of its three terms' magnitudes; the damper tracks ``|L|²`` only, its
+energy decays).
+
+**Gravity gradient.** The quaternion is divided by its norm after every step (in the generated block loop): the
+right-hand side keeps ``|q|`` exactly but rk4 and rk8 only to their order, and off the unit sphere the attitude rows
+``c2``, ``c3`` of the torque and of ``w + n c2`` are no rotation's. A projection after each step keeps the method's
+order and puts every observer (probes, trajectory, drifts) on the unit sphere; the ``|q|²`` drift then reports round-off
+(and a non-unit initial quaternion, rescaled by the first step). The probes' ``y_eq`` is the orbit-following
+equilibrium ``w = (0, −n, 0)``, ``q = (1, 0, 0, 0)``: subtracting it from the norm's columns ``(w1, w2, w3, q1, q2,
+q3)`` is the ``Transverse.centre`` of the physics layer.
 
 **Status.** ``STATUS_OK``, ``STATUS_NONFINITE`` (a component NaN or infinite, checked before the first step, every
 :data:`CHECK_EVERY` steps, at the end, and every step while drifts are tracked) or ``STATUS_DRIFT`` (a drift beyond
@@ -38,6 +48,10 @@ from .jit import jit
 from .model_rates import (
     N_CONSTANTS,
     N_INVARIANTS,
+    damper_invariants,
+    damper_rate,
+    gravity_gradient_invariants,
+    gravity_gradient_rate,
     gyrostat_invariants,
     gyrostat_rate,
     heavy_top_invariants,
@@ -45,6 +59,10 @@ from .model_rates import (
     model_constants,
 )
 from .model_steps import (
+    damper_rk4_block,
+    damper_rk8_block,
+    gravity_gradient_rk4_block,
+    gravity_gradient_rk8_block,
     gyrostat_rk4_block,
     gyrostat_rk8_block,
     heavy_top_rk4_block,
@@ -54,9 +72,13 @@ from .model_steps import (
 __all__ = ["MODEL_CODES", "MODEL_METHODS", "ModelObserved", "model_constants", "model_rhs", "propagate_model",
            "run_model"]
 
-#: Kernel codes of the models: their index in ``registry.MODEL_KINDS``.
-MODEL_FREE, MODEL_GYROSTAT, MODEL_HEAVY_TOP = (MODEL_KINDS.index(k) for k in ("free", "gyrostat", "heavy_top"))
-MODEL_CODES = {"free": MODEL_FREE, "gyrostat": MODEL_GYROSTAT, "heavy_top": MODEL_HEAVY_TOP}
+#: Kernel codes of the models: their index in ``registry.MODEL_KINDS``. The kernels step every model of this table,
+#: whatever ``registry.MODELS``' ``implemented`` says (that flag is the studies'; the gravity gradient and the damper
+#: have kernels before they have studies).
+MODEL_FREE, MODEL_GYROSTAT, MODEL_HEAVY_TOP, MODEL_GRAVITY_GRADIENT, MODEL_DAMPER = (
+    MODEL_KINDS.index(k) for k in ("free", "gyrostat", "heavy_top", "gravity_gradient", "damper"))
+MODEL_CODES = {"free": MODEL_FREE, "gyrostat": MODEL_GYROSTAT, "heavy_top": MODEL_HEAVY_TOP,
+               "gravity_gradient": MODEL_GRAVITY_GRADIENT, "damper": MODEL_DAMPER}
 
 #: The methods the model kernels run, by name: kernel id (index in ``registry.STEPPING``, as the free body's).
 MODEL_METHODS = {name: STEPPING.index(name) for name in ("rk4", "rk8")}
@@ -75,7 +97,7 @@ _TINY = 2.2250738585072014e-308  # smallest normal float: a zero scale gives a z
 def _constants(a):
     """The constants array as a tuple of scalars (kept in registers by the step loops)."""
     return (a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14], a[15],
-            a[16], a[17])
+            a[16], a[17], a[18], a[19], a[20], a[21], a[22], a[23], a[24], a[25])
 
 
 @jit
@@ -86,6 +108,16 @@ def _step(model, method, ys, h, c):
             heavy_top_rk4_block(ys[0], ys[1], ys[2], ys[3], ys[4], ys[5], h, c)
         else:
             heavy_top_rk8_block(ys[0], ys[1], ys[2], ys[3], ys[4], ys[5], h, c)
+    elif model == MODEL_GRAVITY_GRADIENT:
+        if method == _RK4:
+            gravity_gradient_rk4_block(ys[0], ys[1], ys[2], ys[3], ys[4], ys[5], ys[6], h, c)
+        else:
+            gravity_gradient_rk8_block(ys[0], ys[1], ys[2], ys[3], ys[4], ys[5], ys[6], h, c)
+    elif model == MODEL_DAMPER:
+        if method == _RK4:
+            damper_rk4_block(ys[0], ys[1], ys[2], ys[3], ys[4], ys[5], h, c)
+        else:
+            damper_rk8_block(ys[0], ys[1], ys[2], ys[3], ys[4], ys[5], h, c)
     elif method == _RK4:
         gyrostat_rk4_block(ys[0], ys[1], ys[2], h, c)
     else:
@@ -97,6 +129,10 @@ def _invariants(model, ys, i, c):
     """``(x1, x2, x3, scale1, scale2, scale3)`` of sample ``i`` of a block."""
     if model == MODEL_HEAVY_TOP:
         return heavy_top_invariants(ys[0, i], ys[1, i], ys[2, i], ys[3, i], ys[4, i], ys[5, i], c)
+    if model == MODEL_GRAVITY_GRADIENT:
+        return gravity_gradient_invariants(ys[0, i], ys[1, i], ys[2, i], ys[3, i], ys[4, i], ys[5, i], ys[6, i], c)
+    if model == MODEL_DAMPER:
+        return damper_invariants(ys[0, i], ys[1, i], ys[2, i], ys[3, i], ys[4, i], ys[5, i], c)
     return gyrostat_invariants(ys[0, i], ys[1, i], ys[2, i], c)
 
 
@@ -282,6 +318,14 @@ def _rhs_columns(model, y, constants, out):
             r = heavy_top_rate(y[0, i], y[1, i], y[2, i], y[3, i], y[4, i], y[5, i], c)
             for j in range(6):
                 out[j, i] = r[j]
+        elif model == MODEL_GRAVITY_GRADIENT:
+            r7 = gravity_gradient_rate(y[0, i], y[1, i], y[2, i], y[3, i], y[4, i], y[5, i], y[6, i], c)
+            for j in range(7):
+                out[j, i] = r7[j]
+        elif model == MODEL_DAMPER:
+            r = damper_rate(y[0, i], y[1, i], y[2, i], y[3, i], y[4, i], y[5, i], c)
+            for j in range(6):
+                out[j, i] = r[j]
         else:
             r3 = gyrostat_rate(y[0, i], y[1, i], y[2, i], c)
             for j in range(3):
@@ -298,31 +342,36 @@ class ModelObserved(NamedTuple):
     steps_taken: np.ndarray  # (N,) int64
 
 
-def _kind_constants(kind, moments, rotor, mgl):
-    """``(model code, n_state, constants)``, the moments (and the rotor and mgl with them) divided by the power of
-    two nearest the largest moment: the equations do not change, no bit of the rates or relative drifts does, and
-    the invariants of moments of 1e-170 or 1e200 kg m² stay in range (as :func:`tumble.kernels.methods.run`)."""
+def _kind_constants(kind, moments, parameters):
+    """``(model code, n_state, constants)``, the moments (and the parameters in their units: the rotor, mgl, J and
+    c with them; not the orbit rate) divided by the power of two nearest the largest moment: the equations do not
+    change, no bit of the rates or relative drifts does, and the invariants of moments of 1e-170 or 1e200 kg m² stay
+    in range (as :func:`tumble.kernels.methods.run`). ``parameters``: the model's keywords of :func:`run_model`."""
     if kind not in MODEL_CODES:
         raise ValueError(f"model kind must be one of {', '.join(MODEL_CODES)} for the kernels, got {kind!r}")
     moments = np.asarray(moments, dtype=float)
     unit = math.ldexp(1.0, -math.frexp(float(moments.max()))[1])
-    constants = model_constants(moments * unit, np.asarray(rotor, dtype=float) * unit, float(mgl) * unit)
+    constants = model_constants(moments * unit, np.asarray(parameters["rotor"], dtype=float) * unit,
+                                float(parameters["mgl"]) * unit, float(parameters["orbit_rate"]),
+                                float(parameters["damper_inertia"]) * unit, float(parameters["damping"]) * unit)
     assert constants.shape == (N_CONSTANTS,)
     return MODEL_CODES[kind], len(model_kind(kind).state), constants
 
 
-def model_rhs(kind, y, moments, *, rotor=(0.0, 0.0, 0.0), mgl=0.0):
+def model_rhs(kind, y, moments, *, rotor=(0.0, 0.0, 0.0), mgl=0.0, orbit_rate=0.0, damper_inertia=0.0,
+              damping=0.0):
     """The kernels' right-hand side ``f(y)`` of model ``kind`` at states given as columns (for tests).
 
     Parameters
     ----------
-    kind : {"free", "gyrostat", "heavy_top"}
+    kind : {"free", "gyrostat", "heavy_top", "gravity_gradient", "damper"}
     y : ndarray, shape (n_state, N)
         States (rad/s, then the model's own units).
     moments : array_like, shape (3,)
         Principal moments, kg m².
-    rotor, mgl
-        The gyrostat's ``h`` (N m s) and the heavy top's ``M g l`` (N m).
+    rotor, mgl, orbit_rate, damper_inertia, damping
+        The gyrostat's ``h`` (N m s), the heavy top's ``M g l`` (N m), the gravity gradient's ``n`` (rad/s), the
+        damper's ``J`` (kg m²) and ``c`` (N m s); those the model does not have are ignored.
 
     Returns
     -------
@@ -333,7 +382,8 @@ def model_rhs(kind, y, moments, *, rotor=(0.0, 0.0, 0.0), mgl=0.0):
     ValueError
         An unknown kind or a state of the wrong number of rows.
     """
-    code, n_state, constants = _kind_constants(kind, moments, rotor, mgl)
+    code, n_state, constants = _kind_constants(kind, moments, dict(
+        rotor=rotor, mgl=mgl, orbit_rate=orbit_rate, damper_inertia=damper_inertia, damping=damping))
     y = np.ascontiguousarray(y, dtype=float)
     if y.ndim != 2 or y.shape[0] != n_state:
         raise ValueError(f"y must have shape ({n_state}, N) for a {kind} model, got shape {y.shape}")
@@ -347,25 +397,28 @@ _NO_COLUMNS = np.zeros(0, dtype=np.int64)
 _NO_WEIGHTS = np.zeros(0)
 
 
-def run_model(kind, method, y, moments, h, n_steps, *, rotor=(0.0, 0.0, 0.0), mgl=0.0, save_every=0, columns=None,
-              weights=None, y_eq=None, probe_steps=None, drift=False, drift_limit=0.0, block=BLOCK):
+def run_model(kind, method, y, moments, h, n_steps, *, rotor=(0.0, 0.0, 0.0), mgl=0.0, orbit_rate=0.0,
+              damper_inertia=0.0, damping=0.0, save_every=0, columns=None, weights=None, y_eq=None, probe_steps=None,
+              drift=False, drift_limit=0.0, block=BLOCK):
     # size: the kernels' door for the models: keywords per model parameter and observer, packed here into the
     # driver's flat arrays
     """Integrate an ensemble of a model with rk4 or rk8, observing only what is asked (:func:`propagate_model`).
 
     Parameters
     ----------
-    kind : {"free", "gyrostat", "heavy_top"}
+    kind : {"free", "gyrostat", "heavy_top", "gravity_gradient", "damper"}
     method : {"rk4", "rk8"}
     y : ndarray, shape (n_state, N), float64, C-contiguous
-        Initial states as columns; overwritten with the final states.
+        Initial states as columns; overwritten with the final states (a gravity gradient's quaternions are put on
+        the unit sphere after every step).
     moments : array_like, shape (3,)
         Principal moments, kg m².
     h : float
         Step, s.
     n_steps : int
-    rotor, mgl
-        The gyrostat's ``h`` (N m s, body frame) and the heavy top's ``M g l`` (N m).
+    rotor, mgl, orbit_rate, damper_inertia, damping
+        The gyrostat's ``h`` (N m s, body frame), the heavy top's ``M g l`` (N m), the gravity gradient's orbit rate
+        ``n`` (rad/s), the damper's ``J`` (kg m²) and ``c`` (N m s); those the model does not have are ignored.
     save_every : int
         0 stores no trajectory; k > 0 stores the initial state, every k-th step and the final state.
     columns, weights, y_eq : array_like (k,) int, (k,), (n_state,)
@@ -388,7 +441,8 @@ def run_model(kind, method, y, moments, h, n_steps, *, rotor=(0.0, 0.0, 0.0), mg
     ValueError
         An unknown kind or method, or a state of the wrong number of rows.
     """
-    code, n_state, constants = _kind_constants(kind, moments, rotor, mgl)
+    code, n_state, constants = _kind_constants(kind, moments, dict(
+        rotor=rotor, mgl=mgl, orbit_rate=orbit_rate, damper_inertia=damper_inertia, damping=damping))
     if method not in MODEL_METHODS:
         raise ValueError(f"method must be one of {', '.join(MODEL_METHODS)} for the model kernels, got {method!r}")
     if y.ndim != 2 or y.shape[0] != n_state or y.dtype != np.float64 or not y.flags.c_contiguous:

@@ -15,8 +15,9 @@ State layout (``registry.MODELS``, ``registry.STATE_BLOCKS``): the first three c
 body-frame angular velocity ``w`` (rad/s); the model's own blocks follow, each named by the first letter of its
 components: ``g`` the unit vector pointing up in the body frame (heavy top), ``q`` an attitude quaternion,
 scalar first (gravity gradient), ``s`` an internal body's angular velocity (damper). A kernel finds a block by
-the offsets of ``registry.state_blocks(kind)``. The gravity gradient and the damper are physics only so far
-(``registry.MODELS``' ``implemented`` is False: the kernels and the studies refuse them; ``physics`` is True).
+the offsets of ``registry.state_blocks(kind)``. The gravity gradient and the damper have kernels
+(``tumble.kernels.MODEL_CODES``) but no studies yet (``registry.MODELS``' ``implemented`` is False: the studies
+refuse them; ``physics`` is True).
 
 Models (Landau & Lifshitz, *Mechanics*, §35-§37; Wittenburg, *Dynamics of Multibody Systems*, §3.6 for the
 gyrostat; Arnold, *Mathematical Methods of Classical Mechanics*, §30 and Goldstein §5.7 for the heavy top):
@@ -626,6 +627,14 @@ class GravityGradient(Model):
         jac[..., 3:, 3:] = 0.5 * _omega_right(w_r) + 0.5 * self.orbit_rate * (xi @ d2)
         return jac
 
+    def following_velocity(self, attitude):
+        """The angular velocity ``w = −n c2`` (rad/s, body frame) of a body at ``attitude`` that does not turn
+        relative to the orbit frame (``w_r = 0``), shape (..., 3), for unit quaternions of shape (..., 4)."""
+        q = finite_array(attitude, "attitude")
+        if q.ndim == 0 or q.shape[-1] != 4:
+            raise ValueError(f"attitude must have shape (..., 4) (a quaternion, scalar first), got shape {q.shape}")
+        return -self.orbit_rate * _rows_of_attitude(q)[0]
+
     def tangent_jacobian(self, state):
         """The Jacobian in ``(w, θ)``, shape (..., 6, 6) (1/s): ``θ`` the attitude error in the body frame,
         ``q_perturbed = q ⊗ (1, θ/2)`` to first order (rad).
@@ -810,8 +819,8 @@ class Damper(Model):
 #: Every model with a class here, by kind (``registry.MODELS``' ``physics`` flag).
 CLASSES = {cls.kind: cls for cls in (FreeBody, Gyrostat, HeavyTop, GravityGradient, Damper)}
 
-#: The models the kernels step and studies run (``registry.MODELS``' ``implemented`` flag); the others are physics
-#: only so far (:func:`from_kind` builds them, ``theory.linear`` linearises them).
+#: The models studies run (``registry.MODELS``' ``implemented`` flag); the others have no studies yet (:func:`from_kind`
+#: builds them, ``theory.linear`` linearises them, the kernels step them: ``tumble.kernels.MODEL_CODES``).
 IMPLEMENTED = {kind: cls for kind, cls in CLASSES.items() if registry.model_kind(kind).implemented}
 
 
@@ -822,7 +831,7 @@ def from_kind(kind, body, **parameters):
     ----------
     kind : str
         One of ``registry.MODEL_KINDS``: ``"free"``, ``"gyrostat"``, ``"heavy_top"`` (kernels and studies too),
-        ``"gravity_gradient"``, ``"damper"`` (physics only: the kernels and studies refuse them so far).
+        ``"gravity_gradient"``, ``"damper"`` (kernels too, no studies yet).
     body : Body or array_like, shape (3,)
         Principal moments, kg m².
     **parameters
