@@ -11,12 +11,20 @@ Planning (:func:`scene_plan`):
 
 * kind and ``rate_theory`` from the model's linearisation, :func:`tumble.physics.theory.linear` (the largest real
   part of the Jacobian's eigenvalues, else the largest imaginary part);
-* the step resolves the fastest eigenvalue and the spin (:data:`tumble.measure.scenes.STEPS_PER_RADIAN`);
+* the step resolves the fastest eigenvalue (:data:`tumble.measure.scenes.STEPS_PER_RADIAN`), and a heavy top's spin
+  too (its up vector turns at ``w3`` in the body frame). A gyrostat's spin is no time scale of its body-frame
+  motion: the transverse Jacobian ``[[0, a], [b, 0]]`` has ``J² = ab = -ν²`` (or ``λ²``), so a Runge-Kutta step,
+  a polynomial in ``J dt``, is as accurate as ``ν dt`` (``λ dt``) allows, however small ``ν`` is against the spin
+  near a threshold (the map's slow precessions: 16 periods at 40 steps per radian of the spin took 300 000 steps);
 * exponential: the model's transverse norm (:meth:`~tumble.physics.models.Model.transverse`) is probed at
   :data:`~tumble.measure.scenes.PROBES` + 1 equally spaced times up to ``2`` e-foldings past the end of the linear
   regime (the norm reaching ``SATURATION`` (1 %) of the norm of a perturbation one radian large, or
   ``SATURATION_TILTS`` times the tilt), and the growth rate is :func:`~tumble.measure.estimators.growth_rates`'
-  linear-prediction fit up to that end. A gyrostat's weighted norm squared is a sum of a growing and a decaying
+  linear-prediction fit up to that end. Near a gyrostat's threshold (``rate_theory`` small against the spin) the
+  linear regime ends sooner: one factor ``(I_a - I_b) W + h`` of ``lambda²`` is small, and the second-order change of
+  the spin, O(amplitude²), shifts it by a fraction O((amplitude W / lambda)²); the saturation is therefore scaled by
+  ``rate_theory / |spin|`` (below 1), which brought the worst scene of a 20 x 20 x 3 map (h = 0.1 N m s) from 0.75 %
+  to 4e-5. A gyrostat's weighted norm squared is a sum of a growing and a decaying
   exponential (the circular weights), as the free body's, so the fit starts at t = 0;
 * periodic: states stored :data:`~tumble.measure.scenes.SAVES_PER_PERIOD` times per period of ``rate_theory`` over
   :data:`PERIODS` periods; the frequency is :func:`~tumble.measure.estimators.oscillation_frequencies` of the
@@ -67,9 +75,10 @@ __all__ = ["HEAVY_TOP_SPIN_TILT", "METHODS", "Mode", "ModelScene", "PERIODS", "m
 #: The model kernels' methods; ``"auto"`` is the first.
 METHODS = ("rk4", "rk8")
 
-#: Periods of ``rate_theory`` a periodic model scene observes (more than the free body's 8: a heavy top's second
-#: mode wiggles the phase, and the slope's error falls as 1 / periods).
-PERIODS = 16
+#: Periods of ``rate_theory`` a periodic model scene observes. The phase the fit follows turns uniformly in linear
+#: theory (a gyrostat's circular weights, a heavy top's modal coordinate), so its slope needs no long average: the
+#: error is the nonlinear correction, O(amplitude²), whatever the horizon.
+PERIODS = 4
 
 #: A heavy top's spin tilt, as a fraction of its up direction's tilt (``perturbation.amplitude``).
 HEAVY_TOP_SPIN_TILT = 1e-3
@@ -171,12 +180,15 @@ def _plan(scene_args, kind, value, y0_norms, dt, horizon):
     model, axis, spin, amplitude, order = scene_args
     lam = np.abs(theory.eigenvalues(model, axis, spin)).max()
     if dt is None:
-        dt = 1.0 / max(lam, abs(spin)) / scenes.STEPS_PER_RADIAN[order]
+        fastest = max(lam, abs(spin)) if model.kind == "heavy_top" else lam  # see the module docstring
+        dt = 1.0 / fastest / scenes.STEPS_PER_RADIAN[order]
     if kind == "exponential":
         tilt = math.sin(min(amplitude, 0.5 * np.pi))
         start = float(np.median(y0_norms))
         per_radian = start / tilt  # the norm of a perturbation one radian large
         saturation = max(scenes.SATURATION, scenes.SATURATION_TILTS * tilt) * per_radian
+        if model.kind != "heavy_top":  # near a threshold the linear regime ends sooner (see the module docstring)
+            saturation *= min(1.0, value / abs(spin))
         t_growth = (math.log(max(saturation / start, math.e)) + 2.0) / value
         if horizon:
             t_growth = min(t_growth, horizon)
@@ -262,65 +274,98 @@ def scene_plan(model, axis, spin=1.0, amplitude=1e-3, samples=256, seed=0, metho
                       plan, entropy, distribution)
 
 
-def _fit(scene, result):
-    """Per-sample rates of one engine call: ``(rate, code, extras)`` (a heavy top: of its modal coordinate)."""
-    n = len(result.status)
-    heavy = scene.model.kind == "heavy_top"
-    z = _modal(mode(scene.model, scene.axis, scene.spin, scene.kind), result.trajectory) if heavy else None
-    if scene.kind == "exponential":
-        times, norms = (result.times, np.abs(z)) if heavy else (result.probe_times, result.probes)
-        fit = analysis.growth_rates(times, norms, scene.plan.saturation)
-        extras = {name: getattr(fit, name) for name in ("t_start", "t_stop", "norm_start", "norm_stop")}
-        return _codes(result, fit, fit.rate, extras)
-    if heavy:
-        fit = analysis.oscillation_frequencies(result.times, np.stack([z.real, z.imag], axis=-1), np.ones(2),
-                                               scene.spin)
+def _fit_group(pieces):
+    """Per-sample ``(rate, code, extras)`` of engine calls of one kind of measurement, in one estimator call:
+    ``pieces`` are ``(scene, result)`` of the same kind, model family and number of observed times (a chunk's
+    scenes, whose bodies differ, are measured together, as :func:`tumble.measure.scenes.scene_batch` does)."""
+    first = pieces[0][0]
+    heavy, counts = first.model.kind == "heavy_top", [len(result.status) for _, result in pieces]
+    row = np.repeat(np.arange(len(pieces), dtype=np.int64), counts)
+    z = [_modal(mode(scene.model, scene.axis, scene.spin, scene.kind), result.trajectory)
+         for scene, result in pieces] if heavy else None
+    if first.kind == "exponential":
+        times = np.stack([result.times if heavy else result.probe_times for _, result in pieces])
+        norms = np.concatenate([np.abs(zi) for zi in z] if heavy else [result.probes for _, result in pieces])
+        saturation = np.repeat([scene.plan.saturation for scene, _ in pieces], counts)
+        fit = analysis.growth_rates(times, norms, saturation, row=row)
+        rate, extras = fit.rate, {name: getattr(fit, name) for name in ("t_start", "t_stop", "norm_start", "norm_stop")}
     else:
-        transverse = scene.model.transverse(scene.axis, scene.spin)
-        where = [int(np.flatnonzero(transverse.columns == c)[0]) for c in transverse.phase]
-        weights = np.asarray(transverse.weights)[..., where]
-        columns = np.tile(transverse.phase.astype(np.int64), (n, 1))
-        fit = analysis.oscillation_frequencies(result.times, result.trajectory, weights, scene.spin,
-                                               columns=columns)
-    return _codes(result, fit, fit.frequency, {"radius": fit.radius})
-
-
-def _codes(result, fit, rate, extras):
-    """``(rate, code, extras)``: the engine's status, else the fit's (after the engine's names)."""
+        times = np.stack([result.times for _, result in pieces])
+        spin = np.repeat([scene.spin for scene, _ in pieces], counts)
+        if heavy:
+            signal = np.concatenate([np.stack([zi.real, zi.imag], axis=-1) for zi in z])
+            fit = analysis.oscillation_frequencies(times, signal, np.ones(2), spin, row=row)
+        else:
+            columns, weights = [], []
+            for scene, _ in pieces:
+                transverse = scene.model.transverse(scene.axis, scene.spin)
+                where = [int(np.flatnonzero(transverse.columns == c)[0]) for c in transverse.phase]
+                columns.append(transverse.phase.astype(np.int64))
+                weights.append(np.asarray(transverse.weights)[..., where])
+            fit = analysis.oscillation_frequencies(times, np.concatenate([result.trajectory for _, result in pieces]),
+                                                   np.repeat(weights, counts, axis=0), spin,
+                                                   columns=np.repeat(columns, counts, axis=0), row=row)
+        rate, extras = fit.frequency, {"radius": fit.radius}
+    status = np.concatenate([result.status for _, result in pieces])
     offset = len(registry.STATUS_NAMES) - 1
-    code = np.where(result.status != STATUS_OK, result.status,
-                    np.where(fit.code != analysis.FIT_OK, fit.code + offset, 0)).astype(np.int8)
-    return rate, code, extras
+    code = np.where(status != STATUS_OK, status, np.where(fit.code != analysis.FIT_OK, fit.code + offset, 0))
+    bounds = np.cumsum([0] + counts)
+    return [(rate[lo:hi], code[lo:hi].astype(np.int8), {name: v[lo:hi] for name, v in extras.items()})
+            for lo, hi in zip(bounds[:-1], bounds[1:])]
+
+
+def _fit_all(pieces):
+    """:func:`_fit_group` of every group of ``pieces`` (``(scene, result)``), in the order of ``pieces``."""
+    groups = {}
+    for i, (scene, result) in enumerate(pieces):
+        observed = result.times if result.trajectory is not None else result.probe_times
+        groups.setdefault((scene.kind, scene.model.kind == "heavy_top", len(observed)), []).append(i)
+    fits = [None] * len(pieces)
+    for members in groups.values():
+        for i, fit in zip(members, _fit_group([pieces[i] for i in members])):
+            fits[i] = fit
+    return fits
+
+
+def _run(scene, start, stop):
+    """The engine calls of samples ``[start, stop)`` of a scene: ``[(lo, hi, result)]``."""
+    plan, growth = scene.plan, scene.kind == "exponential"
+    if not (0 <= start < stop <= scene.samples and start % CHUNK == 0):
+        raise ValueError(f"a sample range must lie in [0, {scene.samples}) and start at a multiple of {CHUNK}, "
+                         f"got [{start}, {stop})")
+    return [(lo, min(lo + SLICE, stop),
+             run_model_ensemble(scene.model, _initial_states(scene, lo, min(lo + SLICE, stop)), plan.t_end, plan.dt,
+                                method=scene.chosen, axis=scene.axis, spin=scene.spin, final=False,
+                                save_every=plan.save_every,
+                                probe_times=plan.probe_times if growth and not plan.save_every else None))
+            for lo in range(start, stop, SLICE)]
+
+
+def _part(scene, start, stop, runs, fits):
+    """The part of samples ``[start, stop)`` from their engine calls and fits."""
+    names = ("t_start", "t_stop", "norm_start", "norm_stop") if scene.kind == "exponential" else ("radius",)
+    out = {"start": np.int64(start), "rate": np.empty(stop - start), "code": np.empty(stop - start, dtype=np.int8),
+           **{name: np.empty(stop - start) for name in names}}
+    computed = 0
+    for (lo, hi, result), (rate, code, extras) in zip(runs, fits):
+        rows = slice(lo - start, hi - start)
+        out["rate"][rows], out["code"][rows] = rate, code
+        for name, values in extras.items():
+            out[name][rows] = values
+        computed += int(result.steps_taken.sum())
+    out.update(sample_steps_computed=np.int64(computed),
+               sample_steps_skipped=np.int64((stop - start) * scene.plan.n_steps - computed),
+               rate_theory=np.float64(scene.value), path=np.array(f"model kernel ({scene.chosen})"),
+               torque=np.array(""))
+    return out
 
 
 def scene_samples(scene, start, stop):
     """Run samples ``[start, stop)`` of a :func:`scene_plan`: per-sample fits, no reduction — the part
     :func:`tumble.measure.scenes.scene_samples` returns (same keys), so that scene records, checkpoints and dask
     tasks take it as they take a free body's."""
-    if not (0 <= start < stop <= scene.samples and start % CHUNK == 0):
-        raise ValueError(f"a sample range must lie in [0, {scene.samples}) and start at a multiple of {CHUNK}, "
-                         f"got [{start}, {stop})")
-    plan, growth = scene.plan, scene.kind == "exponential"
-    names = ("t_start", "t_stop", "norm_start", "norm_stop") if growth else ("radius",)
-    out = {"start": np.int64(start), "rate": np.empty(stop - start), "code": np.empty(stop - start, dtype=np.int8),
-           **{name: np.empty(stop - start) for name in names}}
-    computed = 0
-    for lo in range(start, stop, SLICE):
-        hi = min(lo + SLICE, stop)
-        result = run_model_ensemble(scene.model, _initial_states(scene, lo, hi), plan.t_end, plan.dt,
-                                    method=scene.chosen, axis=scene.axis, spin=scene.spin, final=False,
-                                    save_every=plan.save_every,
-                                    probe_times=plan.probe_times if growth and not plan.save_every else None)
-        rows = slice(lo - start, hi - start)
-        out["rate"][rows], out["code"][rows], extras = _fit(scene, result)
-        for name, values in extras.items():
-            out[name][rows] = values
-        computed += int(result.steps_taken.sum())
-    out.update(sample_steps_computed=np.int64(computed),
-               sample_steps_skipped=np.int64((stop - start) * plan.n_steps - computed),
-               rate_theory=np.float64(scene.value), path=np.array(f"model kernel ({scene.chosen})"),
-               torque=np.array(""))
-    return out
+    runs = _run(scene, start, stop)
+    return _part(scene, start, stop, runs, _fit_all([(scene, result) for _, _, result in runs]))
 
 
 def _model_coordinates(scene):
@@ -347,8 +392,14 @@ def scene_records(model_scenes, parts):
 
 
 def scene_batch(model_scenes):
-    """The records of whole model scenes."""
-    return scene_records(model_scenes, [[scene_samples(scene, 0, scene.samples)] for scene in model_scenes])
+    """The records of whole model scenes: each scene's engine calls (its body is its own: the model kernel takes one
+    model's constants a call), then one estimator call for all scenes of a kind (same bits as scene by scene: the
+    fits are per sample)."""
+    runs = [_run(scene, 0, scene.samples) for scene in model_scenes]
+    fits = iter(_fit_all([(scene, result) for scene, calls in zip(model_scenes, runs) for _, _, result in calls]))
+    parts = [[_part(scene, 0, scene.samples, calls, [next(fits) for _ in calls])]
+             for scene, calls in zip(model_scenes, runs)]
+    return scene_records(model_scenes, parts)
 
 
 def scan_layout(moments, values, swept):
