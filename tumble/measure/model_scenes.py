@@ -11,41 +11,52 @@ Planning (:func:`scene_plan`):
 
 * kind and ``rate_theory`` from the model's linearisation, :func:`tumble.physics.theory.linear` (the largest real
   part of the Jacobian's eigenvalues, else the largest imaginary part);
-* the step resolves the fastest eigenvalue and the spin (:data:`tumble.measure.scenes.STEPS_PER_RADIAN`);
+* the step resolves the fastest eigenvalue (:data:`tumble.measure.scenes.STEPS_PER_RADIAN`), and a heavy top's spin
+  too (its up vector turns at ``w3`` in the body frame). A gyrostat's spin is no time scale of its body-frame
+  motion: the transverse Jacobian ``[[0, a], [b, 0]]`` has ``J² = ab = -ν²`` (or ``λ²``), so a Runge-Kutta step,
+  a polynomial in ``J dt``, is as accurate as ``ν dt`` (``λ dt``) allows, however small ``ν`` is against the spin
+  near a threshold (the map's slow precessions: 16 periods at 40 steps per radian of the spin took 300 000 steps);
 * exponential: the model's transverse norm (:meth:`~tumble.physics.models.Model.transverse`) is probed at
   :data:`~tumble.measure.scenes.PROBES` + 1 equally spaced times up to ``2`` e-foldings past the end of the linear
   regime (the norm reaching ``SATURATION`` (1 %) of the norm of a perturbation one radian large, or
   ``SATURATION_TILTS`` times the tilt), and the growth rate is :func:`~tumble.measure.estimators.growth_rates`'
-  linear-prediction fit up to that end. A gyrostat's weighted norm squared is a sum of a growing and a decaying
-  exponential (the circular weights), as the free body's, so the fit starts at t = 0. A waking heavy top's modes
-  are ``±α + iβ`` with one ``β``: its norm squared is ``A e^{2αt} + B e^{-2αt} + C`` (a constant cross term
-  the linear prediction does not model), so its probes start :data:`SETTLE` e-foldings in, where ``C`` is
-  ``e^{-2 SETTLE}`` of the signal;
+  linear-prediction fit up to that end. Near a gyrostat's threshold (``rate_theory`` small against the spin) the
+  linear regime ends sooner: one factor ``(I_a - I_b) W + h`` of ``lambda²`` is small, and the second-order change of
+  the spin, O(amplitude²), shifts it by a fraction O((amplitude W / lambda)²); the saturation is therefore scaled by
+  ``rate_theory / |spin|`` (below 1), which brought the worst scene of a 20 x 20 x 3 map (h = 0.1 N m s) from 0.75 %
+  to 4e-5. A gyrostat's weighted norm squared is a sum of a growing and a decaying
+  exponential (the circular weights), as the free body's, so the fit starts at t = 0;
 * periodic: states stored :data:`~tumble.measure.scenes.SAVES_PER_PERIOD` times per period of ``rate_theory`` over
   :data:`PERIODS` periods; the frequency is :func:`~tumble.measure.estimators.oscillation_frequencies` of the
-  transverse phase pair (``Transverse.phase``: a gyrostat's ``(w_b, w_c)``, a heavy top's tilt ``(g1, g2)``) with
-  their weights. That estimator is model-agnostic (a phase's least-squares slope) — nothing of the free body in it.
+  transverse phase pair (a gyrostat's ``(w_b, w_c)`` with their circular weights). That estimator is
+  model-agnostic (a phase's least-squares slope) — nothing of the free body in it.
 
-The heavy top's two precession modes: a sleeping top has two body-frame frequencies ``|ν±|``; ``rate_theory`` is
-the larger, ``|ν-|`` (the slow precession in space, seen from the spinning body, about ``w3``). The phase of the
-tilt advances at the frequency of the mode with the larger tilt amplitude. The perturbation therefore tilts the up
-direction by ``amplitude`` and the spin by only ``amplitude`` x :data:`HEAVY_TOP_SPIN_TILT` (the top tilted while
-spinning about its figure axis): the slow-precession mode then carries ``(1 + s)/(1 - s)`` times the fast one's tilt,
-``s = sqrt(1 - 4 I1 mgl / (I3 w3)^2)`` (symmetric top), so the measured frequency is ``|ν-|`` = ``rate_theory``; the
-fast mode leaves a bounded wiggle in the phase whose effect on the slope falls as ``1/PERIODS``. Near the threshold
-(``s -> 0``) the two modes' tilts become equal and the phase's slope is ill-defined: expect errors of percents there.
-
-An asymmetric heavy top (``I1 != I2``) is planned and run the same way, but its measurement is not that of a
-symmetric top: its transverse motion is elliptical (the norm squared oscillates, the growth fit's linear prediction
-does not hold), and its two modes can have close frequencies that the tilt's phase cannot separate (samples then
-fail the phase fit as "undersampled"). The accuracy targets hold for a symmetric top (``I1 = I2``, the sleeping
-top of the bundled study); an asymmetric one is measured to percents, or not at all.
+A heavy top is measured in its **modal coordinate** (:class:`Mode`, :func:`mode`). Its transverse motion
+``x = (w1, w2, g1, g2)`` has four modes, ``x(t) = sum_j c_j v_j exp(lambda_j t)``: two precessions ``±i nu±`` above the
+threshold, a quartet ``±alpha ± i beta`` (or two real pairs) below it. No weighted norm of ``x`` makes every top's
+motion a single circle or a single exponential: for an asymmetric top (``I1 != I2``) each mode is elliptical in
+any fixed weights, so the squared norm of the waking mode is ``e^{2 alpha t} (A + B cos(2 beta t + phi))`` (the
+growth fit, which assumes a sum of two exponentials, was 3 % off for moments (1, 2, 3)), and above the threshold the
+tilt's phase follows whichever mode has the larger tilt, with two modes of comparable tilt its phase is not linear
+in time at all (every sample failed the phase fit for moments (1, 2, 3) at w3 = 1.5 - 3 rad/s). The left
+eigenvector ``u`` of the measured eigenvalue ``lambda`` (the largest real part, else the largest imaginary part:
+``rate_theory``) of the transverse Jacobian annihilates every other mode (``u . v_j = 0``, ``j != m``), so
+``z(t) = u . x(t) = c_m exp(lambda t)`` exactly in linear theory, whatever the ensemble's mix of modes and the
+body's asymmetry: ``|z|^2`` is one exponential, whose rate linear prediction recovers exactly from t = 0, and the
+phase of ``z`` turns uniformly at ``Im lambda``. ``u`` is scaled so that ``|z|`` is the amplitude of a mode of unit
+transverse norm (rad/s). The states are stored at the probe times (exponential) or
+:data:`~tumble.measure.scenes.SAVES_PER_PERIOD` times a period (periodic) and projected in numpy. The ensemble is
+that of before (the up direction tilted by ``amplitude``, the spin by ``amplitude`` x
+:data:`HEAVY_TOP_SPIN_TILT`), so the sleeping top's scenes run the same samples; only their measurement changed.
+Near a threshold (two eigenvalues colliding) ``u`` is ill-conditioned: the projection there amplifies the
+nonlinear part of the motion, and the errors grow as the threshold is approached.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -58,18 +69,16 @@ from ..registry import STATUS_OK
 from . import estimators as analysis
 from . import scenes
 
-__all__ = ["HEAVY_TOP_SPIN_TILT", "METHODS", "ModelScene", "PERIODS", "SETTLE", "model_of", "scan_layout",
+__all__ = ["HEAVY_TOP_SPIN_TILT", "METHODS", "Mode", "ModelScene", "PERIODS", "mode", "model_of", "scan_layout",
            "scene_batch", "scene_plan", "scene_records", "scene_samples"]
 
 #: The model kernels' methods; ``"auto"`` is the first.
 METHODS = ("rk4", "rk8")
 
-#: Periods of ``rate_theory`` a periodic model scene observes (more than the free body's 8: a heavy top's second
-#: mode wiggles the phase, and the slope's error falls as 1 / periods).
-PERIODS = 16
-
-#: E-foldings of the growth skipped before a heavy top's growth fit (see the module docstring).
-SETTLE = 3.0
+#: Periods of ``rate_theory`` a periodic model scene observes. The phase the fit follows turns uniformly in linear
+#: theory (a gyrostat's circular weights, a heavy top's modal coordinate), so its slope needs no long average: the
+#: error is the nonlinear correction, O(amplitude²), whatever the horizon.
+PERIODS = 4
 
 #: A heavy top's spin tilt, as a fraction of its up direction's tilt (``perturbation.amplitude``).
 HEAVY_TOP_SPIN_TILT = 1e-3
@@ -102,6 +111,40 @@ class ModelScene:
     spin_up: None = None
     torque: None = None
     curves: tuple = field(default=())
+
+
+class Mode(NamedTuple):
+    """The mode a heavy-top scene measures (module docstring): ``z = left . (y[..., columns] - centre)``."""
+
+    columns: np.ndarray  # (k,) int, the transverse columns of the state
+    left: np.ndarray  # (k,) complex: the left eigenvector, scaled so that |z| is in rad/s (a unit-norm mode)
+    eigenvalue: complex  # 1/s: its real part the growth rate, its imaginary part the frequency
+
+
+def mode(model, axis, spin, kind):
+    """The linearisation's mode that a scene of ``kind`` measures: the eigenvalue of the transverse Jacobian with the
+    largest real part (``"exponential"``; of a complex pair, the one with ``Im >= 0``), else the largest imaginary
+    part (``"periodic"``), and its left eigenvector (:class:`Mode`).
+
+    The transverse columns (:meth:`~tumble.physics.models.Model.transverse`) must be invariant under the linearised
+    motion (a heavy top's ``(w1, w2, g1, g2)``: ``w3`` and ``g3`` are constant to first order)."""
+    transverse = model.transverse(axis, spin)
+    columns = np.asarray(transverse.columns)
+    jac = model.tangent_jacobian(model.equilibrium(axis, spin))
+    lam, vectors = np.linalg.eig(jac[np.ix_(columns, columns)])
+    if kind == "exponential":
+        top = lam.real.max()
+        m = int(np.argmax(np.where(lam.real >= top - 1e-9 * np.abs(lam).max(), lam.imag, -np.inf)))
+    else:
+        m = int(np.argmax(lam.imag))
+    scale = math.sqrt(float(np.sum(np.asarray(transverse.weights) * np.abs(vectors[:, m]) ** 2)))
+    left = np.linalg.inv(vectors)[m] * scale
+    return Mode(columns, left, complex(lam[m]))
+
+
+def _modal(scene_mode, states):
+    """``z`` of states of shape (..., n) (complex, shape (...)): the measured mode's amplitude, rad/s."""
+    return states[..., scene_mode.columns] @ scene_mode.left
 
 
 def model_of(kind, moments, axis, parameters):
@@ -137,20 +180,23 @@ def _plan(scene_args, kind, value, y0_norms, dt, horizon):
     model, axis, spin, amplitude, order = scene_args
     lam = np.abs(theory.eigenvalues(model, axis, spin)).max()
     if dt is None:
-        dt = 1.0 / max(lam, abs(spin)) / scenes.STEPS_PER_RADIAN[order]
+        fastest = max(lam, abs(spin)) if model.kind == "heavy_top" else lam  # see the module docstring
+        dt = 1.0 / fastest / scenes.STEPS_PER_RADIAN[order]
     if kind == "exponential":
         tilt = math.sin(min(amplitude, 0.5 * np.pi))
         start = float(np.median(y0_norms))
         per_radian = start / tilt  # the norm of a perturbation one radian large
         saturation = max(scenes.SATURATION, scenes.SATURATION_TILTS * tilt) * per_radian
-        settle = SETTLE / value if model.kind == "heavy_top" else 0.0
-        t_growth = (math.log(max(saturation / start, math.e)) + 2.0) / value + settle
+        if model.kind != "heavy_top":  # near a threshold the linear regime ends sooner (see the module docstring)
+            saturation *= min(1.0, value / abs(spin))
+        t_growth = (math.log(max(saturation / start, math.e)) + 2.0) / value
         if horizon:
             t_growth = min(t_growth, horizon)
-        dt, first, every = _grid(settle, t_growth, scenes.PROBES, dt)
+        dt, first, every = _grid(0.0, t_growth, scenes.PROBES, dt)
         probes = (first + np.arange(scenes.PROBES + 1) * every) * dt
         n_steps = first + scenes.PROBES * every
-        return scenes.StepPlan(t_end=n_steps * dt, dt=dt, n_steps=n_steps, probe_times=probes, saturation=saturation)
+        return scenes.StepPlan(t_end=n_steps * dt, dt=dt, n_steps=n_steps, probe_times=probes, saturation=saturation,
+                               save_every=every if model.kind == "heavy_top" else None)
     period = 2 * np.pi / value
     t_end = horizon or PERIODS * period
     spacing = period / scenes.SAVES_PER_PERIOD
@@ -218,63 +264,108 @@ def scene_plan(model, axis, spin=1.0, amplitude=1e-3, samples=256, seed=0, metho
     probe = ModelScene(model, model.moments, int(axis), spin, amplitude, int(samples), method, chosen, kind, value,
                        None, entropy, distribution)
     y0 = _initial_states(probe, 0, min(int(samples), 256))
-    norms = model.transverse_norm(y0, axis, spin)
+    if model.kind == "heavy_top":
+        norms = np.abs(_modal(mode(model, int(axis), spin, kind), y0))
+    else:
+        norms = model.transverse_norm(y0, axis, spin)
     order = registry.method(chosen).order
     plan = _plan((model, int(axis), spin, amplitude, order), kind, value, norms, dt, horizon)
     return ModelScene(model, model.moments, int(axis), spin, amplitude, int(samples), method, chosen, kind, value,
                       plan, entropy, distribution)
 
 
-def _fit(scene, result):
-    """Per-sample rates of one engine call: ``(rate, code, extras)``."""
-    n = len(result.status)
-    if scene.kind == "exponential":
-        fit = analysis.growth_rates(result.probe_times, result.probes, scene.plan.saturation)
-        extras = {name: getattr(fit, name) for name in ("t_start", "t_stop", "norm_start", "norm_stop")}
-        rate = fit.rate
+def _fit_group(pieces):
+    """Per-sample ``(rate, code, extras)`` of engine calls of one kind of measurement, in one estimator call:
+    ``pieces`` are ``(scene, result)`` of the same kind, model family and number of observed times (a chunk's
+    scenes, whose bodies differ, are measured together, as :func:`tumble.measure.scenes.scene_batch` does)."""
+    first = pieces[0][0]
+    heavy, counts = first.model.kind == "heavy_top", [len(result.status) for _, result in pieces]
+    row = np.repeat(np.arange(len(pieces), dtype=np.int64), counts)
+    z = [_modal(mode(scene.model, scene.axis, scene.spin, scene.kind), result.trajectory)
+         for scene, result in pieces] if heavy else None
+    if first.kind == "exponential":
+        times = np.stack([result.times if heavy else result.probe_times for _, result in pieces])
+        norms = np.concatenate([np.abs(zi) for zi in z] if heavy else [result.probes for _, result in pieces])
+        saturation = np.repeat([scene.plan.saturation for scene, _ in pieces], counts)
+        fit = analysis.growth_rates(times, norms, saturation, row=row)
+        rate, extras = fit.rate, {name: getattr(fit, name) for name in ("t_start", "t_stop", "norm_start", "norm_stop")}
     else:
-        transverse = scene.model.transverse(scene.axis, scene.spin)
-        where = [int(np.flatnonzero(transverse.columns == c)[0]) for c in transverse.phase]
-        weights = np.asarray(transverse.weights)[..., where]
-        columns = np.tile(transverse.phase.astype(np.int64), (n, 1))
-        fit = analysis.oscillation_frequencies(result.times, result.trajectory, weights, scene.spin,
-                                               columns=columns)
-        extras = {"radius": fit.radius}
-        rate = fit.frequency
+        times = np.stack([result.times for _, result in pieces])
+        spin = np.repeat([scene.spin for scene, _ in pieces], counts)
+        if heavy:
+            signal = np.concatenate([np.stack([zi.real, zi.imag], axis=-1) for zi in z])
+            fit = analysis.oscillation_frequencies(times, signal, np.ones(2), spin, row=row)
+        else:
+            columns, weights = [], []
+            for scene, _ in pieces:
+                transverse = scene.model.transverse(scene.axis, scene.spin)
+                where = [int(np.flatnonzero(transverse.columns == c)[0]) for c in transverse.phase]
+                columns.append(transverse.phase.astype(np.int64))
+                weights.append(np.asarray(transverse.weights)[..., where])
+            fit = analysis.oscillation_frequencies(times, np.concatenate([result.trajectory for _, result in pieces]),
+                                                   np.repeat(weights, counts, axis=0), spin,
+                                                   columns=np.repeat(columns, counts, axis=0), row=row)
+        rate, extras = fit.frequency, {"radius": fit.radius}
+    status = np.concatenate([result.status for _, result in pieces])
     offset = len(registry.STATUS_NAMES) - 1
-    code = np.where(result.status != STATUS_OK, result.status,
-                    np.where(fit.code != analysis.FIT_OK, fit.code + offset, 0)).astype(np.int8)
-    return rate, code, extras
+    code = np.where(status != STATUS_OK, status, np.where(fit.code != analysis.FIT_OK, fit.code + offset, 0))
+    bounds = np.cumsum([0] + counts)
+    return [(rate[lo:hi], code[lo:hi].astype(np.int8), {name: v[lo:hi] for name, v in extras.items()})
+            for lo, hi in zip(bounds[:-1], bounds[1:])]
+
+
+def _fit_all(pieces):
+    """:func:`_fit_group` of every group of ``pieces`` (``(scene, result)``), in the order of ``pieces``."""
+    groups = {}
+    for i, (scene, result) in enumerate(pieces):
+        observed = result.times if result.trajectory is not None else result.probe_times
+        groups.setdefault((scene.kind, scene.model.kind == "heavy_top", len(observed)), []).append(i)
+    fits = [None] * len(pieces)
+    for members in groups.values():
+        for i, fit in zip(members, _fit_group([pieces[i] for i in members])):
+            fits[i] = fit
+    return fits
+
+
+def _run(scene, start, stop):
+    """The engine calls of samples ``[start, stop)`` of a scene: ``[(lo, hi, result)]``."""
+    plan, growth = scene.plan, scene.kind == "exponential"
+    if not (0 <= start < stop <= scene.samples and start % CHUNK == 0):
+        raise ValueError(f"a sample range must lie in [0, {scene.samples}) and start at a multiple of {CHUNK}, "
+                         f"got [{start}, {stop})")
+    return [(lo, min(lo + SLICE, stop),
+             run_model_ensemble(scene.model, _initial_states(scene, lo, min(lo + SLICE, stop)), plan.t_end, plan.dt,
+                                method=scene.chosen, axis=scene.axis, spin=scene.spin, final=False,
+                                save_every=plan.save_every,
+                                probe_times=plan.probe_times if growth and not plan.save_every else None))
+            for lo in range(start, stop, SLICE)]
+
+
+def _part(scene, start, stop, runs, fits):
+    """The part of samples ``[start, stop)`` from their engine calls and fits."""
+    names = ("t_start", "t_stop", "norm_start", "norm_stop") if scene.kind == "exponential" else ("radius",)
+    out = {"start": np.int64(start), "rate": np.empty(stop - start), "code": np.empty(stop - start, dtype=np.int8),
+           **{name: np.empty(stop - start) for name in names}}
+    computed = 0
+    for (lo, hi, result), (rate, code, extras) in zip(runs, fits):
+        rows = slice(lo - start, hi - start)
+        out["rate"][rows], out["code"][rows] = rate, code
+        for name, values in extras.items():
+            out[name][rows] = values
+        computed += int(result.steps_taken.sum())
+    out.update(sample_steps_computed=np.int64(computed),
+               sample_steps_skipped=np.int64((stop - start) * scene.plan.n_steps - computed),
+               rate_theory=np.float64(scene.value), path=np.array(f"model kernel ({scene.chosen})"),
+               torque=np.array(""))
+    return out
 
 
 def scene_samples(scene, start, stop):
     """Run samples ``[start, stop)`` of a :func:`scene_plan`: per-sample fits, no reduction — the part
     :func:`tumble.measure.scenes.scene_samples` returns (same keys), so that scene records, checkpoints and dask
     tasks take it as they take a free body's."""
-    if not (0 <= start < stop <= scene.samples and start % CHUNK == 0):
-        raise ValueError(f"a sample range must lie in [0, {scene.samples}) and start at a multiple of {CHUNK}, "
-                         f"got [{start}, {stop})")
-    plan, growth = scene.plan, scene.kind == "exponential"
-    names = ("t_start", "t_stop", "norm_start", "norm_stop") if growth else ("radius",)
-    out = {"start": np.int64(start), "rate": np.empty(stop - start), "code": np.empty(stop - start, dtype=np.int8),
-           **{name: np.empty(stop - start) for name in names}}
-    computed = 0
-    for lo in range(start, stop, SLICE):
-        hi = min(lo + SLICE, stop)
-        result = run_model_ensemble(scene.model, _initial_states(scene, lo, hi), plan.t_end, plan.dt,
-                                    method=scene.chosen, axis=scene.axis, spin=scene.spin, final=False,
-                                    save_every=None if growth else plan.save_every,
-                                    probe_times=plan.probe_times if growth else None)
-        rows = slice(lo - start, hi - start)
-        out["rate"][rows], out["code"][rows], extras = _fit(scene, result)
-        for name, values in extras.items():
-            out[name][rows] = values
-        computed += int(result.steps_taken.sum())
-    out.update(sample_steps_computed=np.int64(computed),
-               sample_steps_skipped=np.int64((stop - start) * plan.n_steps - computed),
-               rate_theory=np.float64(scene.value), path=np.array(f"model kernel ({scene.chosen})"),
-               torque=np.array(""))
-    return out
+    runs = _run(scene, start, stop)
+    return _part(scene, start, stop, runs, _fit_all([(scene, result) for _, _, result in runs]))
 
 
 def _model_coordinates(scene):
@@ -301,8 +392,14 @@ def scene_records(model_scenes, parts):
 
 
 def scene_batch(model_scenes):
-    """The records of whole model scenes."""
-    return scene_records(model_scenes, [[scene_samples(scene, 0, scene.samples)] for scene in model_scenes])
+    """The records of whole model scenes: each scene's engine calls (its body is its own: the model kernel takes one
+    model's constants a call), then one estimator call for all scenes of a kind (same bits as scene by scene: the
+    fits are per sample)."""
+    runs = [_run(scene, 0, scene.samples) for scene in model_scenes]
+    fits = iter(_fit_all([(scene, result) for scene, calls in zip(model_scenes, runs) for _, _, result in calls]))
+    parts = [[_part(scene, 0, scene.samples, calls, [next(fits) for _ in calls])]
+             for scene, calls in zip(model_scenes, runs)]
+    return scene_records(model_scenes, parts)
 
 
 def scan_layout(moments, values, swept):
