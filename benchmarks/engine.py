@@ -49,15 +49,30 @@ def _naive(sample):
 
 
 def _naive_sample(method):
-    """The per-sample step of ``method`` with a uniform signature for :func:`_naive`."""
-    step = getattr(fused, f"{method}_free_sample", None) or getattr(fused, f"{method}_sample", None)
-    splitting = METHODS[method].splitting is not None
+    """The per-sample step of ``method`` with a uniform signature for :func:`_naive`: a Runge–Kutta method's
+    generated step, or a splitting's sub-flows one sample at a time (as a user would loop over them)."""
+    if METHODS[method].splitting is None:
+        step = getattr(fused, f"{method}_sample")
+
+        @numba.njit(inline="always")
+        def sample(w1, w2, w3, t, h, body, target):
+            return step(w1, w2, w3, t, h, body, 0, None, None)
+
+        return sample
+    flows = getattr(fused, f"_{method.upper()}_FREE_FLOWS")
+    fractions = getattr(fused, f"_{method.upper()}_FREE_FRACTIONS")
 
     @numba.njit(inline="always")
     def sample(w1, w2, w3, t, h, body, target):
-        if splitting:
-            return step(w1, w2, w3, t, h, body, target, 0, None, None)
-        return step(w1, w2, w3, t, h, body, 0, None, None)
+        for s in range(flows.shape[0]):
+            tau = fractions[s] * h
+            if flows[s] == 0:
+                w2, w3 = steppers.rotate(w1 * tau, w2, w3, body[9], body[11])
+            elif flows[s] == 1:
+                w3, w1 = steppers.rotate(w2 * tau, w3, w1, body[10], body[7])
+            else:
+                w1, w2 = steppers.rotate(w3 * tau, w1, w2, body[6], body[8])
+        return steppers.project_l_squared(w1, w2, w3, target, body)
 
     return sample
 
