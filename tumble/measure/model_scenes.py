@@ -70,7 +70,7 @@ from . import estimators as analysis
 from . import scenes
 
 __all__ = ["HEAVY_TOP_SPIN_TILT", "METHODS", "MODAL", "Mode", "ModelScene", "PERIODS", "mode", "model_of", "scan_layout",
-           "scene_batch", "scene_plan", "scene_records", "scene_samples"]
+           "flat_spin_trace", "scene_batch", "scene_plan", "scene_records", "scene_samples"]
 
 #: The model kernels' methods; ``"auto"`` is the first.
 METHODS = ("rk4", "rk8")
@@ -446,3 +446,88 @@ def scan_layout(moments, values, swept):
     fixed = {name: v for name, v in values.items() if name not in swept}
     per_body = math.prod(len(v) for v in swept.values())
     return {"moments": moments, "swept": swept, "fixed": fixed, "scenes": len(moments) * per_body}
+
+
+#: Samples of a damper's flat-spin trace (:func:`flat_spin_trace`) and its stored times.
+TRACE_SAMPLES = 8
+TRACE_POINTS = 1500
+
+#: Steps per radian of the fastest rate of a flat-spin trace (rk8: its energy error per step is then far below
+#: round-off, so the energy falls by the dissipation alone).
+TRACE_STEPS_PER_RADIAN = 40
+
+#: The damping of the trace's reference run: the kernel takes c > 0 only; at this c the dissipation is below
+#: float64's smallest normal number, so that run's energy changes by the integrator alone.
+UNDAMPED = 1e-300
+
+
+def _settle_time(model, axis, spin, amplitude):
+    """Seconds from a minor-axis spin tilted by ``amplitude`` to a settled flat spin: the growth to O(1) at the
+    linear rate and 8 e-foldings of the nutation's decay about the major axis (first order in ``c``)."""
+    kind, growth = theory.linear(model, axis, spin)
+    if kind != "exponential":
+        raise ValueError(f"a flat-spin trace starts from an unstable spin (a damper's minor axis); axis {axis} is "
+                         f"{kind}")
+    major = int(np.argmax(model.moments)) + 1
+    decay = -theory.damper_nutation_rate(model.moments, model.damper_inertia, model.damping, major)
+    return (math.log(1.0 / amplitude) + 2.0) / growth + 8.0 / decay
+
+
+def flat_spin_trace(model, axis, spin=1.0, amplitude=1e-3, *, seed=0, method="rk8", horizon=None,
+                    samples=TRACE_SAMPLES, points=TRACE_POINTS):
+    # size: a public call: the scene's physics, its ensemble and the trace's options
+    """A damper's minor-axis spin turning over to the flat spin about its major axis (Explorer 1), as the
+    ``flat_spin`` figure reads it: ``samples`` samples of the scene's ensemble run for ``horizon`` s (default:
+    :func:`_settle_time`) with ``method`` at :data:`TRACE_STEPS_PER_RADIAN` steps a radian of the fastest rate,
+    ``points`` + 1 stored times. The same samples are run again with ``c`` = :data:`UNDAMPED`: that run's energy
+    change is the integrator's own (to set against the damper's decay).
+
+    Returns
+    -------
+    xarray.Dataset
+        Over ``trace_time`` (s) and ``trace_sample``: ``trace_nutation`` (rad, the angle between the spin axis and
+        ``L``), ``trace_energy`` (J), ``trace_momentum`` (``|L|``, N m s), ``trace_energy_undamped`` (J, the
+        reference run); scalars ``trace_energy_rise`` (the largest rise of the energy between stored times,
+        relative to the initial energy: round-off when it falls monotonically), ``trace_momentum_drift``
+        (``max | |L| / |L(0)| - 1 |``), ``trace_undamped_drift`` (the reference run's ``max |E / E(0) - 1|``),
+        ``trace_flat_energy`` (``|L|² / (2 (I_max + J))``, J: the flat spin's energy, body and sphere turning
+        together) and ``trace_damping`` (N m s).
+    """
+    import xarray as xr
+
+    if model.kind != "damper":
+        raise ValueError(f"a flat-spin trace is a damper's (model kind 'damper'), got {model.kind!r}")
+    method = METHODS[0] if method == "auto" else method
+    t_end = float(horizon) if horizon else _settle_time(model, axis, spin, amplitude)
+    fastest = max(np.abs(theory.eigenvalues(model, axis, spin)).max(), abs(spin), model.damping / model.damper_inertia)
+    dt = 1.0 / fastest / TRACE_STEPS_PER_RADIAN
+    every = max(1, math.ceil(t_end / points / dt))
+    dt = t_end / points / every
+    y0 = perturbed_states(model, axis, spin, amplitude, samples, seed=seed)
+    runs = {}
+    for name, system in (("damped", model), ("undamped", models.Damper(model.moments, model.damper_inertia,
+                                                                      UNDAMPED))):
+        runs[name] = run_model_ensemble(system, y0, points * every * dt, dt, method=method, axis=axis, spin=spin,
+                                        save_every=every, final=False)
+    y = runs["damped"].trajectory
+    momentum = model.moments * y[..., :3] + model.damper_inertia * y[..., 3:]
+    size = np.linalg.norm(momentum, axis=-1)
+    nutation = np.arccos(np.clip(np.abs(momentum[..., axis - 1]) / size, 0.0, 1.0))
+    energy = model.energy(y)
+    undamped = models.Damper(model.moments, model.damper_inertia, UNDAMPED).energy(runs["undamped"].trajectory)
+    flat = size[:, 0] ** 2 / (2.0 * (model.moments.max() + model.damper_inertia))
+    dims = ("trace_sample", "trace_time")
+    return xr.Dataset(
+        {"trace_nutation": (dims, nutation, {"units": "rad", "long_name": "angle between the spin axis and L"}),
+         "trace_energy": (dims, energy, {"units": "J"}),
+         "trace_momentum": (dims, size, {"units": "N m s", "long_name": "|L|"}),
+         "trace_energy_undamped": (dims, undamped, {"units": "J", "long_name": f"energy at c = {UNDAMPED:g} "
+                                                                               f"(the integrator's drift)"}),
+         "trace_flat_energy": (("trace_sample",), flat, {"units": "J", "long_name": "|L|^2 / (2 (I_max + J))"}),
+         "trace_energy_rise": ((), float(np.max(np.diff(energy, axis=-1) / energy[:, :1]))),
+         "trace_momentum_drift": ((), float(np.max(np.abs(size / size[:, :1] - 1.0)))),
+         "trace_undamped_drift": ((), float(np.max(np.abs(undamped / undamped[:, :1] - 1.0)))),
+         "trace_damping": ((), model.damping, {"units": "N m s"})},
+        coords={"trace_time": ("trace_time", runs["damped"].times, {"units": "s"}),
+                "trace_sample": ("trace_sample", np.arange(samples))},
+        attrs={"trace_method": method, "trace_dt": dt})

@@ -538,6 +538,12 @@ def _run(resolved, file, progress, *, job=None, store=None, client=None, chunk_s
 
         ds = ds.merge(precision.work_precision(*scene, samples=p.samples, t_end=options["horizon"] or 20.0,
                                                seed=p.seed, progress=progress))
+    if "flat_spin" in figures:  # a damper's turn-over to the flat spin, from the first scene
+        parameters = {key: _first(values[key]) for key in registry.model_kind("damper").parameters}
+        damper = model_scenes.model_of("damper", first_body, _first(values["axis"]), parameters)
+        method = _first(values["method"])
+        ds = ds.merge(model_scenes.flat_spin_trace(damper, *scene[1:], seed=p.seed,
+                                                   method="rk8" if method == "auto" else method))
     if any(name in config.ATTITUDE_FIGURES for name in figures):
         body = resolved["body"] if "body" not in resolved["scan"] else {}
         method = _first(values["method"])
