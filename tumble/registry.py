@@ -168,7 +168,8 @@ def torque_profile(name):
 
 #: Figures of a result, in the order a report shows them (``outputs.figures``).
 FIGURES = ("stability_map", "norm_growth", "flip_law", "flip_components", "invariant_drift", "work_precision",
-           "summary", "flip_strip", "flip_animation", "polhode", "herpolhode", "gyrostat_map", "sleeping_top")
+           "summary", "flip_strip", "flip_animation", "polhode", "herpolhode", "gyrostat_map", "sleeping_top",
+           "debra_delp_map", "pitch_libration", "flat_spin")
 
 #: Figures drawn from the traced attitude of a study's first scene.
 ATTITUDE_FIGURES = ("flip_animation", "flip_strip", "polhode", "herpolhode")
@@ -239,11 +240,11 @@ MODELS = (
           "top on a fixed pivot, centre of mass on body axis 3 (Euler-Poisson): I w' = (I w) x w + mgl (g x e3), "
           "g' = g x w"),
     Model("gravity_gradient", ("orbit_rate",), ("w1", "w2", "w3", "q0", "q1", "q2", "q3"),
-          ("jacobi_integral", "quaternion_squared"), False, True,
+          ("jacobi_integral", "quaternion_squared"), True, True,
           "satellite in a circular orbit under the gravity-gradient torque (axes: 1 roll, 2 pitch, 3 yaw): "
           "I w' = (I w) x w + 3 n^2 (c3 x I c3), q' = q (0, w + n c2) / 2, c2, c3 the orbit's pitch and nadir axes"),
     Model("damper", ("damper_inertia", "damping"), ("w1", "w2", "w3", "s1", "s2", "s3"),
-          ("momentum_squared",), False, True,
+          ("momentum_squared",), True, True,
           "rigid body with a viscously coupled spherical damper (energy dissipates, |L| is kept): "
           "I w' = (I w) x w + c (s - w), J (s' + w x s) = -c (s - w)"),
 )

@@ -69,8 +69,8 @@ from ..registry import STATUS_OK
 from . import estimators as analysis
 from . import scenes
 
-__all__ = ["HEAVY_TOP_SPIN_TILT", "METHODS", "Mode", "ModelScene", "PERIODS", "mode", "model_of", "scan_layout",
-           "scene_batch", "scene_plan", "scene_records", "scene_samples"]
+__all__ = ["HEAVY_TOP_SPIN_TILT", "METHODS", "MODAL", "Mode", "ModelScene", "PERIODS", "mode", "model_of", "scan_layout",
+           "flat_spin_trace", "scene_batch", "scene_plan", "scene_records", "scene_samples"]
 
 #: The model kernels' methods; ``"auto"`` is the first.
 METHODS = ("rk4", "rk8")
@@ -114,37 +114,67 @@ class ModelScene:
 
 
 class Mode(NamedTuple):
-    """The mode a heavy-top scene measures (module docstring): ``z = left . (y[..., columns] - centre)``."""
+    """The mode a modal scene measures (module docstring): ``z = left . (y[..., columns] - centre)``."""
 
     columns: np.ndarray  # (k,) int, the transverse columns of the state
     left: np.ndarray  # (k,) complex: the left eigenvector, scaled so that |z| is in rad/s (a unit-norm mode)
     eigenvalue: complex  # 1/s: its real part the growth rate, its imaginary part the frequency
+    centre: np.ndarray | float = 0.0  # (k,): the equilibrium's values of the columns
+
+
+#: Models measured in the modal coordinate of their measured eigenvalue (:func:`mode`).
+MODAL = ("heavy_top", "gravity_gradient", "damper")
+
+
+def _mode_space(model, axis, spin):
+    """``(columns, rows of the tangent Jacobian, factor, weights)`` of a modal model's transverse motion: the
+    state's columns, the tangent coordinates they are (``factor`` times the column less the equilibrium's value),
+    and the transverse norm's weights on the columns.
+
+    A heavy top: ``(w1, w2, g1, g2)``. A gravity gradient: ``w`` and the attitude error ``θ = 2 (q1, q2, q3)`` (its
+    whole 6 x 6 tangent Jacobian). A damper: the body's and the sphere's components across the spin axis
+    (``w_b, w_c, s_b, s_c``: invariant under the linearised motion, the axis' ``w_a, s_a`` decouple), the norm on the
+    body's only."""
+    transverse = model.transverse(axis, spin)
+    columns = np.asarray(transverse.columns)
+    weights = np.asarray(transverse.weights, dtype=float)
+    if model.kind == "gravity_gradient":
+        return columns, np.arange(6), np.array([1.0, 1.0, 1.0, 2.0, 2.0, 2.0]), weights
+    if model.kind == "damper":
+        both = np.concatenate([columns, columns + 3])
+        return both, both, np.ones(4), np.concatenate([weights, np.zeros(2)])
+    return columns, columns, np.ones(len(columns)), weights
 
 
 def mode(model, axis, spin, kind):
     """The linearisation's mode that a scene of ``kind`` measures: the eigenvalue of the transverse Jacobian with the
-    largest real part (``"exponential"``; of a complex pair, the one with ``Im >= 0``), else the largest imaginary
-    part (``"periodic"``), and its left eigenvector (:class:`Mode`).
+    largest real part (``"exponential"``; of a complex pair, the one with ``Im >= 0``), else the least damped
+    oscillation, the fastest of those (``"periodic"``, as :func:`tumble.physics.theory.linear` reports it; without
+    damping the largest imaginary part), and its left eigenvector (:class:`Mode`).
 
-    The transverse columns (:meth:`~tumble.physics.models.Model.transverse`) must be invariant under the linearised
-    motion (a heavy top's ``(w1, w2, g1, g2)``: ``w3`` and ``g3`` are constant to first order)."""
-    transverse = model.transverse(axis, spin)
-    columns = np.asarray(transverse.columns)
-    jac = model.tangent_jacobian(model.equilibrium(axis, spin))
-    lam, vectors = np.linalg.eig(jac[np.ix_(columns, columns)])
+    The transverse columns (:func:`_mode_space`) must be invariant under the linearised motion (a heavy top's
+    ``(w1, w2, g1, g2)``: ``w3`` and ``g3`` are constant to first order)."""
+    columns, rows, factor, weights = _mode_space(model, axis, spin)
+    equilibrium = model.equilibrium(axis, spin)
+    jac = model.tangent_jacobian(equilibrium)
+    lam, vectors = np.linalg.eig(jac[np.ix_(rows, rows)])
+    tol = theory.EIGEN_RTOL * np.abs(lam).max()
     if kind == "exponential":
         top = lam.real.max()
         m = int(np.argmax(np.where(lam.real >= top - 1e-9 * np.abs(lam).max(), lam.imag, -np.inf)))
     else:
-        m = int(np.argmax(lam.imag))
-    scale = math.sqrt(float(np.sum(np.asarray(transverse.weights) * np.abs(vectors[:, m]) ** 2)))
-    left = np.linalg.inv(vectors)[m] * scale
-    return Mode(columns, left, complex(lam[m]))
+        oscillating = lam.imag > tol
+        lead = np.where(oscillating, lam.real, -np.inf).max()
+        m = int(np.argmax(np.where(oscillating & (lam.real >= lead - tol), lam.imag, -np.inf)))
+    in_columns = vectors[:, m] / factor  # the mode in the state's columns
+    scale = math.sqrt(float(np.sum(weights * np.abs(in_columns) ** 2)))
+    left = np.linalg.inv(vectors)[m] * factor * scale
+    return Mode(columns, left, complex(lam[m]), np.asarray(equilibrium[columns], dtype=float))
 
 
 def _modal(scene_mode, states):
     """``z`` of states of shape (..., n) (complex, shape (...)): the measured mode's amplitude, rad/s."""
-    return states[..., scene_mode.columns] @ scene_mode.left
+    return (states[..., scene_mode.columns] - scene_mode.centre) @ scene_mode.left
 
 
 def model_of(kind, moments, axis, parameters):
@@ -187,8 +217,8 @@ def _plan(scene_args, kind, value, y0_norms, dt, horizon):
         start = float(np.median(y0_norms))
         per_radian = start / tilt  # the norm of a perturbation one radian large
         saturation = max(scenes.SATURATION, scenes.SATURATION_TILTS * tilt) * per_radian
-        if model.kind != "heavy_top":  # near a threshold the linear regime ends sooner (see the module docstring)
-            saturation *= min(1.0, value / abs(spin))
+        if model.kind in ("gyrostat", "gravity_gradient", "free"):  # near a threshold the linear regime ends
+            saturation *= min(1.0, value / abs(spin))  # sooner (module docstring); a gravity gradient's spin: n
         t_growth = (math.log(max(saturation / start, math.e)) + 2.0) / value
         if horizon:
             t_growth = min(t_growth, horizon)
@@ -196,7 +226,7 @@ def _plan(scene_args, kind, value, y0_norms, dt, horizon):
         probes = (first + np.arange(scenes.PROBES + 1) * every) * dt
         n_steps = first + scenes.PROBES * every
         return scenes.StepPlan(t_end=n_steps * dt, dt=dt, n_steps=n_steps, probe_times=probes, saturation=saturation,
-                               save_every=every if model.kind == "heavy_top" else None)
+                               save_every=every if model.kind in MODAL else None)
     period = 2 * np.pi / value
     t_end = horizon or PERIODS * period
     spacing = period / scenes.SAVES_PER_PERIOD
@@ -261,10 +291,12 @@ def scene_plan(model, axis, spin=1.0, amplitude=1e-3, samples=256, seed=0, metho
         raise ValueError(f"the steady spin about axis {axis} of this {model.kind} is neutral in linear theory (no "
                          f"growth rate or frequency to measure)")
     entropy = seed_entropy(seed)
+    if model.kind == "gravity_gradient":  # its equilibrium turns at the orbit rate, whatever spin.rate says
+        spin = model.orbit_rate
     probe = ModelScene(model, model.moments, int(axis), spin, amplitude, int(samples), method, chosen, kind, value,
                        None, entropy, distribution)
     y0 = _initial_states(probe, 0, min(int(samples), 256))
-    if model.kind == "heavy_top":
+    if model.kind in MODAL:
         norms = np.abs(_modal(mode(model, int(axis), spin, kind), y0))
     else:
         norms = model.transverse_norm(y0, axis, spin)
@@ -279,7 +311,7 @@ def _fit_group(pieces):
     ``pieces`` are ``(scene, result)`` of the same kind, model family and number of observed times (a chunk's
     scenes, whose bodies differ, are measured together, as :func:`tumble.measure.scenes.scene_batch` does)."""
     first = pieces[0][0]
-    heavy, counts = first.model.kind == "heavy_top", [len(result.status) for _, result in pieces]
+    heavy, counts = first.model.kind in MODAL, [len(result.status) for _, result in pieces]
     row = np.repeat(np.arange(len(pieces), dtype=np.int64), counts)
     z = [_modal(mode(scene.model, scene.axis, scene.spin, scene.kind), result.trajectory)
          for scene, result in pieces] if heavy else None
@@ -319,7 +351,7 @@ def _fit_all(pieces):
     groups = {}
     for i, (scene, result) in enumerate(pieces):
         observed = result.times if result.trajectory is not None else result.probe_times
-        groups.setdefault((scene.kind, scene.model.kind == "heavy_top", len(observed)), []).append(i)
+        groups.setdefault((scene.kind, scene.model.kind in MODAL, len(observed)), []).append(i)
     fits = [None] * len(pieces)
     for members in groups.values():
         for i, fit in zip(members, _fit_group([pieces[i] for i in members])):
@@ -376,6 +408,9 @@ def _model_coordinates(scene):
         coords["rotor"] = np.float64(model.rotor[scene.axis - 1])
     if model.kind == "heavy_top":
         coords["mgl"] = np.float64(model.mgl)
+    for key in ("orbit_rate", "damper_inertia", "damping"):
+        if hasattr(model, key):
+            coords[key] = np.float64(getattr(model, key))
     return coords
 
 
@@ -411,3 +446,88 @@ def scan_layout(moments, values, swept):
     fixed = {name: v for name, v in values.items() if name not in swept}
     per_body = math.prod(len(v) for v in swept.values())
     return {"moments": moments, "swept": swept, "fixed": fixed, "scenes": len(moments) * per_body}
+
+
+#: Samples of a damper's flat-spin trace (:func:`flat_spin_trace`) and its stored times.
+TRACE_SAMPLES = 8
+TRACE_POINTS = 1500
+
+#: Steps per radian of the fastest rate of a flat-spin trace (rk8: its energy error per step is then far below
+#: round-off, so the energy falls by the dissipation alone).
+TRACE_STEPS_PER_RADIAN = 40
+
+#: The damping of the trace's reference run: the kernel takes c > 0 only; at this c the dissipation is below
+#: float64's smallest normal number, so that run's energy changes by the integrator alone.
+UNDAMPED = 1e-300
+
+
+def _settle_time(model, axis, spin, amplitude):
+    """Seconds from a minor-axis spin tilted by ``amplitude`` to a settled flat spin: the growth to O(1) at the
+    linear rate and 8 e-foldings of the nutation's decay about the major axis (first order in ``c``)."""
+    kind, growth = theory.linear(model, axis, spin)
+    if kind != "exponential":
+        raise ValueError(f"a flat-spin trace starts from an unstable spin (a damper's minor axis); axis {axis} is "
+                         f"{kind}")
+    major = int(np.argmax(model.moments)) + 1
+    decay = -theory.damper_nutation_rate(model.moments, model.damper_inertia, model.damping, major)
+    return (math.log(1.0 / amplitude) + 2.0) / growth + 8.0 / decay
+
+
+def flat_spin_trace(model, axis, spin=1.0, amplitude=1e-3, *, seed=0, method="rk8", horizon=None,
+                    samples=TRACE_SAMPLES, points=TRACE_POINTS):
+    # size: a public call: the scene's physics, its ensemble and the trace's options
+    """A damper's minor-axis spin turning over to the flat spin about its major axis (Explorer 1), as the
+    ``flat_spin`` figure reads it: ``samples`` samples of the scene's ensemble run for ``horizon`` s (default:
+    :func:`_settle_time`) with ``method`` at :data:`TRACE_STEPS_PER_RADIAN` steps a radian of the fastest rate,
+    ``points`` + 1 stored times. The same samples are run again with ``c`` = :data:`UNDAMPED`: that run's energy
+    change is the integrator's own (to set against the damper's decay).
+
+    Returns
+    -------
+    xarray.Dataset
+        Over ``trace_time`` (s) and ``trace_sample``: ``trace_nutation`` (rad, the angle between the spin axis and
+        ``L``), ``trace_energy`` (J), ``trace_momentum`` (``|L|``, N m s), ``trace_energy_undamped`` (J, the
+        reference run); scalars ``trace_energy_rise`` (the largest rise of the energy between stored times,
+        relative to the initial energy: round-off when it falls monotonically), ``trace_momentum_drift``
+        (``max | |L| / |L(0)| - 1 |``), ``trace_undamped_drift`` (the reference run's ``max |E / E(0) - 1|``),
+        ``trace_flat_energy`` (``|L|² / (2 (I_max + J))``, J: the flat spin's energy, body and sphere turning
+        together) and ``trace_damping`` (N m s).
+    """
+    import xarray as xr
+
+    if model.kind != "damper":
+        raise ValueError(f"a flat-spin trace is a damper's (model kind 'damper'), got {model.kind!r}")
+    method = METHODS[0] if method == "auto" else method
+    t_end = float(horizon) if horizon else _settle_time(model, axis, spin, amplitude)
+    fastest = max(np.abs(theory.eigenvalues(model, axis, spin)).max(), abs(spin), model.damping / model.damper_inertia)
+    dt = 1.0 / fastest / TRACE_STEPS_PER_RADIAN
+    every = max(1, math.ceil(t_end / points / dt))
+    dt = t_end / points / every
+    y0 = perturbed_states(model, axis, spin, amplitude, samples, seed=seed)
+    runs = {}
+    for name, system in (("damped", model), ("undamped", models.Damper(model.moments, model.damper_inertia,
+                                                                      UNDAMPED))):
+        runs[name] = run_model_ensemble(system, y0, points * every * dt, dt, method=method, axis=axis, spin=spin,
+                                        save_every=every, final=False)
+    y = runs["damped"].trajectory
+    momentum = model.moments * y[..., :3] + model.damper_inertia * y[..., 3:]
+    size = np.linalg.norm(momentum, axis=-1)
+    nutation = np.arccos(np.clip(np.abs(momentum[..., axis - 1]) / size, 0.0, 1.0))
+    energy = model.energy(y)
+    undamped = models.Damper(model.moments, model.damper_inertia, UNDAMPED).energy(runs["undamped"].trajectory)
+    flat = size[:, 0] ** 2 / (2.0 * (model.moments.max() + model.damper_inertia))
+    dims = ("trace_sample", "trace_time")
+    return xr.Dataset(
+        {"trace_nutation": (dims, nutation, {"units": "rad", "long_name": "angle between the spin axis and L"}),
+         "trace_energy": (dims, energy, {"units": "J"}),
+         "trace_momentum": (dims, size, {"units": "N m s", "long_name": "|L|"}),
+         "trace_energy_undamped": (dims, undamped, {"units": "J", "long_name": f"energy at c = {UNDAMPED:g} "
+                                                                               f"(the integrator's drift)"}),
+         "trace_flat_energy": (("trace_sample",), flat, {"units": "J", "long_name": "|L|^2 / (2 (I_max + J))"}),
+         "trace_energy_rise": ((), float(np.max(np.diff(energy, axis=-1) / energy[:, :1]))),
+         "trace_momentum_drift": ((), float(np.max(np.abs(size / size[:, :1] - 1.0)))),
+         "trace_undamped_drift": ((), float(np.max(np.abs(undamped / undamped[:, :1] - 1.0)))),
+         "trace_damping": ((), model.damping, {"units": "N m s"})},
+        coords={"trace_time": ("trace_time", runs["damped"].times, {"units": "s"}),
+                "trace_sample": ("trace_sample", np.arange(samples))},
+        attrs={"trace_method": method, "trace_dt": dt})

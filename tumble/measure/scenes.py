@@ -814,9 +814,12 @@ def _metadata(kind, value):
         "method": ("1", "integration method asked for"),
         "sample": ("1", "sample index", ("sample",)),
         "component": ("1", "body-frame component (principal axis)", ("component",)),
-        "model": ("1", "model kind (registry.MODELS): free, gyrostat, heavy_top"),
+        "model": ("1", "model kind (registry.MODELS): free, gyrostat, heavy_top, gravity_gradient, damper"),
         "rotor": ("N m s", "gyrostat: rotor angular momentum along the spin axis, body frame"),
         "mgl": ("N m", "heavy_top: M g l, weight times the pivot-to-centre-of-mass distance"),
+        "orbit_rate": ("rad/s", "gravity_gradient: orbital angular rate n of the circular orbit"),
+        "damper_inertia": ("kg m2", "damper: moment of inertia J of the damper sphere"),
+        "damping": ("N m s", "damper: viscous coupling c between the sphere and the body"),
     }
     return {name: (entry[2] if len(entry) > 2 else (), {"units": entry[0], "long_name": entry[1],
                                                         **(entry[3] if len(entry) > 3 else {})})
@@ -824,7 +827,8 @@ def _metadata(kind, value):
 
 
 #: Record entries that are coordinates of the scene's dataset (the rest are variables, or ``@`` attributes).
-_COORDS = ("I1", "I2", "I3", "axis", "spin", "amplitude", "method", "sample", "component", "model", "rotor", "mgl")
+_COORDS = ("I1", "I2", "I3", "axis", "spin", "amplitude", "method", "sample", "component", "model", "rotor", "mgl",
+           "orbit_rate", "damper_inertia", "damping")
 
 
 def _record_variables(record):

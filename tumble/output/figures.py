@@ -42,7 +42,8 @@ from . import attitude_figures as attitude_plots
 from . import io
 
 __all__ = ["ANIMATIONS", "DOUBLE", "FIGURES", "SINGLE", "can_draw", "flip_animation", "flip_components",
-           "flip_law", "flip_strip", "gyrostat_map", "herpolhode", "sleeping_top", "invariant_drift", "norm_growth", "polhode", "save_figures",
+           "flip_law", "flip_strip", "gyrostat_map", "herpolhode", "sleeping_top", "debra_delp_map",
+           "pitch_libration", "flat_spin", "invariant_drift", "norm_growth", "polhode", "save_figures",
            "stability_map", "summary", "work_precision"]
 
 #: Names of the figures, in the order a report shows them.
@@ -799,6 +800,176 @@ def sleeping_top(ds):
     return fig
 
 
+def _check_debra_delp_map(ds):
+    if "k1" not in ds.coords or "k3" not in ds.coords:
+        return "coordinates 'k1' and 'k3' (a gravity_gradient study's scan.k1 and scan.k3)"
+    return _missing(ds, "rate", "rate_theory", "kind", "orbit_rate")
+
+
+def _k_grid(ds):
+    """``(k1 values, k3 values, index (B, 2))``: the grid of a ``scan.k1`` x ``scan.k3`` study's bodies."""
+    k1, k3 = np.asarray(ds["k1"].values, dtype=float), np.asarray(ds["k3"].values, dtype=float)
+    u1, u3 = np.unique(k1), np.unique(k3)
+    return u1, u3, np.searchsorted(u1, k1), np.searchsorted(u3, k3)
+
+
+def _gg_boundaries(ax):
+    """The theory's boundaries of the (k1, k3) map: ``k1 = k3``, ``k1 k3 = 0`` and ``1 + 3 k1 + k1 k3 = 4 sqrt(k1 k3)``."""
+    ax.plot([-1, 1], [-1, 1], color="k", lw=0.8, label="$k_1 = k_3$ (pitch)")
+    ax.axhline(0.0, color="k", lw=0.8, ls="--", label="$k_1 k_3 = 0$")
+    ax.axvline(0.0, color="k", lw=0.8, ls="--")
+    g1, g3 = np.meshgrid(np.linspace(-1, 1, 801), np.linspace(-1, 1, 801), indexing="ij")
+    product = g1 * g3
+    with np.errstate(invalid="ignore"):
+        f = np.where(product > 0, 1.0 + 3.0 * g1 + product - 4.0 * np.sqrt(np.maximum(product, 0.0)), np.nan)
+    ax.contour(g1, g3, f, levels=[0.0], colors="C2", linewidths=1.0)
+    ax.plot([], [], color="C2", lw=1.0, label="$1 + 3k_1 + k_1k_3 = 4\\sqrt{k_1k_3}$")
+
+
+@_figure(_check_debra_delp_map)
+def debra_delp_map(ds):
+    """The gravity-gradient stability map over ``(k1, k3)``: each body of the grid a cell, coloured by its measured
+    growth rate (in units of the orbit rate ``n``) where the orbit-following attitude is unstable, grey where it
+    librates (measured frequency), with the theory's boundaries (:func:`tumble.physics.theory.gravity_gradient_stable`)
+    and its two stable regions, Lagrange's (``k1 > k3 > 0``) and DeBra-Delp's (``0 > k1 > k3``). A cell whose
+    linearisation disagrees with the closed-form region is crossed.
+
+    Reads ``rate``, ``kind``, ``orbit_rate`` and the body coordinates ``k1``, ``k3``; other scan dimensions at
+    their first value.
+    """
+    first = {d: 0 for d in ds["rate"].dims if d != "body"}
+    scene = ds.isel(first)
+    u1, u3, i1, i3 = _k_grid(scene)
+    n = float(np.asarray(scene["orbit_rate"]).reshape(-1)[0])
+    rate = np.asarray(scene["rate"].values, dtype=float).reshape(-1) / n
+    kinds = np.asarray(scene["kind"].values).astype(str).reshape(-1)
+    growth = np.full((len(u1), len(u3)), np.nan)
+    stable = np.zeros((len(u1), len(u3)))
+    growth[i1, i3] = np.where(kinds == "exponential", rate, np.nan)
+    stable[i1, i3] = kinds == "periodic"
+    edges = [np.concatenate([[-1.0], 0.5 * (u[1:] + u[:-1]), [1.0]]) if len(u) > 1 else np.array([u[0] - 0.05, u[0] + 0.05])
+             for u in (u1, u3)]
+    fig, (ax,) = _subplots(SINGLE + 0.8, SINGLE + 0.4)
+    ax.pcolormesh(edges[0], edges[1], np.where(stable.T > 0, 1.0, np.nan), cmap=ListedColormap([_STABLE]),
+                  shading="flat")
+    mesh = ax.pcolormesh(edges[0], edges[1], growth.T, cmap="magma_r", shading="flat")
+    fig.colorbar(mesh, ax=ax, label="measured growth rate / n")
+    region = np.asarray(theory.gravity_gradient_region(u1[i1], u3[i3]))
+    marginal = (u1[i1] == u3[i3]) | (u1[i1] * u3[i3] == 0)  # on a boundary: neither side is wrong
+    wrong = ((region == "unstable") != (kinds == "exponential")) & ~marginal
+    if wrong.any():
+        ax.plot(u1[i1][wrong], u3[i3][wrong], "x", color="C0", label="kind disagrees with the closed form")
+    _gg_boundaries(ax)
+    ax.text(0.55, 0.15, "Lagrange", ha="center", fontsize=8)
+    ax.annotate("DeBra-Delp", xy=(-0.05, -0.7), xytext=(-0.75, -0.85), fontsize=8,
+                arrowprops={"arrowstyle": "->", "lw": 0.6})
+    ax.set_xlim(-1, 1)
+    ax.set_ylim(-1, 1)
+    ax.set_xlabel("$k_1 = (I_2 - I_3)/I_1$")
+    ax.set_ylabel("$k_3 = (I_2 - I_1)/I_3$")
+    ax.set_title(f"gravity gradient, n = {n:g} rad/s: {len(u1)} x {len(u3)} bodies (grey: librates)")
+    _legend(fig, ax.get_legend_handles_labels()[0])
+    return fig
+
+
+def _check_pitch_libration(ds):
+    if "orbit_rate" not in ds.dims:
+        return "an 'orbit_rate' dimension (a gravity_gradient study's scan.orbit_rate)"
+    return _missing(ds, "rate", "rate_theory", "kind", "I1", "I2", "I3")
+
+
+@_figure(_check_pitch_libration)
+def pitch_libration(ds):
+    """A gravity-gradient satellite's libration against the orbit rate ``n``: the measured frequency of the mode
+    :func:`tumble.physics.theory.linear` reports, the linearisation's curve, and the pitch frequency
+    ``w_p = n sqrt(3 (I1 - I3)/I2)`` (:func:`tumble.physics.theory.gravity_gradient_pitch_frequency`; the dominant
+    mode of a DeBra-Delp body). Reads ``rate``, ``kind``, ``orbit_rate`` (a dimension) and the first body's moments.
+    """
+    first = {d: 0 for d in ds["rate"].dims if d != "orbit_rate"}
+    scene = ds.isel(first)
+    moments = np.array([float(np.asarray(scene[m]).reshape(-1)[0]) for m in ("I1", "I2", "I3")])
+    n = np.asarray(scene["orbit_rate"].values, dtype=float)
+    dense = np.linspace(0.0, n.max() * 1.05, 200)[1:]
+    kinds, values = zip(*(theory.linear(models.GravityGradient(moments, x), 2) for x in dense))
+    pitch_kind, pitch = theory.gravity_gradient_pitch_frequency(moments, dense)
+    fig, (ax,) = _subplots(SINGLE, 2.6)
+    _theory_lines(ax, dense, *_model_theory(kinds, values))
+    ax.plot(dense, np.where(np.asarray(pitch_kind) == "periodic", pitch, np.nan), color="C2", lw=0.8, ls=":",
+            label="pitch $w_p = n\\sqrt{3 (I_1 - I_3)/I_2}$")
+    _measured(ax, n, scene)
+    ax.set_xlabel("orbit rate n (rad/s)")
+    ax.set_ylabel("rate (1/s or rad/s)")
+    ax.set_title(f"gravity gradient, I = ({', '.join(f'{m:.4g}' for m in moments)}) kg m²")
+    _legend(fig, ax.get_legend_handles_labels()[0])
+    return fig
+
+
+def _check_flat_spin(ds):
+    return _missing(ds, "trace_nutation", "trace_energy", "trace_momentum", "trace_energy_undamped",
+                    "trace_flat_energy", "rate", "kind", "damping")
+
+
+@_figure(_check_flat_spin)
+def flat_spin(ds):
+    """Explorer 1: a minor-axis spinner with a damper turns over to the flat spin about its major axis. Four panels:
+    the nutation angle (spin axis to ``L``) against time; the energy falling to the flat spin's
+    ``|L|² / (2 (I_max + J))`` while ``|L|`` is held; the energy lost against the integrator's own drift (the same
+    samples at ``c`` ≈ 0) and the drift of ``|L|``; the measured growth rate of the nutation against ``c`` with the
+    linearisation and the first-order rate (:func:`tumble.physics.theory.damper_nutation_rate`).
+
+    Reads the ``trace_*`` variables (:func:`tumble.measure.model_scenes.flat_spin_trace`), ``rate``, ``kind``,
+    ``damping`` (a dimension or a scalar) and the first body's moments.
+    """
+    t = np.asarray(ds["trace_time"].values, dtype=float)
+    nutation = np.degrees(np.asarray(ds["trace_nutation"].values, dtype=float))
+    energy = np.asarray(ds["trace_energy"].values, dtype=float)
+    size = np.asarray(ds["trace_momentum"].values, dtype=float)
+    undamped = np.asarray(ds["trace_energy_undamped"].values, dtype=float)
+    flat = np.asarray(ds["trace_flat_energy"].values, dtype=float)
+    fig = Figure(figsize=(DOUBLE, 5.0), layout="constrained")
+    panels = fig.subplots(2, 2).reshape(-1)
+    for k in range(len(nutation)):
+        panels[0].plot(t, nutation[k], lw=0.7, color="C3" if k == 0 else "0.6", zorder=3 if k == 0 else 2)
+    panels[0].axhline(90.0, color="k", lw=0.6, ls=":")
+    panels[0].set_ylabel("nutation angle (deg)")
+    panels[0].set_title(f"c = {float(ds['trace_damping']):g} N m s: minor axis to flat spin")
+    panels[1].plot(t, energy[0] / energy[0, 0], color="C3", lw=1.0, label="E / E(0)")
+    panels[1].axhline(flat[0] / energy[0, 0], color="k", lw=0.7, ls="--", label="$|L|^2 / (2 (I_{max} + J))$")
+    panels[1].plot(t, size[0] / size[0, 0], color="C0", lw=1.0, label="|L| / |L(0)|")
+    panels[1].set_ylabel("relative to t = 0")
+    panels[1].legend(fontsize=7, loc="center right")
+    lost = np.abs(energy / energy[:, :1] - 1.0)
+    drift = np.abs(undamped / undamped[:, :1] - 1.0)
+    spread = np.abs(size / size[:, :1] - 1.0)
+    floor = 1e-17
+    panels[2].semilogy(t[1:], lost[0, 1:] + floor, color="C3", label="energy lost, |E/E(0) - 1|")
+    panels[2].semilogy(t[1:], drift.max(axis=0)[1:] + floor, color="0.4", label="integrator: c ≈ 0, |E/E(0) - 1|")
+    panels[2].semilogy(t[1:], spread.max(axis=0)[1:] + floor, color="C0", lw=0.8, label="| |L|/|L(0)| - 1 |")
+    panels[2].set_ylabel("relative change")
+    panels[2].legend(fontsize=7, loc="lower right")
+    for ax in panels[:3]:
+        ax.set_xlabel("time (s)")
+    moments = np.array([float(np.asarray(ds[m]).reshape(-1)[0]) for m in ("I1", "I2", "I3")])
+    inertia = float(np.asarray(ds["damper_inertia"]).reshape(-1)[0]) if "damper_inertia" in ds else None
+    first = {d: 0 for d in ds["rate"].dims if d != "damping"}
+    scene = ds.isel(first)
+    c = np.atleast_1d(np.asarray(scene["damping"].values, dtype=float))
+    axis = int(np.asarray(scene["axis"]).reshape(-1)[0]) if "axis" in scene else 3
+    spin = float(np.asarray(scene["spin"]).reshape(-1)[0]) if "spin" in scene else 1.0
+    if inertia is not None:
+        dense = np.linspace(0.0, c.max() * 1.1, 120)[1:]
+        kinds, values = zip(*(theory.linear(models.Damper(moments, inertia, x), axis, spin) for x in dense))
+        _theory_lines(panels[3], dense, *_model_theory(kinds, values))
+        panels[3].plot(dense, theory.damper_nutation_rate(moments, inertia, dense, axis), color="C2", lw=0.8, ls=":",
+                       label="first order in c")
+    rate = np.atleast_1d(np.asarray(scene["rate"].values, dtype=float))
+    panels[3].plot(c, rate, "^", color=_KIND_STYLE["exponential"][0], mfc="none", ls="none", label="measured")
+    panels[3].set_xlabel("damping c (N m s)")
+    panels[3].set_ylabel("nutation growth rate (1/s)")
+    panels[3].legend(fontsize=7)
+    return fig
+
+
 # ----------------------------------------------------------------------------------------------- attitude
 
 
@@ -851,7 +1022,8 @@ def herpolhode(ds):
 _DRAW = {"stability_map": stability_map, "norm_growth": norm_growth, "flip_law": flip_law,
          "flip_components": flip_components, "invariant_drift": invariant_drift, "work_precision": work_precision,
          "summary": summary, "flip_strip": flip_strip, "flip_animation": flip_animation, "polhode": polhode,
-         "herpolhode": herpolhode, "gyrostat_map": gyrostat_map, "sleeping_top": sleeping_top}
+         "herpolhode": herpolhode, "gyrostat_map": gyrostat_map, "sleeping_top": sleeping_top,
+         "debra_delp_map": debra_delp_map, "pitch_libration": pitch_libration, "flat_spin": flat_spin}
 
 
 def _check_name(name):

@@ -44,6 +44,7 @@ __all__ = [
     "DEFAULTS_PATH",
     "FIGURES",
     "FORMATS",
+    "K_SCAN_KEYS",
     "METHOD_NAMES",
     "MODEL_FIGURES",
     "MODEL_KINDS",
@@ -58,6 +59,7 @@ __all__ = [
     "UNTITLED",
     "bundled_studies",
     "load_study",
+    "moments_from_k",
     "resolve_body",
     "scan_bodies",
 ]
@@ -115,6 +117,8 @@ SCAN_KEYS = {
     "orbit_rate": "model.orbit_rate",
     "damper_inertia": "model.damper_inertia",
     "damping": "model.damping",
+    "k1": "body.moments",
+    "k3": "body.moments",
 }
 
 #: ``model.kind``: every model of the registry (the reserved ones are refused with a message naming them).
@@ -127,7 +131,10 @@ MODEL_SCAN_KEYS = tuple(p.key for p in registry.MODEL_PARAMETERS)
 MODEL_METHODS = ("rk4", "rk8")
 
 #: Figures of a model study (the free body's others read what only free-body scenes record).
-MODEL_FIGURES = ("gyrostat_map", "sleeping_top", "summary")
+MODEL_FIGURES = ("gyrostat_map", "sleeping_top", "debra_delp_map", "pitch_libration", "flat_spin", "summary")
+
+#: ``scan.k1`` and ``scan.k3``: the gravity-gradient inertia ratios of the scan's bodies (a grid, I2 = 1 kg m²).
+K_SCAN_KEYS = ("k1", "k3")
 
 #: A rotor component across the spin axis above this fraction of ``|rotor|`` breaks the steady spin.
 _ROTOR_RTOL = 1e-12
@@ -619,7 +626,7 @@ def _scan(table, resolved):
     if "triangle" in table and "moments" in table:
         raise _Invalid("scan.triangle", "not together with scan.moments: each gives the bodies of the scan")
     for key in SCAN_KEYS:
-        if key not in table or key in MODEL_SCAN_KEYS:  # the models' keys: _model_scan
+        if key not in table or key in MODEL_SCAN_KEYS or key in K_SCAN_KEYS:  # the models' keys: _model_scan
             continue
         field = f"scan.{key}"
         value = table[key]
@@ -669,6 +676,10 @@ def _model(table, given, scan):
             reserved = "" if registry.model_kind(owner).implemented else f" ({owner}: reserved, not implemented yet)"
             raise _Invalid(f"scan.{key}", f"not a parameter of model kind {kind!r} (its parameters: "
                                           f"{', '.join(spec.parameters) or 'none'}){reserved}")
+    for key in K_SCAN_KEYS:
+        if key in scan and kind != "gravity_gradient":
+            raise _Invalid(f"scan.{key}", f"scans the gravity-gradient inertia ratios; not with model kind {kind!r} "
+                                          f"(set model.kind = 'gravity_gradient', or scan bodies with scan.moments)")
     if kind == registry.DEFAULT_MODEL:
         return None
     out = {"kind": kind}
@@ -679,6 +690,13 @@ def _model(table, given, scan):
         if out["mgl"] <= 0 and "mgl" not in scan:
             raise _Invalid("model.mgl", f"must be > 0 N m for a heavy_top (M g l, weight times the pivot-to-"
                                         f"centre-of-mass distance), got {out['mgl']!r}")
+    for key in ("orbit_rate", "damper_inertia", "damping"):
+        if key in spec.parameters:
+            out[key] = _number(table[key], f"model.{key}")
+            if out[key] <= 0 and key not in scan:
+                parameter = registry.model_parameter(key)
+                raise _Invalid(f"model.{key}", f"must be > 0 {parameter.units} for a {kind} ({parameter.text.split(': ', 1)[1]}), "
+                                               f"got {out[key]!r}")
     return out
 
 
@@ -705,6 +723,35 @@ def _model_scan(table):
                 raise _Invalid(f"scan.mgl[{i}]", f"must be > 0 N m (M g l of a heavy_top), got {x!r}")
             values.append(x)
         out["mgl"] = _distinct(values, "scan.mgl", items)
+    for key in ("orbit_rate", "damper_inertia", "damping"):
+        if key in table:
+            units = registry.model_parameter(key).units
+            items = _array(table[key], f"scan.{key}", empty=False)
+            values = []
+            for i, item in enumerate(items):
+                x = _number(item, f"scan.{key}[{i}]")
+                if x <= 0:
+                    raise _Invalid(f"scan.{key}[{i}]", f"must be > 0 {units}, got {x!r}")
+                values.append(x)
+            out[key] = _distinct(values, f"scan.{key}", items)
+    given = [key for key in K_SCAN_KEYS if key in table]
+    if given and len(given) != 2:
+        missing = next(key for key in K_SCAN_KEYS if key not in table)
+        raise _Invalid(f"scan.{missing}", f"needed with scan.{given[0]}: scan.k1 and scan.k3 give the grid of "
+                                          f"gravity-gradient bodies together")
+    for key in given:
+        for other in ("body", "moments", "triangle"):
+            if other in table:
+                raise _Invalid(f"scan.{key}", f"not together with scan.{other}: each gives the bodies of the scan")
+        items = _array(table[key], f"scan.{key}", empty=False)
+        values = []
+        for i, item in enumerate(items):
+            x = _number(item, f"scan.{key}[{i}]")
+            if not -1.0 < x < 1.0:
+                raise _Invalid(f"scan.{key}[{i}]", f"must lie in (-1, 1) (the triangle inequality bounds k1 and k3 "
+                                                   f"to [-1, 1]; the corners are no body), got {x!r}")
+            values.append(x)
+        out[key] = _distinct(values, f"scan.{key}", items)
     return out
 
 
@@ -762,6 +809,17 @@ def _check_model_scenes(resolved, given):
                     raise _Invalid(field, f"{h} N m s lies across the spin axis ({axis_field} = {a}); a steady "
                                           f"spin needs the rotor along it (give h along axis {a} only, or numbers "
                                           f"in scan.rotor: h along each scene's axis)")
+    if "k1" in scan and resolved["body"]["shape"]:
+        raise _Invalid("scan.k1", f"scans bodies, but body.shape = {resolved['body']['shape']!r} fixes the body; use "
+                                  f"one of them")
+    if kind == "gravity_gradient":  # the orbit fixes the equilibrium: spin.axis and spin.rate are not used
+        for key in ("axis", "rate"):
+            if key in scan:
+                raise _Invalid(f"scan.{key}", f"not used by a gravity_gradient (its equilibrium follows the orbit, "
+                                              f"w = (0, -n, 0)); scan model.orbit_rate with scan.orbit_rate")
+        if "momentum" in spin:
+            raise _Invalid("spin.momentum", "not used by a gravity_gradient (its equilibrium follows the orbit, "
+                                            "w = (0, -n, 0)); give model.orbit_rate")
     if resolved["torque"]["profile"] != "none":
         raise _Invalid("torque.profile", f"must be 'none' for model kind {kind!r}: model studies are torque-free "
                                          f"(the model's own forces act)")
@@ -983,4 +1041,20 @@ def scan_bodies(study):
     if "moments" in scan:
         moments = np.array(scan["moments"], dtype=np.float64).reshape(-1, 3)
         return moments, [f"body {i}" for i in range(len(moments))]
+    if "k1" in scan:
+        k1, k3 = np.meshgrid(np.asarray(scan["k1"], dtype=float), np.asarray(scan["k3"], dtype=float), indexing="ij")
+        moments = moments_from_k(k1.ravel(), k3.ravel())
+        return moments, [f"k1={a:.6g}, k3={b:.6g}" for a, b in zip(k1.ravel(), k3.ravel())]
     return None
+
+
+def moments_from_k(k1, k3):
+    """Principal moments ``(I1, I2, I3)`` (kg m², shape (..., 3)) with ``I2 = 1`` and the gravity-gradient ratios
+    ``k1 = (I2 - I3)/I1``, ``k3 = (I2 - I1)/I3``: ``I1 = (1 - k3)/(1 - k1 k3)``, ``I3 = (1 - k1)/(1 - k1 k3)``.
+    Every ``(k1, k3)`` of the open square ``(-1, 1)²`` is a body (the triangle inequalities reduce to
+    ``(1 - k1)(1 - k3) >= 0``, ``(1 + k1)(1 - k3) >= 0`` and ``(1 - k1)(1 + k3) >= 0``); ValueError outside it."""
+    k1, k3 = np.asarray(k1, dtype=float), np.asarray(k3, dtype=float)
+    if not (np.all(np.abs(k1) < 1) and np.all(np.abs(k3) < 1)):
+        raise ValueError(f"k1 and k3 must lie in (-1, 1), got k1 = {k1}, k3 = {k3}")
+    d = 1.0 - k1 * k3
+    return np.stack(np.broadcast_arrays((1.0 - k3) / d, np.ones_like(d), (1.0 - k1) / d), axis=-1)

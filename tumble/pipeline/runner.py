@@ -97,7 +97,11 @@ def _bodies(resolved):
         moments = np.asarray(moments, dtype=float)
         if "moments" in scan:  # unnamed bodies: their moments say most
             labels = ["I=(" + ", ".join(f"{x:.7g}" for x in m) + ")" for m in moments]
-        return moments, {"body_label": np.array(labels)}
+        coords = {"body_label": np.array(labels)}
+        if "k1" in scan:  # the gravity-gradient grid: its ratios, exactly as given
+            k1, k3 = np.meshgrid(scan["k1"], scan["k3"], indexing="ij")
+            coords.update(k1=k1.ravel().astype(float), k3=k3.ravel().astype(float))
+        return moments, coords
     return config.resolve_body(resolved).moments, None
 
 
@@ -162,13 +166,16 @@ def _model_plan(resolved, file):
     options = {"dt": integ["dt"] or None, "horizon": integ["horizon"] or None,
                "distribution": resolved["perturbation"]["distribution"], "model": model["kind"]}
     needs = {"gyrostat_map": ("gyrostat", "rotor", "scan.rotor (rotor momentum along the spin axis)"),
-             "sleeping_top": ("heavy_top", "rate", "scan.rate (the spin w3 through the threshold)")}
+             "sleeping_top": ("heavy_top", "rate", "scan.rate (the spin w3 through the threshold)"),
+             "debra_delp_map": ("gravity_gradient", "k1", "scan.k1 and scan.k3 (the grid of inertia ratios)"),
+             "pitch_libration": ("gravity_gradient", "orbit_rate", "scan.orbit_rate (the orbital rates)"),
+             "flat_spin": ("damper", None, "")}
     for i, name in enumerate(resolved["outputs"]["figures"]):
         kind, key, what = needs.get(name, (model["kind"], None, ""))
         if kind != model["kind"] or (key and key not in scan):
             raise StudyError(file, f"outputs.figures[{i}]", f"{name} needs model.kind = {kind!r} and {what}")
-    scanned = [key for key in ("moments", "triangle", "body", "axis", "rate", "amplitude", "method", *values)
-               if key in scan]
+    scanned = [key for key in ("moments", "triangle", "body", "k1", "k3", "axis", "rate", "amplitude", "method",
+                               *values) if key in scan]
     return StudyPlan(moments, body_coords, values, options, list(dict.fromkeys(scanned)),
                      resolved["perturbation"]["samples"], resolved["perturbation"]["seed"])
 
@@ -184,6 +191,8 @@ def study_cost(resolved):
     scan, integ = resolved["scan"], resolved["integration"]
     if "triangle" in scan:
         bodies = scan["triangle"] ** 2
+    elif "k1" in scan:
+        bodies = len(scan["k1"]) * len(scan["k3"])
     else:
         bodies = len(scan.get("moments", scan.get("body", [None])))
     scenes = bodies * math.prod(len(scan[key]) for key in ("axis", "rate", "amplitude", "method") if key in scan)
@@ -529,6 +538,12 @@ def _run(resolved, file, progress, *, job=None, store=None, client=None, chunk_s
 
         ds = ds.merge(precision.work_precision(*scene, samples=p.samples, t_end=options["horizon"] or 20.0,
                                                seed=p.seed, progress=progress))
+    if "flat_spin" in figures:  # a damper's turn-over to the flat spin, from the first scene
+        parameters = {key: _first(values[key]) for key in registry.model_kind("damper").parameters}
+        damper = model_scenes.model_of("damper", first_body, _first(values["axis"]), parameters)
+        method = _first(values["method"])
+        ds = ds.merge(model_scenes.flat_spin_trace(damper, *scene[1:], seed=p.seed,
+                                                   method="rk8" if method == "auto" else method))
     if any(name in config.ATTITUDE_FIGURES for name in figures):
         body = resolved["body"] if "body" not in resolved["scan"] else {}
         method = _first(values["method"])
