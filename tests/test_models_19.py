@@ -105,13 +105,13 @@ def _matched(a, b):
 
 # --- registry, construction ------------------------------------------------------------------------------------------
 
-def test_the_new_models_are_physics_only_and_follow_their_registry_rows():
+def test_the_new_models_follow_their_registry_rows():
     rng = np.random.default_rng(19)
     assert set(CLASSES) == set(registry.MODEL_KINDS)
-    assert set(IMPLEMENTED) == {"free", "gyrostat", "heavy_top"}  # kernels and studies: unchanged
+    assert set(IMPLEMENTED) == set(registry.MODEL_KINDS)  # every model runs in studies (issue 19's studies landed)
     for model in (_random_gravity_gradient(rng), _random_damper(rng)):
         spec = registry.model_kind(model.kind)
-        assert spec.physics and not spec.implemented
+        assert spec.physics and spec.implemented
         assert model.state_size == len(spec.state)
         assert tuple(model.parameters) == spec.parameters
         state = rng.normal(size=(4, model.state_size))
@@ -123,12 +123,13 @@ def test_the_new_models_are_physics_only_and_follow_their_registry_rows():
         assert from_kind(model.kind, model.moments, **model.parameters) == model
 
 
-def test_the_model_kernels_have_codes_for_the_new_models_but_studies_do_not_run_them():
-    """Issue 19's kernels step both models (tests/test_model_kernels_19.py); the studies still refuse them."""
+def test_the_model_kernels_and_the_studies_run_the_new_models():
+    """Issue 19's kernels step both models (tests/test_model_kernels_19.py) and studies run them
+    (tests/test_model_studies_19.py)."""
     from tumble.kernels import MODEL_CODES
 
     assert {"gravity_gradient", "damper"} <= set(MODEL_CODES)
-    assert not registry.model_kind("gravity_gradient").implemented and not registry.model_kind("damper").implemented
+    assert registry.model_kind("gravity_gradient").implemented and registry.model_kind("damper").implemented
 
 
 @pytest.mark.parametrize("build, field", [

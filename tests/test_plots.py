@@ -125,8 +125,10 @@ def drawable(triangle_scan, amplitude_scan, benchmark_like, model_scans):
 @pytest.fixture(scope="module")
 def model_scans():
     """The bundled model studies, run small: the datasets of the models' figures."""
-    return {name: tumble.run_study(name, overrides={"perturbation.samples": 8}, progress=False)
-            for name in ("gyrostat_map", "sleeping_top")}
+    studies = {"gyrostat_map": "gyrostat_map", "sleeping_top": "sleeping_top", "debra_delp_map": "debra_delp_map",
+               "pitch_libration": "gravity_gradient_pitch", "flat_spin": "explorer1"}  # figure: its study
+    return {figure: tumble.run_study(study, overrides={"perturbation.samples": 8}, progress=False)
+            for figure, study in studies.items()}
 
 
 def _assert_paper_axes(fig):
@@ -277,7 +279,7 @@ def test_can_draw_rejects_unknown_names(measured):
         plots.can_draw(measured, "nope")
     assert plots.FIGURES == ("stability_map", "norm_growth", "flip_law", "flip_components", "invariant_drift",
                              "work_precision", "summary", "flip_strip", "flip_animation", "polhode", "herpolhode",
-                             "gyrostat_map", "sleeping_top")
+                             "gyrostat_map", "sleeping_top", "debra_delp_map", "pitch_libration", "flat_spin")
     assert set(plots.ANIMATIONS) <= set(plots.FIGURES)
 
 

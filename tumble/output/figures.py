@@ -849,7 +849,7 @@ def debra_delp_map(ds):
     stable[i1, i3] = kinds == "periodic"
     edges = [np.concatenate([[-1.0], 0.5 * (u[1:] + u[:-1]), [1.0]]) if len(u) > 1 else np.array([u[0] - 0.05, u[0] + 0.05])
              for u in (u1, u3)]
-    fig, (ax,) = _subplots(SINGLE + 0.8, SINGLE + 0.4)
+    fig, (ax,) = _subplots(SINGLE + 0.8, SINGLE - 0.1)
     ax.pcolormesh(edges[0], edges[1], np.where(stable.T > 0, 1.0, np.nan), cmap=ListedColormap([_STABLE]),
                   shading="flat")
     mesh = ax.pcolormesh(edges[0], edges[1], growth.T, cmap="magma_r", shading="flat")
@@ -926,7 +926,7 @@ def flat_spin(ds):
     size = np.asarray(ds["trace_momentum"].values, dtype=float)
     undamped = np.asarray(ds["trace_energy_undamped"].values, dtype=float)
     flat = np.asarray(ds["trace_flat_energy"].values, dtype=float)
-    fig = Figure(figsize=(DOUBLE, 5.0), layout="constrained")
+    fig = Figure(figsize=(DOUBLE, 4.0), layout="constrained")
     panels = fig.subplots(2, 2).reshape(-1)
     for k in range(len(nutation)):
         panels[0].plot(t, nutation[k], lw=0.7, color="C3" if k == 0 else "0.6", zorder=3 if k == 0 else 2)
