@@ -69,7 +69,7 @@ def test_the_registry_lists_the_contract_models_and_their_study_keys():
 def test_every_implemented_model_agrees_with_its_registry_row():
     rng = np.random.default_rng(1)
     implemented = [spec.name for spec in registry.MODELS if spec.implemented]
-    assert implemented == ["free", "gyrostat", "heavy_top"]
+    assert implemented == ["free", "gyrostat", "heavy_top", "gravity_gradient", "damper"]
     for model in _random_models(rng):
         spec = registry.model_kind(model.kind)
         assert model.state_size == len(spec.state)
@@ -424,11 +424,11 @@ def test_eigenvalues_need_a_model():
         eigenvalues((1.0, 2.0, 3.0), 2, 1.0)
 
 
-def test_physics_only_models_are_built_but_not_marked_implemented_for_studies():
-    # issue 19: the gravity gradient and the damper have classes and kernels (kernels.MODEL_CODES), no studies yet
+def test_issue_19_models_are_built_from_their_parameters_and_run_in_studies():
+    # the gravity gradient and the damper: classes, kernels (kernels.MODEL_CODES) and studies
     for kind in ("gravity_gradient", "damper"):
         spec = registry.model_kind(kind)
-        assert spec.physics and not spec.implemented
+        assert spec.physics and spec.implemented
         with pytest.raises(ValueError, match="needs it"):
             from_kind(kind, (1.0, 2.0, 3.0))
     assert all(spec.physics for spec in registry.MODELS)
