@@ -360,8 +360,8 @@ def test_damper_keeps_its_momentum_and_loses_energy_monotonically():
     rng = np.random.default_rng(9)
     model = Damper((2.0, 2.5, 1.0), 0.1, 0.02)
     y0 = np.concatenate([rng.normal(size=3), rng.normal(size=3)])
-    sol = solve_ivp(lambda t, y: model.rhs(y), (0, 200.0), y0, method="DOP853", rtol=1e-12, atol=1e-14,
-                    t_eval=np.linspace(0, 200.0, 2001))
+    sol = solve_ivp(lambda t, y: model.rhs(y), (0, 60.0), y0, method="DOP853", rtol=1e-12, atol=1e-14,
+                    t_eval=np.linspace(0, 60.0, 1201))
     assert sol.success
     l2 = model.invariants(sol.y.T)["momentum_squared"]
     assert np.abs(l2 / l2[0] - 1).max() <= 1e-10
