@@ -265,7 +265,7 @@ def test_perturbed_states_are_reproducible_by_index_and_tilt_g_independently():
     (dict(t_end=np.nan), "t_end"),
     (dict(dt=0.0), "dt"),
     (dict(dt=np.inf), "dt"),
-    (dict(method="splitting4"), "method"),
+    (dict(method="implicit_midpoint"), "method"),
     (dict(method="auto"), "method"),
     (dict(axis=0), "axis"),
     (dict(axis=1), "axis"),  # a heavy top spins about axis 3

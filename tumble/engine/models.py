@@ -4,7 +4,8 @@
 :mod:`tumble.physics.models` (a free body, a gyrostat, a heavy top, a gravity-gradient satellite, a body with a
 damper): the same chunks of samples and observers
 (final state, decimated trajectory, the transverse norm at probe times, the invariants' drift, a status per
-sample), stepped by the models' SIMD kernels (:func:`tumble.kernels.run_model`: rk4 or rk8, one compiled driver
+sample), stepped by the models' SIMD kernels (:func:`tumble.kernels.run_model`: rk4 or rk8, and the Lie–Poisson
+splittings symplectic_euler, splitting2, splitting4 for a free body, gyrostat or heavy top; one compiled driver
 for every model). The transverse norm is the model's own (:meth:`~tumble.physics.models.Model.transverse`, about
 :meth:`~tumble.physics.models.Model.equilibrium`; the gravity gradient's ``Transverse.centre``, ``w2 = −n``, is that
 equilibrium's). Initial states near a steady spin come from
@@ -18,7 +19,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..kernels import MODEL_CODES, MODEL_METHODS, run_model
+from ..kernels import MODEL_CODES, model_methods, run_model
 from ..physics.models import Model
 from .ensemble import DEFAULT_DRIFT_LIMIT, _count, _number, observation_times
 from .sampling import CHUNK
@@ -63,8 +64,12 @@ def _checked(model, y0, t_end, dt, method, axis, spin, save_every, probe_times, 
     """The arguments of :func:`run_model_ensemble`, checked before anything runs; ValueError naming the argument."""
     if not isinstance(model, Model) or model.kind not in MODEL_CODES:
         raise ValueError(f"model must be a tumble.physics.models model ({', '.join(MODEL_CODES)}), got {model!r}")
-    if not isinstance(method, str) or method not in MODEL_METHODS:
-        raise ValueError(f"method must be one of {', '.join(MODEL_METHODS)} for a model, got {method!r}")
+    if not isinstance(method, str) or method not in model_methods(model.kind):
+        why = ("" if model.kind not in ("gravity_gradient", "damper") else
+               " (the Lie–Poisson splittings do not apply: a damper is dissipative, a gravity gradient's state is no "
+               "Lie–Poisson system in these variables)")
+        raise ValueError(f"method must be one of {', '.join(model_methods(model.kind))} for a {model.kind} model, got "
+                         f"{method!r}{why}")
     y0 = _states(model, y0)
     t_end = _number(t_end, "t_end", low=0.0)
     dt = _number(dt, "dt", positive=True)
@@ -109,7 +114,9 @@ def run_model_ensemble(model, y0, t_end, dt, *, method="rk4", axis, spin=None, s
         component is not run: its status is non-finite.
     t_end, dt : float
         Horizon and step, s; ``round(t_end / dt)`` steps are taken.
-    method : {"rk4", "rk8"}
+    method : {"rk4", "rk8", "symplectic_euler", "splitting2", "splitting4"}
+        The splittings (exact sub-flows; ``|I w + h|``, a heavy top's ``|g|`` and ``L·g`` kept to round-off) for a
+        free body, gyrostat or heavy top only: a ValueError naming ``method`` for a gravity gradient or damper.
     axis : {1, 2, 3}
         The steady spin's axis, 1-based: the transverse norm (the probes) measures the perturbation of the spin
         about it (:meth:`~tumble.physics.models.Model.transverse`). A heavy top: 3; a gravity gradient: any (its

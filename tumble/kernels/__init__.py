@@ -8,9 +8,9 @@ checks it). Tests and benchmarks of the kernels themselves may reach the modules
 from . import elliptic, fits
 from .drivers import TORQUE_SIGNATURE
 from .methods import BLOCK, METHODS, Method, Observed, run, run_attitude
-from .models import MODEL_CODES, MODEL_METHODS, ModelObserved, model_rhs, run_model
+from .models import MODEL_CODES, MODEL_METHODS, ModelObserved, model_methods, model_rhs, run_model
 from .steppers import TORQUE_CONSTANT, TORQUE_PULSE, TORQUE_RAMP, TORQUE_SINE, TORQUE_USER
 
 __all__ = ["BLOCK", "METHODS", "MODEL_CODES", "MODEL_METHODS", "Method", "ModelObserved", "Observed", "TORQUE_CONSTANT",
            "TORQUE_PULSE", "TORQUE_RAMP", "TORQUE_SIGNATURE", "TORQUE_SINE", "TORQUE_USER", "elliptic", "fits",
-           "model_rhs", "run", "run_attitude", "run_model"]
+           "model_methods", "model_rhs", "run", "run_attitude", "run_model"]

@@ -12,7 +12,8 @@ over the block's samples that the compiler vectorises across samples (SIMD lanes
 loop over the samples; the observers are runtime switches on arrays that are empty when not asked for; a model's
 parameters are one float array of a single layout (:func:`tumble.kernels.model_rates.model_constants`). So one
 compiled (and cached) driver serves the free body, the gyrostat, the heavy top, the gravity gradient and the damper,
-rk4 and rk8, and every combination of outputs. The free body runs as the gyrostat with ``h = 0`` (the free body keeps its own, faster
+rk4 and rk8 (and the Lie–Poisson splittings for the free body, the gyrostat and the heavy top:
+:mod:`tumble.kernels.model_splittings`), and every combination of outputs. The free body runs as the gyrostat with ``h = 0`` (the free body keeps its own, faster
 driver for everything else: :func:`tumble.kernels.run`).
 
 **Observers.** The final state (in place); the state every ``save_every`` steps; the transverse norm
@@ -58,6 +59,7 @@ from .model_rates import (
     heavy_top_rate,
     model_constants,
 )
+from .model_splittings import SPLITTINGS, gyrostat_splitting_block, heavy_top_splitting_block
 from .model_steps import (
     damper_rk4_block,
     damper_rk8_block,
@@ -69,8 +71,8 @@ from .model_steps import (
     heavy_top_rk8_block,
 )
 
-__all__ = ["MODEL_CODES", "MODEL_METHODS", "ModelObserved", "model_constants", "model_rhs", "propagate_model",
-           "run_model"]
+__all__ = ["MODEL_CODES", "MODEL_METHODS", "ModelObserved", "SPLITTING_KINDS", "model_constants", "model_methods",
+           "model_rhs", "propagate_model", "run_model"]
 
 #: Kernel codes of the models: their index in ``registry.MODEL_KINDS``. The kernels step every model of this table,
 #: whatever ``registry.MODELS``' ``implemented`` says (that flag is the studies'; the gravity gradient and the damper
@@ -80,9 +82,20 @@ MODEL_FREE, MODEL_GYROSTAT, MODEL_HEAVY_TOP, MODEL_GRAVITY_GRADIENT, MODEL_DAMPE
 MODEL_CODES = {"free": MODEL_FREE, "gyrostat": MODEL_GYROSTAT, "heavy_top": MODEL_HEAVY_TOP,
                "gravity_gradient": MODEL_GRAVITY_GRADIENT, "damper": MODEL_DAMPER}
 
-#: The methods the model kernels run, by name: kernel id (index in ``registry.STEPPING``, as the free body's).
-MODEL_METHODS = {name: STEPPING.index(name) for name in ("rk4", "rk8")}
-_RK4 = MODEL_METHODS["rk4"]
+#: The methods the model kernels run, by name: kernel id (index in ``registry.STEPPING``, as the free body's): rk4 and
+#: rk8 for every model, the Lie–Poisson splittings (:mod:`tumble.kernels.model_splittings`) for ``SPLITTING_KINDS``.
+MODEL_METHODS = {**{name: STEPPING.index(name) for name in ("rk4", "rk8")}, **SPLITTINGS}
+_RK4, _RK8 = MODEL_METHODS["rk4"], MODEL_METHODS["rk8"]
+
+#: The models the splittings apply to: Lie–Poisson systems in the kernels' variables (the free body as the gyrostat
+#: with ``h = 0``). Not the damper (dissipative) nor the gravity gradient (``w`` and a quaternion relative to the
+#: turning orbit frame: no Lie–Poisson system in these variables).
+SPLITTING_KINDS = ("free", "gyrostat", "heavy_top")
+
+
+def model_methods(kind):
+    """The names of the methods the model kernels run for model ``kind`` (rk4 and rk8 first)."""
+    return tuple(name for name in MODEL_METHODS if name not in SPLITTINGS or kind in SPLITTING_KINDS)
 
 #: Steps between two checks for non-finite states when no drift is tracked.
 CHECK_EVERY = 32
@@ -101,13 +114,16 @@ def _constants(a):
 
 
 @jit
-def _step(model, method, ys, h, c):
-    """Advance every sample of a block (``ys``, shape (n_state, m)) by one step; branches outside the sample loop."""
+def _step(model, method, ys, h, c, x0):
+    """Advance every sample of a block (``ys``, shape (n_state, m)) by one step; branches outside the sample loop.
+    ``x0``: the samples' initial invariants (a gyrostat's splittings put ``|I w + h|²``, ``x0[1]``, back on it)."""
     if model == MODEL_HEAVY_TOP:
         if method == _RK4:
             heavy_top_rk4_block(ys[0], ys[1], ys[2], ys[3], ys[4], ys[5], h, c)
-        else:
+        elif method == _RK8:
             heavy_top_rk8_block(ys[0], ys[1], ys[2], ys[3], ys[4], ys[5], h, c)
+        else:
+            heavy_top_splitting_block(method, ys[0], ys[1], ys[2], ys[3], ys[4], ys[5], h, c)
     elif model == MODEL_GRAVITY_GRADIENT:
         if method == _RK4:
             gravity_gradient_rk4_block(ys[0], ys[1], ys[2], ys[3], ys[4], ys[5], ys[6], h, c)
@@ -120,8 +136,10 @@ def _step(model, method, ys, h, c):
             damper_rk8_block(ys[0], ys[1], ys[2], ys[3], ys[4], ys[5], h, c)
     elif method == _RK4:
         gyrostat_rk4_block(ys[0], ys[1], ys[2], h, c)
-    else:
+    elif method == _RK8:
         gyrostat_rk8_block(ys[0], ys[1], ys[2], h, c)
+    else:
+        gyrostat_splitting_block(method, ys[0], ys[1], ys[2], h, c, x0[1])
 
 
 @jit(inline=True)
@@ -226,7 +244,8 @@ def propagate_model(model, method, y, constants, h, n_steps, block,
     Parameters
     ----------
     model, method : int
-        :data:`MODEL_CODES` value; :data:`MODEL_METHODS` value (rk4 or rk8).
+        :data:`MODEL_CODES` value; :data:`MODEL_METHODS` value (rk4, rk8; a splitting for a free body, gyrostat
+        or heavy top).
     y : ndarray, shape (n_state, N), float64
         The states (rad/s, then the model's own units); overwritten with the final (or frozen) states.
     constants : ndarray, shape (N_CONSTANTS,)
@@ -281,7 +300,7 @@ def propagate_model(model, method, y, constants, h, n_steps, block,
         for k in range(n_steps):
             if n_frozen == m:
                 break
-            _step(model, method, ys, h, c)
+            _step(model, method, ys, h, c, x0)
             if n_frozen:
                 _restore_frozen(ys, active, frozen)
             ran = k + 1
@@ -392,6 +411,9 @@ def model_rhs(kind, y, moments, *, rotor=(0.0, 0.0, 0.0), mgl=0.0, orbit_rate=0.
     return out
 
 
+_NOT_LIE_POISSON = (" (the Lie–Poisson splittings apply to the free body, the gyrostat and the heavy top only: a damper "
+                    "is dissipative, a gravity gradient's state is no Lie–Poisson system in these variables)")
+
 _NO_STEPS = np.zeros(0, dtype=np.int64)
 _NO_COLUMNS = np.zeros(0, dtype=np.int64)
 _NO_WEIGHTS = np.zeros(0)
@@ -402,12 +424,14 @@ def run_model(kind, method, y, moments, h, n_steps, *, rotor=(0.0, 0.0, 0.0), mg
               drift=False, drift_limit=0.0, block=BLOCK):
     # size: the kernels' door for the models: keywords per model parameter and observer, packed here into the
     # driver's flat arrays
-    """Integrate an ensemble of a model with rk4 or rk8, observing only what is asked (:func:`propagate_model`).
+    """Integrate an ensemble of a model with rk4, rk8 or a splitting, observing only what is asked
+    (:func:`propagate_model`).
 
     Parameters
     ----------
     kind : {"free", "gyrostat", "heavy_top", "gravity_gradient", "damper"}
-    method : {"rk4", "rk8"}
+    method : {"rk4", "rk8", "symplectic_euler", "splitting2", "splitting4"}
+        The splittings for a free body, gyrostat or heavy top only (:func:`model_methods`).
     y : ndarray, shape (n_state, N), float64, C-contiguous
         Initial states as columns; overwritten with the final states (a gravity gradient's quaternions are put on
         the unit sphere after every step).
@@ -439,12 +463,13 @@ def run_model(kind, method, y, moments, h, n_steps, *, rotor=(0.0, 0.0, 0.0), mg
     Raises
     ------
     ValueError
-        An unknown kind or method, or a state of the wrong number of rows.
+        An unknown kind or method (a splitting for a gravity gradient or damper), or a state of the wrong rows.
     """
     code, n_state, constants = _kind_constants(kind, moments, dict(
         rotor=rotor, mgl=mgl, orbit_rate=orbit_rate, damper_inertia=damper_inertia, damping=damping))
-    if method not in MODEL_METHODS:
-        raise ValueError(f"method must be one of {', '.join(MODEL_METHODS)} for the model kernels, got {method!r}")
+    if method not in model_methods(kind):
+        raise ValueError(f"method must be one of {', '.join(model_methods(kind))} for a {kind} model in the model "
+                         f"kernels, got {method!r}" + _NOT_LIE_POISSON * (method in SPLITTINGS))
     if y.ndim != 2 or y.shape[0] != n_state or y.dtype != np.float64 or not y.flags.c_contiguous:
         raise ValueError(f"y must be a C-contiguous float64 array of shape ({n_state}, N), got {y.dtype} {y.shape}")
     n = y.shape[1]

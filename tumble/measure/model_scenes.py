@@ -73,7 +73,7 @@ __all__ = ["HEAVY_TOP_SPIN_TILT", "METHODS", "MODAL", "Mode", "ModelScene", "PER
            "flat_spin_trace", "scene_batch", "scene_plan", "scene_records", "scene_samples"]
 
 #: The model kernels' methods; ``"auto"`` is the first.
-METHODS = ("rk4", "rk8")
+METHODS = ("rk4", "rk8", "symplectic_euler", "splitting2", "splitting4")
 
 #: Periods of ``rate_theory`` a periodic model scene observes. The phase the fit follows turns uniformly in linear
 #: theory (a gyrostat's circular weights, a heavy top's modal coordinate), so its slope needs no long average: the
@@ -271,7 +271,7 @@ def scene_plan(model, axis, spin=1.0, amplitude=1e-3, samples=256, seed=0, metho
         Tilt of the perturbation, rad (a heavy top: its up direction's; see the module docstring).
     samples, seed, distribution
         The ensemble (:func:`tumble.engine.sampling.perturbed_states`).
-    method : {"auto", "rk4", "rk8"}
+    method : {"auto", "rk4", "rk8", "symplectic_euler", "splitting2", "splitting4"}
     dt, horizon : float, optional
         Step and horizon, s (default: planned from the linear theory).
 

@@ -128,7 +128,7 @@ MODEL_KINDS = registry.MODEL_KINDS
 MODEL_SCAN_KEYS = tuple(p.key for p in registry.MODEL_PARAMETERS)
 
 #: Stepping methods of a model study (the model kernels'); ``"auto"`` means the first.
-MODEL_METHODS = ("rk4", "rk8")
+MODEL_METHODS = ("rk4", "rk8", "symplectic_euler", "splitting2", "splitting4")
 
 #: Figures of a model study (the free body's others read what only free-body scenes record).
 MODEL_FIGURES = ("gyrostat_map", "sleeping_top", "debra_delp_map", "pitch_libration", "flat_spin", "summary")
