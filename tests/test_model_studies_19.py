@@ -168,3 +168,11 @@ def test_a_bundled_study_of_issue_19_runs_through_tumble_run_into_netcdf(tmp_pat
 def test_tumble_studies_lists_the_studies_of_issue_19(capsys):
     status, out, _ = _run_cli(capsys, "studies")
     assert status == 0 and all(name in out for name in ("debra_delp_map", "gravity_gradient_pitch", "explorer1"))
+
+
+@pytest.mark.parametrize("model", [{"kind": "gravity_gradient", "orbit_rate": 1.0},
+                                   {"kind": "damper", "damper_inertia": 0.1, "damping": 0.01}])
+def test_a_splitting_is_refused_for_the_models_it_does_not_apply_to(model):
+    """The Lie-Poisson splittings step the free body, the gyrostat and the heavy top only (registry)."""
+    with pytest.raises(StudyError, match="integration.method"):
+        load_study({"model": model, "integration": {"method": "splitting4"}})

@@ -256,6 +256,11 @@ MODEL_KINDS = tuple(_MODEL_BY_NAME)
 #: The model of a study that names none.
 DEFAULT_MODEL = "free"
 
+#: The models the Lie–Poisson splittings (symplectic_euler, splitting2, splitting4) step: Lie–Poisson systems in the
+#: model kernels' variables (the free body as the gyrostat with h = 0). Not the damper (dissipative) nor the gravity
+#: gradient (w and a quaternion relative to the turning orbit frame). The others step with rk4 and rk8.
+LIE_POISSON_MODELS = ("free", "gyrostat", "heavy_top")
+
 
 def model_kind(name):
     """The :class:`Model` called ``name`` (implemented or reserved); ValueError naming the kinds otherwise."""

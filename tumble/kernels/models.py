@@ -44,7 +44,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import prange
 
-from ..registry import MODEL_KINDS, STATUS_DRIFT, STATUS_NONFINITE, STATUS_OK, STEPPING, model_kind
+from ..registry import LIE_POISSON_MODELS, MODEL_KINDS, STATUS_DRIFT, STATUS_NONFINITE, STATUS_OK, STEPPING, model_kind
 from .jit import jit
 from .model_rates import (
     N_CONSTANTS,
@@ -87,10 +87,8 @@ MODEL_CODES = {"free": MODEL_FREE, "gyrostat": MODEL_GYROSTAT, "heavy_top": MODE
 MODEL_METHODS = {**{name: STEPPING.index(name) for name in ("rk4", "rk8")}, **SPLITTINGS}
 _RK4, _RK8 = MODEL_METHODS["rk4"], MODEL_METHODS["rk8"]
 
-#: The models the splittings apply to: Lie–Poisson systems in the kernels' variables (the free body as the gyrostat
-#: with ``h = 0``). Not the damper (dissipative) nor the gravity gradient (``w`` and a quaternion relative to the
-#: turning orbit frame: no Lie–Poisson system in these variables).
-SPLITTING_KINDS = ("free", "gyrostat", "heavy_top")
+#: The models the splittings apply to (``registry.LIE_POISSON_MODELS``, which says why).
+SPLITTING_KINDS = LIE_POISSON_MODELS
 
 
 def model_methods(kind):

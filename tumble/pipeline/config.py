@@ -825,10 +825,11 @@ def _check_model_scenes(resolved, given):
                                          f"(the model's own forces act)")
     methods = ([(f"scan.method[{i}]", m) for i, m in enumerate(scan["method"])] if "method" in scan
                else [("integration.method", resolved["integration"]["method"])])
+    allowed = MODEL_METHODS if kind in registry.LIE_POISSON_MODELS else MODEL_METHODS[:2]  # splittings: see registry
     for field, m in methods:
-        if m not in ("auto", *MODEL_METHODS):
-            raise _Invalid(field, f"model kind {kind!r} steps with {', '.join(MODEL_METHODS)} ('auto': "
-                                  f"{MODEL_METHODS[0]}), got {m!r}")
+        if m not in ("auto", *allowed):
+            raise _Invalid(field, f"model kind {kind!r} steps with {', '.join(allowed)} ('auto': "
+                                  f"{allowed[0]}), got {m!r}")
     outputs = resolved["outputs"]
     if "figures" not in given.get("outputs", {}):
         outputs["figures"] = ["summary"]
