@@ -13,14 +13,14 @@ from pathlib import Path
 import numba
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
+from model_orders import model_errors, observed_order
+from tumble.theory import linear
 
 from tumble import registry
 from tumble.engine.models import run_model_ensemble
 from tumble.engine.sampling import perturbed_spins, perturbed_states
 from tumble.kernels import model_codegen, model_rhs, tableaux
 from tumble.physics.models import FreeBody, Gyrostat, HeavyTop
-from tumble.theory import linear
 
 MODELS = {
     "free": FreeBody((1.0, 2.0, 3.0)),
@@ -98,15 +98,8 @@ def test_rk4_and_rk8_show_their_order_on_every_model(warm, kind, method, order, 
     model = MODELS[kind]
     y0 = _general_state(model)
     t_end = 4.0
-    checkpoints = np.linspace(0.0, t_end, 9)
-    reference = solve_ivp(lambda t, y: model.rhs(y), (0.0, t_end), y0[0], method="DOP853", rtol=1e-13, atol=1e-15,
-                          t_eval=checkpoints).y.T
-    errors = []
-    for n in steps:
-        result = run_model_ensemble(model, y0, t_end, t_end / n, method=method, axis=3, save_every=n // 8)
-        assert np.allclose(result.times, checkpoints)
-        errors.append(np.abs(result.trajectory[0] - reference).max())
-    observed = np.polyfit(np.log(t_end / np.array(steps)), np.log(errors), 1)[0]
+    errors = model_errors(model, y0, t_end, method, steps)
+    observed = observed_order(t_end, steps, errors)
     assert observed == pytest.approx(order, abs=0.2), errors
 
 

@@ -7,14 +7,14 @@ compositions are the free body's tables -> the models they do not apply to are r
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
+from model_orders import model_errors, observed_order
+from tumble.theory import linear
 
 from tumble import registry
 from tumble.engine.models import run_model_ensemble
 from tumble.engine.sampling import perturbed_states
 from tumble.kernels import model_methods, model_splittings, tableaux
 from tumble.physics.models import Damper, FreeBody, GravityGradient, Gyrostat, HeavyTop
-from tumble.theory import linear
 
 MODELS = {
     "free": FreeBody((1.0, 2.0, 3.0)),
@@ -42,15 +42,8 @@ def test_each_splitting_shows_its_order_against_dop853(kind, method, order, step
     model = MODELS[kind]
     y0 = _state(model)
     t_end = 2.0
-    checkpoints = np.linspace(0.0, t_end, 9)
-    reference = solve_ivp(lambda t, y: model.rhs(y), (0.0, t_end), y0[0], method="DOP853", rtol=1e-13, atol=1e-15,
-                          t_eval=checkpoints).y.T
-    errors = []
-    for n in steps:
-        result = run_model_ensemble(model, y0, t_end, t_end / n, method=method, axis=3, save_every=n // 8)
-        assert np.allclose(result.times, checkpoints)
-        errors.append(np.abs(result.trajectory[0] - reference).max())
-    observed = np.polyfit(np.log(t_end / np.array(steps)), np.log(errors), 1)[0]
+    errors = model_errors(model, y0, t_end, method, steps)
+    observed = observed_order(t_end, steps, errors)
     assert observed == pytest.approx(order, abs=0.2), errors
 
 

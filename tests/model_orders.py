@@ -1,0 +1,25 @@
+"""The observed order of a model method, shared by the model kernels' tests."""
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from tumble.engine.models import run_model_ensemble
+
+
+def model_errors(model, y0, t_end, method, steps):
+    """The largest error over 8 equally spaced checkpoints of ``method`` with each step count of ``steps``, against
+    SciPy's DOP853 at rtol 1e-13 (a single end point's error can sit near a cancellation)."""
+    checkpoints = np.linspace(0.0, t_end, 9)
+    reference = solve_ivp(lambda t, y: model.rhs(y), (0.0, t_end), y0[0], method="DOP853", rtol=1e-13, atol=1e-15,
+                          t_eval=checkpoints).y.T
+    errors = []
+    for n in steps:
+        result = run_model_ensemble(model, y0, t_end, t_end / n, method=method, axis=3, save_every=n // 8)
+        assert np.allclose(result.times, checkpoints)
+        errors.append(np.abs(result.trajectory[0] - reference).max())
+    return errors
+
+
+def observed_order(t_end, steps, errors):
+    """The slope of log(error) against log(step)."""
+    return np.polyfit(np.log(t_end / np.array(steps)), np.log(errors), 1)[0]
