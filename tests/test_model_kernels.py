@@ -13,7 +13,7 @@ from pathlib import Path
 import numba
 import numpy as np
 import pytest
-from model_orders import model_errors, observed_order
+from model_checks import fitted_rate, model_errors, observed_order
 from tumble.theory import linear
 
 from tumble import registry
@@ -149,14 +149,6 @@ def test_a_drift_beyond_the_limit_stops_the_sample_with_status_drift(warm):
 
 # --- linear theory -------------------------------------------------------------------------------------------------
 
-def _fitted_rate(times, probes, low, high):
-    """Least-squares slope of the ensemble's mean log norm over the times where it lies in (low, high)."""
-    mean = np.log(probes).mean(axis=0)
-    inside = (mean > np.log(low)) & (mean < np.log(high))
-    assert inside.sum() >= 20
-    return np.polyfit(times[inside], mean[inside], 1)[0]
-
-
 @pytest.mark.parametrize("model, spin", [
     (Gyrostat((1.0, 2.0, 3.0), (0.0, 0.1, 0.0)), 1.0),  # intermediate axis, small rotor: exponential
     (HeavyTop((2.0, 2.0, 1.0), 1.0), 2.0),  # below the sleeping threshold I3 w > 2 sqrt(mgl I1): a waking top
@@ -170,7 +162,7 @@ def test_measured_growth_rate_matches_linear_theory_of_the_jacobian(warm, model,
     result = run_model_ensemble(model, y0, t_end, 0.01, method="rk8", axis=axis,
                                 probe_times=np.linspace(0.0, t_end, 301), final=False)
     assert (result.status == registry.STATUS_OK).all()
-    measured = _fitted_rate(result.probe_times, result.probes, 1e-7, 1e-4)
+    measured = fitted_rate(result.probe_times, result.probes, 1e-7, 1e-4)
     assert measured == pytest.approx(rate, rel=5e-3)
 
 

@@ -12,7 +12,7 @@ Both models run through the same compiled driver as the others (the module fixtu
 import numba
 import numpy as np
 import pytest
-from model_orders import model_errors, observed_order
+from model_checks import fitted_rate, model_errors, observed_order
 from tumble.theory import linear
 
 from tumble import registry
@@ -198,14 +198,6 @@ def test_the_probes_are_the_physics_transverse_norm_about_the_equilibrium(warm, 
 
 # --- linear theory -------------------------------------------------------------------------------------------------
 
-def _fitted_rate(times, probes, low, high):
-    """Least-squares slope of the ensemble's mean log norm over the times where it lies in (low, high)."""
-    mean = np.log(probes).mean(axis=0)
-    inside = (mean > np.log(low)) & (mean < np.log(high))
-    assert inside.sum() >= 20
-    return np.polyfit(times[inside], mean[inside], 1)[0]
-
-
 @pytest.mark.parametrize("model, axis, spin", [
     (GravityGradient((2.1, 2.0, 2.2), 1.0), 2, 1.0),  # I3 > I1: pitch unstable (DeBra-Delp side: roll-yaw stable)
     (GravityGradient((3.0, 2.5, 1.0), 1.0), 2, 1.0),  # I1 > I2 > I3: pitch stable, roll-yaw unstable (k1 k3 < 0)
@@ -220,7 +212,7 @@ def test_measured_growth_rate_matches_linear_theory_of_the_jacobian(warm, model,
                                 probe_times=np.linspace(0.0, t_end, 601), final=False)
     assert (result.status == registry.STATUS_OK).all()
     scale = model.orbit_rate if model.kind == "gravity_gradient" else spin
-    measured = _fitted_rate(result.probe_times, result.probes, 1e-7 * scale, 1e-4 * scale)
+    measured = fitted_rate(result.probe_times, result.probes, 1e-7 * scale, 1e-4 * scale)
     assert measured == pytest.approx(rate, rel=5e-3)
 
 

@@ -1,4 +1,4 @@
-"""The observed order of a model method, shared by the model kernels' tests."""
+"""Checks the model kernels' tests share: observed orders against DOP853, growth rates fitted to the probes."""
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -23,3 +23,11 @@ def model_errors(model, y0, t_end, method, steps):
 def observed_order(t_end, steps, errors):
     """The slope of log(error) against log(step)."""
     return np.polyfit(np.log(t_end / np.array(steps)), np.log(errors), 1)[0]
+
+
+def fitted_rate(times, probes, low, high):
+    """Least-squares slope of the ensemble's mean log norm over the times where it lies in (low, high)."""
+    mean = np.log(probes).mean(axis=0)
+    inside = (mean > np.log(low)) & (mean < np.log(high))
+    assert inside.sum() >= 20
+    return np.polyfit(times[inside], mean[inside], 1)[0]
