@@ -25,7 +25,7 @@ _COMPONENTS = ("w1", "w2", "w3")
 _TORQUE_ARGS = "torque_kind, torque_params, torque_fn"
 
 
-def _combination(base, terms, component):
+def combination(base, terms, component):
     """``base + ((c0 * h) * k1_x + ...)`` over the non-zero terms, coefficients as exact literals.
 
     Each ``(c * h)`` is loop-invariant, so every term is one fused multiply-add; the increment is summed
@@ -47,11 +47,11 @@ def explicit_rk_source(tableau):
         lines.append(f"    k{s + 1}_1, k{s + 1}_2, k{s + 1}_3 = euler_rate(")
         lines.append(f"        {time},")
         for i, w in enumerate(_COMPONENTS):
-            lines.append(f"        {_combination(w, enumerate(tableau.A[s, :s]), i + 1)},")
+            lines.append(f"        {combination(w, enumerate(tableau.A[s, :s]), i + 1)},")
         lines.append(f"        body, {_TORQUE_ARGS})")
     lines.append("    return (")
     for i, w in enumerate(_COMPONENTS):
-        lines.append(f"        {_combination(w, enumerate(tableau.b), i + 1)},")
+        lines.append(f"        {combination(w, enumerate(tableau.b), i + 1)},")
     lines.append("    )")
     return "\n".join(lines)
 

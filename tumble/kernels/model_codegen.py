@@ -15,8 +15,10 @@ from pathlib import Path
 
 if __package__:
     from . import tableaux
-else:  # run as a script: import the tables beside this file without importing the tumble package
+    from .codegen import combination
+else:  # run as a script: import the tables and the free body's generator beside this file, not the tumble package
     import tableaux
+    from codegen import combination
 
 TARGET = Path(__file__).with_name("model_steps.py")
 
@@ -30,12 +32,6 @@ RATES = (("gyrostat", ("w1", "w2", "w3"), "gyrostat_rate", None),
 
 #: The methods with generated steps (their kernel ids are their indices in ``registry.STEPPING``).
 METHODS = (tableaux.RK4, tableaux.RK8)
-
-
-def _combination(base, terms, component):
-    """``base + ((a0 * h) * k1_x + ...)`` over the non-zero terms (as :func:`tumble.kernels.codegen._combination`)."""
-    parts = [f"({float(coef)!r} * h) * k{j + 1}_{component}" for j, coef in terms if coef != 0.0]
-    return f"{base} + ({' + '.join(parts)})" if parts else base
 
 
 def step_source(tableau, name, components, rate):
@@ -53,11 +49,11 @@ def step_source(tableau, name, components, rate):
         ks = ", ".join(f"k{s + 1}_{i + 1}" for i in range(n))
         lines.append(f"    {ks} = {rate}(")
         for i, y in enumerate(components):
-            lines.append(f"        {_combination(y, enumerate(tableau.A[s, :s]), i + 1)},")
+            lines.append(f"        {combination(y, enumerate(tableau.A[s, :s]), i + 1)},")
         lines.append("        c)")
     lines.append("    return (")
     for i, y in enumerate(components):
-        lines.append(f"        {_combination(y, enumerate(tableau.b), i + 1)},")
+        lines.append(f"        {combination(y, enumerate(tableau.b), i + 1)},")
     lines.append("    )")
     return "\n".join(lines)
 
