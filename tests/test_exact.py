@@ -591,3 +591,59 @@ def test_bad_input_is_rejected_by_every_entry_point():
             fn((1.0, 2.0, 3.0), [np.nan, 1.0, 0.0])
         with pytest.raises(ValueError, match="shape"):
             fn((1.0, 2.0, 3.0), [1.0, 0.0])
+
+
+# --------------------------------------------------------------------------------------------------
+# one time, fused (exact.omega_at: the addition theorem, no initial argument)
+
+
+@pytest.mark.parametrize("eps", [1.0, 1e-3, 1e-6, 1e-9, 1e-12])
+@pytest.mark.parametrize("regime", [1, -1])
+def test_one_time_path_matches_mpmath_near_separatrix_over_ten_flips(eps, regime):
+    rng = np.random.default_rng(int(1e3 * -np.log10(eps)) + regime + 5)
+    moments = SHUFFLED[int(-np.log10(eps)) % 3]
+    w0 = near_intermediate_spin(moments, eps, regime, rng)
+    t = flips_times(moments, w0, n=40)
+    ref, nu = mp_reference(moments, w0, t)
+    got = np.stack([exact.omega_at(np.asarray(moments), w0[None, :], float(tj))[0] for tj in t])
+    assert vector_error(got, ref).max() < 1e-12
+    assert component_error(moments, got, ref, nu).max() < 5e-12
+
+
+@pytest.mark.parametrize("moments", [(1.0, 2.0, 3.0), (3.0, 1.0, 2.0), (1.0, 1.0, 1.8), (1.8, 1.0, 1.8), (2.0, 2.0, 2.0),
+                                     (1.0, 1 + 1e-12, 1.5)])
+def test_one_time_path_agrees_with_the_time_grid_path(moments):
+    rng = np.random.default_rng(11)
+    moments = np.asarray(moments)
+    spins = [rng.normal(size=(300, 3))]
+    for axis in range(3):  # near each axis, on both sides of the separatrix, and zeros in every component
+        for eps in (0.3, 1e-4, 1e-9, 1e-13):
+            w = eps * rng.normal(size=(50, 3))
+            w[:, axis] = rng.choice([-1.0, 1.0], size=50) * (1.0 + rng.random(50))
+            spins.append(w)
+        w = rng.normal(size=(20, 3))
+        w[:, axis] = 0.0
+        spins.append(w)
+    w0 = np.ascontiguousarray(np.concatenate(spins))
+    for t in (0.0, 0.37, -5.0, 20.0):
+        got = exact.omega_at(moments, w0, t)
+        ref = exact.omega(moments, w0, np.array([t]))[:, 0]
+        scale = np.linalg.norm(w0, axis=1)
+        # both carry the argument nu t to eps |nu t|: the tolerance grows with it
+        assert np.all(np.abs(got - ref).max(axis=1) <= 16 * np.finfo(float).eps * scale * (1.0 + abs(t)))
+
+
+def test_one_time_path_on_the_separatrix_and_for_steady_spins():
+    moments = np.array([3.0, 4.0, 6.0])
+    w0 = np.array([[0.2, 0.5, 0.1], [0.0, 1.0, 0.0], [0.0, 0.0, -2.0], [0.0, 0.0, 0.0]])  # separatrix, steady, rest
+    t = 7.5
+    got = exact.omega_at(moments, w0, t)
+    np.testing.assert_allclose(got, exact.omega(moments, w0, t), rtol=0, atol=4 * np.finfo(float).eps)
+    np.testing.assert_array_equal(got[1:], w0[1:])
+
+
+def test_one_time_path_hands_spins_within_tiny_of_an_axis_to_the_general_path():
+    moments = np.array([1.0, 2.0, 3.0])
+    w0 = np.array([[1e-200, 1.0, 3e-201], [0.1, 1.0, 0.2]])  # the first below TINY_TRANSVERSE: lifted
+    for t in (0.0, 30.0):
+        np.testing.assert_array_equal(exact.omega_at(moments, w0, t), exact.omega(moments, w0, t))

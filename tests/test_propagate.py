@@ -16,7 +16,10 @@ def test_propagate_gives_integrates_bits_as_an_array(method, save_every):
     ds = tumble.integrate(MOMENTS, SPINS, 1.0, 0.03, method=method, save_every=save_every)
     expected = ds.omega.values if save_every else ds.omega.values[:, -1, :]
     assert isinstance(got, np.ndarray) and got.shape == expected.shape
-    np.testing.assert_array_equal(got, expected)
+    if method == "exact" and not save_every:  # one time: the fused kernel (addition theorem), a few ulps apart
+        np.testing.assert_allclose(got, expected, rtol=0, atol=8 * np.finfo(float).eps * np.abs(SPINS).max())
+    else:
+        np.testing.assert_array_equal(got, expected)
 
 
 def test_propagate_with_a_torque_and_auto():
@@ -25,7 +28,8 @@ def test_propagate_with_a_torque_and_auto():
     expected = tumble.integrate(MOMENTS, SPINS, 1.0, 0.03, method="rk4", torque=torque).omega.values[:, -1, :]
     np.testing.assert_array_equal(got, expected)
     free = tumble.propagate(MOMENTS, SPINS, 1.0, 0.03, method="auto")
-    np.testing.assert_allclose(free, tumble.exact.omega(MOMENTS, SPINS, np.array([1.0]))[:, 0], rtol=0, atol=0)
+    np.testing.assert_allclose(free, tumble.exact.omega(MOMENTS, SPINS, np.array([1.0]))[:, 0], rtol=0,
+                               atol=8 * np.finfo(float).eps * np.abs(SPINS).max())
 
 
 def test_one_spin_in_one_spin_out_and_the_callers_array_untouched():

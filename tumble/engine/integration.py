@@ -85,7 +85,9 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
 
     The same validation, step plan and kernels as :func:`integrate` (the results are the same bits), without
     building a Dataset: for a user's own loops, where the per-call cost matters (measured in
-    ``benchmarks/overhead.py``).
+    ``benchmarks/engine.py``). One exception: the closed form's final state alone (``method="exact"``, no
+    ``save_every``) comes from the fused one-time kernel (:func:`tumble.physics.exact.omega_at`), which agrees
+    with :func:`integrate` to a few ulps of ``|w|``, not bit for bit.
 
     Parameters
     ----------
@@ -124,15 +126,14 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
     kind, params, fn, _ = torque_spec(torque)
     chosen, _ = registry.choose_method(method, torque_free=params is None and fn is None)
     n_steps, step = _step_plan(t_end, dt)
-    if chosen == "exact":
-        times = np.array([t_end])
-        if save_every:  # the stepping path's store times: 0, k, 2k, ..., and the end
-            steps = np.arange(0, n_steps + 1, save_every)
-            times = np.append(steps, n_steps) if steps[-1] != n_steps else steps
-            times = times * step
-            times[-1] = t_end
+    if chosen == "exact" and not save_every:
+        out = exact.omega_at(moments, np.ascontiguousarray(w), t_end)
+    elif chosen == "exact":  # the stepping path's store times: 0, k, 2k, ..., and the end
+        steps = np.arange(0, n_steps + 1, save_every)
+        times = np.append(steps, n_steps) if steps[-1] != n_steps else steps
+        times = times * step
+        times[-1] = t_end
         out = exact.omega(moments, w, times)
-        out = out if save_every else out[:, -1, :]
     else:
         state = np.array(w.T, order="C")
         observed = run(METHODS[chosen], state, moments, 0.0, step, n_steps, save_every=save_every or 0,

@@ -65,6 +65,9 @@ that depend on the time (``|r| <= K/2`` or not, the signs) are selects. Per time
   per-sample coefficients (see :func:`_omega_row_hyperbolic`), from one branch-free ``exp``/``expm1``
   pair (Cody-Waite reduction, Taylor polynomials, ``2^k`` built in the exponent bits).
 
+One time per sample (the final state alone): :func:`torque_free_omega_at` fuses the invariants, the set-up and
+one evaluation per sample and skips the initial argument (Carlson's ``R_F``) by Jacobi's addition theorem.
+
 Measured against mpmath on a quarter period (``tests/test_elliptic_vectorised.py``): at most 3.7 eps
 relative (the scalar path: 3.8 eps), and within a few ulps of the scalar path everywhere.
 
@@ -83,6 +86,7 @@ from .jit import jit
 from .trig import _C1, _C2, _C3, _C4, _C5, _C6, _S1, _S2, _S3, _S4, _S5, _S6, _fma
 
 __all__ = ["KC_HYPERBOLIC", "TINY_TRANSVERSE", "agm", "carlson_rf", "hyperbolic_nome", "jacobi_sncndn", "torque_free_invariants", "torque_free_omega",
+           "torque_free_omega_at",
            "torque_free_setup"]
 
 #: Below this complementary modulus the hyperbolic series is used (11 terms a side just below 0.5, 3 at
@@ -342,6 +346,35 @@ def _dd_term(inertia, diff_hi, diff_lo, w):
     return _two_sum(p, e + (lo * diff_hi + hi * diff_lo))
 
 
+@jit(inline=True)
+def _invariants_row(m0, m1, m2, w0, w1, w2):
+    """One sample of :func:`torque_free_invariants`: ``(a, b, c, even, moment_scale, spin_scale, I1, I2, I3,
+    delta, tiny)`` for moments ``(m0, m1, m2)`` and spin ``(w0, w1, w2)``."""
+    moments = (m0, m1, m2)
+    w = (w0, w1, w2)
+    a, b, c = 0, 1, 2  # a stable sort of three: strict comparisons never swap equal moments
+    if moments[a] > moments[b]:
+        a, b = b, a
+    if moments[b] > moments[c]:
+        b, c = c, b
+    if moments[a] > moments[b]:
+        a, b = b, a
+    even = (a, b, c) == (0, 1, 2) or (a, b, c) == (1, 2, 0) or (a, b, c) == (2, 0, 1)
+    ms = math.ldexp(1.0, math.frexp(moments[c])[1])
+    ss = math.ldexp(1.0, math.frexp(max(abs(w0), abs(w1), abs(w2)))[1])
+    I1, I2, I3 = moments[a] / ms, moments[b] / ms, moments[c] / ms
+    w1s, w3s = w[a] / ss, w[c] / ss
+    d32h, d32l = _two_sum(I3, -I2)
+    d21h, d21l = _two_sum(I2, -I1)
+    ah, al = _dd_term(I3, d32h, d32l, w3s)
+    bh, bl = _dd_term(I1, d21h, d21l, w1s)
+    s, e = _two_sum(ah, -bh)
+    dh, dl = _two_sum(s, e + (al - bl))
+    x, y, z = abs(w0), abs(w1), abs(w2)
+    second = max(min(x, y), min(max(x, y), z))  # the middle of the three
+    return a, b, c, even, ms, ss, I1, I2, I3, dh + dl, 0.0 < second < TINY_TRANSVERSE * max(x, y, z)
+
+
 @jit(parallel=True)
 def torque_free_invariants(moments, w, I, perm, parity, moment_scale, spin_scale, delta):
     """Per sample: the sorted, scaled moments and the correctly rounded ``L² - 2E I2`` of the scaled spin — what
@@ -374,33 +407,15 @@ def torque_free_invariants(moments, w, I, perm, parity, moment_scale, spin_scale
     """
     tiny = 0
     for i in numba.prange(w.shape[0]):
-        a, b, c = 0, 1, 2  # a stable sort of three: strict comparisons never swap equal moments
-        if moments[i, a] > moments[i, b]:
-            a, b = b, a
-        if moments[i, b] > moments[i, c]:
-            b, c = c, b
-        if moments[i, a] > moments[i, b]:
-            a, b = b, a
+        a, b, c, even, ms, ss, I1, I2, I3, d, small = _invariants_row(moments[i, 0], moments[i, 1], moments[i, 2],
+                                                                     w[i, 0], w[i, 1], w[i, 2])
         perm[i, 0], perm[i, 1], perm[i, 2] = a, b, c
-        even = (a, b, c) == (0, 1, 2) or (a, b, c) == (1, 2, 0) or (a, b, c) == (2, 0, 1)
         parity[i] = 1.0 if even else -1.0
-        ms = math.ldexp(1.0, math.frexp(moments[i, c])[1])
-        ss = math.ldexp(1.0, math.frexp(max(abs(w[i, 0]), abs(w[i, 1]), abs(w[i, 2])))[1])
         moment_scale[i] = ms
         spin_scale[i] = ss
-        I1, I2, I3 = moments[i, a] / ms, moments[i, b] / ms, moments[i, c] / ms
         I[i, 0], I[i, 1], I[i, 2] = I1, I2, I3
-        w1, w3 = w[i, a] / ss, w[i, c] / ss
-        d32h, d32l = _two_sum(I3, -I2)
-        d21h, d21l = _two_sum(I2, -I1)
-        ah, al = _dd_term(I3, d32h, d32l, w3)
-        bh, bl = _dd_term(I1, d21h, d21l, w1)
-        s, e = _two_sum(ah, -bh)
-        dh, dl = _two_sum(s, e + (al - bl))
-        delta[i] = dh + dl
-        x, y, z = abs(w[i, 0]), abs(w[i, 1]), abs(w[i, 2])
-        second = max(min(x, y), min(max(x, y), z))  # the middle of the three
-        tiny += 1 if 0.0 < second < TINY_TRANSVERSE * max(x, y, z) else 0
+        delta[i] = d
+        tiny += 1 if small else 0
     return tiny
 
 
@@ -446,86 +461,83 @@ def torque_free_setup(I, perm, parity, w, spin_scale, delta, kind, amp, cols, kc
         Receive ``2E`` and ``L²`` of the scaled spins.
     """
     for i in numba.prange(w.shape[0]):
-        I1, I2, I3 = I[i, 0], I[i, 1], I[i, 2]
         p0, p1, p2 = perm[i, 0], perm[i, 1], perm[i, 2]
-        sc = spin_scale[i]
-        w1 = w[i, p0] / sc
-        w2 = w[i, p1] / sc
-        w3 = w[i, p2] / sc
-        e2[i] = I1 * w1 * w1 + I2 * w2 * w2 + I3 * w3 * w3
-        L2[i] = (I1 * w1) ** 2 + (I2 * w2) ** 2 + (I3 * w3) ** 2
-        d = delta[i]
-        # steady rotation: every term of w x (I w) vanishes exactly (zeros of the unscaled spin)
-        z1 = w[i, p0] == 0.0
-        z2 = w[i, p1] == 0.0
-        z3 = w[i, p2] == 0.0
-        stationary = (I2 == I3 or z2 or z3) and (I3 == I1 or z3 or z1) and (I1 == I2 or z1 or z2)
-        cols[i, 0] = p0
-        cols[i, 1] = p1
-        cols[i, 2] = p2
-        if stationary:
-            kind[i] = KIND_STATIONARY
-            amp[i, 0] = w[i, p0]
-            amp[i, 1] = w[i, p1]
-            amp[i, 2] = w[i, p2]
-            kc[i] = 1.0
-            m[i] = 0.0
+        kind_i, cols_i, amp_i, k_c, mi, nu_i, sn_r, cn_r, e2[i], L2[i] = _setup_row(
+            I[i, 0], I[i, 1], I[i, 2], p0, p1, p2, parity[i], spin_scale[i], w[i, p0], w[i, p1], w[i, p2], delta[i])
+        kind[i] = kind_i
+        cols[i, 0], cols[i, 1], cols[i, 2] = cols_i
+        amp[i, 0], amp[i, 1], amp[i, 2] = amp_i
+        kc[i] = k_c
+        m[i] = mi
+        nu[i] = nu_i
+        if kind_i == KIND_STATIONARY:
             K[i] = 0.5 * math.pi
             nome[0, i] = 0.0
             nome[1, i] = 0.0
             phase0[i] = 0.0
-            nu[i] = 0.0
-            continue
-        if d < 0.0:  # dn on the smallest-moment axis
-            Ip, Iq, wp, wq = I1, I3, w1, w3
-            cols[i, 0] = p2
-            cols[i, 2] = p0
-        else:
-            Ip, Iq, wp, wq = I3, I1, w3, w1
-        dpq = I3 - I1
-        dp2 = abs(Ip - I2)
-        dq2 = abs(Iq - I2)
-        X = I2 * dp2 * w2 * w2 + Iq * dpq * wq * wq  # |2E Ip - L²|
-        Y = I2 * dq2 * w2 * w2 + Ip * dpq * wp * wp  # |L² - 2E Iq|
-        a_q = math.sqrt(X / (Iq * dpq))
-        a_mid = math.sqrt(X / (I2 * dp2))
-        a_p = math.sqrt(Y / (Ip * dpq))
-        nu_abs = math.sqrt(dp2 * Y / (I1 * I2 * I3))
-        s_p = -1.0 if wp < 0.0 else 1.0
-        if d == 0.0:  # the separatrix: tanh, sech, sech
-            s_q = -1.0 if wq < 0.0 else 1.0
-            kind[i] = KIND_SEPARATRIX
-            kc[i] = 0.0
-            m[i] = 1.0
+        elif kind_i == KIND_SEPARATRIX:
             K[i] = math.inf
             nome[0, i] = 0.0
             nome[1, i] = 0.0
-            phase0[i] = math.asinh((w2 / a_mid) * (a_q / abs(wq)))
-            nu[i] = s_p * s_q * parity[i] * nu_abs * sc
-            amp[i, 0] = s_q * a_q * sc
-            amp[i, 1] = a_mid * sc
-            amp[i, 2] = s_p * a_p * sc
-            continue
-        kind[i] = KIND_ELLIPTIC
-        mi = dq2 * X / (dp2 * Y)
-        k_c = 1.0 if mi == 0.0 else math.sqrt(dpq / (dp2 * Y)) * math.sqrt(abs(d))
-        sigma = -1.0 if w2 < 0.0 else 1.0  # (-1)^n0
-        ratio = a_p / abs(wp)
-        sn_r = -sigma * (wq / a_q) * ratio
-        cn_r = sigma * (w2 / a_mid) * ratio * k_c
-        norm = math.hypot(sn_r, cn_r)
-        sn_r /= norm
-        cn_r /= norm
-        phase0[i] = sn_r * carlson_rf(cn_r * cn_r, cn_r * cn_r + (k_c * sn_r) ** 2, 1.0)
-        kc[i] = k_c
-        m[i] = mi
-        K[i] = 0.5 * math.pi / agm(1.0, k_c)
-        nome[0, i], nome[1, i] = hyperbolic_nome(k_c, K[i]) if k_c < KC_HYPERBOLIC else (0.0, 0.0)
-        nu[i] = s_p * parity[i] * nu_abs * sc
-        amp[i, 0] = sigma * a_q * sc
-        amp[i, 1] = sigma * a_mid * sc
-        # dn = 1 when m = 0 (a symmetric top): the symmetry-axis component is then exactly constant
-        amp[i, 2] = wp * sc if mi == 0.0 else s_p * a_p * sc
+            phase0[i] = math.asinh(sn_r)
+        else:
+            phase0[i] = sn_r * carlson_rf(cn_r * cn_r, cn_r * cn_r + (k_c * sn_r) ** 2, 1.0)
+            K[i] = 0.5 * math.pi / agm(1.0, k_c)
+            nome[0, i], nome[1, i] = hyperbolic_nome(k_c, K[i]) if k_c < KC_HYPERBOLIC else (0.0, 0.0)
+
+
+@jit(inline=True)
+def _setup_row(I1, I2, I3, p0, p1, p2, parity, sc, wa, wb, wc, d):
+    # size: one sample's sorted moments, permutation and spin in; flat scalars for the kernels that inline it
+    """One sample of :func:`torque_free_setup` (the formulas are in its docstring), without the elliptic integrals.
+
+    ``wa, wb, wc`` are the spin's components on the axes ``p0, p1, p2`` (unscaled), ``d`` its ``L² - 2E I2``.
+    Returns ``(kind, cols, amp, k', m, nu, x, y, 2E, L²)``: elliptic, ``x, y = sn r0, cn r0`` (normalised, so
+    ``r0 = x R_F(y², y² + k'² x², 1)``); on the separatrix ``x = sinh u0``; stationary, zeros.
+    """
+    w1 = wa / sc
+    w2 = wb / sc
+    w3 = wc / sc
+    e2 = I1 * w1 * w1 + I2 * w2 * w2 + I3 * w3 * w3
+    L2 = (I1 * w1) ** 2 + (I2 * w2) ** 2 + (I3 * w3) ** 2
+    # steady rotation: every term of w x (I w) vanishes exactly (zeros of the unscaled spin)
+    z1 = wa == 0.0
+    z2 = wb == 0.0
+    z3 = wc == 0.0
+    stationary = (I2 == I3 or z2 or z3) and (I3 == I1 or z3 or z1) and (I1 == I2 or z1 or z2)
+    if stationary:
+        return KIND_STATIONARY, (p0, p1, p2), (wa, wb, wc), 1.0, 0.0, 0.0, 0.0, 0.0, e2, L2
+    cq, cp = p0, p2
+    if d < 0.0:  # dn on the smallest-moment axis
+        Ip, Iq, wp, wq = I1, I3, w1, w3
+        cq, cp = p2, p0
+    else:
+        Ip, Iq, wp, wq = I3, I1, w3, w1
+    dpq = I3 - I1
+    dp2 = abs(Ip - I2)
+    dq2 = abs(Iq - I2)
+    X = I2 * dp2 * w2 * w2 + Iq * dpq * wq * wq  # |2E Ip - L²|
+    Y = I2 * dq2 * w2 * w2 + Ip * dpq * wp * wp  # |L² - 2E Iq|
+    a_q = math.sqrt(X / (Iq * dpq))
+    a_mid = math.sqrt(X / (I2 * dp2))
+    a_p = math.sqrt(Y / (Ip * dpq))
+    nu_abs = math.sqrt(dp2 * Y / (I1 * I2 * I3))
+    s_p = -1.0 if wp < 0.0 else 1.0
+    if d == 0.0:  # the separatrix: tanh, sech, sech
+        s_q = -1.0 if wq < 0.0 else 1.0
+        return (KIND_SEPARATRIX, (cq, p1, cp), (s_q * a_q * sc, a_mid * sc, s_p * a_p * sc), 0.0, 1.0,
+                s_p * s_q * parity * nu_abs * sc, (w2 / a_mid) * (a_q / abs(wq)), 0.0, e2, L2)
+    mi = dq2 * X / (dp2 * Y)
+    k_c = 1.0 if mi == 0.0 else math.sqrt(dpq / (dp2 * Y)) * math.sqrt(abs(d))
+    sigma = -1.0 if w2 < 0.0 else 1.0  # (-1)^n0
+    ratio = a_p / abs(wp)
+    sn_r = -sigma * (wq / a_q) * ratio
+    cn_r = sigma * (w2 / a_mid) * ratio * k_c
+    norm = math.hypot(sn_r, cn_r)
+    # dn = 1 when m = 0 (a symmetric top): the symmetry-axis component is then exactly constant
+    amp_p = wp * sc if mi == 0.0 else s_p * a_p * sc
+    return (KIND_ELLIPTIC, (cq, p1, cp), (sigma * a_q * sc, sigma * a_mid * sc, amp_p), k_c, mi,
+            s_p * parity * nu_abs * sc, sn_r / norm, cn_r / norm, e2, L2)
 
 
 @jit(parallel=True)
@@ -810,25 +822,31 @@ def _omega_row_landen(ph, nu, t, K, kc, kap, quarter_m, P, out, W):
     two_k = 2.0 * K
     inv_two_k = 1.0 / two_k
     inv_p = 1.0 / P
-    k1, k2, k3, k4 = kap
     for j in range(t.shape[0]):
-        x, near, par, sg = _quarter_period_reduction(ph + nu * t[j], K, two_k, inv_two_k)
-        v = x * inv_p
-        sv, cv = _sin_cos_octant(v)
-        w = quarter_m * (v - sv * cv)
-        s_b = sv - w * cv
-        c_b = cv + w * sv
-        # levels 4 .. 1 on the deviations S = s_b (1 + f), C = c_b (1 + g), E = 1 + e, D = 1 + d
-        f, g, d, e = _gauss_level(s_b, 0.0, 0.0, 0.0, -2.0 * quarter_m * sv * sv, k4)
-        f, g, d, e = _gauss_level(s_b, f, g, d, e, k3)
-        f, g, d, e = _gauss_level(s_b, f, g, d, e, k2)
-        f, g, d, e = _gauss_level(s_b, f, g, d, e, k1)
-        S = s_b + s_b * f
-        C = c_b + c_b * g
-        E = 1.0 + e
-        D = 1.0 + d
-        sn, cn, dn = _unreduce(S, C, E, D, P, kc, near, par, sg)
+        sn, cn, dn = _landen_at(ph + nu * t[j], K, two_k, inv_two_k, inv_p, kc, kap, quarter_m, P)
         _store(out, j, W, cn, sn, dn)
+
+
+@jit(inline=True)
+def _landen_at(s, K, two_k, inv_two_k, inv_p, kc, kap, quarter_m, P):
+    """``sn, cn, dn`` of ``u = K + s`` by :func:`_omega_row_landen`'s core (``two_k = 2K``, ``inv_p = 1/P``)."""
+    k1, k2, k3, k4 = kap
+    x, near, par, sg = _quarter_period_reduction(s, K, two_k, inv_two_k)
+    v = x * inv_p
+    sv, cv = _sin_cos_octant(v)
+    w = quarter_m * (v - sv * cv)
+    s_b = sv - w * cv
+    c_b = cv + w * sv
+    # levels 4 .. 1 on the deviations S = s_b (1 + f), C = c_b (1 + g), E = 1 + e, D = 1 + d
+    f, g, d, e = _gauss_level(s_b, 0.0, 0.0, 0.0, -2.0 * quarter_m * sv * sv, k4)
+    f, g, d, e = _gauss_level(s_b, f, g, d, e, k3)
+    f, g, d, e = _gauss_level(s_b, f, g, d, e, k2)
+    f, g, d, e = _gauss_level(s_b, f, g, d, e, k1)
+    S = s_b + s_b * f
+    C = c_b + c_b * g
+    E = 1.0 + e
+    D = 1.0 + d
+    return _unreduce(S, C, E, D, P, kc, near, par, sg)
 
 
 @jit(inline=True)
@@ -890,22 +908,28 @@ def _omega_row_hyperbolic(ph, nu, t, K, kc, h, hk, q, dcoef, ccoef, scoef, out, 
     """
     two_k = 2.0 * K
     inv_two_k = 1.0 / two_k
-    g1, g2, g3, g4, g5, g6 = scoef
     for j in range(t.shape[0]):
-        x, near, par, sg = _quarter_period_reduction(ph + nu * t[j], K, two_k, inv_two_k)
-        em, om, den, zp, zm = _hyperbolic_core(x, h, hk, q)
-        a = zp * zp
-        b = zm * zm
-        dser = zp * _horner7(a, dcoef) + zm * _horner7(b, dcoef)
-        cser = zp * _horner7(a, ccoef) + zm * _horner7(b, ccoef)
-        p5 = g5 + a * g6  # P_i(a) = g_(i+1) + a P_(i+1)(a)
-        p4 = g4 + a * p5
-        p3 = g3 + a * p4
-        p2 = g2 + a * p3
-        p1 = g1 + a * p2
-        hsum = p1 + b * (p2 + b * (p3 + b * (p4 + b * (p5 + b * g6))))
-        sn, cn, dn = _hyperbolic_unreduce(em, om, den, zp, zm, dser, cser, hsum, h, hk, kc, near, par, sg)
+        sn, cn, dn = _hyperbolic_at(ph + nu * t[j], K, two_k, inv_two_k, kc, h, hk, q, dcoef, ccoef, scoef)
         _store(out, j, W, cn, sn, dn)
+
+
+@jit(inline=True)
+def _hyperbolic_at(s, K, two_k, inv_two_k, kc, h, hk, q, dcoef, ccoef, scoef):
+    """``sn, cn, dn`` of ``u = K + s`` by :func:`_omega_row_hyperbolic`'s series."""
+    g1, g2, g3, g4, g5, g6 = scoef
+    x, near, par, sg = _quarter_period_reduction(s, K, two_k, inv_two_k)
+    em, om, den, zp, zm = _hyperbolic_core(x, h, hk, q)
+    a = zp * zp
+    b = zm * zm
+    dser = zp * _horner7(a, dcoef) + zm * _horner7(b, dcoef)
+    cser = zp * _horner7(a, ccoef) + zm * _horner7(b, ccoef)
+    p5 = g5 + a * g6  # P_i(a) = g_(i+1) + a P_(i+1)(a)
+    p4 = g4 + a * p5
+    p3 = g3 + a * p4
+    p2 = g2 + a * p3
+    p1 = g1 + a * p2
+    hsum = p1 + b * (p2 + b * (p3 + b * (p4 + b * (p5 + b * g6))))
+    return _hyperbolic_unreduce(em, om, den, zp, zm, dser, cser, hsum, h, hk, kc, near, par, sg)
 
 
 @jit
@@ -914,19 +938,25 @@ def _omega_row_hyperbolic_short(ph, nu, t, K, kc, h, hk, q, dcoef, ccoef, scoef,
     ``i <= 1`` and ``j <= 2``: the first omitted terms are below ``e^-56`` and ``e^-72`` of the leading one."""
     two_k = 2.0 * K
     inv_two_k = 1.0 / two_k
+    for j in range(t.shape[0]):
+        sn, cn, dn = _hyperbolic_short_at(ph + nu * t[j], K, two_k, inv_two_k, kc, h, hk, q, dcoef, ccoef, scoef)
+        _store(out, j, W, cn, sn, dn)
+
+
+@jit(inline=True)
+def _hyperbolic_short_at(s, K, two_k, inv_two_k, kc, h, hk, q, dcoef, ccoef, scoef):
+    """``sn, cn, dn`` of ``u = K + s`` by :func:`_omega_row_hyperbolic_short`'s series."""
     d0, d1 = dcoef[0], dcoef[1]
     c0, c1 = ccoef[0], ccoef[1]
     g1, g2 = scoef[0], scoef[1]
-    for j in range(t.shape[0]):
-        x, near, par, sg = _quarter_period_reduction(ph + nu * t[j], K, two_k, inv_two_k)
-        em, om, den, zp, zm = _hyperbolic_core(x, h, hk, q)
-        a = zp * zp
-        b = zm * zm
-        dser = zp * (d0 + a * d1) + zm * (d0 + b * d1)
-        cser = zp * (c0 + a * c1) + zm * (c0 + b * c1)
-        hsum = g1 + (a + b) * g2
-        sn, cn, dn = _hyperbolic_unreduce(em, om, den, zp, zm, dser, cser, hsum, h, hk, kc, near, par, sg)
-        _store(out, j, W, cn, sn, dn)
+    x, near, par, sg = _quarter_period_reduction(s, K, two_k, inv_two_k)
+    em, om, den, zp, zm = _hyperbolic_core(x, h, hk, q)
+    a = zp * zp
+    b = zm * zm
+    dser = zp * (d0 + a * d1) + zm * (d0 + b * d1)
+    cser = zp * (c0 + a * c1) + zm * (c0 + b * c1)
+    hsum = g1 + (a + b) * g2
+    return _hyperbolic_unreduce(em, om, den, zp, zm, dser, cser, hsum, h, hk, kc, near, par, sg)
 
 
 @jit
@@ -934,13 +964,17 @@ def _omega_row_separatrix(ph, nu, t, out, W):
     """One separatrix sample: ``(sech, tanh, sech)(u0 + nu t)`` into ``out`` (3T,), branch-free:
     ``tanh|v| = (1 - e^-2|v|)/(1 + e^-2|v|)``, ``sech v = 2 e^-|v|/(1 + e^-2|v|)``."""
     for j in range(t.shape[0]):
-        v = ph + nu * t[j]
-        em, em_m1 = _exp_expm1(-abs(v))
-        inv_den = 1.0 / (1.0 + em * em)
-        sech = 2.0 * em * inv_den
-        tanh = -em_m1 * (1.0 + em) * inv_den
-        tanh = tanh if v >= 0.0 else -tanh
+        sech, tanh = _sech_tanh(ph + nu * t[j])
         _store(out, j, W, sech, tanh, sech)
+
+
+@jit(inline=True)
+def _sech_tanh(v):
+    """``sech v, tanh v`` (see :func:`_omega_row_separatrix`)."""
+    em, em_m1 = _exp_expm1(-abs(v))
+    inv_den = 1.0 / (1.0 + em * em)
+    tanh = -em_m1 * (1.0 + em) * inv_den
+    return 2.0 * em * inv_den, tanh if v >= 0.0 else -tanh
 
 
 @jit(parallel=True)
@@ -1015,3 +1049,78 @@ def torque_free_omega(kind, amp, cols, kc, K, nome, phase0, nu, times, row, out)
             bad |= 0 if abs(o[j]) < math.inf else 1
         non_finite += bad
     return non_finite
+
+
+@jit
+def _sncndn_once(s, kc, K, h, q):
+    """``sn, cn, dn`` of ``u = K + s`` for one argument, by the core of :func:`torque_free_omega` for ``k'``."""
+    two_k = 2.0 * K
+    inv_two_k = 1.0 / two_k
+    if kc >= KC_HYPERBOLIC:
+        kap, quarter_m, P = _landen_constants(kc)
+        return _landen_at(s, K, two_k, inv_two_k, 1.0 / P, kc, kap, quarter_m, P)
+    hk = h / math.sqrt((1.0 - kc) * (1.0 + kc))
+    dcoef, ccoef, scoef = _series_constants(q)
+    if 2.0 * K * h >= BETA_SHORT_SERIES:
+        return _hyperbolic_short_at(s, K, two_k, inv_two_k, kc, h, hk, q, dcoef, ccoef, scoef)
+    return _hyperbolic_at(s, K, two_k, inv_two_k, kc, h, hk, q, dcoef, ccoef, scoef)
+
+
+@jit(parallel=True)
+def torque_free_omega_at(moments, w, t, out):
+    """Angular velocity of the free rigid body at one time ``t``, straight from the initial spins: the invariants,
+    the set-up and the evaluation of :func:`torque_free_omega` fused per sample, without the initial argument.
+
+    Jacobi's addition theorem (DLMF 22.8.1-3) moves the motion from ``u0 = K + r0`` to ``u0 + nu t``, with
+    ``sn, cn, dn`` of ``u0`` taken from the spin itself (``sn u0 = cd r0``, ``cn u0 = -k' sd r0``,
+    ``dn u0 = k' nd r0``, with ``sn r0 = x``, ``cn r0 = y`` of :func:`_setup_row` and ``D = dn r0``); only
+    ``sn, cn, dn`` of ``nu t`` are evaluated. Multiplied through by ``D²``, every denominator is a sum of
+    squares, ``y² dn² + k'² x²``, and ``k'`` factors out of ``cn, dn`` (kept relative near the unstable axis)::
+
+        sn = (y D cn dn - k'² x sn) / den,   cn = -k' (x D cn + y sn dn) / den,
+        dn =  k' (D dn + k² x y sn cn) / den          (sn, cn, dn of nu t)
+
+    So Carlson's ``R_F`` (the initial argument) is never computed. The error is a few ulps of ``|w|``, absolute
+    (the numerators may cancel where a component passes zero); on the separatrix ``u0 = asinh(...)`` is formed.
+
+    Parameters
+    ----------
+    moments, w : ndarray, shape (n, 3)
+        Principal moments (kg m², validated) and initial body-frame spins (rad/s), one sample per row.
+    t : float
+        The time, s.
+    out : ndarray, shape (n, 3)
+        Receives the angular velocity at ``t``, rad/s.
+
+    Returns
+    -------
+    (int, int)
+        The samples too close to a principal axis for the invariants (``TINY_TRANSVERSE``: the caller must take
+        the general path for them) and the samples with a non-finite value.
+    """
+    tiny = 0
+    non_finite = 0
+    for i in numba.prange(w.shape[0]):
+        a, b, c, even, _, ss, I1, I2, I3, d, small = _invariants_row(moments[i, 0], moments[i, 1], moments[i, 2],
+                                                                    w[i, 0], w[i, 1], w[i, 2])
+        kind, cols, amp, k_c, mi, nu, x, y, _, _ = _setup_row(I1, I2, I3, a, b, c, 1.0 if even else -1.0, ss,
+                                                              w[i, a], w[i, b], w[i, c], d)
+        fq = fm = fp = 1.0  # stationary
+        if kind == KIND_SEPARATRIX:
+            fq, fm = _sech_tanh(math.asinh(x) + nu * t)
+            fp = fq
+        elif kind == KIND_ELLIPTIC:
+            K = 0.5 * math.pi / agm(1.0, k_c)
+            h, q = hyperbolic_nome(k_c, K) if k_c < KC_HYPERBOLIC else (0.0, 0.0)
+            sn, cn, dn = _sncndn_once(nu * t - K, k_c, K, h, q)
+            D = math.sqrt(y * y + (k_c * x) ** 2)
+            inv = 1.0 / ((y * dn) ** 2 + (k_c * x) ** 2)
+            fm = (y * D * (cn * dn) - k_c * k_c * (x * sn)) * inv
+            fq = -k_c * (x * D * cn + y * (sn * dn)) * inv
+            fp = 1.0 if mi == 0.0 else k_c * (D * dn + mi * (x * y) * (sn * cn)) * inv
+        out[i, cols[0]] = amp[0] * fq
+        out[i, cols[1]] = amp[1] * fm
+        out[i, cols[2]] = amp[2] * fp
+        tiny += 1 if small else 0
+        non_finite += 0 if abs(out[i, 0]) + abs(out[i, 1]) + abs(out[i, 2]) < math.inf else 1
+    return tiny, non_finite

@@ -318,6 +318,25 @@ def omega_rows(sol, times, row):
     return out
 
 
+def omega_at(moments, w, t):
+    """Angular velocity (n, 3), rad/s, at one time ``t`` (s) of spins ``w`` (n, 3, float64, C order) of one body
+    ``moments`` (3,), all validated by the caller: the lean path of :func:`omega` for a single time.
+
+    One fused kernel (:func:`tumble.kernels.elliptic.torque_free_omega_at`: no initial argument, Jacobi's
+    addition theorem instead); agrees with :func:`omega` to a few ulps of ``|w|``. Spins within
+    ``TINY_TRANSVERSE`` of an axis take :func:`omega`'s path.
+    """
+    rows = np.empty(w.shape)
+    rows[:] = moments
+    out = np.empty(w.shape)
+    tiny, non_finite = _ell.torque_free_omega_at(rows, w, t, out)
+    if tiny:
+        return omega(moments, w, t)
+    if non_finite:
+        raise FloatingPointError("exact.omega produced non-finite values; please report this spin")
+    return out
+
+
 def flip_spacings(sol):
     """Flip spacing ``2K/|nu|`` (s; inf where none) of each sample of a :func:`solve_rows` solution."""
     with np.errstate(divide="ignore"):
