@@ -262,3 +262,18 @@ def test_a_non_finite_argument_gives_nan_not_a_number_that_looks_fine(kc):
     sep = (np.full(1, ell.KIND_SEPARATRIX, dtype=np.int64), np.ones((1, 3)), np.array([[0, 1, 2]]), np.zeros(1),
            np.zeros(1), np.ones(1))
     assert np.all(np.isnan(omega_rows(sep, np.array([[np.nan]]), np.zeros(1))))
+
+
+PACKED_SQRT = re.compile(r"\bvsqrtpd\s+[^\n]*%[yz]mm")
+
+
+@pytest.mark.skipif(not _has_avx2_and_fma(), reason="host CPU lacks AVX2+FMA")
+def test_the_one_time_kernel_puts_samples_in_simd_lanes():
+    # the set-up, the AGMs and the addition take packed square roots: the stages' loops over samples vectorised
+    f = _njit(ell._omega_at_chunk.py_func)
+    w = np.random.default_rng(2).normal(size=(40, 3))
+    out = np.empty((40, 3))
+    assert f(np.array(MOMENTS), w, 1.5, out, 0, 40) == (0, 0)
+    asm = next(iter(f.inspect_asm().values()))
+    assert len(PACKED_SQRT.findall(asm)) >= 8, "the loops over samples did not vectorise"
+    np.testing.assert_allclose(out, exact.omega(MOMENTS, w, np.array([1.5]))[:, 0], rtol=0, atol=1e-14)

@@ -638,7 +638,8 @@ def test_one_time_path_on_the_separatrix_and_for_steady_spins():
     w0 = np.array([[0.2, 0.5, 0.1], [0.0, 1.0, 0.0], [0.0, 0.0, -2.0], [0.0, 0.0, 0.0]])  # separatrix, steady, rest
     t = 7.5
     got = exact.omega_at(moments, w0, t)
-    np.testing.assert_allclose(got, exact.omega(moments, w0, t), rtol=0, atol=4 * np.finfo(float).eps)
+    np.testing.assert_allclose(got, exact.omega(moments, w0, np.array([t]))[:, 0], rtol=0, atol=4 * np.finfo(float).eps)
+    np.testing.assert_array_equal(exact.omega(moments, w0, t), got)  # a scalar time takes this path
     np.testing.assert_array_equal(got[1:], w0[1:])
 
 
@@ -646,4 +647,4 @@ def test_one_time_path_hands_spins_within_tiny_of_an_axis_to_the_general_path():
     moments = np.array([1.0, 2.0, 3.0])
     w0 = np.array([[1e-200, 1.0, 3e-201], [0.1, 1.0, 0.2]])  # the first below TINY_TRANSVERSE: lifted
     for t in (0.0, 30.0):
-        np.testing.assert_array_equal(exact.omega_at(moments, w0, t), exact.omega(moments, w0, t))
+        np.testing.assert_array_equal(exact.omega_at(moments, w0, t), exact.omega(moments, w0, np.array([t]))[:, 0])

@@ -106,6 +106,9 @@ _LANDEN_MAX = 16
 #: too close to a principal axis for the invariants: their squares underflow. torque_free_invariants counts
 #: such samples; :mod:`tumble.physics.exact` moves them where the squares are safe (its ``_lift_tiny``).
 TINY_TRANSVERSE = 2.0**-500
+# torque_free_omega_at's lanes take spins whose smallest non-zero component is above 2^-100 of the largest (their
+# squares and products stay far from underflow); the rest go one by one through the scalar path.
+TINY_TRANSVERSE_SAFE = 2.0**100
 
 # Kinds of motion, per sample, understood by torque_free_omega.
 KIND_STATIONARY = 0
@@ -626,6 +629,8 @@ _E10, _E11, _E12, _E13 = 2.755731922398589e-07, 2.505210838544172e-08, 2.0876756
 _E14 = 1.1470745597729725e-11
 # Adding 1.5 * 2^52 to an integral double k (|k| < 2^51) leaves k in the low mantissa bits.
 _INT_SHIFTER = 6755399441055744.0
+# The exponent field of an IEEE-754 double.
+_EXPONENT_BITS = 0x7FF0000000000000
 # Arguments below this give exp = 0 (and expm1 = -1) in double precision.
 _EXP_XMIN = -1000.0
 
@@ -1066,10 +1071,52 @@ def _sncndn_once(s, kc, K, h, q):
     return _hyperbolic_at(s, K, two_k, inv_two_k, kc, h, hk, q, dcoef, ccoef, scoef)
 
 
+@jit(inline=True)
+def _omega_at_sample(m0, m1, m2, w0, w1, w2, t):
+    """One sample of :func:`torque_free_omega_at` by scalar code (every regime): ``(w(t) as three floats, tiny)``."""
+    a, b, c, even, _, ss, I1, I2, I3, d, small = _invariants_row(m0, m1, m2, w0, w1, w2)
+    w = (w0, w1, w2)
+    kind, cols, amp, k_c, mi, nu, x, y, _, _ = _setup_row(I1, I2, I3, a, b, c, 1.0 if even else -1.0, ss,
+                                                          w[a], w[b], w[c], d)
+    fq = fm = fp = 1.0  # stationary
+    if kind == KIND_SEPARATRIX:
+        fq, fm = _sech_tanh(math.asinh(x) + nu * t)
+        fp = fq
+    elif kind == KIND_ELLIPTIC:
+        K = 0.5 * math.pi / agm(1.0, k_c)
+        h, q = hyperbolic_nome(k_c, K) if k_c < KC_HYPERBOLIC else (0.0, 0.0)
+        sn, cn, dn = _sncndn_once(nu * t - K, k_c, K, h, q)
+        fq, fm, fp = _addition(x, y, k_c, mi, sn, cn, dn)
+    o = [0.0, 0.0, 0.0]
+    o[cols[0]] = amp[0] * fq
+    o[cols[1]] = amp[1] * fm
+    o[cols[2]] = amp[2] * fp
+    return o[0], o[1], o[2], small
+
+
+@jit(inline=True)
+def _addition(x, y, k_c, mi, sn, cn, dn):
+    """``cn, sn, dn`` of ``u0 + v`` from ``sn r0 = x``, ``cn r0 = y`` (``u0 = K + r0``) and ``sn, cn, dn`` of ``v``
+    (:func:`torque_free_omega_at`); ``dn = 1`` exactly for ``m = 0``."""
+    D = math.sqrt(y * y + (k_c * x) ** 2)
+    inv = 1.0 / ((y * dn) ** 2 + (k_c * x) ** 2)
+    fm = (y * D * (cn * dn) - k_c * k_c * (x * sn)) * inv
+    fq = -k_c * (x * D * cn + y * (sn * dn)) * inv
+    fp = k_c * (D * dn + mi * (x * y) * (sn * cn)) * inv
+    return fq, fm, 1.0 if mi == 0.0 else fp
+
+
+# Samples a chunk of torque_free_omega_at holds in its scratch arrays (each stage a loop over them, in SIMD lanes).
+_CHUNK = 256
+# Rows of the chunk's scratch array.
+_AQ, _AM, _AP, _KC, _M, _NU, _X, _Y, _NEG, _SPECIAL, _K, _H, _Q, _SN, _CN, _DN, _A, _B, _WA, _WB, _WC = range(21)
+
+
 @jit(parallel=True)
 def torque_free_omega_at(moments, w, t, out):
     """Angular velocity of the free rigid body at one time ``t``, straight from the initial spins: the invariants,
-    the set-up and the evaluation of :func:`torque_free_omega` fused per sample, without the initial argument.
+    the set-up and one evaluation of :func:`torque_free_omega`, fused, with samples in SIMD lanes and without the
+    initial argument.
 
     Jacobi's addition theorem (DLMF 22.8.1-3) moves the motion from ``u0 = K + r0`` to ``u0 + nu t``, with
     ``sn, cn, dn`` of ``u0`` taken from the spin itself (``sn u0 = cd r0``, ``cn u0 = -k' sd r0``,
@@ -1080,13 +1127,20 @@ def torque_free_omega_at(moments, w, t, out):
         sn = (y D cn dn - k'² x sn) / den,   cn = -k' (x D cn + y sn dn) / den,
         dn =  k' (D dn + k² x y sn cn) / den          (sn, cn, dn of nu t)
 
-    So Carlson's ``R_F`` (the initial argument) is never computed. The error is a few ulps of ``|w|``, absolute
-    (the numerators may cancel where a component passes zero); on the separatrix ``u0 = asinh(...)`` is formed.
+    So Carlson's ``R_F`` (the initial argument) is never computed. Samples go in chunks of ``_CHUNK``; in each,
+    every stage (set-up, the two AGMs with a common iteration count, the nome, ``sn, cn, dn``, the addition) is a
+    branch-free loop over the chunk's samples that LLVM vectorises: square roots and divisions, latency-bound one
+    sample at a time, fill the SIMD lanes instead. The rare samples that need other code (steady spins, the
+    separatrix, spins whose scales or ratios leave the safe range) are redone one by one
+    (:func:`_omega_at_sample`). The error is a few ulps of ``|w|``; near the unstable axis the small components
+    keep their relative accuracy (tested against mpmath).
 
     Parameters
     ----------
-    moments, w : ndarray, shape (n, 3)
-        Principal moments (kg m², validated) and initial body-frame spins (rad/s), one sample per row.
+    moments : ndarray, shape (3,)
+        Principal moments (kg m², validated) of the one body.
+    w : ndarray, shape (n, 3)
+        Initial body-frame spins, rad/s.
     t : float
         The time, s.
     out : ndarray, shape (n, 3)
@@ -1098,29 +1152,161 @@ def torque_free_omega_at(moments, w, t, out):
         The samples too close to a principal axis for the invariants (``TINY_TRANSVERSE``: the caller must take
         the general path for them) and the samples with a non-finite value.
     """
+    n = w.shape[0]
     tiny = 0
     non_finite = 0
-    for i in numba.prange(w.shape[0]):
-        a, b, c, even, _, ss, I1, I2, I3, d, small = _invariants_row(moments[i, 0], moments[i, 1], moments[i, 2],
-                                                                    w[i, 0], w[i, 1], w[i, 2])
-        kind, cols, amp, k_c, mi, nu, x, y, _, _ = _setup_row(I1, I2, I3, a, b, c, 1.0 if even else -1.0, ss,
-                                                              w[i, a], w[i, b], w[i, c], d)
-        fq = fm = fp = 1.0  # stationary
-        if kind == KIND_SEPARATRIX:
-            fq, fm = _sech_tanh(math.asinh(x) + nu * t)
-            fp = fq
-        elif kind == KIND_ELLIPTIC:
-            K = 0.5 * math.pi / agm(1.0, k_c)
-            h, q = hyperbolic_nome(k_c, K) if k_c < KC_HYPERBOLIC else (0.0, 0.0)
-            sn, cn, dn = _sncndn_once(nu * t - K, k_c, K, h, q)
-            D = math.sqrt(y * y + (k_c * x) ** 2)
-            inv = 1.0 / ((y * dn) ** 2 + (k_c * x) ** 2)
-            fm = (y * D * (cn * dn) - k_c * k_c * (x * sn)) * inv
-            fq = -k_c * (x * D * cn + y * (sn * dn)) * inv
-            fp = 1.0 if mi == 0.0 else k_c * (D * dn + mi * (x * y) * (sn * cn)) * inv
-        out[i, cols[0]] = amp[0] * fq
-        out[i, cols[1]] = amp[1] * fm
-        out[i, cols[2]] = amp[2] * fp
-        tiny += 1 if small else 0
+    for ch in numba.prange((n + _CHUNK - 1) // _CHUNK):
+        lo = ch * _CHUNK
+        tiny_chunk, non_finite_chunk = _omega_at_chunk(moments, w, t, out, lo, min(_CHUNK, n - lo))
+        tiny += tiny_chunk
+        non_finite += non_finite_chunk
+    return tiny, non_finite
+
+
+@jit
+def _omega_at_chunk(moments, w, t, out, lo, m):
+    # size: the stages of a chunk are loops over its samples (SIMD lanes), each written out in one place so that
+    # LLVM vectorises it; the constants of the one body are hoisted
+    """Samples ``lo .. lo + m`` of :func:`torque_free_omega_at`: ``(tiny, non-finite)`` counts."""
+    a, b, c, even, ms, _, _, _, _, _, _ = _invariants_row(moments[0], moments[1], moments[2], 1.0, 1.0, 1.0)
+    parity = 1.0 if even else -1.0
+    I1, I2, I3 = moments[a] / ms, moments[b] / ms, moments[c] / ms
+    d32h, d32l = _two_sum(I3, -I2)
+    d21h, d21l = _two_sum(I2, -I1)
+    dpq = I3 - I1
+    d32 = I3 - I2
+    d21 = I2 - I1
+    tiny = 0
+    non_finite = 0
+    z = np.empty((21, m))
+    n_hyperbolic = 0
+    n_landen = 0
+    for j in range(m):  # the spins' components in sorted order, as rows
+        z[_WA, j], z[_WB, j], z[_WC, j] = w[lo + j, a], w[lo + j, b], w[lo + j, c]
+    for j in range(m):  # set-up (_invariants_row, _setup_row), branch-free
+        wa, wb, wc = z[_WA, j], z[_WB, j], z[_WC, j]
+        big = max(abs(wa), abs(wb), abs(wc))
+        ss = 2.0 * _bits_float64(_float64_bits(big) & _EXPONENT_BITS)  # math.frexp's power of two for normal big
+        special = (ss == 0.0) | (ss == math.inf)
+        ss = 1.0 if special else ss
+        w1, w2, w3 = wa / ss, wb / ss, wc / ss
+        ah, al = _dd_term(I3, d32h, d32l, w3)
+        bh, bl = _dd_term(I1, d21h, d21l, w1)
+        s_, e_ = _two_sum(ah, -bh)
+        dh, dl = _two_sum(s_, e_ + (al - bl))
+        d = dh + dl
+        neg = d < 0.0
+        Ip = I1 if neg else I3
+        Iq = I3 if neg else I1
+        wp = w1 if neg else w3
+        wq = w3 if neg else w1
+        dp2 = d21 if neg else d32
+        dq2 = d32 if neg else d21
+        X = I2 * dp2 * w2 * w2 + Iq * dpq * wq * wq
+        Y = I2 * dq2 * w2 * w2 + Ip * dpq * wp * wp
+        a_q = math.sqrt(X / (Iq * dpq))
+        a_mid = math.sqrt(X / (I2 * dp2))
+        a_p = math.sqrt(Y / (Ip * dpq))
+        nu_abs = math.sqrt(dp2 * Y / (I1 * I2 * I3))
+        s_p = -1.0 if wp < 0.0 else 1.0
+        mi = dq2 * X / (dp2 * Y)
+        k_c = math.sqrt(dpq / (dp2 * Y)) * math.sqrt(abs(d))
+        k_c = 1.0 if mi == 0.0 else k_c
+        sigma = -1.0 if w2 < 0.0 else 1.0
+        ratio = a_p / abs(wp)
+        sn_r = -sigma * (wq / a_q) * ratio
+        cn_r = sigma * (w2 / a_mid) * ratio * k_c
+        norm2 = sn_r * sn_r + cn_r * cn_r
+        inv_norm = 1.0 / math.sqrt(norm2)
+        # zeros of the spin (steady spins, symmetric tops' axes), the separatrix, and ratios whose squares
+        # would leave the safe range (math.hypot's work) go to the scalar path
+        special = special | (wa == 0.0) | (wb == 0.0) | (wc == 0.0) | (d == 0.0) | (I1 == I2) | (I2 == I3)
+        special = special | ~(norm2 > 1e-300) | ~(norm2 < 1e300) | ~(big < TINY_TRANSVERSE_SAFE * min(
+            abs(wa), abs(wb), abs(wc)))
+        z[_AQ, j] = sigma * a_q * ss
+        z[_AM, j] = sigma * a_mid * ss
+        z[_AP, j] = wp * ss if mi == 0.0 else s_p * a_p * ss
+        z[_KC, j] = k_c
+        z[_M, j] = mi
+        z[_NU, j] = s_p * parity * nu_abs * ss
+        z[_X, j] = sn_r * inv_norm
+        z[_Y, j] = cn_r * inv_norm
+        z[_NEG, j] = 1.0 if neg else 0.0
+        z[_SPECIAL, j] = 1.0 if special else 0.0
+        z[_A, j] = 1.0
+        z[_B, j] = 0.5 if special else k_c  # a harmless modulus for the lanes redone below
+        hyperbolic = (k_c < KC_HYPERBOLIC) & ~special
+        n_hyperbolic += 1 if hyperbolic else 0
+        n_landen += 0 if hyperbolic or special else 1
+    _agm_lanes(z[_A], z[_B])  # K = pi / (2 AGM(1, k'))
+    for j in range(m):
+        z[_K, j] = 0.5 * math.pi / z[_A, j]
+        k_c = z[_KC, j]
+        k_c = 0.25 if k_c >= KC_HYPERBOLIC or z[_SPECIAL, j] != 0.0 else k_c
+        z[_A, j] = 1.0
+        z[_B, j] = math.sqrt((1.0 - k_c) * (1.0 + k_c))
+    if n_hyperbolic:
+        _agm_lanes(z[_A], z[_B])  # h = AGM(1, k) = pi / (2 K')
+        for j in range(m):
+            h = z[_A, j]
+            beta = 2.0 * z[_K, j] * h
+            q, _ = _exp_expm1(-beta)
+            z[_H, j] = h
+            z[_Q, j] = q if beta < _BETA_NEGLIGIBLE else 0.0
+            k_c = z[_KC, j]
+            K = z[_K, j]
+            dcoef, ccoef, scoef = _series_constants_inline(z[_Q, j])
+            hk = h / math.sqrt((1.0 - k_c) * (1.0 + k_c))
+            sn, cn, dn = _hyperbolic_at(z[_NU, j] * t - K, K, 2.0 * K, 0.5 / K, k_c, h, hk, z[_Q, j], dcoef, ccoef,
+                                        scoef)
+            z[_SN, j], z[_CN, j], z[_DN, j] = sn, cn, dn
+    if n_landen:
+        for j in range(m):
+            landen = z[_KC, j] >= KC_HYPERBOLIC
+            k_c = z[_KC, j] if landen else 0.75  # a harmless modulus for the other lanes (their values are kept)
+            K = z[_K, j]
+            kap, quarter_m, P = _landen_constants_inline(k_c)
+            sn, cn, dn = _landen_at(z[_NU, j] * t - K, K, 2.0 * K, 0.5 / K, 1.0 / P, k_c, kap, quarter_m, P)
+            z[_SN, j] = sn if landen else z[_SN, j]
+            z[_CN, j] = cn if landen else z[_CN, j]
+            z[_DN, j] = dn if landen else z[_DN, j]
+    for j in range(m):
+        fq, fm, fp = _addition(z[_X, j], z[_Y, j], z[_KC, j], z[_M, j], z[_SN, j], z[_CN, j], z[_DN, j])
+        vq = z[_AQ, j] * fq
+        vp = z[_AP, j] * fp
+        neg = z[_NEG, j] != 0.0
+        z[_WA, j] = vp if neg else vq
+        z[_WB, j] = z[_AM, j] * fm
+        z[_WC, j] = vq if neg else vp
+    for j in range(m):
+        out[lo + j, a], out[lo + j, b], out[lo + j, c] = z[_WA, j], z[_WB, j], z[_WC, j]
+    for j in range(m):
+        if z[_SPECIAL, j] != 0.0:
+            i = lo + j
+            out[i, 0], out[i, 1], out[i, 2], small = _omega_at_sample(moments[0], moments[1], moments[2],
+                                                                      w[i, 0], w[i, 1], w[i, 2], t)
+            tiny += 1 if small else 0
+    for j in range(m):
+        i = lo + j
         non_finite += 0 if abs(out[i, 0]) + abs(out[i, 1]) + abs(out[i, 2]) < math.inf else 1
     return tiny, non_finite
+
+
+# The lanes' copies of the per-modulus constants (inlined, so that the loops over lanes vectorise).
+_series_constants_inline = jit(inline=True)(_series_constants.py_func)
+_landen_constants_inline = jit(inline=True)(_landen_constants.py_func)
+
+
+@jit(inline=True)
+def _agm_lanes(a, b):
+    """``a <- AGM(a, b)`` lane by lane, every lane stepped until the slowest one meets :func:`agm`'s test."""
+    for _ in range(_AGM_MAXITER):
+        unconverged = 0
+        for j in range(a.shape[0]):
+            unconverged += 1 if abs(a[j] - b[j]) > 1e-8 * a[j] else 0
+        if unconverged == 0:
+            break
+        for j in range(a.shape[0]):
+            a[j], b[j] = 0.5 * (a[j] + b[j]), math.sqrt(a[j] * b[j])
+    for j in range(a.shape[0]):
+        a[j] = 0.5 * (a[j] + b[j])
