@@ -34,9 +34,9 @@ q3)`` is the ``Transverse.centre`` of the physics layer.
 
 **Status.** ``STATUS_OK``, ``STATUS_NONFINITE`` (a component NaN or infinite, checked before the first step, every
 :data:`CHECK_EVERY` steps, at the end, and every step while drifts are tracked) or ``STATUS_DRIFT`` (a drift beyond
-``drift_limit``; a branch-free screening pass over the block, :func:`_drift_suspects`, finds each step whether any sample
-comes near either, and only then do the exact per-sample checks run: the screen alone cost half of a gravity
-gradient's step); a sample with a bad status stops and keeps the state it had when it was caught; its later probes
+``drift_limit``; each step a branch-free screening pass over the block, :func:`_drift_suspects`, finds whether any
+sample comes near either, and only then do the exact per-sample checks run: run every step, those scalar loops had
+cost as much as a gravity gradient's rk4 step, the screen costs a fifth of it); a sample with a bad status stops and keeps the state it had when it was caught; its later probes
 are NaN. Samples never interact: results do not depend on the number of threads or on the block size.
 """
 
