@@ -19,7 +19,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..kernels import MODEL_CODES, model_methods, run_model
+from ..kernels import MODEL_BLOCK, MODEL_CODES, model_methods, parallel_block, run_model
 from ..physics.models import Model
 from .ensemble import DEFAULT_DRIFT_LIMIT, _count, _number, observation_times
 from .sampling import CHUNK
@@ -32,7 +32,7 @@ class ModelEnsembleResult(NamedTuple):
 
     final: np.ndarray | None  # (N, n_state): rad/s, then the model's own units
     times: np.ndarray | None  # (T,), s, of the trajectory
-    trajectory: np.ndarray | None  # (N, T, n_state)
+    trajectory: np.ndarray | None  # (N, T, n_state); (T, n_state, N) when asked ``time_major``
     probe_times: np.ndarray | None  # (P,), s
     probes: np.ndarray | None  # (N, P), transverse norm, rad/s (NaN after a sample stopped)
     drift: np.ndarray | None  # (N, n_invariants): running max drift of each invariant (registry's order)
@@ -98,7 +98,7 @@ def _checked(model, y0, t_end, dt, method, axis, spin, save_every, probe_times, 
 
 
 def run_model_ensemble(model, y0, t_end, dt, *, method="rk4", axis, spin=None, save_every=None, probe_times=None,
-                       drift=False, drift_limit=DEFAULT_DRIFT_LIMIT, final=True, chunk=CHUNK):
+                       drift=False, drift_limit=DEFAULT_DRIFT_LIMIT, final=True, chunk=CHUNK, time_major=False):
     # size: the engine's public call for the models: each keyword is one observer or option a caller may name
     """Run an ensemble of a model with a fixed-step kernel and observe it on the fly.
 
@@ -137,6 +137,10 @@ def run_model_ensemble(model, y0, t_end, dt, *, method="rk4", axis, spin=None, s
         Return the final states.
     chunk : int
         Samples per kernel call.
+    time_major : bool
+        Return the trajectory as the kernels store it, shape (T, n_state, N), a component row of all samples at
+        each stored time (no transposing copy: a caller that reduces over the components, such as a modal
+        projection, reads it row by row).
 
     Returns
     -------
@@ -151,7 +155,7 @@ def run_model_ensemble(model, y0, t_end, dt, *, method="rk4", axis, spin=None, s
     """
     y0, t_end, dt, spin, save_every, probe_times, drift_limit, chunk = _checked(
         model, y0, t_end, dt, method, axis, spin, save_every, probe_times, drift_limit, chunk)
-    drift, final = _flag(drift, "drift"), _flag(final, "final")
+    drift, final, time_major = _flag(drift, "drift"), _flag(final, "final"), _flag(time_major, "time_major")
     transverse = model.transverse(axis, spin)
     y_eq = model.equilibrium(axis, spin) if probe_times is not None else None
     if y_eq is not None and transverse.centre is not None:  # the kernels subtract y_eq: it must be the norm's centre
@@ -163,7 +167,7 @@ def run_model_ensemble(model, y0, t_end, dt, *, method="rk4", axis, spin=None, s
     parameters = model.parameters  # the kernels' keywords are the study keys (registry.MODEL_PARAMETERS)
     n_invariants = len(model.spec.invariants)
     out_final = np.empty((n, n_state)) if final else None
-    trajectory = np.empty((n, len(times), n_state)) if save else None
+    trajectory = None if not save else np.empty((len(times), n_state, n) if time_major else (n, len(times), n_state))
     probes = np.empty((n, len(probe_steps))) if probe_steps is not None else None
     drifts = np.empty((n, n_invariants)) if drift else None
     status = np.empty(n, dtype=np.int8)
@@ -174,10 +178,15 @@ def run_model_ensemble(model, y0, t_end, dt, *, method="rk4", axis, spin=None, s
         state = np.array(y0[lo:hi].T, order="C")
         observed = run_model(model.kind, method, state, model.moments, dt, n_steps, save_every=save,
                              columns=transverse.columns, weights=transverse.weights, y_eq=y_eq,
-                             probe_steps=probe_steps, drift=drift, drift_limit=drift_limit, **parameters)
+                             probe_steps=probe_steps, drift=drift, drift_limit=drift_limit,
+                             block=parallel_block(hi - lo, MODEL_BLOCK), **parameters)
         if final:
             out_final[lo:hi] = state.T
-        if save:
+        if save and time_major and lo == 0 and hi == n:  # one kernel call: its array is the trajectory
+            trajectory = observed.saved
+        elif save and time_major:
+            trajectory[..., lo:hi] = observed.saved
+        elif save:
             trajectory[lo:hi] = observed.saved.transpose(2, 0, 1)
         if probes is not None:
             probes[lo:hi] = observed.probes.T

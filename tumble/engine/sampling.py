@@ -368,12 +368,16 @@ def _up_entropy(entropy):
 _ATTITUDE_SPAWN = 2
 
 
+@functools.lru_cache(maxsize=32)
 def _chunk_attitudes(entropy, j, distribution, amplitude):
-    """Chunk ``j``'s attitudes (CHUNK, 4): ``(cos(θ/2), sin(θ/2) u)``, ``u`` uniform on the sphere, ``θ`` the tilt.
+    """Chunk ``j``'s attitudes (CHUNK, 4), read-only: ``(cos(θ/2), sin(θ/2) u)``, ``u`` uniform on the sphere,
+    ``θ`` the tilt.
 
     One ``rng.random((CHUNK, 3))`` block per chunk, always whole (slices are then the same bits): ``u`` from the
     first two uniforms (``u3 = 1 − 2 v``, azimuth ``2π v'``), ``θ`` from the third by :func:`_tilt` (a monotone
-    function of it: ensembles that differ only in ``amplitude`` are coupled sample by sample)."""
+    function of it: ensembles that differ only in ``amplitude`` are coupled sample by sample). Kept for reuse, as
+    :func:`_chunk_directions`: the attitudes do not depend on the body, and every scene of a gravity-gradient scan
+    draws the same ones (a DeBra-Delp map's 1600 scenes drew the same chunk 3200 times)."""
     v = np.random.default_rng(np.random.SeedSequence(entropy=entropy, spawn_key=(j, _ATTITUDE_SPAWN))).random(
         (CHUNK, 3))
     z = 1.0 - 2.0 * v[:, 0]
@@ -381,7 +385,9 @@ def _chunk_attitudes(entropy, j, distribution, amplitude):
     phi = (2.0 * np.pi) * v[:, 1]
     half = 0.5 * _tilt(v[:, 2], distribution, amplitude)
     s = np.sin(half)
-    return np.stack([np.cos(half), s * r * np.cos(phi), s * r * np.sin(phi), s * z], axis=-1)
+    attitudes = np.stack([np.cos(half), s * r * np.cos(phi), s * r * np.sin(phi), s * z], axis=-1)
+    attitudes.flags.writeable = False
+    return attitudes
 
 
 def _tilted_attitudes(model, amplitude, samples, entropy, distribution, start, stop):

@@ -7,10 +7,12 @@ checks it). Tests and benchmarks of the kernels themselves may reach the modules
 
 from . import elliptic, fits
 from .drivers import TORQUE_SIGNATURE
+from .jit import parallel_block
 from .methods import BLOCK, METHODS, Method, Observed, run, run_attitude
+from .models import BLOCK as MODEL_BLOCK
 from .models import MODEL_CODES, MODEL_METHODS, ModelObserved, model_methods, model_rhs, run_model
 from .steppers import TORQUE_CONSTANT, TORQUE_PULSE, TORQUE_RAMP, TORQUE_SINE, TORQUE_USER
 
-__all__ = ["BLOCK", "METHODS", "MODEL_CODES", "MODEL_METHODS", "Method", "ModelObserved", "Observed", "TORQUE_CONSTANT",
-           "TORQUE_PULSE", "TORQUE_RAMP", "TORQUE_SIGNATURE", "TORQUE_SINE", "TORQUE_USER", "elliptic", "fits",
-           "model_methods", "model_rhs", "run", "run_attitude", "run_model"]
+__all__ = ["BLOCK", "METHODS", "MODEL_BLOCK", "MODEL_CODES", "MODEL_METHODS", "Method", "ModelObserved", "Observed",
+           "TORQUE_CONSTANT", "TORQUE_PULSE", "TORQUE_RAMP", "TORQUE_SIGNATURE", "TORQUE_SINE", "TORQUE_USER", "elliptic",
+           "fits", "model_methods", "model_rhs", "parallel_block", "run", "run_attitude", "run_model"]

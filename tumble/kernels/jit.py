@@ -47,3 +47,15 @@ def jit(fn=None, *, parallel=False, inline=False, contract=True):
         return numba.njit(**options)(f)
 
     return wrap if fn is None else wrap(fn)
+
+
+def parallel_block(n, largest, smallest=64):
+    """Samples per block of a ``prange`` driver for ``n`` samples: ``largest``, or fewer so that the blocks are at
+    least as many as numba's threads (a scene of 256 samples in blocks of 256 would run on one thread), never fewer
+    than ``smallest`` (a block's SIMD loop keeps its lanes full) and a multiple of 8.
+
+    Results do not depend on the block size (the drivers' samples never interact): this is speed only.
+    """
+    threads = max(1, numba.get_num_threads())
+    share = -(-int(n) // threads)
+    return int(max(smallest, min(largest, -(-share // 8) * 8)))

@@ -34,7 +34,9 @@ q3)`` is the ``Transverse.centre`` of the physics layer.
 
 **Status.** ``STATUS_OK``, ``STATUS_NONFINITE`` (a component NaN or infinite, checked before the first step, every
 :data:`CHECK_EVERY` steps, at the end, and every step while drifts are tracked) or ``STATUS_DRIFT`` (a drift beyond
-``drift_limit``); a sample with a bad status stops and keeps the state it had when it was caught; its later probes
+``drift_limit``; each step a branch-free screening pass over the block, :func:`_drift_suspects`, finds whether any
+sample comes near either, and only then do the exact per-sample checks run: run every step, those scalar loops had
+cost as much as a gravity gradient's rk4 step, the screen costs a fifth of it); a sample with a bad status stops and keeps the state it had when it was caught; its later probes
 are NaN. Samples never interact: results do not depend on the number of threads or on the block size.
 """
 
@@ -217,6 +219,54 @@ def _observe_drift(model, ys, active, c, x0, scale, drift, lo, drift_limit, k, f
     return stopped
 
 
+#: The screening pass (:func:`_drift_suspects`) flags drifts beyond ``limit (1 − SCREEN_RTOL) − SCREEN_ATOL``, so
+#: that its rounding (vectorised, perhaps fused differently from the exact observer's: a drift is a difference of
+#: invariants of the size of their scale, so a few eps of it) can never miss a sample the exact check stops.
+SCREEN_RTOL = 1e-6
+SCREEN_ATOL = 1e-13
+
+
+@jit(inline=True)
+def _suspect(i, active, x0, scale, screen, x1, x2, x3, total):
+    """1 if sample ``i`` of a block is active and drifting beyond ``screen`` or has a non-finite component (``total``,
+    the sum of its components, is then not finite; a finite sum that overflows is a false alarm, checked exactly),
+    else 0; no branch, no inner loop, so that the loop over samples vectorises."""
+    calm = ((abs(x1 - x0[0, i]) <= screen * scale[0, i]) & (abs(x2 - x0[1, i]) <= screen * scale[1, i])
+            & (abs(x3 - x0[2, i]) <= screen * scale[2, i]) & math.isfinite(total)) | (not active[i])
+    return 0 if calm else 1  # (written so: a branch on active[i] stops LLVM vectorising the loop)
+
+
+@jit
+def _drift_suspects(model, ys, active, c, x0, scale, screen):
+    """Whether any active sample of a block is non-finite or has an invariant's drift beyond ``screen``: one pass
+    per model without stores, calls or inner loops (it vectorises across samples, unlike the exact observers,
+    whose freezing of a sample makes their loops scalar), so that a step with nothing to stop costs a fraction of
+    the exact checks. The exact observers (:func:`_check_finite`, :func:`_observe_drift`) run only when it finds a
+    suspect."""
+    suspects = 0
+    m = ys.shape[1]
+    if model == MODEL_GRAVITY_GRADIENT:
+        for i in range(m):
+            w1, w2, w3, q0, q1, q2, q3 = ys[0, i], ys[1, i], ys[2, i], ys[3, i], ys[4, i], ys[5, i], ys[6, i]
+            x1, x2, x3, _, _, _ = gravity_gradient_invariants(w1, w2, w3, q0, q1, q2, q3, c)
+            total = w1 + w2 + w3 + q0 + q1 + q2 + q3
+            suspects += _suspect(i, active, x0, scale, screen, x1, x2, x3, total)
+    elif model == MODEL_HEAVY_TOP or model == MODEL_DAMPER:
+        for i in range(m):
+            a1, a2, a3, b1, b2, b3 = ys[0, i], ys[1, i], ys[2, i], ys[3, i], ys[4, i], ys[5, i]
+            if model == MODEL_HEAVY_TOP:
+                x1, x2, x3, _, _, _ = heavy_top_invariants(a1, a2, a3, b1, b2, b3, c)
+            else:
+                x1, x2, x3, _, _, _ = damper_invariants(a1, a2, a3, b1, b2, b3, c)
+            suspects += _suspect(i, active, x0, scale, screen, x1, x2, x3, a1 + a2 + a3 + b1 + b2 + b3)
+    else:
+        for i in range(m):
+            w1, w2, w3 = ys[0, i], ys[1, i], ys[2, i]
+            x1, x2, x3, _, _, _ = gyrostat_invariants(w1, w2, w3, c)
+            suspects += _suspect(i, active, x0, scale, screen, x1, x2, x3, w1 + w2 + w3)
+    return suspects > 0
+
+
 @jit
 def _observe_norm(ys, active, columns, weights, y_eq, probes, lo, row):
     """The weighted transverse norm of each sample into ``probes[row]`` (NaN for stopped samples)."""
@@ -270,7 +320,9 @@ def propagate_model(model, method, y, constants, h, n_steps, block,
     n_blocks = (n + block - 1) // block
     n_probes = probe_steps.shape[0]
     store = saved.shape[0] > 0
-    track_drift = drift.shape[0] > 0 or drift_limit > 0.0
+    record_drift = drift.shape[0] > 0
+    track_drift = record_drift or drift_limit > 0.0
+    screen = drift_limit * (1.0 - SCREEN_RTOL) - SCREEN_ATOL if drift_limit > 0.0 else math.inf
     for ib in prange(n_blocks):
         lo = ib * block
         hi = min(lo + block, n)
@@ -302,9 +354,12 @@ def propagate_model(model, method, y, constants, h, n_steps, block,
             if n_frozen:
                 _restore_frozen(ys, active, frozen)
             ran = k + 1
-            if track_drift or ran % CHECK_EVERY == 0 or ran == n_steps:
+            # with drifts tracked every step, the exact observers run only for a block with a suspect (or whose
+            # drifts are recorded): the screen's "nothing to stop" is exact, its suspects are checked exactly
+            exact = track_drift and (record_drift or _drift_suspects(model, ys, active, c, x0, scale, screen))
+            if exact or (not track_drift and (ran % CHECK_EVERY == 0 or ran == n_steps)):
                 n_frozen += _check_finite(ys, active, ran, frozen, block_status, last)
-            if track_drift:
+            if exact:
                 n_frozen += _observe_drift(model, ys, active, c, x0, scale, drift, lo, drift_limit, ran, frozen,
                                            block_status, last)
             if store and (ran % save_every == 0 or ran == n_steps):

@@ -111,6 +111,7 @@ class ModelScene:
     spin_up: None = None
     torque: None = None
     curves: tuple = field(default=())
+    mode: Mode | None = None  # a modal model's measured mode (:func:`mode`), planned once for the fits
 
 
 class Mode(NamedTuple):
@@ -146,17 +147,18 @@ def _mode_space(model, axis, spin):
     return columns, columns, np.ones(len(columns)), weights
 
 
-def mode(model, axis, spin, kind):
+def mode(model, axis, spin, kind, *, jacobian=None):
     """The linearisation's mode that a scene of ``kind`` measures: the eigenvalue of the transverse Jacobian with the
     largest real part (``"exponential"``; of a complex pair, the one with ``Im >= 0``), else the least damped
     oscillation, the fastest of those (``"periodic"``, as :func:`tumble.physics.theory.linear` reports it; without
     damping the largest imaginary part), and its left eigenvector (:class:`Mode`).
 
     The transverse columns (:func:`_mode_space`) must be invariant under the linearised motion (a heavy top's
-    ``(w1, w2, g1, g2)``: ``w3`` and ``g3`` are constant to first order)."""
+    ``(w1, w2, g1, g2)``: ``w3`` and ``g3`` are constant to first order). ``jacobian``: the model's tangent Jacobian at
+    this equilibrium when the caller has it (:func:`tumble.physics.theory.linearisation`)."""
     columns, rows, factor, weights = _mode_space(model, axis, spin)
     equilibrium = model.equilibrium(axis, spin)
-    jac = model.tangent_jacobian(equilibrium)
+    jac = model.tangent_jacobian(equilibrium) if jacobian is None else jacobian
     lam, vectors = np.linalg.eig(jac[np.ix_(rows, rows)])
     tol = theory.EIGEN_RTOL * np.abs(lam).max()
     if kind == "exponential":
@@ -170,6 +172,11 @@ def mode(model, axis, spin, kind):
     scale = math.sqrt(float(np.sum(weights * np.abs(in_columns) ** 2)))
     left = np.linalg.inv(vectors)[m] * factor * scale
     return Mode(columns, left, complex(lam[m]), np.asarray(equilibrium[columns], dtype=float))
+
+
+def _scene_mode(scene):
+    """The :class:`Mode` a modal scene measures: planned with it (:func:`scene_plan`), else found now."""
+    return scene.mode if scene.mode is not None else mode(scene.model, scene.axis, scene.spin, scene.kind)
 
 
 def _modal(scene_mode, states):
@@ -205,10 +212,11 @@ def _grid(t_first, t_last, points, dt):
     return dt, math.ceil(t_first / dt - 1e-9), every
 
 
-def _plan(scene_args, kind, value, y0_norms, dt, horizon):
-    """The :class:`~tumble.measure.scenes.StepPlan` of a model scene (horizon, step, observation times)."""
+def _plan(scene_args, kind, value, y0_norms, dt, horizon, eigenvalues=None):
+    """The :class:`~tumble.measure.scenes.StepPlan` of a model scene (horizon, step, observation times);
+    ``eigenvalues``: :func:`tumble.physics.theory.eigenvalues` at the steady spin, when the caller has them."""
     model, axis, spin, amplitude, order = scene_args
-    lam = np.abs(theory.eigenvalues(model, axis, spin)).max()
+    lam = np.abs(theory.eigenvalues(model, axis, spin) if eigenvalues is None else eigenvalues).max()
     if dt is None:
         fastest = max(lam, abs(spin)) if model.kind == "heavy_top" else lam  # see the module docstring
         dt = 1.0 / fastest / scenes.STEPS_PER_RADIAN[order]
@@ -286,7 +294,8 @@ def scene_plan(model, axis, spin=1.0, amplitude=1e-3, samples=256, seed=0, metho
     """
     chosen = _checked(model, axis, amplitude, samples, method)
     spin, amplitude = float(spin), float(amplitude)
-    kind, value = theory.linear(model, axis, spin)
+    linearised = theory.linearisation(model, int(axis), spin)  # one Jacobian for the kind, the step and the mode
+    kind, value = linearised.kind, linearised.value
     if kind == "neutral":
         raise ValueError(f"the steady spin about axis {axis} of this {model.kind} is neutral in linear theory (no "
                          f"growth rate or frequency to measure)")
@@ -296,36 +305,57 @@ def scene_plan(model, axis, spin=1.0, amplitude=1e-3, samples=256, seed=0, metho
     probe = ModelScene(model, model.moments, int(axis), spin, amplitude, int(samples), method, chosen, kind, value,
                        None, entropy, distribution)
     y0 = _initial_states(probe, 0, min(int(samples), 256))
-    if model.kind in MODAL:
-        norms = np.abs(_modal(mode(model, int(axis), spin, kind), y0))
+    scene_mode = mode(model, int(axis), spin, kind, jacobian=linearised.jacobian) if model.kind in MODAL else None
+    if scene_mode is not None:
+        norms = np.abs(_modal(scene_mode, y0))
     else:
         norms = model.transverse_norm(y0, axis, spin)
     order = registry.method(chosen).order
-    plan = _plan((model, int(axis), spin, amplitude, order), kind, value, norms, dt, horizon)
+    plan = _plan((model, int(axis), spin, amplitude, order), kind, value, norms, dt, horizon, linearised.eigenvalues)
     return ModelScene(model, model.moments, int(axis), spin, amplitude, int(samples), method, chosen, kind, value,
-                      plan, entropy, distribution)
+                      plan, entropy, distribution, mode=scene_mode)
+
+
+class _Call(NamedTuple):
+    """One engine call of a scene (:func:`_run`): samples ``[lo, hi)``, the engine's result and, for a modal scene,
+    what its fit reads of the trajectory (:func:`_modal_signal`; the trajectory itself is then dropped)."""
+
+    lo: int
+    hi: int
+    result: object  # tumble.engine.models.ModelEnsembleResult
+    signal: np.ndarray | None  # exponential: |z| (N, T); periodic: (Re z, Im z) (N, T, 2); None: not modal
+
+
+def _modal_signal(scene, result):
+    """What a modal scene's fit reads (:func:`_fit_group`): the measured mode's amplitude ``z`` at the stored times
+    (:func:`tumble.measure.estimators.modal_amplitudes` of the time-major trajectory), ``|z|`` for a growth fit,
+    its real and imaginary parts for a phase fit. Computed as soon as the engine returns, so that a chunk of scenes
+    holds these rather than every scene's trajectory (a 40 x 40 map's chunk of 50 scenes: 180 MB of fresh memory)."""
+    scene_mode = _scene_mode(scene)
+    z = analysis.modal_amplitudes(result.trajectory, scene_mode.columns, scene_mode.centre, scene_mode.left)
+    if scene.kind == "exponential":
+        return np.ascontiguousarray(np.abs(z))  # z is a transposed view: the fits read rows of samples
+    return np.stack([z.real, z.imag], axis=-1)
 
 
 def _fit_group(pieces):
     """Per-sample ``(rate, code, extras)`` of engine calls of one kind of measurement, in one estimator call:
-    ``pieces`` are ``(scene, result)`` of the same kind, model family and number of observed times (a chunk's
-    scenes, whose bodies differ, are measured together, as :func:`tumble.measure.scenes.scene_batch` does)."""
+    ``pieces`` are ``(scene, call)`` (:class:`_Call`) of the same kind, model family and number of observed times (a
+    chunk's scenes, whose bodies differ, are measured together, as :func:`tumble.measure.scenes.scene_batch` does)."""
     first = pieces[0][0]
-    heavy, counts = first.model.kind in MODAL, [len(result.status) for _, result in pieces]
+    heavy, counts = first.model.kind in MODAL, [len(call.result.status) for _, call in pieces]
     row = np.repeat(np.arange(len(pieces), dtype=np.int64), counts)
-    z = [_modal(mode(scene.model, scene.axis, scene.spin, scene.kind), result.trajectory)
-         for scene, result in pieces] if heavy else None
     if first.kind == "exponential":
-        times = np.stack([result.times if heavy else result.probe_times for _, result in pieces])
-        norms = np.concatenate([np.abs(zi) for zi in z] if heavy else [result.probes for _, result in pieces])
+        times = np.stack([call.result.times if heavy else call.result.probe_times for _, call in pieces])
+        norms = np.concatenate([call.signal if heavy else call.result.probes for _, call in pieces])
         saturation = np.repeat([scene.plan.saturation for scene, _ in pieces], counts)
         fit = analysis.growth_rates(times, norms, saturation, row=row)
         rate, extras = fit.rate, {name: getattr(fit, name) for name in ("t_start", "t_stop", "norm_start", "norm_stop")}
     else:
-        times = np.stack([result.times for _, result in pieces])
+        times = np.stack([call.result.times for _, call in pieces])
         spin = np.repeat([scene.spin for scene, _ in pieces], counts)
         if heavy:
-            signal = np.concatenate([np.stack([zi.real, zi.imag], axis=-1) for zi in z])
+            signal = np.concatenate([call.signal for _, call in pieces])
             fit = analysis.oscillation_frequencies(times, signal, np.ones(2), spin, row=row)
         else:
             columns, weights = [], []
@@ -334,11 +364,12 @@ def _fit_group(pieces):
                 where = [int(np.flatnonzero(transverse.columns == c)[0]) for c in transverse.phase]
                 columns.append(transverse.phase.astype(np.int64))
                 weights.append(np.asarray(transverse.weights)[..., where])
-            fit = analysis.oscillation_frequencies(times, np.concatenate([result.trajectory for _, result in pieces]),
+            trajectories = np.concatenate([call.result.trajectory for _, call in pieces])
+            fit = analysis.oscillation_frequencies(times, trajectories,
                                                    np.repeat(weights, counts, axis=0), spin,
                                                    columns=np.repeat(columns, counts, axis=0), row=row)
         rate, extras = fit.frequency, {"radius": fit.radius}
-    status = np.concatenate([result.status for _, result in pieces])
+    status = np.concatenate([call.result.status for _, call in pieces])
     offset = len(registry.STATUS_NAMES) - 1
     code = np.where(status != STATUS_OK, status, np.where(fit.code != analysis.FIT_OK, fit.code + offset, 0))
     bounds = np.cumsum([0] + counts)
@@ -347,10 +378,11 @@ def _fit_group(pieces):
 
 
 def _fit_all(pieces):
-    """:func:`_fit_group` of every group of ``pieces`` (``(scene, result)``), in the order of ``pieces``."""
+    """:func:`_fit_group` of every group of ``pieces`` (``(scene, call)``), in the order of ``pieces``."""
     groups = {}
-    for i, (scene, result) in enumerate(pieces):
-        observed = result.times if result.trajectory is not None else result.probe_times
+    for i, (scene, call) in enumerate(pieces):
+        stored = call.signal is not None or call.result.trajectory is not None
+        observed = call.result.times if stored else call.result.probe_times
         groups.setdefault((scene.kind, scene.model.kind in MODAL, len(observed)), []).append(i)
     fits = [None] * len(pieces)
     for members in groups.values():
@@ -360,17 +392,23 @@ def _fit_all(pieces):
 
 
 def _run(scene, start, stop):
-    """The engine calls of samples ``[start, stop)`` of a scene: ``[(lo, hi, result)]``."""
-    plan, growth = scene.plan, scene.kind == "exponential"
+    """The engine calls of samples ``[start, stop)`` of a scene (:class:`_Call`)."""
+    plan, growth, modal = scene.plan, scene.kind == "exponential", scene.model.kind in MODAL
     if not (0 <= start < stop <= scene.samples and start % CHUNK == 0):
         raise ValueError(f"a sample range must lie in [0, {scene.samples}) and start at a multiple of {CHUNK}, "
                          f"got [{start}, {stop})")
-    return [(lo, min(lo + SLICE, stop),
-             run_model_ensemble(scene.model, _initial_states(scene, lo, min(lo + SLICE, stop)), plan.t_end, plan.dt,
-                                method=scene.chosen, axis=scene.axis, spin=scene.spin, final=False,
-                                save_every=plan.save_every,
-                                probe_times=plan.probe_times if growth and not plan.save_every else None))
-            for lo in range(start, stop, SLICE)]
+    calls = []
+    for lo in range(start, stop, SLICE):
+        hi = min(lo + SLICE, stop)
+        result = run_model_ensemble(scene.model, _initial_states(scene, lo, hi), plan.t_end, plan.dt,
+                                    method=scene.chosen, axis=scene.axis, spin=scene.spin, final=False,
+                                    save_every=plan.save_every, time_major=modal,
+                                    probe_times=plan.probe_times if growth and not plan.save_every else None)
+        if modal:
+            calls.append(_Call(lo, hi, result._replace(trajectory=None), _modal_signal(scene, result)))
+        else:
+            calls.append(_Call(lo, hi, result, None))
+    return calls
 
 
 def _part(scene, start, stop, runs, fits):
@@ -379,7 +417,7 @@ def _part(scene, start, stop, runs, fits):
     out = {"start": np.int64(start), "rate": np.empty(stop - start), "code": np.empty(stop - start, dtype=np.int8),
            **{name: np.empty(stop - start) for name in names}}
     computed = 0
-    for (lo, hi, result), (rate, code, extras) in zip(runs, fits):
+    for (lo, hi, result, _), (rate, code, extras) in zip(runs, fits):
         rows = slice(lo - start, hi - start)
         out["rate"][rows], out["code"][rows] = rate, code
         for name, values in extras.items():
@@ -397,7 +435,7 @@ def scene_samples(scene, start, stop):
     :func:`tumble.measure.scenes.scene_samples` returns (same keys), so that scene records, checkpoints and dask
     tasks take it as they take a free body's."""
     runs = _run(scene, start, stop)
-    return _part(scene, start, stop, runs, _fit_all([(scene, result) for _, _, result in runs]))
+    return _part(scene, start, stop, runs, _fit_all([(scene, call) for call in runs]))
 
 
 def _model_coordinates(scene):
@@ -431,7 +469,7 @@ def scene_batch(model_scenes):
     model's constants a call), then one estimator call for all scenes of a kind (same bits as scene by scene: the
     fits are per sample)."""
     runs = [_run(scene, 0, scene.samples) for scene in model_scenes]
-    fits = iter(_fit_all([(scene, result) for scene, calls in zip(model_scenes, runs) for _, _, result in calls]))
+    fits = iter(_fit_all([(scene, call) for scene, calls in zip(model_scenes, runs) for call in calls]))
     parts = [[_part(scene, 0, scene.samples, calls, [next(fits) for _ in calls])]
              for scene, calls in zip(model_scenes, runs)]
     return scene_records(model_scenes, parts)

@@ -72,10 +72,15 @@ class Transverse(NamedTuple):
 
 
 def _cross_matrix(v):
-    """``[v]×`` of shape (..., 3, 3) for ``v`` of shape (..., 3): ``[v]× @ u = v × u``."""
-    z = np.zeros_like(v[..., 0])
+    """``[v]×`` of shape (..., 3, 3) for ``v`` of shape (..., 3): ``[v]× @ u = v × u`` (entries filled in place: a
+    scene's linear theory builds a dozen of these, and nested ``np.stack`` calls cost several times the arithmetic)."""
+    v = np.asarray(v)
+    out = np.zeros(v.shape[:-1] + (3, 3), dtype=v.dtype)
     v1, v2, v3 = v[..., 0], v[..., 1], v[..., 2]
-    return np.stack([np.stack([z, -v3, v2], -1), np.stack([v3, z, -v1], -1), np.stack([-v2, v1, z], -1)], -2)
+    out[..., 0, 1], out[..., 0, 2] = -v3, v2
+    out[..., 1, 0], out[..., 1, 2] = v3, -v1
+    out[..., 2, 0], out[..., 2, 1] = -v2, v1
+    return out
 
 
 def _one_axis(axis):

@@ -30,6 +30,7 @@ a sphere), ``q = 0`` and linear theory predicts neither oscillation nor exponent
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -42,6 +43,7 @@ __all__ = [
     "EIGEN_RTOL",
     "GRAVITY_GRADIENT_REGIONS",
     "KINDS",
+    "Linearisation",
     "TORQUE_PROFILE_FORMULAS",
     "constant_torque_symmetric_top",
     "damper_nutation_rate",
@@ -56,6 +58,7 @@ __all__ = [
     "gravity_gradient_stable",
     "gyrostat_linear",
     "linear",
+    "linearisation",
     "linear_rate",
     "profile_integrals",
     "sleeping_top_linear",
@@ -330,7 +333,11 @@ def _linear_model(model, axis, spin):
     there the kind is round-off, as the physics is marginal.
     """
     jac = _equilibrium_jacobian(model, axis, spin)
-    lam = np.linalg.eigvals(jac)
+    return _classified(jac, np.linalg.eigvals(jac))
+
+
+def _classified(jac, lam):
+    """:func:`_linear_model`'s ``(kind, value)`` from the Jacobian and its eigenvalues."""
     size = np.abs(lam).max(axis=-1)
     growth = lam.real.max(axis=-1)
     tol = EIGEN_RTOL * size[..., None]
@@ -346,6 +353,40 @@ def _linear_model(model, axis, spin):
     if np.ndim(value) == 0:
         return str(kind), float(value)
     return kind, value
+
+
+class Linearisation(NamedTuple):
+    """A model's linear theory at one steady spin (:func:`linearisation`)."""
+
+    kind: str  # "periodic", "exponential" or "neutral" (:func:`linear`)
+    value: float  # rad/s or 1/s (:func:`linear`)
+    jacobian: np.ndarray  # (n, n), 1/s: the tangent Jacobian at the steady spin (:func:`eigenvalues`' matrix)
+    eigenvalues: np.ndarray  # (n,) complex: :func:`eigenvalues`
+
+
+def linearisation(model, axis, spin=1.0):
+    """:func:`linear` of a model at one steady spin together with the Jacobian and the eigenvalues it came from
+    (the same bits as :func:`linear`, :func:`eigenvalues` and the model's ``tangent_jacobian`` at its
+    ``equilibrium``): a scene's planning needs all three, and each costs a Jacobian.
+
+    Parameters
+    ----------
+    model : tumble.physics.models.Model
+    axis : int
+        Spin axis, 1-based (one axis).
+    spin : float
+        Steady spin rate, rad/s (one rate).
+
+    Returns
+    -------
+    Linearisation
+    """
+    if isinstance(axis, (bool, np.bool_)) or np.ndim(axis) != 0 or np.ndim(spin) != 0:
+        raise ValueError(f"linearisation takes one axis and one spin, got axis={axis!r}, spin={spin!r}")
+    jac = _equilibrium_jacobian(model, axis, spin)
+    lam = np.linalg.eigvals(jac)
+    kind, value = _classified(jac, lam)
+    return Linearisation(kind, value, jac, lam)
 
 
 def _kind_of(p):
