@@ -3,6 +3,10 @@
 
     python benchmarks/closed_form.py            # writes benchmarks/results/closed_form.{json,md}
 
+A second table measures one time per sample straight from the spins (the final state of ``tumble.propagate``):
+the fused kernel with samples in SIMD lanes (``exact.omega_at``) against the per-sample set-up followed by the
+time-grid kernel at that one time (what it replaced), in samples per second.
+
 One evaluation is one sample at one time (three components). Both kernels get the same per-sample inputs
 (from ``tumble.physics.exact``) and run in the same process; compile time (or the load from numba's cache)
 is excluded and reported separately; each rate is the median of several runs, with 1 numba thread and with
@@ -78,6 +82,34 @@ def measure(w0, t):
     return row_
 
 
+def measure_one_time(w0, t):
+    """Samples per second at one time ``t``, from the spins: the fused lanes kernel against set-up + grid kernel."""
+    moments = np.array(MOMENTS)
+    w0 = np.ascontiguousarray(w0)
+    tt = np.asarray(t)
+
+    def new():
+        exact.omega_at(moments, w0, t)
+
+    def old():
+        exact._omega_grid(moments, w0, tt)
+
+    row_ = {}
+    for name, fn in (("new", new), ("old", old)):
+        started = time.perf_counter()
+        fn()
+        row_[f"compile_{name}"] = time.perf_counter() - started
+    got, ref = exact.omega_at(moments, w0, t), exact._omega_grid(moments, w0, tt)
+    row_["max_rel_diff_vs_old"] = float(np.max(np.abs(got - ref) / np.linalg.norm(ref, axis=1, keepdims=True)))
+    for threads in sorted({1, numba.config.NUMBA_NUM_THREADS}):
+        numba.set_num_threads(threads)
+        for name, fn in (("new", new), ("old", old)):
+            row_[f"{name}_{threads}"] = SAMPLES / median_seconds(fn, 3 * REPEATS)
+        row_[f"speedup_{threads}"] = row_[f"new_{threads}"] / row_[f"old_{threads}"]
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    return row_
+
+
 def main():
     RESULTS.mkdir(exist_ok=True)
     machine = timing.machine()
@@ -86,9 +118,11 @@ def main():
     t = np.linspace(0.0, 40.0, TIMES)
     report = {"date": str(date.today()), "machine": machine, "threads": numba.config.NUMBA_NUM_THREADS,
               "load_average": load, "samples": SAMPLES, "times": TIMES, "regimes": {}}
+    report["one_time"] = {}
     for label, w0 in regimes(rng).items():
         report["regimes"][label] = measure(w0, t)
-        print(label, report["regimes"][label], flush=True)
+        report["one_time"][label] = measure_one_time(w0, float(t[-1]))
+        print(label, report["regimes"][label], report["one_time"][label], flush=True)
     (RESULTS / "closed_form.json").write_text(json.dumps(report, indent=1))
     nt = report["threads"]
     lines = [f"# Closed-form kernel benchmark — {report['date']}", "",
@@ -107,6 +141,17 @@ def main():
     lines += ["", ("Largest difference new − old over each run, relative to the largest |ω| component of the "
                    "sample: ") + ", ".join(f"{label} {r['max_rel_diff_vs_old']:.1e}"
                                      for label, r in report["regimes"].items()) + "."]
+    lines += ["", f"## One time per sample, from the spins (t = {t[-1]:g} s)", "",
+              (f"Samples per second, {SAMPLES} spins, medians of {3 * REPEATS} runs. *new*: `exact.omega_at` (the "
+               "fused kernel, samples in SIMD lanes, Jacobi's addition theorem instead of the initial argument); "
+               "*old*: the per-sample set-up (`_solve`: invariants, set-up with Carlson's R_F) then "
+               "`torque_free_omega` at that one time."), "",
+              (f"| spins | new, 1 thread | old, 1 thread | speed-up | new, {nt} threads | old, {nt} threads | "
+               "speed-up | largest difference, × |ω| |"), "|---|---|---|---|---|---|---|---|"]
+    for label, r in report["one_time"].items():
+        lines.append(f"| near the {label} | {r['new_1']:.2e} | {r['old_1']:.2e} | {r['speedup_1']:.1f}× | "
+                     f"{r[f'new_{nt}']:.2e} | {r[f'old_{nt}']:.2e} | {r[f'speedup_{nt}']:.1f}× | "
+                     f"{r['max_rel_diff_vs_old']:.1e} |")
     (RESULTS / "closed_form.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 

@@ -136,8 +136,9 @@ def _report(ds, table, rows, load_before, load_after, elapsed, settings):
              f"{a['samples']} spins of {a['spin']:g} rad/s tilted {a['amplitude']:g} rad "
              f"(cone) from axis {a['axis']} of I = ({a['I1']:g}, {a['I2']:g}, {a['I3']:g}) kg m², t_end = "
              f"{a['t_end']:g} s, seed {a['seed']}. Error: max over samples of |ω(t_end) − ω_ref(t_end)| / |ω0|. "
-             f"Wall time: median of {a['repeats']} runs taken in interleaved passes over all solvers, compile "
-             "time excluded (below). SciPy `solve_ivp` on the stacked ensemble (one state of length 3·N, numpy "
+             f"Wall time: median of {a['repeats']} runs taken in interleaved passes over all solvers, each right "
+             "after untimed runs of the same solver lasting 20 ms or more (thread pools awake, cores up to speed), "
+             "compile time excluded (below). SciPy `solve_ivp` on the stacked ensemble (one state of length 3·N, numpy "
              f"right-hand side), atol = rtol × {a['scipy_atol_factor']:g} rad/s.", "",
              f"Machine: {a['machine']}; numba threads: {a['numba_threads']} (SciPy: 1 thread; "
              f"heyoka: {a.get('heyoka_threads', '—')}). {a['versions']}; {a['heyoka']}.", "",

@@ -267,6 +267,7 @@ def test_a_non_finite_argument_gives_nan_not_a_number_that_looks_fine(kc):
 PACKED_SQRT = re.compile(r"\bvsqrtpd\s+[^\n]*%[yz]mm")
 
 
+@pytest.mark.slow  # compiles the chunk uncached: 15 s
 @pytest.mark.skipif(not _has_avx2_and_fma(), reason="host CPU lacks AVX2+FMA")
 def test_the_one_time_kernel_puts_samples_in_simd_lanes():
     # the set-up, the AGMs and the addition take packed square roots: the stages' loops over samples vectorised

@@ -13,7 +13,9 @@
   when heyoka is installed (the optional ``bench`` extra), over a ladder of tolerances,
 
 and measures, per point, the error at ``t_end`` against a reference solution and the wall time (median of
-``repeats`` runs, compile time excluded and reported separately). :func:`speedups` reads the resulting
+``repeats`` runs, compile time excluded and reported separately; each timed run right after untimed runs of
+the same solver lasting :data:`WARM_UP_SECONDS`, so that thread pools are awake and the cores up to speed for
+every solver alike). :func:`speedups` reads the resulting
 curves off at given errors and forms ratios against a baseline.
 
 Error measure
@@ -546,6 +548,22 @@ def _timed(fn):
     return time.perf_counter() - started, result
 
 
+# Untimed calls before each timed one last at least this long (s).
+WARM_UP_SECONDS = 0.02
+
+
+def _timed_warm(fn):
+    """``fn``'s wall time on a call right after untimed calls of it lasting :data:`WARM_UP_SECONDS` (at least
+    one): the thread pools (numba's, heyoka's) sleep while another solver runs, and on a virtual machine the
+    cores take several calls, milliseconds, to come back to speed (a 0.1 ms call measured 0.4-0.8 ms right after
+    one warm-up call). Every solver is timed so; a SciPy run of 10 ms or more warms up by itself."""
+    started = time.perf_counter()
+    fn()
+    while time.perf_counter() - started < WARM_UP_SECONDS:
+        fn()
+    return _timed(fn)
+
+
 def _tumble_curve(run, method, counts, adaptive):
     """A fixed-step method along its ladder of step counts; an adaptive (default) ladder stops at round-off
     or before a run longer than :data:`MAX_POINT_SECONDS`."""
@@ -563,7 +581,7 @@ def _tumble_curve(run, method, counts, adaptive):
                 warnings.simplefilter("ignore", RuntimeWarning)  # coarse steps may blow up: error inf
                 return propagate(moments, w0, t_end, dt, method=method)
 
-        wall, w_end = _timed(one_run)
+        wall, w_end = _timed_warm(one_run)
         steps, step = _step_plan(t_end, dt)
         points.append(run.point(w_end, wall, step, steps))
         runs.append((one_run, [wall]))
@@ -585,7 +603,7 @@ def _exact_curve(run, heyoka_is_reference):
     def exact_run():
         return propagate(moments, w0, t_end, t_end, method=_EXACT)
 
-    wall, w_exact = _timed(exact_run)
+    wall, w_exact = _timed_warm(exact_run)
     if heyoka_is_reference:  # the closed form's true error
         point = run.point(w_exact, wall, np.nan, np.nan)
         reference_vs_exact = (point["error"], point["error_median"])
@@ -610,7 +628,7 @@ def _scipy_curve(run, method, rtols, atol_scale):
         def one_run(rtol=rtol):
             return solve_ivp(rhs, (0.0, run.t_end), y0, method=method, rtol=rtol, atol=rtol * atol_scale)
 
-        wall, sol = _timed(one_run)
+        wall, sol = _timed_warm(one_run)
         if sol.status != 0:
             raise RuntimeError(f"solve_ivp({method}, rtol={rtol:g}) failed: {sol.message}")
         points.append(run.point(sol.y[:, -1].reshape(3, -1).T, wall, float(rtol), len(sol.t) - 1, int(sol.nfev)))
@@ -628,8 +646,8 @@ def _heyoka_curve(run, tols, pool, threads):
         build, one_run = _timed(lambda tol=tol: _heyoka_ensemble(run.moments, run.w0, run.t_end, float(tol), pool,
                                                                  threads))
         compile_time += build
-        w_end, n_steps, order = one_run(record=True)  # not timed: with bookkeeping, and starts the threads
-        wall, _ = _timed(one_run)
+        w_end, n_steps, order = one_run(record=True)  # not timed: with bookkeeping
+        wall, _ = _timed_warm(one_run)
         points.append(run.point(w_end, wall, float(tol), n_steps))
         runs.append((one_run, [wall]))
         _say(run.progress, f"  {_HEYOKA:18s} tol={tol:.0e}  error {points[-1]['error']:.2e} "
@@ -643,12 +661,12 @@ def _retime(curves, parts, repeats, progress):
     median of its passes. Returns the median time of each of ``parts`` (timed in every pass, no first one)."""
     for part in parts.values():
         for fn, walls in part.runs:
-            walls.append(_timed(fn)[0])
+            walls.append(_timed_warm(fn)[0])
     for k in range(1, repeats):
         _say(progress, f"  timing pass {k + 1} of {repeats}")
         for curve in (*curves.values(), *parts.values()):
             for fn, walls in curve.runs:
-                walls.append(_timed(fn)[0])
+                walls.append(_timed_warm(fn)[0])
     for curve in curves.values():
         for point, (_, walls) in zip(curve.points, curve.runs):
             point["wall"] = float(np.median(walls))
@@ -688,7 +706,8 @@ def _dataset(curves, compile_time, methods, moments, axis, spin, amplitude, samp
         "wp_wall": (dims, table["wall"], {
             "units": "s", "long_name": "wall time of one ensemble run",
             "comment": f"median of {repeats} runs (time.perf_counter) taken in {repeats} interleaved passes "
-                       "over all solvers; compile time excluded"}),
+                       "over all solvers, each right after untimed runs of the same solver (20 ms at least); compile time "
+                       "excluded"}),
         "wp_setting": (dims, table["setting"], {
             "units": "s (tumble methods: step dt); 1 (scipy: rtol; heyoka: tol)",
             "long_name": "step dt (tumble), relative tolerance rtol (scipy) or tolerance tol (heyoka); NaN "
