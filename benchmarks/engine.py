@@ -158,7 +158,10 @@ def overhead():
             lambda: tumble.propagate(MOMENTS, w1, 0.5, 0.5, method="exact"))),
         dict(call="tumble.integrate(body, w0, dt, dt, 'rk4')", seconds=_per_call(
             lambda: tumble.integrate(MOMENTS, w1, 1e-3, 1e-3, method="rk4"), calls=50)),
-        dict(call="tumble.exact.omega(body, w0, t)", seconds=_per_call(lambda: tumble.exact.omega(MOMENTS, w1, t1))),
+        dict(call="tumble.exact.omega(body, w0, t), t of shape (1,)", seconds=_per_call(
+            lambda: tumble.exact.omega(MOMENTS, w1, t1))),
+        dict(call="tumble.exact.omega(body, w0, 0.5), one time (the fused kernel)", seconds=_per_call(
+            lambda: tumble.exact.omega(MOMENTS, w1, 0.5))),
         dict(call="kernels.run(rk4, w, moments, 0, dt, 1) (the kernel call alone)", seconds=_per_call(
             lambda: run(METHODS["rk4"], np.array([[0.1], [1.0], [0.1]]), MOMENTS, 0.0, 1e-3, 1))),
     ]

@@ -261,6 +261,28 @@ def test_a_satellites_initial_attitudes_are_tilted_by_the_amplitude_about_unifor
         perturbed_states(model, 4, 1.0, 0.1, 10)
 
 
+@pytest.mark.parametrize("distribution", ["filled_cone", "gaussian"])
+def test_a_satellites_tilts_follow_the_other_distributions_laws(distribution):
+    # filled cone: uniform in solid angle on the cap theta <= a, P(theta <= x) = (1 - cos x)/(1 - cos a);
+    # gaussian: two N(0, a^2) tilt components, so theta is Rayleigh, P(theta <= x) = 1 - exp(-x^2 / (2 a^2))
+    a = 0.05
+    model = GravityGradient((2.0, 2.5, 1.0), 0.3)
+    q = perturbed_states(model, 2, 1.0, a, 20000, seed=3, distribution=distribution)[:, 3:]
+    assert np.abs(np.linalg.norm(q, axis=1) - 1.0).max() <= 2 * EPS
+    theta = np.sort(2 * np.arctan2(np.linalg.norm(q[:, 1:], axis=1), q[:, 0]))
+    if distribution == "filled_cone":
+        assert theta[-1] <= a * (1 + 1e-12)
+        cdf = (1 - np.cos(theta)) / (1 - np.cos(a))
+    else:
+        cdf = -np.expm1(-theta ** 2 / (2 * a ** 2))
+    ks = np.max(np.abs(cdf - np.arange(1, theta.size + 1) / theta.size))
+    assert ks < 1.63 / np.sqrt(theta.size)  # Kolmogorov-Smirnov at the 1 % level
+    axes = q[:, 1:] / np.linalg.norm(q[:, 1:], axis=1, keepdims=True)
+    assert np.abs(axes.mean(axis=0)).max() < 0.03 and np.allclose(np.mean(axes ** 2, axis=0), 1 / 3, atol=0.015)
+    assert np.array_equal(perturbed_states(model, 2, 1.0, a, 20000, seed=3, distribution=distribution, start=4090,
+                                           stop=4100)[:, 3:], q[4090:4100])
+
+
 def test_a_damper_starts_with_its_sphere_moving_with_the_tilted_body():
     model = MODELS["damper"]
     states = perturbed_states(model, 1, -2.0, 1e-2, 10, seed=5)

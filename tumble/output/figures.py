@@ -832,7 +832,8 @@ def debra_delp_map(ds):
     growth rate (in units of the orbit rate ``n``) where the orbit-following attitude is unstable, grey where it
     librates (measured frequency), with the theory's boundaries (:func:`tumble.physics.theory.gravity_gradient_stable`)
     and its two stable regions, Lagrange's (``k1 > k3 > 0``) and DeBra-Delp's (``0 > k1 > k3``). A cell whose
-    linearisation disagrees with the closed-form region is crossed.
+    linearisation disagrees with the closed-form region is crossed; cells on ``k1 = k3`` (``I1 = I3``: the pitch
+    mode neutral, no kind decided by linear theory) are circled.
 
     Reads ``rate``, ``kind``, ``orbit_rate`` and the body coordinates ``k1``, ``k3``; other scan dimensions at
     their first value.
@@ -859,6 +860,10 @@ def debra_delp_map(ds):
     wrong = ((region == "unstable") != (kinds == "exponential")) & ~marginal
     if wrong.any():
         ax.plot(u1[i1][wrong], u3[i3][wrong], "x", color="C0", label="kind disagrees with the closed form")
+    neutral = u1[i1] == u3[i3]
+    if neutral.any():  # I1 = I3: the pitch mode is neutral (w_p = 0), the linearisation decides no kind there
+        ax.plot(u1[i1][neutral], u3[i3][neutral], "o", mfc="none", mec="C0", ms=3, mew=0.6,
+                label="$k_1 = k_3$: pitch neutral")
     _gg_boundaries(ax)
     ax.text(0.55, 0.15, "Lagrange", ha="center", fontsize=8)
     ax.annotate("DeBra-Delp", xy=(-0.05, -0.7), xytext=(-0.75, -0.85), fontsize=8,
