@@ -201,7 +201,7 @@ def _report(ds, table, rows, load_before, load_after, elapsed, settings):
                         + ("" if not math.isfinite(setting[k]) else f" ({what} {setting[k]:.3g})")
                         for k in np.nonzero(ok)[0])
         lines.append(f"- **{s}**: {pts}")
-    lines += ["", f"Closed form: `tumble.exact.omega` alone takes {a['exact_omega_wall_s'] * 1e3:.3g} ms of "
+    lines += ["", f"Closed form: `tumble.exact.omega(body, w0, t_end)` alone takes {a['exact_omega_wall_s'] * 1e3:.3g} ms of "
               f"the point's time; `tumble.integrate` with one rk4 step (its fixed cost: validation, engine, "
               f"Dataset) {a['integrate_one_step_rk4_wall_s'] * 1e3:.3g} ms.", "",
               f"Settings: {json.dumps(settings, default=str)}"]

@@ -420,7 +420,7 @@ def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, sampl
         (``reference``, ``reference_wall_s``, ``reference_vs_exact_max`` and ``_median``: its distance to the
         closed form, NaN when the closed form is the reference); heyoka's use (``heyoka``) and what the
         closed-form point's time is made of: ``exact_omega_wall_s`` (:func:`tumble.physics.exact.omega`
-        alone) and ``integrate_one_step_rk4_wall_s`` (``tumble.integrate`` with one rk4 step: its fixed cost;
+        alone, at the one time ``t_end``) and ``integrate_one_step_rk4_wall_s`` (``tumble.integrate`` with one rk4 step: its fixed cost;
         NaN without rk4).
 
     Raises
@@ -461,7 +461,7 @@ def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, sampl
     curves[_EXACT], reference_vs_exact = _exact_curve(run, heyoka_tols.size > 0)
     # Beside the points (timed through the array API): the bare closed form, and what tumble.integrate (a
     # Dataset) costs on top of the kernels, measured on a one-step rk4 run of the same ensemble.
-    parts = {"exact_omega": _Curve([], [(lambda: exact.omega(moments, w0, np.array([t_end])), [])], 0.0)}
+    parts = {"exact_omega": _Curve([], [(lambda: exact.omega(moments, w0, t_end), [])], 0.0)}
     if "rk4" in methods:
         parts["integrate_one_step_rk4"] = _Curve([], [(lambda: integrate(moments, w0, t_end, t_end, method="rk4"),
                                                       [])], 0.0)
