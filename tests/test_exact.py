@@ -109,15 +109,21 @@ def flips_times(moments, w0, flips=10, n=150):
 SHUFFLED = [(2.4, 1.0, 1.7), (1.7, 2.4, 1.0), (1.0, 2.4, 1.7)]
 
 
-@pytest.mark.parametrize("eps", [1.0, 1e-3, 1e-6, 1e-9, 1e-12])
-@pytest.mark.parametrize("regime", [1, -1])
-def test_matches_mpmath_to_1e12_near_separatrix_over_ten_flips(eps, regime):
+def separatrix_case(eps, regime, n=150):
+    """``(moments, w0, t, reference, nu)``: a spin ``eps`` from the intermediate axis in ``regime``, ``n`` times over
+    ten flips, and mpmath's solution there."""
     rng = np.random.default_rng(int(1e3 * -np.log10(eps)) + regime + 5)
     moments = SHUFFLED[int(-np.log10(eps)) % 3]
     w0 = near_intermediate_spin(moments, eps, regime, rng)
     assert exact.parameters(moments, w0).regime == regime
-    t = flips_times(moments, w0)
-    ref, nu = mp_reference(moments, w0, t)
+    t = flips_times(moments, w0, n=n)
+    return (moments, w0, t, *mp_reference(moments, w0, t))
+
+
+@pytest.mark.parametrize("eps", [1.0, 1e-3, 1e-6, 1e-9, 1e-12])
+@pytest.mark.parametrize("regime", [1, -1])
+def test_matches_mpmath_to_1e12_near_separatrix_over_ten_flips(eps, regime):
+    moments, w0, t, ref, nu = separatrix_case(eps, regime)
     got = exact.omega(moments, w0, t)
     assert vector_error(got, ref).max() < 1e-12
     assert component_error(moments, got, ref, nu).max() < 5e-12
@@ -600,11 +606,7 @@ def test_bad_input_is_rejected_by_every_entry_point():
 @pytest.mark.parametrize("eps", [1.0, 1e-3, 1e-6, 1e-9, 1e-12])
 @pytest.mark.parametrize("regime", [1, -1])
 def test_one_time_path_matches_mpmath_near_separatrix_over_ten_flips(eps, regime):
-    rng = np.random.default_rng(int(1e3 * -np.log10(eps)) + regime + 5)
-    moments = SHUFFLED[int(-np.log10(eps)) % 3]
-    w0 = near_intermediate_spin(moments, eps, regime, rng)
-    t = flips_times(moments, w0, n=40)
-    ref, nu = mp_reference(moments, w0, t)
+    moments, w0, t, ref, nu = separatrix_case(eps, regime, n=40)
     got = np.stack([exact.omega_at(np.asarray(moments), w0[None, :], float(tj))[0] for tj in t])
     assert vector_error(got, ref).max() < 1e-12
     assert component_error(moments, got, ref, nu).max() < 5e-12
