@@ -215,7 +215,9 @@ def finite_array(value, name):
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as err:
         raise ValueError(f"{name} must be a number or an array of numbers, got {value!r}") from err
-    if not np.isfinite(arr).all():
+    # a few numbers (one spin, a scalar) are checked as Python floats: a quarter of the array check's cost
+    finite = all(map(math.isfinite, arr.ravel().tolist())) if arr.size <= 16 else np.isfinite(arr).all()
+    if not finite:
         raise ValueError(f"{name} must be finite (found NaN or inf)")
     return arr
 
