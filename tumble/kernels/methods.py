@@ -18,6 +18,10 @@ BLOCK = 256
 
 _NO_STEPS = np.zeros(0, dtype=np.int64)
 _UNIT_WEIGHTS = np.ones(3)  # the Euclidean transverse norm (read only by the kernels)
+# The outputs of observers a run does not ask for: empty, so the driver never writes them (shared, not allocated
+# per call; writable, as the driver's signature has them).
+_NO_SAVED = np.empty((0, 3, 0))
+_NO_ROWS = np.empty((0, 0))
 
 
 class Method(NamedTuple):
@@ -177,13 +181,14 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
     if save_every > 0:
         n_saved = 1 + n_steps // save_every + (1 if n_steps % save_every else 0)
     # Outputs not asked for are empty arrays: the driver's observers are runtime switches (one compiled variant).
-    saved = np.empty((n_saved, 3, n))
+    saved = np.empty((n_saved, 3, n)) if n_saved else _NO_SAVED
     probe_steps = _NO_STEPS if probe_steps is None else np.ascontiguousarray(probe_steps, dtype=np.int64)
-    probes = np.empty((len(probe_steps), n))
-    flips = np.empty((n, max(int(max_flips), 0)))
-    flips.fill(np.nan)
+    probes = np.empty((len(probe_steps), n)) if len(probe_steps) else _NO_ROWS
+    flips = _NO_ROWS
+    if max_flips > 0:
+        flips = np.full((n, int(max_flips)), np.nan)
     flip_count = np.zeros(n, dtype=np.int64)
-    drifts = np.zeros((2 if drift else 0, n))
+    drifts = np.zeros((2, n)) if drift else _NO_ROWS
     status = np.zeros(n, dtype=np.int8)
     steps_taken = np.zeros(n, dtype=np.int64)
     torque_free = torque_params is None and torque_fn is None
