@@ -1109,7 +1109,7 @@ def _addition(x, y, k_c, mi, sn, cn, dn):
 # Samples a chunk of torque_free_omega_at holds in its scratch arrays (each stage a loop over them, in SIMD lanes).
 _CHUNK = 256
 # Rows of the chunk's scratch array.
-_AQ, _AM, _AP, _KC, _M, _NU, _X, _Y, _NEG, _SPECIAL, _K, _H, _Q, _SN, _CN, _DN, _A, _B, _WA, _WB, _WC = range(21)
+_AQ, _AM, _AP, _KC, _M, _NU, _X, _Y, _NEG, _SPECIAL, _K, _Q, _SN, _CN, _DN, _A, _B, _WA, _WB, _WC = range(20)
 
 
 @jit(parallel=True)
@@ -1178,7 +1178,7 @@ def _omega_at_chunk(moments, w, t, out, lo, m):
     d21 = I2 - I1
     tiny = 0
     non_finite = 0
-    z = np.empty((21, m))
+    z = np.empty((20, m))
     n_hyperbolic = 0
     n_landen = 0
     for j in range(m):  # the spins' components in sorted order, as rows
@@ -1251,7 +1251,6 @@ def _omega_at_chunk(moments, w, t, out, lo, m):
             h = z[_A, j]
             beta = 2.0 * z[_K, j] * h
             q, _ = _exp_expm1(-beta)
-            z[_H, j] = h
             z[_Q, j] = q if beta < _BETA_NEGLIGIBLE else 0.0
             k_c = z[_KC, j]
             K = z[_K, j]
