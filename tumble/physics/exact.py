@@ -327,7 +327,7 @@ def omega_at(moments, w, t):
     ``TINY_TRANSVERSE`` of an axis take :func:`omega`'s path.
     """
     out = np.empty(w.shape)
-    tiny, non_finite = _ell.torque_free_omega_at(moments, w, float(t), out)
+    tiny, non_finite = _ell.torque_free_omega_at(np.ascontiguousarray(moments, dtype=float), w, float(t), out)
     if tiny:
         return _omega_grid(moments, w, np.asarray(float(t)))
     if non_finite:
