@@ -650,3 +650,16 @@ def test_one_time_path_hands_spins_within_tiny_of_an_axis_to_the_general_path():
     w0 = np.array([[1e-200, 1.0, 3e-201], [0.1, 1.0, 0.2]])  # the first below TINY_TRANSVERSE: lifted
     for t in (0.0, 30.0):
         np.testing.assert_array_equal(exact.omega_at(moments, w0, t), exact.omega(moments, w0, np.array([t]))[:, 0])
+
+
+def test_one_time_path_gives_a_sample_the_same_bits_alone_or_in_any_batch():
+    # the chunk's stages run every lane as long as the slowest needs (the AGMs): a lane's bits must not follow
+    rng = np.random.default_rng(5)
+    w0 = np.concatenate([rng.normal(size=(300, 3)),
+                         np.column_stack([1e-9 * rng.normal(size=200), np.ones(200), 1e-9 * rng.normal(size=200)])])
+    w0 = np.ascontiguousarray(rng.permutation(w0))
+    moments = np.array([1.0, 2.0, 3.0])
+    batch = exact.omega_at(moments, w0, 7.0)
+    for i in (0, 17, 255, 256, 499):
+        np.testing.assert_array_equal(exact.omega_at(moments, w0[i:i + 1], 7.0)[0], batch[i])
+    np.testing.assert_array_equal(exact.omega_at(moments, w0[100:400], 7.0), batch[100:400])

@@ -1298,14 +1298,17 @@ _landen_constants_inline = jit(inline=True)(_landen_constants.py_func)
 
 @jit(inline=True)
 def _agm_lanes(a, b):
-    """``a <- AGM(a, b)`` lane by lane, every lane stepped until the slowest one meets :func:`agm`'s test."""
+    """``a <- AGM(a, b)`` lane by lane: :func:`agm`'s steps and test, a lane held once it meets the test, so that
+    its bits are :func:`agm`'s whatever the other lanes of the chunk (the loop runs until the slowest one is done)."""
     for _ in range(_AGM_MAXITER):
         unconverged = 0
         for j in range(a.shape[0]):
-            unconverged += 1 if abs(a[j] - b[j]) > 1e-8 * a[j] else 0
+            go = abs(a[j] - b[j]) > 1e-8 * a[j]
+            unconverged += 1 if go else 0
+            mean, root = 0.5 * (a[j] + b[j]), math.sqrt(a[j] * b[j])
+            a[j] = mean if go else a[j]
+            b[j] = root if go else b[j]
         if unconverged == 0:
             break
-        for j in range(a.shape[0]):
-            a[j], b[j] = 0.5 * (a[j] + b[j]), math.sqrt(a[j] * b[j])
     for j in range(a.shape[0]):
         a[j] = 0.5 * (a[j] + b[j])
