@@ -1,5 +1,7 @@
-"""Checks the model kernels' tests share: observed orders against DOP853, growth rates fitted to the probes."""
+"""Checks the model kernels' tests share: observed orders against DOP853, growth rates fitted to the probes, the same
+bits on any threads and chunks."""
 
+import numba
 import numpy as np
 from scipy.integrate import solve_ivp
 
@@ -31,3 +33,21 @@ def fitted_rate(times, probes, low, high):
     inside = (mean > np.log(low)) & (mean < np.log(high))
     assert inside.sum() >= 20
     return np.polyfit(times[inside], mean[inside], 1)[0]
+
+
+def assert_same_bits_on_any_threads_and_chunks(model, y0):
+    """An rk8 run of ``model`` from ``y0`` with every observer gives the same bits on 1 and 2 numba threads and for
+    any chunk of samples."""
+    run = dict(method="rk8", axis=3, save_every=7, probe_times=[0.0, 1.0, 2.0], drift=True)
+    before = numba.get_num_threads()
+    results = []
+    try:
+        for threads, chunk in ((1, 4096), (2, 4096), (2, 7), (1, 300)):
+            numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+            results.append(run_model_ensemble(model, y0, 2.0, 0.01, chunk=chunk, **run))
+    finally:
+        numba.set_num_threads(before)
+    first = results[0]
+    for other in results[1:]:
+        for name in ("final", "trajectory", "probes", "drift", "status", "steps_taken"):
+            assert np.array_equal(getattr(first, name), getattr(other, name)), name

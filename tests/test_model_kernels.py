@@ -10,10 +10,9 @@ One compiled driver serves every model and method: the module fixture compiles (
 
 from pathlib import Path
 
-import numba
 import numpy as np
 import pytest
-from model_checks import fitted_rate, model_errors, observed_order
+from model_checks import assert_same_bits_on_any_threads_and_chunks, fitted_rate, model_errors, observed_order
 from tumble.theory import linear
 
 from tumble import registry
@@ -202,19 +201,7 @@ def test_a_large_enough_wheel_stabilises_the_intermediate_axis(warm):
 def test_results_are_bit_identical_on_any_number_of_threads_and_for_any_chunk(warm, kind):
     model = Gyrostat((1.0, 2.0, 3.0), (0.0, 0.0, 0.4)) if kind == "gyrostat" else MODELS[kind]
     y0 = np.random.default_rng(6).normal(size=(600, model.state_size))
-    run = dict(method="rk8", axis=3, save_every=7, probe_times=[0.0, 1.0, 2.0], drift=True)
-    before = numba.get_num_threads()
-    results = []
-    try:
-        for threads, chunk in ((1, 4096), (min(2, numba.config.NUMBA_NUM_THREADS), 4096), (2, 7), (1, 300)):
-            numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
-            results.append(run_model_ensemble(model, y0, 2.0, 0.01, chunk=chunk, **run))
-    finally:
-        numba.set_num_threads(before)
-    first = results[0]
-    for other in results[1:]:
-        for name in ("final", "trajectory", "probes", "drift", "status", "steps_taken"):
-            assert np.array_equal(getattr(first, name), getattr(other, name)), name
+    assert_same_bits_on_any_threads_and_chunks(model, y0)
 
 
 def test_perturbed_states_are_reproducible_by_index_and_tilt_g_independently():

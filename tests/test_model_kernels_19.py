@@ -9,10 +9,9 @@ pitch libration against linear theory -> the initial states -> bit-for-bit repro
 Both models run through the same compiled driver as the others (the module fixture compiles or loads it once).
 """
 
-import numba
 import numpy as np
 import pytest
-from model_checks import fitted_rate, model_errors, observed_order
+from model_checks import assert_same_bits_on_any_threads_and_chunks, fitted_rate, model_errors, observed_order
 from tumble.theory import linear
 
 from tumble import registry
@@ -297,16 +296,4 @@ def test_a_damper_starts_with_its_sphere_moving_with_the_tilted_body():
 def test_results_are_bit_identical_on_any_number_of_threads_and_for_any_chunk(warm, kind):
     model = MODELS[kind]
     y0 = _general_states(model, 600, seed=6)
-    run = dict(method="rk8", axis=3, save_every=7, probe_times=[0.0, 1.0, 2.0], drift=True)
-    before = numba.get_num_threads()
-    results = []
-    try:
-        for threads, chunk in ((1, 4096), (2, 4096), (2, 7), (1, 300)):
-            numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
-            results.append(run_model_ensemble(model, y0, 2.0, 0.01, chunk=chunk, **run))
-    finally:
-        numba.set_num_threads(before)
-    first = results[0]
-    for other in results[1:]:
-        for name in ("final", "trajectory", "probes", "drift", "status", "steps_taken"):
-            assert np.array_equal(getattr(first, name), getattr(other, name)), name
+    assert_same_bits_on_any_threads_and_chunks(model, y0)
