@@ -109,14 +109,17 @@ def heavy_top_invariants(w1, w2, w3, g1, g2, g3, c):
 
 
 @jit(inline=True)
+def _orbit_rows(q0, q1, q2, q3):
+    """Rows ``c2`` (orbit normal, negative) and ``c3`` (nadir) of the orbit frame in the body frame, from the attitude
+    quaternion: ``(c21, c22, c23, c31, c32, c33)``."""
+    return (2.0 * (q1 * q2 + q0 * q3), 1.0 - 2.0 * (q1 * q1 + q3 * q3), 2.0 * (q2 * q3 - q0 * q1),
+            2.0 * (q1 * q3 - q0 * q2), 2.0 * (q2 * q3 + q0 * q1), 1.0 - 2.0 * (q1 * q1 + q2 * q2))
+
+
+@jit(inline=True)
 def gravity_gradient_rate(w1, w2, w3, q0, q1, q2, q3, c):
     """``(w', q')`` of the gravity-gradient satellite: rad/s², then 1/s (the physics layer's rows ``c2``, ``c3``)."""
-    c21 = 2.0 * (q1 * q2 + q0 * q3)
-    c22 = 1.0 - 2.0 * (q1 * q1 + q3 * q3)
-    c23 = 2.0 * (q2 * q3 - q0 * q1)
-    c31 = 2.0 * (q1 * q3 - q0 * q2)
-    c32 = 2.0 * (q2 * q3 + q0 * q1)
-    c33 = 1.0 - 2.0 * (q1 * q1 + q2 * q2)
+    c21, c22, c23, c31, c32, c33 = _orbit_rows(q0, q1, q2, q3)
     v1, v2, v3 = w1 + c[18] * c21, w2 + c[18] * c22, w3 + c[18] * c23  # w_r = w + n c2, relative to the orbit
     return (c[3] * (w2 * w3 - c[20] * (c32 * c33)),
             c[4] * (w3 * w1 - c[20] * (c33 * c31)),
@@ -153,12 +156,7 @@ def gravity_gradient_invariants(w1, w2, w3, q0, q1, q2, q3, c):
     The Jacobi integral ``T_r + V_g − V_c`` (``T_r = ½ w_r·I w_r``, ``V_g = (3/2) n² c3·I c3``, ``V_c = ½ n²
     c2·I c2``) may vanish, so its scale is the sum of the three terms' magnitudes; ``|q|²`` is its own scale.
     """
-    c21 = 2.0 * (q1 * q2 + q0 * q3)
-    c22 = 1.0 - 2.0 * (q1 * q1 + q3 * q3)
-    c23 = 2.0 * (q2 * q3 - q0 * q1)
-    c31 = 2.0 * (q1 * q3 - q0 * q2)
-    c32 = 2.0 * (q2 * q3 + q0 * q1)
-    c33 = 1.0 - 2.0 * (q1 * q1 + q2 * q2)
+    c21, c22, c23, c31, c32, c33 = _orbit_rows(q0, q1, q2, q3)
     v1, v2, v3 = w1 + c[18] * c21, w2 + c[18] * c22, w3 + c[18] * c23
     kinetic = 0.5 * (c[0] * v1 * v1 + c[1] * v2 * v2 + c[2] * v3 * v3)
     gravity = 1.5 * c[19] * (c[0] * c31 * c31 + c[1] * c32 * c32 + c[2] * c33 * c33)

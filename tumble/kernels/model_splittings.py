@@ -118,28 +118,23 @@ def heavy_top_rotate_block(axis, tau, y1, y2, y3, y4, y5, y6, c):
     # size: one array per state component (the block's rows), the axis, the time and the constants
     """The exact flow of ``T_a = L_a² / (2 I_a)`` over ``tau`` for every sample: ``(L_b, L_c)`` and ``(g_b, g_c)``
     turn by ``w_a tau``, ``a = axis`` (0-based), ``(a, b, c)`` cyclic; one loop (one sincos) per axis."""
-    n = y1.shape[0]
     if axis == 0:
-        r_cb, r_bc = c[2] / c[1], c[1] / c[2]
-        for i in range(n):
-            s, k = sincos(y1[i] * tau)
-            wb, wc, gb, gc = y2[i], y3[i], y5[i], y6[i]
-            y2[i], y3[i] = k * wb + s * r_cb * wc, k * wc - s * r_bc * wb
-            y5[i], y6[i] = k * gb + s * gc, k * gc - s * gb
+        _turn_about_axis(tau, y1, y2, y3, y5, y6, c[2] / c[1], c[1] / c[2])
     elif axis == 1:
-        r_cb, r_bc = c[0] / c[2], c[2] / c[0]
-        for i in range(n):
-            s, k = sincos(y2[i] * tau)
-            wb, wc, gb, gc = y3[i], y1[i], y6[i], y4[i]
-            y3[i], y1[i] = k * wb + s * r_cb * wc, k * wc - s * r_bc * wb
-            y6[i], y4[i] = k * gb + s * gc, k * gc - s * gb
+        _turn_about_axis(tau, y2, y3, y1, y6, y4, c[0] / c[2], c[2] / c[0])
     else:
-        r_cb, r_bc = c[1] / c[0], c[0] / c[1]
-        for i in range(n):
-            s, k = sincos(y3[i] * tau)
-            wb, wc, gb, gc = y1[i], y2[i], y4[i], y5[i]
-            y1[i], y2[i] = k * wb + s * r_cb * wc, k * wc - s * r_bc * wb
-            y4[i], y5[i] = k * gb + s * gc, k * gc - s * gb
+        _turn_about_axis(tau, y3, y1, y2, y4, y5, c[1] / c[0], c[0] / c[1])
+
+
+@jit(inline=True)
+def _turn_about_axis(tau, wa, wb, wc, gb, gc, r_cb, r_bc):
+    """:func:`heavy_top_rotate_block` about the axis whose rows are ``wa`` (the others ``wb, wc`` and ``gb, gc``,
+    cyclic order); ``r_cb = I_c/I_b``, ``r_bc = I_b/I_c``."""
+    for i in range(wa.shape[0]):
+        s, k = sincos(wa[i] * tau)
+        b, c, g_b, g_c = wb[i], wc[i], gb[i], gc[i]
+        wb[i], wc[i] = k * b + s * r_cb * c, k * c - s * r_bc * b
+        gb[i], gc[i] = k * g_b + s * g_c, k * g_c - s * g_b
 
 
 @jit
