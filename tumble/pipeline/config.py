@@ -714,16 +714,7 @@ def _model_scan(table):
                                       "scene's spin axis, N m s), not both")
             values.append(_vector(item, field) if vectors else _number(item, field))
         out["rotor"] = _distinct(values, "scan.rotor", items)
-    if "mgl" in table:
-        items = _array(table["mgl"], "scan.mgl", empty=False)
-        values = []
-        for i, item in enumerate(items):
-            x = _number(item, f"scan.mgl[{i}]")
-            if x <= 0:
-                raise _Invalid(f"scan.mgl[{i}]", f"must be > 0 N m (M g l of a heavy_top), got {x!r}")
-            values.append(x)
-        out["mgl"] = _distinct(values, "scan.mgl", items)
-    for key in ("orbit_rate", "damper_inertia", "damping"):
+    for key in ("mgl", "orbit_rate", "damper_inertia", "damping"):  # the positive scalar parameters
         if key in table:
             units = registry.model_parameter(key).units
             items = _array(table[key], f"scan.{key}", empty=False)
