@@ -127,7 +127,7 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
     chosen, _ = registry.choose_method(method, torque_free=params is None and fn is None)
     n_steps, step = _step_plan(t_end, dt)
     if chosen == "exact" and not save_every:
-        out = exact.omega_at(moments, np.ascontiguousarray(w), t_end)
+        out = exact.omega_at(moments, w, t_end)
     elif chosen == "exact":  # the stepping path's store times: 0, k, 2k, ..., and the end
         steps = np.arange(0, n_steps + 1, save_every)
         times = np.append(steps, n_steps) if steps[-1] != n_steps else steps

@@ -319,13 +319,14 @@ def omega_rows(sol, times, row):
 
 
 def omega_at(moments, w, t):
-    """Angular velocity (n, 3), rad/s, at one time ``t`` (s) of spins ``w`` (n, 3, float64, C order) of one body
-    ``moments`` (3,), all validated by the caller: the lean path of :func:`omega` for a single time.
+    """Angular velocity (n, 3), rad/s, at one time ``t`` (s) of spins ``w`` (n, 3) of one body ``moments`` (3,), all
+    validated by the caller: the lean path of :func:`omega` for a single time.
 
     One fused kernel (:func:`tumble.kernels.elliptic.torque_free_omega_at`: no initial argument, Jacobi's
     addition theorem instead); agrees with :func:`omega` to a few ulps of ``|w|``. Spins within
     ``TINY_TRANSVERSE`` of an axis take :func:`omega`'s path.
     """
+    w = np.ascontiguousarray(w, dtype=float)
     out = np.empty(w.shape)
     tiny, non_finite = _ell.torque_free_omega_at(np.ascontiguousarray(moments, dtype=float), w, float(t), out)
     if tiny:
@@ -392,7 +393,7 @@ def omega(body, w0, t):
     tt = _check_t(t)
     if tt.ndim == 0:
         w = spin_vectors(w0)
-        return omega_at(one_body(body), np.ascontiguousarray(w.reshape(-1, 3)), float(tt)).reshape(w.shape)
+        return omega_at(one_body(body), w.reshape(-1, 3), float(tt)).reshape(w.shape)
     return _omega_grid(body, w0, tt)
 
 
