@@ -1,5 +1,6 @@
-"""Ensemble-engine benchmarks: throughput per method against the naive per-sample loop, peak memory of a
-million-sample growth measurement, and a warm 4096-sample scene end to end.
+"""Ensemble-engine benchmarks: throughput per method against the naive per-sample loop, the Runge–Kutta steps
+against the machine's multiply/FMA peak, peak memory of a million-sample growth measurement, and a warm
+4096-sample scene end to end.
 
     python benchmarks/engine.py                    # all parts; writes benchmarks/results/engine.md
     python benchmarks/engine.py memory warm_scene  # re-measure some parts, keep the others' last results
@@ -22,6 +23,7 @@ from numba import prange
 import tumble
 from tumble import measure
 from tumble.kernels import fused, steppers
+from tumble.kernels.codegen import multiplies_per_sample_step
 from tumble.kernels.jit import jit
 from tumble.kernels.methods import METHODS, run
 
@@ -103,6 +105,56 @@ def throughput():
             row["speedup"] = row["fast"] / row["naive"]
         rows.append(row)
         print(row, flush=True)
+    return rows
+
+
+@numba.njit(fastmath={"contract"}, error_model="numpy")
+def _eight_fma_chains(x):
+    """64 multiply-adds per sample in eight independent chains: the loop over the samples vectorises and the
+    chains keep both FMA pipes busy, so its rate is the machine's multiply/FMA peak."""
+    for i in range(x.shape[0]):
+        a0 = x[i]
+        a1, a2, a3, a4, a5, a6, a7 = a0 + 1.0, a0 + 2.0, a0 + 3.0, a0 + 4.0, a0 + 5.0, a0 + 6.0, a0 + 7.0
+        for _ in range(8):
+            a0, a1, a2, a3 = a0 * 0.5 + 0.25, a1 * 0.5 + 0.25, a2 * 0.5 + 0.25, a3 * 0.5 + 0.25
+            a4, a5, a6, a7 = a4 * 0.5 + 0.25, a5 * 0.5 + 0.25, a6 * 0.5 + 0.25, a7 * 0.5 + 0.25
+        x[i] = a0 + a1 + a2 + a3 + a4 + a5 + a6 + a7
+
+
+@numba.njit(parallel=True)
+def _fma_peak_run(x, repeat):
+    for b in prange(x.shape[0] // 256):
+        block = x[b * 256:(b + 1) * 256]
+        for _ in range(repeat):
+            _eight_fma_chains(block)
+
+
+def roofline():
+    """rk4 and rk8 against the bound the FMA pipes set: the measured multiply/FMA peak divided by each step's
+    multiplies, and the throughputs, timed in interleaved passes (the machine's speed drifts; a ratio is of
+    timings taken side by side)."""
+    x = np.random.default_rng(0).random(2048)
+    repeat = 4000
+    w0 = np.ascontiguousarray((np.random.default_rng(0).normal(size=(SAMPLES, 3)) * 0.5).T)
+    steps = {"rk4": 2000, "rk8": 500}
+    calls = {"peak": lambda: _fma_peak_run(x, repeat)}
+    calls.update({name: (lambda name=name: run(METHODS[name], w0.copy(), MOMENTS, 0.0, 1e-3, steps[name]))
+                  for name in steps})
+    _fma_peak_run(x, 1)
+    for name in steps:
+        run(METHODS[name], w0[:, :8].copy(), MOMENTS, 0.0, 1e-3, 1)
+    walls = {name: [] for name in calls}
+    for _ in range(REPEATS):
+        for name, call in calls.items():
+            walls[name].append(median_seconds(call, 1))
+    peak = x.size * repeat * 64 / float(np.median(walls["peak"]))
+    rows = []
+    for name, n_steps in steps.items():
+        rate = SAMPLES * n_steps / float(np.median(walls[name]))
+        ops = multiplies_per_sample_step(METHODS[name].coefficients)
+        rows.append(dict(method=name, multiplies=ops, rate=rate, peak=peak, bound=peak / ops,
+                         fraction=rate * ops / peak))
+        print(rows[-1], flush=True)
     return rows
 
 
@@ -199,7 +251,7 @@ def torque_paths():
     return rows
 
 
-PARTS = {"throughput": throughput, "memory": peak_memory, "warm_scene": warm_scene, "overhead": overhead,
+PARTS = {"throughput": throughput, "roofline": roofline, "memory": peak_memory, "warm_scene": warm_scene, "overhead": overhead,
          "torque_paths": torque_paths}
 
 
@@ -223,6 +275,18 @@ def main(parts=None):
         compile_naive = f"{r['compile_naive']:.1f}" if "compile_naive" in r else "—"
         lines.append(f"| {r['method']} | {r['fast']:.2e} | {naive} | {speedup} | {r['compile_fast']:.1f} / "
                      f"{compile_naive} |")
+    if "roofline" in report:
+        rows = report["roofline"]
+        lines += ["", f"The Runge–Kutta steps against the FMA pipes: the machine's multiply/FMA peak, measured on "
+                  f"{report['threads']} threads (eight independent FMA chains per sample, vectorised), is "
+                  f"**{rows[0]['peak']:.2e} multiply-adds/s**; a step can go no faster than the peak divided by its "
+                  f"multiplies and multiply-adds (counted from the tableau as the generated step computes them; "
+                  f"the additions run on other pipes). Same run:", "",
+                  "| method | multiplies + FMAs per sample-step | sample-steps/s | bound, sample-steps/s | "
+                  "fraction of the bound | twice the rate, as a fraction of the bound |",
+                  "|---|---|---|---|---|---|"]
+        lines += [f"| {r['method']} | {r['multiplies']} | {r['rate']:.2e} | {r['bound']:.2e} | "
+                  f"{r['fraction']:.0%} | {2 * r['fraction']:.0%} |" for r in rows]
     m = report["memory"]
     lines += ["", f"Peak memory of a {m['samples']:,}-sample growth measurement, `tumble.measure(..., axis=2, "
               f"method=\"rk4\")` ({m['n_steps']} steps, 257 norm probes, 3 flips, early stop, no trajectory; "

@@ -13,6 +13,8 @@ the whole block. A test checks that the committed module is what this generator 
 
 from pathlib import Path
 
+import numpy as np
+
 if __package__:
     from . import tableaux
 else:  # run as a script: import the tables beside this file without importing the tumble package
@@ -54,6 +56,14 @@ def explicit_rk_source(tableau):
         lines.append(f"        {combination(w, enumerate(tableau.b), i + 1)},")
     lines.append("    )")
     return "\n".join(lines)
+
+
+def multiplies_per_sample_step(tableau):
+    """Multiplies and fused multiply-adds in one torque-free step of :func:`explicit_rk_source`'s code for one
+    sample: one per non-zero coefficient and component in the stage sums, two per component in each stage's
+    rate (``a1 w2 w3``). They all run on a core's FMA pipes, so they bound the step's throughput
+    (``benchmarks/engine.py``, part ``roofline``); the additions run on other pipes."""
+    return int(3 * (np.count_nonzero(tableau.A) + np.count_nonzero(tableau.b)) + 6 * len(tableau.b))
 
 
 def composition_source(splitting, prefix):
