@@ -578,7 +578,7 @@ def test_regime_is_decided_by_exactly_rounded_sign_of_L2_minus_2E_Imid():
         ((1.0, 2.0, 3.0), [1.0, np.inf, 0.0], [0.0], "finite"),
         ((1.0, 2.0, 3.0), [1.0, 0.0, 0.0], [0.0, np.nan], "t must be finite"),
         ((1.0, 2.0, 3.0), [1.0, 0.0, 0.0], [[0.0, 1.0]], "t must be"),
-        ((1.0, 2.0, 3.0), [1.0, 0.0, 0.0], ["a"], "t must be numbers"),
+        ((1.0, 2.0, 3.0), [1.0, 0.0, 0.0], ["a"], "t must be a number or an array of numbers"),
         ((1.0, 2.0, 3.0), ["x", 0.0, 0.0], [0.0], "w0 must be a number"),
         ([[1.0, 2.0, 3.0], [1.0, 2.0, 3.0]], [1.0, 0.0, 0.0], [0.0], "one body"),
         ((1.0, -2.0, 3.0), [1.0, 0.0, 0.0], [0.0], "> 0"),

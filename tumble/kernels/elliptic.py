@@ -85,9 +85,8 @@ from numba.extending import intrinsic
 from .jit import jit
 from .trig import _C1, _C2, _C3, _C4, _C5, _C6, _S1, _S2, _S3, _S4, _S5, _S6, _fma
 
-__all__ = ["KC_HYPERBOLIC", "TINY_TRANSVERSE", "agm", "carlson_rf", "hyperbolic_nome", "jacobi_sncndn", "torque_free_invariants", "torque_free_omega",
-           "torque_free_omega_at",
-           "torque_free_setup"]
+__all__ = ["KC_HYPERBOLIC", "TINY_TRANSVERSE", "agm", "carlson_rf", "hyperbolic_nome", "jacobi_sncndn", "torque_free_omega",
+           "torque_free_omega_at", "torque_free_solve"]
 
 #: Below this complementary modulus the hyperbolic series is used (11 terms a side just below 0.5, 3 at
 #: k' = 1e-3, 2 at 1e-8); above it the Landen/AGM recursion (<= 6 steps), whose ``cn`` on
@@ -103,7 +102,7 @@ _AGM_MAXITER = 64
 _LANDEN_MAX = 16
 
 #: A spin whose two smaller components are both below this fraction of the largest (and not both zero) is
-#: too close to a principal axis for the invariants: their squares underflow. torque_free_invariants counts
+#: too close to a principal axis for the invariants: their squares underflow. torque_free_solve counts
 #: such samples; :mod:`tumble.physics.exact` moves them where the squares are safe (its ``_lift_tiny``).
 TINY_TRANSVERSE = 2.0**-500
 # torque_free_omega_at's lanes take spins whose smallest non-zero component is above 2^-100 of the largest (their
@@ -139,7 +138,7 @@ _RF_TOL = 1e-3
 def hyperbolic_nome(kc, K):
     """``(h, q)`` of the hyperbolic series for complementary modulus ``kc < KC_HYPERBOLIC`` and ``K = K(k)``:
     ``h = AGM(1, k) = pi/(2K')`` and the complementary nome ``q = exp(-pi K/K') = exp(-2 K h)`` (0 where every
-    term it scales is negligible). Computed once per sample by :func:`torque_free_setup`; :func:`torque_free_omega`
+    term it scales is negligible). Computed once per sample by :func:`torque_free_solve`; :func:`torque_free_omega`
     reads them."""
     k = math.sqrt((1.0 - kc) * (1.0 + kc))
     h = agm(1.0, k)  # = pi / (2 K')
@@ -351,7 +350,7 @@ def _dd_term(inertia, diff_hi, diff_lo, w):
 
 @jit(inline=True)
 def _invariants_row(m0, m1, m2, w0, w1, w2):
-    """One sample of :func:`torque_free_invariants`: ``(a, b, c, even, moment_scale, spin_scale, I1, I2, I3,
+    """One sample of the invariants of :func:`torque_free_solve`: ``(a, b, c, even, moment_scale, spin_scale, I1, I2, I3,
     delta, tiny)`` for moments ``(m0, m1, m2)`` and spin ``(w0, w1, w2)``."""
     moments = (m0, m1, m2)
     w = (w0, w1, w2)
@@ -379,57 +378,20 @@ def _invariants_row(m0, m1, m2, w0, w1, w2):
 
 
 @jit(parallel=True)
-def torque_free_invariants(moments, w, I, perm, parity, moment_scale, spin_scale, delta):
-    """Per sample: the sorted, scaled moments and the correctly rounded ``L² - 2E I2`` of the scaled spin — what
-    :func:`torque_free_setup` needs, for bodies and spins given one per row.
+def torque_free_solve(moments, w, I, perm, parity, scaled, kind, amp, cols, params, nome):
+    # size: flat per-sample arrays in and out (numba); the invariants and the four regimes (elliptic, separatrix,
+    # symmetric, stationary) set up in one pass per sample in one prange body
+    """Per-sample parameters of the torque-free motion (Landau & Lifshitz §37) for :func:`torque_free_omega`, from
+    bodies and spins given one per row: the invariants, then the set-up, in one pass (one kernel call).
 
-    With the moments sorted (a stable sort: ties keep their order) as ``I1 <= I2 <= I3`` and both moments and
-    spin divided by powers of two (exact; :data:`moment_scale`, :data:`spin_scale`: ``|w| / spin_scale < 1``),
+    **Invariants.** With the moments sorted (a stable sort: ties keep their order) as ``I1 <= I2 <= I3`` and both
+    moments and spin divided by powers of two (exact; ``|w| / spin_scale < 1``),
     ``L² - 2E I2 = I3 (I3 - I2) w3² - I1 (I2 - I1) w1²`` is formed in double-double arithmetic (Dekker's
     products by fused multiply-add, Knuth's sums), so that it keeps its sign and relative accuracy however close
     the spin is to the separatrix.
 
-    Parameters
-    ----------
-    moments, w : ndarray, shape (n, 3)
-        Principal moments (kg m², validated) and body-frame spins (rad/s), one sample per row.
-    I : ndarray, shape (n, 3)
-        Receives the sorted moments divided by ``moment_scale``.
-    perm : ndarray of int64, shape (n, 3)
-        Receives the sorting permutation (``perm[i, j]``: the axis holding sorted moment ``j``).
-    parity : ndarray, shape (n,)
-        Receives +1 for an even permutation, -1 for an odd one.
-    moment_scale, spin_scale, delta : ndarray, shape (n,)
-        Receive the powers of two and ``L² - 2E I2`` of the scaled spin and moments.
-
-    Returns
-    -------
-    int
-        The number of samples whose two smaller components are below :data:`TINY_TRANSVERSE` of the largest,
-        not both zero: their ``delta`` has lost its accuracy to underflow.
-    """
-    tiny = 0
-    for i in numba.prange(w.shape[0]):
-        a, b, c, even, ms, ss, I1, I2, I3, d, small = _invariants_row(moments[i, 0], moments[i, 1], moments[i, 2],
-                                                                     w[i, 0], w[i, 1], w[i, 2])
-        perm[i, 0], perm[i, 1], perm[i, 2] = a, b, c
-        parity[i] = 1.0 if even else -1.0
-        moment_scale[i] = ms
-        spin_scale[i] = ss
-        I[i, 0], I[i, 1], I[i, 2] = I1, I2, I3
-        delta[i] = d
-        tiny += 1 if small else 0
-    return tiny
-
-
-@jit(parallel=True)
-def torque_free_setup(I, perm, parity, w, spin_scale, delta, kind, amp, cols, kc, m, K, nome, phase0, nu, e2, L2):
-    # size: flat per-sample arrays in and out (numba); the four regimes (elliptic, separatrix, symmetric, stationary)
-    # set up in one pass per sample in one prange body
-    """Per-sample parameters of the torque-free motion (Landau & Lifshitz §37) for torque_free_omega.
-
-    With the sorted moments ``I1 <= I2 <= I3`` and ``p, q`` the axes whose components go as ``dn, cn``
-    (``p = 3, q = 1`` when ``L² > 2E I2``, else ``p = 1, q = 3``)::
+    **Set-up.** With ``p, q`` the axes whose components go as ``dn, cn`` (``p = 3, q = 1`` when ``L² > 2E I2``, else
+    ``p = 1, q = 3``)::
 
         A_q² = |2E Ip - L²| / (Iq |Ip - Iq|),   A_mid² = |2E Ip - L²| / (I2 |Ip - I2|),
         A_p² = |L² - 2E Iq| / (Ip |Ip - Iq|),   m = |Iq - I2| |2E Ip - L²| / (|Ip - I2| |L² - 2E Iq|),
@@ -444,55 +406,64 @@ def torque_free_setup(I, perm, parity, w, spin_scale, delta, kind, amp, cols, kc
 
     Parameters
     ----------
+    moments, w : ndarray, shape (n, 3)
+        Principal moments (kg m², validated) and body-frame spins (rad/s), one sample per row, in the caller's
+        axis order.
     I : ndarray, shape (n, 3)
-        Sorted principal moments of each sample's body (any common scale), ``I[i, 0] <= I[i, 1] <= I[i, 2]``.
+        Receives the sorted moments divided by the moment scale.
     perm : ndarray of int64, shape (n, 3)
-        ``perm[i, j]``: the caller's axis holding sorted moment ``j`` of sample ``i``'s body.
+        Receives the sorting permutation (``perm[i, j]``: the axis holding sorted moment ``j``).
     parity : ndarray, shape (n,)
-        +1 where ``perm[i]`` is an even permutation, else -1.
-    w : ndarray, shape (n, 3)
-        Initial angular velocities in the caller's axis order, rad/s.
-    spin_scale : ndarray, shape (n,)
-        Powers of two with ``|w| / spin_scale < 1``; the invariants are formed from ``w / spin_scale``.
-    delta : ndarray, shape (n,)
-        ``L² - 2E I2`` of the scaled spins, correctly rounded.
-    kind, amp, cols, kc, m, K, nome, phase0, nu : ndarray
-        Receive the inputs of :func:`torque_free_omega` and ``m`` (shapes (n,), (n, 3), (n, 3), (n,), (n,),
-        (n,), (2, n), (n,), (n,)); ``nome`` holds :func:`hyperbolic_nome` of the samples with
-        ``k' < KC_HYPERBOLIC`` (else zeros).
-    e2, L2 : ndarray, shape (n,)
-        Receive ``2E`` and ``L²`` of the scaled spins.
+        Receives +1 for an even permutation, -1 for an odd one.
+    scaled : ndarray, shape (5, n)
+        Receives ``2E``, ``L²`` and ``L² - 2E I2`` of the scaled spin and moments, and the moment and spin scales.
+    kind, amp, cols : ndarray, shapes (n,) int64, (n, 3), (n, 3) int64
+        Receive the regime, the signed amplitudes and their output columns (see :func:`torque_free_omega`).
+    params : ndarray, shape (5, n)
+        Receives ``k'``, ``m``, ``K``, the initial argument and ``nu`` of each sample.
+    nome : ndarray, shape (2, n)
+        Receives :func:`hyperbolic_nome` of the samples with ``k' < KC_HYPERBOLIC`` (else zeros).
+
+    Returns
+    -------
+    int
+        The number of samples whose two smaller components are below :data:`TINY_TRANSVERSE` of the largest,
+        not both zero: their ``L² - 2E I2`` has lost its accuracy to underflow (the caller lifts them and calls
+        again).
     """
+    tiny = 0
     for i in numba.prange(w.shape[0]):
-        p0, p1, p2 = perm[i, 0], perm[i, 1], perm[i, 2]
-        kind_i, cols_i, amp_i, k_c, mi, nu_i, sn_r, cn_r, e2[i], L2[i] = _setup_row(
-            I[i, 0], I[i, 1], I[i, 2], p0, p1, p2, parity[i], spin_scale[i], w[i, p0], w[i, p1], w[i, p2], delta[i])
+        p0, p1, p2, even, ms, ss, I1, I2, I3, d, small = _invariants_row(moments[i, 0], moments[i, 1], moments[i, 2],
+                                                                         w[i, 0], w[i, 1], w[i, 2])
+        perm[i, 0], perm[i, 1], perm[i, 2] = p0, p1, p2
+        parity[i] = 1.0 if even else -1.0
+        scaled[2, i], scaled[3, i], scaled[4, i] = d, ms, ss
+        I[i, 0], I[i, 1], I[i, 2] = I1, I2, I3
+        tiny += 1 if small else 0
+        kind_i, cols_i, amp_i, k_c, mi, nu_i, sn_r, cn_r, scaled[0, i], scaled[1, i] = _setup_row(
+            I1, I2, I3, p0, p1, p2, parity[i], ss, w[i, p0], w[i, p1], w[i, p2], d)
         kind[i] = kind_i
         cols[i, 0], cols[i, 1], cols[i, 2] = cols_i
         amp[i, 0], amp[i, 1], amp[i, 2] = amp_i
-        kc[i] = k_c
-        m[i] = mi
-        nu[i] = nu_i
+        params[0, i], params[1, i], params[4, i] = k_c, mi, nu_i
         if kind_i == KIND_STATIONARY:
-            K[i] = 0.5 * math.pi
-            nome[0, i] = 0.0
-            nome[1, i] = 0.0
-            phase0[i] = 0.0
+            params[2, i], params[3, i] = 0.5 * math.pi, 0.0
+            nome[0, i], nome[1, i] = 0.0, 0.0
         elif kind_i == KIND_SEPARATRIX:
-            K[i] = math.inf
-            nome[0, i] = 0.0
-            nome[1, i] = 0.0
-            phase0[i] = math.asinh(sn_r)
+            params[2, i], params[3, i] = math.inf, math.asinh(sn_r)
+            nome[0, i], nome[1, i] = 0.0, 0.0
         else:
-            phase0[i] = sn_r * carlson_rf(cn_r * cn_r, cn_r * cn_r + (k_c * sn_r) ** 2, 1.0)
-            K[i] = 0.5 * math.pi / agm(1.0, k_c)
-            nome[0, i], nome[1, i] = hyperbolic_nome(k_c, K[i]) if k_c < KC_HYPERBOLIC else (0.0, 0.0)
+            params[3, i] = sn_r * carlson_rf(cn_r * cn_r, cn_r * cn_r + (k_c * sn_r) ** 2, 1.0)
+            K = 0.5 * math.pi / agm(1.0, k_c)
+            params[2, i] = K
+            nome[0, i], nome[1, i] = hyperbolic_nome(k_c, K) if k_c < KC_HYPERBOLIC else (0.0, 0.0)
+    return tiny
 
 
 @jit(inline=True)
 def _setup_row(I1, I2, I3, p0, p1, p2, parity, sc, wa, wb, wc, d):
     # size: one sample's sorted moments, permutation and spin in; flat scalars for the kernels that inline it
-    """One sample of :func:`torque_free_setup` (the formulas are in its docstring), without the elliptic integrals.
+    """One sample of the set-up of :func:`torque_free_solve` (the formulas are in its docstring), without the elliptic integrals.
 
     ``wa, wb, wc`` are the spin's components on the axes ``p0, p1, p2`` (unscaled), ``d`` its ``L² - 2E I2``.
     Returns ``(kind, cols, amp, k', m, nu, x, y, 2E, L²)``: elliptic, ``x, y = sn r0, cn r0`` (normalised, so
@@ -562,7 +533,7 @@ def _torque_free_omega_reference(kind, amp, cols, kc, phase0, nu, t, out):
     kc : ndarray, shape (n,)
         Complementary modulus ``k'`` (elliptic samples).
     K : ndarray, shape (n,)
-        ``K(k)`` (elliptic samples), as :func:`torque_free_setup` computes it.
+        ``K(k)`` (elliptic samples), as :func:`torque_free_solve` computes it.
     nome : ndarray, shape (2, n)
         ``(h, q)`` of :func:`hyperbolic_nome` (elliptic samples with ``k' < KC_HYPERBOLIC``).
     phase0 : ndarray, shape (n,)
@@ -1002,7 +973,7 @@ def torque_free_omega(kind, amp, cols, kc, K, nome, phase0, nu, times, row, out)
     kc : ndarray, shape (n,)
         Complementary modulus ``k'`` (elliptic samples).
     K : ndarray, shape (n,)
-        ``K(k)`` (elliptic samples), as :func:`torque_free_setup` computes it.
+        ``K(k)`` (elliptic samples), as :func:`torque_free_solve` computes it.
     nome : ndarray, shape (2, n)
         ``(h, q)`` of :func:`hyperbolic_nome` (elliptic samples with ``k' < KC_HYPERBOLIC``).
     phase0 : ndarray, shape (n,)

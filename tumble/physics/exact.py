@@ -26,7 +26,7 @@ there is a *small difference*: ``k'² = 1 - m``, ``L² - 2E I2``, and the compon
 spin near the intermediate axis. None of them is formed by subtraction here:
 
 * ``L² - 2E I2 = I3 (I3 - I2) w3² - I1 (I2 - I1) w1²`` is evaluated in double-double arithmetic (error-free
-  products by fused multiply-add and Knuth's two-sum, :func:`tumble.kernels.elliptic.torque_free_invariants`), so it is correctly rounded even on heavy cancellation;
+  products by fused multiply-add and Knuth's two-sum, :func:`tumble.kernels.elliptic.torque_free_solve`), so it is correctly rounded even on heavy cancellation;
   ``2E I3 - L²`` and ``L² - 2E I1`` are sums of terms of one sign;
 * the complementary modulus comes directly from those, ``k'² = (I3 - I1)(L² - 2E I2) / ((I3 - I2)(L² -
   2E I1))``, never as ``sqrt(1 - m)``;
@@ -72,7 +72,7 @@ from scipy.special import elliprf, elliprj
 
 from ..kernels import elliptic as _ell
 from . import rotations
-from .bodies import one_body, spin_vectors
+from .bodies import finite_array, one_body, spin_vectors
 
 __all__ = ["EllipticParameters", "attitude", "omega", "period", "parameters", "first_flip_time", "flip_spacing",
            "rotation_per_period"]
@@ -189,16 +189,11 @@ class _Solution(NamedTuple):
 
 
 def _check_t(t):
-    try:
-        tt = np.asarray(t, dtype=float)
-    except (TypeError, ValueError) as err:
-        raise ValueError(f"t must be numbers (times, s), got {t!r}") from err
+    tt = finite_array(t, "t")
     if tt.ndim > 1:
         raise ValueError(f"t must be a scalar or have shape (T,) (times, s), got shape {tt.shape}")
     if tt.size == 0:
         raise ValueError("t holds no times (shape (0,))")
-    if not np.isfinite(tt).all():
-        raise ValueError("t must be finite (found NaN or inf)")
     return tt
 
 
@@ -234,18 +229,16 @@ def _setup(moments, w, shape, mid_axis):
     I_sorted, perm = np.empty((n, 3)), np.empty((n, 3), dtype=np.int64)
     parity = np.empty(n)
     scaled = np.empty((5, n))  # 2E, L², delta (scaled); moment scale, spin scale
-    e2, L2, delta, moment_scale, spin_scale = scaled
-    given, lifted = w, None
-    if _ell.torque_free_invariants(moments, w, I_sorted, perm, parity, moment_scale, spin_scale, delta):
-        w, lifted = _lift_tiny(w)  # spins within 2^-500 of an axis (rare)
-        _ell.torque_free_invariants(moments, w, I_sorted, perm, parity, moment_scale, spin_scale, delta)
     kind = np.empty(n, dtype=np.int64)
     amp = np.empty((n, 3))
     cols = np.empty((n, 3), dtype=np.int64)
-    kc, m, K, phase0, nu = np.empty((5, n))
+    params = np.empty((5, n))  # k', m, K, initial argument, nu
     nome = np.empty((2, n))
-    _ell.torque_free_setup(I_sorted, perm, parity, w, spin_scale, delta, kind, amp, cols, kc, m, K, nome, phase0, nu,
-                           e2, L2)
+    given, lifted = w, None
+    if _ell.torque_free_solve(moments, w, I_sorted, perm, parity, scaled, kind, amp, cols, params, nome):
+        w, lifted = _lift_tiny(w)  # spins within 2^-500 of an axis (rare)
+        _ell.torque_free_solve(moments, w, I_sorted, perm, parity, scaled, kind, amp, cols, params, nome)
+    kc, m, K, phase0, nu = params
     if lifted is not None:
         _lower_tiny(lifted, I_sorted, perm, given, kind, amp, cols, kc, K, nome, phase0)
     return _Solution(shape=shape, kind=kind, amp=amp, cols=cols, kc=kc, m=m, K=K, nome=nome, phase0=phase0, nu=nu,
