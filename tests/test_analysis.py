@@ -648,3 +648,21 @@ def test_the_phase_fits_median_by_selection_is_numpys_median_with_ties_and_even_
         ramp = np.arange(n, dtype=float)
         for values in (np.full(n, 0.5), ramp, ramp[::-1], np.sin(ramp), np.r_[np.zeros(n // 2), np.ones(n - n // 2)]):
             assert _median_in_place(values.copy()) == np.median(values)
+
+
+def test_transverse_norms_are_the_numpy_expression_bit_for_bit():
+    """The kernel's norms equal ``np.sqrt(g_b w_b**2 + g_c w_c**2)`` bit for bit (no fused multiply-add), for
+    each sample's own columns and weights, over magnitudes from 1e-160 to 1e150 (inf where the squares overflow, as
+    numpy's)."""
+    rng = np.random.default_rng(3)
+    n, t = 97, 13
+    states = rng.normal(size=(n, t, 3)) * 10.0 ** rng.uniform(-160, 150, size=(n, t, 3))
+    b = rng.integers(0, 3, size=n)
+    c = (b + rng.integers(1, 3, size=n)) % 3
+    weights = rng.uniform(0.1, 10.0, size=(n, 2))
+    everyone = np.arange(n)
+    with np.errstate(over="ignore", under="ignore"):
+        expected = np.sqrt(weights[:, :1] * states[everyone, :, b] ** 2 + weights[:, 1:] * states[everyone, :, c] ** 2)
+    got = analysis.transverse_norms(states, np.stack([b, c], axis=1), weights)
+    assert got.shape == (n, t)
+    assert np.array_equal(got, expected)

@@ -19,7 +19,8 @@ import numpy as np
 from .jit import jit
 from .trig import atan2
 
-__all__ = ["FIT_NO_SIGNAL", "FIT_OK", "FIT_SHORT_WINDOW", "FIT_UNDERSAMPLED", "growth_fit", "modal_rows", "phase_fit"]
+__all__ = ["FIT_NO_SIGNAL", "FIT_OK", "FIT_SHORT_WINDOW", "FIT_UNDERSAMPLED", "growth_fit", "modal_rows", "phase_fit",
+           "transverse_norms"]
 
 # Outcomes, as tumble.measure.estimators numbers them (checked there).
 FIT_OK = 0
@@ -207,6 +208,33 @@ def phase_fit(times, row, states, columns, weights, floor, max_step, frequency, 
         else:
             code[i] = FIT_UNDERSAMPLED
         frequency[i] = abs(sxy / sxx) if code[i] == FIT_OK and t_count >= 2 else np.nan
+
+
+@jit(parallel=True, contract=False)
+def transverse_norms(states, columns, weights, out):
+    """Weighted transverse norm ``sqrt(g_b w_b² + g_c w_c²)`` of each sample at each stored time, in one pass.
+
+    The operations of numpy's ``np.sqrt(g_b * w_b**2 + g_c * w_c**2)`` in its order and without fused
+    multiply-adds, so the same bits.
+
+    Parameters
+    ----------
+    states : ndarray, shape (n, T, k)
+        Stored states, rad/s.
+    columns : ndarray of int64, shape (n, 2)
+        Columns ``(b, c)`` of sample ``i``'s two transverse components.
+    weights : ndarray, shape (n, 2)
+        Weights ``(g_b, g_c)`` of sample ``i``.
+    out : ndarray, shape (n, T)
+        Receives the norms, rad/s.
+    """
+    for i in numba.prange(states.shape[0]):
+        b, c = columns[i, 0], columns[i, 1]
+        gb, gc = weights[i, 0], weights[i, 1]
+        for j in range(states.shape[1]):
+            x = states[i, j, b]
+            y = states[i, j, c]
+            out[i, j] = math.sqrt(gb * (x * x) + gc * (y * y))
 
 
 @jit(parallel=True, contract=False)

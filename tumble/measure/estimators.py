@@ -47,6 +47,7 @@ __all__ = [
     "oscillation_frequencies",
     "regression",
     "summarize",
+    "transverse_norms",
 ]
 
 #: Per-sample outcome of a fit (the engine's statuses, non-finite and drift, come before these).
@@ -170,6 +171,17 @@ def growth_rates(times, norms, saturation, *, row=None):
 #: Rows (samples x times) a modal projection gathers at a time: a block of rows stays in the CPU's cache between the
 #: gather and the product (the whole trajectory's rows, 6 MB a scene, made both run from memory).
 MODAL_BLOCK_ROWS = 2048
+
+
+def transverse_norms(states, columns, weights):
+    """Weighted transverse norm ``sqrt(g_b w_b² + g_c w_c²)`` (rad/s), shape (N, T), of stored states (N, T, k):
+    sample ``i``'s components ``columns[i]`` (N, 2) with weights ``weights[i]`` (N, 2). One pass in a kernel
+    (:func:`tumble.kernels.fits.transverse_norms`), the same bits as the numpy expression."""
+    states = np.ascontiguousarray(states, dtype=float)
+    out = np.empty(states.shape[:2])
+    fits.transverse_norms(states, np.ascontiguousarray(columns, dtype=np.int64),
+                          np.ascontiguousarray(weights, dtype=float), out)
+    return out
 
 
 def modal_amplitudes(trajectory, columns, centre, left):

@@ -526,8 +526,8 @@ def _closed_form_batch(scenes, grids, batch, parts, start):
     if first.kind == "exponential":
         b, c = each([(s.axis % 3, (s.axis + 1) % 3) for s in per_sample]).T
         weights = each([s.plan.weights for s in per_sample])
-        probes = np.sqrt(weights[everyone, b][:, None] * omega[everyone, :, b] ** 2
-                         + weights[everyone, c][:, None] * omega[everyone, :, c] ** 2)
+        probes = analysis.transverse_norms(omega, np.stack([b, c], axis=1),
+                                           np.stack([weights[everyone, b], weights[everyone, c]], axis=1))
         fit = analysis.growth_rates(times, probes, each([s.plan.saturation for s in per_sample]), row=row)
         results = {"rate": fit.rate, **{name: getattr(fit, name) for name in _GROWTH_FIT}}
         if first.flips:
