@@ -663,3 +663,50 @@ def test_one_time_path_gives_a_sample_the_same_bits_alone_or_in_any_batch():
     for i in (0, 17, 255, 256, 499):
         np.testing.assert_array_equal(exact.omega_at(moments, w0[i:i + 1], 7.0)[0], batch[i])
     np.testing.assert_array_equal(exact.omega_at(moments, w0[100:400], 7.0), batch[100:400])
+
+
+# --------------------------------------------------------------------------------------------------
+# a time grid in one kernel call (exact.omega: kernels.elliptic.torque_free_omega_grid)
+
+
+@pytest.mark.parametrize("moments", [(1.0, 2.0, 3.0), (3.0, 1.0, 2.0), (1.0, 1.0, 1.8), (2.0, 2.0, 2.0),
+                                     (1e-170, 2e-170, 2.5e-170), (1.0, 1 + 1e-12, 1.5)])
+def test_the_one_call_grid_path_gives_the_bits_of_the_set_up_and_the_grid_kernel_apart(moments):
+    """exact.omega on a time grid sets up and evaluates in one kernel call; every sample (near each axis, on both
+    sides of the separatrix, zeros, tiny and huge scales) gets the bits of solve_rows + omega_rows, which the
+    scenes use, alone or in any batch (chunks of 64 samples)."""
+    from tumble.kernels import elliptic
+
+    rng = np.random.default_rng(12)
+    moments = np.asarray(moments)
+    spins = [rng.normal(size=(150, 3)), 1e-150 * rng.normal(size=(20, 3)), 1e150 * rng.normal(size=(20, 3))]
+    for axis in range(3):
+        for eps in (1e-4, 1e-9, 1e-13):
+            w = eps * rng.normal(size=(30, 3))
+            w[:, axis] = rng.choice([-1.0, 1.0], size=30)
+            spins.append(w)
+        w = rng.normal(size=(10, 3))
+        w[:, axis] = 0.0
+        spins.append(w)
+    w0 = np.ascontiguousarray(np.concatenate(spins))
+    t = np.array([0.0, 0.37, -5.0, 20.0, 1e3])
+    sol = exact.solve_rows(np.broadcast_to(moments, w0.shape), w0)
+    apart = exact.omega_rows(sol, t[None, :], np.zeros(len(w0), dtype=np.int64))
+    out = np.empty((len(w0), len(t), 3))
+    assert elliptic.torque_free_omega_grid(moments, w0, t, out) == (0, 0)
+    np.testing.assert_array_equal(out, apart)
+    np.testing.assert_array_equal(exact.omega(moments, w0, t), apart)
+    for i in (0, 63, 64, 200, len(w0) - 1):
+        np.testing.assert_array_equal(exact.omega(moments, w0[i], t), apart[i])
+
+
+def test_the_one_call_grid_path_hands_spins_within_tiny_of_an_axis_to_the_two_kernels():
+    from tumble.kernels import elliptic
+
+    moments = np.array([1.0, 2.0, 3.0])
+    w0 = np.array([[1e-200, 1.0, 3e-201], [0.1, 1.0, 0.2]])  # the first below TINY_TRANSVERSE: lifted
+    t = np.array([0.0, 30.0])
+    assert elliptic.torque_free_omega_grid(moments, w0, t, np.empty((2, 2, 3)))[0] == 1
+    sol = exact._solve(moments, w0)
+    apart = exact.omega_rows(sol, t[None, :], np.zeros(2, dtype=np.int64))
+    np.testing.assert_array_equal(exact.omega(moments, w0, t), apart)

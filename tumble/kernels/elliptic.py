@@ -86,7 +86,8 @@ from .jit import jit
 from .trig import _C1, _C2, _C3, _C4, _C5, _C6, _S1, _S2, _S3, _S4, _S5, _S6, _fma
 
 __all__ = ["KC_HYPERBOLIC", "TINY_TRANSVERSE", "agm", "carlson_rf", "hyperbolic_nome", "jacobi_sncndn", "torque_free_omega",
-           "torque_free_omega_at", "torque_free_solve"]
+           "torque_free_omega_at", "torque_free_omega_grid",
+           "torque_free_solve"]
 
 #: Below this complementary modulus the hyperbolic series is used (11 terms a side just below 0.5, 3 at
 #: k' = 1e-3, 2 at 1e-8); above it the Landen/AGM recursion (<= 6 steps), whose ``cn`` on
@@ -377,6 +378,41 @@ def _invariants_row(m0, m1, m2, w0, w1, w2):
     return a, b, c, even, ms, ss, I1, I2, I3, dh + dl, 0.0 < second < TINY_TRANSVERSE * max(x, y, z)
 
 
+@jit(inline=True)
+def _solve_sample(j, m0, m1, m2, w, I, perm, parity, scaled, kind, amp, cols, params, nome):
+    # size: one sample's invariants and set-up, written at index j of every array torque_free_solve fills
+    """One sample of :func:`torque_free_solve` (moments ``m``, spin ``w``, an array (3,)), written at index ``j`` of
+    its arrays; returns 1 if the spin is too close to an axis for its invariants (:data:`TINY_TRANSVERSE`), else 0.
+    The spin's components are read from its array, never passed as values: the compiler then fuses the same
+    products as when the invariants and the set-up were two kernels, so the bits are theirs."""
+    p0, p1, p2, even, ms, ss, I1, I2, I3, d, small = _invariants_row(m0, m1, m2, w[0], w[1], w[2])
+    perm[j, 0], perm[j, 1], perm[j, 2] = p0, p1, p2
+    parity[j] = 1.0 if even else -1.0
+    scaled[2, j], scaled[3, j], scaled[4, j] = d, ms, ss
+    I[j, 0], I[j, 1], I[j, 2] = I1, I2, I3
+    kind_j, cols_j, amp_j, k_c, mi, nu_j, sn_r, cn_r, scaled[0, j], scaled[1, j] = _setup_row(
+        I1, I2, I3, p0, p1, p2, parity[j], ss, w[p0], w[p1], w[p2], d)
+    kind[j] = kind_j
+    cols[j, 0], cols[j, 1], cols[j, 2] = cols_j
+    amp[j, 0], amp[j, 1], amp[j, 2] = amp_j
+    params[0, j], params[1, j], params[4, j] = k_c, mi, nu_j
+    params[2, j], params[3, j], nome[0, j], nome[1, j] = _elliptic_integrals(kind_j, k_c, sn_r, cn_r)
+    return 1 if small else 0
+
+
+@jit(inline=True)
+def _elliptic_integrals(kind, k_c, sn_r, cn_r):
+    """``(K, initial argument, h, q)`` of a sample set up by :func:`_setup_row` (``sn_r, cn_r``: its ``x, y``)."""
+    if kind == KIND_STATIONARY:
+        return 0.5 * math.pi, 0.0, 0.0, 0.0
+    if kind == KIND_SEPARATRIX:
+        return math.inf, math.asinh(sn_r), 0.0, 0.0
+    phase0 = sn_r * carlson_rf(cn_r * cn_r, cn_r * cn_r + (k_c * sn_r) ** 2, 1.0)
+    K = 0.5 * math.pi / agm(1.0, k_c)
+    h, q = hyperbolic_nome(k_c, K) if k_c < KC_HYPERBOLIC else (0.0, 0.0)
+    return K, phase0, h, q
+
+
 @jit(parallel=True)
 def torque_free_solve(moments, w, I, perm, parity, scaled, kind, amp, cols, params, nome):
     # size: flat per-sample arrays in and out (numba); the invariants and the four regimes (elliptic, separatrix,
@@ -433,30 +469,8 @@ def torque_free_solve(moments, w, I, perm, parity, scaled, kind, amp, cols, para
     """
     tiny = 0
     for i in numba.prange(w.shape[0]):
-        p0, p1, p2, even, ms, ss, I1, I2, I3, d, small = _invariants_row(moments[i, 0], moments[i, 1], moments[i, 2],
-                                                                         w[i, 0], w[i, 1], w[i, 2])
-        perm[i, 0], perm[i, 1], perm[i, 2] = p0, p1, p2
-        parity[i] = 1.0 if even else -1.0
-        scaled[2, i], scaled[3, i], scaled[4, i] = d, ms, ss
-        I[i, 0], I[i, 1], I[i, 2] = I1, I2, I3
-        tiny += 1 if small else 0
-        kind_i, cols_i, amp_i, k_c, mi, nu_i, sn_r, cn_r, scaled[0, i], scaled[1, i] = _setup_row(
-            I1, I2, I3, p0, p1, p2, parity[i], ss, w[i, p0], w[i, p1], w[i, p2], d)
-        kind[i] = kind_i
-        cols[i, 0], cols[i, 1], cols[i, 2] = cols_i
-        amp[i, 0], amp[i, 1], amp[i, 2] = amp_i
-        params[0, i], params[1, i], params[4, i] = k_c, mi, nu_i
-        if kind_i == KIND_STATIONARY:
-            params[2, i], params[3, i] = 0.5 * math.pi, 0.0
-            nome[0, i], nome[1, i] = 0.0, 0.0
-        elif kind_i == KIND_SEPARATRIX:
-            params[2, i], params[3, i] = math.inf, math.asinh(sn_r)
-            nome[0, i], nome[1, i] = 0.0, 0.0
-        else:
-            params[3, i] = sn_r * carlson_rf(cn_r * cn_r, cn_r * cn_r + (k_c * sn_r) ** 2, 1.0)
-            K = 0.5 * math.pi / agm(1.0, k_c)
-            params[2, i] = K
-            nome[0, i], nome[1, i] = hyperbolic_nome(k_c, K) if k_c < KC_HYPERBOLIC else (0.0, 0.0)
+        tiny += _solve_sample(i, moments[i, 0], moments[i, 1], moments[i, 2], w[i], I, perm, parity, scaled, kind, amp,
+                              cols, params, nome)
     return tiny
 
 
@@ -953,6 +967,75 @@ def _sech_tanh(v):
     return 2.0 * em * inv_den, tanh if v >= 0.0 else -tanh
 
 
+@jit(inline=True)
+def _omega_row(kind, k_c, K, h, q, phase0, nu, t, o, W):
+    """One sample of :func:`torque_free_omega` at the times ``t``, into its flattened row ``o`` (``W``: its
+    :func:`_column_weights`)."""
+    if kind == KIND_ELLIPTIC:
+        if k_c >= KC_HYPERBOLIC:
+            kap, quarter_m, P = _landen_constants(k_c)
+            _omega_row_landen(phase0, nu, t, K, k_c, kap, quarter_m, P, o, W)
+        else:
+            k = math.sqrt((1.0 - k_c) * (1.0 + k_c))
+            beta = 2.0 * K * h  # = pi K / K'
+            dcoef, ccoef, scoef = _series_constants(q)
+            if beta >= BETA_SHORT_SERIES:
+                _omega_row_hyperbolic_short(phase0, nu, t, K, k_c, h, h / k, q, dcoef, ccoef, scoef, o, W)
+            else:
+                _omega_row_hyperbolic(phase0, nu, t, K, k_c, h, h / k, q, dcoef, ccoef, scoef, o, W)
+    elif kind == KIND_SEPARATRIX:
+        _omega_row_separatrix(phase0, nu, t, o, W)
+    else:
+        for j in range(t.shape[0]):
+            _store(o, j, W, 1.0, 1.0, 1.0)
+
+
+@jit(inline=True)
+def _count_non_finite(o):
+    """1 if the row ``o`` holds a value that is not finite, else 0 (a packed integer OR over a row still in cache)."""
+    bad = 0
+    for j in range(o.shape[0]):
+        bad |= 0 if abs(o[j]) < math.inf else 1
+    return bad
+
+
+# Samples a chunk of torque_free_omega_grid sets up before it evaluates them.
+_GRID_CHUNK = 64
+
+
+@jit(parallel=True)
+def torque_free_omega_grid(moments, w, times, out):
+    """:func:`torque_free_solve` and :func:`torque_free_omega` in one kernel call, for spins ``w`` (n, 3) of one
+    body ``moments`` (3,) at the times ``times`` (T,): the lean path of :func:`tumble.physics.exact.omega` on a time
+    grid. Each chunk of :data:`_GRID_CHUNK` samples is set up into arrays of its own, then evaluated from them: the
+    same code and the same memory round trip as the two kernels apart, so the same bits.
+
+    Returns ``(tiny, non_finite)``: the number of spins too close to an axis for the invariants (see
+    :data:`TINY_TRANSVERSE`; the caller takes the two kernels apart, which lift them) and of samples with a
+    non-finite value.
+    """
+    n = w.shape[0]
+    rows = out.reshape(n, 3 * out.shape[1])  # (n, T, 3) -> (n, 3T), a view
+    tiny = 0
+    non_finite = 0
+    for c in numba.prange((n + _GRID_CHUNK - 1) // _GRID_CHUNK):
+        lo = c * _GRID_CHUNK
+        m = min(n - lo, _GRID_CHUNK)
+        I, perm, parity, scaled = np.empty((m, 3)), np.empty((m, 3), dtype=np.int64), np.empty(m), np.empty((5, m))
+        kind, amp, cols = np.empty(m, dtype=np.int64), np.empty((m, 3)), np.empty((m, 3), dtype=np.int64)
+        params, nome = np.empty((5, m)), np.empty((2, m))
+        for j in range(m):
+            tiny += _solve_sample(j, moments[0], moments[1], moments[2], w[lo + j], I, perm, parity, scaled, kind, amp,
+                                  cols, params, nome)
+        for j in range(m):
+            o = rows[lo + j]
+            W = _column_weights(cols[j, 0], cols[j, 1], cols[j, 2], amp[j, 0], amp[j, 1], amp[j, 2])
+            _omega_row(kind[j], params[0, j], params[2, j], nome[0, j], nome[1, j], params[3, j], params[4, j], times,
+                       o, W)
+            non_finite += _count_non_finite(o)
+    return tiny, non_finite
+
+
 @jit(parallel=True)
 def torque_free_omega(kind, amp, cols, kc, K, nome, phase0, nu, times, row, out):
     """Body-frame angular velocity of the free rigid body, sample by sample (Landau & Lifshitz §37).
@@ -998,32 +1081,8 @@ def torque_free_omega(kind, amp, cols, kc, K, nome, phase0, nu, times, row, out)
         t = times[row[i]]
         o = rows[i]
         W = _column_weights(cols[i, 0], cols[i, 1], cols[i, 2], amp[i, 0], amp[i, 1], amp[i, 2])
-        if kind[i] == KIND_ELLIPTIC:
-            k_c = kc[i]
-            K_i = K[i]
-            if k_c >= KC_HYPERBOLIC:
-                kap, quarter_m, P = _landen_constants(k_c)
-                _omega_row_landen(phase0[i], nu[i], t, K_i, k_c, kap, quarter_m, P, o, W)
-            else:
-                k = math.sqrt((1.0 - k_c) * (1.0 + k_c))
-                h = nome[0, i]
-                beta = 2.0 * K_i * h  # = pi K / K'
-                q = nome[1, i]
-                dcoef, ccoef, scoef = _series_constants(q)
-                if beta >= BETA_SHORT_SERIES:
-                    _omega_row_hyperbolic_short(phase0[i], nu[i], t, K_i, k_c, h, h / k, q, dcoef, ccoef, scoef,
-                                                o, W)
-                else:
-                    _omega_row_hyperbolic(phase0[i], nu[i], t, K_i, k_c, h, h / k, q, dcoef, ccoef, scoef, o, W)
-        elif kind[i] == KIND_SEPARATRIX:
-            _omega_row_separatrix(phase0[i], nu[i], t, o, W)
-        else:
-            for j in range(t.shape[0]):
-                _store(o, j, W, 1.0, 1.0, 1.0)
-        bad = 0
-        for j in range(o.shape[0]):  # packed: an integer OR over the row just written, still in cache
-            bad |= 0 if abs(o[j]) < math.inf else 1
-        non_finite += bad
+        _omega_row(kind[i], kc[i], K[i], nome[0, i], nome[1, i], phase0[i], nu[i], t, o, W)
+        non_finite += _count_non_finite(o)
     return non_finite
 
 

@@ -381,7 +381,9 @@ def omega(body, w0, t):
     Notes
     -----
     A scalar ``t`` takes the fused one-time kernel (:func:`omega_at`, several times faster), which agrees with a
-    time grid holding ``t`` to a few ulps of ``|w|``, not bit for bit.
+    time grid holding ``t`` to a few ulps of ``|w|``, not bit for bit. A time grid is set up and evaluated in one
+    kernel call (:func:`tumble.kernels.elliptic.torque_free_omega_grid`), with the bits of the set-up and the grid
+    kernel the scenes call apart.
     """
     tt = _check_t(t)
     if tt.ndim == 0:
@@ -391,11 +393,22 @@ def omega(body, w0, t):
 
 
 def _omega_grid(body, w0, tt):
-    """:func:`omega` by the set-up and the time-grid kernel (``tt`` validated, scalar or 1-d)."""
-    sol = _solve(body, w0)
-    times = tt.reshape(1, -1)
-    out = omega_rows(sol, times, np.zeros(sol.kind.shape[0], dtype=np.int64))
-    out = out.reshape(sol.shape + (times.shape[1], 3))
+    """:func:`omega` on the time grid ``tt`` (validated, scalar or 1-d): one kernel call,
+    :func:`tumble.kernels.elliptic.torque_free_omega_grid` (set-up and evaluation in one pass), the same bits as the
+    set-up and the grid kernel apart; spins within ``TINY_TRANSVERSE`` of an axis take those two apart."""
+    moments = one_body(body)
+    w = spin_vectors(w0)
+    shape = w.shape[:-1]
+    w = np.ascontiguousarray(w.reshape(-1, 3))
+    times = np.ascontiguousarray(tt.reshape(-1))
+    out = np.empty((w.shape[0], times.shape[0], 3))
+    tiny, non_finite = _ell.torque_free_omega_grid(moments, w, times, out)
+    if tiny:
+        sol = _solve(moments, w)
+        out = omega_rows(sol, times.reshape(1, -1), np.zeros(sol.kind.shape[0], dtype=np.int64))
+    elif non_finite:
+        raise FloatingPointError("exact.omega produced non-finite values; please report this spin")
+    out = out.reshape(shape + (times.shape[0], 3))
     return out[..., 0, :] if tt.ndim == 0 else out
 
 
