@@ -83,7 +83,7 @@ def measure(w0, t):
 
 
 def measure_one_time(w0, t):
-    """Samples per second at one time ``t``, from the spins: the fused lanes kernel against set-up + grid kernel."""
+    """Samples per second at one time ``t``, from the spins: the fused lanes kernel against the time-grid path."""
     moments = np.array(MOMENTS)
     w0 = np.ascontiguousarray(w0)
     tt = np.asarray(t)
@@ -144,8 +144,8 @@ def main():
     lines += ["", f"## One time per sample, from the spins (t = {t[-1]:g} s)", "",
               (f"Samples per second, {SAMPLES} spins, medians of {3 * REPEATS} runs. *new*: `exact.omega_at` (the "
                "fused kernel, samples in SIMD lanes, Jacobi's addition theorem instead of the initial argument); "
-               "*old*: the per-sample set-up (`_solve`: invariants, set-up with Carlson's R_F) then "
-               "`torque_free_omega` at that one time."), "",
+               "*old*: the time-grid path at that one time (`exact._omega_grid`: the per-sample set-up with "
+               "Carlson's R_F and the evaluation, in one kernel call, `torque_free_omega_grid`)."), "",
               (f"| spins | new, 1 thread | old, 1 thread | speed-up | new, {nt} threads | old, {nt} threads | "
                "speed-up | largest difference, × |ω| |"), "|---|---|---|---|---|---|---|---|"]
     for label, r in report["one_time"].items():
