@@ -609,6 +609,11 @@ def test_an_unknown_study_name_lists_the_bundled_ones(studies_dir):
         load_study("nope")
 
 
+def test_a_misspelt_study_name_suggests_the_close_bundled_one(studies_dir):
+    with pytest.raises(StudyError, match=r"did you mean 'intermediate_axis'\? bundled: intermediate_axis, plain"):
+        load_study("intermediat_axis")
+
+
 def test_a_broken_bundled_study_is_reported_with_its_path(studies_dir):
     (studies_dir / "broken.toml").write_text("title = \n")
     with pytest.raises(StudyError, match="broken.toml: <toml>"):

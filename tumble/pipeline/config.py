@@ -257,8 +257,11 @@ def _locate(source):
             return bundled, str(bundled)
     if path.exists():
         raise StudyError(text, "<file>", "is not a file (a study is a TOML file or a bundled study name)")
-    names = ", ".join(_bundled_names()) or "none"
-    raise StudyError(text, "<file>", f"no such file, and no bundled study of that name (bundled: {names})")
+    bundled = _bundled_names()
+    close = difflib.get_close_matches(text, bundled, n=1, cutoff=0.6) if _is_bare_name(text) else []
+    hint = f"did you mean {close[0]!r}? " if close else ""
+    raise StudyError(text, "<file>", f"no such file, and no bundled study of that name ({hint}bundled: "
+                                     f"{', '.join(bundled) or 'none'})")
 
 
 #: Deepest nesting of tables and arrays a study may have (a study nests three levels at most).
