@@ -85,7 +85,7 @@ from numba.extending import intrinsic
 from .jit import jit
 from .trig import _C1, _C2, _C3, _C4, _C5, _C6, _S1, _S2, _S3, _S4, _S5, _S6, _fma
 
-__all__ = ["KC_HYPERBOLIC", "TINY_TRANSVERSE", "agm", "carlson_rf", "hyperbolic_nome", "jacobi_sncndn", "torque_free_omega",
+__all__ = ["KC_HYPERBOLIC", "TINY_TRANSVERSE", "agm", "carlson_rf", "complete_integrals", "hyperbolic_nome", "jacobi_sncndn", "torque_free_omega",
            "torque_free_omega_at", "torque_free_omega_grid",
            "torque_free_solve"]
 
@@ -103,8 +103,8 @@ _AGM_MAXITER = 64
 _LANDEN_MAX = 16
 
 #: A spin whose two smaller components are both below this fraction of the largest (and not both zero) is
-#: too close to a principal axis for the invariants: their squares underflow. torque_free_solve counts
-#: such samples; :mod:`tumble.physics.exact` moves them where the squares are safe (its ``_lift_tiny``).
+#: too close to a principal axis for the invariants: their squares underflow. torque_free_solve,
+#: torque_free_omega_grid and torque_free_omega_at count such samples; :mod:`tumble.physics.exact` moves them where the squares are safe (its ``_lift_tiny``).
 TINY_TRANSVERSE = 2.0**-500
 # torque_free_omega_at's lanes take spins whose smallest non-zero component is above 2^-100 of the largest (their
 # squares and products stay far from underflow); the rest go one by one through the scalar path.
@@ -139,12 +139,21 @@ _RF_TOL = 1e-3
 def hyperbolic_nome(kc, K):
     """``(h, q)`` of the hyperbolic series for complementary modulus ``kc < KC_HYPERBOLIC`` and ``K = K(k)``:
     ``h = AGM(1, k) = pi/(2K')`` and the complementary nome ``q = exp(-pi K/K') = exp(-2 K h)`` (0 where every
-    term it scales is negligible). Computed once per sample by :func:`torque_free_solve`; :func:`torque_free_omega`
-    reads them."""
+    term it scales is negligible). Computed once per sample by the set-up (:func:`complete_integrals`);
+    :func:`torque_free_omega` reads them."""
     k = math.sqrt((1.0 - kc) * (1.0 + kc))
     h = agm(1.0, k)  # = pi / (2 K')
     beta = 2.0 * K * h  # = pi K / K'
     return h, (math.exp(-beta) if beta < _BETA_NEGLIGIBLE else 0.0)
+
+
+@jit
+def complete_integrals(kc):
+    """``(K, h, q)`` for complementary modulus ``kc`` (elliptic motion): ``K = K(k) = pi / (2 AGM(1, k'))`` and
+    :func:`hyperbolic_nome`'s ``(h, q)`` where ``kc < KC_HYPERBOLIC`` (else zeros)."""
+    K = 0.5 * math.pi / agm(1.0, kc)
+    h, q = hyperbolic_nome(kc, K) if kc < KC_HYPERBOLIC else (0.0, 0.0)
+    return K, h, q
 
 
 @jit
@@ -408,8 +417,7 @@ def _elliptic_integrals(kind, k_c, sn_r, cn_r):
     if kind == KIND_SEPARATRIX:
         return math.inf, math.asinh(sn_r), 0.0, 0.0
     phase0 = sn_r * carlson_rf(cn_r * cn_r, cn_r * cn_r + (k_c * sn_r) ** 2, 1.0)
-    K = 0.5 * math.pi / agm(1.0, k_c)
-    h, q = hyperbolic_nome(k_c, K) if k_c < KC_HYPERBOLIC else (0.0, 0.0)
+    K, h, q = complete_integrals(k_c)
     return K, phase0, h, q
 
 
@@ -546,10 +554,6 @@ def _torque_free_omega_reference(kind, amp, cols, kc, phase0, nu, t, out):
         Output column of each of those three components.
     kc : ndarray, shape (n,)
         Complementary modulus ``k'`` (elliptic samples).
-    K : ndarray, shape (n,)
-        ``K(k)`` (elliptic samples), as :func:`torque_free_solve` computes it.
-    nome : ndarray, shape (2, n)
-        ``(h, q)`` of :func:`hyperbolic_nome` (elliptic samples with ``k' < KC_HYPERBOLIC``).
     phase0 : ndarray, shape (n,)
         Initial argument: ``u0 - K`` (elliptic) or ``u0`` (separatrix).
     nu : ndarray, shape (n,)
@@ -1113,15 +1117,13 @@ def _omega_at_sample(m0, m1, m2, w0, w1, w2, t):
         fq, fm = _sech_tanh(math.asinh(x) + nu * t)
         fp = fq
     elif kind == KIND_ELLIPTIC:
-        K = 0.5 * math.pi / agm(1.0, k_c)
-        h, q = hyperbolic_nome(k_c, K) if k_c < KC_HYPERBOLIC else (0.0, 0.0)
+        K, h, q = complete_integrals(k_c)
         sn, cn, dn = _sncndn_once(nu * t - K, k_c, K, h, q)
         fq, fm, fp = _addition(x, y, k_c, mi, sn, cn, dn)
-    o = [0.0, 0.0, 0.0]
-    o[cols[0]] = amp[0] * fq
-    o[cols[1]] = amp[1] * fm
-    o[cols[2]] = amp[2] * fp
-    return o[0], o[1], o[2], small
+    vq, vm, vp = amp[0] * fq, amp[1] * fm, amp[2] * fp  # into the columns cols (a permutation), without a list
+    return (vq if cols[0] == 0 else (vm if cols[1] == 0 else vp),
+            vq if cols[0] == 1 else (vm if cols[1] == 1 else vp),
+            vq if cols[0] == 2 else (vm if cols[1] == 2 else vp), small)
 
 
 @jit(inline=True)
@@ -1198,9 +1200,8 @@ def _omega_at_chunk(moments, w, t, out, lo, m):
     # size: the stages of a chunk are loops over its samples (SIMD lanes), each written out in one place so that
     # LLVM vectorises it; the constants of the one body are hoisted
     """Samples ``lo .. lo + m`` of :func:`torque_free_omega_at`: ``(tiny, non-finite)`` counts."""
-    a, b, c, even, ms, _, _, _, _, _, _ = _invariants_row(moments[0], moments[1], moments[2], 1.0, 1.0, 1.0)
+    a, b, c, even, _, _, I1, I2, I3, _, _ = _invariants_row(moments[0], moments[1], moments[2], 1.0, 1.0, 1.0)
     parity = 1.0 if even else -1.0
-    I1, I2, I3 = moments[a] / ms, moments[b] / ms, moments[c] / ms
     d32h, d32l = _two_sum(I3, -I2)
     d21h, d21l = _two_sum(I2, -I1)
     dpq = I3 - I1

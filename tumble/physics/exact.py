@@ -294,8 +294,7 @@ def _lower_tiny(lifted, I_sorted, perm, w, kind, amp, cols, kc, K, nome, phase0)
             phase0[i] += math.copysign(math.log(factor[j]), phase0[i])
         else:
             kc[i] /= factor[j]
-            K[i] = 0.5 * math.pi / _ell.agm(1.0, kc[i])
-            nome[:, i] = _ell.hyperbolic_nome(kc[i], K[i]) if kc[i] < _ell.KC_HYPERBOLIC else (0.0, 0.0)
+            K[i], nome[0, i], nome[1, i] = _ell.complete_integrals(kc[i])
 
 
 def omega_rows(sol, times, row):
@@ -316,14 +315,15 @@ def omega_at(moments, w, t):
     validated by the caller: the lean path of :func:`omega` for a single time.
 
     One fused kernel (:func:`tumble.kernels.elliptic.torque_free_omega_at`: no initial argument, Jacobi's
-    addition theorem instead); agrees with :func:`omega` to a few ulps of ``|w|``. Spins within
-    ``TINY_TRANSVERSE`` of an axis take :func:`omega`'s path.
+    addition theorem instead); agrees with :func:`omega` to a few ulps of ``|w|``. A call with a spin within
+    ``TINY_TRANSVERSE`` of an axis takes the set-up and the grid kernel apart, for all its spins.
     """
+    moments = np.ascontiguousarray(moments, dtype=float)
     w = np.ascontiguousarray(w, dtype=float)
     out = np.empty(w.shape)
-    tiny, non_finite = _ell.torque_free_omega_at(np.ascontiguousarray(moments, dtype=float), w, float(t), out)
+    tiny, non_finite = _ell.torque_free_omega_at(moments, w, float(t), out)
     if tiny:
-        return _omega_grid(moments, w, np.asarray(float(t)))
+        return _set_up_and_evaluate(moments, w, np.array([float(t)]))[:, 0]
     if non_finite:
         raise FloatingPointError("exact.omega produced non-finite values; please report this spin")
     return out
@@ -392,10 +392,18 @@ def omega(body, w0, t):
     return _omega_grid(body, w0, tt)
 
 
+def _set_up_and_evaluate(moments, w, times):
+    """Angular velocity (n, T, 3) of spins ``w`` (n, 3) of one body ``moments`` (3,) at ``times`` (T,), all validated:
+    the set-up (:func:`solve_rows`, which lifts spins within ``TINY_TRANSVERSE`` of an axis) and the grid kernel."""
+    sol = solve_rows(np.broadcast_to(moments, w.shape), w)
+    return omega_rows(sol, times.reshape(1, -1), np.zeros(w.shape[0], dtype=np.int64))
+
+
 def _omega_grid(body, w0, tt):
     """:func:`omega` on the time grid ``tt`` (validated, scalar or 1-d): one kernel call,
     :func:`tumble.kernels.elliptic.torque_free_omega_grid` (set-up and evaluation in one pass), the same bits as the
-    set-up and the grid kernel apart; spins within ``TINY_TRANSVERSE`` of an axis take those two apart."""
+    set-up and the grid kernel apart; a call with a spin within ``TINY_TRANSVERSE`` of an axis takes those two
+    apart (:func:`_set_up_and_evaluate`), for all its spins."""
     moments = one_body(body)
     w = spin_vectors(w0)
     shape = w.shape[:-1]
@@ -404,8 +412,7 @@ def _omega_grid(body, w0, tt):
     out = np.empty((w.shape[0], times.shape[0], 3))
     tiny, non_finite = _ell.torque_free_omega_grid(moments, w, times, out)
     if tiny:
-        sol = _solve(moments, w)
-        out = omega_rows(sol, times.reshape(1, -1), np.zeros(sol.kind.shape[0], dtype=np.int64))
+        out = _set_up_and_evaluate(moments, w, times)
     elif non_finite:
         raise FloatingPointError("exact.omega produced non-finite values; please report this spin")
     out = out.reshape(shape + (times.shape[0], 3))
