@@ -26,9 +26,7 @@ MODELS = {
 def _states(model, samples, seed=0):
     """States far from any steady spin (O(1) components; unit quaternions and up vectors)."""
     y = np.random.default_rng(seed).normal(size=(samples, model.state_size))
-    if model.kind == "gravity_gradient":
-        y[:, 3:] /= np.linalg.norm(y[:, 3:], axis=1, keepdims=True)
-    if model.kind == "heavy_top":
+    if model.kind in ("gravity_gradient", "heavy_top"):  # a unit quaternion, a unit up vector
         y[:, 3:] /= np.linalg.norm(y[:, 3:], axis=1, keepdims=True)
     return y
 

@@ -167,7 +167,9 @@ def run_model_ensemble(model, y0, t_end, dt, *, method="rk4", axis, spin=None, s
     parameters = model.parameters  # the kernels' keywords are the study keys (registry.MODEL_PARAMETERS)
     n_invariants = len(model.spec.invariants)
     out_final = np.empty((n, n_state)) if final else None
-    trajectory = None if not save else np.empty((len(times), n_state, n) if time_major else (n, len(times), n_state))
+    trajectory = None  # the trajectory is one kernel call's own array when one call runs every sample
+    if save and (n == 0 or n > chunk or not time_major):
+        trajectory = np.empty((len(times), n_state, n) if time_major else (n, len(times), n_state))
     probes = np.empty((n, len(probe_steps))) if probe_steps is not None else None
     drifts = np.empty((n, n_invariants)) if drift else None
     status = np.empty(n, dtype=np.int8)

@@ -45,7 +45,8 @@ eigenvector ``u`` of the measured eigenvalue ``lambda`` (the largest real part, 
 body's asymmetry: ``|z|^2`` is one exponential, whose rate linear prediction recovers exactly from t = 0, and the
 phase of ``z`` turns uniformly at ``Im lambda``. ``u`` is scaled so that ``|z|`` is the amplitude of a mode of unit
 transverse norm (rad/s). The states are stored at the probe times (exponential) or
-:data:`~tumble.measure.scenes.SAVES_PER_PERIOD` times a period (periodic) and projected in numpy. The ensemble is
+:data:`~tumble.measure.scenes.SAVES_PER_PERIOD` times a period (periodic) and projected as soon as the engine returns
+(:func:`tumble.measure.estimators.modal_amplitudes`: a compiled gather, then ``matmul``). The ensemble is
 that of before (the up direction tilted by ``amplitude``, the spin by ``amplitude`` x
 :data:`HEAVY_TOP_SPIN_TILT`), so the sleeping top's scenes run the same samples; only their measurement changed.
 Near a threshold (two eigenvalues colliding) ``u`` is ill-conditioned: the projection there amplifies the
@@ -92,7 +93,7 @@ class ModelScene:
     """One model scene, validated and planned (:func:`scene_plan`): plain data that pickles (dask, checkpoints).
 
     Its fields are those of :class:`tumble.measure.scenes.Scene` that :func:`tumble.measure.scenes.scene_records`
-    reads (no torque, no flips, no curves), plus the model."""
+    reads (no torque, no flips, no curves), plus the model and the measured mode."""
 
     model: Model
     moments: np.ndarray  # (3,) kg m²
@@ -334,7 +335,7 @@ def _modal_signal(scene, result):
     scene_mode = _scene_mode(scene)
     z = analysis.modal_amplitudes(result.trajectory, scene_mode.columns, scene_mode.centre, scene_mode.left)
     if scene.kind == "exponential":
-        return np.ascontiguousarray(np.abs(z))  # z is a transposed view: the fits read rows of samples
+        return np.abs(z, out=np.empty(z.shape))  # z is a transposed view: the fits read C-ordered rows of samples
     return np.stack([z.real, z.imag], axis=-1)
 
 
@@ -444,9 +445,7 @@ def _model_coordinates(scene):
     coords = {"model": np.asarray(model.kind), "@model": model.kind}
     if model.kind == "gyrostat":
         coords["rotor"] = np.float64(model.rotor[scene.axis - 1])
-    if model.kind == "heavy_top":
-        coords["mgl"] = np.float64(model.mgl)
-    for key in ("orbit_rate", "damper_inertia", "damping"):
+    for key in (p.key for p in registry.MODEL_PARAMETERS if p.size == 1):  # mgl, orbit_rate, damper_inertia, ...
         if hasattr(model, key):
             coords[key] = np.float64(getattr(model, key))
     return coords

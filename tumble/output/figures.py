@@ -856,12 +856,12 @@ def debra_delp_map(ds):
     mesh = ax.pcolormesh(edges[0], edges[1], growth.T, cmap="magma_r", shading="flat")
     fig.colorbar(mesh, ax=ax, label="measured growth rate / n")
     region = np.asarray(theory.gravity_gradient_region(u1[i1], u3[i3]))
-    marginal = (u1[i1] == u3[i3]) | (u1[i1] * u3[i3] == 0)  # on a boundary: neither side is wrong
+    neutral = u1[i1] == u3[i3]  # I1 = I3: the pitch mode is neutral (w_p = 0), the linearisation decides no kind
+    marginal = neutral | (u1[i1] * u3[i3] == 0)  # on a boundary: neither side is wrong
     wrong = ((region == "unstable") != (kinds == "exponential")) & ~marginal
     if wrong.any():
         ax.plot(u1[i1][wrong], u3[i3][wrong], "x", color="C0", label="kind disagrees with the closed form")
-    neutral = u1[i1] == u3[i3]
-    if neutral.any():  # I1 = I3: the pitch mode is neutral (w_p = 0), the linearisation decides no kind there
+    if neutral.any():
         ax.plot(u1[i1][neutral], u3[i3][neutral], "o", mfc="none", mec="C0", ms=3, mew=0.6,
                 label="$k_1 = k_3$: pitch neutral")
     _gg_boundaries(ax)

@@ -688,12 +688,7 @@ def _model(table, given, scan):
     out = {"kind": kind}
     if "rotor" in spec.parameters:
         out["rotor"] = _vector(table["rotor"], "model.rotor")
-    if "mgl" in spec.parameters:
-        out["mgl"] = _number(table["mgl"], "model.mgl")
-        if out["mgl"] <= 0 and "mgl" not in scan:
-            raise _Invalid("model.mgl", f"must be > 0 N m for a heavy_top (M g l, weight times the pivot-to-"
-                                        f"centre-of-mass distance), got {out['mgl']!r}")
-    for key in ("orbit_rate", "damper_inertia", "damping"):
+    for key in _POSITIVE_PARAMETERS:
         if key in spec.parameters:
             out[key] = _number(table[key], f"model.{key}")
             if out[key] <= 0 and key not in scan:
@@ -703,8 +698,13 @@ def _model(table, given, scan):
     return out
 
 
+# The models' scalar parameters that must be > 0 (registry data: mgl, orbit_rate, damper_inertia, damping).
+_POSITIVE_PARAMETERS = tuple(p.key for p in registry.MODEL_PARAMETERS if p.positive)
+
+
 def _model_scan(table):
-    """``scan.rotor`` (3-vectors, or numbers: h along each scene's spin axis) and ``scan.mgl`` (> 0)."""
+    """``scan.rotor`` (3-vectors, or numbers: h along each scene's spin axis) and ``scan.<key>`` (> 0) of the positive
+    scalar parameters (:data:`_POSITIVE_PARAMETERS`)."""
     out = {}
     if "rotor" in table:
         items = _array(table["rotor"], "scan.rotor", empty=False)
@@ -717,7 +717,7 @@ def _model_scan(table):
                                       "scene's spin axis, N m s), not both")
             values.append(_vector(item, field) if vectors else _number(item, field))
         out["rotor"] = _distinct(values, "scan.rotor", items)
-    for key in ("mgl", "orbit_rate", "damper_inertia", "damping"):  # the positive scalar parameters
+    for key in _POSITIVE_PARAMETERS:
         if key in table:
             units = registry.model_parameter(key).units
             items = _array(table[key], f"scan.{key}", empty=False)
