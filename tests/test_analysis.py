@@ -2,7 +2,8 @@
 
 Layers (STYLE.md item 7): properties of the invariant weights → synthetic signals whose answer is known in
 closed form → the exact torque-free solution (tumble.exact) against linear theory and the exact period →
-edge cases and bad inputs → reproducibility. Everything here is plain numpy: no numba kernel is compiled.
+edge cases and bad inputs → reproducibility. The estimators' inner loops are the kernels of
+tumble.kernels.fits, tested here through the estimators and against their numpy formulations.
 """
 
 

@@ -8,6 +8,9 @@ replaced made eight full-size temporaries per call (``arctan2``, ``unwrap``, ``h
 130 ns per sample and time; here it is one ``atan2`` and one square root per point, in parallel over samples,
 and the median radius by selection in place.
 
+Beside the fits, two gathers the estimators feed them from: the weighted transverse norms of stored states
+(:func:`transverse_norms`) and the rows of a linear mode (:func:`modal_rows`).
+
 Kernels take plain float64 arrays and scalars and write into arrays they are given.
 """
 

@@ -22,6 +22,7 @@ _UNIT_WEIGHTS = np.ones(3)  # the Euclidean transverse norm (read only by the ke
 # per call; writable, as the driver's signature has them).
 _NO_SAVED = np.empty((0, 3, 0))
 _NO_ROWS = np.empty((0, 0))
+_NO_ROW = np.empty(0)
 
 
 class Method(NamedTuple):
@@ -208,11 +209,6 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
                     status, steps_taken)
 
 
-_NO_TABLE = np.zeros((0, 0))
-_NO_ROW = np.zeros(0)
-_NO_FLOWS = np.zeros(0, dtype=np.int64)
-
-
 def run_attitude(method, w, q, moments, t0, h, n_steps, *, save_every, torque_kind=TORQUE_CONSTANT,
                  torque_params=None, torque_fn=None):
     # size: the kernels' door for attitude runs: keywords packed here into the kernel's flat arrays
@@ -255,7 +251,7 @@ def run_attitude(method, w, q, moments, t0, h, n_steps, *, save_every, torque_ki
             torque_params[:3] = sign * torque_params[perm]
     if torque_fn is not None and torque_params is None:
         torque_params = np.zeros(0)
-    A, b, c, flows, fractions = _NO_TABLE, _NO_ROW, _NO_ROW, _NO_FLOWS, _NO_ROW
+    A, b, c, flows, fractions = _NO_ROWS, _NO_ROW, _NO_ROW, _NO_STEPS, _NO_ROW
     if isinstance(coefficients, tableaux.ButcherTableau):
         family = FAMILY_RUNGE_KUTTA
         A, b, c = coefficients.A, coefficients.b, coefficients.c

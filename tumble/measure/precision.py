@@ -556,7 +556,8 @@ def _timed_warm(fn):
     """``fn``'s wall time on a call right after untimed calls of it lasting :data:`WARM_UP_SECONDS` (at least
     one): the thread pools (numba's, heyoka's) sleep while another solver runs, and on a virtual machine the
     cores take several calls, milliseconds, to come back to speed (a 0.1 ms call measured 0.4-0.8 ms right after
-    one warm-up call). Every solver is timed so; a SciPy run of 10 ms or more warms up by itself."""
+    one warm-up call). Every solver and point is timed so, the long ones too (one untimed call each: it roughly
+    doubles the benchmark's run time, and keeps every point measured the same way)."""
     started = time.perf_counter()
     fn()
     while time.perf_counter() - started < WARM_UP_SECONDS:
@@ -706,8 +707,8 @@ def _dataset(curves, compile_time, methods, moments, axis, spin, amplitude, samp
         "wp_wall": (dims, table["wall"], {
             "units": "s", "long_name": "wall time of one ensemble run",
             "comment": f"median of {repeats} runs (time.perf_counter) taken in {repeats} interleaved passes "
-                       "over all solvers, each right after untimed runs of the same solver (20 ms at least); compile time "
-                       "excluded"}),
+                       "over all solvers, each right after untimed runs of the same solver "
+                       f"({WARM_UP_SECONDS * 1e3:g} ms at least); compile time excluded"}),
         "wp_setting": (dims, table["setting"], {
             "units": "s (tumble methods: step dt); 1 (scipy: rtol; heyoka: tol)",
             "long_name": "step dt (tumble), relative tolerance rtol (scipy) or tolerance tol (heyoka); NaN "

@@ -521,13 +521,11 @@ def _closed_form_batch(scenes, grids, batch, parts, start):
     times = np.stack([grids[k] for k, _, _ in batch])
     sol = exact.solve_rows(moments, w0)
     omega = exact.omega_rows(sol, times, row)
-    everyone = np.arange(len(row))
     first = per_sample[0]
     if first.kind == "exponential":
-        b, c = each([(s.axis % 3, (s.axis + 1) % 3) for s in per_sample]).T
+        columns = each([(s.axis % 3, (s.axis + 1) % 3) for s in per_sample])
         weights = each([s.plan.weights for s in per_sample])
-        probes = analysis.transverse_norms(omega, np.stack([b, c], axis=1),
-                                           np.stack([weights[everyone, b], weights[everyone, c]], axis=1))
+        probes = analysis.transverse_norms(omega, columns, np.take_along_axis(weights, columns, axis=1))
         fit = analysis.growth_rates(times, probes, each([s.plan.saturation for s in per_sample]), row=row)
         results = {"rate": fit.rate, **{name: getattr(fit, name) for name in _GROWTH_FIT}}
         if first.flips:
