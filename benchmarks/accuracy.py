@@ -44,6 +44,8 @@ from tumble.measure import estimators
 from tumble.measure.scenes import SAMPLE_STATUS_NAMES
 from tumble.physics import exact
 
+import timing  # benchmarks/timing.py (the script's folder is on sys.path)
+
 RESULTS = Path(__file__).with_name("results")
 
 #: Targets of issue 4: median relative error over the triangle scan, per kind.
@@ -393,9 +395,9 @@ def markdown(report):
     lines = [f"# Accuracy benchmark — {report['date']}", "",
              "Regenerate with `python benchmarks/accuracy.py` (options `--grid N`, `--samples N`; this run: "
              f"`--grid {p1['grid']} --samples {p1['samples']}`). All figures are in `accuracy.json`.", "",
-             f"Machine: {m['platform']}, {m['cpu_count']} CPUs, numba threads {m['numba_threads']}. "
-             f"tumble {v['tumble']} (sha256 of its imported modules {report['source_digest']}), numpy {v['numpy']}, numba "
-             f"{v['numba']}, xarray {v['xarray']}, Python {v['python']}. "
+             f"Machine: {m['platform']}, {m['cpu_count']} CPUs, {m['vector_width']}, numba threads "
+             f"{m['numba_threads']}. tumble {v['tumble']} (sha256 of its imported modules {report['source_digest']}), "
+             f"numpy {v['numpy']}, numba {v['numba']}, xarray {v['xarray']}, Python {v['python']}. "
              f"Total run time {report['total_seconds']:.0f} s "
              "(wall clock; another process may have shared the machine).", "",
              *([f"**Warning:** {report['warning']}.", ""] if "warning" in report else []),
@@ -568,7 +570,8 @@ def main(argv=None):
     report = dict(
         date=str(date.today()), source_digest=digest,
         machine=dict(platform=platform.platform(), processor=platform.processor() or platform.machine(),
-                     cpu_count=os.cpu_count(), numba_threads=numba.get_num_threads()),
+                     cpu_count=os.cpu_count(), vector_width=timing.vector_width(),
+                     numba_threads=numba.get_num_threads()),
         versions=dict(tumble=tumble.__version__, numpy=np.__version__, numba=numba.__version__,
                       xarray=xr.__version__, python=platform.python_version()),
         arguments=vars(args), targets=dict(median_rel_error=TARGETS, flip_spacing_rk4=FLIP_SPACING_TARGET))

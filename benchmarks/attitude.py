@@ -32,6 +32,7 @@ from tumble.physics import exact
 
 sys.path.insert(0, str(Path(__file__).parent))
 from provenance import source_digest  # noqa: E402
+import timing  # noqa: E402  (benchmarks/timing.py)
 
 RESULTS = Path(__file__).with_name("results")
 MOMENTS = np.array([1.0, 2.0, 3.0])
@@ -84,7 +85,8 @@ def main():
     w0 = _spins()
     rows = [measure(method, w0) for method in (*METHODS, "exact")]
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%MZ")
-    meta = {"date": stamp, "machine": f"{platform.machine()}, {numba.config.NUMBA_NUM_THREADS} threads",
+    meta = {"date": stamp,
+            "machine": f"{platform.machine()}, {timing.vector_width()}, {numba.config.NUMBA_NUM_THREADS} threads",
             "numba": numba.__version__, "python": platform.python_version(), "tumble_sources": source_digest(),
             "samples": SAMPLES, "t_end": T_END, "dt": DT, "save_every": SAVE_EVERY, "repeats": REPEATS}
     RESULTS.mkdir(exist_ok=True)

@@ -4,8 +4,8 @@
     python benchmarks/closed_form.py            # writes benchmarks/results/closed_form.{json,md}
 
 A second table measures one time per sample straight from the spins (the final state of ``tumble.propagate``):
-the fused kernel with samples in SIMD lanes (``exact.omega_at``) against the per-sample set-up followed by the
-time-grid kernel at that one time (what it replaced), in samples per second.
+the fused kernel with samples in SIMD lanes (``exact.omega_at``) against the time-grid path at that one time (the
+per-sample set-up with Carlson's R_F and the evaluation, one kernel call: what it replaced), in samples per second.
 
 One evaluation is one sample at one time (three components). Both kernels get the same per-sample inputs
 (from ``tumble.physics.exact``) and run in the same process; compile time (or the load from numba's cache)

@@ -32,6 +32,8 @@ import numba
 import tumble
 from tumble.pipeline import config, distributed, runner
 
+import timing  # benchmarks/timing.py (the script's folder is on sys.path)
+
 RESULTS = Path(__file__).with_name("results")
 REPEATS = 3
 
@@ -74,7 +76,7 @@ def main():
     args = parser.parse_args()
     triangle, samples = (3, 256) if args.quick else (6, 2048)
     spec = study(triangle, samples)
-    scenes = runner.scene_job(config.load_study(spec))["layout"]["scenes"]
+    scenes = runner.scene_job(config.load_study(spec)).layout["scenes"]
     chunk = runner.default_chunk_scenes(scenes)
     threads_before = numba.get_num_threads()
     load_before = os.getloadavg()[0]  # other work on the machine skews every ratio: reported with them
@@ -106,7 +108,7 @@ def main():
     peer = medians["LocalCluster, 1 worker"]
     speedup = peer / medians["LocalCluster, 2 workers"]
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%MZ")
-    machine = (f"{platform.machine()}, {os.cpu_count()} cores, numba {numba.__version__} "
+    machine = (f"{platform.machine()}, {os.cpu_count()} cores, {timing.vector_width()}, numba {numba.__version__} "
                f"(NUMBA_NUM_THREADS={numba.config.NUMBA_NUM_THREADS}), Python {platform.python_version()}; "
                f"load average before / after {load_before:.2f} / {os.getloadavg()[0]:.2f}")
     lines = [

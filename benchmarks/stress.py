@@ -61,6 +61,8 @@ from tumble.kernels.drivers import STATUS_DRIFT, STATUS_NAMES, STATUS_OK
 from tumble.kernels.methods import METHODS as _KERNEL_METHODS
 from tumble.physics import exact, theory
 
+import timing  # benchmarks/timing.py (the script's folder is on sys.path)
+
 RESULTS = Path(__file__).with_name("results")
 
 METHODS = tuple(_KERNEL_METHODS)
@@ -831,7 +833,8 @@ def markdown(report):
     lines = [f"# Numerical stress suite — {report['date']}", "",
              f"Regenerate with `python benchmarks/stress.py{' --quick' if report['quick'] else ''}`. "
              "Every figure is in `stress.json`.", "",
-             f"Machine: {m['platform']}, {m['cpu_count']} CPUs, numba threads {m['numba_threads']}; load average "
+             f"Machine: {m['platform']}, {m['cpu_count']} CPUs, {m['vector_width']}, numba threads "
+             f"{m['numba_threads']}; load average "
              f"(1 min) {report['load_before']:.2f} before, {report['load_after']:.2f} after (other processes shared "
              f"the machine when it exceeds the CPU count). tumble {v['tumble']} (sha256 of its imported modules "
              f"{report['source_digest']}), numpy {v['numpy']}, numba {v['numba']}, Python {v['python']}. "
@@ -1214,7 +1217,8 @@ def main(argv=None):
     digest = source_digest()
     report = dict(
         date=str(date.today()), quick=bool(args.quick), settings=settings, source_digest=digest,
-        machine=dict(platform=platform.platform(), cpu_count=os.cpu_count(), numba_threads=numba.get_num_threads()),
+        machine=dict(platform=platform.platform(), cpu_count=os.cpu_count(), vector_width=timing.vector_width(),
+                     numba_threads=numba.get_num_threads()),
         versions=dict(tumble=tumble.__version__, numpy=np.__version__, numba=numba.__version__,
                       xarray=xr.__version__, python=platform.python_version()),
         load_before=load_before, seconds={})

@@ -22,5 +22,9 @@ def median_seconds(fn, repeats):
 def machine():
     """``"<processor>, <cores> cores, AVX2 | AVX-512, numba <version>"``: the vector width goes beside every
     throughput figure (machines here differ)."""
-    width = "AVX-512" if "avx512f" in Path("/proc/cpuinfo").read_text() else "AVX2"
-    return f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, {width}, numba {numba.__version__}"
+    return f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, {vector_width()}, numba {numba.__version__}"
+
+
+def vector_width():
+    """``"AVX-512"`` or ``"AVX2"``: how many doubles a SIMD register holds (8 or 4) on this machine."""
+    return "AVX-512" if "avx512f" in Path("/proc/cpuinfo").read_text() else "AVX2"

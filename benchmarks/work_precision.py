@@ -36,7 +36,7 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from tumble.measure.precision import speedups, time_to_error, work_precision
+from tumble.measure.precision import WARM_UP_SECONDS, speedups, time_to_error, work_precision
 from tumble.output.io import write_dataset
 
 RESULTS = Path(__file__).with_name("results")
@@ -137,7 +137,8 @@ def _report(ds, table, rows, load_before, load_after, elapsed, settings):
              f"(cone) from axis {a['axis']} of I = ({a['I1']:g}, {a['I2']:g}, {a['I3']:g}) kg m², t_end = "
              f"{a['t_end']:g} s, seed {a['seed']}. Error: max over samples of |ω(t_end) − ω_ref(t_end)| / |ω0|. "
              f"Wall time: median of {a['repeats']} runs taken in interleaved passes over all solvers, each right "
-             "after untimed runs of the same solver lasting 20 ms or more (thread pools awake, cores up to speed), "
+             f"after untimed runs of the same solver lasting {WARM_UP_SECONDS * 1e3:g} ms or more (thread pools awake, "
+             "cores up to speed), "
              "compile time excluded (below). SciPy `solve_ivp` on the stacked ensemble (one state of length 3·N, numpy "
              f"right-hand side), atol = rtol × {a['scipy_atol_factor']:g} rad/s.", "",
              f"Machine: {a['machine']}; numba threads: {a['numba_threads']} (SciPy: 1 thread; "
