@@ -10,33 +10,91 @@ shapes, theory, the closed form), ``engine`` (ensemble runs, sampling, ``integra
 (estimators, scenes, scans, work precision), ``output`` (datasets, netCDF, figures) and ``pipeline``
 (study files, runs, checkpoints, dask), with ``cli`` on top.
 
+The face imports lazily (PEP 562): ``import tumble`` loads none of numba, xarray, matplotlib, netCDF4 or dask;
+each name is imported on its first use (``tumble.integrate`` loads the engine, ``tumble.run_study`` the
+pipeline), so that the command line answers at once and a script pays only for what it calls
+(``tests/test_latency.py`` holds it).
+
 Note that ``tumble.measure`` is the function :func:`tumble.measure.scenes.measure`; the ``tumble/measure/``
 package's modules are reached with ``from tumble.measure import scenes`` (or ``import tumble.measure.scenes``
 followed by ``sys.modules``), never by attribute access through the face.
 """
 
+import importlib
+import importlib.abc
+import importlib.util
 import sys
 
 # First: Ctrl-C while the tumble command imports the rest is one line and exit 130 (see tumble._interrupt).
 from . import _interrupt  # noqa: F401
 from ._version import __version__
-from .engine import sampling
-from .engine.ensemble import run_ensemble
-from .engine.integration import integrate, propagate
-from .measure.scenes import attitude_trace, flip_time_law, inertia_triangle, measure, regress_scan, scan
-from .output import io
-from .physics import exact, models, rotations, shapes, theory
-from .physics.bodies import Body
-from .pipeline.runner import run_study
+
+#: Public name -> (module, attribute); attribute None: the name is the module itself.
+_FACE = {
+    "Body": ("tumble.physics.bodies", "Body"),
+    "run_ensemble": ("tumble.engine.ensemble", "run_ensemble"),
+    "integrate": ("tumble.engine.integration", "integrate"),
+    "propagate": ("tumble.engine.integration", "propagate"),
+    "run_study": ("tumble.pipeline.runner", "run_study"),
+    **{name: ("tumble.measure.scenes", name)
+       for name in ("attitude_trace", "flip_time_law", "inertia_triangle", "measure", "regress_scan", "scan")},
+}
 
 # The physics modules of the public contract keep their short import paths (`import tumble.exact`,
 # `from tumble.theory import linear`), as they had before the layers became folders; `tumble.models` (the systems
 # beyond the free body, `tumble.models.Gyrostat`) is physics/models.py under the same kind of short path.
-for _name, _module in (("exact", exact), ("theory", theory), ("models", models), ("shapes", shapes),
-                       ("rotations", rotations), ("io", io), ("sampling", sampling)):
-    sys.modules[f"{__name__}.{_name}"] = _module
-del _name, _module
+_ALIASES = {"exact": "tumble.physics.exact", "theory": "tumble.physics.theory", "models": "tumble.physics.models",
+            "shapes": "tumble.physics.shapes", "rotations": "tumble.physics.rotations", "io": "tumble.output.io",
+            "sampling": "tumble.engine.sampling"}
+_FACE.update({name: (module, None) for name, module in _ALIASES.items()})
+
+
+class _AliasImporter(importlib.abc.MetaPathFinder, importlib.abc.Loader):
+    """``import tumble.exact`` (and the other short paths) gives the module ``tumble.physics.exact`` itself, imported
+    when first asked for: one module object under two names, as ``sys.modules`` aliasing gave when the face was
+    eager."""
+
+    def find_spec(self, fullname, path=None, target=None):
+        short = fullname.removeprefix(__name__ + ".")
+        if short == fullname or short not in _ALIASES:
+            return None
+        return importlib.util.spec_from_loader(fullname, self)
+
+    def create_module(self, spec):
+        module = importlib.import_module(_ALIASES[spec.name.removeprefix(__name__ + ".")])
+        spec.loader_state = module.__spec__  # the import machinery now gives the module the alias's spec...
+        return module
+
+    def exec_module(self, module):
+        module.__spec__ = module.__spec__.loader_state  # ...and the module keeps its own (reloading, pickling)
+
+
+sys.meta_path.append(_AliasImporter())
+
+# The package tumble.measure is imported now so that importing its modules later never rebinds the face's
+# `tumble.measure` (the function) to the package: the import system sets a package as its parent's attribute only
+# when the package itself is first imported. Its __init__ imports nothing.
+from . import measure as _measure_package  # noqa: E402,F401
+
+del measure  # noqa: F821 - bound by the import above; the face's `measure` is the function, from __getattr__
+
+
+def __getattr__(name):
+    try:
+        module, attribute = _FACE[name]
+    except KeyError:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    value = importlib.import_module(module)
+    if attribute is not None:
+        value = getattr(value, attribute)
+    globals()[name] = value  # later lookups skip this function
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_FACE))
+
 
 __all__ = ["Body", "attitude_trace", "exact", "flip_time_law", "inertia_triangle", "integrate", "io", "measure",
-           "models", "propagate", "regress_scan", "rotations", "run_ensemble", "run_study", "sampling", "scan", "shapes", "theory",
-           "__version__"]
+           "models", "propagate", "regress_scan", "rotations", "run_ensemble", "run_study", "sampling", "scan", "shapes",
+           "theory", "__version__"]

@@ -13,12 +13,11 @@ import time
 import traceback
 from pathlib import Path
 
-import numpy as np
-
 from . import _interrupt, registry
 from ._version import __version__
-from .engine.integration import integrate
-from .physics import exact, shapes, theory
+
+# Imports below are made inside the commands that need them: `tumble --help` and `tumble studies` load neither numpy
+# nor numba, xarray or matplotlib (tests/test_latency.py).
 
 #: Exit status after Ctrl-C (128 + SIGINT, as shells report it).
 EXIT_INTERRUPTED = _interrupt.EXIT_INTERRUPTED
@@ -28,6 +27,8 @@ _METHODS = tuple(m.name for m in registry.METHODS)
 
 def _spins_near_intermediate_axis(body, spin, amplitude, samples, seed):
     """Spins of size ``spin`` tilted by ``amplitude`` rad from the intermediate axis, uniform in azimuth."""
+    import numpy as np
+
     middle = int(np.argsort(body.moments)[1])
     others = [a for a in range(3) if a != middle]
     azimuth = np.random.default_rng(seed).uniform(0.0, 2.0 * np.pi, samples)
@@ -44,6 +45,11 @@ def demo(samples=2000, seed=0, dt=0.002, out=sys.stdout):
     Linear theory for each axis; an ensemble of spins about the intermediate axis integrated by every method
     through its first flips and compared with the exact solution; invariants; flip timing.
     """
+    import numpy as np
+
+    from .engine.integration import integrate
+    from .physics import exact, shapes, theory
+
     body = shapes.t_handle()
     moments = body.moments
     scale = moments.max()
@@ -257,11 +263,19 @@ def _parser():
     return parser
 
 
+def _raised_by(module, name):
+    """``(module.name,)`` (an exception class) if that module has been imported, else an empty tuple.
+
+    The handlers in :func:`main` name the errors of the pipeline without importing it (which would load xarray
+    for `tumble --help`): an ``except`` clause's classes are looked up only when an exception arrives, and an
+    exception of a class whose module was never imported cannot have been raised.
+    """
+    loaded = sys.modules.get(f"tumble.pipeline.{module}")
+    return (getattr(loaded, name),) if loaded is not None else ()
+
+
 def main(argv=None):
     """Entry point of ``tumble`` and ``python -m tumble``; returns the exit status."""
-    from .pipeline.checkpoint import OutputError
-    from .pipeline.config import StudyError
-
     args = _parser().parse_args(argv)
     try:
         _interrupt.release()  # from here on Ctrl-C is a KeyboardInterrupt, reported below
@@ -277,10 +291,10 @@ def main(argv=None):
             if args.samples < 1:
                 raise InputError(f"--samples must be >= 1, got {args.samples}")
             demo(samples=args.samples, seed=args.seed, dt=args.dt)
-    except (StudyError, InputError) as err:
+    except (InputError, *_raised_by("config", "StudyError")) as err:
         print(f"tumble: error: {err}", file=sys.stderr)
         return 2
-    except OutputError as err:
+    except _raised_by("checkpoint", "OutputError") as err:
         print(f"tumble: failed: {err.strerror or err}; earlier results there are unchanged, and finished chunks are "
               "kept for a rerun to resume from", file=sys.stderr)
         return 1

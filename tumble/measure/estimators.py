@@ -333,9 +333,12 @@ def median_interval_rank(n, confidence=0.95):
     *Statistical Intervals*, §5.2). Below ``n = 6`` (at 95 %) no rank reaches it and ``l = 1``: the range of
     the values, whose coverage ``1 - 2^(1-n)`` is then less than asked.
     """
-    from scipy.stats import binom  # only here: the estimators module stays numpy-only at import
+    # scipy.special's binomial distribution function, not scipy.stats.binom: the same ranks (checked for every n up
+    # to 3000 and up to 2**20, at 90, 95 and 99 %), and scipy.stats costs 0.8 s to import. Imported only here: the
+    # estimators module stays numpy-only at import.
+    from scipy.special import bdtr
 
-    tail = binom.cdf(np.arange(n), n, 0.5)  # P(B <= k), k = 0 .. n-1
+    tail = bdtr(np.arange(n), n, 0.5)  # P(B <= k), k = 0 .. n-1
     return max(1, int(np.count_nonzero(tail <= 0.5 * (1.0 - confidence))))
 
 
