@@ -55,3 +55,50 @@ def test_an_unknown_name_is_an_attribute_error():
 
     with pytest.raises(AttributeError, match="no attribute 'integrat'"):
         tumble.integrat  # noqa: B018
+
+
+def test_integrate_builds_the_dataset_xarrays_public_constructor_would():
+    import numpy as np
+    import xarray as xr
+
+    import tumble
+
+    w0 = np.array([0.01, 10.0, 0.01]) + np.random.default_rng(0).normal(0.0, 1e-3, (40, 3))
+    for kwargs in ({}, {"save_every": 50, "attitude": True}):
+        ds = tumble.integrate(tumble.shapes.t_handle(), w0, 0.2, 0.001, **kwargs)
+        public = xr.Dataset({k: v.variable for k, v in ds.data_vars.items()},
+                            coords={k: v.variable for k, v in ds.coords.items()}, attrs=ds.attrs)
+        assert ds.identical(public)
+        assert list(ds.indexes) == [d for d in ("sample", "time", "axis", "component") if d in ds.dims]
+        again = tumble.integrate(tumble.shapes.t_handle(), w0, 0.2, 0.001, **kwargs)  # an index reused...
+        again["omega"].attrs["units"] = "changed"
+        again.sample.attrs["long_name"] = "changed"
+        assert ds.omega.attrs["units"] == "rad/s" and ds.sample.attrs["long_name"] == "ensemble member"  # ...not shared
+        assert float(ds.sel(time=0.2, method="nearest").omega[0, 1]) == float(ds.omega[0, -1, 1])
+
+
+def test_exact_omega_at_one_time_in_an_array_is_the_one_time_kernels_answer():
+    import numpy as np
+
+    import tumble
+
+    body = tumble.shapes.t_handle()
+    w0 = np.array([0.01, 10.0, 0.01]) + np.random.default_rng(1).normal(0.0, 1e-3, (2, 5, 3))
+    one = tumble.exact.omega(body, w0, np.array([3.0]))
+    assert one.shape == (2, 5, 1, 3)
+    np.testing.assert_array_equal(one[..., 0, :], tumble.exact.omega(body, w0, 3.0))
+    grid = tumble.exact.omega(body, w0, np.array([3.0, 3.0]))  # the grid kernel: a few ulps of |w| apart
+    np.testing.assert_allclose(one[..., 0, :], grid[..., 0, :], rtol=0, atol=1e-14 * 10.0)
+
+
+def test_the_sample_steps_of_blocks_vectorised_equal_the_block_by_block_sum():
+    import numpy as np
+
+    from tumble.engine import ensemble
+
+    rng = np.random.default_rng(2)
+    for n in (0, 1, ensemble.BLOCK - 1, ensemble.BLOCK, 3 * ensemble.BLOCK + 5):
+        steps = rng.integers(0, 1000, n)
+        expected = sum(len(part) * int(part.max())
+                       for part in np.split(steps, range(ensemble.BLOCK, n, ensemble.BLOCK)) if len(part))
+        assert ensemble._block_steps(steps) == expected
