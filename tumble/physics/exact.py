@@ -216,8 +216,10 @@ def solve_rows(moments, w):
 
     Returns a private ``_Solution`` (fields per sample; ``shape = (n,)``, ``mid_axis`` per sample).
     """
-    moments = np.ascontiguousarray(moments, dtype=float)
-    w = np.ascontiguousarray(w, dtype=float)
+    # C-ordered and writeable, always: a read-only array (a broadcast body of one row is one, and contiguous) would
+    # compile another variant of the set-up kernel, 4.5 s on the first run
+    moments = np.require(moments, dtype=float, requirements=("C", "W"))
+    w = np.require(w, dtype=float, requirements=("C", "W"))
     return _setup(moments, w, (w.shape[0],), None)
 
 
@@ -323,7 +325,7 @@ def omega_at(moments, w, t):
     out = np.empty(w.shape)
     tiny, non_finite = _ell.torque_free_omega_at(moments, w, float(t), out)
     if tiny:
-        return _set_up_and_evaluate(moments, w, np.array([float(t)]))[:, 0]
+        return omega_apart(moments, w, np.array([float(t)]))[:, 0]
     if non_finite:
         raise FloatingPointError("exact.omega produced non-finite values; please report this spin")
     return out
@@ -394,9 +396,10 @@ def omega(body, w0, t):
     return _omega_grid(body, w0, tt)
 
 
-def _set_up_and_evaluate(moments, w, times):
+def omega_apart(moments, w, times):
     """Angular velocity (n, T, 3) of spins ``w`` (n, 3) of one body ``moments`` (3,) at ``times`` (T,), all validated:
-    the set-up (:func:`solve_rows`, which lifts spins within ``TINY_TRANSVERSE`` of an axis) and the grid kernel."""
+    the set-up (:func:`solve_rows`, which lifts spins within ``TINY_TRANSVERSE`` of an axis) and the grid kernel apart,
+    the kernels a scene's samples use: the same bits as :func:`omega` on a grid, without compiling its fused kernel."""
     sol = solve_rows(np.broadcast_to(moments, w.shape), w)
     return omega_rows(sol, times.reshape(1, -1), np.zeros(w.shape[0], dtype=np.int64))
 
@@ -405,7 +408,7 @@ def _omega_grid(body, w0, tt):
     """:func:`omega` on the time grid ``tt`` (validated, scalar or 1-d): one kernel call,
     :func:`tumble.kernels.elliptic.torque_free_omega_grid` (set-up and evaluation in one pass), the same bits as the
     set-up and the grid kernel apart; a call with a spin within ``TINY_TRANSVERSE`` of an axis takes those two
-    apart (:func:`_set_up_and_evaluate`), for all its spins."""
+    apart (:func:`omega_apart`), for all its spins."""
     moments = one_body(body)
     w = spin_vectors(w0)
     shape = w.shape[:-1]
@@ -414,7 +417,7 @@ def _omega_grid(body, w0, tt):
     out = np.empty((w.shape[0], times.shape[0], 3))
     tiny, non_finite = _ell.torque_free_omega_grid(moments, w, times, out)
     if tiny:
-        out = _set_up_and_evaluate(moments, w, times)
+        out = omega_apart(moments, w, times)
     elif non_finite:
         raise FloatingPointError("exact.omega produced non-finite values; please report this spin")
     out = out.reshape(shape + (times.shape[0], 3))
