@@ -68,6 +68,26 @@ def run_small(name):
     return ds
 
 
+def across_vector_widths(var, stored):
+    """Tolerances of ``var`` between machines of another vector width (AVX2, AVX-512), which fuse other products into
+    multiply-adds: 1e-12 relative, except where a value is not the scale of its own round-off.
+
+    A relative error (measured / theory - 1) and a spread (half the interquartile range of the samples' rates) are
+    differences of nearly equal numbers: a 1e-12 relative change of the rates moves them by 1e-12 of the rates' scale.
+    Errors against a reference and drifts of invariants (``wp_error*``, ``*_drift``) are differences too, of states
+    of order 1: they move by round-off, 1e-13 absolute (errors of 3e-14 seen moving by half). A trajectory over a long
+    damped horizon (``trace_*``) amplifies round-off (1.7e-10 relative seen for ``explorer1``'s nutation).
+    """
+    tolerance = {"rtol": 1e-9 if var.startswith("trace_") else 1e-12, "atol": 0.0}
+    if "rel_error" in var:
+        tolerance["atol"] = 1e-12
+    elif "error" in var or "drift" in var:
+        tolerance["atol"] = 1e-13
+    elif var == "rate_spread":
+        tolerance["atol"] = 1e-12 * float(np.nanmax(np.abs(stored["rate"])))
+    return tolerance
+
+
 def test_every_bundled_study_is_stored():
     assert set(STUDIES) == set(config.bundled_studies())
 
@@ -81,6 +101,6 @@ def test_a_bundled_study_gives_the_stored_numbers(name):
     for var in got.variables:
         a, b = got[var].values, stored[var].values
         if a.dtype.kind in "fc" and not same_machine:
-            np.testing.assert_allclose(a, b, rtol=1e-12, atol=0, equal_nan=True, err_msg=var)
+            np.testing.assert_allclose(a, b, equal_nan=True, err_msg=var, **across_vector_widths(var, stored))
         else:
             np.testing.assert_array_equal(a, b, err_msg=var)

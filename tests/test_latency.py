@@ -6,6 +6,7 @@ Start-up time is dominated by imports (numba, xarray with pandas, matplotlib, ne
 """
 
 import json
+import os
 import subprocess
 import sys
 
@@ -102,3 +103,32 @@ def test_the_sample_steps_of_blocks_vectorised_equal_the_block_by_block_sum():
         expected = sum(len(part) * int(part.max())
                        for part in np.split(steps, range(ensemble.BLOCK, n, ensemble.BLOCK)) if len(part))
         assert ensemble._block_steps(steps) == expected
+
+
+def test_the_side_by_side_signatures_are_those_the_closed_form_scenes_call(warm_kernels):
+    import tumble
+    from tumble.kernels import side_by_side
+
+    tumble.measure((1.0, 2.0, 3.0), 2, samples=16)  # exponential
+    tumble.measure((1.0, 2.0, 3.0), 1, samples=16)  # periodic
+    for jobs in side_by_side.CLOSED_FORM.values():
+        for name, signature in jobs:
+            assert tuple(signature) in side_by_side._dispatcher(name).signatures, name
+
+
+def test_cold_kernels_compile_in_a_worker_process_and_load_from_the_cache(tmp_path):
+    # Two small kernels, one per process: the worker's is in numba's cache afterwards, never compiled here.
+    code = """
+from tumble.kernels import side_by_side as s
+jobs = s.CLOSED_FORM["exponential"][2:]
+assert not any(s.is_cached(*job) for job in jobs)
+done = s.compile_side_by_side(jobs, workers=2)
+assert sorted(done) == sorted(name for name, _ in jobs), done
+mine, theirs = (s._dispatcher(name) for name, _ in jobs)
+assert mine.signatures and not theirs.signatures  # compiled here / by the worker
+assert all(s.is_cached(*job) for job in jobs)
+assert s.compile_side_by_side(jobs, workers=2) == []  # warm: nothing started
+assert s.compile_side_by_side(s.CLOSED_FORM["exponential"], workers=1) == []  # one core: nothing started
+"""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
+    subprocess.run([sys.executable, "-c", code], check=True, env=env, timeout=300)

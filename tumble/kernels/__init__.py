@@ -5,7 +5,7 @@ This package's face is the one door to the kernels: the engine (:mod:`tumble.eng
 checks it). Tests and benchmarks of the kernels themselves may reach the modules.
 """
 
-from . import elliptic, fits
+from . import elliptic, fits, side_by_side
 from .drivers import TORQUE_SIGNATURE
 from .jit import parallel_block
 from .methods import BLOCK, METHODS, Method, Observed, run, run_attitude
@@ -15,4 +15,4 @@ from .steppers import TORQUE_CONSTANT, TORQUE_PULSE, TORQUE_RAMP, TORQUE_SINE, T
 
 __all__ = ["BLOCK", "METHODS", "MODEL_BLOCK", "MODEL_CODES", "MODEL_METHODS", "Method", "ModelObserved", "Observed",
            "TORQUE_CONSTANT", "TORQUE_PULSE", "TORQUE_RAMP", "TORQUE_SIGNATURE", "TORQUE_SINE", "TORQUE_USER", "elliptic",
-           "fits", "model_methods", "model_rhs", "parallel_block", "run", "run_attitude", "run_model"]
+           "fits", "model_methods", "side_by_side", "model_rhs", "parallel_block", "run", "run_attitude", "run_model"]

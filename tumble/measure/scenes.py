@@ -344,6 +344,8 @@ def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, metho
     kind, value = theory.linear(moments, axis, spin)
     spin_up = _axial_spin_up(torque, moments, a, kind, spin)
     chosen, _ = registry.choose_method(method, torque_free=spin_up is None)
+    if chosen == "exact":  # before the plan, whose horizon already takes the closed form's set-up
+        exact.compile_kernels_side_by_side(kind)
     spin_max = None
     if spin_up is not None:
         span = horizon or PERIODS * 2 * np.pi / value
