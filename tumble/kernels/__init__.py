@@ -15,4 +15,13 @@ from .steppers import TORQUE_CONSTANT, TORQUE_PULSE, TORQUE_RAMP, TORQUE_SINE, T
 
 __all__ = ["BLOCK", "METHODS", "MODEL_BLOCK", "MODEL_CODES", "MODEL_METHODS", "Method", "ModelObserved", "Observed",
            "TORQUE_CONSTANT", "TORQUE_PULSE", "TORQUE_RAMP", "TORQUE_SIGNATURE", "TORQUE_SINE", "TORQUE_USER", "elliptic",
-           "fits", "model_methods", "model_rhs", "parallel_block", "run", "run_attitude", "run_model"]
+           "device_kernels", "fits", "model_methods", "model_rhs", "parallel_block", "run", "run_attitude", "run_model"]
+
+
+def device_kernels():
+    """The CUDA kernels, :mod:`tumble.kernels.cuda` (its ``run`` takes :func:`run`'s arguments). Imported on the
+    first call, never by ``import tumble``: importing them imports ``numba.cuda`` (``tumble.engine.device`` checks
+    first that numba-cuda and a GPU, or its simulator, are there)."""
+    from . import cuda
+
+    return cuda
