@@ -46,18 +46,19 @@ def refusal(method, *, torque_fn=None, probe_steps=None, max_flips=0, drift=Fals
     """The one-line reason why a run cannot go to the device, or None when it can."""
     if not isinstance(method.coefficients, (tableaux.ButcherTableau, tableaux.Splitting)):
         return (f"device 'cuda': method {method.name!r} is {_NOT_YET} (its fixed-point iteration runs a "
-                f"data-dependent number of sweeps per sample); use rk4, rk8 or a splitting")
+                f"data-dependent number of sweeps per sample); use rk4, rk8 or a splitting, or device='cpu'")
     if torque_fn is not None:
         return ("device 'cuda': a Python torque function cannot run on the device; use a constant torque or a "
                 "named profile (constant, ramp, sine, pulse)")
     asked = [name for name, on in (("probe times", probe_steps is not None), ("flips", max_flips > 0),
                                    ("drift records", drift), ("early stop", stop_norm > 0 or stop_flips > 0)) if on]
     if asked:
-        return f"device 'cuda': {', '.join(asked)} {'are' if len(asked) > 1 else 'is'} {_NOT_YET}"
+        return f"device 'cuda': observing {', '.join(asked)} is {_NOT_YET}; run it with device='cpu'"
     return None
 
 
 def make_kernel(method, torque_free):
+    # size: the closure holds the one kernel below (see there)
     """The device kernel of ``method``, torque-free or with a built-in torque profile: one thread per sample.
 
     The step is the CPU's: a Runge–Kutta method's generated ``<name>_sample``; a splitting's table (its sub-flows
