@@ -20,7 +20,8 @@ import tumble
 from tumble.engine.device import resolve_device
 
 HAS_NUMBA_CUDA = importlib.util.find_spec("numba_cuda") is not None
-needs_numba_cuda = pytest.mark.skipif(not HAS_NUMBA_CUDA, reason='numba-cuda is not installed (pip install -e ".[test]")')
+NO_NUMBA_CUDA = 'numba-cuda is not installed (pip install -e ".[test]")'
+needs_numba_cuda = pytest.mark.skipif(not HAS_NUMBA_CUDA, reason=NO_NUMBA_CUDA)
 
 BODY = (2.0, 1.0, 3.0)  # unsorted: the splittings relabel their axes (an odd permutation, sign -1)
 STEPPED = ("rk4", "rk8", "symplectic_euler", "splitting2", "splitting4")
@@ -31,7 +32,7 @@ RELATIVE = 1e-12  # device against CPU, relative to the largest |w|
 def cuda_device():
     """The device is usable (the simulator, or a GPU), else the test is skipped with the reason."""
     if not HAS_NUMBA_CUDA:
-        pytest.skip('numba-cuda is not installed (pip install -e ".[test]")')
+        pytest.skip(NO_NUMBA_CUDA)
     try:
         return resolve_device("cuda")
     except ValueError as err:
@@ -176,7 +177,8 @@ def test_propagate_refuses_the_same_on_the_device(cuda_device, kwargs):
 
 
 def test_importing_tumble_does_not_import_numba_cuda():
-    code = "import sys, tumble; print(sorted(m for m in sys.modules if m == 'numba.cuda' or m.startswith(('numba.cuda.', 'numba_cuda'))))"
+    code = ("import sys, tumble; "
+            "print(sorted(m for m in sys.modules if m == 'numba.cuda' or m.startswith(('numba.cuda.', 'numba_cuda'))))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
 

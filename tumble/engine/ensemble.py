@@ -379,7 +379,7 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
             return result._replace(info=info)
         info["jit_seconds"] = _warm(chosen, torque, observe) if device == "cpu" else 0.0  # device: in run_seconds
         started = time.perf_counter()
-        result = _run_kernel(METHODS[chosen], moments, w0, dt, n_steps, observe, torque, chunks(), stepper(device))
+        result = _run_kernel(METHODS[chosen], moments, w0, dt, n_steps, observe, torque, chunks(), device)
     steps_taken = result.steps_taken
     info.update(run_seconds=time.perf_counter() - started, sample_steps_computed=_block_steps(steps_taken),
                 sample_steps_skipped=int(n * n_steps - steps_taken.sum()))
@@ -419,9 +419,10 @@ class _Observe(NamedTuple):
     drift_limit: float
 
 
-def _run_kernel(method, moments, w0, dt, n_steps, observe, torque, chunks, run=run):
-    # size: one more than the limit: run, the device's or the CPU's (tumble.engine.device.stepper)
+def _run_kernel(method, moments, w0, dt, n_steps, observe, torque, chunks, device="cpu"):
+    # size: one more than the limit: the device, whose kernels take the CPU kernels' arguments
     """A fixed-step kernel over the samples, chunk by chunk, the observers' outputs gathered per sample."""
+    step = run if device == "cpu" else stepper(device)
     n = len(w0)
     final_w = np.empty((n, 3)) if observe.final else None
     trajectory = np.empty((n, len(observe.times), 3)) if observe.save else None
@@ -433,11 +434,11 @@ def _run_kernel(method, moments, w0, dt, n_steps, observe, torque, chunks, run=r
     steps_taken = np.empty(n, dtype=np.int64)
     for lo, hi in chunks:
         state = np.array(w0[lo:hi].T, order="C")
-        observed = run(method, state, moments, 0.0, dt, n_steps, save_every=observe.save, axis=observe.axis,
-                       norm_weights=observe.weights, probe_steps=observe.probe_steps, max_flips=observe.max_flips,
-                       drift=observe.drift, stop_norm=observe.stop_norm, stop_flips=observe.stop_flips,
-                       drift_limit=observe.drift_limit, torque_kind=torque.kind, torque_params=torque.params,
-                       torque_fn=torque.fn)
+        observed = step(method, state, moments, 0.0, dt, n_steps, save_every=observe.save, axis=observe.axis,
+                        norm_weights=observe.weights, probe_steps=observe.probe_steps, max_flips=observe.max_flips,
+                        drift=observe.drift, stop_norm=observe.stop_norm, stop_flips=observe.stop_flips,
+                        drift_limit=observe.drift_limit, torque_kind=torque.kind, torque_params=torque.params,
+                        torque_fn=torque.fn)
         if final_w is not None:
             final_w[lo:hi] = state.T
         if trajectory is not None:
