@@ -11,6 +11,11 @@ sys.dont_write_bytecode = False  # before tumble and the test modules are import
 
 import os  # noqa: E402
 
+# The device kernels (tests/test_cuda.py) run on numba-cuda's simulator unless the environment says otherwise
+# (NUMBA_ENABLE_CUDASIM=0 on a GPU machine runs the same tests on the GPU). numba reads the switch once, when it is
+# first imported, so it is set here, before anything imports numba; no other test touches numba.cuda.
+os.environ.setdefault("NUMBA_ENABLE_CUDASIM", "1")
+
 import numba  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest

@@ -36,6 +36,7 @@ from ..kernels import BLOCK, METHODS, TORQUE_CONSTANT, TORQUE_SIGNATURE, TORQUE_
 from ..physics import exact
 from ..physics.bodies import finite_array, one_body, spin_vectors
 from ..registry import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK, choose_method
+from .device import check_on_device, resolve_device, stepper
 from .sampling import CHUNK
 
 __all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "Interrupted", "STATUS_NAMES", "run_ensemble", "torque_spec"]
@@ -260,7 +261,7 @@ def _checked_arguments(w0, t_end, dt, axis, save_every, probe_times, norm_weight
 
 def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, final=True, save_every=None,
                  probe_times=None, norm_weights=None, max_flips=0, drift=False, stop_norm=0.0, stop_flips=0,
-                 drift_limit=DEFAULT_DRIFT_LIMIT, chunk=CHUNK, progress=None, attitude=False):
+                 drift_limit=DEFAULT_DRIFT_LIMIT, chunk=CHUNK, progress=None, attitude=False, device="cpu"):
     # size: 19 keywords, the engine's public call (tumble.run_ensemble); each is one observer or stop request a caller
     # may name, checked at once by _checked_arguments and packed into the _Observe record below.
     """Run an ensemble of spins and observe it on the fly.
@@ -303,6 +304,10 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
     attitude : bool
         Also integrate the orientation, stored with the trajectory (needs ``save_every``; no other observer).
         The body frame is the space frame at ``t = 0``.
+    device : str
+        ``"cpu"`` or ``"cuda"`` (:func:`tumble.engine.device.resolve_device`). On ``"cuda"`` today: a fixed-step
+        method other than the implicit midpoint rule, a constant torque or a named profile, the final state and the
+        trajectory; anything else is refused (``device 'cuda': ... not yet on the device``), never run on the CPU.
 
     Returns
     -------
@@ -314,6 +319,7 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         An argument that is not finite, of the wrong shape or out of range (named in the message), an unknown
         method, a method that cannot serve the request, a torque profile shorter than its steps.
     """
+    device = resolve_device(device)
     moments = one_body(body)
     w0, t_end, dt, probe_times, norm_weights = _checked_arguments(
         w0, t_end, dt, axis, save_every, probe_times, norm_weights, max_flips, stop_norm, stop_flips, drift_limit,
@@ -340,9 +346,13 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         weights=np.ones(3) if norm_weights is None else np.asarray(norm_weights, dtype=float), max_flips=max_flips,
         drift=drift, attitude=attitude, stop_norm=stop_norm if early else 0.0, stop_flips=stop_flips if early else 0,
         drift_limit=drift_limit if torque.free else 0.0)
+    if device == "cuda":
+        check_on_device(chosen, attitude=attitude, torque_fn=torque.fn, probe_steps=observe.probe_steps,
+                        max_flips=observe.max_flips, drift=observe.drift, stop_norm=observe.stop_norm,
+                        stop_flips=observe.stop_flips)
     info = {"path": "closed form" if chosen == "exact" else "fixed-step kernel", "method": chosen,
             "reason": reason, "dt": dt, "n_steps": n_steps, "torque": torque.text, "early_stop": early,
-            "samples": n}
+            "samples": n, "device": device}
     show = sys.stderr.isatty() if progress is None else progress
     started = time.perf_counter()
     bar = tqdm(total=n, unit="spins", desc=f"{chosen}") if show else contextlib.nullcontext(_NO_BAR)
@@ -367,9 +377,9 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
             info.update(run_seconds=time.perf_counter() - started, sample_steps_computed=n * n_steps,
                         sample_steps_skipped=0)
             return result._replace(info=info)
-        info["jit_seconds"] = _warm(chosen, torque, observe)
+        info["jit_seconds"] = _warm(chosen, torque, observe) if device == "cpu" else 0.0  # device: in run_seconds
         started = time.perf_counter()
-        result = _run_kernel(METHODS[chosen], moments, w0, dt, n_steps, observe, torque, chunks())
+        result = _run_kernel(METHODS[chosen], moments, w0, dt, n_steps, observe, torque, chunks(), device)
     steps_taken = result.steps_taken
     info.update(run_seconds=time.perf_counter() - started, sample_steps_computed=_block_steps(steps_taken),
                 sample_steps_skipped=int(n * n_steps - steps_taken.sum()))
@@ -420,8 +430,10 @@ class _Observe(NamedTuple):
     drift_limit: float
 
 
-def _run_kernel(method, moments, w0, dt, n_steps, observe, torque, chunks):
+def _run_kernel(method, moments, w0, dt, n_steps, observe, torque, chunks, device="cpu"):
+    # size: one more than the limit: the device, whose kernels take the CPU kernels' arguments
     """A fixed-step kernel over the samples, chunk by chunk, the observers' outputs gathered per sample."""
+    step = run if device == "cpu" else stepper(device)
     n = len(w0)
     final_w = np.empty((n, 3)) if observe.final else None
     trajectory = np.empty((n, len(observe.times), 3)) if observe.save else None
@@ -433,11 +445,11 @@ def _run_kernel(method, moments, w0, dt, n_steps, observe, torque, chunks):
     steps_taken = np.empty(n, dtype=np.int64)
     for lo, hi in chunks:
         state = np.array(w0[lo:hi].T, order="C")
-        observed = run(method, state, moments, 0.0, dt, n_steps, save_every=observe.save, axis=observe.axis,
-                       norm_weights=observe.weights, probe_steps=observe.probe_steps, max_flips=observe.max_flips,
-                       drift=observe.drift, stop_norm=observe.stop_norm, stop_flips=observe.stop_flips,
-                       drift_limit=observe.drift_limit, torque_kind=torque.kind, torque_params=torque.params,
-                       torque_fn=torque.fn)
+        observed = step(method, state, moments, 0.0, dt, n_steps, save_every=observe.save, axis=observe.axis,
+                        norm_weights=observe.weights, probe_steps=observe.probe_steps, max_flips=observe.max_flips,
+                        drift=observe.drift, stop_norm=observe.stop_norm, stop_flips=observe.stop_flips,
+                        drift_limit=observe.drift_limit, torque_kind=torque.kind, torque_params=torque.params,
+                        torque_fn=torque.fn)
         if final_w is not None:
             final_w[lo:hi] = state.T
         if trajectory is not None:

@@ -16,6 +16,7 @@ from ..kernels import METHODS, run
 from ..physics import exact
 from ..physics.bodies import finite_array, one_body, spin_vectors
 from ..registry import STATUS_NAMES, STATUS_OK
+from .device import not_on_device, resolve_device, stepper
 from .ensemble import run_ensemble, torque_spec
 
 __all__ = ["integrate", "propagate", "METHOD_NAMES"]
@@ -80,7 +81,7 @@ def _horizon_and_step(t_end, dt):
     return t_end, dt
 
 
-def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None):
+def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None, device="cpu"):
     """Integrate Euler's equations and return the spins as an array: the lean path of :func:`integrate`.
 
     The same validation, step plan and kernels as :func:`integrate` (the results are the same bits), without
@@ -105,6 +106,9 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
         As :func:`integrate` (``None`` or zero: torque-free).
     save_every : int, optional
         None: only the final state. ``k``: the initial state, every k-th step and the final one.
+    device : str
+        ``"cpu"`` or ``"cuda"`` (:func:`tumble.engine.device.resolve_device`; not yet for ``"exact"``, the implicit
+        midpoint rule or a torque function).
 
     Returns
     -------
@@ -116,8 +120,10 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
     Raises
     ------
     ValueError
-        Invalid moments, spins, horizon, step, method, torque or save interval, or ``"exact"`` with a torque.
+        Invalid moments, spins, horizon, step, method, torque or save interval, or ``"exact"`` with a torque; a
+        device that is unknown, missing, or cannot run this yet (``device 'cuda': ...``).
     """
+    device = resolve_device(device)
     moments = one_body(body)
     single = np.ndim(w0) == 1
     w = _initial_spins(w0)
@@ -126,6 +132,8 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
     kind, params, fn, _ = torque_spec(torque)
     chosen, _ = registry.choose_method(method, torque_free=params is None and fn is None)
     n_steps, step = _step_plan(t_end, dt)
+    if device == "cuda" and chosen == "exact":
+        raise not_on_device("the closed form (method 'exact') is")
     if chosen == "exact" and not save_every:
         out = exact.omega_at(moments, w, t_end)
     elif chosen == "exact":  # the stepping path's store times: 0, k, 2k, ..., and the end
@@ -136,13 +144,14 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
         out = exact.omega(moments, w, times)
     else:
         state = np.array(w.T, order="C")
-        observed = run(METHODS[chosen], state, moments, 0.0, step, n_steps, save_every=save_every or 0,
-                       torque_kind=kind, torque_params=params, torque_fn=fn)
+        observed = stepper(device)(METHODS[chosen], state, moments, 0.0, step, n_steps, save_every=save_every or 0,
+                                   torque_kind=kind, torque_params=params, torque_fn=fn)
         out = observed.saved.transpose(2, 0, 1) if save_every else state.T
     return out[0] if single else out
 
 
-def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=None, attitude=False):
+def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=None, attitude=False, *, device="cpu"):
+    # size: the contract's eight arguments (DESIGN.md) and the device keyword every engine call takes
     """Integrate Euler's equations for an ensemble of initial spins.
 
     ``I1 w1' = (I2 - I3) w2 w3 + N1`` and cyclic, in the principal-axis (body) frame, with a fixed step, or
@@ -173,6 +182,8 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
         first) of the body-to-space rotation, ``v_space = q v_body q*``, with the space frame equal to the body
         frame at ``t = 0``. Every method carries it in its own way (:mod:`tumble.kernels.attitude`); ``"exact"``
         gives it in closed form (:func:`tumble.physics.exact.attitude`). Without it no attitude code runs.
+    device : str
+        ``"cpu"`` or ``"cuda"`` (as :func:`propagate`; recorded in ``attrs["device"]``).
 
     Returns
     -------
@@ -198,7 +209,7 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
     # in the driver for both.
     result = run_ensemble(moments, w, t_end, step, method=method, torque=torque, final=False,
                           save_every=save_every or max(n_steps, 1), drift_limit=0.0, progress=False,
-                          attitude=bool(attitude))
+                          attitude=bool(attitude), device=device)
     omega = result.trajectory if save_every else result.trajectory[:, -1:, :]
     times = result.times if save_every else np.array([t_end])
     info = result.info
@@ -233,6 +244,7 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
         "sample_steps_computed": info["sample_steps_computed"],
         "sample_steps_skipped": info["sample_steps_skipped"],
         "attitude": int(bool(attitude)),  # 0: no attitude code ran
+        "device": info["device"],
     }
     return indexed_dataset(variables, attrs)
 

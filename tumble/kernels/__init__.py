@@ -13,6 +13,16 @@ from .models import BLOCK as MODEL_BLOCK
 from .models import MODEL_CODES, MODEL_METHODS, ModelObserved, model_methods, model_rhs, run_model
 from .steppers import TORQUE_CONSTANT, TORQUE_PULSE, TORQUE_RAMP, TORQUE_SINE, TORQUE_USER
 
-__all__ = ["BLOCK", "METHODS", "MODEL_BLOCK", "MODEL_CODES", "MODEL_METHODS", "Method", "ModelObserved", "Observed",
-           "TORQUE_CONSTANT", "TORQUE_PULSE", "TORQUE_RAMP", "TORQUE_SIGNATURE", "TORQUE_SINE", "TORQUE_USER", "elliptic",
-           "fits", "model_methods", "side_by_side", "model_rhs", "parallel_block", "run", "run_attitude", "run_model"]
+__all__ = ["BLOCK", "METHODS", "MODEL_BLOCK", "MODEL_CODES", "MODEL_METHODS", "TORQUE_CONSTANT", "TORQUE_PULSE",
+           "TORQUE_RAMP", "TORQUE_SIGNATURE", "TORQUE_SINE", "TORQUE_USER", "device_kernels", "elliptic", "fits",
+           "Method", "model_methods", "model_rhs", "ModelObserved", "Observed", "parallel_block", "run",
+           "run_attitude", "run_model", "side_by_side"]
+
+
+def device_kernels():
+    """The CUDA kernels, :mod:`tumble.kernels.cuda` (its ``run`` takes :func:`run`'s arguments). Imported on the
+    first call, never by ``import tumble``: importing them imports ``numba.cuda`` (``tumble.engine.device`` checks
+    first that numba-cuda and a GPU, or its simulator, are there)."""
+    from . import cuda
+
+    return cuda

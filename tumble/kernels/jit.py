@@ -11,6 +11,9 @@ error model are decided here and nowhere else.
   formulas the exact solution relies on.
 * ``error_model="numpy"``: a division by zero gives inf/NaN (and is caught by the status checks) instead of
   raising, which also lets loops vectorise.
+
+The device kernels (:mod:`tumble.kernels.cuda`) are compiled through :func:`cuda_jit`. The ``@jit`` functions they
+call are compiled for the device by numba-cuda with the options above (it copies a CPU function's options).
 """
 
 import numba
@@ -59,3 +62,20 @@ def parallel_block(n, largest, smallest=64):
     threads = max(1, numba.get_num_threads())
     share = -(-int(n) // threads)
     return int(max(smallest, min(largest, -(-share // 8) * 8)))
+
+
+# CUDA kernels: fastmath off, which on the device means IEEE division and square root and no flush of subnormals to
+# zero (numba-cuda's fastmath=True turns on all three, and approximate division breaks the 1e-10 agreement with the
+# CPU); NVVM fuses multiply-adds by default, as the CPU's ``contract``. No disk cache: a device kernel is a closure
+# over the method's step (a dispatcher), and numba's cache key pickles the closure's cells, which for a dispatcher
+# differs from one process to the next (measured on the CPU: a new cache entry every run, never a hit), so a cache
+# would only fill __pycache__. The simulator ignores the option anyway.
+_CUDA_OPTIONS = dict(cache=False, fastmath=False)
+
+
+def cuda_jit(fn):
+    """Compile ``fn`` as a CUDA kernel with tumble's options. Imports ``numba.cuda``: only the device path calls
+    this (importing tumble does not import numba.cuda)."""
+    from numba import cuda
+
+    return cuda.jit(**_CUDA_OPTIONS)(fn)

@@ -11,7 +11,7 @@ from .attitude import FAMILY_MIDPOINT, FAMILY_RUNGE_KUTTA, FAMILY_SPLITTING, pro
 from .drivers import driver
 from .steppers import TORQUE_CONSTANT, body_constants
 
-__all__ = ["BLOCK", "METHODS", "Method", "Observed", "run", "run_attitude"]
+__all__ = ["BLOCK", "METHODS", "Method", "Observed", "from_kernel_frame", "kernel_frame", "run", "run_attitude"]
 
 # Samples per SIMD block: large enough to amortise the per-step dispatch, small enough to stay in L1.
 BLOCK = 256
@@ -115,6 +115,55 @@ def _torque_free_constants(moments):
     return found
 
 
+def kernel_frame(method, w, moments, torque_params, torque_fn):
+    """The frame a kernel runs in, shared by the CPU driver and the device (:mod:`tumble.kernels.cuda`).
+
+    Moments (and a built-in torque's vector) in units of :func:`_in_moment_units`, and for a splitting the axes
+    relabelled by :func:`_relabelling`.
+
+    Parameters
+    ----------
+    method : Method
+    w : ndarray, shape (3, N)
+        Body-frame angular velocities, rad/s (structure of arrays).
+    moments : ndarray, shape (3,)
+        Principal moments, kg m².
+    torque_params, torque_fn
+        As :func:`run`.
+
+    Returns
+    -------
+    kernel_w : ndarray, shape (3, N)
+        ``w`` itself, or its relabelled copy.
+    constants : tuple
+        :func:`tumble.kernels.steppers.body_constants` of the moments in the kernel frame.
+    torque_params : ndarray (4,) or None
+        In moment units and the kernel frame.
+    relabel : tuple or None
+        ``(perm, sign)``, undone by :func:`from_kernel_frame`.
+    """
+    if torque_params is None and torque_fn is None and method.splitting is None:
+        return w, _torque_free_constants(moments)[1], None, None  # the common case, without numpy round trips
+    moments, torque_params = _in_moment_units(moments, torque_params, torque_fn)
+    relabel = _relabelling(method, moments, torque_params, torque_fn)
+    if relabel is not None:
+        perm, sign = relabel
+        w = np.ascontiguousarray(sign * w[perm])
+        moments = moments[perm]
+        if torque_params is not None:
+            torque_params = np.asarray(torque_params, dtype=float).copy()  # (N1, N2, N3, tau): turn the vector
+            torque_params[:3] = sign * torque_params[perm]
+    return w, body_constants(moments), torque_params, relabel
+
+
+def from_kernel_frame(relabel, x, axis=0):
+    """``x`` (components along ``axis``) back from the kernel frame of :func:`kernel_frame`."""
+    if relabel is None:
+        return x
+    perm, sign = relabel
+    return sign * np.take(x, np.argsort(perm), axis=axis)
+
+
 def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weights=None, probe_steps=None,
         max_flips=0,
         drift=False, stop_norm=0.0, stop_flips=0, drift_limit=0.0, torque_kind=TORQUE_CONSTANT,
@@ -157,24 +206,13 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
     Observed
     """
     n = w.shape[1]
-    constants = None
-    if torque_params is None and torque_fn is None and method.splitting is None:
-        moments, constants = _torque_free_constants(moments)  # the common case, without numpy round trips
-        relabel = None
-    else:
-        moments, torque_params = _in_moment_units(moments, torque_params, torque_fn)
-        relabel = _relabelling(method, moments, torque_params, torque_fn)
-    kernel_w, kernel_axis = w, axis
+    kernel_w, constants, torque_params, relabel = kernel_frame(method, w, moments, torque_params, torque_fn)
+    kernel_axis = axis
     weights = _UNIT_WEIGHTS if norm_weights is None else np.ascontiguousarray(norm_weights, dtype=float)
     if relabel is not None:
         perm, sign = relabel
-        kernel_w = np.ascontiguousarray(sign * w[perm])
-        moments = moments[perm]
         kernel_axis = int(np.argsort(perm)[axis])
         weights = weights[perm]
-        if torque_params is not None:
-            torque_params = np.asarray(torque_params, dtype=float).copy()  # (N1, N2, N3, tau): turn the vector
-            torque_params[:3] = sign * torque_params[perm]
     if torque_fn is not None and torque_params is None:
         torque_params = np.zeros(0)
 
@@ -193,17 +231,14 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
     status = np.zeros(n, dtype=np.int8)
     steps_taken = np.zeros(n, dtype=np.int64)
     torque_free = torque_params is None and torque_fn is None
-    if constants is None:
-        constants = body_constants(moments)
     args = (method.kernel_id, kernel_w, constants, float(t0), float(h), int(n_steps), int(block),
             int(save_every), saved, int(kernel_axis), weights, probe_steps, probes, flips, flip_count, drifts, status,
             steps_taken, float(stop_norm), int(stop_flips), float(drift_limit), int(torque_kind), torque_params,
             torque_fn)
     driver(torque_free, torque_fn)(*args)
     if relabel is not None:
-        inverse = np.argsort(perm)
-        w[:] = sign * kernel_w[inverse]
-        saved = sign * saved[:, inverse]
+        w[:] = from_kernel_frame(relabel, kernel_w)
+        saved = from_kernel_frame(relabel, saved, axis=1)
     return Observed(saved if save_every > 0 else None, probes if len(probe_steps) else None,
                     flips if max_flips > 0 else None, flip_count if max_flips > 0 else None, drifts if drift else None,
                     status, steps_taken)

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..registry import TORQUE_USER, torque_profile  # noqa: F401  (TORQUE_USER re-exported)
 from .jit import jit
-from .tableaux import ROTATE_1, ROTATE_2, ROTATE_3, SPLITTING2, SPLITTING4, SYMPLECTIC_EULER
+from .tableaux import ROTATE_1, ROTATE_2, SPLITTING2, SPLITTING4, SYMPLECTIC_EULER, TORQUE
 from .trig import sincos
 
 # Built-in torque profiles (numeric parameters only, so that studies stay data). params = (N1, N2, N3, tau):
@@ -87,6 +87,20 @@ def rotate(theta, wb, wc, r_cb, r_bc):
     return c * wb + s * r_cb * wc, c * wc - s * r_bc * wb
 
 
+@jit(inline=True)
+def rotate_about(flow, tau, w1, w2, w3, body):
+    """The exact flow of ``H_a`` (:func:`rotate`) over ``tau`` for one sample, ``a`` = ``flow``
+    (:data:`tumble.kernels.tableaux.ROTATE_1` ... ``ROTATE_3``): the per-sample sub-flow of every splitting, with a
+    torque (:func:`splitting_with_torque`) and on the device (:mod:`tumble.kernels.cuda`)."""
+    if flow == ROTATE_1:
+        w2, w3 = rotate(w1 * tau, w2, w3, body[9], body[11])
+    elif flow == ROTATE_2:
+        w3, w1 = rotate(w2 * tau, w3, w1, body[10], body[7])
+    else:
+        w1, w2 = rotate(w3 * tau, w1, w2, body[6], body[8])
+    return w1, w2, w3
+
+
 @jit
 def rotate_block(axis, tau, y1, y2, y3, body):
     """The exact flow of ``H_a`` (:func:`rotate`) over ``tau`` for every sample of a block: ``(w_b, w_c)`` turns
@@ -138,16 +152,25 @@ def splitting_with_torque(w1, w2, w3, t, h, body, flows, fractions, torque_kind,
     for i in range(flows.shape[0]):
         tau = fractions[i] * h
         flow = flows[i]
-        if flow == ROTATE_1:
-            w2, w3 = rotate(w1 * tau, w2, w3, body[9], body[11])
-        elif flow == ROTATE_2:
-            w3, w1 = rotate(w2 * tau, w3, w1, body[10], body[7])
-        elif flow == ROTATE_3:
-            w1, w2 = rotate(w3 * tau, w1, w2, body[6], body[8])
-        else:
+        if flow == TORQUE:
             w1, w2, w3 = torque_subflow(clock, tau, w1, w2, w3, body, torque_kind, torque_params, torque_fn)
             clock += tau
+        else:
+            w1, w2, w3 = rotate_about(flow, tau, w1, w2, w3, body)
     return w1, w2, w3
+
+
+@jit
+def splitting_free_sample(w1, w2, w3, h, body, target, flows, fractions):
+    """One torque-free step of a composition of exact sub-flows for one sample, ending on ``|L|**2 = target``.
+
+    The sample-by-sample form of the generated torque-free block steps of :mod:`tumble.kernels.fused` (which turn
+    the whole block sub-flow by sub-flow, then project each sample): the same sub-flows (:func:`rotate_about`) in
+    the same order, for the device's one thread per sample (:mod:`tumble.kernels.cuda`).
+    """
+    for i in range(flows.shape[0]):
+        w1, w2, w3 = rotate_about(flows[i], fractions[i] * h, w1, w2, w3, body)
+    return project_l_squared(w1, w2, w3, target, body)
 
 
 def make_splitting_torque_block(splitting):

@@ -109,6 +109,23 @@ def _fma(typingctx, a, b, c):
     return sig, codegen
 
 
+@intrinsic
+def _floor(typingctx, x):
+    """``floor(x)`` as a float (``llvm.floor.f64``): what ``np.floor`` compiles to on the CPU (the same bits, and it
+    vectorises), and it compiles for a CUDA device too, where numba-cuda has no ``np.floor`` (``math.floor`` would
+    return an integer, a float-to-integer conversion that AVX2 cannot vectorise)."""
+    if not isinstance(x, types.Float):
+        return None
+    sig = types.float64(types.float64)
+
+    def codegen(context, builder, signature, args):
+        value = context.cast(builder, args[0], signature.args[0], types.float64)
+        floor = builder.module.declare_intrinsic("llvm.floor", [value.type])
+        return builder.call(floor, [value])
+
+    return sig, codegen
+
+
 @jit(inline=True)
 def _two_sum(a, b):
     """``(s, e)`` with ``s = RN(a + b)`` and ``s + e = a + b`` exactly (Knuth, TAOCP vol. 2, 4.2.2)."""
@@ -138,7 +155,7 @@ def sincos(x):
     ``k_sin``/``k_cos`` polynomials on the double-double remainder (module docstring).
     """
     # 1. quadrant
-    q = np.floor(x * _INV_PIO2 + 0.5)
+    q = _floor(x * _INV_PIO2 + 0.5)
     # 2. r = x - q pi/2 as y0 + y1
     r1 = _fma(-q, _PIO2_1, x)  # exact
     p2 = q * _PIO2_2  # exact for |q| < 2^30; beyond, its rounding error is recovered:
@@ -156,7 +173,7 @@ def sincos(x):
     one_hz = 1.0 - hz
     cos_r = one_hz + (((1.0 - one_hz) - hz) + (z * pc - y0 * y1))
     # 4. quadrant fix-up: m = q mod 4 in {0, 1, 2, 3}
-    m = q - 4.0 * np.floor(0.25 * q)
+    m = q - 4.0 * _floor(0.25 * q)
     odd = (m == 1.0) | (m == 3.0)
     a = cos_r if odd else sin_r
     b = sin_r if odd else cos_r

@@ -1,0 +1,217 @@
+"""The device kernels (tumble/kernels/cuda.py) give the CPU kernels' answers, and a device that cannot run says why.
+
+They run on numba-cuda's simulator: tests/conftest.py sets ``NUMBA_ENABLE_CUDASIM=1`` before numba is imported
+(numba reads it once). With ``NUMBA_ENABLE_CUDASIM=0`` on a GPU machine the same tests run on the GPU. Sizes are
+tiny: the simulator runs the kernel body in Python, one thread at a time (the ``@jit`` steps it calls run as
+compiled CPU code, so there the results equal the CPU's bit for bit torque-free; with a torque the CPU's vectorised
+block loop may fuse a multiply-add differently, about 1e-16 relative).
+"""
+
+import importlib.util
+import os
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+import tumble
+from tumble.engine.device import resolve_device
+
+HAS_NUMBA_CUDA = importlib.util.find_spec("numba_cuda") is not None
+NO_NUMBA_CUDA = 'numba-cuda is not installed (pip install -e ".[test]")'
+needs_numba_cuda = pytest.mark.skipif(not HAS_NUMBA_CUDA, reason=NO_NUMBA_CUDA)
+
+BODY = (2.0, 1.0, 3.0)  # unsorted: the splittings relabel their axes (an odd permutation, sign -1)
+STEPPED = ("rk4", "rk8", "symplectic_euler", "splitting2", "splitting4")
+RELATIVE = 1e-12  # device against CPU, relative to the largest |w|
+
+
+@pytest.fixture(scope="module")
+def cuda_device():
+    """The device is usable (the simulator, or a GPU), else the test is skipped with the reason."""
+    if not HAS_NUMBA_CUDA:
+        pytest.skip(NO_NUMBA_CUDA)
+    try:
+        return resolve_device("cuda")
+    except ValueError as err:
+        pytest.skip(str(err))
+
+
+@pytest.fixture(scope="module")
+def spins():
+    rng = np.random.default_rng(28)
+    return np.array([0.0, 1.0, 0.0]) + 0.3 * rng.normal(size=(24, 3))
+
+
+def _agree(device, cpu):
+    assert device.shape == cpu.shape
+    assert np.all(np.isfinite(cpu))
+    assert np.max(np.abs(device - cpu)) <= RELATIVE * np.max(np.abs(cpu))
+
+
+@pytest.mark.parametrize("torque", [None, (0.05, -0.1, 0.2)], ids=["torque_free", "constant_torque"])
+@pytest.mark.parametrize("method", STEPPED)
+def test_every_method_on_the_device_gives_the_cpu_trajectory(cuda_device, spins, method, torque):
+    kwargs = dict(method=method, torque=torque, save_every=7)  # 30 steps: the end is stored as an extra state
+    cpu = tumble.propagate(BODY, spins, 0.3, 0.01, **kwargs)
+    device = tumble.propagate(BODY, spins, 0.3, 0.01, device="cuda", **kwargs)
+    assert cpu.shape == (24, 6, 3)
+    _agree(device, cpu)
+
+
+@pytest.mark.parametrize("profile", [
+    {"profile": "ramp", "vector": (0.0, 0.1, 0.3), "duration": 0.2},
+    {"profile": "sine", "vector": (0.2, 0.0, -0.1), "period": 0.15},
+    {"profile": "pulse", "vector": (0.1, 0.1, 0.1), "duration": 0.105},
+], ids=lambda p: p["profile"])
+@pytest.mark.parametrize("method", ["rk4", "splitting2"])
+def test_each_torque_profile_on_the_device_gives_the_cpu_final_state(cuda_device, spins, method, profile):
+    cpu = tumble.propagate(BODY, spins[:8], 0.3, 0.01, method=method, torque=profile)
+    device = tumble.propagate(BODY, spins[:8], 0.3, 0.01, method=method, torque=profile, device="cuda")
+    _agree(device, cpu)
+
+
+def test_integrate_on_the_device_records_it_and_gives_the_cpu_dataset(cuda_device, spins):
+    cpu = tumble.integrate(BODY, spins[:8], 0.2, 0.01, method="splitting4", save_every=5)
+    device = tumble.integrate(BODY, spins[:8], 0.2, 0.01, method="splitting4", save_every=5, device="cuda")
+    assert (cpu.attrs["device"], device.attrs["device"]) == ("cpu", "cuda")
+    np.testing.assert_array_equal(device.time, cpu.time)
+    _agree(device.omega.values, cpu.omega.values)
+    assert (device.status.values == 0).all()
+
+
+@pytest.mark.parametrize("torque, statuses", [(None, {0, 2}), ((0.0, 0.0, 1e-3), {0, 1})],
+                         ids=["drift_limit", "nonfinite"])
+def test_stopped_samples_keep_their_state_and_status_as_on_the_cpu(cuda_device, torque, statuses):
+    """A sample that drifts past drift_limit (torque-free, checked every step) or blows up (non-finite, found every
+    32 steps) stops where the CPU driver stops it, with the same status, steps taken and frozen trajectory."""
+    w0 = np.array([[0.1, 1.0, 0.1], [1e150, 1e150, 1e150], [40.0, 30.0, 20.0], [0.1, 0.1, 1.0]])
+    kwargs = dict(method="rk4", torque=torque, final=True, save_every=10, progress=False)
+    cpu = tumble.run_ensemble(BODY, w0, 0.8, 0.02, **kwargs)
+    device = tumble.run_ensemble(BODY, w0, 0.8, 0.02, device="cuda", **kwargs)
+    assert set(cpu.status.tolist()) == statuses
+    assert cpu.steps_taken.min() < 40  # some sample stopped early
+    np.testing.assert_array_equal(device.status, cpu.status)
+    np.testing.assert_array_equal(device.steps_taken, cpu.steps_taken)
+    np.testing.assert_array_equal(np.isfinite(device.trajectory), np.isfinite(cpu.trajectory))
+    finite = np.isfinite(cpu.trajectory)
+    _agree(device.trajectory[finite], cpu.trajectory[finite])
+    np.testing.assert_array_equal(device.final, device.trajectory[:, -1])
+    assert device.info["device"] == "cuda"
+
+
+# --- asking for what cannot run is an error, never a silent CPU run ----------------------------------------------
+
+@pytest.mark.parametrize("device", ["gpu", "CUDA", None, 0])
+def test_an_unknown_device_is_refused_naming_the_argument_and_the_values(device):
+    with pytest.raises(ValueError, match=r"^device must be one of 'cpu', 'cuda'; got "):
+        tumble.propagate(BODY, [0.0, 1.0, 0.0], 0.1, 0.01, device=device)
+
+
+def _one_line(err):
+    message = str(err.value)
+    assert "\n" not in message
+    return message
+
+
+def test_cuda_without_numba_cuda_says_how_to_install_it(monkeypatch):
+    monkeypatch.setitem(sys.modules, "numba_cuda", None)  # makes `import numba_cuda` fail, as when not installed
+    with pytest.raises(ValueError) as err:
+        tumble.integrate(BODY, [[0.0, 1.0, 0.0]], 0.1, 0.01, device="cuda")
+    assert _one_line(err) == ("device 'cuda': numba-cuda is not installed; install it with "
+                              'pip install "tumble[gpu]"')
+
+
+@needs_numba_cuda
+def test_cuda_without_a_gpu_says_what_is_missing(monkeypatch):
+    from numba import cuda
+
+    monkeypatch.setattr(cuda, "is_available", lambda: False)
+    monkeypatch.setattr(cuda, "cuda_error", lambda: RuntimeError("CUDA driver library cannot be found.\n"))
+    with pytest.raises(ValueError) as err:
+        tumble.run_ensemble(BODY, [[0.0, 1.0, 0.0]], 0.1, 0.01, method="rk4", device="cuda")
+    assert _one_line(err).startswith("device 'cuda': no usable GPU (CUDA driver library cannot be found.)")
+    assert 'pip install "tumble[gpu]"' in str(err.value)
+
+
+@needs_numba_cuda
+def test_cuda_with_a_numpy_numba_cuda_cannot_compile_with_says_so(monkeypatch):
+    from numba import cuda
+    from numba.core import config
+
+    monkeypatch.setattr(cuda, "is_available", lambda: True)
+    monkeypatch.setattr(config, "ENABLE_CUDASIM", 0)
+    monkeypatch.delattr(np, "row_stack", raising=False)
+    with pytest.raises(ValueError) as err:
+        resolve_device("cuda")
+    assert _one_line(err).startswith("device 'cuda': numba-cuda cannot compile with numpy ")
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(method="implicit_midpoint"), "method 'implicit_midpoint' is not yet on the device"),
+    (dict(method="rk4", torque=lambda t, w1, w2, w3: (0.0, 0.0, 0.1)), "a Python torque function cannot run"),
+    (dict(method="auto"), "the closed form (method 'exact', which 'auto' picks for a torque-free run) is not yet"),
+    (dict(method="exact"), "the closed form"),
+    (dict(method="rk4", probe_times=[0.05]), "observing probe times is not yet on the device"),
+    (dict(method="rk4", max_flips=2), "observing flips is not yet"),
+    (dict(method="rk4", drift=True), "observing drift records is not yet"),
+    (dict(method="rk4", final=False, stop_norm=0.5), "observing early stop is not yet"),
+    (dict(method="rk4", save_every=1, attitude=True), "the attitude (attitude=True) is not yet on the device"),
+], ids=["implicit_midpoint", "torque_function", "auto_closed_form", "exact", "probes", "flips", "drift", "early_stop",
+        "attitude"])
+def test_what_the_device_does_not_do_yet_is_refused(cuda_device, kwargs, message):
+    with pytest.raises(ValueError) as err:
+        tumble.run_ensemble(BODY, [[0.0, 1.0, 0.0]], 0.1, 0.01, device="cuda", progress=False, **kwargs)
+    assert _one_line(err).startswith("device 'cuda': ")
+    assert message in str(err.value)
+
+
+@pytest.mark.parametrize("kwargs", [dict(method="exact"), dict(method="implicit_midpoint"),
+                                    dict(torque=lambda t, w1, w2, w3: (0.0, 0.0, 0.1))],
+                         ids=["exact", "implicit_midpoint", "torque_function"])
+def test_propagate_refuses_the_same_on_the_device(cuda_device, kwargs):
+    with pytest.raises(ValueError, match=r"^device 'cuda': "):
+        tumble.propagate(BODY, [0.0, 1.0, 0.0], 0.1, 0.01, device="cuda", **kwargs)
+
+
+def test_importing_tumble_does_not_import_numba_cuda():
+    code = ("import sys, tumble; "
+            "print(sorted(m for m in sys.modules if m == 'numba.cuda' or m.startswith(('numba.cuda.', 'numba_cuda'))))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+
+# --- the same kernels compile for a real GPU (NVVM, no GPU needed) -----------------------------------------------
+
+_PTX = textwrap.dedent("""
+    import types
+    import numba.cuda.dispatcher as dispatcher
+    from numba import cuda, types as nt
+    from tumble.kernels import METHODS, device_kernels
+
+    # Device functions are compiled for the current GPU's compute capability; without a GPU, name one (H100).
+    dispatcher.get_current_device = lambda: types.SimpleNamespace(compute_capability=(9, 0))
+    f8, i8 = nt.float64, nt.int64
+    signature = (f8[:, ::1], nt.UniTuple(f8, 12), f8, f8, i8, i8, f8[:, :, ::1], nt.int8[::1], i8[::1], f8, i8,
+                 nt.UniTuple(f8, 4))
+    for name in ("rk4", "rk8", "symplectic_euler", "splitting2", "splitting4"):
+        for torque_free in (True, False):
+            kernel = device_kernels().make_kernel(METHODS[name], torque_free)
+            ptx, _ = cuda.compile_ptx(kernel.py_func, signature, cc=(9, 0))
+            assert "div.approx" not in ptx and "fma.rn.f64" in ptx, name
+            print(name, torque_free, ptx.count("\\n"))
+""")
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(importlib.util.find_spec("nvidia") is None, reason="no NVVM wheel (pip install nvidia-nvvm "
+                    "nvidia-cuda-nvrtc, or the gpu extra)")
+def test_every_device_kernel_compiles_to_ptx_for_a_gpu():
+    """numba-cuda compiles each method's kernel, the CPU's per-sample steps included, to PTX for sm_90 with IEEE
+    division and fused multiply-adds (about 25 s; a private hook stands in for the GPU's compute capability)."""
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="0")
+    result = subprocess.run([sys.executable, "-c", _PTX], capture_output=True, text=True, env=env)
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert len(result.stdout.splitlines()) == 10

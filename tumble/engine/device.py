@@ -1,0 +1,111 @@
+"""Where an ensemble runs: the CPU (default) or a CUDA device, decided once by :func:`resolve_device`.
+
+``numba.cuda`` is imported only here and only when ``"cuda"`` is asked for, so that ``import tumble`` never pays for
+it. Asking for ``"cuda"`` where it cannot run is a ``ValueError`` whose one line starts ``device 'cuda':`` and says
+what is missing: there is no silent fallback to the CPU. numba-cuda's simulator (``NUMBA_ENABLE_CUDASIM=1``, set
+before numba is imported) counts as a device: it runs the device kernels in Python, which is how the tests check
+them without a GPU.
+"""
+
+import importlib
+
+import numpy as np
+
+from ..kernels import METHODS, device_kernels, run
+
+__all__ = ["DEVICES", "INSTALL", "check_on_device", "not_on_device", "resolve_device", "stepper"]
+
+#: The values of every ``device`` argument.
+DEVICES = ("cpu", "cuda")
+#: How to install what the device needs (the ``gpu`` extra of pyproject.toml).
+INSTALL = 'pip install "tumble[gpu]"'
+
+
+def resolve_device(device):
+    """``"cpu"`` or ``"cuda"``, checked: a ``device`` argument as every public call takes it.
+
+    Parameters
+    ----------
+    device : str
+        ``"cpu"`` (default everywhere) or ``"cuda"``.
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    ValueError
+        ``device`` is not one of :data:`DEVICES` (the message names the argument and the values); or ``"cuda"``
+        where numba-cuda is not installed or no GPU (nor the simulator) is usable (``device 'cuda': ...``, one line
+        with the reason and :data:`INSTALL`).
+    """
+    if isinstance(device, str) and device in DEVICES:
+        if device == "cuda":
+            problem = _cuda_problem()
+            if problem:
+                raise ValueError(f"device 'cuda': {problem}")
+        return device
+    raise ValueError(f"device must be one of {', '.join(repr(d) for d in DEVICES)}; got {device!r}")
+
+
+def _cuda_problem():
+    """Why the CUDA device cannot run here, or None."""
+    try:
+        importlib.import_module("numba_cuda")  # numba's own numba.cuda (deprecated, still shipped) is not enough
+    except ImportError:
+        return f"numba-cuda is not installed; install it with {INSTALL}"
+    from numba import cuda
+
+    if cuda.is_available():  # a driver, a GPU and NVVM; always True on the simulator
+        return _numpy_problem()
+    error = cuda.cuda_error()
+    if error is not None:
+        reason = " ".join(str(error).split()).rstrip(":")
+        return (f"no usable GPU ({reason}); it needs an NVIDIA GPU with its driver and numba-cuda ({INSTALL}), or "
+                "NUMBA_ENABLE_CUDASIM=1 for numba-cuda's simulator")
+    return (f"the CUDA compiler (NVVM) is not found; install it with {INSTALL} (or set NUMBA_ENABLE_CUDASIM=1 "
+            "to run on numba-cuda's simulator)")
+
+
+def _numpy_problem():
+    """numba-cuda 0.30.4 registers ``numpy.row_stack``, which numpy 2.5 removed, when it first compiles for a GPU;
+    the simulator does not compile. Found here rather than as an AttributeError inside the first launch."""
+    from numba.core import config
+
+    if config.ENABLE_CUDASIM or hasattr(np, "row_stack"):
+        return None
+    return (f"numba-cuda cannot compile with numpy {np.__version__} (it calls numpy.row_stack, removed in numpy "
+            f"2.5); install the versions that work together with {INSTALL}")
+
+
+def stepper(device):
+    """The fixed-step kernels' run of ``device`` (resolved): :func:`tumble.kernels.run` or its device counterpart,
+    which takes the same arguments and returns the same record."""
+    return run if device == "cpu" else device_kernels().run
+
+
+def not_on_device(what):
+    """The ``ValueError`` for a part of a run that the device does not do yet (``what`` ends with its verb)."""
+    return ValueError(f"device 'cuda': {what} not yet on the device; run it with device='cpu'")
+
+
+def check_on_device(method, *, attitude=False, **observers):
+    """Raise the ``device 'cuda':`` ``ValueError`` for a run the device cannot do yet, before anything runs.
+
+    Parameters
+    ----------
+    method : str
+        The chosen method (``"auto"`` already resolved).
+    attitude : bool
+    **observers
+        The keywords of :func:`tumble.kernels.cuda.refusal`: ``torque_fn``, ``probe_steps``, ``max_flips``,
+        ``drift``, ``stop_norm``, ``stop_flips``.
+    """
+    if method == "exact":
+        raise not_on_device("the closed form (method 'exact', which 'auto' picks for a torque-free run) is")
+    if attitude:
+        raise not_on_device("the attitude (attitude=True) is")
+    problem = device_kernels().refusal(METHODS[method], **observers)
+    if problem:
+        raise ValueError(problem)
