@@ -31,7 +31,6 @@ from ..engine.sampling import CHUNK
 from ..measure import cost
 from ..measure import model_scenes
 from ..measure import scenes as study
-from ..output import figures as plots
 from ..output import io
 from ..physics import theory
 from ..registry import STEPPING
@@ -580,6 +579,8 @@ def write_outputs(ds, resolved, directory, stem, *, action=None):
         with checkpoint.local_file_locks():
             stored = io.write_dataset(ds, staging / path.name, title=resolved["title"], study=resolved,
                                       seed_entropy=ds.attrs.get("seed_entropy"), action=action)
+        from ..output import figures as plots  # matplotlib: only where figures are drawn
+
         staged = plots.save_figures(stored, resolved["outputs"]["figures"], staging, stem,
                                     formats=tuple(resolved["outputs"]["format"]))
         figures = [directory / figure.name for figure in staged]
