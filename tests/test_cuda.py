@@ -215,3 +215,43 @@ def test_every_device_kernel_compiles_to_ptx_for_a_gpu():
     result = subprocess.run([sys.executable, "-c", _PTX], capture_output=True, text=True, env=env)
     assert result.returncode == 0, result.stderr[-3000:]
     assert len(result.stdout.splitlines()) == 10
+
+
+# --- the device choice beyond the engine: measure, scan, studies, the command line ---------------------------------
+
+@pytest.mark.parametrize("call", [
+    lambda: tumble.measure((1.0, 2.0, 3.0), 2, samples=8, device="cuda"),
+    lambda: tumble.scan((1.0, 2.0, 3.0), axis=(1, 2), samples=8, device="cuda"),
+    lambda: tumble.run_study("intermediate_axis", device="cuda"),
+], ids=["measure", "scan", "run_study"])
+def test_scenes_on_the_device_are_refused_until_their_observers_are_there(cuda_device, call):
+    with pytest.raises(ValueError) as err:
+        call()
+    assert _one_line(err).startswith("device 'cuda': a scene's measurement")
+    assert "run it with device='cpu'" in str(err.value)
+
+
+def test_scenes_asking_for_cuda_without_numba_cuda_say_how_to_install_it(monkeypatch):
+    monkeypatch.setitem(sys.modules, "numba_cuda", None)
+    with pytest.raises(ValueError) as err:
+        tumble.measure((1.0, 2.0, 3.0), 2, samples=8, device="cuda")
+    assert _one_line(err) == 'device \'cuda\': numba-cuda is not installed; install it with pip install "tumble[gpu]"'
+
+
+def test_a_study_names_a_bad_device_field():
+    from tumble.pipeline.config import StudyError
+
+    with pytest.raises(StudyError, match=r"integration\.device: unknown value 'gpu'.*one of 'cpu', 'cuda'"):
+        tumble.run_study({"integration": {"device": "gpu"}})
+    with pytest.raises(StudyError, match=r"integration\.device: must be a string"):
+        tumble.run_study({"integration": {"device": 1}})
+
+
+def test_tumble_run_device_cuda_exits_2_with_the_device_line_and_writes_nothing(tmp_path):
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="0")  # as on a machine without a GPU (CI): no simulator
+    done = subprocess.run([sys.executable, "-m", "tumble", "run", "--device", "cuda", "--out", str(tmp_path / "out")],
+                          capture_output=True, text=True, env=env, timeout=120)
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("device 'cuda':"), done.stderr
+    assert not (tmp_path / "out").exists()

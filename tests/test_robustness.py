@@ -377,13 +377,15 @@ def test_a_failure_after_the_netcdf_is_written_leaves_the_earlier_result_set(ear
     """The .nc used to be written before the figures: a failure while drawing left a new .nc beside old figures
     (and, with Ctrl-C, a message that nothing was written)."""
     study, out, before = earlier_result
-    real = runner.plots.save_figures
+    from tumble.output import figures as plots
+
+    real = plots.save_figures
 
     def draws_one_then_fails(ds, names, directory, stem, **kwargs):
         real(ds, names[:1], directory, stem, **kwargs)
         raise failure
 
-    monkeypatch.setattr(runner.plots, "save_figures", draws_one_then_fails)
+    monkeypatch.setattr(plots, "save_figures", draws_one_then_fails)
     status = cli.main(["run", str(study), "--out", str(out), "--seed", "5"])
     err = capsys.readouterr().err
     assert status == (130 if isinstance(failure, KeyboardInterrupt) else 1), err

@@ -107,7 +107,8 @@ def _run(args):
     from .pipeline import checkpoint, runner
 
     overrides = {key: value for key, value in (("perturbation.samples", args.samples),
-                                               ("perturbation.seed", args.seed)) if value is not None}
+                                               ("perturbation.seed", args.seed),
+                                               ("integration.device", args.device)) if value is not None}
     for flag, value in (("--chunk-scenes", args.chunk_scenes), ("--workers", args.workers)):
         if value is not None and value < 1:
             raise InputError(f"{flag} must be >= 1, got {value}")
@@ -232,6 +233,9 @@ def _parser():
     run.add_argument("--samples", type=int, help="override perturbation.samples")
     run.add_argument("--seed", type=int, help="override perturbation.seed")
     run.add_argument("--format", nargs="+", choices=("png", "pdf"), help="figure formats (override outputs.format)")
+    run.add_argument("--device", choices=registry.DEVICES,
+                     help="where the scenes run (override integration.device): cpu, or cuda for an NVIDIA GPU "
+                          "(pip install \"tumble[gpu]\"; a study's scenes are not on the GPU yet)")
     run.add_argument("--scheduler", metavar="ADDRESS",
                      help="run the scenes on dask.distributed: 'local' (a LocalCluster on 127.0.0.1) or "
                           "tcp://HOST:PORT of a running scheduler (default: $DASK_SCHEDULER_ADDRESS, else in-process; "
@@ -270,7 +274,7 @@ def _raised_by(module, name):
     for `tumble --help`): an ``except`` clause's classes are looked up only when an exception arrives, and an
     exception of a class whose module was never imported cannot have been raised.
     """
-    loaded = sys.modules.get(f"tumble.pipeline.{module}")
+    loaded = sys.modules.get(f"tumble.{module}")
     return (getattr(loaded, name),) if loaded is not None else ()
 
 
@@ -291,10 +295,13 @@ def main(argv=None):
             if args.samples < 1:
                 raise InputError(f"--samples must be >= 1, got {args.samples}")
             demo(samples=args.samples, seed=args.seed, dt=args.dt)
-    except (InputError, *_raised_by("config", "StudyError")) as err:
+    except _raised_by("engine.device", "DeviceError") as err:  # one line that starts "device 'cuda':", as every call gives it
+        print(err, file=sys.stderr)
+        return 2
+    except (InputError, *_raised_by("pipeline.config", "StudyError")) as err:
         print(f"tumble: error: {err}", file=sys.stderr)
         return 2
-    except _raised_by("checkpoint", "OutputError") as err:
+    except _raised_by("pipeline.checkpoint", "OutputError") as err:
         print(f"tumble: failed: {err.strerror or err}; earlier results there are unchanged, and finished chunks are "
               "kept for a rerun to resume from", file=sys.stderr)
         return 1

@@ -288,3 +288,8 @@ def state_blocks(name):
         else:
             blocks.append([component[0], i, i + 1])
     return tuple(tuple(b) for b in blocks)
+
+
+#: Where an ensemble runs (``device`` of every engine call, ``integration.device`` of a study, ``tumble run
+#: --device``): the CPU's cores, or a CUDA GPU through numba-cuda (:mod:`tumble.engine.device`).
+DEVICES = ("cpu", "cuda")

@@ -12,11 +12,14 @@ import importlib
 import numpy as np
 
 from ..kernels import METHODS, device_kernels, run
+from ..registry import DEVICES
 
-__all__ = ["DEVICES", "INSTALL", "check_on_device", "not_on_device", "resolve_device", "stepper"]
+__all__ = ["DEVICES", "DeviceError", "INSTALL", "check_on_device", "not_on_device", "resolve_device", "stepper"]
 
-#: The values of every ``device`` argument.
-DEVICES = ("cpu", "cuda")
+
+class DeviceError(ValueError):
+    """``device 'cuda': ...``: the device cannot run here, or cannot run this yet (the command line's exit 2)."""
+
 #: How to install what the device needs (the ``gpu`` extra of pyproject.toml).
 INSTALL = 'pip install "tumble[gpu]"'
 
@@ -44,7 +47,7 @@ def resolve_device(device):
         if device == "cuda":
             problem = _cuda_problem()
             if problem:
-                raise ValueError(f"device 'cuda': {problem}")
+                raise DeviceError(f"device 'cuda': {problem}")
         return device
     raise ValueError(f"device must be one of {', '.join(repr(d) for d in DEVICES)}; got {device!r}")
 
@@ -87,7 +90,7 @@ def stepper(device):
 
 def not_on_device(what):
     """The ``ValueError`` for a part of a run that the device does not do yet (``what`` ends with its verb)."""
-    return ValueError(f"device 'cuda': {what} not yet on the device; run it with device='cpu'")
+    return DeviceError(f"device 'cuda': {what} not yet on the device; run it with device='cpu'")
 
 
 def check_on_device(method, *, attitude=False, **observers):
@@ -108,4 +111,4 @@ def check_on_device(method, *, attitude=False, **observers):
         raise not_on_device("the attitude (attitude=True) is")
     problem = device_kernels().refusal(METHODS[method], **observers)
     if problem:
-        raise ValueError(problem)
+        raise DeviceError(problem)

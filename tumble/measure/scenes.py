@@ -43,6 +43,7 @@ from tqdm.auto import tqdm
 from .. import registry
 from .._version import __version__
 from ..engine.ensemble import flip_times, observation_times, run_ensemble, torque_spec
+from ..engine.device import not_on_device, resolve_device
 from ..engine.integration import integrate
 from ..engine.sampling import CHUNK, perturbed_spins, seed_entropy
 from ..physics import exact, theory
@@ -246,7 +247,7 @@ def _validate_scene(body, axis, spin, amplitude, samples, method, flips, distrib
 
 
 def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="auto", *, dt=None, flips=3,
-            distribution="cone", torque=None, horizon=None, curves=(), progress=None):
+            distribution="cone", torque=None, horizon=None, curves=(), progress=None, device="cpu"):
     # size: a public call (tumble.measure): each keyword is a documented scene option
     """Measure one scene: how fast perturbations of a steady spin oscillate or grow, against linear theory.
 
@@ -286,6 +287,10 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
         the first sample over the horizon).
     progress : bool, optional
         Progress bar (default: on a terminal only).
+    device : {"cpu", "cuda"}
+        Where the scene runs. A scene's observers (probe norms, fits, flips) and the closed form are not on the
+        CUDA device yet: ``"cuda"`` raises the ``ValueError`` ``device 'cuda': ...`` (where numba-cuda or a GPU is
+        missing, saying so), never a silent run on the CPU.
 
     Returns
     -------
@@ -310,12 +315,19 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
     ('exponential', True)
     """
     scene = scene_plan(body, axis, spin, amplitude, samples, seed, method, dt=dt, flips=flips,
-                       distribution=distribution, torque=torque, horizon=horizon, curves=curves)
+                       distribution=distribution, torque=torque, horizon=horizon, curves=curves, device=device)
     return scene_result(scene, [scene_samples(scene, 0, scene.samples, progress=progress)])
 
 
+def scenes_on_device(device):
+    """Check a scene's ``device`` (``"cpu"`` passes): a scene measures with observers that are not on the CUDA device
+    yet, so ``"cuda"`` raises :class:`tumble.engine.device.DeviceError` (after saying what is missing, where it is)."""
+    if resolve_device(device) == "cuda":
+        raise not_on_device("a scene's measurement (the closed form, probe norms, growth and phase fits, flips) is")
+
+
 def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="auto", *, dt=None, flips=3,
-               distribution="cone", torque=None, horizon=None, curves=()):
+               distribution="cone", torque=None, horizon=None, curves=(), device="cpu"):
     # size: the arguments of measure (a public call), checked and frozen into a Scene record
     """Validate and plan one scene of :func:`measure` (same arguments, no ``progress``): plain data.
 
@@ -331,6 +343,7 @@ def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, metho
     """
     moments, axis, spin, amplitude, samples, flips = _validate_scene(body, axis, spin, amplitude, samples,
                                                                      method, flips, distribution)
+    scenes_on_device(device)
     if dt is not None and (not np.isfinite(dt) or dt <= 0):
         raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
     if horizon is not None and (not np.isfinite(horizon) or horizon <= 0):
@@ -1067,7 +1080,7 @@ def scan(bodies, axis=(1, 2, 3), spin=1.0, amplitude=1e-3, method="auto", *, sam
     body_coords : dict, optional
         Extra coordinates along ``body`` (name → array of length B), e.g. from :func:`inertia_triangle`.
     **options
-        Passed to :func:`measure` (``dt``, ``flips``, ``distribution``, ``progress``).
+        Passed to :func:`measure` (``dt``, ``flips``, ``distribution``, ``progress``, ``device``).
 
     Returns
     -------

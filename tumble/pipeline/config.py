@@ -149,7 +149,7 @@ _TABLES = {
     "spin": ("axis", "rate", "momentum"),
     "model": ("kind", *(p.key for p in registry.MODEL_PARAMETERS)),
     "perturbation": ("amplitude", "samples", "seed", "distribution"),
-    "integration": ("method", "dt", "horizon", "flips"),
+    "integration": ("method", "dt", "horizon", "flips", "device"),
     "torque": ("profile", "vector", "period", "duration"),
     "scan": tuple(SCAN_KEYS),
     "outputs": ("figures", "format", "arrays", "directory"),
@@ -860,6 +860,7 @@ def _resolve(study, given, title):
         "dt": _at_least(integ["dt"], "integration.dt", 0, " s"),
         "horizon": _at_least(integ["horizon"], "integration.horizon", 0, " s"),
         "flips": _integer(integ["flips"], "integration.flips"),
+        "device": _choice(integ["device"], "integration.device", registry.DEVICES),
     }
     if resolved["integration"]["flips"] < 0:
         raise _Invalid("integration.flips", f"must be >= 0, got {resolved['integration']['flips']}")

@@ -241,6 +241,7 @@ def scene_job(resolved, file="<mapping>"):
         As :func:`plan`.
     """
     check_cost(resolved, file)
+    study.scenes_on_device(resolved["integration"]["device"])  # device 'cuda': refused before anything runs
     p = plan(resolved, file)
     values = p.values
     if "model" in p.options:
@@ -645,7 +646,7 @@ def execute_study(prepared, *, progress=None, client=None, chunk_scenes=None, ch
 
 
 def run_study(source, *, overrides=None, out=None, progress=None, scheduler=None, chunk_scenes=None,
-              chunk_samples=None):
+              chunk_samples=None, device=None):
     """Run a study and return its result dataset.
 
     Parameters
@@ -666,6 +667,9 @@ def run_study(source, *, overrides=None, out=None, progress=None, scheduler=None
         Run the scenes on a dask cluster: ``"local"`` (a LocalCluster on 127.0.0.1), a scheduler address
         ``"tcp://HOST:PORT"``, or a connected ``distributed.Client`` (see :mod:`tumble.pipeline.distributed`).
         Default: in this process. The results are the same bits either way.
+    device : {"cpu", "cuda"}, optional
+        Overrides the study's ``integration.device``; ``"cuda"`` is refused for now (``device 'cuda': ...``,
+        :func:`tumble.measure.scenes.scenes_on_device`), an invalid value is a ``StudyError`` naming the field.
     chunk_scenes : int, optional
         Scenes per chunk (checkpoint and dask task); the results do not depend on it.
     chunk_samples : int, optional
@@ -686,6 +690,8 @@ def run_study(source, *, overrides=None, out=None, progress=None, scheduler=None
     tumble.pipeline.checkpoint.OutputError
         The output folder cannot be written; earlier results there are left as they were.
     """
+    if device is not None:
+        overrides = {**(overrides or {}), "integration.device": device}
     prepared = prepare_study(source, overrides=overrides, out=out)
     with _scheduler(scheduler) as client:
         ds, _ = execute_study(prepared, progress=progress, client=client, chunk_scenes=chunk_scenes,
