@@ -132,3 +132,16 @@ assert s.compile_side_by_side(s.CLOSED_FORM["exponential"], workers=1) == []  # 
 """
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
     subprocess.run([sys.executable, "-c", code], check=True, env=env, timeout=300)
+
+
+@pytest.mark.parametrize("argv, status", [(["studies"], 0), (["run", "no_such_study"], 2)])
+def test_the_command_ends_at_once_with_mains_status_its_output_flushed_and_exit_handlers_run(argv, status):
+    code = ("import atexit, sys\natexit.register(lambda: print('exit handler ran', flush=True))\n"
+            f"sys.argv = ['tumble', *{argv!r}]\nfrom tumble.cli import command\ncommand()\nprint('not reached')")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == status, done.stderr
+    assert done.stdout.rstrip().endswith("exit handler ran") and "not reached" not in done.stdout
+    if status == 0:
+        assert "intermediate_axis" in done.stdout and "studies in" in done.stdout
+    else:
+        assert done.stderr.startswith("tumble: error: no_such_study")

@@ -6,6 +6,8 @@ traceback, no output file), 1 any other failure (``TUMBLE_DEBUG=1`` shows its tr
 """
 
 import argparse
+import atexit
+import contextlib
 import os
 import subprocess
 import sys
@@ -320,5 +322,22 @@ def main(argv=None):
     return 0
 
 
+def command():
+    """The ``tumble`` command (console script and ``python -m tumble``): :func:`main`, then the process ends at once.
+
+    When ``main`` returns, every file is written (atomically) and closed and a dask cluster is shut down; what the
+    interpreter's normal exit would add is freeing every module's objects — numba's compiled code, matplotlib,
+    xarray — 0.4-0.5 s on 2 cores, more than a study's figures take to draw. So the command flushes its output, runs
+    the exit handlers that libraries registered (``atexit``: logging and the like) and leaves with ``os._exit``.
+    Tests and scripts call :func:`main`, which returns.
+    """
+    status = main()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):  # a closed pipe (`| head`) has nothing left to flush
+            stream.flush()
+    atexit._run_exitfuncs()  # noqa: SLF001 - what a normal exit runs first; CPython's, there since 2.x
+    os._exit(status)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    command()
