@@ -328,10 +328,13 @@ def command():
     When ``main`` returns, every file is written (atomically) and closed and a dask cluster is shut down; what the
     interpreter's normal exit would add is freeing every module's objects — numba's compiled code, matplotlib,
     xarray — 0.4-0.5 s on 2 cores, more than a study's figures take to draw. So the command flushes its output, runs
-    the exit handlers that libraries registered (``atexit``: logging and the like) and leaves with ``os._exit``.
-    Tests and scripts call :func:`main`, which returns.
+    the exit handlers that libraries registered (``atexit``: logging and the like) and leaves with ``os._exit`` —
+    unless a profiler, debugger or coverage is watching (``python -m cProfile -m tumble ...``), which write their
+    results at the normal exit. Tests and scripts call :func:`main`, which returns.
     """
     status = main()
+    if sys.getprofile() is not None or sys.gettrace() is not None:
+        sys.exit(status)  # a profiler, debugger or coverage run writes its results at the normal exit
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(Exception):  # a closed pipe (`| head`) has nothing left to flush
             stream.flush()
