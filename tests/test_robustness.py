@@ -665,3 +665,27 @@ def test_a_gaussian_amplitude_beyond_pi_over_2_is_not_refused_with_the_cones_mes
 
     ds = tumble.measure((1.0, 2.0, 3.0), 1, amplitude=1.6, samples=16, distribution="gaussian")
     assert str(ds.kind.values) == "periodic"
+
+
+# --- an output location the user named that cannot be written is the user's input (issue 31, cause 3) --------------
+
+@pytest.mark.parametrize("where", ["file", "under_a_file"])
+@pytest.mark.parametrize("dry_run", [False, True], ids=["run", "dry_run"])
+@pytest.mark.parametrize("named_by", ["--out", "outputs.directory"])
+def test_an_output_folder_blocked_by_a_file_is_refused_as_input(tmp_path, capsys, where, dry_run, named_by):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    target = blocker if where == "file" else blocker / "results"
+    if named_by == "--out":
+        argv = ["run", "intermediate_axis", "--samples", "8", "--out", str(target)]
+    else:
+        study = tmp_path / "s.toml"
+        study.write_text(f'[perturbation]\nsamples = 8\n[outputs]\ndirectory = "{target}"\n')
+        argv = ["run", str(study)]
+    status = cli.main(argv + (["--dry-run"] if dry_run else []))
+    captured = capsys.readouterr()
+    assert status == 2
+    assert captured.err.strip().splitlines() == [f"tumble: error: {named_by}: cannot write the results to {target}: "
+                                                 f"{blocker} is not a folder"]
+    assert captured.out == ""  # refused before anything ran or was announced
+    assert blocker.read_text() == "not a folder" and sorted(p.name for p in tmp_path.iterdir()) <= ["a_file", "s.toml"]

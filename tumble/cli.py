@@ -124,10 +124,10 @@ def _run(args):
     prepared = runner.prepare_study(args.study, overrides=overrides, out=args.out, formats=args.format,
                                     default_directory=True)
     job, directory, stem = prepared.job, prepared.directory, prepared.stem
+    _check_output_folder(args, prepared)
     scheduler = _scheduler(args)
     chunk = args.chunk_scenes or runner.default_chunk_scenes(job.layout["scenes"])
     if args.dry_run:
-        checkpoint.check_writable(directory)
         tasks = runner.plan_tasks(job, checkpoint.Finished({}, {}), chunk_scenes=chunk,
                                   chunk_samples=args.chunk_samples)
         split = sum(1 for task in tasks if task.start is not None)
@@ -156,6 +156,19 @@ def _run(args):
     print(f"\n{time.perf_counter() - started:.1f} s; wrote:")
     for path in paths:
         print(f"  {path}")
+
+
+def _check_output_folder(args, prepared):
+    """An output folder that cannot be made or written (a file in the way, no permission) is the user's choice: one
+    line naming where it came from, exit 2, before anything runs or is written."""
+    from .pipeline import checkpoint
+
+    try:
+        checkpoint.check_writable(prepared.directory)
+    except checkpoint.OutputError as err:
+        where = ("--out" if args.out is not None else "outputs.directory" if prepared.resolved["outputs"]["directory"]
+                 else "the default output folder (choose another with --out)")
+        raise InputError(f"{where}: {err.strerror}") from None
 
 
 def _scheduler(args):
