@@ -154,13 +154,13 @@ def test_plot_redraws_the_figures_of_a_result(tiny_run, tmp_path, capsys):
     assert all(name in printed for name in drawn)
 
 
-def test_an_unwritable_output_folder_exits_1_with_a_message(tmp_path, capsys):
+def test_an_output_folder_under_a_file_exits_2_with_a_message(tmp_path, capsys):
     study = tmp_path / "tiny.toml"
     study.write_text(TINY.replace('figures = ["norm_growth", "flip_components", "summary"]', "figures = []"))
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
     status, _, err = run_cli(capsys, "run", str(study), "--out", str(blocker / "sub"))
-    assert status == 1 and "tumble: failed" in err and "Traceback" not in err
+    assert status == 2 and "tumble: error: --out:" in err and "Traceback" not in err
 
 
 def test_studies_lists_every_bundled_study(capsys):

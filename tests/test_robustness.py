@@ -124,13 +124,13 @@ def test_a_read_only_output_folder_exits_1_and_leaves_the_earlier_results_intact
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 
 
-def test_an_output_path_under_a_file_exits_1_naming_it(tmp_path, capsys):
+def test_an_output_path_under_a_file_exits_2_naming_it(tmp_path, capsys):
     study = tmp_path / "small.toml"
     study.write_text(_toml(SMALL))
     (tmp_path / "file").write_text("not a folder")
     status = cli.main(["run", str(study), "--out", str(tmp_path / "file" / "sub")])
     err = capsys.readouterr().err
-    assert status == 1 and "cannot write" in err and str(tmp_path / "file" / "sub") in err
+    assert status == 2 and "cannot write" in err and str(tmp_path / "file" / "sub") in err
     assert (tmp_path / "file").read_text() == "not a folder"
 
 
@@ -318,7 +318,7 @@ def test_dry_run_checks_that_the_output_folder_can_be_written(tmp_path, capsys):
     (tmp_path / "file").write_text("not a folder")
     status = cli.main(["run", "intermediate_axis", "--dry-run", "--out", str(tmp_path / "file" / "sub")])
     err = capsys.readouterr().err
-    assert status == 1 and "is not a folder" in err and "Traceback" not in err
+    assert status == 2 and "is not a folder" in err and "Traceback" not in err
     assert cli.main(["run", "intermediate_axis", "--dry-run", "--out", str(tmp_path / "new" / "sub")]) == 0
     assert not (tmp_path / "new").exists(), "a dry run creates nothing"
 
