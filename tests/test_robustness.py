@@ -689,3 +689,59 @@ def test_an_output_folder_blocked_by_a_file_is_refused_as_input(tmp_path, capsys
                                                  f"{blocker} is not a folder"]
     assert captured.out == ""  # refused before anything ran or was announced
     assert blocker.read_text() == "not a folder" and sorted(p.name for p in tmp_path.iterdir()) <= ["a_file", "s.toml"]
+
+
+# --- SIGTERM: the Ctrl-C treatment, exit 143 (issue 33, cause 5) -------------------------------------------------
+
+def _from_a_shell():
+    """A child with the signal dispositions a shell gives (whatever this test process has set or ignores)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def test_sigterm_while_the_command_imports_prints_one_line_and_exits_143(tmp_path):
+    env = {**os.environ, "PYTHONPROFILEIMPORTTIME": "1", "TUMBLE_DEBUG": ""}
+    proc = subprocess.Popen([sys.executable, "-m", "tumble", "studies"], cwd=tmp_path, env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, preexec_fn=_from_a_shell)
+    lines = []
+    try:
+        for line in proc.stderr:
+            lines.append(line)
+            if line.rstrip().endswith(" numpy"):
+                proc.send_signal(signal.SIGTERM)
+                break
+        lines += proc.stderr.readlines()
+    finally:
+        proc.wait(timeout=60)
+    err = [line for line in lines if not line.startswith("import time:")]
+    assert proc.returncode == 143, "".join(err)
+    # "while starting" before main() runs, else main's line: import tumble is lazy, so numpy may come either side
+    assert len(err) == 1 and err[0].startswith("tumble: terminated (SIGTERM)") and "Traceback" not in err[0], err
+
+
+def test_sigterm_during_a_run_keeps_the_finished_chunks_and_a_rerun_resumes(tmp_path):
+    out = tmp_path / "out"
+    argv = [sys.executable, "-m", "tumble", "run", "stability_map", "--samples", "64", "--chunk-scenes", "20",
+            "--out", str(out)]
+    proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_from_a_shell)
+    chunks = checkpoint.chunk_folder(out, "stability_map")
+    finished = []
+    try:
+        deadline = time.monotonic() + 120
+        while proc.poll() is None and time.monotonic() < deadline:
+            finished = list(chunks.glob("*.chunk")) if chunks.is_dir() else []  # not the temporary being written
+            if finished:
+                proc.send_signal(signal.SIGTERM)
+                break
+            time.sleep(0.01)
+        err = proc.communicate(timeout=120)[1]
+    finally:
+        proc.kill()
+    assert proc.returncode == 143, err
+    assert err.strip().splitlines() == ["tumble: terminated (SIGTERM); no result was written (finished chunks are "
+                                        "kept: rerun to resume)"]
+    assert not (out / "stability_map.nc").exists() and set(finished) <= set(chunks.glob("*.chunk"))
+    rerun = subprocess.run(argv, capture_output=True, text=True, timeout=300)
+    assert rerun.returncode == 0 and "resum" in rerun.stdout, rerun.stderr
+    assert (out / "stability_map.nc").exists()

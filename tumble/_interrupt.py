@@ -1,4 +1,5 @@
-"""Ctrl-C while the ``tumble`` command starts: one line and exit status 130, no traceback (issue 17, cause 12).
+"""Ctrl-C or SIGTERM while the ``tumble`` command starts: one line and exit status 130 or 143, no traceback (issue 17,
+cause 12; issue 33, cause 5); SIGTERM once it runs: :class:`Terminated`, unwound as Ctrl-C is.
 
 Importing tumble (numpy, numba, xarray, matplotlib) takes a second or more, and ``tumble.cli.main`` can catch
 nothing before it is called. When the process is the ``tumble`` command (the console script or ``python -m
@@ -15,8 +16,19 @@ import threading
 
 #: Exit status after Ctrl-C (128 + SIGINT, as shells report it).
 EXIT_INTERRUPTED = 130
+#: Exit status after SIGTERM (``kill``, a batch system's time limit, a container stop): 128 + SIGTERM.
+EXIT_TERMINATED = 143
 
 _MESSAGE = b"tumble: interrupted while starting; nothing was run or written\n"
+_TERMINATED_MESSAGE = b"tumble: terminated (SIGTERM) while starting; nothing was run or written\n"
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM reached the ``tumble`` command once it runs: raised where Python handles the signal, and unwound as
+    Ctrl-C is (finished chunks are kept, no partial file is left), then reported with exit status 143."""
+
+    def __init__(self):
+        super().__init__("terminated (SIGTERM)")
 
 
 def launched_as_command():
@@ -29,22 +41,35 @@ def launched_as_command():
 
 
 def _startup_handler(signum, frame):
-    os.write(2, _MESSAGE)  # a raw write: safe whatever the interpreter was doing when the signal came
-    os._exit(EXIT_INTERRUPTED)  # nothing was written yet: no cleanup to run
+    terminated = signum == signal.SIGTERM
+    os.write(2, _TERMINATED_MESSAGE if terminated else _MESSAGE)  # a raw write: safe whatever the interpreter did
+    os._exit(EXIT_TERMINATED if terminated else EXIT_INTERRUPTED)  # nothing was written yet: no cleanup to run
+
+
+def _terminate(signum, frame):
+    raise Terminated
 
 
 def install():
-    """Replace Python's SIGINT handler with :func:`_startup_handler` when this process is the command."""
-    if (threading.current_thread() is threading.main_thread() and launched_as_command()
-            and signal.getsignal(signal.SIGINT) is signal.default_int_handler):
+    """Replace Python's SIGINT handler, and SIGTERM's default (die without a word), with :func:`_startup_handler`
+    when this process is the command."""
+    if threading.current_thread() is not threading.main_thread() or not launched_as_command():
+        return
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         signal.signal(signal.SIGINT, _startup_handler)
+    if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        signal.signal(signal.SIGTERM, _startup_handler)
 
 
 def release():
-    """Put Python's default SIGINT handler (KeyboardInterrupt) back if :func:`install` replaced it."""
-    if (threading.current_thread() is threading.main_thread()
-            and signal.getsignal(signal.SIGINT) is _startup_handler):
+    """Once the command can report an interrupt itself: Python's default SIGINT handler (KeyboardInterrupt) back,
+    and SIGTERM raising :class:`Terminated`, where :func:`install` replaced them."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+    if signal.getsignal(signal.SIGINT) is _startup_handler:
         signal.signal(signal.SIGINT, signal.default_int_handler)
+    if signal.getsignal(signal.SIGTERM) is _startup_handler:
+        signal.signal(signal.SIGTERM, _terminate)
 
 
 install()

@@ -323,6 +323,10 @@ def main(argv=None):
     except BrokenPipeError:  # output piped into a reader that stopped early (e.g. `| head`)
         sys.stderr.close()
         return 1
+    except _interrupt.Terminated:
+        print("tumble: terminated (SIGTERM); no result was written (finished chunks are kept: rerun to resume)",
+              file=sys.stderr)
+        return _interrupt.EXIT_TERMINATED
     except KeyboardInterrupt as err:
         print(f"tumble: interrupted{': ' + str(err) if str(err) else ''}; no result was written (finished chunks "
               "are kept: rerun to resume)", file=sys.stderr)
