@@ -1,0 +1,725 @@
+"""The GPU path against its FP64 bound, tumble's CPU engine, JAX and diffrax (issue 28).
+
+    python benchmarks/gpu.py [--samples N] [--steps S] [--repeats R] [--out DIR] [--fp64-peak FLOPS]
+    NUMBA_ENABLE_CUDASIM=1 python benchmarks/gpu.py --quick   # smoke run on numba-cuda's simulator (no GPU)
+
+One problem for every engine: the torque-free Euler equations in float64, I = (1, 2, 3), N spins near the
+intermediate axis, ``w0 = (0, 1, 0) + 1e-3 * normal(3)`` (seed 0; the first flips come near t = 12, inside the default horizon),
+``dt = 0.01`` and S steps (``t_end = S dt``); rk8 takes S/8 steps of 8 dt and splitting4 S/4 of 4 dt over the same
+horizon (rk8's error at 4 dt, 4e-14, is round-off: no step of diffrax's Dopri8 could be matched to it). Parts, each timed as the median of ``--repeats`` runs after a first call (compile time,
+reported apart), throughput in sample-steps per second:
+
+1. ``gpu``: ``tumble.propagate(..., device="cuda")`` per method, with its host transfers (what a user gets), and
+   the kernel alone (:func:`tumble.kernels.cuda.kernel` launched on device arrays, synchronised; checked to give
+   propagate's bits);
+2. ``agreement``: the GPU's final states against ``device="cpu"`` on the same spins, max |difference| / max |w|
+   (target 1e-10);
+3. ``cpu``: ``tumble.propagate(..., device="cpu")`` on this machine's cores (N/10 samples, S/5 steps);
+4. ``jax``: rk4 in ``jax.lax.fori_loop`` over the stacked (3, N) state, jit, float64, same GPU;
+5. ``diffrax``: Tsit5 and Dopri8 with ``ConstantStepSize``, ``jax.vmap`` over the samples, same GPU, at the step
+   count where their error against the exact solution equals tumble's rk4 / rk8 error;
+6. the FP64 bound of each method (:data:`FP64_COUNTS`), against the chip's vector FP64 peak (:data:`FP64_PEAK`).
+
+Every engine's error is measured against ``tumble.exact.omega`` on the first 4096 samples. A part whose package is
+missing is reported as skipped, a part that raises as failed, and the run goes on; ``results/gpu.{json,md}`` are
+written after every part, so a run cut short still leaves what it measured. Without a usable device the script
+prints tumble's ``device 'cuda': ...`` line and exits 1, writing nothing.
+
+numba-cuda 0.30.4 calls ``numpy.row_stack``, which numpy 2.5 removed; on a GPU (not on the simulator) with such a
+numpy this script sets ``numpy.row_stack = numpy.vstack`` before numba.cuda is imported, and says so.
+"""
+
+import argparse
+import importlib
+import importlib.metadata
+import json
+import math
+import os
+import platform
+import sys
+import tempfile
+import time
+import traceback
+from datetime import datetime, timezone
+from pathlib import Path
+
+os.environ.setdefault("XLA_PYTHON_CLIENT_PREALLOCATE", "false")  # JAX must not take the memory numba-cuda uses
+
+import numpy as np
+from numba.core import config as numba_config
+
+RESULTS = Path(__file__).with_name("results")
+MOMENTS = (1.0, 2.0, 3.0)
+DT = 0.01
+EPS = 1e-3
+N_CHECK = 4096  # samples on which errors and agreement are measured
+METHOD_NAMES = ("rk4", "rk8", "symplectic_euler", "splitting2", "splitting4")
+LONG_STEP = {"rk8": 8, "splitting4": 4}  # steps of 8 dt / 4 dt over the same horizon (rk8 at 4 dt: 4e-14, round-off)
+
+#: Vector (non-tensor-core) FP64 peak, FLOP/s (an FMA counts 2), by GPU name; the first entry whose key is in the
+#: name wins, so the specific keys come first. Sources: NVIDIA H100 Tensor Core GPU datasheet (H100 SXM 34 TFLOPS
+#: FP64, 67 FP64 tensor core; H100 PCIe 26 / 51; H100 NVL 30 / 60) and NVIDIA H200 Tensor Core GPU datasheet
+#: (H200 SXM 34 / 67; H200 NVL 30 / 60); A100 datasheet (9.7 / 19.5). ``--fp64-peak`` overrides it.
+FP64_PEAK = (("H100 PCIe", 26e12), ("H100 NVL", 30e12), ("H200 NVL", 30e12), ("H100", 34e12), ("H200", 34e12),
+             ("A100", 9.7e12))
+
+#: FP64 lanes per SM by compute capability (a cross-check of the table: SMs x lanes x 2 x clock).
+FP64_LANES = {(9, 0): 64, (8, 0): 32, (7, 0): 32, (6, 0): 32}
+
+# FP64 arithmetic per sample-step of the splittings, counted from the code the device runs (tumble/kernels/
+# steppers.py and trig.py), every multiply followed by an add contracted into an FMA as NVVM does by default:
+#   one sub-flow, rotate_about: theta = w_a tau (1 MUL; tau = fraction h is loop-invariant, not counted);
+#     sincos(theta) (trig.py): quadrant q = floor(x 2/pi + 1/2) 1 FMA; Cody-Waite r1 = fma(-q, P1, x), q P2,
+#     fma(q, P2, -p2), two TwoSums (6 ADD each), (t - p2_err) - q P3: 3 FMA, 1 MUL, 13 ADD; sin polynomial
+#     z, v, 4 FMA (ps), 0.5 y1, 3 FMA, 1 ADD; cos polynomial w, 5 FMA, w w, w w (...), 0.5 z, y0 y1, 1 FMA,
+#     5 ADD; quadrant m = q - 4 floor(q / 4): 1 MUL, 1 FMA  ->  18 FMA, 10 MUL, 19 ADD;
+#     rotate: (s r_cb) wc, (s r_bc) wb, 2 FMA  ->  2 FMA, 4 MUL;
+#   per sub-flow: 20 FMA, 15 MUL, 19 ADD (54 instructions, 94 FLOPs);
+#   the projection onto |L|^2 (project_l_squared): l_squared 3 MUL + 1 MUL + 2 FMA, target - now, target now,
+#     sqrt, now + sqrt, a division, w + w d x 3  ->  5 FMA, 5 MUL, 2 ADD, 1 DIV, 1 SQRT.
+# Not counted: 2 floors, ~6 compares and the selects of sincos, 1 compare of the projection (which also take FP64
+# issue slots on the GPU), and the division and square root are counted as one instruction each (on the GPU each
+# is a reciprocal estimate and a few FMAs): the true instruction count is higher, so the bound below is higher
+# than what can be reached and the fraction reported is a lower estimate. The totals (multiplies incl. FMAs 28 +
+# 6 + 1 per sub-flow, additions incl. FMAs 37 + 2) were checked against the CPU's LLVM IR of the same functions
+# (fmul + llvm.fma, fadd + fsub + llvm.fma); gpu.py --check-counts repeats that check.
+SUBFLOW = dict(fma=20, mul=15, add=19, div=0, sqrt=0)
+PROJECTION = dict(fma=5, mul=5, add=2, div=1, sqrt=1)
+
+
+def fp64_counts(method):
+    """FP64 arithmetic of one torque-free sample-step of ``method``: FMAs, lone multiplies, lone additions,
+    divisions and square roots, the instructions (each of those one issue slot of an FP64 lane) and the FLOPs
+    (an FMA 2, the others 1), with how they were counted."""
+    from tumble.kernels import tableaux
+    from tumble.kernels.codegen import multiplies_per_sample_step
+    from tumble.kernels.methods import METHODS
+
+    coefficients = METHODS[method].coefficients
+    if isinstance(coefficients, tableaux.ButcherTableau):
+        # codegen.combination: base + ((c0 h) k0 + (c1 h) k1 + ...) per component and stage/final sum: the first
+        # term a MUL (an FMA when it is the only one), each further term an FMA, the outer add an ADD; the rate
+        # a1 w2 w3 is 2 MUL per component and stage (multiplies_per_sample_step counts all the multiplies).
+        terms = [int(np.count_nonzero(row)) for row in coefficients.A] + [int(np.count_nonzero(coefficients.b))]
+        multiplies = int(multiplies_per_sample_step(coefficients))
+        additions = 3 * sum(terms)
+        fma = 3 * sum(n if n <= 1 else n - 1 for n in terms)
+        counts = dict(fma=fma, mul=multiplies - fma, add=additions - fma, div=0, sqrt=0,
+                      how=f"tableau: {multiplies} multiplies (multiplies_per_sample_step) and {additions} additions, "
+                          f"{fma} of them fused")
+    else:
+        subflows = len(coefficients.without_torque().flows)
+        counts = {k: subflows * SUBFLOW[k] + PROJECTION[k] for k in SUBFLOW}
+        counts["how"] = f"{subflows} exact sub-flows x (sincos + rotation) + the |L|^2 projection, from the code"
+    counts["instructions"] = sum(counts[k] for k in ("fma", "mul", "add", "div", "sqrt"))
+    counts["flops"] = 2 * counts["fma"] + sum(counts[k] for k in ("mul", "add", "div", "sqrt"))
+    return counts
+
+
+def check_counts():
+    """The splitting counts above against the CPU's LLVM IR of the same functions (multiplies incl. FMAs,
+    additions incl. FMAs): returns a list of mismatches (empty when they agree)."""
+    import re
+
+    import numba
+
+    from tumble.kernels.steppers import project_l_squared, rotate
+
+    body = np.ones(12)
+
+    @numba.njit
+    def subflow(tau, w1, w2, w3, b):  # rotate_about's branch for flow 1 (each branch is the same arithmetic)
+        w2, w3 = rotate(w1 * tau, w2, w3, b[9], b[11])
+        return w1, w2, w3
+
+    @numba.njit
+    def projection(w1, w2, w3, target, b):
+        return project_l_squared(w1, w2, w3, target, b)
+
+    subflow(0.1, 1.0, 2.0, 3.0, body)
+    projection(1.0, 2.0, 3.0, 4.0, body)
+    problems = []
+    for label, fn, counted in (("sub-flow", subflow, SUBFLOW), ("projection", projection, PROJECTION)):
+        ir = "\n".join(fn.inspect_llvm().values())
+        defined = [d for d in ir.split("\ndefine ")[1:] if "cpython" not in d.split("(")[0]]
+        text = defined[0]
+        fmas = len(re.findall(r"call [^\n]*@llvm\.fma\.f64\(", text))
+        muls = len(re.findall(r"= fmul ", text)) + fmas
+        adds = len(re.findall(r"= f(?:add|sub) ", text)) + fmas
+        want = (counted["fma"] + counted["mul"], counted["fma"] + counted["add"])
+        print(f"  {label}: LLVM IR {muls} multiplies, {adds} additions (FMAs in both); counted {want[0]}, "
+              f"{want[1]}", flush=True)
+        if (muls, adds) != want:
+            problems.append(f"{label}: IR {muls} multiplies / {adds} additions, counted {want[0]} / {want[1]}")
+    return problems
+
+
+# --------------------------------------------------------------------------------------------------------------
+# set-up
+
+
+def versions():
+    out = {"python": platform.python_version()}
+    for name in ("numpy", "numba", "numba-cuda", "jax", "jaxlib", "diffrax", "scipy"):
+        try:
+            out[name] = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def patch_numpy():
+    """numpy.row_stack for numba-cuda 0.30.4 on numpy >= 2.5, on a GPU only (before numba.cuda is imported)."""
+    if numba_config.ENABLE_CUDASIM or hasattr(np, "row_stack"):
+        return False
+    np.row_stack = np.vstack
+    print(f"numpy {np.__version__} has no row_stack, which numba-cuda calls: set numpy.row_stack = numpy.vstack "
+          "for this run", flush=True)
+    return True
+
+
+def gpu_info(override):
+    from numba import cuda
+
+    if numba_config.ENABLE_CUDASIM:
+        return dict(name="numba-cuda simulator (no GPU)", simulator=True, fp64_peak=override or 34e12,
+                    peak_source="--fp64-peak" if override else "placeholder (H100 SXM figure; simulator)")
+    device = cuda.get_current_device()
+    name = device.name.decode() if isinstance(device.name, bytes) else str(device.name)
+    info = dict(name=name, simulator=False, compute_capability=list(device.compute_capability))
+    try:
+        sms, clock_khz = device.MULTIPROCESSOR_COUNT, device.CLOCK_RATE
+        lanes = FP64_LANES.get(tuple(device.compute_capability))
+        info.update(sms=sms, clock_ghz=clock_khz / 1e6)
+        if lanes:
+            info["fp64_peak_from_attributes"] = sms * lanes * 2 * clock_khz * 1e3
+    except Exception as error:  # noqa: BLE001 (a cross-check only)
+        info["attributes_error"] = repr(error)
+    peak = next((value for key, value in FP64_PEAK if key.lower() in name.lower()), None)
+    if override:
+        info.update(fp64_peak=override, peak_source="--fp64-peak")
+    elif peak:
+        info.update(fp64_peak=peak, peak_source="datasheet table (FP64_PEAK)")
+    elif "fp64_peak_from_attributes" in info:
+        info.update(fp64_peak=info["fp64_peak_from_attributes"], peak_source="SMs x FP64 lanes x 2 x clock")
+    else:
+        info.update(fp64_peak=None, peak_source="unknown GPU: pass --fp64-peak")
+    return info
+
+
+class Problem:
+    """The spins, the step plan of each method and the exact final states of the first N_CHECK samples."""
+
+    def __init__(self, samples, steps):
+        import tumble
+
+        rng = np.random.default_rng(0)
+        self.samples, self.steps = samples, steps
+        self.w0 = np.array([0.0, 1.0, 0.0]) + EPS * rng.normal(size=(samples, 3))
+        self.t_end = steps * DT
+        self.check = min(samples, N_CHECK)
+        self.exact = tumble.exact.omega(MOMENTS, self.w0[:self.check], self.t_end)
+
+    def plan(self, method, steps=None):
+        """(steps, dt) of ``method`` over S = ``steps`` base steps (default the problem's)."""
+        steps = self.steps if steps is None else steps
+        factor = LONG_STEP.get(method, 1)
+        n = max(1, steps // factor)
+        return n, steps * DT / n
+
+    def error(self, w):
+        """max |w - exact| / max |exact| over the first N_CHECK samples."""
+        w = np.asarray(w)[:self.check]
+        return float(np.max(np.abs(w - self.exact)) / np.max(np.abs(self.exact)))
+
+
+def timed(fn, repeats):
+    """(seconds of the first call, median seconds of ``repeats`` further calls, the first call's result)."""
+    import timing  # benchmarks/timing.py (the script's folder is on sys.path)
+
+    started = time.perf_counter()
+    result = fn()
+    first = time.perf_counter() - started
+    return first, timing.median_seconds(fn, repeats), result
+
+
+# --------------------------------------------------------------------------------------------------------------
+# parts
+
+
+def part_gpu(ctx):
+    """tumble on the device: propagate with host transfers, and the kernel alone on device arrays."""
+    import tumble
+    from numba import cuda
+
+    from tumble.kernels import device_kernels
+    from tumble.kernels.methods import METHODS, from_kernel_frame, kernel_frame
+
+    device = device_kernels()
+    p = ctx["problem"]
+    moments = np.array(MOMENTS)
+    rows = []
+    ctx["gpu_states"] = {}
+    for name in METHOD_NAMES:
+        n_steps, dt = p.plan(name)
+        t_end = n_steps * dt
+
+        def call(name=name, dt=dt, t_end=t_end):
+            return tumble.propagate(MOMENTS, p.w0, t_end, dt, method=name, device="cuda")
+
+        first, seconds, out = timed(call, ctx["repeats"])
+        row = dict(method=name, samples=p.samples, steps=n_steps, dt=dt, first_call_s=first,
+                   seconds_with_transfers=seconds, rate_with_transfers=p.samples * n_steps / seconds,
+                   error=p.error(out))
+        ctx["gpu_states"][name] = out[:p.check].copy()
+        # the kernel alone, as tumble.kernels.cuda.run launches it, on arrays already on the device
+        method = METHODS[name]
+        kernel_w, constants, _, relabel = kernel_frame(method, np.ascontiguousarray(p.w0.T), moments, None, None)
+        start = cuda.to_device(np.ascontiguousarray(kernel_w))
+        w = cuda.device_array_like(start)
+        saved = cuda.device_array((0, 3, 1))
+        status = cuda.device_array(p.samples, dtype=np.int8)
+        steps_taken = cuda.device_array(p.samples, dtype=np.int64)
+        threads = device.THREADS if p.samples >= device.THREADS else 32 * -(-p.samples // 32)
+        launch = device.kernel(method, True)[-(-p.samples // threads), threads]
+        times = []
+        for _ in range(ctx["repeats"] + 1):
+            w.copy_to_device(start)
+            cuda.synchronize()
+            started = time.perf_counter()
+            launch(w, constants, 0.0, float(dt), int(n_steps), 0, saved, status, steps_taken, 0.0, 0,
+                   device._NO_TORQUE)
+            cuda.synchronize()
+            times.append(time.perf_counter() - started)
+        kernel_seconds = float(np.median(times[1:]))
+        final = from_kernel_frame(relabel, w.copy_to_host()).T
+        row.update(seconds_kernel=kernel_seconds, rate_kernel=p.samples * n_steps / kernel_seconds,
+                   kernel_equals_propagate=bool(np.array_equal(final, out)),
+                   threads_per_block=threads)
+        rows.append(row)
+        print(f"  gpu {name}: {row['rate_kernel']:.3e} sample-steps/s kernel alone, {row['rate_with_transfers']:.3e}"
+              f" with transfers (first call {first:.1f} s), error {row['error']:.1e}", flush=True)
+    return dict(rows=rows)
+
+
+def part_agreement(ctx):
+    """The GPU's final states against device='cpu' on the same spins and steps."""
+    import tumble
+
+    if not ctx.get("gpu_states"):
+        return dict(skipped="the gpu part did not run")
+    p = ctx["problem"]
+    rows = []
+    for name, gpu in ctx["gpu_states"].items():
+        n_steps, dt = p.plan(name)
+        cpu = tumble.propagate(MOMENTS, p.w0[:p.check], n_steps * dt, dt, method=name, device="cpu")
+        diff = float(np.max(np.abs(gpu - cpu)) / np.max(np.abs(cpu)))
+        rows.append(dict(method=name, samples=p.check, steps=n_steps, max_rel_difference=diff, met=diff <= 1e-10,
+                         bitwise=bool(np.array_equal(gpu, cpu))))
+        print(f"  agreement {name}: max |gpu - cpu| / max |w| = {diff:.1e}", flush=True)
+    return dict(rows=rows, target=1e-10)
+
+
+def part_cpu(ctx):
+    """tumble's CPU engine, same problem, fewer samples and steps (throughput is per sample-step)."""
+    import numba
+
+    import tumble
+
+    p = ctx["problem"]
+    samples, steps = ctx["cpu_samples"], ctx["cpu_steps"]
+    w0 = p.w0[:samples]
+    rows = []
+    for name in METHOD_NAMES:
+        n_steps, dt = p.plan(name, steps)
+
+        def call(name=name, dt=dt, n_steps=n_steps):
+            return tumble.propagate(MOMENTS, w0, n_steps * dt, dt, method=name, device="cpu")
+
+        first, seconds, _ = timed(call, ctx["repeats"])
+        rows.append(dict(method=name, samples=samples, steps=n_steps, dt=dt, first_call_s=first, seconds=seconds,
+                         rate=samples * n_steps / seconds))
+        print(f"  cpu {name}: {rows[-1]['rate']:.3e} sample-steps/s ({samples} x {n_steps}, first call "
+              f"{first:.1f} s)", flush=True)
+    return dict(rows=rows, threads=numba.get_num_threads())
+
+
+def _jax():
+    """jax with float64 on, and its first device if that is a GPU; else the reason to skip."""
+    try:
+        import jax
+    except ImportError as error:
+        return None, f"jax is not importable ({error})"
+    jax.config.update("jax_enable_x64", True)
+    device = jax.devices()[0]
+    if device.platform != "gpu":
+        return None, f"JAX has no GPU backend here (its first device is {device.platform})"
+    return jax, None
+
+
+def _rates(jnp):
+    i1, i2, i3 = MOMENTS
+    a1, a2, a3 = (i2 - i3) / i1, (i3 - i1) / i2, (i1 - i2) / i3
+
+    def rate(w):  # w of shape (3, ...)
+        return jnp.stack([a1 * w[1] * w[2], a2 * w[2] * w[0], a3 * w[0] * w[1]])
+
+    return rate
+
+
+def part_jax(ctx):
+    """rk4 in jax.lax.fori_loop over the stacked (3, N) state, jit, float64."""
+    jax, reason = _jax()
+    if jax is None:
+        return dict(skipped=reason)
+    import jax.numpy as jnp
+
+    p = ctx["problem"]
+    rate = _rates(jnp)
+    n_steps, dt = p.plan("rk4")
+
+    def step(_, w):
+        k1 = rate(w)
+        k2 = rate(w + (0.5 * dt) * k1)
+        k3 = rate(w + (0.5 * dt) * k2)
+        k4 = rate(w + dt * k3)
+        return w + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+
+    solve = jax.jit(lambda w: jax.lax.fori_loop(0, n_steps, step, w))
+    w0 = jax.device_put(jnp.asarray(np.ascontiguousarray(p.w0.T)))
+    first, seconds, out = timed(lambda: solve(w0).block_until_ready(), ctx["repeats"])
+    row = dict(method="rk4", samples=p.samples, steps=n_steps, dt=dt, first_call_s=first, seconds=seconds,
+               rate=p.samples * n_steps / seconds, error=p.error(np.asarray(out).T),
+               device=str(jax.devices()[0].device_kind), dtype=str(out.dtype))
+    print(f"  jax rk4: {row['rate']:.3e} sample-steps/s, error {row['error']:.1e}", flush=True)
+    return dict(rows=[row])
+
+
+def part_diffrax(ctx):
+    """Tsit5 and Dopri8 with a constant step, vmapped over the samples, at tumble rk4's / rk8's error."""
+    jax, reason = _jax()
+    if jax is None:
+        return dict(skipped=reason)
+    try:
+        import diffrax
+    except ImportError as error:
+        return dict(skipped=f"diffrax is not importable ({error})")
+    import jax.numpy as jnp
+
+    p = ctx["problem"]
+    gpu = {r["method"]: r for r in ctx["report"]["parts"].get("gpu", {}).get("rows", [])}
+    if not gpu:
+        return dict(skipped="the gpu part did not run (diffrax is matched to its errors)")
+    rate = _rates(jnp)
+    term = diffrax.ODETerm(lambda t, y, args: rate(y))
+    w0 = jax.device_put(jnp.asarray(p.w0))
+    rows = []
+    for solver_name, peer in (("Tsit5", "rk4"), ("Dopri8", "rk8")):
+        solver = getattr(diffrax, solver_name)()
+        target = gpu[peer]["error"]
+        ladder = sorted({max(2, int(round(p.steps * 2.0 ** k))) for k in range(-5, 3)})
+        max_steps = int(ladder[-1] * 1.01) + 16
+
+        def one(y0, dt, solver=solver, max_steps=max_steps):
+            sol = diffrax.diffeqsolve(term, solver, t0=0.0, t1=p.t_end, dt0=dt, y0=y0,
+                                      stepsize_controller=diffrax.ConstantStepSize(),
+                                      saveat=diffrax.SaveAt(t1=True), max_steps=max_steps)
+            return sol.ys[-1]
+
+        solve = jax.jit(jax.vmap(one, in_axes=(0, None)))
+        started = time.perf_counter()
+        errors = {}
+        for n in ladder:
+            errors[n] = p.error(np.asarray(solve(w0[:p.check], p.t_end / n)))
+        search_s = time.perf_counter() - started
+        n_star, note = _equal_error_steps(errors, target)
+        dt = p.t_end / n_star
+        first, seconds, out = timed(lambda dt=dt: solve(w0, dt).block_until_ready(), ctx["repeats"])
+        row = dict(method=solver_name, peer=peer, peer_error=target, samples=p.samples, steps=n_star, dt=dt,
+                   ladder={str(k): v for k, v in errors.items()}, search_s=search_s, note=note, first_call_s=first,
+                   seconds=seconds, rate=p.samples * n_star / seconds, error=p.error(np.asarray(out)),
+                   dtype=str(out.dtype))
+        rows.append(row)
+        print(f"  diffrax {solver_name}: {n_star} steps for tumble {peer}'s error {target:.1e} ({note}): "
+              f"{row['rate']:.3e} sample-steps/s, error {row['error']:.1e}", flush=True)
+    return dict(rows=rows)
+
+
+def _equal_error_steps(errors, target):
+    """The fewest steps whose error reaches ``target``, interpolated in log-log between the ladder's points."""
+    ns = sorted(errors)
+    below = [n for n in ns if errors[n] <= target]
+    if not below:
+        return ns[-1], f"does not reach it; its smallest error {errors[ns[-1]]:.1e} at {ns[-1]} steps"
+    n_hi = below[0]
+    above = [n for n in ns if n < n_hi]
+    if not above:
+        return n_hi, "reached at the ladder's fewest steps"
+    n_lo = above[-1]
+    e_lo, e_hi = errors[n_lo], errors[n_hi]
+    if not (e_lo > e_hi > 0):
+        return n_hi, "ladder not monotone there; its first step count at or below the error"
+    slope = math.log(e_hi / e_lo) / math.log(n_hi / n_lo)
+    n = n_lo * (target / e_lo) ** (1.0 / slope)
+    return int(min(n_hi, max(n_lo + 1, math.ceil(n)))), f"interpolated between {n_lo} and {n_hi} steps"
+
+
+PARTS = {"gpu": part_gpu, "agreement": part_agreement, "cpu": part_cpu, "jax": part_jax, "diffrax": part_diffrax}
+
+
+# --------------------------------------------------------------------------------------------------------------
+# the report
+
+
+def bound_rows(report):
+    peak = report["gpu_info"].get("fp64_peak")
+    gpu = {r["method"]: r for r in report["parts"].get("gpu", {}).get("rows", [])}
+    rows = []
+    for name in METHOD_NAMES:
+        counts = fp64_counts(name)
+        row = dict(method=name, **counts)
+        if peak:
+            row["bound"] = peak / 2 / counts["instructions"]  # an FP64 lane issues one FMA/MUL/ADD per cycle
+        if peak and name in gpu:
+            rate = gpu[name]["rate_kernel"]
+            row.update(rate=rate, fraction=rate / row["bound"], flops_per_s=rate * counts["flops"],
+                       fraction_of_peak_flops=rate * counts["flops"] / peak)
+        rows.append(row)
+    return rows
+
+
+def targets(report):
+    """Issue 28's targets: (text, status, measured)."""
+    parts = report["parts"]
+    gpu = {r["method"]: r for r in parts.get("gpu", {}).get("rows", [])}
+    cpu = {r["method"]: r for r in parts.get("cpu", {}).get("rows", [])}
+    bounds = {r["method"]: r for r in report.get("bound", [])}
+    jax_rows = {r["method"]: r for r in parts.get("jax", {}).get("rows", [])}
+    diffrax_rows = {r["method"]: r for r in parts.get("diffrax", {}).get("rows", [])}
+    out = []
+    smoke = report["quick"] or report["simulator"]
+
+    def add(text, value, ok, measured):
+        status = "not measured" if value is None else "smoke run: not judged" if smoke else "met" if ok else "missed"
+        out.append(dict(target=text, status=status,
+                        measured=measured if value is not None else "—"))
+
+    rk4 = gpu.get("rk4")
+    add("rk4 on the GPU >= 3e11 sample-steps/s (kernel alone)", rk4, rk4 and rk4["rate_kernel"] >= 3e11,
+        rk4 and f"{rk4['rate_kernel']:.2e} (with transfers {rk4['rate_with_transfers']:.2e})")
+    for name in METHOD_NAMES:
+        b = bounds.get(name, {})
+        add(f"{name} >= 80 % of its FP64 bound", b.get("fraction"), (b.get("fraction") or 0) >= 0.8,
+            b.get("fraction") is not None and f"{b['fraction']:.0%} of {b['bound']:.2e}")
+    speedups = [(n, gpu[n]["rate_kernel"] / cpu[n]["rate"], gpu[n]["rate_with_transfers"] / cpu[n]["rate"])
+                for n in METHOD_NAMES if n in gpu and n in cpu]
+    worst = min(speedups, key=lambda s: s[1]) if speedups else None
+    add(">= 50x tumble's CPU engine on the same machine (every method, kernel alone)", worst,
+        worst and worst[1] >= 50,
+        worst and ", ".join(f"{n} {k:.3g}x ({t:.3g}x with transfers)" for n, k, t in speedups))
+    j = jax_rows.get("rk4")
+    ratio = j and rk4 and rk4["rate_kernel"] / j["rate"]
+    add(">= 30x JAX rk4 (same steps, same GPU)", ratio, ratio and ratio >= 30, ratio and f"{ratio:.1f}x")
+    for solver, peer in (("Tsit5", "rk4"), ("Dopri8", "rk8")):
+        d, g = diffrax_rows.get(solver), gpu.get(peer)
+        ratio = d and g and horizon_seconds(d) / horizon_seconds(g)
+        add(f">= 30x diffrax {solver} at tumble {peer}'s error (time per sample over the horizon)", ratio,
+            ratio and ratio >= 30, ratio and f"{ratio:.1f}x ({d['steps']} steps against {g['steps']})")
+    return out
+
+
+def horizon_seconds(row):
+    """Seconds per sample over the whole horizon at the row's own step count."""
+    return row["steps"] / row.get("rate_kernel", row.get("rate"))
+
+
+def write(report, out):
+    report["bound"] = bound_rows(report)
+    report["targets"] = targets(report)
+    (out / "gpu.json").write_text(json.dumps(report, indent=1, default=str))
+    (out / "gpu.md").write_text(markdown(report))
+
+
+def markdown(report):
+    info, parts = report["gpu_info"], report["parts"]
+    p = report["problem"]
+    lines = [f"# GPU benchmark (issue 28) — {report['date']}", ""]
+    if info.get("simulator") or report["quick"]:
+        lines += ["**SMOKE RUN" + (" on numba-cuda's simulator" if info.get("simulator") else "") +
+                  " (--quick): the numbers are meaningless; it only shows that the script runs.**", ""]
+    peak = info.get("fp64_peak")
+    lines += [f"GPU: {info['name']}" + (f", compute capability {info['compute_capability']}, {info.get('sms')} SMs "
+                                        f"at {info.get('clock_ghz', 0):.2f} GHz" if "compute_capability" in info else "")
+              + (f"; FP64 vector peak {peak / 1e12:.1f} TFLOP/s ({info['peak_source']})" if peak else
+                 f"; FP64 peak unknown ({info['peak_source']})")
+              + (f"; from its attributes {info['fp64_peak_from_attributes'] / 1e12:.1f}"
+                 if "fp64_peak_from_attributes" in info else "") + ".",
+              f"CPU: {report['machine']}; load average {report['load_average']:.2f} at the start.",
+              "Versions: " + ", ".join(f"{k} {v}" for k, v in report["versions"].items()) + "."
+              + (" numpy.row_stack was set to numpy.vstack for numba-cuda." if report["row_stack_patched"] else ""),
+              "",
+              f"Problem: torque-free Euler equations, float64, I = (1, 2, 3), {p['samples']:,} spins "
+              f"w0 = (0, 1, 0) + {EPS:g} normal(3) (near the intermediate axis; the first flips come near t = 12), "
+              f"dt = {DT:g}, "
+              f"{p['steps']} steps to t = {p['t_end']:g} (rk8: {max(1, p['steps'] // 8)} steps of {p['t_end'] / max(1, p['steps'] // 8):g}, "
+              f"splitting4: {max(1, p['steps'] // 4)} of {p['t_end'] / max(1, p['steps'] // 4):g}). "
+              f"Medians of {report['repeats']} runs after a first call (compile time, in the json). Errors: max |w - "
+              f"exact| / max |w| at t_end over the first {min(p['samples'], N_CHECK)} samples "
+              "(`tumble.exact.omega`).", ""]
+    cpu = {r["method"]: r for r in parts.get("cpu", {}).get("rows", [])}
+    rows = []
+    for r in parts.get("gpu", {}).get("rows", []):
+        c = cpu.get(r["method"])
+        rows.append(("tumble GPU, kernel alone", r["method"], r["samples"], r["steps"], r["rate_kernel"],
+                     c and r["rate_kernel"] / c["rate"], r["error"]))
+        rows.append(("tumble GPU, propagate with transfers", r["method"], r["samples"], r["steps"],
+                     r["rate_with_transfers"], c and r["rate_with_transfers"] / c["rate"], r["error"]))
+    for r in parts.get("cpu", {}).get("rows", []):
+        rows.append((f"tumble CPU ({parts['cpu'].get('threads')} threads)", r["method"], r["samples"], r["steps"],
+                     r["rate"], None, None))
+    for key, label in (("jax", "JAX fori_loop"), ("diffrax", "diffrax, vmap")):
+        for r in parts.get(key, {}).get("rows", []):
+            rows.append((label, r["method"] + (f" (at {r['peer']}'s error)" if "peer" in r else ""), r["samples"],
+                         r["steps"], r["rate"], None, r["error"]))
+    bounds = {b["method"]: b for b in report.get("bound", [])}
+    lines += ["| engine | method | samples × steps | sample-steps/s | × tumble CPU | fraction of FP64 bound | "
+              "error vs exact |", "|---|---|---|---|---|---|---|"]
+    for engine, method, n, s, rate, vs_cpu, error in rows:
+        fraction = bounds.get(method, {}).get("fraction") if "kernel alone" in engine else None
+        lines.append(f"| {engine} | {method} | {n:,} × {s} | {rate:.2e} | "
+                     f"{'—' if vs_cpu is None else f'{vs_cpu:.3g}×'} | "
+                     f"{'—' if fraction is None else f'{fraction:.0%}'} | "
+                     f"{'—' if error is None else f'{error:.1e}'} |")
+    lines += ["", "The JAX and diffrax rows run on the same GPU; diffrax's step count is the one at which its error "
+              "equals tumble's rk4 (Tsit5) or rk8 (Dopri8) error, so compare them by the time per sample over the "
+              "horizon (the targets below), not by sample-steps/s.", ""]
+    for key in PARTS:
+        part = parts.get(key)
+        if part is None:
+            lines.append(f"- part `{key}`: not run (cut short or budget)")
+        elif "skipped" in part:
+            lines.append(f"- part `{key}`: skipped: {part['skipped']}")
+        elif "failed" in part:
+            lines.append(f"- part `{key}`: FAILED: {part['failed']}")
+    lines += ["", "FP64 bound per method: the FP64 arithmetic of one torque-free sample-step, counted from the code the "
+              "kernel runs (Runge–Kutta: from the tableau, `multiplies_per_sample_step` plus the additions, each "
+              "`+ (c h) k` term one FMA; splittings: per exact sub-flow the sincos of `trig.py` and the rotation, "
+              "54 instructions, and the |L|² projection, 14; the derivation is in `gpu.py` at `SUBFLOW`). An FP64 "
+              "lane issues one FMA, multiply or add per cycle and the peak counts an FMA as 2 FLOPs, so the bound is "
+              "peak / 2 / instructions. Floors, compares and selects are not counted and a division or square root "
+              "counts as one: the bound is above what can be reached, the fraction a lower estimate.", "",
+              "| method | FMA | MUL | ADD | DIV + SQRT | FP64 instructions | FLOPs | bound, sample-steps/s | "
+              "kernel, sample-steps/s | fraction of bound | FLOP/s (fraction of peak) |",
+              "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for b in report.get("bound", []):
+        bound = f"{b['bound']:.2e}" if "bound" in b else "— (no FP64 peak)"
+        measured = (f"{b['rate']:.2e} | {b['fraction']:.0%} | {b['flops_per_s']:.2e} ({b['fraction_of_peak_flops']:.0%})"
+                    if "rate" in b else "— | — | —")
+        lines.append(f"| {b['method']} | {b['fma']} | {b['mul']} | {b['add']} | {b['div'] + b['sqrt']} | "
+                     f"{b['instructions']} | {b['flops']} | {bound} | {measured} |")
+    agreement = parts.get("agreement", {})
+    if agreement.get("rows"):
+        lines += ["", "Agreement, tumble GPU against tumble CPU on the same spins and steps (first "
+                  f"{agreement['rows'][0]['samples']} samples), max |difference| / max |w|, target 1e-10:", ""]
+        same = {r["method"]: r["kernel_equals_propagate"] for r in parts.get("gpu", {}).get("rows", [])}
+        lines += [f"- {r['method']}: {r['max_rel_difference']:.1e} ({'met' if r['met'] else 'MISSED'}"
+                  f"{', the same bits' if r['bitwise'] else ''}; the kernel alone gave propagate's bits: "
+                  f"{same.get(r['method'], '—')})" for r in agreement["rows"]]
+    lines += ["", "Issue 28's targets:", "", "| target | measured | status |", "|---|---|---|"]
+    lines += [f"| {t['target']} | {t['measured']} | {t['status']} |" for t in report["targets"]]
+    return "\n".join(lines) + "\n"
+
+
+# --------------------------------------------------------------------------------------------------------------
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--samples", type=int, help="GPU samples (default 1048576; --quick 200)")
+    parser.add_argument("--steps", type=int, help="rk4 steps of 0.01 (default 2000; --quick 20)")
+    parser.add_argument("--cpu-samples", type=int, help="CPU part's samples (default samples/10)")
+    parser.add_argument("--cpu-steps", type=int, help="CPU part's rk4 steps (default steps/5)")
+    parser.add_argument("--repeats", type=int, help="timed runs per figure, median (default 5; --quick 2)")
+    parser.add_argument("--quick", action="store_true", help="tiny sizes: a smoke run (also on the simulator)")
+    parser.add_argument("--out", type=Path, help="report folder (default benchmarks/results; --quick or the "
+                                                 "simulator: a new temporary folder)")
+    parser.add_argument("--fp64-peak", type=float, help="the GPU's vector FP64 peak, FLOP/s (overrides the table)")
+    parser.add_argument("--budget", type=float, default=420.0,
+                        help="seconds after which the remaining parts are skipped (default 420)")
+    parser.add_argument("--parts", nargs="+", choices=list(PARTS), default=list(PARTS))
+    parser.add_argument("--check-counts", action="store_true",
+                        help="check the splittings' FP64 counts against the CPU's LLVM IR and exit")
+    args = parser.parse_args(argv)
+    began = time.perf_counter()
+    if args.check_counts:
+        problems = check_counts()
+        print("\n".join(problems) or "FP64 counts agree with the CPU's LLVM IR")
+        return 1 if problems else 0
+    quick = args.quick
+    samples = args.samples or (200 if quick else 1 << 20)
+    steps = args.steps or (20 if quick else 2000)
+    repeats = args.repeats or (2 if quick else 5)
+    simulator = bool(numba_config.ENABLE_CUDASIM)
+    out = args.out
+    if out is None or ((quick or simulator) and out.resolve() == RESULTS.resolve()):
+        if out is not None:
+            print(f"a smoke run does not write over {RESULTS}", flush=True)
+        out = Path(tempfile.mkdtemp(prefix="tumble-gpu-smoke-")) if quick or simulator else RESULTS
+    if simulator and not quick and samples * steps > 1e6:
+        print("numba-cuda's simulator runs the kernels in Python: use --quick (or small --samples/--steps)")
+        return 2
+
+    patched = patch_numpy()
+    import tumble
+    from tumble.engine.device import resolve_device
+
+    try:
+        resolve_device("cuda")
+    except ValueError as error:
+        print(error, flush=True)
+        return 1
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    import timing
+
+    out.mkdir(parents=True, exist_ok=True)
+    print(f"writing {out / 'gpu.md'} and gpu.json" + (" (SMOKE RUN: numbers meaningless)" if simulator or quick
+                                                      else ""), flush=True)
+    info = gpu_info(args.fp64_peak)
+    print(f"GPU: {info['name']}; FP64 peak {info.get('fp64_peak') or 0:.3g} FLOP/s ({info['peak_source']})",
+          flush=True)
+    problem = Problem(samples, steps)
+    report = dict(date=datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"), quick=quick, simulator=simulator,
+                  gpu_info=info, machine=timing.machine(), load_average=os.getloadavg()[0], versions=versions(),
+                  row_stack_patched=patched, repeats=repeats, tumble=tumble.__version__,
+                  problem=dict(samples=samples, steps=steps, t_end=problem.t_end, dt=DT, eps=EPS),
+                  parts={})
+    ctx = dict(problem=problem, repeats=repeats, report=report,
+               cpu_samples=min(samples, args.cpu_samples or max(64, samples // 10)),
+               cpu_steps=args.cpu_steps or max(8, steps // 5))
+    write(report, out)
+    for name in args.parts:
+        elapsed = time.perf_counter() - began
+        if elapsed > args.budget:
+            report["parts"][name] = dict(skipped=f"time budget: {elapsed:.0f} s used of --budget {args.budget:g}")
+        else:
+            print(f"part {name} ...", flush=True)
+            started = time.perf_counter()
+            try:
+                report["parts"][name] = PARTS[name](ctx)
+            except Exception as error:  # noqa: BLE001 (fail soft: report it, go on with the other parts)
+                traceback.print_exc()
+                report["parts"][name] = dict(failed=f"{type(error).__name__}: {error}".splitlines()[0][:300])
+            report["parts"][name]["seconds"] = time.perf_counter() - started
+        status = report["parts"][name]
+        print(f"part {name}: " + (f"skipped: {status['skipped']}" if "skipped" in status else
+                                  f"FAILED: {status['failed']}" if "failed" in status else
+                                  f"done in {status['seconds']:.1f} s"), flush=True)
+        write(report, out)
+    print(markdown(report), flush=True)
+    print(f"wrote {out / 'gpu.md'} and {out / 'gpu.json'} in {time.perf_counter() - began:.0f} s", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
