@@ -745,3 +745,26 @@ def test_sigterm_during_a_run_keeps_the_finished_chunks_and_a_rerun_resumes(tmp_
     rerun = subprocess.run(argv, capture_output=True, text=True, timeout=300)
     assert rerun.returncode == 0 and "resum" in rerun.stdout, rerun.stderr
     assert (out / "stability_map.nc").exists()
+
+
+# --- a result file whose compressed data is damaged (issue 33, cause 6) --------------------------------------------
+
+def test_plot_on_a_file_with_damaged_compressed_data_exits_2_naming_the_file(tmp_path, capsys):
+    import numpy as np
+
+    good = tmp_path / "good.nc"
+    xr.Dataset({"x": ("n", np.repeat(np.arange(2000.0), 50))}).to_netcdf(
+        good, encoding={"x": {"zlib": True, "complevel": 4}})
+    data = bytearray(good.read_bytes())
+    start = max(data.find(b"\x78\x5e"), data.find(b"\x78\x9c"))  # the zlib stream of the variable's one chunk
+    assert start > 0
+    for k in range(start + 20, start + 200):
+        data[k] ^= 0x5A
+    bad = tmp_path / "bad.nc"
+    bad.write_bytes(bytes(data))
+    status = cli.main(["plot", str(bad), "--out", str(tmp_path / "figures")])
+    err = capsys.readouterr().err
+    assert status == 2, err
+    assert err.strip().splitlines() == [f"tumble: error: {bad}: not a tumble result file ({bad} is damaged: its data "
+                                        "cannot be read (NetCDF: HDF error))"]
+    assert not (tmp_path / "figures").exists()

@@ -442,6 +442,8 @@ def read_dataset(path, *, require_tumble=False):
         raise
     except OSError as exc:  # netCDF / HDF5 library errors: truncated or damaged file
         raise ValueError(f"{path} is not a netCDF file: {exc}") from exc
+    except RuntimeError as exc:  # netCDF4 reading damaged compressed data: "NetCDF: HDF error", naming nothing
+        raise ValueError(f"{path} is damaged: its data cannot be read ({exc})") from exc
     if require_tumble:
         check_tumble_result(ds, path)
     return ds
