@@ -567,28 +567,39 @@ def _commands():
                        marks=pytest.mark.skipif(not os.path.isfile(script), reason="no tumble console script"))
 
 
-@pytest.mark.parametrize("command", list(_commands()))
-def test_ctrl_c_while_the_command_imports_prints_one_line_and_exits_130(tmp_path, command):
-    """SIGINT once numpy is imported, in the middle of tumble's own imports (numba, xarray, matplotlib follow)."""
+def _signal_while_importing(command, signum, cwd):
+    """Run ``command studies`` and send ``signum`` once numpy is imported, in the middle of tumble's own imports;
+    returns the finished process and its stderr lines other than -X importtime's."""
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     env = {**os.environ, "PYTHONPROFILEIMPORTTIME": "1", "TUMBLE_DEBUG": "",
            "PYTHONPATH": os.pathsep.join([root, os.environ.get("PYTHONPATH", "")])}
-    # the child starts with Ctrl-C's default disposition, as from a shell, whatever an earlier test (or the
+    # the child starts with the signals' default dispositions, as from a shell, whatever an earlier test (or the
     # test runner) left in this process: a child inherits an ignored SIGINT
-    proc = subprocess.Popen([*command, "studies"], cwd=tmp_path, env=env, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, text=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    proc = subprocess.Popen([*command, "studies"], cwd=cwd, env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True, preexec_fn=_from_a_shell)
     lines = []
     try:
         for line in proc.stderr:  # -X importtime: one line as each module finishes importing
             lines.append(line)
             if line.rstrip().endswith(" numpy"):
-                proc.send_signal(signal.SIGINT)
+                proc.send_signal(signum)
                 break
         lines += proc.stderr.readlines()
     finally:
         proc.wait(timeout=60)
-    err = [line for line in lines if not line.startswith("import time:")]
+    return proc, [line for line in lines if not line.startswith("import time:")]
+
+
+def _from_a_shell():
+    """A child with the signal dispositions a shell gives (whatever this test process has set or ignores)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+@pytest.mark.parametrize("command", list(_commands()))
+def test_ctrl_c_while_the_command_imports_prints_one_line_and_exits_130(tmp_path, command):
+    """SIGINT once numpy is imported, in the middle of tumble's own imports (numba, xarray, matplotlib follow)."""
+    proc, err = _signal_while_importing(command, signal.SIGINT, tmp_path)
     assert proc.returncode == 130, "".join(err)
     assert len(err) == 1 and "interrupted" in err[0] and "Traceback" not in "".join(err), "".join(err)
 
@@ -693,27 +704,8 @@ def test_an_output_folder_blocked_by_a_file_is_refused_as_input(tmp_path, capsys
 
 # --- SIGTERM: the Ctrl-C treatment, exit 143 (issue 33, cause 5) -------------------------------------------------
 
-def _from_a_shell():
-    """A child with the signal dispositions a shell gives (whatever this test process has set or ignores)."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-
-
 def test_sigterm_while_the_command_imports_prints_one_line_and_exits_143(tmp_path):
-    env = {**os.environ, "PYTHONPROFILEIMPORTTIME": "1", "TUMBLE_DEBUG": ""}
-    proc = subprocess.Popen([sys.executable, "-m", "tumble", "studies"], cwd=tmp_path, env=env,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, preexec_fn=_from_a_shell)
-    lines = []
-    try:
-        for line in proc.stderr:
-            lines.append(line)
-            if line.rstrip().endswith(" numpy"):
-                proc.send_signal(signal.SIGTERM)
-                break
-        lines += proc.stderr.readlines()
-    finally:
-        proc.wait(timeout=60)
-    err = [line for line in lines if not line.startswith("import time:")]
+    proc, err = _signal_while_importing([sys.executable, "-m", "tumble"], signal.SIGTERM, tmp_path)
     assert proc.returncode == 143, "".join(err)
     # "while starting" before main() runs, else main's line: import tumble is lazy, so numpy may come either side
     assert len(err) == 1 and err[0].startswith("tumble: terminated (SIGTERM)") and "Traceback" not in err[0], err
