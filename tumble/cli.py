@@ -106,7 +106,10 @@ class InputError(ValueError):
 
 def _run(args):
     from .measure import cost
-    from .pipeline import checkpoint, runner
+    from .output import io
+    from .pipeline import checkpoint, figure_process, runner
+
+    io.assume_no_dask_arrays()  # this process makes none: xarray need not import dask.array to look for them
 
     overrides = {key: value for key, value in (("perturbation.samples", args.samples),
                                                ("perturbation.seed", args.seed),
@@ -143,12 +146,15 @@ def _run(args):
     command = " ".join(["tumble run", args.study] + [f"--{k.split('.')[1]} {v}" for k, v in overrides.items()])
     options = {"chunk_scenes": chunk, "chunk_samples": args.chunk_samples, "action": command,
                "log": lambda line: print(line, flush=True)}
-    if scheduler is None:
-        stored, paths = runner.execute_study(prepared, **options)
-    else:
-        from .pipeline import distributed
+    with contextlib.ExitStack() as stack:
+        if prepared.resolved["outputs"]["figures"]:  # matplotlib is imported there while the scenes run here
+            options["figure_process"] = stack.enter_context(figure_process.FigureProcess())
+        if scheduler is None:
+            stored, paths = runner.execute_study(prepared, **options)
+        else:
+            from .pipeline import distributed
 
-        with distributed.connect(scheduler, workers=args.workers) as client:
+            client = stack.enter_context(distributed.connect(scheduler, workers=args.workers))
             print(f"dask scheduler {client.scheduler.address}: {len(client.scheduler_info()['workers'])} "
                   f"worker(s)", flush=True)
             stored, paths = runner.execute_study(prepared, client=client, **options)
@@ -196,6 +202,7 @@ def _plot(args):
     from .output import figures as plots
     from .output import io
 
+    io.assume_no_dask_arrays()
     path = Path(args.file)
     if not path.is_file():
         raise InputError(f"{path}: no such file")

@@ -559,8 +559,11 @@ def open_checkpoint(resolved, job, directory, stem):
     return checkpoint.Checkpoint(directory, stem, checkpoint.study_hash(resolved), job.layout["scenes"])
 
 
-def write_outputs(ds, resolved, directory, stem, *, action=None):
+def write_outputs(ds, resolved, directory, stem, *, action=None, figure_process=None):
     """Write ``<directory>/<stem>.nc`` and the study's figures; return ``(stored dataset, paths)``.
+
+    ``figure_process`` (a :class:`~tumble.pipeline.figure_process.FigureProcess`, as ``tumble run`` starts one) draws
+    the figures while the netCDF file is written; without it, or if it cannot, they are drawn here.
 
     Raises
     ------
@@ -569,6 +572,7 @@ def write_outputs(ds, resolved, directory, stem, *, action=None):
     """
     directory = Path(directory)
     path = directory / f"{stem}.nc"
+    names, formats = resolved["outputs"]["figures"], tuple(resolved["outputs"]["format"])
     # The result set appears whole or not at all: the file and the figures are written into a hidden staging
     # folder beside the results, then renamed into place, figures first and the .nc last (renames within a
     # folder do not fail half-way); on any error or Ctrl-C before that, the staging folder goes and earlier
@@ -577,13 +581,17 @@ def write_outputs(ds, resolved, directory, stem, *, action=None):
     try:
         shutil.rmtree(staging, ignore_errors=True)
         staging.mkdir(parents=True)
+        stored = io.stored_form(ds, title=resolved["title"], study=resolved, seed_entropy=ds.attrs.get("seed_entropy"),
+                                action=action)
+        if figure_process is not None and names:
+            figure_process.submit(stored, names, staging, stem, formats)
         with checkpoint.local_file_locks():
-            stored = io.write_dataset(ds, staging / path.name, title=resolved["title"], study=resolved,
-                                      seed_entropy=ds.attrs.get("seed_entropy"), action=action)
-        from ..output import figures as plots  # matplotlib: only where figures are drawn
+            io.write_dataset(stored, staging / path.name, stored=True)
+        staged = figure_process.result() if figure_process is not None and names else None
+        if staged is None:
+            from ..output import figures as plots  # matplotlib: only where figures are drawn
 
-        staged = plots.save_figures(stored, resolved["outputs"]["figures"], staging, stem,
-                                    formats=tuple(resolved["outputs"]["format"]))
+            staged = plots.save_figures(stored, names, staging, stem, formats=formats)
         figures = [directory / figure.name for figure in staged]
         for figure in staged:
             os.replace(figure, directory / figure.name)
@@ -594,6 +602,8 @@ def write_outputs(ds, resolved, directory, stem, *, action=None):
         raise checkpoint.OutputError(err.errno, f"cannot write the results to {directory}: "
                                                 f"{err.strerror or err}") from err
     finally:
+        if figure_process is not None:
+            figure_process.close()  # before the staging folder goes: it may still be writing into it
         shutil.rmtree(staging, ignore_errors=True)
     return stored, [path, *figures]
 
@@ -631,15 +641,17 @@ def prepare_study(source, *, overrides=None, out=None, formats=None, default_dir
 
 
 def execute_study(prepared, *, progress=None, client=None, chunk_scenes=None, chunk_samples=None, log=None,
-                  action=None):
+                  action=None, figure_process=None):
     """Run a prepared study's scenes (here, or on the dask ``client``), resuming from its checkpoint, and write
     its outputs; return ``(dataset, paths written)`` — the stored dataset when written, else ``(dataset, [])``.
-    ``log`` receives one line per resumed or finished chunk; ``action`` is the provenance's command."""
+    ``log`` receives one line per resumed or finished chunk; ``action`` is the provenance's command;
+    ``figure_process`` draws the figures (:func:`write_outputs`)."""
     ds = _run(prepared.resolved, prepared.file, progress, job=prepared.job, store=prepared.store, client=client,
               chunk_scenes=chunk_scenes, chunk_samples=chunk_samples, log=log)
     if prepared.directory is None:
         return ds, []
-    stored, paths = write_outputs(ds, prepared.resolved, prepared.directory, prepared.stem, action=action)
+    stored, paths = write_outputs(ds, prepared.resolved, prepared.directory, prepared.stem, action=action,
+                                  figure_process=figure_process)
     prepared.store.remove()
     prepared.store.clean_partial_results()
     return stored, paths
