@@ -138,20 +138,22 @@ def _run(args):
         print(f"estimate: {cost.describe(runner.study_cost(prepared.resolved))}")
         return
     print(f"tumble {__version__}: study {args.study!r} ({prepared.resolved['title']})", flush=True)
-    if args.fresh:
-        prepared.store.remove()
     command = " ".join(["tumble run", args.study] + [f"--{k.split('.')[1]} {v}" for k, v in overrides.items()])
-    options = {"chunk_scenes": chunk, "chunk_samples": args.chunk_samples, "action": command,
+    options = {"chunk_scenes": chunk, "chunk_samples": args.chunk_samples, "action": command, "fresh": args.fresh,
                "log": lambda line: print(line, flush=True)}
-    if scheduler is None:
-        stored, paths = runner.execute_study(prepared, **options)
-    else:
-        from .pipeline import distributed
+    try:
+        if scheduler is None:
+            stored, paths = runner.execute_study(prepared, **options)
+        else:
+            from .pipeline import distributed
 
-        with distributed.connect(scheduler, workers=args.workers) as client:
-            print(f"dask scheduler {client.scheduler.address}: {len(client.scheduler_info()['workers'])} "
-                  f"worker(s)", flush=True)
-            stored, paths = runner.execute_study(prepared, client=client, **options)
+            with distributed.connect(scheduler, workers=args.workers) as client:
+                print(f"dask scheduler {client.scheduler.address}: {len(client.scheduler_info()['workers'])} "
+                      f"worker(s)", flush=True)
+                stored, paths = runner.execute_study(prepared, client=client, **options)
+    except checkpoint.FolderBusy as err:
+        raise InputError(f"{_output_option(args, prepared)}: {err.strerror}; wait for it to finish, or choose another "
+                         f"--out") from None
     print(runner.summary_table(stored))
     print(f"\n{time.perf_counter() - started:.1f} s; wrote:")
     for path in paths:
@@ -166,9 +168,13 @@ def _check_output_folder(args, prepared):
     try:
         checkpoint.check_writable(prepared.directory)
     except checkpoint.OutputError as err:
-        where = ("--out" if args.out is not None else "outputs.directory" if prepared.resolved["outputs"]["directory"]
-                 else "the default output folder (choose another with --out)")
-        raise InputError(f"{where}: {err.strerror}") from None
+        raise InputError(f"{_output_option(args, prepared)}: {err.strerror}") from None
+
+
+def _output_option(args, prepared):
+    """Where the output folder came from, for a message: ``--out``, ``outputs.directory`` or the default."""
+    return ("--out" if args.out is not None else "outputs.directory" if prepared.resolved["outputs"]["directory"]
+            else "the default output folder (choose another with --out)")
 
 
 def _scheduler(args):

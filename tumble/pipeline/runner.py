@@ -631,17 +631,29 @@ def prepare_study(source, *, overrides=None, out=None, formats=None, default_dir
 
 
 def execute_study(prepared, *, progress=None, client=None, chunk_scenes=None, chunk_samples=None, log=None,
-                  action=None):
+                  action=None, fresh=False):
     """Run a prepared study's scenes (here, or on the dask ``client``), resuming from its checkpoint, and write
     its outputs; return ``(dataset, paths written)`` — the stored dataset when written, else ``(dataset, [])``.
-    ``log`` receives one line per resumed or finished chunk; ``action`` is the provenance's command."""
-    ds = _run(prepared.resolved, prepared.file, progress, job=prepared.job, store=prepared.store, client=client,
-              chunk_scenes=chunk_scenes, chunk_samples=chunk_samples, log=log)
+    ``log`` receives one line per resumed or finished chunk; ``action`` is the provenance's command; ``fresh``
+    discards the checkpoint first instead of resuming from it.
+
+    A run that writes holds its folder's lock for the study's stem (:meth:`tumble.pipeline.checkpoint.Checkpoint.locked`)
+    from before it reads the checkpoint until its files are in place: a second run of the same stem into the same
+    folder is refused at once (:class:`tumble.pipeline.checkpoint.FolderBusy`) instead of sharing its chunks and
+    staging folder.
+    """
     if prepared.directory is None:
+        ds = _run(prepared.resolved, prepared.file, progress, job=prepared.job, client=client,
+                  chunk_scenes=chunk_scenes, chunk_samples=chunk_samples, log=log)
         return ds, []
-    stored, paths = write_outputs(ds, prepared.resolved, prepared.directory, prepared.stem, action=action)
-    prepared.store.remove()
-    prepared.store.clean_partial_results()
+    with prepared.store.locked():
+        if fresh:
+            prepared.store.remove()
+        ds = _run(prepared.resolved, prepared.file, progress, job=prepared.job, store=prepared.store, client=client,
+                  chunk_scenes=chunk_scenes, chunk_samples=chunk_samples, log=log)
+        stored, paths = write_outputs(ds, prepared.resolved, prepared.directory, prepared.stem, action=action)
+        prepared.store.remove()
+        prepared.store.clean_partial_results()
     return stored, paths
 
 

@@ -1,0 +1,95 @@
+"""Faults a user meets, made to happen for real (issue 33): two runs into one folder, a damaged or unwritable numba
+cache, a full disk, a dask scheduler killed mid-run. Each test checks the one line the user reads and what is left on
+disk: earlier results intact, no half file, finished chunks kept for a rerun."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+import xarray as xr
+
+from tumble.output import io
+from tumble.pipeline import checkpoint
+
+# 12 closed-form scenes (2 x 2 inertia triangle x 3 axes) of 64 samples: a second or two in a fresh process.
+SMALL = {"title": "small", "perturbation": {"samples": 64}, "scan": {"triangle": 2, "axis": [1, 2, 3]},
+         "integration": {"flips": 0}, "outputs": {"figures": [], "arrays": []}}
+
+
+def write_study(folder, study=SMALL, name="small"):
+    """``study`` as a TOML file ``<folder>/<name>.toml`` (JSON's syntax for these tables is TOML's too)."""
+    lines = [f"title = {json.dumps(study['title'])}"]
+    for table, fields in study.items():
+        if table != "title":
+            lines.append(f"[{table}]")
+            lines += [f"{key} = {json.dumps(value)}" for key, value in fields.items()]
+    path = folder / f"{name}.toml"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def tumble_command(*args, env=None, **kwargs):
+    """Start ``python -m tumble ARGS`` (a new process, as a user's shell would)."""
+    return subprocess.Popen([sys.executable, "-m", "tumble", *map(str, args)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env={**os.environ, **(env or {})}, **kwargs)
+
+
+def finish(process, timeout=240):
+    out, err = process.communicate(timeout=timeout)
+    return process.returncode, out, err
+
+
+def hidden(folder):
+    """Names of the hidden entries (checkpoint, staging, lock, part files) left in ``folder``."""
+    return sorted(p.name for p in folder.iterdir() if p.name.startswith("."))
+
+
+# --- cause 1: two runs into one folder ---------------------------------------------------------------------------
+
+def test_two_runs_started_together_into_one_folder_leave_one_complete_result(tmp_path):
+    study, out = write_study(tmp_path), tmp_path / "out"
+    runs = [tumble_command("run", study, "--out", out) for _ in range(2)]
+    results = [finish(run) for run in runs]
+    statuses = sorted(status for status, _, _ in results)
+    assert statuses in ([0, 0], [0, 2]), results
+    for status, _, err in results:
+        if status == 2:  # refused at once, one line naming the folder and the other run
+            assert err.count("\n") == 1 and "another tumble run (process" in err and str(out) in err, err
+            assert "Traceback" not in err
+    ds = io.read_dataset(out / "small.nc", require_tumble=True)
+    assert ds.rate.size == 12 and ds.sizes["axis"] == 3
+    assert hidden(out) == [], "no chunks, staging folder or lock left behind"
+
+
+def hold_lock(out, stem="small"):
+    """A process holding the lock of ``<out>/<stem>.nc``, as a running ``tumble run`` does (returns once it holds
+    it)."""
+    code = ("import sys, time; from tumble.pipeline import checkpoint\n"
+            f"with checkpoint.Checkpoint({str(out)!r}, {stem!r}, '', 1).locked():\n"
+            "    print('locked', flush=True); time.sleep(600)")
+    holder = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    assert holder.stdout.readline().strip() == "locked"
+    return holder
+
+
+def test_a_second_run_into_a_busy_folder_is_refused_at_once_and_a_killed_holder_blocks_nothing(tmp_path):
+    study, out = write_study(tmp_path), tmp_path / "out"
+    holder = hold_lock(out)
+    try:
+        status, _, err = finish(tumble_command("run", study, "--out", out, "--samples", 32))
+        assert status == 2, err
+        assert err == (f"tumble: error: --out: another tumble run (process {holder.pid}) is writing small.nc in {out}; "
+                       "wait for it to finish, or choose another --out\n")
+        assert hidden(out) == [".small.lock"] and not (out / "small.nc").exists(), "the refused run wrote nothing"
+    finally:
+        holder.send_signal(signal.SIGKILL)  # a run killed with kill -9: the OS releases its lock
+        holder.wait()
+    assert hidden(out) == [".small.lock"], "kill -9 leaves the lock file ..."
+    status, _, err = finish(tumble_command("run", study, "--out", out, "--samples", 32))
+    assert status == 0, err  # ... which blocks nothing
+    assert io.read_dataset(out / "small.nc").attrs["source"].startswith("tumble")
+    assert hidden(out) == []
