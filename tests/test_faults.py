@@ -4,6 +4,7 @@ disk: earlier results intact, no half file, finished chunks kept for a rerun."""
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -93,3 +94,75 @@ def test_a_second_run_into_a_busy_folder_is_refused_at_once_and_a_killed_holder_
     assert status == 0, err  # ... which blocks nothing
     assert io.read_dataset(out / "small.nc").attrs["source"].startswith("tumble")
     assert hidden(out) == []
+
+
+# --- cause 2: a damaged or unwritable numba cache ------------------------------------------------------------------
+
+# One small kernel in a fresh process, with numba's cache in NUMBA_CACHE_DIR: it prints whether it was loaded from
+# the cache, then its value, which must be right whatever the cache held.
+KERNEL = ("import math, warnings; warnings.simplefilter('always'); from tumble.kernels import trig\n"
+          "s, c = trig.sincos(0.5)\n"
+          "print(sum(trig.sincos.stats.cache_hits.values()), s == math.sin(0.5) and c == math.cos(0.5))")
+
+
+def run_kernel(cache):
+    done = subprocess.run([sys.executable, "-c", KERNEL], capture_output=True, text=True, timeout=240,
+                          env={**os.environ, "NUMBA_CACHE_DIR": str(cache)})
+    assert done.returncode == 0, done.stderr
+    return done.stdout.split(), done.stderr
+
+
+def cache_files(cache):
+    return sorted(p for p in cache.rglob("trig.sincos-*") if p.suffix in (".tbi", ".tbc"))
+
+
+def truncate_index(files):
+    index = files[0] if files[0].suffix == ".tbi" else files[-1]
+    index.write_bytes(index.read_bytes()[: index.stat().st_size // 2])
+
+
+def zero_a_block(files):
+    data = next(p for p in files if p.suffix == ".tbc")
+    raw = bytearray(data.read_bytes())
+    raw[len(raw) // 2: len(raw) // 2 + 256] = bytes(256)
+    data.write_bytes(bytes(raw))
+
+
+def flip_a_bit(files):
+    data = next(p for p in files if p.suffix == ".tbc")
+    raw = bytearray(data.read_bytes())
+    raw[-len(raw) // 3] ^= 0x10  # in the pickled library (its object code: numba would run it as it is)
+    data.write_bytes(bytes(raw))
+
+
+@pytest.fixture(scope="module")
+def warm_cache(tmp_path_factory):
+    """A NUMBA_CACHE_DIR holding the kernel, compiled and saved by one process and loaded by the next."""
+    cache = tmp_path_factory.mktemp("numba-cache")
+    assert run_kernel(cache) == (["0", "True"], "")
+    assert run_kernel(cache) == (["1", "True"], "")
+    return cache
+
+
+@pytest.mark.parametrize("damage", [truncate_index, zero_a_block, flip_a_bit])
+def test_a_damaged_numba_cache_is_named_removed_and_compiled_again(tmp_path, warm_cache, damage):
+    cache = tmp_path / "numba-cache"
+    shutil.copytree(warm_cache, cache)
+    files = cache_files(cache)
+    damage(files)
+    (hits, right), err = run_kernel(cache)
+    assert (hits, right) == ("0", "True")
+    assert err.count("CacheWarning") == 1 and "held a damaged file" in err and str(files[0].parent) in err, err
+    assert "Traceback" not in err
+    assert run_kernel(cache) == (["1", "True"], ""), "the damaged files were replaced by good ones"
+
+
+def test_where_no_folder_can_hold_a_cache_kernels_run_uncached_with_one_warning(tmp_path):
+    # numba's own "no locator available" (a read-only install with a read-only home): here by allowing numba only
+    # the locator of IPython cells, which no file of tumble is (as root, a read-only folder is still writable)
+    done = subprocess.run([sys.executable, "-c", KERNEL], capture_output=True, text=True, timeout=240,
+                          env={**os.environ, "NUMBA_CACHE_LOCATOR_CLASSES": "IPythonCacheLocator"})
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["0", "True"]
+    assert done.stderr.count("CacheWarning") == 1 and "running without a cache" in done.stderr, done.stderr
+    assert "set NUMBA_CACHE_DIR to a writable folder" in done.stderr

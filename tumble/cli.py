@@ -13,6 +13,7 @@ import subprocess
 import sys
 import time
 import traceback
+import warnings
 from pathlib import Path
 
 from . import _interrupt, registry
@@ -299,9 +300,19 @@ def _raised_by(module, name):
     return (getattr(loaded, name),) if loaded is not None else ()
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None, _default=warnings.showwarning):
+    """tumble's own warnings (e.g. :class:`tumble.kernels.jit.CacheWarning`) as one line, ``tumble: warning: ...``;
+    the others as Python shows them."""
+    if category.__module__.startswith("tumble."):
+        print(f"tumble: warning: {message}", file=sys.stderr if file is None else file)
+    else:
+        _default(message, category, filename, lineno, file, line)
+
+
 def main(argv=None):
     """Entry point of ``tumble`` and ``python -m tumble``; returns the exit status."""
     args = _parser().parse_args(argv)
+    warnings.showwarning = _show_warning
     try:
         _interrupt.release()  # from here on Ctrl-C is a KeyboardInterrupt, reported below
         if args.command == "run":
