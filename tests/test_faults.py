@@ -2,6 +2,7 @@
 cache, a full disk, a dask scheduler killed mid-run. Each test checks the one line the user reads and what is left on
 disk: earlier results intact, no half file, finished chunks kept for a rerun."""
 
+import errno
 import json
 import os
 import shutil
@@ -13,6 +14,7 @@ import time
 import pytest
 import xarray as xr
 
+from tumble import cli
 from tumble.output import io
 from tumble.pipeline import checkpoint
 
@@ -166,3 +168,92 @@ def test_where_no_folder_can_hold_a_cache_kernels_run_uncached_with_one_warning(
     assert done.stdout.split() == ["0", "True"]
     assert done.stderr.count("CacheWarning") == 1 and "running without a cache" in done.stderr, done.stderr
     assert "set NUMBA_CACHE_DIR to a writable folder" in done.stderr
+
+
+# --- cause 3: a full disk ------------------------------------------------------------------------------------------
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 4 MB file system of its own (tmpfs), to fill up for real."""
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    try:
+        done = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=4m", "tmpfs", str(disk)], capture_output=True,
+                              text=True, timeout=30)
+    except FileNotFoundError:
+        pytest.skip("no mount command: a full disk needs a small file system of its own (tmpfs)")
+    if done.returncode:
+        pytest.skip(f"cannot mount a 4 MB tmpfs for a full disk (needs root): {done.stderr.strip()}")
+    yield disk
+    subprocess.run(["umount", "-l", str(disk)], check=False, timeout=30)
+
+
+def fill(disk, leave=0):
+    """Fill ``disk`` with a file until it is full, then give back ``leave`` bytes."""
+    filler = disk / "filler"
+    with open(filler, "ab") as f:
+        try:
+            while True:
+                f.write(bytes(1 << 16))
+                f.flush()
+        except OSError as err:
+            assert err.errno == errno.ENOSPC
+    if leave:
+        os.truncate(filler, max(0, filler.stat().st_size - leave))
+    return filler
+
+
+@pytest.fixture
+def earlier_result(small_disk, capsys):
+    out = small_disk / "out"
+    study = write_study(small_disk)
+    assert cli.main(["run", str(study), "--out", str(out)]) == 0
+    capsys.readouterr()
+    return study, out, (out / "small.nc").read_bytes()
+
+
+def test_a_disk_full_at_the_first_chunk_is_named_and_loses_nothing(earlier_result, capsys):
+    study, out, before = earlier_result
+    fill(out.parent)
+    assert cli.main(["run", str(study), "--out", str(out), "--seed", "5"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"tumble: failed: cannot write {out}/.small.chunks/") and err.count("\n") == 1, err
+    assert f"the disk holding {out}/.small.chunks is full (" in err
+    assert (out / "small.nc").read_bytes() == before
+    assert not [p for p in out.rglob("*") if p.name.endswith(".part")]
+
+
+@pytest.mark.parametrize("leave", [0, 40_000], ids=["full-at-create", "full-while-writing"])
+def test_a_disk_full_at_the_result_is_named_keeps_the_chunks_and_a_rerun_resumes(earlier_result, capsys,
+                                                                                 monkeypatch, leave):
+    # netCDF4 says "Permission denied" when it cannot create the file, "NetCDF: HDF error" when a write fails
+    study, out, before = earlier_result
+    write = checkpoint.Checkpoint.write
+
+    def write_then_fill(self, name, data):  # the disk fills up after the last chunk, as another program writes
+        path = write(self, name, data)
+        fill(out.parent, leave)
+        return path
+
+    monkeypatch.setattr(checkpoint.Checkpoint, "write", write_then_fill)
+    args = ["run", str(study), "--out", str(out), "--seed", "5", "--chunk-scenes", "12"]
+    assert cli.main(args) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"tumble: failed: cannot write the results to {out}: the disk holding {out} is full ("), err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert (out / "small.nc").read_bytes() == before, "the earlier result, bit for bit"
+    assert hidden(out) == [".small.chunks"] and len(list((out / ".small.chunks").iterdir())) == 1
+    monkeypatch.undo()
+    (out.parent / "filler").unlink()
+    assert cli.main(args) == 0
+    assert "resuming: 12 of 12 scenes" in capsys.readouterr().out
+    assert hidden(out) == [] and io.read_dataset(out / "small.nc").attrs["study"] != json.dumps(SMALL)
+
+
+def test_a_full_disk_under_the_numba_cache_warns_once_and_the_run_goes_on(small_disk):
+    fill(small_disk)
+    (hits, right), err = run_kernel(small_disk / "numba-cache")
+    assert (hits, right) == ("0", "True")
+    assert err.count("CacheWarning") == 1, err
+    assert f"cannot save compiled kernels in numba's cache {small_disk}/numba-cache" in err
+    assert f"the disk holding {small_disk}/numba-cache" in err and "is full (" in err

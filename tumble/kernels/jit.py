@@ -24,16 +24,16 @@ The device kernels (:mod:`tumble.kernels.cuda`) are compiled through :func:`cuda
 call are compiled for the device by numba-cuda with the options above (it copies a CPU function's options).
 """
 
-import errno
 import hashlib
 import io
 import os
 import pickle
-import shutil
 import warnings
 
 import numba
 from numba.core import caching
+
+from .. import _disk
 
 FASTMATH = frozenset({"contract", "arcp", "nsz"})
 
@@ -119,19 +119,6 @@ def _warn_once(kind, folder, message):
         warnings.warn(message, CacheWarning, stacklevel=4)
 
 
-def free_space(folder):
-    """``"<N> MB free of <M> MB"`` on the file system holding ``folder`` (its nearest existing ancestor), or
-    ``"free space unknown"``."""
-    existing = os.path.abspath(folder)
-    while not os.path.exists(existing) and os.path.dirname(existing) != existing:
-        existing = os.path.dirname(existing)
-    try:
-        usage = shutil.disk_usage(existing)
-    except OSError:
-        return "free space unknown"
-    return f"{usage.free / 1e6:.0f} MB free of {usage.total / 1e6:.0f} MB"
-
-
 class CheckedCache(caching.FunctionCache):
     """numba's cache of one function, made safe to lose.
 
@@ -165,8 +152,7 @@ class CheckedCache(caching.FunctionCache):
         try:
             super().save_overload(sig, data)
         except OSError as err:
-            full = err.errno in (errno.ENOSPC, errno.EDQUOT)
-            what = f"the disk is full ({free_space(self._cache_path)})" if full else (err.strerror or str(err))
+            what = _disk.disk_problem(err, self._cache_path) or err.strerror or str(err)
             _warn_once("unwritable", self._cache_path,
                        f"cannot save compiled kernels in numba's cache {self._cache_path}: {what}; this run goes on, "
                        f"the next one compiles them again")

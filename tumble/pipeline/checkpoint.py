@@ -41,6 +41,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .. import _disk
 from .._version import __version__
 from ..output import io
 
@@ -142,7 +143,7 @@ def local_file_locks():
 
 
 def _write_error(path, err):
-    what = err.strerror or str(err)
+    what = _disk.disk_problem(err, Path(path).parent) or err.strerror or str(err)
     return OutputError(err.errno, f"cannot write {path}: {what}")
 
 
@@ -383,8 +384,9 @@ class Checkpoint:
                 break
             os.close(fd)
         try:
-            os.ftruncate(fd, 0)
-            os.write(fd, f"{os.getpid()}\n".encode())
+            with contextlib.suppress(OSError):  # the holder's id is for the message only (a full disk may refuse it)
+                os.ftruncate(fd, 0)
+                os.write(fd, f"{os.getpid()}\n".encode())
             yield self
         finally:
             with contextlib.suppress(OSError):

@@ -26,7 +26,7 @@ from typing import NamedTuple
 import numpy as np
 from tqdm.auto import tqdm
 
-from .. import registry
+from .. import _disk, registry
 from ..engine.sampling import CHUNK
 from ..measure import cost
 from ..measure import model_scenes
@@ -591,8 +591,8 @@ def write_outputs(ds, resolved, directory, stem, *, action=None):
     except checkpoint.OutputError:
         raise
     except OSError as err:
-        raise checkpoint.OutputError(err.errno, f"cannot write the results to {directory}: "
-                                                f"{err.strerror or err}") from err
+        what = _disk.disk_problem(err, directory) or err.strerror or err
+        raise checkpoint.OutputError(err.errno, f"cannot write the results to {directory}: {what}") from err
     finally:
         shutil.rmtree(staging, ignore_errors=True)
     return stored, [path, *figures]
