@@ -257,3 +257,53 @@ def test_a_full_disk_under_the_numba_cache_warns_once_and_the_run_goes_on(small_
     assert err.count("CacheWarning") == 1, err
     assert f"cannot save compiled kernels in numba's cache {small_disk}/numba-cache" in err
     assert f"the disk holding {small_disk}/numba-cache" in err and "is full (" in err
+
+
+# --- cause 4: a dask scheduler that dies mid-run -------------------------------------------------------------------
+
+# 27 stepped scenes, one chunk each: long enough that the scheduler is killed with most of them still to run.
+STEPPED = {"title": "stepped", "perturbation": {"samples": 2048}, "scan": {"triangle": 3, "axis": [1, 2, 3]},
+           "integration": {"method": "rk4", "flips": 0}, "outputs": {"figures": [], "arrays": []}}
+
+
+@pytest.mark.slow
+def test_a_killed_scheduler_ends_the_run_with_one_line_and_keeps_the_finished_chunks(tmp_path):
+    pytest.importorskip("distributed")
+    dask = shutil.which("dask", path=os.path.dirname(sys.executable)) or shutil.which("dask")
+    if dask is None:
+        pytest.skip("no dask command (pip install 'tumble[distributed]')")
+    study, out, file = write_study(tmp_path, STEPPED, "stepped"), tmp_path / "out", tmp_path / "scheduler.json"
+    log = open(tmp_path / "dask.log", "w")
+    env = {**os.environ, "NUMBA_NUM_THREADS": "1"}
+    scheduler = subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                                  "--scheduler-file", str(file)], stdout=log, stderr=subprocess.STDOUT, env=env)
+    worker = None
+    try:
+        deadline = time.monotonic() + 60
+        while not file.exists() or not file.read_text().strip():
+            assert time.monotonic() < deadline and scheduler.poll() is None, "the scheduler did not start"
+            time.sleep(0.1)
+        address = json.loads(file.read_text())["address"]
+        worker = subprocess.Popen([dask, "worker", address, "--nthreads", "1", "--nworkers", "1", "--no-dashboard",
+                                   "--host", "127.0.0.1"], stdout=log, stderr=subprocess.STDOUT, env=env)
+        run = tumble_command("run", study, "--out", out, "--scheduler", address, "--chunk-scenes", 1)
+        chunks = out / ".stepped.chunks"
+        while not (chunks.is_dir() and any(p.suffix == ".chunk" for p in chunks.iterdir())):
+            assert run.poll() is None, run.communicate()
+            assert time.monotonic() < deadline + 120, "no chunk finished"
+            time.sleep(0.05)
+        os.kill(scheduler.pid, signal.SIGKILL)
+        status, _, err = finish(run, timeout=120)
+    finally:
+        for process in (worker, scheduler):
+            if process is not None and process.poll() is None:
+                process.kill()
+                process.wait()
+        log.close()
+    kept = sorted(p.name for p in chunks.iterdir())
+    assert status == 1, err
+    assert err == (f"tumble: failed: the dask scheduler at {address} was lost: its tasks were cancelled "
+                   f"({err.split('cancelled (')[1].split(')')[0]}); {len(kept)} finished chunk(s) are kept in "
+                   f"{chunks}: rerun to resume\n"), err
+    assert 1 <= len(kept) < 27 and all(name.endswith(".chunk") for name in kept), kept
+    assert not (out / "stepped.nc").exists() and hidden(out) == [".stepped.chunks"]

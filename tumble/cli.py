@@ -337,6 +337,9 @@ def main(argv=None):
         print(f"tumble: failed: {err.strerror or err}; earlier results there are unchanged, and finished chunks are "
               "kept for a rerun to resume from", file=sys.stderr)
         return 1
+    except _raised_by("pipeline.distributed", "SchedulerLost") as err:
+        print(f"tumble: failed: {err}", file=sys.stderr)
+        return 1
     except BrokenPipeError:  # output piped into a reader that stopped early (e.g. `| head`)
         sys.stderr.close()
         return 1

@@ -499,8 +499,14 @@ def run_scenes(job, *, store=None, client=None, chunk_scenes=None, chunk_samples
     if client is not None:
         from . import distributed
 
-        for task, data in distributed.run_chunks(client, compute_task, job, tasks, digest):
-            finish(task, checkpoint.unpack(data, digest, n), data)
+        try:
+            for task, data in distributed.run_chunks(client, compute_task, job, tasks, digest):
+                finish(task, checkpoint.unpack(data, digest, n), data)
+        except distributed.SchedulerLost as err:
+            kept = (f"{sum(1 for _ in store.folder.glob('*' + checkpoint.CHUNK_SUFFIX))} finished chunk(s) are kept in "
+                    f"{store.folder}: rerun to resume" if store is not None and store.folder.is_dir()
+                    else "no finished chunk is kept")
+            raise distributed.SchedulerLost(f"{err}; {kept}") from None
     else:
         show = sys.stderr.isatty() if progress is None else progress
         with tqdm(total=n, initial=len(scenes), unit="scenes", disable=not (show and n > 1), desc="scan") as bar:
