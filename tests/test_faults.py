@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 
 import pytest
 import xarray as xr
@@ -169,6 +170,19 @@ def test_where_no_folder_can_hold_a_cache_kernels_run_uncached_with_one_warning(
     assert done.stderr.count("CacheWarning") == 1 and "running without a cache" in done.stderr, done.stderr
     assert "set NUMBA_CACHE_DIR to a writable folder" in done.stderr
 
+
+
+def test_the_command_line_shows_a_cache_warning_as_one_line(capsys):
+    from tumble.kernels import jit
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        warnings.showwarning = cli._show_warning
+        warnings.warn("numba's cache of compiled kernels in X held a damaged file (...)", jit.CacheWarning)
+        warnings.warn("not tumble's", RuntimeWarning)
+    err = capsys.readouterr().err
+    assert err.startswith("tumble: warning: numba's cache of compiled kernels in X held a damaged file (...)\n")
+    assert "RuntimeWarning: not tumble's" in err, "other warnings as Python shows them"
 
 # --- cause 3: a full disk ------------------------------------------------------------------------------------------
 

@@ -300,13 +300,12 @@ def _raised_by(module, name):
     return (getattr(loaded, name),) if loaded is not None else ()
 
 
-def _show_warning(message, category, filename, lineno, file=None, line=None, _default=warnings.showwarning):
+def _show_warning(message, category, filename, lineno, file=None, line=None):
     """tumble's own warnings (e.g. :class:`tumble.kernels.jit.CacheWarning`) as one line, ``tumble: warning: ...``;
     the others as Python shows them."""
-    if category.__module__.startswith("tumble."):
-        print(f"tumble: warning: {message}", file=sys.stderr if file is None else file)
-    else:
-        _default(message, category, filename, lineno, file, line)
+    text = (f"tumble: warning: {message}\n" if category.__module__.startswith("tumble.")
+            else warnings.formatwarning(message, category, filename, lineno, line))
+    (sys.stderr if file is None else file).write(text)
 
 
 def main(argv=None):
