@@ -14,9 +14,6 @@ __all__ = ["disk_problem", "free_space"]
 #: A write that fails with less than this much room left (beyond what it was writing) failed for want of room.
 MARGIN = 1 << 20
 
-_FULL = (errno.ENOSPC, errno.EDQUOT)
-
-
 def _existing(folder):
     """``folder``, or its nearest existing ancestor."""
     folder = os.path.abspath(folder)
@@ -38,11 +35,13 @@ def disk_problem(err, folder, needed=0):
     """``"the disk holding <folder> is full (<free space>)"`` when ``err`` (an exception raised while writing in
     ``folder``) came from a full disk, else None.
 
-    A full disk is one the error says is full (``ENOSPC``, ``EDQUOT``), or, for a library that words it otherwise,
+    A full disk is one the error says is full (``ENOSPC``; ``EDQUOT``, a used-up quota, is named as such), or, for a library that words it otherwise,
     one with less than ``needed`` bytes (what was being written) plus :data:`MARGIN` free for this user when the
     error happened: call this before the half-written file is removed.
     """
-    full = getattr(err, "errno", None) in _FULL
+    if getattr(err, "errno", None) == errno.EDQUOT:
+        return f"the disk quota for {folder} is used up ({free_space(folder)} on its disk)"
+    full = getattr(err, "errno", None) == errno.ENOSPC
     if not full:
         try:
             stats = os.statvfs(_existing(folder))
