@@ -13,7 +13,6 @@ import time
 import warnings
 
 import pytest
-import xarray as xr
 
 from tumble import cli
 from tumble.output import io
