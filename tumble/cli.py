@@ -13,6 +13,7 @@ import subprocess
 import sys
 import time
 import traceback
+import warnings
 from pathlib import Path
 
 from . import _interrupt, registry
@@ -141,23 +142,25 @@ def _run(args):
         print(f"estimate: {cost.describe(runner.study_cost(prepared.resolved))}")
         return
     print(f"tumble {__version__}: study {args.study!r} ({prepared.resolved['title']})", flush=True)
-    if args.fresh:
-        prepared.store.remove()
     command = " ".join(["tumble run", args.study] + [f"--{k.split('.')[1]} {v}" for k, v in overrides.items()])
-    options = {"chunk_scenes": chunk, "chunk_samples": args.chunk_samples, "action": command,
+    options = {"chunk_scenes": chunk, "chunk_samples": args.chunk_samples, "action": command, "fresh": args.fresh,
                "log": lambda line: print(line, flush=True)}
-    with contextlib.ExitStack() as stack:
-        if prepared.resolved["outputs"]["figures"]:  # matplotlib is imported there while the scenes run here
-            options["figure_process"] = stack.enter_context(figure_process.FigureProcess())
-        if scheduler is None:
-            stored, paths = runner.execute_study(prepared, **options)
-        else:
-            from .pipeline import distributed
+    try:
+        with contextlib.ExitStack() as stack:
+            if prepared.resolved["outputs"]["figures"]:  # matplotlib is imported there while the scenes run here
+                options["figure_process"] = stack.enter_context(figure_process.FigureProcess())
+            if scheduler is None:
+                stored, paths = runner.execute_study(prepared, **options)
+            else:
+                from .pipeline import distributed
 
-            client = stack.enter_context(distributed.connect(scheduler, workers=args.workers))
-            print(f"dask scheduler {client.scheduler.address}: {len(client.scheduler_info()['workers'])} "
-                  f"worker(s)", flush=True)
-            stored, paths = runner.execute_study(prepared, client=client, **options)
+                client = stack.enter_context(distributed.connect(scheduler, workers=args.workers))
+                print(f"dask scheduler {client.scheduler.address}: {len(client.scheduler_info()['workers'])} "
+                      f"worker(s)", flush=True)
+                stored, paths = runner.execute_study(prepared, client=client, **options)
+    except checkpoint.FolderBusy as err:
+        raise InputError(f"{_output_option(args, prepared)}: {err.strerror}; wait for it to finish, or choose another "
+                         f"--out") from None
     print(runner.summary_table(stored))
     print(f"\n{time.perf_counter() - started:.1f} s; wrote:")
     for path in paths:
@@ -172,9 +175,13 @@ def _check_output_folder(args, prepared):
     try:
         checkpoint.check_writable(prepared.directory)
     except checkpoint.OutputError as err:
-        where = ("--out" if args.out is not None else "outputs.directory" if prepared.resolved["outputs"]["directory"]
-                 else "the default output folder (choose another with --out)")
-        raise InputError(f"{where}: {err.strerror}") from None
+        raise InputError(f"{_output_option(args, prepared)}: {err.strerror}") from None
+
+
+def _output_option(args, prepared):
+    """Where the output folder came from, for a message: ``--out``, ``outputs.directory`` or the default."""
+    return ("--out" if args.out is not None else "outputs.directory" if prepared.resolved["outputs"]["directory"]
+            else "the default output folder (choose another with --out)")
 
 
 def _scheduler(args):
@@ -300,9 +307,18 @@ def _raised_by(module, name):
     return (getattr(loaded, name),) if loaded is not None else ()
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """tumble's own warnings (e.g. :class:`tumble.kernels.jit.CacheWarning`) as one line, ``tumble: warning: ...``;
+    the others as Python shows them."""
+    text = (f"tumble: warning: {message}\n" if category.__module__.startswith("tumble.")
+            else warnings.formatwarning(message, category, filename, lineno, line))
+    (sys.stderr if file is None else file).write(text)
+
+
 def main(argv=None):
     """Entry point of ``tumble`` and ``python -m tumble``; returns the exit status."""
     args = _parser().parse_args(argv)
+    warnings.showwarning = _show_warning
     try:
         _interrupt.release()  # from here on Ctrl-C is a KeyboardInterrupt, reported below
         if args.command == "run":
@@ -326,6 +342,9 @@ def main(argv=None):
     except _raised_by("pipeline.checkpoint", "OutputError") as err:
         print(f"tumble: failed: {err.strerror or err}; earlier results there are unchanged, and finished chunks are "
               "kept for a rerun to resume from", file=sys.stderr)
+        return 1
+    except _raised_by("pipeline.distributed", "SchedulerLost") as err:
+        print(f"tumble: failed: {err}", file=sys.stderr)
         return 1
     except BrokenPipeError:  # output piped into a reader that stopped early (e.g. `| head`)
         sys.stderr.close()

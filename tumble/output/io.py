@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import contextlib
 import datetime
+import errno
 import json
 import numbers
 import os
@@ -46,6 +47,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from .. import _disk
 from .._version import __version__
 
 __all__ = ["assume_no_dask_arrays", "check_tumble_result", "netcdf_safe_attrs", "provenance", "read_dataset",
@@ -349,7 +351,8 @@ def write_dataset(ds, path, *, compression=4, stored=False, **provenance_kwargs)
     TypeError
         If an attribute cannot be stored (see :func:`netcdf_safe_attrs`).
     OSError
-        If the file cannot be written.
+        If the file cannot be written; for a full disk (which netCDF4 reports as "Permission denied" or
+        ``RuntimeError: NetCDF: HDF error``) the message says so: ``the disk holding <folder> is full (...)``.
     """
     if (
         isinstance(compression, (bool, np.bool_))
@@ -365,7 +368,16 @@ def write_dataset(ds, path, *, compression=4, stored=False, **provenance_kwargs)
     path = Path(os.fspath(path))
     path.parent.mkdir(parents=True, exist_ok=True)
     with replaced_atomically(path, durable=True) as tmp:
-        ds.to_netcdf(tmp, mode="w", format="NETCDF4", engine="netcdf4", encoding=encoding)
+        try:
+            ds.to_netcdf(tmp, mode="w", format="NETCDF4", engine="netcdf4", encoding=encoding)
+        except (OSError, RuntimeError) as err:  # netCDF4: a full disk is "Permission denied" or "NetCDF: HDF error"
+            # asked while the half-written file still takes its room
+            problem = _disk.disk_problem(err, path.parent, needed=ds.nbytes)
+            if problem:
+                raise OSError(errno.ENOSPC, f"{problem} (writing {path.name})") from err
+            if isinstance(err, RuntimeError):  # netCDF4's bare "NetCDF: HDF error" names no file
+                raise OSError(errno.EIO, f"{err} (writing {path})") from err
+            raise
     return ds
 
 

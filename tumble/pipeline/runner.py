@@ -26,7 +26,7 @@ from typing import NamedTuple
 import numpy as np
 from tqdm.auto import tqdm
 
-from .. import registry
+from .. import _disk, registry
 from ..engine.sampling import CHUNK
 from ..measure import cost
 from ..measure import model_scenes
@@ -499,8 +499,14 @@ def run_scenes(job, *, store=None, client=None, chunk_scenes=None, chunk_samples
     if client is not None:
         from . import distributed
 
-        for task, data in distributed.run_chunks(client, compute_task, job, tasks, digest):
-            finish(task, checkpoint.unpack(data, digest, n), data)
+        try:
+            for task, data in distributed.run_chunks(client, compute_task, job, tasks, digest):
+                finish(task, checkpoint.unpack(data, digest, n), data)
+        except distributed.SchedulerLost as err:
+            kept = (f"{sum(1 for _ in store.folder.glob('*' + checkpoint.CHUNK_SUFFIX))} finished chunk(s) are kept in "
+                    f"{store.folder}: rerun to resume" if store is not None and store.folder.is_dir()
+                    else "no finished chunk is kept")
+            raise distributed.SchedulerLost(f"{err}; {kept}") from None
     else:
         show = sys.stderr.isatty() if progress is None else progress
         with tqdm(total=n, initial=len(scenes), unit="scenes", disable=not (show and n > 1), desc="scan") as bar:
@@ -599,8 +605,8 @@ def write_outputs(ds, resolved, directory, stem, *, action=None, figure_process=
     except checkpoint.OutputError:
         raise
     except OSError as err:
-        raise checkpoint.OutputError(err.errno, f"cannot write the results to {directory}: "
-                                                f"{err.strerror or err}") from err
+        what = _disk.disk_problem(err, directory) or err.strerror or err
+        raise checkpoint.OutputError(err.errno, f"cannot write the results to {directory}: {what}") from err
     finally:
         if figure_process is not None:
             figure_process.close()  # before the staging folder goes: it may still be writing into it
@@ -641,19 +647,31 @@ def prepare_study(source, *, overrides=None, out=None, formats=None, default_dir
 
 
 def execute_study(prepared, *, progress=None, client=None, chunk_scenes=None, chunk_samples=None, log=None,
-                  action=None, figure_process=None):
+                  action=None, fresh=False, figure_process=None):
     """Run a prepared study's scenes (here, or on the dask ``client``), resuming from its checkpoint, and write
     its outputs; return ``(dataset, paths written)`` — the stored dataset when written, else ``(dataset, [])``.
-    ``log`` receives one line per resumed or finished chunk; ``action`` is the provenance's command;
-    ``figure_process`` draws the figures (:func:`write_outputs`)."""
-    ds = _run(prepared.resolved, prepared.file, progress, job=prepared.job, store=prepared.store, client=client,
-              chunk_scenes=chunk_scenes, chunk_samples=chunk_samples, log=log)
+    ``log`` receives one line per resumed or finished chunk; ``action`` is the provenance's command; ``fresh``
+    discards the checkpoint first instead of resuming from it; ``figure_process`` draws the figures
+    (:func:`write_outputs`).
+
+    A run that writes holds its folder's lock for the study's stem (:meth:`tumble.pipeline.checkpoint.Checkpoint.locked`)
+    from before it reads the checkpoint until its files are in place: a second run of the same stem into the same
+    folder is refused at once (:class:`tumble.pipeline.checkpoint.FolderBusy`) instead of sharing its chunks and
+    staging folder.
+    """
     if prepared.directory is None:
+        ds = _run(prepared.resolved, prepared.file, progress, job=prepared.job, client=client,
+                  chunk_scenes=chunk_scenes, chunk_samples=chunk_samples, log=log)
         return ds, []
-    stored, paths = write_outputs(ds, prepared.resolved, prepared.directory, prepared.stem, action=action,
-                                  figure_process=figure_process)
-    prepared.store.remove()
-    prepared.store.clean_partial_results()
+    with prepared.store.locked():
+        if fresh:
+            prepared.store.remove()
+        ds = _run(prepared.resolved, prepared.file, progress, job=prepared.job, store=prepared.store, client=client,
+                  chunk_scenes=chunk_scenes, chunk_samples=chunk_samples, log=log)
+        stored, paths = write_outputs(ds, prepared.resolved, prepared.directory, prepared.stem, action=action,
+                                      figure_process=figure_process)
+        prepared.store.remove()
+        prepared.store.clean_partial_results()
     return stored, paths
 
 
