@@ -36,7 +36,7 @@ from ..kernels import BLOCK, METHODS, TORQUE_CONSTANT, TORQUE_SIGNATURE, TORQUE_
 from ..physics import exact
 from ..physics.bodies import finite_array, one_body, spin_vectors
 from ..registry import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK, choose_method
-from .device import check_on_device, resolve_device, stepper
+from .device import LAUNCH_SAMPLES, check_on_device, resolve_device, stepper
 from .sampling import CHUNK
 
 __all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "Interrupted", "STATUS_NAMES", "run_ensemble", "torque_spec"]
@@ -298,7 +298,8 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
     drift_limit : float
         Torque-free invariant drift that flags a sample as ``invariant drift`` (0: no flagging).
     chunk : int
-        Samples per kernel call (progress and Ctrl-C granularity).
+        Samples per kernel call (progress and Ctrl-C granularity); on the device at least
+        :data:`tumble.engine.device.LAUNCH_SAMPLES`.
     progress : bool, optional
         Show a progress bar; default: only when standard error is a terminal.
     attitude : bool
@@ -306,8 +307,9 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         The body frame is the space frame at ``t = 0``.
     device : str
         ``"cpu"`` or ``"cuda"`` (:func:`tumble.engine.device.resolve_device`). On ``"cuda"`` today: a fixed-step
-        method other than the implicit midpoint rule, a constant torque or a named profile, the final state and the
-        trajectory; anything else is refused (``device 'cuda': ... not yet on the device``), never run on the CPU.
+        method other than the implicit midpoint rule, a constant torque or a named profile, and every observer (final
+        state, trajectory, probe norms, flips, drift records, early stop); anything else is refused (``device 'cuda':
+        ... not yet on the device``), never run on the CPU.
 
     Returns
     -------
@@ -347,9 +349,8 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         drift=drift, attitude=attitude, stop_norm=stop_norm if early else 0.0, stop_flips=stop_flips if early else 0,
         drift_limit=drift_limit if torque.free else 0.0)
     if device == "cuda":
-        check_on_device(chosen, attitude=attitude, torque_fn=torque.fn, probe_steps=observe.probe_steps,
-                        max_flips=observe.max_flips, drift=observe.drift, stop_norm=observe.stop_norm,
-                        stop_flips=observe.stop_flips)
+        check_on_device(chosen, attitude=attitude, torque_fn=torque.fn)
+        chunk = max(chunk, LAUNCH_SAMPLES)
     info = {"path": "closed form" if chosen == "exact" else "fixed-step kernel", "method": chosen,
             "reason": reason, "dt": dt, "n_steps": n_steps, "torque": torque.text, "early_stop": early,
             "samples": n, "device": device}
