@@ -157,6 +157,24 @@ def test_early_stop_on_the_device_stops_each_sample_at_the_cpu_step(cuda_device,
     assert device.info["sample_steps_skipped"] == cpu.info["sample_steps_skipped"] > 0
 
 
+@pytest.mark.parametrize("method", ["rk4", "splitting2"])
+def test_the_growth_fit_in_the_kernel_is_the_cpu_fit_of_the_probes(cuda_device, flipping, method):
+    """growth_window: the device feeds each probe norm to the fit in registers (keep_probes=False: no norm comes back);
+    the CPU fits the stored probes. Some windows end at saturation, some at the early stop, some are too short."""
+    kwargs = dict(method=method, axis=1, final=False, probe_times=np.linspace(0.0, 12.0, 41), max_flips=1,
+                  norm_weights=(1.0, 0.5, 2.0), stop_norm=0.3, stop_flips=1, growth_window=(0.25, 8), progress=False)
+    cpu = tumble.run_ensemble(BODY, flipping, 12.0, STEP, **kwargs)
+    device = tumble.run_ensemble(BODY, flipping, 12.0, STEP, device="cuda", keep_probes=False, **kwargs)
+    assert device.probes is None and cpu.probes is not None
+    rate, points, first, last = cpu.growth
+    assert (points > 0).any() and (points < 41).any()
+    np.testing.assert_array_equal(device.growth[1], points)
+    for name, d, c in zip(("rate", "first", "last"), device.growth[::2] + device.growth[3:], (rate, first, last)):
+        good = points > 0
+        np.testing.assert_allclose(d[good], c[good], rtol=1e-10, err_msg=name)
+    assert np.isnan(device.growth[0][points == 0]).all()
+
+
 def test_flips_check_every_step_for_a_blow_up_as_on_the_cpu(cuda_device):
     """With flips observed the non-finite check runs every step (not every 32): the same step and status."""
     w0 = np.array([[1.0, 0.05, 0.05], [1e150, 1e150, 1e150]])
@@ -256,7 +274,7 @@ _PTX = textwrap.dedent("""
     f8, i8 = nt.float64, nt.int64
     a2 = f8[:, ::1]
     signature = (a2, nt.UniTuple(f8, 12), f8, f8, i8, i8, f8[:, :, ::1], i8, nt.UniTuple(f8, 3), i8[::1], a2, a2,
-                 i8[::1], a2, nt.int8[::1], i8[::1], f8, i8, f8, i8, nt.UniTuple(f8, 4))
+                 i8[::1], a2, nt.int8[::1], i8[::1], f8, i8, f8, i8, nt.UniTuple(f8, 4), f8, i8, f8, a2, i8[::1])
     for name in ("rk4", "rk8", "symplectic_euler", "splitting2", "splitting4"):
         for torque_free in (True, False):
             kernel = device_kernels().make_kernel(METHODS[name], torque_free)
@@ -337,7 +355,7 @@ def _same_scene(device, cpu):
 
 
 @pytest.mark.parametrize("axis, method, kwargs", [
-    (2, "rk4", {}),
+    (2, "rk4", dict(curves=("norm",))),
     (2, "splitting4", dict(flips=2)),
     (1, "rk8", {}),
     (3, "auto", dict(torque={"profile": "constant", "vector": (0.0, 0.0, 0.05)}, horizon=20.0)),
@@ -346,7 +364,8 @@ def test_a_stepping_scene_on_the_device_measures_the_cpu_rates(cuda_device, axis
     cpu = tumble.measure((1.0, 2.0, 3.0), axis, samples=12, method=method, **kwargs)
     device = tumble.measure((1.0, 2.0, 3.0), axis, samples=12, method=method, device="cuda", **kwargs)
     _same_scene(device, cpu)
-    for name in ("flip_first_median", "sample_steps_computed", "sample_steps_skipped"):
+    for name in ("flip_first", "sample_steps_computed", "sample_steps_skipped", "growth_norm", "fit_t_stop",
+                 "fit_norm_stop"):
         if name in cpu:
             np.testing.assert_allclose(device[name].values, cpu[name].values, rtol=1e-10, err_msg=name)
 

@@ -62,6 +62,7 @@ class Observed(NamedTuple):
     drift: np.ndarray | None  # (2, N): max |E/E0 - 1|, max ||L|²/|L0|² - 1|
     status: np.ndarray  # (N,) int8
     steps_taken: np.ndarray  # (N,) int64
+    growth: tuple | None = None  # the device's growth fit (tumble.kernels.cuda.run): rate, points, first, last (N,)
 
 
 def _relabelling(method, moments, torque_params, torque_fn):

@@ -436,13 +436,16 @@ def scene_samples(scene, start, stop, *, progress=False):
                               probe_times=plan.probe_times if growth else None,
                               norm_weights=plan.weights if growth else None, max_flips=n_flips,
                               stop_norm=plan.saturation if growth else 0.0, stop_flips=n_flips,
-                              torque=scene.torque, progress=progress, device=scene.device)
+                              torque=scene.torque, progress=progress, device=scene.device,
+                              growth_window=(plan.saturation, analysis.MIN_POINTS) if growth else None,
+                              keep_probes=keep_norm and lo == 0)
         info = result.info
         computed += info["sample_steps_computed"]
         skipped += info["sample_steps_skipped"]
         rows = slice(lo - start, hi - start)
         if growth:
-            fit = analysis.growth_rates(result.probe_times, result.probes, plan.saturation)
+            # fitted by the engine: on the device in the kernel, so that no probe norm comes back (but the norm curve's)
+            fit = analysis.growth_window_fit(result.probe_times, *result.growth)
             if keep_norm and lo == 0:
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns after every sample stopped
