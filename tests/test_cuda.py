@@ -311,6 +311,16 @@ def test_closed_form_scenes_on_the_device_are_refused_until_it_is_there(cuda_dev
     assert "run it with device='cpu'" in str(err.value)
 
 
+def test_tumble_run_device_cuda_refuses_a_closed_form_study_in_one_line_and_writes_nothing(cuda_device, tmp_path):
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")  # the simulator: the device is there, the closed form is not
+    done = subprocess.run([sys.executable, "-m", "tumble", "run", "--device", "cuda", "--out", str(tmp_path / "out")],
+                          capture_output=True, text=True, env=env, timeout=120)
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("device 'cuda': a scene on the closed form"), done.stderr
+    assert not (tmp_path / "out").exists()
+
+
 def test_model_studies_on_the_device_are_refused_before_anything_runs(cuda_device):
     with pytest.raises(ValueError) as err:
         tumble.run_study("gyrostat_map", device="cuda")

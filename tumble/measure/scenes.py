@@ -440,11 +440,9 @@ def scene_samples(scene, start, stop, *, progress=False):
                               growth_window=(plan.saturation, analysis.MIN_POINTS) if growth else None,
                               keep_probes=keep_norm and lo == 0)
         info = result.info
-        computed += info["sample_steps_computed"]
-        skipped += info["sample_steps_skipped"]
+        computed, skipped = computed + info["sample_steps_computed"], skipped + info["sample_steps_skipped"]
         rows = slice(lo - start, hi - start)
-        if growth:
-            # fitted by the engine: on the device in the kernel, so that no probe norm comes back (but the norm curve's)
+        if growth:  # fitted by the engine: on the device in the kernel, no norm comes back (but the norm curve's)
             fit = analysis.growth_window_fit(result.probe_times, *result.growth)
             if keep_norm and lo == 0:
                 with warnings.catch_warnings():
