@@ -27,6 +27,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .. import _disk, registry
+from ..engine.device import DeviceError, not_on_device, resolve_device
 from ..engine.sampling import CHUNK
 from ..measure import cost
 from ..measure import model_scenes
@@ -123,7 +124,7 @@ def plan(resolved, file="<mapping>"):
     integ = resolved["integration"]
     options = {"dt": integ["dt"] or None, "flips": integ["flips"], "horizon": integ["horizon"] or None,
                "distribution": resolved["perturbation"]["distribution"], "torque": torque,
-               "curves": tuple(sorted({_CURVES[f] for f in figures if f in _CURVES}))}
+               "curves": tuple(sorted({_CURVES[f] for f in figures if f in _CURVES})), "device": integ["device"]}
     bodies = np.atleast_2d(moments)
     axes = values["axis"] if isinstance(values["axis"], list) else [values["axis"]]
     kinds = set(np.atleast_1d(theory.linear(bodies[:, None, :], np.asarray(axes)[None, :], 1.0)[0]).ravel().tolist())
@@ -241,15 +242,26 @@ def scene_job(resolved, file="<mapping>"):
         As :func:`plan`.
     """
     check_cost(resolved, file)
-    study.scenes_on_device(resolved["integration"]["device"])  # device 'cuda': refused before anything runs
     p = plan(resolved, file)
     values = p.values
+    _scenes_on_device(p, resolved["integration"]["device"])  # device 'cuda': refused before anything runs
     if "model" in p.options:
         swept = [key for key in values if key in p.scanned or (key == "spin" and "rate" in p.scanned)]
         layout = model_scenes.scan_layout(p.moments, values, swept)
         return Job(layout, bool(p.scanned), p.samples, p.seed, p.options, p.body_coords, p, str(file))
     layout = study.scan_layout(p.moments, values["axis"], values["spin"], values["amplitude"], values["method"])
     return Job(layout, bool(p.scanned), p.samples, p.seed, p.options, p.body_coords, p, str(file))
+
+
+def _scenes_on_device(p, device):
+    """Refuse a study's scenes that cannot run on ``device`` before any runs (``device 'cuda': ...``): a model's
+    scenes, and scenes on the closed form (:func:`tumble.measure.scenes.scenes_on_device`)."""
+    if "model" in p.options:
+        if resolve_device(device) == "cuda":
+            raise not_on_device(f"a model's scene (model.kind = {p.options['model']!r}) is")
+        return
+    methods = p.values["method"] if isinstance(p.values["method"], list) else [p.values["method"]]
+    study.scenes_on_device(device, methods, torque_free=p.options["torque"] is None)
 
 
 class Task(NamedTuple):
@@ -277,6 +289,8 @@ def _scene_plan(job, index):
             return _model_scene_plan(job, moments, params)
         scene = study.scene_plan(moments, params["axis"], params["spin"], params["amplitude"], job.samples,
                                  job.seed, params["method"], **job.options)
+    except DeviceError:  # the device's own one line (device 'cuda': ...), as every call gives it
+        raise
     except ValueError as err:  # a value this scene cannot take: the study's fault, named as such (exit 2)
         label = " ".join(f"{key}={value}" for key, value in params.items())
         raise StudyError(file, f"scene {index} ({label})", str(err)) from None
@@ -698,8 +712,10 @@ def run_study(source, *, overrides=None, out=None, progress=None, scheduler=None
         ``"tcp://HOST:PORT"``, or a connected ``distributed.Client`` (see :mod:`tumble.pipeline.distributed`).
         Default: in this process. The results are the same bits either way.
     device : {"cpu", "cuda"}, optional
-        Overrides the study's ``integration.device``; ``"cuda"`` is refused for now (``device 'cuda': ...``,
-        :func:`tumble.measure.scenes.scenes_on_device`), an invalid value is a ``StudyError`` naming the field.
+        Overrides the study's ``integration.device``. ``"cuda"`` runs the stepping scenes on the device; a study with
+        closed-form scenes (``method = "auto"`` torque-free, or ``"exact"``) or a ``[model]`` is refused before anything
+        runs (``device 'cuda': ...``, :func:`tumble.measure.scenes.scenes_on_device`); an invalid value is a
+        ``StudyError`` naming the field.
     chunk_scenes : int, optional
         Scenes per chunk (checkpoint and dask task); the results do not depend on it.
     chunk_samples : int, optional
