@@ -165,6 +165,9 @@ def gallery(folder, page_dir):
 
     from tumble.pipeline.config import bundled_studies
 
+    if not Path(folder).is_dir():
+        logger.warning(f"tumble-gallery: no folder {folder}")
+        return ""
     studies = bundled_studies()
     lines = []
     for study, title in studies.items():
@@ -323,7 +326,28 @@ class Gallery(_Generated):
         return gallery(folder, Path(self.env.doc2path(self.env.docname)).parent)
 
 
+def _public_alias(app, env, node, contnode):
+    """Resolve a Python reference by the other name of a public module: ``tumble.io.read_dataset`` (the name users
+    write) is documented as ``tumble.output.io.read_dataset`` (where it lives), and a docstring may use either."""
+    import tumble
+
+    target = node.get("reftarget", "")
+    if node.get("refdomain") != "py" or not target.startswith("tumble."):
+        return None
+    for short, module in tumble._ALIASES.items():  # noqa: SLF001 - the face's own table of short module paths
+        for a, b in ((f"tumble.{short}", module), (module, f"tumble.{short}")):
+            if target == a or target.startswith(a + "."):
+                domain = env.get_domain("py")
+                node["reftarget"] = b + target[len(a):]
+                found = domain.resolve_xref(env, node["refdoc"], app.builder, node["reftype"], node["reftarget"],
+                                            node, contnode)
+                node["reftarget"] = target
+                return found
+    return None
+
+
 def setup(app):
+    app.connect("missing-reference", _public_alias)
     app.add_directive("tumble-gallery", Gallery)
     app.add_post_transform(RepositoryLinks)
     app.add_directive("tumble-api", ApiReference)
