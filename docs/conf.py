@@ -47,6 +47,9 @@ nitpick_ignore_regex = [
     (r"py:.*", r"(?!tumble\.)[A-Za-z_]\w*(\.\w+)?"),
 ]
 
+# Furo rather than the PyData theme of NumPy and xarray: a site of some thirty pages reads best with the whole
+# Diataxis tree in one left sidebar (PyData's header tabs and per-section sidebars suit hundreds of pages), it has a
+# dark mode and a readable mobile layout without configuration, and it needs no theme options to be right.
 html_theme = "furo"
 html_title = f"tumble {release}"
 html_static_path = []

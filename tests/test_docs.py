@@ -4,6 +4,7 @@ and every command-line option, every public name has a docstring, and the exampl
 import argparse
 import doctest
 import html
+import json
 import re
 import subprocess
 import sys
@@ -96,7 +97,19 @@ def test_every_study_key_has_its_default_units_and_allowed_values():
     assert "`'t_handle'`" in rows["body.shape"]
     assert "| `1.0` | rad/s |" in rows["spin.rate"]
     assert "N m" in rows["model.mgl"]  # from registry.MODEL_PARAMETERS
+    assert "Cartesian product" in text  # the [scan] table's own comment, above its key list
     assert [field for field in _study_fields() if field not in rows] == []
+
+
+def test_the_netcdf_reference_file_is_what_tumble_run_writes_today():
+    """docs/reference/intermediate_axis.nc (the netCDF reference's source) has the variables, units and long names
+    of a fresh run of the study stored in it; regenerate it with the command on docs/reference/netcdf.md."""
+    stored = tumble.io.read_dataset(DOCS / "reference" / "intermediate_axis.nc", require_tumble=True)
+    fresh = tumble.run_study(json.loads(stored.attrs["study"]))
+    assert sorted(fresh.variables) == sorted(stored.variables)
+    for name in fresh.variables:
+        for key in ("units", "long_name"):
+            assert fresh[name].attrs.get(key) == stored[name].attrs.get(key), (name, key)
 
 
 _PYCON = re.compile(r"^```pycon\n(.*?)^```", re.S | re.M)

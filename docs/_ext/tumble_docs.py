@@ -78,8 +78,8 @@ def _units():
 
 def study_keys(path):
     """``{(table, key): comment lines}`` for every ``key = value`` line of the defaults file at ``path``
-    (``table`` "" for the top level): the comment block right above the key. A comment that ends a table
-    without keys (``[scan]``) is that table's, under key ""."""
+    (``table`` "" for the top level): the comment block right above the key. A table's first comment block that
+    stands alone (followed by a blank line, as ``[scan]``'s, a table without keys) is the table's, under key ""."""
     comments, comment, table = {}, [], ""
     for line in Path(path).read_text(encoding="utf-8").splitlines():
         stripped = line.strip()
@@ -90,9 +90,9 @@ def study_keys(path):
             table = stripped.strip("[]")
         elif stripped:
             comments[(table, stripped.split("=")[0].strip())] = comment
+        elif comment:  # a comment block that ends in a blank line: the table's own (the first such)
+            comments.setdefault((table, ""), comment)
         comment = []
-    if comment:
-        comments[(table, "")] = comment
     return comments
 
 
