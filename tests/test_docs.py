@@ -6,6 +6,7 @@ import doctest
 import html
 import json
 import re
+import resource
 import subprocess
 import sys
 import time
@@ -23,8 +24,16 @@ DOCS = ROOT / "docs"
 sys.path.insert(0, str(DOCS / "_ext"))
 import tumble_docs  # noqa: E402 - docs/_ext is not a package
 
-#: The build's budget in CI (2 cores): the issue's target is 60 s.
+#: The build's budget in CI (2 cores): the issue's target is 60 s. Checked on the CPU time of the build (one process
+#: does it all), which the load of the machine does not change: the suite runs it beside another worker that
+#: compiles kernels, where its wall time is several times its CPU time (7 s of CPU, 17-67 s wall at load 4-8).
 BUILD_BUDGET_S = 60.0
+
+
+def _children_cpu():
+    """CPU seconds (user and system) of this process's finished child processes."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 def _text(page):
@@ -53,13 +62,13 @@ def _cli_words(parser):
 
 
 def test_site_builds_without_warnings_and_lists_every_study_key_and_cli_option(tmp_path):
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), _children_cpu()
     done = subprocess.run([sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", "html",
                            "-d", str(tmp_path / "doctrees"), str(DOCS), str(tmp_path / "html")],
                           capture_output=True, text=True, cwd=ROOT)
-    elapsed = time.perf_counter() - start
+    wall, cpu = time.perf_counter() - start, _children_cpu() - cpu_start
     assert done.returncode == 0, f"sphinx-build failed:\n{done.stderr}"
-    assert elapsed < BUILD_BUDGET_S, f"the docs took {elapsed:.0f} s to build (budget {BUILD_BUDGET_S:.0f} s)"
+    assert cpu < BUILD_BUDGET_S, f"the docs took {cpu:.0f} s of CPU to build ({wall:.0f} s wall; budget {BUILD_BUDGET_S:.0f} s)"
 
     study_page = _text(tmp_path / "html" / "reference" / "study-file.html")
     missing = [field for field in _study_fields() if field not in study_page]
