@@ -12,6 +12,13 @@ Directives (used from the Markdown pages under ``docs/reference/``), each writin
 ``tumble-netcdf``
     The variables (dimensions, units, long name) and global attributes of a result file written by ``tumble run``
     (the argument: a netCDF file, relative to the page).
+``tumble-gallery``
+    The figures of the bundled studies (the argument: ``studies/gallery/``, relative to the page), each under the
+    command that made it.
+
+Links: a Markdown link to a file of the repository outside ``docs/`` becomes its text (:class:`RepositoryLinks`);
+a Python reference may name a public module by its short path or where it lives (``tumble.io`` or
+``tumble.output.io``: :func:`_public_alias`).
 
 At ``builder-inited`` every public name (``tumble.__all__`` and the ``__all__`` of the public modules, with the
 public methods of public classes) is checked for a docstring; each one missing is a warning, so that the build
