@@ -86,6 +86,31 @@ def test_site_builds_without_warnings_and_lists_every_study_key_and_cli_option(t
     assert not missing, f"public names missing from the API reference: {missing}"
 
 
+def _build(source):
+    """Build the site in ``source`` as the suite builds docs/ (warnings are errors); the completed process."""
+    return subprocess.run([sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", "html",
+                           str(source), str(source / "_build")], capture_output=True, text=True)
+
+
+@pytest.mark.parametrize("link, fails", [
+    ("[the README](../README.md)", False),         # a file of the repository outside docs/: its text
+    ("[nothing](../MISSING.md)", True),            # a file that does not exist
+    ("{func}`tumble.exact.omega`", False),         # a public name by its short module path
+    ("{func}`tumble.integrat`", True),             # a public name that does not exist
+])
+def test_a_broken_link_fails_the_build_and_a_link_out_of_the_site_does_not(tmp_path, link, fails):
+    (tmp_path / "README.md").write_text("# outside the site\n")
+    source = tmp_path / "docs"
+    source.mkdir()
+    conf = DOCS / "conf.py"  # the site's own configuration, run as it is
+    (source / "conf.py").write_text(f"__file__ = {str(conf)!r}\nexec(open(__file__).read())\n")
+    (source / "index.md").write_text(f"# A page\n\n```{{eval-rst}}\n.. autoclass:: tumble.Body\n\n"
+                                     f".. automodule:: tumble.physics.exact\n   :members: omega\n```\n\n"
+                                     f"See {link}.\n")
+    done = _build(source)
+    assert (done.returncode != 0) == fails, done.stderr
+
+
 def test_every_public_name_has_a_docstring():
     assert tumble_docs.missing_docstrings() == []
 
