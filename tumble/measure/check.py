@@ -85,7 +85,7 @@ def _column_array(value, label, width):
     if bad.any():
         row, col = np.argwhere(bad)[0] if arr.ndim == 2 else (np.argmax(bad), None)
         where = label if col is None else f"{label} column {col + 1}"
-        raise ValueError(f"{where}, row {row + 1}: {arr[tuple(np.argwhere(bad)[0])]} (every value must be finite)")
+        raise ValueError(f"{where}, row {row + 1}: {float(arr[tuple(np.argwhere(bad)[0])])} (every value must be finite)")
     return arr
 
 
@@ -123,7 +123,7 @@ def validate_trajectory(t, omega=None, quaternion=None, *, labels=None):
     steps = np.diff(t)
     if (steps <= 0).any():
         row = _first_bad_row(steps <= 0) + 1
-        raise ValueError(f"{labels['t']}, row {row}: times not increasing ({t[row - 2]!r} then {t[row - 1]!r})")
+        raise ValueError(f"{labels['t']}, row {row}: times not increasing ({float(t[row - 2])!r} then {float(t[row - 1])!r})")
     arrays = []
     for key, width in (("omega", 3), ("quaternion", 4)):
         value = omega if key == "omega" else quaternion
@@ -137,7 +137,7 @@ def validate_trajectory(t, omega=None, quaternion=None, *, labels=None):
         off = np.abs(np.linalg.norm(quaternion, axis=1) - 1.0)
         if (off > QUATERNION_NORM_TOLERANCE).any():
             row = _first_bad_row(off > QUATERNION_NORM_TOLERANCE)
-            raise ValueError(f"{labels['quaternion']}, row {row}: |q| = {np.linalg.norm(quaternion[row - 1])!r} is "
+            raise ValueError(f"{labels['quaternion']}, row {row}: |q| = {float(np.linalg.norm(quaternion[row - 1]))!r} is "
                              f"not a unit quaternion (tolerance {QUATERNION_NORM_TOLERANCE:g})")
     return t, omega, quaternion
 
