@@ -10,6 +10,7 @@ import argparse
 import atexit
 import contextlib
 import os
+import re
 import subprocess
 import sys
 import time
@@ -371,6 +372,10 @@ def _parser():
     check.add_argument("trajectory", metavar="TRAJECTORY",
                        help="a .csv (header row), .npz or .nc file with columns t; wx wy wz (angular velocity, rad/s) "
                             "and/or qw qx qy qz (attitude quaternion, body-to-world); other columns are ignored")
+    # argparse takes "-1.5e-06" for an option (its negative-number pattern has no exponent): an inertia tensor's
+    # off-diagonal elements are often negative and printed so. The same pattern with an exponent (argparse's own
+    # attribute; Python 3.11-3.13 read it the same way).
+    check._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")  # noqa: SLF001
     body = check.add_mutually_exclusive_group(required=True)
     body.add_argument("--moments", nargs=3, type=float, metavar=("I1", "I2", "I3"),
                       help="principal moments, kg m^2, along the file's body axes x, y, z")
