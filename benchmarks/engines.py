@@ -229,11 +229,13 @@ def main(argv=None):
         row = (engine, integrator, f"{dt * 1000:g}", f"{100 * period:+.3f}%" if np.isfinite(period) else "no flips",
                f"{ds.momentum_drift.values[-1]:+.1e}", f"{ds.energy_drift.values[-1]:+.1e}",
                f"{values['omega_error']:.1e}", f"{ds.sizes['flip']}/{ds.sizes['flip_exact']}",
-               ds.attrs["verdict"] + f" ({status})", ds.attrs["diagnosis"].replace(",", ", ") or "-")
+               ds.attrs["verdict"] + f" ({status})",
+               ", ".join(str(c) for c, ok in zip(ds.criterion.values, ds.passed.values) if not ok) or "-",
+               ds.attrs["diagnosis"].replace(",", ", ") or "-")
         rows.append(row)
         print(" | ".join(row), flush=True)
     header = ("engine", "integrator", "step (ms)", "flip period error", "abs L drift", "energy drift",
-              "max omega error", "flips", "verdict (exit)", "diagnosis")
+              "max omega error", "flips", "verdict (exit)", "failed criteria", "diagnosis")
     found = versions()
     lines = [f"# Physics engines through `tumble check` ({datetime.date.today().isoformat()})", "",
              f"`python benchmarks/engines.py`{' --quick' if args.quick else ''}; "

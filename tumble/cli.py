@@ -360,6 +360,12 @@ def _parser():
     run_demo.add_argument("--samples", type=int, default=2000, help="ensemble size (default 2000)")
     run_demo.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     run_demo.add_argument("--dt", type=float, default=0.002, help="step in s (default 0.002)")
+    _add_check_parser(commands)
+    return parser
+
+
+def _add_check_parser(commands):
+    """The ``tumble check`` subcommand's options (docs/check.md)."""
     check = commands.add_parser(
         "check", help="hold a simulator's free rigid-body trajectory against the exact torque-free solution",
         description="Compare a free rigid body's recorded trajectory (any simulator) with the exact torque-free "
@@ -392,7 +398,6 @@ def _parser():
     check.add_argument("--out", default=".",
                        help="output folder for <name>_check.nc and the figure (default: the current folder)")
     check.add_argument("--format", choices=("png", "pdf"), default="png", help="figure format (default png)")
-    return parser
 
 
 def _raised_by(module, name):

@@ -250,6 +250,73 @@ def check(t, omega=None, quaternion=None, *, moments=None, inertia=None, omega_f
     ValueError
         Invalid arrays (:func:`validate_trajectory`), body, option or tolerance; a zero initial spin.
     """
+    thresholds = resolve_tolerances(tolerances)
+    t, moments, omega, quaternion, recording = _on_principal_axes(t, omega, quaternion, moments, inertia, omega_frame,
+                                                                 quaternion_order)
+    w0 = omega[0]
+    tau = t - t[0]
+    w_exact = exact.omega(moments, w0, tau)
+    series = _drifts(moments, omega, quaternion, w_exact, tau)
+    flips = _flip_record(moments, tau, omega, w_exact)
+    values, passed, not_checked = _criteria(series, flips, thresholds)
+    names = list(values)
+    criteria = {
+        "value": xr.DataArray([values[n] for n in names], dims="criterion",
+                              attrs={"long_name": "measured value of each criterion", "units": "1 or rad (see "
+                                     "criterion_units)"}),
+        "tolerance": xr.DataArray([thresholds[n] for n in names], dims="criterion",
+                                  attrs={"long_name": "threshold: the criterion passes when value <= tolerance",
+                                         "units": "as value"}),
+        "passed": xr.DataArray(np.array([passed[n] for n in names], dtype=np.int8), dims="criterion",
+                               attrs={"long_name": "1 where the criterion passes, 0 where it fails", "units": "1"}),
+        "criterion_units": xr.DataArray(np.array([CRITERIA[n][1] for n in names]), dims="criterion",
+                                        attrs={"long_name": "units of value and tolerance"}),
+    }
+    over_time = {
+        "omega": (("time", "axis"), omega, "angular velocity of the trajectory, principal body frame", "rad/s"),
+        "omega_exact": (("time", "axis"), w_exact, "exact torque-free angular velocity from the first state, "
+                        "principal body frame", "rad/s"),
+        **{name: ("time", series.get(name), long_name, units) for name, (long_name, units) in _SERIES.items()},
+        "flip_time": ("flip", flips["measured"], "measured flips: sign changes of the intermediate-axis angular "
+                      "velocity, from the first sample", "s"),
+        "flip_time_exact": ("flip_exact", flips["exact"], "exact flips at the same times, from the first sample", "s"),
+    }
+    variables = {name: xr.DataArray(data, dims=dims, attrs={"long_name": long_name, "units": units})
+                 for name, (dims, data, long_name, units) in over_time.items() if data is not None}
+    return xr.Dataset(
+        {**variables, **criteria},
+        coords={"time": ("time", tau, {"long_name": "time from the first sample", "units": "s"}),
+                "axis": ("axis", np.arange(1, 4), {"long_name": "principal axis (1-based)", "units": "1"}),
+                "criterion": ("criterion", np.array(names), {"long_name": "criterion"})},
+        attrs={
+            "title": "tumble check: a trajectory against the exact torque-free solution",
+            "verdict": "pass" if all(passed.values()) else "fail",
+            "diagnosis": ",".join(_diagnosis(series, values, passed, flips)),
+            "not_checked": ",".join(not_checked),
+            "moments": moments,
+            **recording,
+            "omega_frame": omega_frame,
+            "quaternion_order": quaternion_order if quaternion is not None else "",
+            "start_time": float(t[0]),
+            "intermediate_axis": flips["axis"] + 1,
+            "flip_spacing_exact": flips["spacing_exact"],
+            "flip_spacing": flips["spacing"],
+        })
+
+
+#: Variables over time besides the angular velocities: name -> (long name, units).
+_SERIES = {
+    "omega_error": ("|w - w_exact| / |w_exact|", "1"),
+    "energy_drift": ("kinetic energy relative to the first sample, E / E0 - 1", "1"),
+    "momentum_drift": ("|L| relative to the first sample, |L| / |L0| - 1", "1"),
+    "attitude_error": ("angle of the rotation from the exact attitude to the trajectory's", "rad"),
+    "momentum_direction": ("angle of the space-frame angular momentum from its first direction", "rad"),
+}
+
+
+def _on_principal_axes(t, omega, quaternion, moments, inertia, omega_frame, quaternion_order):
+    """Validated arrays with the angular velocity in the body frame and everything turned onto the principal axes:
+    ``(t, principal moments, omega, quaternion or None, attributes saying how)``."""
     if omega_frame not in _OMEGA_FRAMES:
         raise ValueError(f"omega_frame must be one of {', '.join(_OMEGA_FRAMES)}, got {omega_frame!r}")
     if quaternion_order not in _QUATERNION_ORDERS:
@@ -257,7 +324,6 @@ def check(t, omega=None, quaternion=None, *, moments=None, inertia=None, omega_f
     if omega_frame == "world" and quaternion is None and omega is not None:
         raise ValueError("omega_frame 'world' needs the attitude quaternion to turn the angular velocity into the "
                          "body frame")
-    thresholds = resolve_tolerances(tolerances)
     principal_moments, to_recording, axes = _body(moments, inertia)
     t, omega, quaternion = validate_trajectory(t, omega, quaternion)
     if quaternion is not None:
@@ -276,109 +342,69 @@ def check(t, omega=None, quaternion=None, *, moments=None, inertia=None, omega_f
         omega = omega @ axes
         if quaternion is not None:
             quaternion = rotations.product(quaternion, to_recording)
-    w0 = omega[0]
-    if not np.any(w0):
+    if not np.any(omega[0]):
         raise ValueError("the first angular velocity is zero: a body at rest has no motion to check")
+    recording = {"principal_axes": axes.tolist() if axes is not None else "the trajectory's body axes",
+                 "omega_source": source}
+    return t, principal_moments, omega, quaternion, recording
 
-    tau = t - t[0]
-    w_exact = exact.omega(principal_moments, w0, tau)
-    scale = np.linalg.norm(w_exact, axis=1)
-    omega_error = np.linalg.norm(omega - w_exact, axis=1) / scale
-    momentum = principal_moments * omega
+
+def _drifts(moments, omega, quaternion, w_exact, tau):
+    """The series over time of :data:`_SERIES` (the attitude's only with ``quaternion``)."""
+    momentum = moments * omega
     energy = 0.5 * np.einsum("ij,ij->i", momentum, omega)
     size = np.linalg.norm(momentum, axis=1)
-    series = {"omega_error": omega_error, "energy_drift": energy / energy[0] - 1.0,
-              "momentum_drift": size / size[0] - 1.0}
+    series = {"omega_error": np.linalg.norm(omega - w_exact, axis=1) / np.linalg.norm(w_exact, axis=1),
+              "energy_drift": energy / energy[0] - 1.0, "momentum_drift": size / size[0] - 1.0}
     if quaternion is not None:
-        q_exact = rotations.product(quaternion[0], exact.attitude(principal_moments, w0, tau))
+        q_exact = rotations.product(quaternion[0], exact.attitude(moments, omega[0], tau))
         series["attitude_error"] = rotations.angle_between(quaternion, q_exact)
         space = rotations.rotate(quaternion, momentum)
         series["momentum_direction"] = np.arctan2(np.linalg.norm(np.cross(space, space[0]), axis=1), space @ space[0])
+    return series
 
-    params = exact.parameters(principal_moments, w0)
+
+def _flip_record(moments, tau, omega, w_exact):
+    """The flips about the intermediate axis, measured and exact (:func:`_flips`), and their spacings."""
+    params = exact.parameters(moments, omega[0])
     mid = int(params.mid_axis)
-    band = 0.5 * float(params.amplitude[mid]) + 1e-9 * float(np.linalg.norm(w0))
-    flips = _flips(t, omega[:, mid], band) - t[0]
-    flips_exact = _flips(tau, w_exact[:, mid], band)
-    spacing_exact = float(exact.flip_spacing(principal_moments, w0))
-    spacing = float(np.diff(flips).mean()) if flips.size >= 2 else math.inf
+    band = 0.5 * float(params.amplitude[mid]) + 1e-9 * float(np.linalg.norm(omega[0]))
+    measured = _flips(tau, omega[:, mid], band)
+    return {"axis": mid, "measured": measured, "exact": _flips(tau, w_exact[:, mid], band),
+            "spacing": float(np.diff(measured).mean()) if measured.size >= 2 else math.inf,
+            "spacing_exact": float(exact.flip_spacing(moments, omega[0]))}
 
+
+def _criteria(series, flips, thresholds):
+    """``(values, passed, not_checked)``: each criterion's value and verdict, and the criteria the data cannot give."""
     values = {name: float(np.max(np.abs(series[name]))) for name in
               ("omega_error", "attitude_error", "energy_drift", "momentum_drift", "momentum_direction")
               if name in series}
     not_checked = [name for name in ("attitude_error", "momentum_direction") if name not in series]
-    if flips_exact.size >= 2 and math.isfinite(spacing_exact):
-        values["period_error"] = abs(spacing / spacing_exact - 1.0) if math.isfinite(spacing) else math.inf
+    measured, expected = flips["measured"].size, flips["exact"].size
+    if expected >= 2 and math.isfinite(flips["spacing_exact"]):
+        spacing = flips["spacing"]
+        values["period_error"] = abs(spacing / flips["spacing_exact"] - 1.0) if math.isfinite(spacing) else math.inf
     else:
         not_checked.append("period_error")
-    values["flip_count"] = float(abs(flips.size - flips_exact.size))
-    no_flip = flips_exact.size > 0 and flips.size == 0
+    values["flip_count"] = float(abs(measured - expected))
     passed = {name: value <= thresholds[name] for name, value in values.items()}
-    passed["flip_count"] = passed["flip_count"] and not no_flip
+    passed["flip_count"] = passed["flip_count"] and not (expected > 0 and measured == 0)
+    return values, passed, not_checked
 
-    diagnosis = []
-    if no_flip:
-        diagnosis.append("no_flip")
+
+def _diagnosis(series, values, passed, flips):
+    """The names of :data:`DIAGNOSES` that the data show."""
+    no_flip = flips["exact"].size > 0 and flips["measured"].size == 0
+    found = ["no_flip"] if no_flip else []
     final = series["energy_drift"][-1]
     if not passed["energy_drift"] and abs(final) >= 0.5 * values["energy_drift"]:  # a trend, not an oscillation
-        diagnosis.append("energy_decay" if final < 0 else "energy_growth")
+        found.append("energy_decay" if final < 0 else "energy_growth")
     if not (passed["momentum_drift"] and passed.get("momentum_direction", True)):
-        diagnosis.append("momentum_drift")
+        found.append("momentum_drift")
     if not passed.get("period_error", True) and not no_flip:
-        diagnosis.append("period_error")
-
-    names = list(values)
-    criteria = {
-        "value": xr.DataArray([values[n] for n in names], dims="criterion",
-                              attrs={"long_name": "measured value of each criterion", "units": "1 or rad (see "
-                                     "criterion_units)"}),
-        "tolerance": xr.DataArray([thresholds[n] for n in names], dims="criterion",
-                                  attrs={"long_name": "threshold: the criterion passes when value <= tolerance",
-                                         "units": "as value"}),
-        "passed": xr.DataArray(np.array([passed[n] for n in names], dtype=np.int8), dims="criterion",
-                               attrs={"long_name": "1 where the criterion passes, 0 where it fails", "units": "1"}),
-        "criterion_units": xr.DataArray(np.array([CRITERIA[n][1] for n in names]), dims="criterion",
-                                        attrs={"long_name": "units of value and tolerance"}),
-    }
-    over_time = {
-        "omega": (("time", "axis"), omega, "angular velocity of the trajectory, principal body frame", "rad/s"),
-        "omega_exact": (("time", "axis"), w_exact, "exact torque-free angular velocity from the first state, "
-                        "principal body frame", "rad/s"),
-        "omega_error": ("time", omega_error, "|w - w_exact| / |w_exact|", "1"),
-        "energy_drift": ("time", series["energy_drift"], "kinetic energy relative to the first sample, E / E0 - 1",
-                         "1"),
-        "momentum_drift": ("time", series["momentum_drift"], "|L| relative to the first sample, |L| / |L0| - 1", "1"),
-        "attitude_error": ("time", series.get("attitude_error"), "angle of the rotation from the exact attitude to "
-                           "the trajectory's", "rad"),
-        "momentum_direction": ("time", series.get("momentum_direction"), "angle of the space-frame angular "
-                               "momentum from its first direction", "rad"),
-        "flip_time": ("flip", flips, "measured flips: sign changes of the intermediate-axis angular velocity, from "
-                      "the first sample", "s"),
-        "flip_time_exact": ("flip_exact", flips_exact, "exact flips at the same times, from the first sample", "s"),
-    }
-    variables = {name: xr.DataArray(data, dims=dims, attrs={"long_name": long_name, "units": units})
-                 for name, (dims, data, long_name, units) in over_time.items() if data is not None}
-    ds = xr.Dataset(
-        {**variables, **criteria},
-        coords={"time": ("time", tau, {"long_name": "time from the first sample", "units": "s"}),
-                "axis": ("axis", np.arange(1, 4), {"long_name": "principal axis (1-based)", "units": "1"}),
-                "criterion": ("criterion", np.array(names), {"long_name": "criterion"})},
-        attrs={
-            "title": "tumble check: a trajectory against the exact torque-free solution",
-            "verdict": "pass" if all(passed.values()) else "fail",
-            "diagnosis": ",".join(diagnosis),
-            "not_checked": ",".join(not_checked),
-            "moments": principal_moments,
-            "principal_axes": axes.tolist() if axes is not None else "the trajectory's body axes",
-            "omega_source": source,
-            "omega_frame": omega_frame,
-            "quaternion_order": quaternion_order if quaternion is not None else "",
-            "start_time": float(t[0]),
-            "intermediate_axis": mid + 1,
-            "flip_spacing_exact": spacing_exact,
-            "flip_spacing": spacing,
-        })
-    return ds
+        found.append("period_error")
+    return found
 
 
 def summary(ds):
