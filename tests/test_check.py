@@ -1,6 +1,5 @@
 """tumble check / tumble.check: a recorded trajectory held against the exact torque-free solution (issue 30)."""
 
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -256,5 +255,9 @@ def test_check_help_lists_every_criterion_and_its_default(capsys):
         assert f"{name}={value:g}" in out.replace("\n", " ").replace("  ", " ") or name in out
 
 
-if "test_exact" not in sys.modules:  # mp_reference lives in tests/test_exact.py (rootdir on sys.path under pytest)
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
+def test_inertia_elements_in_exponent_notation_may_be_negative(tmp_path, capsys):
+    # argparse's own negative-number pattern has no exponent: "-1e-30" was taken for an option
+    status, out, err = run_check(capsys, EXAMPLE, "--inertia", *T_HANDLE, "-1e-30", "0", "-2.5e-31", "--out",
+                                 tmp_path)
+    assert status == 0, err
+    assert "verdict: PASS" in out
