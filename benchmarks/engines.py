@@ -126,10 +126,10 @@ def pybullet_run(mode, dt, tensor, w0, t_end):
                 if mode == "rigid body, gyroscopic torque cancelled":
                     world_w = np.array(p.getBaseVelocity(body, physicsClientId=client)[1])
                     orientation = np.array(p.getBasePositionAndOrientation(body, physicsClientId=client)[1])
-                    qb = orientation[[3, 0, 1, 2]]
-                    wb = rotations.rotate(rotations.conjugate(qb), world_w)
-                    gyro = np.cross(wb, tensor @ wb)  # body frame: I w' = -w x I w; cancel it
-                    p.applyExternalTorque(body, -1, list(rotations.rotate(qb, gyro)), p.WORLD_FRAME,
+                    qp = orientation[[3, 0, 1, 2]]  # PyBullet's orientation is the principal (inertial) frame's
+                    wp = rotations.rotate(rotations.conjugate(qp), world_w)
+                    gyro = np.cross(wp, moments * wp)  # principal frame: I w' = -w x I w; cancel it
+                    p.applyExternalTorque(body, -1, list(rotations.rotate(qp, gyro)), p.WORLD_FRAME,
                                           physicsClientId=client)
                 p.stepSimulation(physicsClientId=client)
             t.append((k + 1) * every * dt)

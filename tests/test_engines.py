@@ -68,3 +68,12 @@ def test_tumble_rk4_as_the_control_passes(t_handle):
     tensor, w0, t_end = t_handle
     status, ds = checked(engines.tumble_run("rk4", STEP, tensor, w0, t_end), tensor, "body")
     assert status == 0 and float(ds.value.sel(criterion="omega_error")) < 1e-5
+
+
+@needs_pybullet
+def test_pybullet_without_the_gyroscopic_term_never_flips_and_is_named(t_handle):
+    tensor, w0, t_end = t_handle
+    recorded = engines.pybullet_run("rigid body, gyroscopic torque cancelled", STEP, tensor, w0, t_end)
+    status, ds = checked(recorded, tensor, "world")
+    assert status == 3 and ds.sizes["flip"] == 0 < ds.sizes["flip_exact"]
+    assert ds.attrs["diagnosis"].split(",")[0] == "no_flip"
