@@ -1,14 +1,16 @@
 """Command line: ``tumble run [STUDY]``, ``tumble studies``, ``tumble plot FILE.nc``, ``tumble bench``,
-``tumble demo``.
+``tumble demo``, ``tumble check TRAJECTORY``.
 
 Exit status: 0 success, 2 invalid input (one clear message naming the file, the field and what is wrong; no
-traceback, no output file), 1 any other failure (``TUMBLE_DEBUG=1`` shows its traceback).
+traceback, no output file), 1 any other failure (``TUMBLE_DEBUG=1`` shows its traceback); ``tumble check``: 3 when
+the trajectory fails the check (its files are written).
 """
 
 import argparse
 import atexit
 import contextlib
 import os
+import re
 import subprocess
 import sys
 import time
@@ -96,6 +98,9 @@ def demo(samples=2000, seed=0, dt=0.002, out=sys.stdout):
     print("\nEvery spin has flipped about the intermediate axis and come part of the way back "
           f"(omega_{middle + 1} changed sign at t ≈ {first_flip:.2f} s).", file=out)
 
+
+#: Exit status of ``tumble check`` when the trajectory fails the check (distinct from invalid input, 2).
+EXIT_CHECK_FAILED = 3
 
 _BENCHMARKS = ("engine", "accuracy", "work_precision", "stress", "scale_out")
 _QUICK = ("work_precision", "stress")  # the benchmarks that take --quick
@@ -231,6 +236,82 @@ def _plot(args):
         print(written_path)
 
 
+def _check_tolerances(args):
+    """The thresholds of ``--tolerances FILE.toml`` (its ``[tolerances]`` table), then each ``--tolerance NAME=VALUE``."""
+    import tomllib
+
+    from .measure import check as checking
+
+    tolerances = {}
+    if args.tolerances is not None:
+        try:
+            with open(args.tolerances, "rb") as f:
+                table = tomllib.load(f).get("tolerances")
+        except (OSError, tomllib.TOMLDecodeError) as err:
+            raise InputError(f"--tolerances {args.tolerances}: {err}") from None
+        if not isinstance(table, dict):
+            raise InputError(f"--tolerances {args.tolerances}: no [tolerances] table (NAME = VALUE lines under it)")
+        tolerances.update(table)
+    for item in args.tolerance or ():
+        name, _, value = item.partition("=")
+        try:
+            tolerances[name.strip()] = float(value)
+        except ValueError:
+            raise InputError(f"--tolerance {item!r}: expected NAME=VALUE with a number as VALUE") from None
+    try:
+        return checking.resolve_tolerances(tolerances)
+    except ValueError as err:
+        raise InputError(f"--tolerance{'s ' + args.tolerances if args.tolerances else ''}: {err}") from None
+
+
+def _check(args):
+    """``tumble check``: read, check, write the netCDF file and the figure, print the summary; the exit status."""
+    import numpy as np
+
+    from .measure import check as checking
+    from .output import check_figure, io, trajectory
+    from .physics.bodies import Body
+
+    tolerances = _check_tolerances(args)
+    inertia = None
+    try:
+        if args.moments is not None:
+            Body(*args.moments)
+        else:
+            xx, yy, zz, xy, xz, yz = args.inertia
+            inertia = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+            Body.from_tensor(inertia)
+    except ValueError as err:
+        raise InputError(f"{'--moments' if inertia is None else '--inertia'}: {err}") from None
+    path = Path(args.trajectory)
+    try:
+        columns = trajectory.read_trajectory(path)
+        labels = {"t": "column 't'", "omega": "columns wx wy wz", "quaternion": "columns qw qx qy qz"}
+        checking.validate_trajectory(columns["t"], columns.get("omega"), columns.get("quaternion"), labels=labels)
+        result = checking.check(columns["t"], columns.get("omega"), columns.get("quaternion"), moments=args.moments,
+                                inertia=inertia, omega_frame=args.omega_frame, tolerances=tolerances)
+    except FileNotFoundError as err:
+        raise InputError(str(err)) from None
+    except ValueError as err:
+        message = str(err)
+        raise InputError(message if message.startswith(str(path)) else f"{path}: {message}") from None
+    directory = Path(args.out)
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise InputError(f"--out {directory}: {err.strerror}") from None
+    stem = f"{path.stem}_check"
+    written = [directory / f"{stem}.nc", directory / f"{stem}.{args.format}"]
+    io.write_dataset(result, written[0], action=f"tumble check {path.name}")
+    check_figure.save_check_figure(result, written[1])
+    print(f"tumble check {path}")
+    print(checking.summary(result))
+    print("wrote:")
+    for written_path in written:
+        print(f"  {written_path}")
+    return 0 if result.attrs["verdict"] == "pass" else EXIT_CHECK_FAILED
+
+
 def _bench(args):
     folder = Path(__file__).resolve().parent.parent / "benchmarks"
     if not folder.is_dir():
@@ -294,7 +375,44 @@ def _parser():
     run_demo.add_argument("--samples", type=int, default=2000, help="ensemble size (default 2000)")
     run_demo.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     run_demo.add_argument("--dt", type=float, default=0.002, help="step in s (default 0.002)")
+    _add_check_parser(commands)
     return parser
+
+
+def _add_check_parser(commands):
+    """The ``tumble check`` subcommand's options (docs/check.md)."""
+    check = commands.add_parser(
+        "check", help="hold a simulator's free rigid-body trajectory against the exact torque-free solution",
+        description="Compare a free rigid body's recorded trajectory (any simulator) with the exact torque-free "
+                    "solution from its first state: angular velocity and attitude errors, energy and angular "
+                    "momentum drift, flips about the intermediate axis and their period; a verdict per criterion; "
+                    "a netCDF file and a figure. Exit status: 0 pass, 3 the trajectory fails the check, 2 invalid "
+                    "input (nothing written), 1 any other failure. See docs/check.md.",
+        epilog="Criteria and default tolerances: " + ", ".join(
+            f"{name}={value:g}" for name, value in registry.CHECK_TOLERANCES.items()))
+    check.add_argument("trajectory", metavar="TRAJECTORY",
+                       help="a .csv (header row), .npz or .nc file with columns t; wx wy wz (angular velocity, rad/s) "
+                            "and/or qw qx qy qz (attitude quaternion, body-to-world); other columns are ignored")
+    # argparse takes "-1.5e-06" for an option (its negative-number pattern has no exponent): an inertia tensor's
+    # off-diagonal elements are often negative and printed so. The same pattern with an exponent (argparse's own
+    # attribute; Python 3.11-3.13 read it the same way).
+    check._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")  # noqa: SLF001
+    body = check.add_mutually_exclusive_group(required=True)
+    body.add_argument("--moments", nargs=3, type=float, metavar=("I1", "I2", "I3"),
+                      help="principal moments, kg m^2, along the file's body axes x, y, z")
+    body.add_argument("--inertia", nargs=6, type=float, metavar=("XX", "YY", "ZZ", "XY", "XZ", "YZ"),
+                      help="instead of --moments: the inertia tensor in the file's body frame, kg m^2, in MuJoCo's "
+                           "fullinertia order (XY is the tensor element, -integral of x y dm); the principal axes are "
+                           "found and the data rotated onto them")
+    check.add_argument("--omega-frame", choices=("body", "world"), default="body",
+                       help="frame of wx wy wz (default body; world needs the quaternion columns)")
+    check.add_argument("--tolerance", action="append", metavar="NAME=VALUE",
+                       help="override one criterion's threshold (repeatable); see the list below")
+    check.add_argument("--tolerances", metavar="FILE.toml",
+                       help="thresholds from the [tolerances] table of a TOML file (--tolerance overrides them)")
+    check.add_argument("--out", default=".",
+                       help="output folder for <name>_check.nc and the figure (default: the current folder)")
+    check.add_argument("--format", choices=("png", "pdf"), default="png", help="figure format (default png)")
 
 
 def _raised_by(module, name):
@@ -324,6 +442,8 @@ def main(argv=None):
         _interrupt.release()  # from here on Ctrl-C is a KeyboardInterrupt, reported below
         if args.command == "run":
             _run(args)
+        elif args.command == "check":
+            return _check(args)
         elif args.command == "studies":
             _studies(args)
         elif args.command == "plot":
