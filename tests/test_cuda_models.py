@@ -1,0 +1,86 @@
+"""The models and the closed form on the CUDA device give the CPU's answers (issue 28).
+
+On numba-cuda's simulator (tests/conftest.py sets ``NUMBA_ENABLE_CUDASIM=1``): the kernel body runs in Python, one
+thread at a time, and the ``@jit`` functions it calls (the CPU's own per-sample steps and closed form) as compiled
+CPU code, so sizes are tiny (ten samples, thirty steps). There the models' results equal the CPU driver's to the
+last bits or nearly (the CPU's block loops are vectorised, a thread's loop is one sample: a multiply-add may fuse
+differently).
+"""
+
+import numpy as np
+import pytest
+
+import tumble
+from tumble.engine.device import resolve_device
+from tumble.engine.models import run_model_ensemble
+from tumble.engine.sampling import perturbed_states
+from tumble.physics import models
+
+RELATIVE = 1e-12  # device against CPU, relative to the largest value compared
+
+
+@pytest.fixture(scope="module")
+def cuda_device():
+    """The device is usable (the simulator, or a GPU), else the test is skipped with the reason."""
+    try:
+        return resolve_device("cuda")
+    except ValueError as err:
+        pytest.skip(str(err))
+
+
+def _agree(device, cpu, relative=RELATIVE):
+    assert device.shape == cpu.shape
+    np.testing.assert_array_equal(np.isnan(device), np.isnan(cpu))
+    finite = ~np.isnan(cpu)
+    assert np.all(np.isfinite(cpu[finite]))
+    assert np.max(np.abs(device[finite] - cpu[finite]), initial=0.0) <= relative * np.max(np.abs(cpu[finite]))
+
+
+# (model, spin axis, methods): every model once, every splitting of the models that have them once
+MODELS = [
+    (models.Gyrostat((1.0, 2.0, 3.0), (0.0, 0.2, 0.0)), 2, ("rk8", "splitting2")),
+    (models.HeavyTop((2.0, 2.5, 3.0), 0.5), 3, ("rk4", "symplectic_euler", "splitting4")),
+    (models.GravityGradient((1.0, 2.0, 3.0), 0.1), 2, ("rk4",)),
+    (models.Damper((1.0, 2.0, 3.0), 0.2, 0.05), 3, ("rk8",)),
+    (models.FreeBody((1.0, 2.0, 3.0)), 2, ("rk4",)),
+]
+CASES = [(model, axis, method) for model, axis, methods in MODELS for method in methods]
+
+
+@pytest.mark.parametrize("model, axis, method", CASES, ids=[f"{m.kind}-{method}" for m, _, method in CASES])
+def test_every_model_on_the_device_gives_the_cpu_run_and_observers(cuda_device, model, axis, method):
+    y0 = perturbed_states(model, axis, 1.0, 1e-2, 10, seed=28)
+    kwargs = dict(method=method, axis=axis, spin=1.0, save_every=7, probe_times=[0.0, 0.05, 0.3], drift=True)
+    cpu = run_model_ensemble(model, y0, 0.3, 0.01, **kwargs)
+    device = run_model_ensemble(model, y0, 0.3, 0.01, device="cuda", **kwargs)
+    assert (cpu.info["device"], device.info["device"]) == ("cpu", "cuda")
+    assert cpu.trajectory.shape == (10, 6, model.state_size)
+    for name in ("final", "trajectory", "probes"):
+        _agree(getattr(device, name), getattr(cpu, name))
+    np.testing.assert_allclose(device.drift, cpu.drift, rtol=1e-9, atol=1e-14)  # relative drifts of a few eps
+    assert (device.status == 0).all() and (device.steps_taken == 30).all()
+
+
+def test_stopped_model_samples_keep_their_state_status_and_steps_as_on_the_cpu(cuda_device):
+    """A sample with a non-finite component does not run, one whose invariants drift past ``drift_limit`` stops
+    where the CPU driver stops it: the same statuses, steps taken, frozen trajectory and NaN probes after it."""
+    model = models.HeavyTop((2.0, 2.5, 3.0), 0.5)
+    y0 = perturbed_states(model, 3, 1.0, 1e-2, 6, seed=3)
+    y0[1, 0] = np.nan
+    y0[2, :3] *= 40.0  # a fast spin: rk4's drift at this step passes the limit within a few steps
+    kwargs = dict(method="rk4", axis=3, spin=1.0, save_every=5, probe_times=[0.0, 0.1, 0.3], drift_limit=1e-9)
+    cpu = run_model_ensemble(model, y0, 0.3, 0.01, **kwargs)
+    device = run_model_ensemble(model, y0, 0.3, 0.01, device="cuda", **kwargs)
+    assert set(cpu.status.tolist()) >= {0, 1, 2} and 0 < cpu.steps_taken[2] < 30 and cpu.steps_taken[1] == 0
+    np.testing.assert_array_equal(device.status, cpu.status)
+    np.testing.assert_array_equal(device.steps_taken, cpu.steps_taken)
+    for name in ("final", "trajectory", "probes"):
+        _agree(getattr(device, name), getattr(cpu, name))
+
+
+def test_a_model_method_the_kernels_do_not_run_is_refused_on_the_device_too(cuda_device):
+    with pytest.raises(ValueError, match=r"^method must be one of rk4, rk8 for a damper model"):
+        run_model_ensemble(models.Damper((1.0, 2.0, 3.0), 0.2, 0.05), np.ones((2, 6)), 0.1, 0.01,
+                           method="splitting2", axis=3, device="cuda")
+    with pytest.raises(ValueError, match=r"^device must be one of 'cpu', 'cuda'; got 'gpu'"):
+        run_model_ensemble(models.FreeBody((1.0, 2.0, 3.0)), np.ones((2, 3)), 0.1, 0.01, axis=3, device="gpu")
