@@ -152,14 +152,14 @@ def test_cuda_with_a_numpy_numba_cuda_cannot_compile_with_says_so(monkeypatch):
 @pytest.mark.parametrize("kwargs, message", [
     (dict(method="implicit_midpoint"), "method 'implicit_midpoint' is not yet on the device"),
     (dict(method="rk4", torque=lambda t, w1, w2, w3: (0.0, 0.0, 0.1)), "a Python torque function cannot run"),
-    (dict(method="auto"), "the closed form (method 'exact', which 'auto' picks for a torque-free run) is not yet"),
-    (dict(method="exact"), "the closed form"),
+    (dict(method="exact", max_flips=2), "the closed form's flips (method 'exact', which 'auto' picks for a "
+                                        "torque-free run, with max_flips) are not yet"),
     (dict(method="rk4", probe_times=[0.05]), "observing probe times is not yet on the device"),
     (dict(method="rk4", max_flips=2), "observing flips is not yet"),
     (dict(method="rk4", drift=True), "observing drift records is not yet"),
     (dict(method="rk4", final=False, stop_norm=0.5), "observing early stop is not yet"),
     (dict(method="rk4", save_every=1, attitude=True), "the attitude (attitude=True) is not yet on the device"),
-], ids=["implicit_midpoint", "torque_function", "auto_closed_form", "exact", "probes", "flips", "drift", "early_stop",
+], ids=["implicit_midpoint", "torque_function", "closed_form_flips", "probes", "flips", "drift", "early_stop",
         "attitude"])
 def test_what_the_device_does_not_do_yet_is_refused(cuda_device, kwargs, message):
     with pytest.raises(ValueError) as err:
@@ -168,9 +168,8 @@ def test_what_the_device_does_not_do_yet_is_refused(cuda_device, kwargs, message
     assert message in str(err.value)
 
 
-@pytest.mark.parametrize("kwargs", [dict(method="exact"), dict(method="implicit_midpoint"),
-                                    dict(torque=lambda t, w1, w2, w3: (0.0, 0.0, 0.1))],
-                         ids=["exact", "implicit_midpoint", "torque_function"])
+@pytest.mark.parametrize("kwargs", [dict(method="implicit_midpoint"), dict(torque=lambda t, w1, w2, w3: (0.0, 0.0, 0.1))],
+                         ids=["implicit_midpoint", "torque_function"])
 def test_propagate_refuses_the_same_on_the_device(cuda_device, kwargs):
     with pytest.raises(ValueError, match=r"^device 'cuda': "):
         tumble.propagate(BODY, [0.0, 1.0, 0.0], 0.1, 0.01, device="cuda", **kwargs)

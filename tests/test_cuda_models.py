@@ -84,3 +84,58 @@ def test_a_model_method_the_kernels_do_not_run_is_refused_on_the_device_too(cuda
                            method="splitting2", axis=3, device="cuda")
     with pytest.raises(ValueError, match=r"^device must be one of 'cpu', 'cuda'; got 'gpu'"):
         run_model_ensemble(models.FreeBody((1.0, 2.0, 3.0)), np.ones((2, 3)), 0.1, 0.01, axis=3, device="gpu")
+
+
+# --- the closed form -------------------------------------------------------------------------------------------------
+
+CLOSED_FORM_RELATIVE = 1e-13  # device against CPU, relative to the largest |w|: a few ulps of |w|
+
+
+@pytest.fixture(scope="module")
+def closed_form_spins():
+    """Random spins of both regimes, a steady spin, a spin 1e-9 from the intermediate axis, and a spin exactly on the
+    separatrix of moments (3, 4, 6) (``I1 (I2 - I1) w1² = I3 (I3 - I2) w3²`` with ``w1 = 2 w3``)."""
+    spins = np.random.default_rng(28).normal(size=(12, 3))
+    spins[0] = (0.0, 0.0, 1.5)
+    spins[1] = (1e-9, 1.0, -1e-9)
+    spins[2] = (2.0, 0.5, 1.0)
+    return spins
+
+
+@pytest.mark.parametrize("body", [(3.0, 4.0, 6.0), (4.0, 6.0, 3.0), (2.0, 2.0, 3.0)],
+                         ids=["sorted", "unsorted", "symmetric"])
+def test_the_closed_form_on_the_device_gives_the_cpu_values_at_one_time_and_on_a_grid(cuda_device, closed_form_spins,
+                                                                                      body):
+    times = np.array([-0.7, 0.0, 0.3, 2.5, 11.0])
+    for save_every in (None, 3):  # one time (the fused one-time path), then a grid of stored times
+        cpu = tumble.propagate(body, closed_form_spins, 1.1, 0.1, method="exact", save_every=save_every)
+        device = tumble.propagate(body, closed_form_spins, 1.1, 0.1, method="exact", save_every=save_every,
+                                  device="cuda")
+        _agree(device, cpu, CLOSED_FORM_RELATIVE)
+    from tumble.physics import exact
+
+    on_device = exact.omega_on_device(np.array(body), closed_form_spins, times)
+    _agree(on_device, exact.omega(body, closed_form_spins, times), CLOSED_FORM_RELATIVE)
+
+
+def test_run_ensemble_auto_on_the_device_runs_the_closed_form_with_its_observers(cuda_device, closed_form_spins):
+    kwargs = dict(method="auto", axis=2, save_every=4, probe_times=[0.0, 0.4, 1.0], drift=True, progress=False)
+    cpu = tumble.run_ensemble((3.0, 4.0, 6.0), closed_form_spins, 1.0, 0.1, **kwargs)
+    device = tumble.run_ensemble((3.0, 4.0, 6.0), closed_form_spins, 1.0, 0.1, device="cuda", **kwargs)
+    assert (device.info["path"], device.info["device"]) == ("closed form", "cuda")
+    for name in ("final", "trajectory", "probes"):
+        _agree(getattr(device, name), getattr(cpu, name), CLOSED_FORM_RELATIVE)
+    np.testing.assert_allclose(device.drift, cpu.drift, atol=1e-14)
+    np.testing.assert_array_equal(device.status, cpu.status)
+    dataset = tumble.integrate((3.0, 4.0, 6.0), closed_form_spins, 1.0, 0.1, method="exact", device="cuda")
+    assert dataset.attrs["device"] == "cuda"
+    _agree(dataset.omega.values[:, -1], cpu.final, CLOSED_FORM_RELATIVE)
+
+
+def test_the_closed_form_flips_and_the_attitude_are_refused_on_the_device(cuda_device):
+    with pytest.raises(ValueError, match=r"^device 'cuda': the closed form's flips .* not yet on the device"):
+        tumble.run_ensemble((1.0, 2.0, 3.0), [[0.1, 1.0, 0.1]], 1.0, 0.1, method="exact", max_flips=2,
+                           device="cuda", progress=False)
+    with pytest.raises(ValueError, match=r"^device 'cuda': the attitude \(attitude=True\) is not yet on the device"):
+        tumble.integrate((1.0, 2.0, 3.0), [[0.1, 1.0, 0.1]], 1.0, 0.1, method="exact", save_every=1, attitude=True,
+                         device="cuda")

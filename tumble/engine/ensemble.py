@@ -307,7 +307,8 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
     device : str
         ``"cpu"`` or ``"cuda"`` (:func:`tumble.engine.device.resolve_device`). On ``"cuda"`` today: a fixed-step
         method other than the implicit midpoint rule, a constant torque or a named profile, the final state and the
-        trajectory; anything else is refused (``device 'cuda': ... not yet on the device``), never run on the CPU.
+        trajectory; the closed form (``"exact"``, and ``"auto"`` torque-free) with every observer but the flips;
+        anything else is refused (``device 'cuda': ... not yet on the device``), never run on the CPU.
 
     Returns
     -------
@@ -369,7 +370,7 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
                 raise Interrupted(n, n)
 
         if chosen == "exact":
-            result = _run_exact(moments, w0, t_end, observe, chunks())
+            result = _run_exact(moments, w0, t_end, observe, chunks(), device)
             info.update(sample_steps_computed=0, sample_steps_skipped=n * n_steps, jit_seconds=0.0)
             return result._replace(info=info)
         if attitude:
@@ -496,9 +497,11 @@ def _run_attitude(method, moments, w0, dt, n_steps, observe, torque, chunks):
                           np.full(n, n_steps, dtype=np.int64), {}, quaternion)
 
 
-def _run_exact(moments, w0, t_end, observe, chunks):
+def _run_exact(moments, w0, t_end, observe, chunks, device="cpu"):
     """The closed form, chunk by chunk: each chunk's per-sample set-up computed once and evaluated at every time
-    the observers ask for (final state, trajectory, probe times) and for the flips."""
+    the observers ask for (final state, trajectory, probe times) and for the flips. On the device
+    (:func:`tumble.physics.exact.omega_on_device`) each evaluation is set up anew, one thread per sample; the
+    flips are refused there (:func:`tumble.engine.device.check_on_device`)."""
     n = len(w0)
     b, c = (observe.axis + 1) % 3, (observe.axis + 2) % 3
     times = observe.times
@@ -513,10 +516,17 @@ def _run_exact(moments, w0, t_end, observe, chunks):
         w = w0[lo:hi]
         if quaternion is not None:
             quaternion[lo:hi] = exact.attitude(moments, w, times)
-        sol = exact.solve_rows(np.broadcast_to(moments, w.shape), w)
-        row = np.zeros(hi - lo, dtype=np.int64)
+        if device == "cpu":
+            sol = exact.solve_rows(np.broadcast_to(moments, w.shape), w)
+            row = np.zeros(hi - lo, dtype=np.int64)
+
+            def at(grid):  # (n, T, 3) at the times grid (T,)
+                return exact.omega_rows(sol, grid[None, :], row)
+        else:
+            def at(grid):
+                return exact.omega_on_device(moments, w, grid)
         if final_w is not None or drifts is not None:
-            end = exact.omega_rows(sol, np.array([[t_end]]), row)[:, 0]
+            end = at(np.array([t_end]))[:, 0]
             if final_w is not None:
                 final_w[lo:hi] = end
             if drifts is not None:
@@ -524,10 +534,10 @@ def _run_exact(moments, w0, t_end, observe, chunks):
                 e1, l1 = 0.5 * (moments * end**2).sum(1), ((moments * end) ** 2).sum(1)
                 drifts[lo:hi] = np.stack([np.abs(e1 / e0 - 1), np.abs(l1 / l0 - 1)], axis=1)
         if trajectory is not None:
-            trajectory[lo:hi] = exact.omega_rows(sol, times[None, :], row)
+            trajectory[lo:hi] = at(times)
         if probes is not None:
-            at = exact.omega_rows(sol, observe.probe_times[None, :], row)
-            probes[lo:hi] = np.sqrt(observe.weights[b] * at[..., b] ** 2 + observe.weights[c] * at[..., c] ** 2)
+            probed = at(observe.probe_times)
+            probes[lo:hi] = np.sqrt(observe.weights[b] * probed[..., b] ** 2 + observe.weights[c] * probed[..., c] ** 2)
         if flips is not None:
             flips[lo:hi], flip_count[lo:hi] = flip_times(exact.first_flips(sol), exact.flip_spacings(sol),
                                                          observe.max_flips, t_end)
