@@ -744,18 +744,20 @@ def markdown(report):
                   f"{same.get(r['method'], '—')})" for r in agreement["rows"]]
     model_rows = parts.get("models", {}).get("rows", [])
     if model_rows:
-        lines += ["", "The models (`run_model_ensemble(..., device=\"cuda\")`, final state, with host transfers) against "
-                  "the CPU's model kernels on this machine's cores; |gpu − cpu| / max |y| on the first "
+        lines += ["", "The models (`run_model_ensemble(..., device=\"cuda\")`, final state, with host transfers) "
+                  "against the CPU's model kernels on this machine's cores; |gpu − cpu| / max |y| on the first "
                   f"{min(p['samples'], N_CHECK)} samples:", "",
                   "| model | method | samples × steps | GPU sample-steps/s | CPU sample-steps/s | × CPU | "
                   "|gpu − cpu| |", "|---|---|---|---|---|---|---|"]
-        lines += [f"| {r['model']} | {r['method']} | {r['samples']:,} × {r['steps']} | {r['rate_with_transfers']:.2e} | "
-                  f"{r['cpu_rate']:.2e} | {r['speedup']:.3g}× | {r['max_rel_difference']:.1e} |" for r in model_rows]
+        lines += [f"| {r['model']} | {r['method']} | {r['samples']:,} × {r['steps']} | "
+                  f"{r['rate_with_transfers']:.2e} | {r['cpu_rate']:.2e} | {r['speedup']:.3g}× | "
+                  f"{r['max_rel_difference']:.1e} |" for r in model_rows]
     closed_rows = parts.get("closed_form", {}).get("rows", [])
     if closed_rows:
         lines += ["", "The closed form on the device (one thread per sample: the set-up and the evaluation) against "
                   "`tumble.exact.omega` on this machine's cores, evaluations (sample × time) per second:", "",
-                  "| evaluation | samples | GPU, with transfers | GPU, kernel alone | CPU | × CPU | |gpu − cpu| / max |w| |",
+                  "| evaluation | samples | GPU, with transfers | GPU, kernel alone | CPU | × CPU | "
+                  "|gpu − cpu| / max |w| |",
                   "|---|---|---|---|---|---|---|"]
         lines += [f"| {r['evaluation']} | {r['samples']:,} | {r['rate_with_transfers']:.2e} | "
                   f"{_rate_or_dash(r.get('rate_kernel'))} | {r['cpu_rate']:.2e} | {r['speedup']:.3g}× | "

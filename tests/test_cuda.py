@@ -168,7 +168,8 @@ def test_what_the_device_does_not_do_yet_is_refused(cuda_device, kwargs, message
     assert message in str(err.value)
 
 
-@pytest.mark.parametrize("kwargs", [dict(method="implicit_midpoint"), dict(torque=lambda t, w1, w2, w3: (0.0, 0.0, 0.1))],
+@pytest.mark.parametrize("kwargs", [dict(method="implicit_midpoint"),
+                                    dict(torque=lambda t, w1, w2, w3: (0.0, 0.0, 0.1))],
                          ids=["implicit_midpoint", "torque_function"])
 def test_propagate_refuses_the_same_on_the_device(cuda_device, kwargs):
     with pytest.raises(ValueError, match=r"^device 'cuda': "):

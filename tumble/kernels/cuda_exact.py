@@ -109,24 +109,9 @@ def _launch(kernel, n, *args):
 
 
 def omega_at(moments, w, t):
-    """Angular velocity at one time on the device: :func:`tumble.kernels.elliptic.torque_free_omega_at`'s arguments
-    and returns, ``out`` made here.
-
-    Parameters
-    ----------
-    moments : ndarray, shape (3,)
-        Principal moments (kg m², validated) of the one body.
-    w : ndarray, shape (n, 3)
-        Initial body-frame spins, rad/s.
-    t : float
-        The time, s.
-
-    Returns
-    -------
-    (ndarray (n, 3), int, int)
-        The angular velocity at ``t`` (rad/s), the samples too close to a principal axis for the invariants and
-        the samples with a non-finite value.
-    """
+    """:func:`tumble.kernels.elliptic.torque_free_omega_at` on the device: the body's moments (3,), the spins ``w``
+    (n, 3) and the time ``t`` (s) in; ``(out, tiny, non_finite)`` back, ``out`` (n, 3) the angular velocity at
+    ``t`` (rad/s) and the counts as the CPU kernel returns them."""
     n = w.shape[0]
     out = cuda.device_array((n, 3))
     tiny, non_finite = _launch(_omega_at_kernel, n, float(moments[0]), float(moments[1]), float(moments[2]),
@@ -135,23 +120,8 @@ def omega_at(moments, w, t):
 
 
 def omega_grid(moments, w, times):
-    """Set-up and evaluation on a time grid on the device: :func:`tumble.kernels.elliptic.torque_free_omega_grid`'s
-    arguments and returns, ``out`` made here.
-
-    Parameters
-    ----------
-    moments : ndarray, shape (3,)
-        Principal moments (kg m², validated) of the one body.
-    w : ndarray, shape (n, 3)
-        Initial body-frame spins, rad/s.
-    times : ndarray, shape (T,)
-        Times, s.
-
-    Returns
-    -------
-    (ndarray (n, T, 3), int, int)
-        The angular velocity (rad/s), as :func:`omega_at`.
-    """
+    """:func:`tumble.kernels.elliptic.torque_free_omega_grid` on the device: as :func:`omega_at` at the times
+    ``times`` (T,), ``out`` of shape (n, T, 3)."""
     n = w.shape[0]
     times = np.ascontiguousarray(times, dtype=float)
     out = cuda.device_array((n, times.shape[0], 3))

@@ -29,19 +29,8 @@ from numba import cuda, float64
 
 from ..registry import STATUS_DRIFT, STATUS_NONFINITE, STATUS_OK, model_kind
 from .jit import cuda_jit
-from .models import (
-    CHECK_EVERY,
-    MODEL_CODES,
-    MODEL_METHODS,
-    SPLITTINGS,
-    ModelObserved,
-    _initial_invariants,
-    _invariants,
-    _kind_constants,
-    _NOT_LIE_POISSON,
-    _step,
-    model_methods,
-)
+from .models import (CHECK_EVERY, MODEL_CODES, MODEL_METHODS, ModelObserved, _initial_invariants, _invariants, _step,
+                     model_arguments)
 from .model_rates import N_INVARIANTS
 
 __all__ = ["THREADS", "kernel", "make_kernel", "run_model"]
@@ -154,10 +143,6 @@ def kernel(kind, method):
     return _KERNELS[key]
 
 
-_NO_STEPS = np.zeros(0, dtype=np.int64)
-_NO_COLUMNS = np.zeros(0, dtype=np.int64)
-_NO_WEIGHTS = np.zeros(0)
-
 
 def run_model(kind, method, y, moments, h, n_steps, *, rotor=(0.0, 0.0, 0.0), mgl=0.0, orbit_rate=0.0,
               damper_inertia=0.0, damping=0.0, save_every=0, columns=None, weights=None, y_eq=None, probe_steps=None,
@@ -167,22 +152,11 @@ def run_model(kind, method, y, moments, h, n_steps, *, rotor=(0.0, 0.0, 0.0), mg
     :class:`~tumble.kernels.models.ModelObserved`; ``y`` (n_state, N) is overwritten with the final states.
     ``block`` is not used (a thread is a sample). Raises ``ValueError`` as the CPU's does (an unknown kind or
     method, a state of the wrong rows)."""
-    code, n_state, constants = _kind_constants(kind, moments, dict(
-        rotor=rotor, mgl=mgl, orbit_rate=orbit_rate, damper_inertia=damper_inertia, damping=damping))
-    assert code == MODEL_CODES[kind]
-    if method not in model_methods(kind):
-        raise ValueError(f"method must be one of {', '.join(model_methods(kind))} for a {kind} model in the model "
-                         f"kernels, got {method!r}" + _NOT_LIE_POISSON * (method in SPLITTINGS))
-    if y.ndim != 2 or y.shape[0] != n_state or y.dtype != np.float64 or not y.flags.c_contiguous:
-        raise ValueError(f"y must be a C-contiguous float64 array of shape ({n_state}, N), got {y.dtype} {y.shape}")
+    _, n_state, constants, n_saved, columns, weights, y_eq, probe_steps = model_arguments(
+        kind, method, y, moments, n_steps, dict(rotor=rotor, mgl=mgl, orbit_rate=orbit_rate,
+                                                damper_inertia=damper_inertia, damping=damping),
+        save_every, columns, weights, y_eq, probe_steps)
     n = y.shape[1]
-    n_saved = 0
-    if save_every > 0:
-        n_saved = 1 + n_steps // save_every + (1 if n_steps % save_every else 0)
-    probe_steps = _NO_STEPS if probe_steps is None else np.ascontiguousarray(probe_steps, dtype=np.int64)
-    columns = _NO_COLUMNS if columns is None else np.ascontiguousarray(columns, dtype=np.int64)
-    weights = _NO_WEIGHTS if weights is None else np.ascontiguousarray(weights, dtype=float)
-    y_eq = np.zeros(n_state) if y_eq is None else np.ascontiguousarray(y_eq, dtype=float)
     device_y = cuda.to_device(y)
     saved = cuda.device_array((n_saved, n_state, n) if n_saved else (0, n_state, 1))
     probes = cuda.device_array((len(probe_steps), n) if len(probe_steps) else (0, 1))

@@ -77,8 +77,8 @@ from ..kernels import side_by_side as _side_by_side
 from . import rotations
 from .bodies import finite_array, one_body, spin_vectors
 
-__all__ = ["EllipticParameters", "attitude", "omega", "omega_on_device", "period", "parameters", "first_flip_time", "flip_spacing",
-           "rotation_per_period"]
+__all__ = ["EllipticParameters", "attitude", "omega", "omega_on_device", "period", "parameters", "first_flip_time",
+           "flip_spacing", "rotation_per_period"]
 
 REGIME_LARGEST = 1  # L² > 2E I_mid: w along the largest-moment axis never changes sign (dn there)
 REGIME_SEPARATRIX = 0  # L² = 2E I_mid
