@@ -7,6 +7,12 @@ last bits or nearly (the CPU's block loops are vectorised, a thread's loop is on
 differently).
 """
 
+import importlib.util
+import os
+import subprocess
+import sys
+import textwrap
+
 import numpy as np
 import pytest
 
@@ -139,3 +145,46 @@ def test_the_closed_form_flips_and_the_attitude_are_refused_on_the_device(cuda_d
     with pytest.raises(ValueError, match=r"^device 'cuda': the attitude \(attitude=True\) is not yet on the device"):
         tumble.integrate((1.0, 2.0, 3.0), [[0.1, 1.0, 0.1]], 1.0, 0.1, method="exact", save_every=1, attitude=True,
                          device="cuda")
+
+
+# --- the same kernels compile for a real GPU (NVVM, no GPU needed) -------------------------------------------------
+
+_PTX = textwrap.dedent("""
+    import types
+    import numba.cuda.dispatcher as dispatcher
+    from numba import cuda, types as nt
+    from tumble.kernels import device_closed_form, device_models
+    from tumble.kernels.models import MODEL_CODES, MODEL_METHODS
+    from tumble.registry import model_kind
+
+    # Device functions are compiled for the current GPU's compute capability; without a GPU, name one (H100).
+    dispatcher.get_current_device = lambda: types.SimpleNamespace(compute_capability=(9, 0))
+    f8, i8 = nt.float64, nt.int64
+    kernels = []
+    for kind, method in (("gyrostat", "splitting2"), ("heavy_top", "rk4"), ("gravity_gradient", "rk8"),
+                         ("damper", "rk4")):
+        kernels.append((device_models().make_kernel(MODEL_CODES[kind], MODEL_METHODS[method],
+                                                    len(model_kind(kind).state)),
+                        (f8[:, ::1], nt.UniTuple(f8, 26), f8, i8, i8, f8[:, :, ::1], i8[::1], f8[::1], f8[::1],
+                         i8[::1], f8[:, ::1], f8[:, ::1], f8, nt.int8[::1], i8[::1])))
+    exact = device_closed_form()
+    kernels.append((exact._omega_at_kernel, (f8, f8, f8, f8[:, ::1], f8, f8[:, ::1], nt.int8[::1])))
+    kernels.append((exact._omega_grid_kernel, (f8, f8, f8, f8[:, ::1], f8[::1], f8[:, :, ::1], nt.int8[::1])))
+    for kernel, signature in kernels:
+        ptx, _ = cuda.compile_ptx(kernel.py_func, signature, cc=(9, 0))
+        assert "div.approx" not in ptx and "fma.rn.f64" in ptx
+        print(ptx.count("\\n"))
+""")
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(importlib.util.find_spec("nvidia") is None, reason="no NVVM wheel (pip install nvidia-nvvm "
+                    "nvidia-cuda-nvrtc, or the gpu extra)")
+def test_the_model_and_closed_form_kernels_compile_to_ptx_for_a_gpu():
+    """numba-cuda compiles the models' kernels (the CPU's _step, invariants and splittings inside) and the closed
+    form's (the CPU's set-up and elliptic cores) to PTX for sm_90 with IEEE division and fused multiply-adds (about
+    90 s on 2 cores; a private hook stands in for the GPU's compute capability)."""
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="0")
+    result = subprocess.run([sys.executable, "-c", _PTX], capture_output=True, text=True, env=env)
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert len(result.stdout.splitlines()) == 6
