@@ -153,7 +153,7 @@ _PTX = textwrap.dedent("""
     import types
     import numba.cuda.dispatcher as dispatcher
     from numba import cuda, types as nt
-    from tumble.kernels import device_closed_form, device_models
+    from tumble.kernels import METHODS, device_closed_form, device_kernels, device_models
     from tumble.kernels.models import MODEL_CODES, MODEL_METHODS
     from tumble.registry import model_kind
 
@@ -167,6 +167,10 @@ _PTX = textwrap.dedent("""
                                                     len(model_kind(kind).state)),
                         (f8[:, ::1], nt.UniTuple(f8, 26), f8, i8, i8, f8[:, :, ::1], i8[::1], f8[::1], f8[::1],
                          i8[::1], f8[:, ::1], f8[:, ::1], f8, nt.int8[::1], i8[::1])))
+    for torque_free in (True, False):  # the free body's implicit midpoint rule (kernels/cuda.py)
+        kernels.append((device_kernels().make_kernel(METHODS["implicit_midpoint"], torque_free),
+                        (f8[:, ::1], nt.UniTuple(f8, 12), f8, f8, i8, i8, f8[:, :, ::1], nt.int8[::1], i8[::1], f8,
+                         i8, nt.UniTuple(f8, 4))))
     exact = device_closed_form()
     kernels.append((exact._omega_at_kernel, (f8, f8, f8, f8[:, ::1], f8, f8[:, ::1], nt.int8[::1])))
     kernels.append((exact._omega_grid_kernel, (f8, f8, f8, f8[:, ::1], f8[::1], f8[:, :, ::1], nt.int8[::1])))
@@ -180,11 +184,11 @@ _PTX = textwrap.dedent("""
 @pytest.mark.slow
 @pytest.mark.skipif(importlib.util.find_spec("nvidia") is None, reason="no NVVM wheel (pip install nvidia-nvvm "
                     "nvidia-cuda-nvrtc, or the gpu extra)")
-def test_the_model_and_closed_form_kernels_compile_to_ptx_for_a_gpu():
-    """numba-cuda compiles the models' kernels (the CPU's _step, invariants and splittings inside) and the closed
-    form's (the CPU's set-up and elliptic cores) to PTX for sm_90 with IEEE division and fused multiply-adds (about
+def test_the_model_closed_form_and_midpoint_kernels_compile_to_ptx_for_a_gpu():
+    """numba-cuda compiles the models' kernels (the CPU's _step, invariants and splittings inside), the closed
+    form's (the CPU's set-up and elliptic cores) and the free body's implicit midpoint rule to PTX for sm_90 with IEEE division and fused multiply-adds (about
     90 s on 2 cores; a private hook stands in for the GPU's compute capability)."""
     env = dict(os.environ, NUMBA_ENABLE_CUDASIM="0")
     result = subprocess.run([sys.executable, "-c", _PTX], capture_output=True, text=True, env=env)
     assert result.returncode == 0, result.stderr[-3000:]
-    assert len(result.stdout.splitlines()) == 6
+    assert len(result.stdout.splitlines()) == 8

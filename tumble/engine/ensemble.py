@@ -305,8 +305,8 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         Also integrate the orientation, stored with the trajectory (needs ``save_every``; no other observer).
         The body frame is the space frame at ``t = 0``.
     device : str
-        ``"cpu"`` or ``"cuda"`` (:func:`tumble.engine.device.resolve_device`). On ``"cuda"`` today: a fixed-step
-        method other than the implicit midpoint rule, a constant torque or a named profile, the final state and the
+        ``"cpu"`` or ``"cuda"`` (:func:`tumble.engine.device.resolve_device`). On ``"cuda"`` today: every fixed-step
+        method, a constant torque or a named profile, the final state and the
         trajectory; the closed form (``"exact"``, and ``"auto"`` torque-free) with every observer but the flips;
         anything else is refused (``device 'cuda': ... not yet on the device``), never run on the CPU.
 

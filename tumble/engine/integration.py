@@ -108,8 +108,7 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
         None: only the final state. ``k``: the initial state, every k-th step and the final one.
     device : str
         ``"cpu"`` or ``"cuda"`` (:func:`tumble.engine.device.resolve_device`; the closed form too, one thread per
-        sample: :func:`tumble.physics.exact.omega_on_device`; not yet the implicit midpoint rule or a torque
-        function).
+        sample: :func:`tumble.physics.exact.omega_on_device`; not yet a torque function).
 
     Returns
     -------

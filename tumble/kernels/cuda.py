@@ -12,8 +12,9 @@ The frame (moments in units, a splitting's axes relabelled) is prepared by the C
 What the device computes today: the final state, the stored trajectory (``save_every``), the status (non-finite,
 checked every :data:`tumble.kernels.drivers.CHECK_EVERY` steps and at the end as on the CPU; invariant drift
 past ``drift_limit``, torque-free) and the steps each sample took. A sample that stops keeps its state, as on the
-CPU. Probes, flips, drift records, early stop, the implicit midpoint rule and torque functions are refused with a
-``ValueError`` that starts ``device 'cuda':``.
+CPU. Probes, flips, drift records, early stop and torque functions are refused with a ``ValueError`` that starts
+``device 'cuda':``. The implicit midpoint rule runs as the CPU's, at most the same fixed number of fixed-point sweeps
+per step (:func:`tumble.kernels.steppers.implicit_midpoint_sample`).
 
 This module imports ``numba.cuda``; it is imported only when a run asks for ``device="cuda"``
 (:func:`tumble.kernels.device_kernels`). With ``NUMBA_ENABLE_CUDASIM=1`` (set before numba is imported) the
@@ -27,7 +28,7 @@ import numpy as np
 from numba import cuda
 
 from ..registry import STATUS_DRIFT, STATUS_NONFINITE, STATUS_OK
-from . import fused, tableaux
+from . import fused, steppers, tableaux
 from .drivers import CHECK_EVERY
 from .jit import cuda_jit
 from .methods import Observed, from_kernel_frame, kernel_frame
@@ -44,9 +45,6 @@ _NO_TORQUE = (0.0, 0.0, 0.0, 0.0)  # the torque argument of a torque-free kernel
 
 def refusal(method, *, torque_fn=None, probe_steps=None, max_flips=0, drift=False, stop_norm=0.0, stop_flips=0):
     """The one-line reason why a run cannot go to the device, or None when it can."""
-    if not isinstance(method.coefficients, (tableaux.ButcherTableau, tableaux.Splitting)):
-        return (f"device 'cuda': method {method.name!r} is {_NOT_YET} (its fixed-point iteration runs a "
-                f"data-dependent number of sweeps per sample); use rk4, rk8 or a splitting, or device='cpu'")
     if torque_fn is not None:
         return ("device 'cuda': a Python torque function cannot run on the device; use a constant torque or a "
                 "named profile (constant, ramp, sine, pulse)")
@@ -73,7 +71,8 @@ def make_kernel(method, torque_free):
         table = coefficients.without_torque() if torque_free else coefficients
         flows, fractions = table.flows, table.fractions
     else:
-        sample = getattr(fused, f"{method.name}_sample")  # generated from the tableau (kernels/codegen.py)
+        # generated from the tableau (kernels/codegen.py); the implicit midpoint rule's is written by hand
+        sample = getattr(fused, f"{method.name}_sample", None) or steppers.implicit_midpoint_sample
 
     @cuda_jit
     def propagate(w, body, t0, h, n_steps, save_every, saved, status, steps_taken, drift_limit, torque_kind,
