@@ -157,9 +157,7 @@ def test_cuda_with_a_numpy_numba_cuda_cannot_compile_with_says_so(monkeypatch):
     (dict(method="rk4", max_flips=2), "observing flips is not yet"),
     (dict(method="rk4", drift=True), "observing drift records is not yet"),
     (dict(method="rk4", final=False, stop_norm=0.5), "observing early stop is not yet"),
-    (dict(method="rk4", save_every=1, attitude=True), "the attitude (attitude=True) is not yet on the device"),
-], ids=["torque_function", "closed_form_flips", "probes", "flips", "drift", "early_stop",
-        "attitude"])
+], ids=["torque_function", "closed_form_flips", "probes", "flips", "drift", "early_stop"])
 def test_what_the_device_does_not_do_yet_is_refused(cuda_device, kwargs, message):
     with pytest.raises(ValueError) as err:
         tumble.run_ensemble(BODY, [[0.0, 1.0, 0.0]], 0.1, 0.01, device="cuda", progress=False, **kwargs)

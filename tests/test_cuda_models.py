@@ -138,19 +138,37 @@ def test_run_ensemble_auto_on_the_device_runs_the_closed_form_with_its_observers
     _agree(dataset.omega.values[:, -1], cpu.final, CLOSED_FORM_RELATIVE)
 
 
-def test_the_closed_form_flips_and_the_attitude_are_refused_on_the_device(cuda_device):
+def test_the_closed_form_flips_and_attitude_are_refused_on_the_device(cuda_device):
     with pytest.raises(ValueError, match=r"^device 'cuda': the closed form's flips .* not yet on the device"):
         tumble.run_ensemble((1.0, 2.0, 3.0), [[0.1, 1.0, 0.1]], 1.0, 0.1, method="exact", max_flips=2,
                            device="cuda", progress=False)
-    with pytest.raises(ValueError, match=r"^device 'cuda': the attitude \(attitude=True\) is not yet on the device"):
+    with pytest.raises(ValueError, match=r"^device 'cuda': the closed form's attitude .* not yet on the device"):
         tumble.integrate((1.0, 2.0, 3.0), [[0.1, 1.0, 0.1]], 1.0, 0.1, method="exact", save_every=1, attitude=True,
                          device="cuda")
+
+
+# --- the attitude ----------------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("method, torque", [("rk4", None), ("splitting2", None), ("implicit_midpoint", None),
+                                            ("rk8", (0.05, -0.1, 0.2)), ("splitting4", {"profile": "sine", "vector":
+                                                                         (0.2, 0.0, -0.1), "period": 0.15})],
+                         ids=["rk4", "splitting2", "implicit_midpoint", "rk8-constant_torque", "splitting4-sine"])
+def test_the_attitude_on_the_device_gives_the_cpu_quaternions(cuda_device, method, torque):
+    spins = np.array([0.0, 1.0, 0.0]) + 0.3 * np.random.default_rng(28).normal(size=(8, 3))
+    kwargs = dict(method=method, torque=torque if torque is not None else (0, 0, 0), save_every=7, attitude=True)
+    cpu = tumble.integrate((2.0, 1.0, 3.0), spins, 0.3, 0.01, **kwargs)  # unsorted: a splitting relabels its axes
+    device = tumble.integrate((2.0, 1.0, 3.0), spins, 0.3, 0.01, device="cuda", **kwargs)
+    assert device.attrs["device"] == "cuda" and device.quaternion.shape == (8, 6, 4)
+    _agree(device.omega.values, cpu.omega.values)
+    _agree(device.quaternion.values, cpu.quaternion.values)
+    np.testing.assert_array_equal(device.status.values, cpu.status.values)
 
 
 # --- the same kernels compile for a real GPU (NVVM, no GPU needed) -------------------------------------------------
 
 _PTX = textwrap.dedent("""
     import types
+    import numpy as np
     import numba.cuda.dispatcher as dispatcher
     from numba import cuda, types as nt
     from tumble.kernels import METHODS, device_closed_form, device_kernels, device_models
@@ -171,6 +189,15 @@ _PTX = textwrap.dedent("""
         kernels.append((device_kernels().make_kernel(METHODS["implicit_midpoint"], torque_free),
                         (f8[:, ::1], nt.UniTuple(f8, 12), f8, f8, i8, i8, f8[:, :, ::1], nt.int8[::1], i8[::1], f8,
                          i8, nt.UniTuple(f8, 4))))
+    from tumble.kernels import device_attitude
+    from tumble.kernels.methods import attitude_frame
+
+    for name, torque_free in (("rk4", True), ("splitting2", False), ("implicit_midpoint", True)):  # the attitude
+        frame = attitude_frame(METHODS[name], np.ones((1, 3)), np.array([1.0, 2.0, 3.0]),
+                               None if torque_free else np.zeros(4), None, 1, 1)
+        kernels.append((device_attitude().make_kernel(frame, torque_free),
+                        (f8[:, ::1], f8[:, ::1], nt.UniTuple(f8, 12), f8, f8, i8, i8, f8[:, :, ::1], f8[:, :, ::1],
+                         nt.int8[::1], nt.UniTuple(i8, 3), f8, i8, nt.UniTuple(f8, 4))))
     exact = device_closed_form()
     kernels.append((exact._omega_at_kernel, (f8, f8, f8, f8[:, ::1], f8, f8[:, ::1], nt.int8[::1])))
     kernels.append((exact._omega_grid_kernel, (f8, f8, f8, f8[:, ::1], f8[::1], f8[:, :, ::1], nt.int8[::1])))
@@ -184,11 +211,12 @@ _PTX = textwrap.dedent("""
 @pytest.mark.slow
 @pytest.mark.skipif(importlib.util.find_spec("nvidia") is None, reason="no NVVM wheel (pip install nvidia-nvvm "
                     "nvidia-cuda-nvrtc, or the gpu extra)")
-def test_the_model_closed_form_and_midpoint_kernels_compile_to_ptx_for_a_gpu():
+def test_the_model_closed_form_midpoint_and_attitude_kernels_compile_to_ptx_for_a_gpu():
     """numba-cuda compiles the models' kernels (the CPU's _step, invariants and splittings inside), the closed
-    form's (the CPU's set-up and elliptic cores) and the free body's implicit midpoint rule to PTX for sm_90 with IEEE division and fused multiply-adds (about
+    form's (the CPU's set-up and elliptic cores), the free body's implicit midpoint rule and the attitude's kernels
+    (the CPU's attitude steps, the coefficients as constants) to PTX for sm_90 with IEEE division and fused multiply-adds (about
     90 s on 2 cores; a private hook stands in for the GPU's compute capability)."""
     env = dict(os.environ, NUMBA_ENABLE_CUDASIM="0")
     result = subprocess.run([sys.executable, "-c", _PTX], capture_output=True, text=True, env=env)
     assert result.returncode == 0, result.stderr[-3000:]
-    assert len(result.stdout.splitlines()) == 8
+    assert len(result.stdout.splitlines()) == 11

@@ -105,9 +105,10 @@ def check_on_device(method, *, attitude=False, **observers):
         The keywords of :func:`tumble.kernels.cuda.refusal`: ``torque_fn``, ``probe_steps``, ``max_flips``,
         ``drift``, ``stop_norm``, ``stop_flips``.
     """
-    if attitude:
-        raise not_on_device("the attitude (attitude=True) is")
     if method == "exact":  # the closed form observes on the host what the device evaluates, its flips excepted
+        if attitude:
+            raise not_on_device("the closed form's attitude (method 'exact', which 'auto' picks for a torque-free "
+                                "run, with attitude=True) is")
         if observers.get("max_flips", 0) > 0:
             raise not_on_device("the closed form's flips (method 'exact', which 'auto' picks for a torque-free "
                                 "run, with max_flips) are")

@@ -32,7 +32,8 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .. import registry
-from ..kernels import BLOCK, METHODS, TORQUE_CONSTANT, TORQUE_SIGNATURE, TORQUE_USER, run, run_attitude
+from ..kernels import (BLOCK, METHODS, TORQUE_CONSTANT, TORQUE_SIGNATURE, TORQUE_USER, device_attitude, run,
+                       run_attitude)
 from ..physics import exact
 from ..physics.bodies import finite_array, one_body, spin_vectors
 from ..registry import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK, choose_method
@@ -307,8 +308,8 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
     device : str
         ``"cpu"`` or ``"cuda"`` (:func:`tumble.engine.device.resolve_device`). On ``"cuda"`` today: every fixed-step
         method, a constant torque or a named profile, the final state and the
-        trajectory; the closed form (``"exact"``, and ``"auto"`` torque-free) with every observer but the flips;
-        anything else is refused (``device 'cuda': ... not yet on the device``), never run on the CPU.
+        trajectory, the attitude; the closed form (``"exact"``, and ``"auto"`` torque-free) with every observer but
+        the flips (its attitude is the CPU's closed form: refused); anything else is refused (``device 'cuda': ... not yet on the device``), never run on the CPU.
 
     Returns
     -------
@@ -374,7 +375,7 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
             info.update(sample_steps_computed=0, sample_steps_skipped=n * n_steps, jit_seconds=0.0)
             return result._replace(info=info)
         if attitude:
-            result = _run_attitude(METHODS[chosen], moments, w0, dt, n_steps, observe, torque, chunks())
+            result = _run_attitude(METHODS[chosen], moments, w0, dt, n_steps, observe, torque, chunks(), device)
             info.update(run_seconds=time.perf_counter() - started, sample_steps_computed=n * n_steps,
                         sample_steps_skipped=0)
             return result._replace(info=info)
@@ -480,8 +481,11 @@ def _block_steps(steps_taken):
     return int(np.dot(sizes, blocks.reshape(-1, BLOCK).max(axis=1)))
 
 
-def _run_attitude(method, moments, w0, dt, n_steps, observe, torque, chunks):
-    """Angular velocity and attitude by a fixed-step method, chunk by chunk, from the identity attitude."""
+def _run_attitude(method, moments, w0, dt, n_steps, observe, torque, chunks, device="cpu"):
+    # size: one more than the limit: the device, whose attitude kernels take the CPU kernels' arguments
+    """Angular velocity and attitude by a fixed-step method, chunk by chunk, from the identity attitude, on
+    ``device``."""
+    step = run_attitude if device == "cpu" else device_attitude().run_attitude
     n = len(w0)
     trajectory = np.empty((n, len(observe.times), 3))
     quaternion = np.empty((n, len(observe.times), 4))
@@ -489,7 +493,7 @@ def _run_attitude(method, moments, w0, dt, n_steps, observe, torque, chunks):
     for lo, hi in chunks:
         identity = np.zeros((hi - lo, 4))
         identity[:, 0] = 1.0
-        trajectory[lo:hi], quaternion[lo:hi], status[lo:hi] = run_attitude(
+        trajectory[lo:hi], quaternion[lo:hi], status[lo:hi] = step(
             method, w0[lo:hi], identity, moments, 0.0, dt, n_steps, save_every=observe.save,
             torque_kind=torque.kind, torque_params=torque.params, torque_fn=torque.fn)
     final_w = trajectory[:, -1].copy() if observe.final else None
