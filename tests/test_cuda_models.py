@@ -122,6 +122,9 @@ def test_the_closed_form_on_the_device_gives_the_cpu_values_at_one_time_and_on_a
 
     on_device = exact.omega_on_device(np.array(body), closed_form_spins, times)
     _agree(on_device, exact.omega(body, closed_form_spins, times), CLOSED_FORM_RELATIVE)
+    near_an_axis = np.vstack([closed_form_spins[:3], [1e-160, 1.0, 1e-160]])  # invariants underflow: lifted as on
+    _agree(exact.omega_on_device(np.array(body), near_an_axis, times),  # the CPU (omega_apart)
+           exact.omega(body, near_an_axis, times), CLOSED_FORM_RELATIVE)
 
 
 def test_run_ensemble_auto_on_the_device_runs_the_closed_form_with_its_observers(cuda_device, closed_form_spins):
