@@ -21,7 +21,13 @@ reported apart), throughput in sample-steps per second:
 5. ``jax``: rk4 in ``jax.lax.fori_loop`` over the stacked (3, N) state, jit, float64, same GPU;
 6. ``diffrax``: Tsit5 and Dopri8 with ``ConstantStepSize``, ``jax.vmap`` over the samples, same GPU, at the step
    count where their error against the exact solution equals tumble's rk4 / rk8 error;
-7. the FP64 bound of each method (:data:`FP64_COUNTS`), against the chip's vector FP64 peak (:data:`FP64_PEAK`).
+7. ``models``: each model of ``tumble.models`` (:func:`_models`: gyrostat, heavy top with rk4 and splitting2,
+   gravity gradient, damper) on the device, ``run_model_ensemble(..., device="cuda")`` with its host transfers (S
+   steps of dt), against the CPU's model kernels on this machine's cores and their agreement;
+8. ``closed_form``: ``tumble.exact.omega_on_device`` at one time (also the kernel alone on device arrays, the
+   target 3e9 evaluations/s) and on a grid of :data:`CLOSED_FORM_TIMES` times, against ``tumble.exact.omega`` on
+   the cores, and their agreement (about 1e-13);
+9. the FP64 bound of each method (:data:`FP64_COUNTS`), against the chip's vector FP64 peak (:data:`FP64_PEAK`).
 
 Every engine's error is measured against ``tumble.exact.omega`` on the first 4096 samples. A part whose package is
 missing is reported as skipped, a part that raises as failed, and the run goes on; ``results/gpu.{json,md}`` are
@@ -501,8 +507,110 @@ def part_scene(ctx):
                                           met=same and rel <= 1e-10))
 
 
-PARTS = {"gpu": part_gpu, "agreement": part_agreement, "scene": part_scene, "cpu": part_cpu, "jax": part_jax,
-         "diffrax": part_diffrax}
+def _models():
+    """(label, model, spin axis, method) of the models part: each model of tumble.models once, I = (1, 2, 3)."""
+    from tumble.physics import models
+
+    return (("gyrostat", models.Gyrostat(MOMENTS, (0.0, 0.2, 0.0)), 2, "rk4"),
+            ("heavy top", models.HeavyTop((2.0, 2.5, 3.0), 0.5), 3, "rk4"),
+            ("heavy top", models.HeavyTop((2.0, 2.5, 3.0), 0.5), 3, "splitting2"),
+            ("gravity gradient", models.GravityGradient(MOMENTS, 0.1), 2, "rk4"),
+            ("damper", models.Damper(MOMENTS, 0.2, 0.05), 3, "rk4"))
+
+
+def part_models(ctx):
+    """The models on the device (run_model_ensemble, final state, with its host transfers) against the CPU's model
+    kernels on this machine's cores, and their agreement on the first N_CHECK samples."""
+    from tumble.engine.models import run_model_ensemble
+    from tumble.engine.sampling import perturbed_states
+
+    p = ctx["problem"]
+    rows = []
+    for label, model, axis, method in _models():
+        y0 = perturbed_states(model, axis, 1.0, EPS, p.samples, seed=0)
+        cpu_y0 = y0[:ctx["cpu_samples"]]
+        n_steps, cpu_steps = p.steps, ctx["cpu_steps"]
+
+        def gpu(y0=y0, model=model, axis=axis, method=method):
+            return run_model_ensemble(model, y0, n_steps * DT, DT, method=method, axis=axis, spin=1.0,
+                                      drift_limit=0.0, device="cuda", chunk=len(y0)).final
+
+        def cpu(model=model, axis=axis, method=method):
+            return run_model_ensemble(model, cpu_y0, cpu_steps * DT, DT, method=method, axis=axis, spin=1.0,
+                                      drift_limit=0.0).final
+
+        first, seconds, out = timed(gpu, ctx["repeats"])
+        cpu_first, cpu_seconds, _ = timed(cpu, ctx["repeats"])
+        check = run_model_ensemble(model, y0[:p.check], n_steps * DT, DT, method=method, axis=axis, spin=1.0,
+                                   drift_limit=0.0).final
+        diff = float(np.max(np.abs(out[:p.check] - check)) / np.max(np.abs(check)))
+        row = dict(model=label, method=method, samples=p.samples, steps=n_steps, first_call_s=first,
+                   seconds_with_transfers=seconds, rate_with_transfers=p.samples * n_steps / seconds,
+                   cpu_samples=len(cpu_y0), cpu_steps=cpu_steps, cpu_rate=len(cpu_y0) * cpu_steps / cpu_seconds,
+                   max_rel_difference=diff)
+        row["speedup"] = row["rate_with_transfers"] / row["cpu_rate"]
+        rows.append(row)
+        print(f"  model {label} {method}: {row['rate_with_transfers']:.3e} sample-steps/s with transfers (first call "
+              f"{first:.1f} s), cpu {row['cpu_rate']:.3e}, |gpu - cpu| / max |y| = {diff:.1e}", flush=True)
+    return dict(rows=rows)
+
+
+CLOSED_FORM_TIMES = 64  # times of the closed form's grid evaluation
+
+
+def part_closed_form(ctx):
+    """The closed form on the device, one thread per sample: at one time (the kernel alone on device arrays, and
+    with transfers) and on a grid of CLOSED_FORM_TIMES times (with transfers), against the CPU's fused kernels
+    (tumble.exact.omega) on this machine's cores, and their agreement."""
+    import tumble
+    from numba import cuda
+
+    from tumble.kernels import device_closed_form
+    from tumble.physics import exact
+
+    kernels = device_closed_form()
+    p = ctx["problem"]
+    moments = np.array(MOMENTS)
+    grid = np.linspace(0.0, p.t_end, CLOSED_FORM_TIMES)
+    one = np.array([p.t_end])
+    cpu_w = p.w0[:ctx["cpu_samples"]]
+    rows = []
+    for label, times in (("one time", one), (f"grid of {CLOSED_FORM_TIMES} times", grid)):
+        first, seconds, out = timed(lambda times=times: exact.omega_on_device(moments, p.w0, times), ctx["repeats"])
+        cpu_first, cpu_seconds, _ = timed(lambda times=times: tumble.exact.omega(MOMENTS, cpu_w, times),
+                                          ctx["repeats"])
+        check = tumble.exact.omega(MOMENTS, p.w0[:p.check], times)
+        diff = float(np.max(np.abs(out[:p.check] - check)) / np.max(np.abs(check)))
+        evaluations = p.samples * len(times)
+        row = dict(evaluation=label, samples=p.samples, times=len(times), first_call_s=first,
+                   seconds_with_transfers=seconds, rate_with_transfers=evaluations / seconds,
+                   cpu_samples=len(cpu_w), cpu_rate=len(cpu_w) * len(times) / cpu_seconds, max_rel_difference=diff)
+        if len(times) == 1:  # the kernel alone, as cuda_exact.omega_at launches it, on arrays already on the device
+            w = cuda.to_device(np.ascontiguousarray(p.w0))
+            result = cuda.device_array((p.samples, 3))
+            flags = cuda.device_array(p.samples, dtype=np.int8)
+            threads = kernels.THREADS
+            launch = kernels._omega_at_kernel[-(-p.samples // threads), threads]
+            spans = []
+            for _ in range(ctx["repeats"] + 1):
+                cuda.synchronize()
+                started = time.perf_counter()
+                launch(*MOMENTS, w, float(p.t_end), result, flags)
+                cuda.synchronize()
+                spans.append(time.perf_counter() - started)
+            row["rate_kernel"] = p.samples / float(np.median(spans[1:]))
+            row["kernel_equals_call"] = bool(np.array_equal(result.copy_to_host(), out[:, 0]))
+        row["speedup"] = row["rate_with_transfers"] / row["cpu_rate"]
+        rows.append(row)
+        print(f"  closed form, {label}: {row['rate_with_transfers']:.3e} evaluations/s with transfers"
+              + (f", {row['rate_kernel']:.3e} kernel alone" if "rate_kernel" in row else "")
+              + f" (first call {first:.1f} s), cpu {row['cpu_rate']:.3e}, |gpu - cpu| / max |w| = {diff:.1e}",
+              flush=True)
+    return dict(rows=rows)
+
+
+PARTS = {"gpu": part_gpu, "agreement": part_agreement, "scene": part_scene, "cpu": part_cpu, "models": part_models,
+         "closed_form": part_closed_form, "jax": part_jax, "diffrax": part_diffrax}
 
 
 # --------------------------------------------------------------------------------------------------------------
@@ -572,7 +680,15 @@ def targets(report):
         ratio = d and g and horizon_seconds(d) / horizon_seconds(g)
         add(f">= 30x diffrax {solver} at tumble {peer}'s error (time per sample over the horizon)", ratio,
             ratio and ratio >= 30, ratio and f"{ratio:.1f}x ({d['steps']} steps against {g['steps']})")
+    closed = {r["times"]: r for r in parts.get("closed_form", {}).get("rows", [])}.get(1)
+    add("the closed form at one time >= 3e9 evaluations/s (kernel alone)", closed,
+        closed and closed["rate_kernel"] >= 3e9,
+        closed and f"{closed['rate_kernel']:.2e} (with transfers {closed['rate_with_transfers']:.2e})")
     return out
+
+
+def _rate_or_dash(rate):
+    return "—" if rate is None else f"{rate:.2e}"
 
 
 def horizon_seconds(row):
@@ -678,6 +794,26 @@ def markdown(report):
         lines += [f"- {r['method']}: {r['max_rel_difference']:.1e} ({'met' if r['met'] else 'MISSED'}"
                   f"{', the same bits' if r['bitwise'] else ''}; the kernel alone gave propagate's bits: "
                   f"{same.get(r['method'], '—')})" for r in agreement["rows"]]
+    model_rows = parts.get("models", {}).get("rows", [])
+    if model_rows:
+        lines += ["", "The models (`run_model_ensemble(..., device=\"cuda\")`, final state, with host transfers) "
+                  "against the CPU's model kernels on this machine's cores; |gpu − cpu| / max |y| on the first "
+                  f"{min(p['samples'], N_CHECK)} samples:", "",
+                  "| model | method | samples × steps | GPU sample-steps/s | CPU sample-steps/s | × CPU | "
+                  "|gpu − cpu| |", "|---|---|---|---|---|---|---|"]
+        lines += [f"| {r['model']} | {r['method']} | {r['samples']:,} × {r['steps']} | "
+                  f"{r['rate_with_transfers']:.2e} | {r['cpu_rate']:.2e} | {r['speedup']:.3g}× | "
+                  f"{r['max_rel_difference']:.1e} |" for r in model_rows]
+    closed_rows = parts.get("closed_form", {}).get("rows", [])
+    if closed_rows:
+        lines += ["", "The closed form on the device (one thread per sample: the set-up and the evaluation) against "
+                  "`tumble.exact.omega` on this machine's cores, evaluations (sample × time) per second:", "",
+                  "| evaluation | samples | GPU, with transfers | GPU, kernel alone | CPU | × CPU | "
+                  "|gpu − cpu| / max |w| |",
+                  "|---|---|---|---|---|---|---|"]
+        lines += [f"| {r['evaluation']} | {r['samples']:,} | {r['rate_with_transfers']:.2e} | "
+                  f"{_rate_or_dash(r.get('rate_kernel'))} | {r['cpu_rate']:.2e} | {r['speedup']:.3g}× | "
+                  f"{r['max_rel_difference']:.1e} |" for r in closed_rows]
     lines += ["", "Issue 28's targets:", "", "| target | measured | status |", "|---|---|---|"]
     lines += [f"| {t['target']} | {t['measured']} | {t['status']} |" for t in report["targets"]]
     return "\n".join(lines) + "\n"

@@ -24,7 +24,7 @@ NO_NUMBA_CUDA = 'numba-cuda is not installed (pip install -e ".[test]")'
 needs_numba_cuda = pytest.mark.skipif(not HAS_NUMBA_CUDA, reason=NO_NUMBA_CUDA)
 
 BODY = (2.0, 1.0, 3.0)  # unsorted: the splittings relabel their axes (an odd permutation, sign -1)
-STEPPED = ("rk4", "rk8", "symplectic_euler", "splitting2", "splitting4")
+STEPPED = ("rk4", "rk8", "symplectic_euler", "splitting2", "splitting4", "implicit_midpoint")
 RELATIVE = 1e-12  # device against CPU, relative to the largest |w|
 
 
@@ -233,12 +233,11 @@ def test_cuda_with_a_numpy_numba_cuda_cannot_compile_with_says_so(monkeypatch):
 
 
 @pytest.mark.parametrize("kwargs, message", [
-    (dict(method="implicit_midpoint"), "method 'implicit_midpoint' is not yet on the device"),
     (dict(method="rk4", torque=lambda t, w1, w2, w3: (0.0, 0.0, 0.1)), "a Python torque function cannot run"),
-    (dict(method="auto"), "the closed form (method 'exact', which 'auto' picks for a torque-free run) is not yet"),
-    (dict(method="exact"), "the closed form"),
-    (dict(method="rk4", save_every=1, attitude=True), "the attitude (attitude=True) is not yet on the device"),
-], ids=["implicit_midpoint", "torque_function", "auto_closed_form", "exact", "attitude"])
+    (dict(method="exact", max_flips=2), "the closed form's flips (method 'exact', which 'auto' picks for a "
+                                        "torque-free run, with max_flips) are not yet"),
+    (dict(method="auto", save_every=1, attitude=True), "the closed form's attitude"),
+], ids=["torque_function", "closed_form_flips", "closed_form_attitude"])
 def test_what_the_device_does_not_do_yet_is_refused(cuda_device, kwargs, message):
     with pytest.raises(ValueError) as err:
         tumble.run_ensemble(BODY, [[0.0, 1.0, 0.0]], 0.1, 0.01, device="cuda", progress=False, **kwargs)
@@ -246,12 +245,9 @@ def test_what_the_device_does_not_do_yet_is_refused(cuda_device, kwargs, message
     assert message in str(err.value)
 
 
-@pytest.mark.parametrize("kwargs", [dict(method="exact"), dict(method="implicit_midpoint"),
-                                    dict(torque=lambda t, w1, w2, w3: (0.0, 0.0, 0.1))],
-                         ids=["exact", "implicit_midpoint", "torque_function"])
-def test_propagate_refuses_the_same_on_the_device(cuda_device, kwargs):
+def test_propagate_refuses_the_same_on_the_device(cuda_device):
     with pytest.raises(ValueError, match=r"^device 'cuda': "):
-        tumble.propagate(BODY, [0.0, 1.0, 0.0], 0.1, 0.01, device="cuda", **kwargs)
+        tumble.propagate(BODY, [0.0, 1.0, 0.0], 0.1, 0.01, device="cuda", torque=lambda t, w1, w2, w3: (0.0, 0.0, 0.1))
 
 
 def test_importing_tumble_does_not_import_numba_cuda():

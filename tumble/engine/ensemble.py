@@ -32,7 +32,8 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .. import registry
-from ..kernels import BLOCK, METHODS, TORQUE_CONSTANT, TORQUE_SIGNATURE, TORQUE_USER, fits, run, run_attitude
+from ..kernels import (BLOCK, METHODS, TORQUE_CONSTANT, TORQUE_SIGNATURE, TORQUE_USER, device_attitude, fits, run,
+                       run_attitude)
 from ..physics import exact
 from ..physics.bodies import finite_array, one_body, spin_vectors
 from ..registry import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK, choose_method
@@ -315,10 +316,11 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
     keep_probes : bool
         With ``growth_window``: also return the probe norms (False: on the device they never leave it).
     device : str
-        ``"cpu"`` or ``"cuda"`` (:func:`tumble.engine.device.resolve_device`). On ``"cuda"`` today: a fixed-step
-        method other than the implicit midpoint rule, a constant torque or a named profile, and every observer (final
-        state, trajectory, probe norms, flips, drift records, early stop); anything else is refused (``device 'cuda':
-        ... not yet on the device``), never run on the CPU.
+        ``"cpu"`` or ``"cuda"`` (:func:`tumble.engine.device.resolve_device`). On ``"cuda"`` today: every fixed-step
+        method, a constant torque or a named profile, every observer (final state, trajectory, probe norms, flips,
+        drift records, early stop) and the attitude; the closed form (``"exact"``, and ``"auto"`` torque-free) with
+        every observer but the flips and the attitude; anything else is refused (``device 'cuda': ... not yet on the
+        device``), never run on the CPU.
 
     Returns
     -------
@@ -365,7 +367,7 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         drift_limit=drift_limit if torque.free else 0.0, growth=growth_window,
         keep_probes=keep_probes or growth_window is None)
     if device == "cuda":
-        check_on_device(chosen, attitude=attitude, torque_fn=torque.fn)
+        check_on_device(chosen, attitude=attitude, torque_fn=torque.fn, max_flips=observe.max_flips)
         chunk = max(chunk, LAUNCH_SAMPLES)
     info = {"path": "closed form" if chosen == "exact" else "fixed-step kernel", "method": chosen,
             "reason": reason, "dt": dt, "n_steps": n_steps, "torque": torque.text, "early_stop": early,
@@ -386,11 +388,11 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
                 raise Interrupted(n, n)
 
         if chosen == "exact":
-            result = _run_exact(moments, w0, t_end, observe, chunks())
+            result = _run_exact(moments, w0, t_end, observe, chunks(), device)
             info.update(sample_steps_computed=0, sample_steps_skipped=n * n_steps, jit_seconds=0.0)
             return _fit_growth(result._replace(info=info), observe)
         if attitude:
-            result = _run_attitude(METHODS[chosen], moments, w0, dt, n_steps, observe, torque, chunks())
+            result = _run_attitude(METHODS[chosen], moments, w0, dt, n_steps, observe, torque, chunks(), device)
             info.update(run_seconds=time.perf_counter() - started, sample_steps_computed=n * n_steps,
                         sample_steps_skipped=0)
             return result._replace(info=info)
@@ -523,8 +525,11 @@ def _block_steps(steps_taken):
     return int(np.dot(sizes, blocks.reshape(-1, BLOCK).max(axis=1)))
 
 
-def _run_attitude(method, moments, w0, dt, n_steps, observe, torque, chunks):
-    """Angular velocity and attitude by a fixed-step method, chunk by chunk, from the identity attitude."""
+def _run_attitude(method, moments, w0, dt, n_steps, observe, torque, chunks, device="cpu"):
+    # size: one more than the limit: the device, whose attitude kernels take the CPU kernels' arguments
+    """Angular velocity and attitude by a fixed-step method, chunk by chunk, from the identity attitude, on
+    ``device``."""
+    step = run_attitude if device == "cpu" else device_attitude().run_attitude
     n = len(w0)
     trajectory = np.empty((n, len(observe.times), 3))
     quaternion = np.empty((n, len(observe.times), 4))
@@ -532,7 +537,7 @@ def _run_attitude(method, moments, w0, dt, n_steps, observe, torque, chunks):
     for lo, hi in chunks:
         identity = np.zeros((hi - lo, 4))
         identity[:, 0] = 1.0
-        trajectory[lo:hi], quaternion[lo:hi], status[lo:hi] = run_attitude(
+        trajectory[lo:hi], quaternion[lo:hi], status[lo:hi] = step(
             method, w0[lo:hi], identity, moments, 0.0, dt, n_steps, save_every=observe.save,
             torque_kind=torque.kind, torque_params=torque.params, torque_fn=torque.fn)
     final_w = trajectory[:, -1].copy() if observe.final else None
@@ -540,9 +545,11 @@ def _run_attitude(method, moments, w0, dt, n_steps, observe, torque, chunks):
                           np.full(n, n_steps, dtype=np.int64), {}, quaternion)
 
 
-def _run_exact(moments, w0, t_end, observe, chunks):
+def _run_exact(moments, w0, t_end, observe, chunks, device="cpu"):
     """The closed form, chunk by chunk: each chunk's per-sample set-up computed once and evaluated at every time
-    the observers ask for (final state, trajectory, probe times) and for the flips."""
+    the observers ask for (final state, trajectory, probe times) and for the flips. On the device
+    (:func:`tumble.physics.exact.omega_on_device`) each evaluation is set up anew, one thread per sample; the
+    flips are refused there (:func:`tumble.engine.device.check_on_device`)."""
     n = len(w0)
     b, c = (observe.axis + 1) % 3, (observe.axis + 2) % 3
     times = observe.times
@@ -557,10 +564,17 @@ def _run_exact(moments, w0, t_end, observe, chunks):
         w = w0[lo:hi]
         if quaternion is not None:
             quaternion[lo:hi] = exact.attitude(moments, w, times)
-        sol = exact.solve_rows(np.broadcast_to(moments, w.shape), w)
-        row = np.zeros(hi - lo, dtype=np.int64)
+        if device == "cpu":
+            sol = exact.solve_rows(np.broadcast_to(moments, w.shape), w)
+            row = np.zeros(hi - lo, dtype=np.int64)
+
+            def at(grid):  # (n, T, 3) at the times grid (T,)
+                return exact.omega_rows(sol, grid[None, :], row)
+        else:
+            def at(grid):
+                return exact.omega_on_device(moments, w, grid)
         if final_w is not None or drifts is not None:
-            end = exact.omega_rows(sol, np.array([[t_end]]), row)[:, 0]
+            end = at(np.array([t_end]))[:, 0]
             if final_w is not None:
                 final_w[lo:hi] = end
             if drifts is not None:
@@ -568,10 +582,10 @@ def _run_exact(moments, w0, t_end, observe, chunks):
                 e1, l1 = 0.5 * (moments * end**2).sum(1), ((moments * end) ** 2).sum(1)
                 drifts[lo:hi] = np.stack([np.abs(e1 / e0 - 1), np.abs(l1 / l0 - 1)], axis=1)
         if trajectory is not None:
-            trajectory[lo:hi] = exact.omega_rows(sol, times[None, :], row)
+            trajectory[lo:hi] = at(times)
         if probes is not None:
-            at = exact.omega_rows(sol, observe.probe_times[None, :], row)
-            probes[lo:hi] = np.sqrt(observe.weights[b] * at[..., b] ** 2 + observe.weights[c] * at[..., c] ** 2)
+            probed = at(observe.probe_times)
+            probes[lo:hi] = np.sqrt(observe.weights[b] * probed[..., b] ** 2 + observe.weights[c] * probed[..., c] ** 2)
         if flips is not None:
             flips[lo:hi], flip_count[lo:hi] = flip_times(exact.first_flips(sol), exact.flip_spacings(sol),
                                                          observe.max_flips, t_end)

@@ -16,7 +16,7 @@ from ..kernels import METHODS, run
 from ..physics import exact
 from ..physics.bodies import finite_array, one_body, spin_vectors
 from ..registry import STATUS_NAMES, STATUS_OK
-from .device import not_on_device, resolve_device, stepper
+from .device import resolve_device, stepper
 from .ensemble import run_ensemble, torque_spec
 
 __all__ = ["integrate", "propagate", "METHOD_NAMES"]
@@ -107,8 +107,8 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
     save_every : int, optional
         None: only the final state. ``k``: the initial state, every k-th step and the final one.
     device : str
-        ``"cpu"`` or ``"cuda"`` (:func:`tumble.engine.device.resolve_device`; not yet for ``"exact"``, the implicit
-        midpoint rule or a torque function).
+        ``"cpu"`` or ``"cuda"`` (:func:`tumble.engine.device.resolve_device`; the closed form too, one thread per
+        sample: :func:`tumble.physics.exact.omega_on_device`; not yet a torque function).
 
     Returns
     -------
@@ -132,16 +132,15 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
     kind, params, fn, _ = torque_spec(torque)
     chosen, _ = registry.choose_method(method, torque_free=params is None and fn is None)
     n_steps, step = _step_plan(t_end, dt)
-    if device == "cuda" and chosen == "exact":
-        raise not_on_device("the closed form (method 'exact') is")
     if chosen == "exact" and not save_every:
-        out = exact.omega_at(moments, w, t_end)
+        out = exact.omega_at(moments, w, t_end) if device == "cpu" else exact.omega_on_device(
+            moments, w, np.array([t_end]))[:, 0]
     elif chosen == "exact":  # the stepping path's store times: 0, k, 2k, ..., and the end
         steps = np.arange(0, n_steps + 1, save_every)
         times = np.append(steps, n_steps) if steps[-1] != n_steps else steps
         times = times * step
         times[-1] = t_end
-        out = exact.omega(moments, w, times)
+        out = exact.omega(moments, w, times) if device == "cpu" else exact.omega_on_device(moments, w, times)
     else:
         state = np.array(w.T, order="C")
         observed = stepper(device)(METHODS[chosen], state, moments, 0.0, step, n_steps, save_every=save_every or 0,

@@ -19,8 +19,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..kernels import MODEL_BLOCK, MODEL_CODES, model_methods, parallel_block, run_model
+from ..kernels import MODEL_BLOCK, MODEL_CODES, device_models, model_methods, parallel_block, run_model
 from ..physics.models import Model
+from .device import resolve_device
 from .ensemble import DEFAULT_DRIFT_LIMIT, _count, _number, observation_times
 from .sampling import CHUNK
 
@@ -98,7 +99,8 @@ def _checked(model, y0, t_end, dt, method, axis, spin, save_every, probe_times, 
 
 
 def run_model_ensemble(model, y0, t_end, dt, *, method="rk4", axis, spin=None, save_every=None, probe_times=None,
-                       drift=False, drift_limit=DEFAULT_DRIFT_LIMIT, final=True, chunk=CHUNK, time_major=False):
+                       drift=False, drift_limit=DEFAULT_DRIFT_LIMIT, final=True, chunk=CHUNK, time_major=False,
+                       device="cpu"):
     # size: the engine's public call for the models: each keyword is one observer or option a caller may name
     """Run an ensemble of a model with a fixed-step kernel and observe it on the fly.
 
@@ -141,6 +143,10 @@ def run_model_ensemble(model, y0, t_end, dt, *, method="rk4", axis, spin=None, s
         Return the trajectory as the kernels store it, shape (T, n_state, N), a component row of all samples at
         each stored time (no transposing copy: a caller that reduces over the components, such as a modal
         projection, reads it row by row).
+    device : str
+        ``"cpu"`` or ``"cuda"`` (:func:`tumble.engine.device.resolve_device`): on ``"cuda"`` every model, method and
+        observer above runs on the device, one thread per sample (:mod:`tumble.kernels.cuda_models`, the CPU's
+        per-sample steps); recorded in ``info["device"]``.
 
     Returns
     -------
@@ -153,6 +159,8 @@ def run_model_ensemble(model, y0, t_end, dt, *, method="rk4", axis, spin=None, s
         An argument of the wrong type, shape or range (named in the message); an axis the model has no steady
         spin about (a heavy top: not 3; a gyrostat with probes: its rotor across the axis).
     """
+    device = resolve_device(device)
+    step = run_model if device == "cpu" else device_models().run_model
     y0, t_end, dt, spin, save_every, probe_times, drift_limit, chunk = _checked(
         model, y0, t_end, dt, method, axis, spin, save_every, probe_times, drift_limit, chunk)
     drift, final, time_major = _flag(drift, "drift"), _flag(final, "final"), _flag(time_major, "time_major")
@@ -178,10 +186,10 @@ def run_model_ensemble(model, y0, t_end, dt, *, method="rk4", axis, spin=None, s
     for lo in range(0, n, chunk):
         hi = min(lo + chunk, n)
         state = np.array(y0[lo:hi].T, order="C")
-        observed = run_model(model.kind, method, state, model.moments, dt, n_steps, save_every=save,
-                             columns=transverse.columns, weights=transverse.weights, y_eq=y_eq,
-                             probe_steps=probe_steps, drift=drift, drift_limit=drift_limit,
-                             block=parallel_block(hi - lo, MODEL_BLOCK), **parameters)
+        observed = step(model.kind, method, state, model.moments, dt, n_steps, save_every=save,
+                        columns=transverse.columns, weights=transverse.weights, y_eq=y_eq,
+                        probe_steps=probe_steps, drift=drift, drift_limit=drift_limit,
+                        block=parallel_block(hi - lo, MODEL_BLOCK), **parameters)
         if final:
             out_final[lo:hi] = state.T
         if save and time_major and lo == 0 and hi == n:  # one kernel call: its array is the trajectory
@@ -197,6 +205,6 @@ def run_model_ensemble(model, y0, t_end, dt, *, method="rk4", axis, spin=None, s
         status[lo:hi] = observed.status
         steps_taken[lo:hi] = observed.steps_taken
     info = {"path": "model kernel", "model": model.kind, "method": method, "dt": dt, "n_steps": n_steps,
-            "samples": n, "axis": int(axis), "spin": spin, "drift_limit": drift_limit,
+            "samples": n, "axis": int(axis), "spin": spin, "drift_limit": drift_limit, "device": device,
             "run_seconds": time.perf_counter() - started}
     return ModelEnsembleResult(out_final, times, trajectory, probe_times, probes, drifts, status, steps_taken, info)

@@ -14,7 +14,8 @@ from .models import MODEL_CODES, MODEL_METHODS, ModelObserved, model_methods, mo
 from .steppers import TORQUE_CONSTANT, TORQUE_PULSE, TORQUE_RAMP, TORQUE_SINE, TORQUE_USER
 
 __all__ = ["BLOCK", "METHODS", "MODEL_BLOCK", "MODEL_CODES", "MODEL_METHODS", "TORQUE_CONSTANT", "TORQUE_PULSE",
-           "TORQUE_RAMP", "TORQUE_SIGNATURE", "TORQUE_SINE", "TORQUE_USER", "device_kernels", "elliptic", "fits",
+           "TORQUE_RAMP", "TORQUE_SIGNATURE", "TORQUE_SINE", "TORQUE_USER", "device_attitude", "device_closed_form",
+           "device_kernels", "device_models", "elliptic", "fits",
            "Method", "model_methods", "model_rhs", "ModelObserved", "Observed", "parallel_block", "run",
            "run_attitude", "run_model", "side_by_side"]
 
@@ -26,3 +27,27 @@ def device_kernels():
     from . import cuda
 
     return cuda
+
+
+def device_models():
+    """The models' CUDA kernels, :mod:`tumble.kernels.cuda_models` (its ``run_model`` takes :func:`run_model`'s
+    arguments), imported on the first call as :func:`device_kernels`."""
+    from . import cuda_models
+
+    return cuda_models
+
+
+def device_closed_form():
+    """The closed form's CUDA kernels, :mod:`tumble.kernels.cuda_exact`, imported on the first call as
+    :func:`device_kernels`."""
+    from . import cuda_exact
+
+    return cuda_exact
+
+
+def device_attitude():
+    """The attitude's CUDA kernels, :mod:`tumble.kernels.cuda_attitude` (its ``run_attitude`` takes
+    :func:`run_attitude`'s arguments), imported on the first call as :func:`device_kernels`."""
+    from . import cuda_attitude
+
+    return cuda_attitude

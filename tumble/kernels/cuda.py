@@ -20,8 +20,10 @@ The observers are the CPU's per-sample ``@jit`` functions (:func:`tumble.kernels
 same step with the same status as on the CPU; the flip count and the drift maxima stay in registers, and only the
 outputs asked for are copied back. A growth scene's fit runs in registers too: each probe norm is fed to the CPU fit's
 own window step (:func:`tumble.kernels.fits.growth_window_add`) as it comes, and only four numbers per sample come
-back instead of its probes. A sample that stops keeps its state, as on the CPU. The implicit midpoint rule
-and torque functions are refused with a ``ValueError`` that starts ``device 'cuda':``.
+back instead of its probes. A sample that stops keeps its state, as on the CPU. The implicit midpoint rule runs
+as the CPU's, at most the same fixed number of fixed-point sweeps per step
+(:func:`tumble.kernels.steppers.implicit_midpoint_sample`). Torque functions are refused with a ``ValueError`` that
+starts ``device 'cuda':``.
 
 This module imports ``numba.cuda``; it is imported only when a run asks for ``device="cuda"``
 (:func:`tumble.kernels.device_kernels`). With ``NUMBA_ENABLE_CUDASIM=1`` (set before numba is imported) the
@@ -35,7 +37,7 @@ import numpy as np
 from numba import cuda
 
 from ..registry import STATUS_DRIFT, STATUS_NONFINITE, STATUS_OK
-from . import fused, tableaux
+from . import fused, steppers, tableaux
 from .drivers import CHECK_EVERY, drifted, flip_in_step, invariant_errors, measurement_complete, transverse_norm
 from .fits import GROWTH_WINDOW_START, growth_window_add, growth_window_rate
 from .jit import cuda_jit
@@ -53,9 +55,6 @@ _NO_TORQUE = (0.0, 0.0, 0.0, 0.0)  # the torque argument of a torque-free kernel
 
 def refusal(method, *, torque_fn=None):
     """The one-line reason why a run cannot go to the device, or None when it can."""
-    if not isinstance(method.coefficients, (tableaux.ButcherTableau, tableaux.Splitting)):
-        return (f"device 'cuda': method {method.name!r} is {_NOT_YET} (its fixed-point iteration runs a "
-                f"data-dependent number of sweeps per sample); use rk4, rk8 or a splitting, or device='cpu'")
     if torque_fn is not None:
         return ("device 'cuda': a Python torque function cannot run on the device; use a constant torque or a "
                 "named profile (constant, ramp, sine, pulse)")
@@ -78,7 +77,8 @@ def make_kernel(method, torque_free):
         table = coefficients.without_torque() if torque_free else coefficients
         flows, fractions = table.flows, table.fractions
     else:
-        sample = getattr(fused, f"{method.name}_sample")  # generated from the tableau (kernels/codegen.py)
+        # generated from the tableau (kernels/codegen.py); the implicit midpoint rule's is written by hand
+        sample = getattr(fused, f"{method.name}_sample", None) or steppers.implicit_midpoint_sample
 
     @cuda_jit
     def propagate(w, body, t0, h, n_steps, save_every, saved, axis, weights, probe_steps, probes, flips, flip_count,

@@ -28,7 +28,6 @@ from ..registry import STATUS_DRIFT, STATUS_NAMES, STATUS_NONFINITE, STATUS_OK, 
 from .fused import rk4_block, rk8_block, splitting2_block, splitting4_block, symplectic_euler_block
 from .jit import jit
 from .steppers import (
-    MIDPOINT_WORK,
     energy,
     euler_rate,
     implicit_midpoint_block,
@@ -298,7 +297,7 @@ def make_propagate(torque_free):
             for i in range(m):
                 target[i] = l_squared(y1[i], y2[i], y3[i], body)
                 e0[i] = energy(y1[i], y2[i], y3[i], body)
-            work = np.empty((MIDPOINT_WORK if kernel == IMPLICIT_MIDPOINT else 0, m))
+            work = np.empty((0, m))  # the blocks' scratch rows: none needs any
             previous = np.empty((3, m))
             n_frozen = 0
             slot = 0

@@ -83,7 +83,7 @@ from numba.core import types
 from numba.extending import intrinsic
 
 from .jit import jit
-from .trig import _C1, _C2, _C3, _C4, _C5, _C6, _S1, _S2, _S3, _S4, _S5, _S6, _fma
+from .trig import _C1, _C2, _C3, _C4, _C5, _C6, _S1, _S2, _S3, _S4, _S5, _S6, _floor, _fma
 
 __all__ = ["KC_HYPERBOLIC", "TINY_TRANSVERSE", "agm", "carlson_rf", "complete_integrals", "hyperbolic_nome", "jacobi_sncndn", "torque_free_omega",
            "torque_free_omega_at", "torque_free_omega_grid",
@@ -668,13 +668,13 @@ def _exp_expm1(x):
     the results are 0 and -1. NaN in gives NaN out.
     """
     x = _EXP_XMIN if x < _EXP_XMIN else x  # noqa: FURB136 (max() need not keep a NaN)
-    k = np.floor(x * _INV_LN2 + 0.5)
+    k = _floor(x * _INV_LN2 + 0.5)
     r = _fma(-k, _LN2_HI, x)  # exact
     r = _fma(-k, _LN2_LO, r)
     poly = _E9 + r * (_E10 + r * (_E11 + r * (_E12 + r * _E13)))
     poly = _E2 + r * (_E3 + r * (_E4 + r * (_E5 + r * (_E6 + r * (_E7 + r * (_E8 + r * poly))))))
     p = _fma(r * r, poly, r)
-    k1 = np.floor(0.5 * k)
+    k1 = _floor(0.5 * k)
     scale = _pow2(k1) * _pow2(k - k1)  # exact while 2^k is normal
     return _fma(scale, p, scale), _fma(scale, p, scale - 1.0)
 
@@ -683,9 +683,9 @@ def _exp_expm1(x):
 def _quarter_period_reduction(s, K, two_k, inv_two_k):
     """``s = u - K = 2 K n + r``: returns ``(x, near, par, sg)`` with ``x = |r|`` (``near``, ``|r| <= K/2``)
     or ``K - |r|``, ``par = (-1)^n``, ``sg = sign r`` (module docstring, step 1); selects only."""
-    n = np.floor(s * inv_two_k + 0.5)
+    n = _floor(s * inv_two_k + 0.5)
     r = s - two_k * n
-    par = 1.0 - 2.0 * (n - 2.0 * np.floor(0.5 * n))
+    par = 1.0 - 2.0 * (n - 2.0 * _floor(0.5 * n))
     ar = abs(r)
     sg = 1.0 if r >= 0.0 else -1.0
     near = ar <= 0.5 * K
@@ -851,7 +851,7 @@ def _exp_both(x):
     Taylor polynomial in ``r^2`` (the first omitted terms are ``r^14/14!`` and ``r^14/15!``, below 5e-18),
     so ``exp -x = 2^-k exp -r`` costs no division; ``expm1 x = 2^k ((cosh r - 1) + r sinh r / r) + (2^k - 1)``.
     """
-    k = np.floor(x * _INV_LN2 + 0.5)
+    k = _floor(x * _INV_LN2 + 0.5)
     r = _fma(-k, _LN2_HI, x)  # exact
     r = _fma(-k, _LN2_LO, r)
     z = r * r

@@ -278,15 +278,49 @@ def run_attitude(method, w, q, moments, t0, h, n_steps, *, save_every, torque_ki
     saved_q : ndarray, shape (N, n_saved, 4)
     status : ndarray, shape (N,), int8
     """
-    moments, torque_params = _in_moment_units(moments, torque_params, torque_fn)
+    frame = attitude_frame(method, w, moments, torque_params, torque_fn, n_steps, save_every)
     n = w.shape[0]
+    saved_w = np.empty((frame.n_saved, n, 3))
+    saved_q = np.empty((frame.n_saved, n, 4))
+    status = np.zeros(n, dtype=np.int8)
+    kernel_q = np.array(q, dtype=float)
+    propagate_attitude(frame.family, frame.A, frame.b, frame.c, frame.flows, frame.fractions,
+                       np.asarray(frame.axes, dtype=np.int64), frame.sign, frame.w, kernel_q, frame.body, float(t0),
+                       float(h), int(n_steps), int(save_every), saved_w, saved_q, status, int(torque_kind),
+                       frame.torque_params, torque_fn)
+    return from_attitude_frame(frame, saved_w), saved_q.transpose(1, 0, 2), status
+
+
+class AttitudeFrame(NamedTuple):
+    """What an attitude run's kernel takes (:func:`attitude_frame`), on either device."""
+
+    family: int  # attitude.FAMILY_*
+    A: np.ndarray  # the tableau (Runge–Kutta; else empty)
+    b: np.ndarray
+    c: np.ndarray
+    flows: np.ndarray  # the sub-flows and their fractions (splittings; else empty)
+    fractions: np.ndarray
+    axes: tuple  # the body axis (0-based) of each kernel axis
+    sign: float  # the relabelling's sign
+    w: np.ndarray  # (N, 3) C-contiguous, in the kernel's frame
+    body: tuple  # steppers.body_constants of the moments in units and the kernel's frame
+    torque_params: np.ndarray | None  # in units and the kernel's frame
+    perm: np.ndarray | None  # the relabelling (None: none)
+    n_saved: int  # states stored: the initial one, every save_every-th and the last
+
+
+def attitude_frame(method, w, moments, torque_params, torque_fn, n_steps, save_every):
+    """The kernel's frame and arguments of an attitude run (:func:`run_attitude`'s and the device's,
+    :mod:`tumble.kernels.cuda_attitude`): moments in units, a splitting's axes relabelled, the method's family
+    and coefficients, the number of stored states."""
+    moments, torque_params = _in_moment_units(moments, torque_params, torque_fn)
     coefficients = method.coefficients
     relabel = _relabelling(method, moments, torque_params, torque_fn)
-    axes, sign = np.arange(3), 1.0
+    axes, sign, perm = (0, 1, 2), 1.0, None
     kernel_w = np.array(w, dtype=float)
     if relabel is not None:
         perm, sign = relabel
-        axes = perm
+        axes = tuple(int(a) for a in perm)
         kernel_w = sign * kernel_w[:, perm]
         moments = moments[perm]
         if torque_params is not None:
@@ -305,15 +339,14 @@ def run_attitude(method, w, q, moments, t0, h, n_steps, *, save_every, torque_ki
         flows, fractions = coefficients.flows, coefficients.fractions
     else:
         family = FAMILY_MIDPOINT
-    n_saved = 1 + n_steps // save_every + (1 if n_steps % save_every else 0)
-    saved_w = np.empty((n_saved, n, 3))
-    saved_q = np.empty((n_saved, n, 4))
-    status = np.zeros(n, dtype=np.int8)
-    kernel_q = np.array(q, dtype=float)
-    propagate_attitude(family, A, b, c, flows, fractions, np.asarray(axes, dtype=np.int64), float(sign),
-                       np.ascontiguousarray(kernel_w), kernel_q, body_constants(moments), float(t0), float(h),
-                       int(n_steps), int(save_every), saved_w, saved_q, status, int(torque_kind), torque_params,
-                       torque_fn)
-    if relabel is not None:
-        saved_w = sign * saved_w[:, :, np.argsort(perm)]
-    return saved_w.transpose(1, 0, 2), saved_q.transpose(1, 0, 2), status
+    return AttitudeFrame(family, A, b, c, flows, fractions, axes, float(sign), np.ascontiguousarray(kernel_w),
+                         body_constants(moments), torque_params, perm,
+                         1 + n_steps // save_every + (1 if n_steps % save_every else 0))
+
+
+def from_attitude_frame(frame, saved_w):
+    """The stored angular velocities (n_saved, N, 3) of an attitude run back in the body's axes, (N, n_saved, 3)."""
+    if frame.perm is not None:
+        saved_w = frame.sign * saved_w[:, :, np.argsort(frame.perm)]
+    return saved_w.transpose(1, 0, 2)
+

@@ -73,7 +73,8 @@ from .model_steps import (
     heavy_top_rk8_block,
 )
 
-__all__ = ["MODEL_CODES", "MODEL_METHODS", "ModelObserved", "SPLITTING_KINDS", "model_constants", "model_methods",
+__all__ = ["MODEL_CODES", "MODEL_METHODS", "ModelObserved", "SPLITTING_KINDS", "model_arguments", "model_constants",
+           "model_methods",
            "model_rhs", "propagate_model", "run_model"]
 
 #: Kernel codes of the models: their index in ``registry.MODEL_KINDS``. The kernels step every model of this table,
@@ -472,6 +473,28 @@ _NO_COLUMNS = np.zeros(0, dtype=np.int64)
 _NO_WEIGHTS = np.zeros(0)
 
 
+def model_arguments(kind, method, y, moments, n_steps, parameters, save_every, columns, weights, y_eq, probe_steps):
+    # size: run_model's arguments that its driver takes as arrays, checked and packed in one place for either device
+    """:func:`run_model`'s arguments checked and packed for a driver (this module's or the device's,
+    :mod:`tumble.kernels.cuda_models`): ``(model code, n_state, constants, n_saved, columns, weights, y_eq,
+    probe_steps)``, the arrays contiguous and empty when not asked for. ``parameters``: the model's keywords.
+    Raises ``ValueError`` as :func:`run_model` documents."""
+    code, n_state, constants = _kind_constants(kind, moments, parameters)
+    if method not in model_methods(kind):
+        raise ValueError(f"method must be one of {', '.join(model_methods(kind))} for a {kind} model in the model "
+                         f"kernels, got {method!r}" + _NOT_LIE_POISSON * (method in SPLITTINGS))
+    if y.ndim != 2 or y.shape[0] != n_state or y.dtype != np.float64 or not y.flags.c_contiguous:
+        raise ValueError(f"y must be a C-contiguous float64 array of shape ({n_state}, N), got {y.dtype} {y.shape}")
+    n_saved = 0
+    if save_every > 0:
+        n_saved = 1 + n_steps // save_every + (1 if n_steps % save_every else 0)
+    return (code, n_state, constants, n_saved,
+            _NO_COLUMNS if columns is None else np.ascontiguousarray(columns, dtype=np.int64),
+            _NO_WEIGHTS if weights is None else np.ascontiguousarray(weights, dtype=float),
+            np.zeros(n_state) if y_eq is None else np.ascontiguousarray(y_eq, dtype=float),
+            _NO_STEPS if probe_steps is None else np.ascontiguousarray(probe_steps, dtype=np.int64))
+
+
 def run_model(kind, method, y, moments, h, n_steps, *, rotor=(0.0, 0.0, 0.0), mgl=0.0, orbit_rate=0.0,
               damper_inertia=0.0, damping=0.0, save_every=0, columns=None, weights=None, y_eq=None, probe_steps=None,
               drift=False, drift_limit=0.0, block=BLOCK):
@@ -518,23 +541,13 @@ def run_model(kind, method, y, moments, h, n_steps, *, rotor=(0.0, 0.0, 0.0), mg
     ValueError
         An unknown kind or method (a splitting for a gravity gradient or damper), or a state of the wrong rows.
     """
-    code, n_state, constants = _kind_constants(kind, moments, dict(
-        rotor=rotor, mgl=mgl, orbit_rate=orbit_rate, damper_inertia=damper_inertia, damping=damping))
-    if method not in model_methods(kind):
-        raise ValueError(f"method must be one of {', '.join(model_methods(kind))} for a {kind} model in the model "
-                         f"kernels, got {method!r}" + _NOT_LIE_POISSON * (method in SPLITTINGS))
-    if y.ndim != 2 or y.shape[0] != n_state or y.dtype != np.float64 or not y.flags.c_contiguous:
-        raise ValueError(f"y must be a C-contiguous float64 array of shape ({n_state}, N), got {y.dtype} {y.shape}")
+    code, n_state, constants, n_saved, columns, weights, y_eq, probe_steps = model_arguments(
+        kind, method, y, moments, n_steps, dict(rotor=rotor, mgl=mgl, orbit_rate=orbit_rate,
+                                                damper_inertia=damper_inertia, damping=damping),
+        save_every, columns, weights, y_eq, probe_steps)
     n = y.shape[1]
-    n_saved = 0
-    if save_every > 0:
-        n_saved = 1 + n_steps // save_every + (1 if n_steps % save_every else 0)
     saved = np.empty((n_saved, n_state, n))
-    probe_steps = _NO_STEPS if probe_steps is None else np.ascontiguousarray(probe_steps, dtype=np.int64)
     probes = np.empty((len(probe_steps), n))
-    columns = _NO_COLUMNS if columns is None else np.ascontiguousarray(columns, dtype=np.int64)
-    weights = _NO_WEIGHTS if weights is None else np.ascontiguousarray(weights, dtype=float)
-    y_eq = np.zeros(n_state) if y_eq is None else np.ascontiguousarray(y_eq, dtype=float)
     drifts = np.zeros((N_INVARIANTS if drift else 0, n))
     status = np.zeros(n, dtype=np.int8)
     steps_taken = np.zeros(n, dtype=np.int64)

@@ -224,49 +224,41 @@ def project_l_squared(w1, w2, w3, target, body):
     return w1 + w1 * d, w2 + w2 * d, w3 + w3 * d
 
 
-@jit
-def implicit_midpoint_block(y1, y2, y3, active, t, h, body, work, torque_kind, torque_params, torque_fn):
-    """Implicit midpoint rule ``y1 = y0 + h f(t + h/2, (y0 + y1)/2)`` on a block; keeps quadratic invariants.
+@jit(inline=True)
+def implicit_midpoint_sample(w1, w2, w3, t, h, body, torque_kind, torque_params, torque_fn):
+    """One implicit-midpoint step ``y1 = y0 + h f(t + h/2, (y0 + y1)/2)`` of one sample (the signature of the
+    generated ``<method>_sample`` steps of :mod:`tumble.kernels.fused`, so that the device kernel runs it as theirs).
 
-    The midpoint ``z = y0 + (h/2) f(t + h/2, z)`` is found by fixed-point iteration (Hairer, Lubich &
-    Wanner, sect. VIII.6); each sample stops iterating once its update is below a few ulps, so its result
-    does not depend on its neighbours in the block. Then ``y1 = 2 z - y0``. A sample whose iteration has not
-    converged after ``_MIDPOINT_MAX_ITERATIONS`` sweeps (the step is too large for the fixed-point solver,
-    ``h |ω|`` near 2 or above) is set to NaN, so that the engine flags it non-finite rather than keep a
-    half-solved step. ``work`` has shape ``(4, B)``.
+    The midpoint ``z = y0 + (h/2) f(t + h/2, z)`` is found by fixed-point iteration (Hairer, Lubich & Wanner, sect.
+    VIII.6), stopping once the update is below a few ulps of the state (a NaN compares false and stops too); then
+    ``y1 = 2 z - y0``. A sample whose iteration has not converged after ``_MIDPOINT_MAX_ITERATIONS`` sweeps (the step
+    is too large for the fixed-point solver, ``h |ω|`` near 2 or above) is NaN, so that the engine flags it
+    non-finite rather than keep a half-solved step.
     """
-    z1, z2, z3, done = work[0], work[1], work[2], work[3]
-    n = y1.shape[0]
     half = 0.5 * h
     tm = t + half
-    for i in range(n):
-        z1[i], z2[i], z3[i] = y1[i], y2[i], y3[i]
-        done[i] = 0.0 if active[i] else 1.0
+    z1, z2, z3 = w1, w2, w3
     for _ in range(_MIDPOINT_MAX_ITERATIONS):
-        remaining = 0
-        for i in range(n):
-            if done[i] == 0.0:
-                f1, f2, f3 = euler_rate(tm, z1[i], z2[i], z3[i], body, torque_kind, torque_params, torque_fn)
-                n1 = y1[i] + half * f1
-                n2 = y2[i] + half * f2
-                n3 = y3[i] + half * f3
-                change = abs(n1 - z1[i]) + abs(n2 - z2[i]) + abs(n3 - z3[i])
-                size = abs(n1) + abs(n2) + abs(n3)
-                z1[i], z2[i], z3[i] = n1, n2, n3
-                # A NaN compares false and stops too: a non-finite sample must not keep the loop running.
-                if change > _MIDPOINT_ULPS * _EPS * size:
-                    remaining += 1
-                else:
-                    done[i] = 1.0
-        if remaining == 0:
-            break
-    for i in range(n):
-        if active[i] and done[i] == 0.0:  # no convergence (h too large for the iteration): never silent
-            y1[i] = y2[i] = y3[i] = math.nan
-        elif active[i]:
-            y1[i] = 2.0 * z1[i] - y1[i]
-            y2[i] = 2.0 * z2[i] - y2[i]
-            y3[i] = 2.0 * z3[i] - y3[i]
+        f1, f2, f3 = euler_rate(tm, z1, z2, z3, body, torque_kind, torque_params, torque_fn)
+        n1 = w1 + half * f1
+        n2 = w2 + half * f2
+        n3 = w3 + half * f3
+        change = abs(n1 - z1) + abs(n2 - z2) + abs(n3 - z3)
+        size = abs(n1) + abs(n2) + abs(n3)
+        z1, z2, z3 = n1, n2, n3
+        if not change > _MIDPOINT_ULPS * _EPS * size:
+            return 2.0 * z1 - w1, 2.0 * z2 - w2, 2.0 * z3 - w3
+    return math.nan, math.nan, math.nan
 
 
-MIDPOINT_WORK = 4  # scratch rows implicit_midpoint_block needs
+@jit
+def implicit_midpoint_block(y1, y2, y3, active, t, h, body, work, torque_kind, torque_params, torque_fn):
+    """The implicit midpoint rule on a block (:func:`implicit_midpoint_sample` for each active sample; keeps
+    quadratic invariants). Each sample iterates until its own update is below a few ulps, so its result does not
+    depend on its neighbours in the block. ``work`` is not used (the driver calls every block alike)."""
+    for i in range(y1.shape[0]):
+        if active[i]:
+            y1[i], y2[i], y3[i] = implicit_midpoint_sample(y1[i], y2[i], y3[i], t, h, body, torque_kind,
+                                                           torque_params, torque_fn)
+
+

@@ -71,13 +71,14 @@ from typing import NamedTuple
 import numpy as np
 from scipy.special import elliprf, elliprj
 
+from ..kernels import device_closed_form
 from ..kernels import elliptic as _ell
 from ..kernels import side_by_side as _side_by_side
 from . import rotations
 from .bodies import finite_array, one_body, spin_vectors
 
-__all__ = ["EllipticParameters", "attitude", "omega", "period", "parameters", "first_flip_time", "flip_spacing",
-           "rotation_per_period"]
+__all__ = ["EllipticParameters", "attitude", "omega", "omega_on_device", "period", "parameters", "first_flip_time",
+           "flip_spacing", "rotation_per_period"]
 
 REGIME_LARGEST = 1  # L² > 2E I_mid: w along the largest-moment axis never changes sign (dn there)
 REGIME_SEPARATRIX = 0  # L² = 2E I_mid
@@ -413,6 +414,27 @@ def omega_apart(moments, w, times):
     the kernels a scene's samples use: the same bits as :func:`omega` on a grid, without compiling its fused kernel."""
     sol = solve_rows(np.broadcast_to(moments, w.shape), w)
     return omega_rows(sol, times.reshape(1, -1), np.zeros(w.shape[0], dtype=np.int64))
+
+
+def omega_on_device(moments, w, times):
+    """Angular velocity (n, T, 3), rad/s, of spins ``w`` (n, 3) of one body ``moments`` (3,) at ``times`` (T,), all
+    validated, on the CUDA device (resolved by the caller: :func:`tumble.engine.device.resolve_device`), one thread
+    per sample: :func:`tumble.kernels.cuda_exact.omega_at` for one time, else
+    :func:`tumble.kernels.cuda_exact.omega_grid` (set-up and evaluation). They agree with :func:`omega_at` and
+    :func:`omega` to a few ulps of ``|w|`` (not bit for bit: the CPU's one-time kernel runs in SIMD lanes, and a
+    GPU fuses multiply-adds its own way). A call with a spin within ``TINY_TRANSVERSE`` of an axis (whose
+    invariants underflow) is evaluated as the CPU's is, by :func:`omega_apart` (the lifted set-up), on the CPU."""
+    kernels = device_closed_form()
+    if times.shape[0] == 1:
+        out, tiny, non_finite = kernels.omega_at(moments, w, float(times[0]))
+        out = out[:, None]
+    else:
+        out, tiny, non_finite = kernels.omega_grid(moments, w, times)
+    if tiny:
+        return omega_apart(moments, w, times)
+    if non_finite:
+        raise FloatingPointError("exact.omega produced non-finite values; please report this spin")
+    return out
 
 
 def _omega_grid(body, w0, tt):

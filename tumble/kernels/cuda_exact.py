@@ -1,0 +1,130 @@
+"""The closed form of the torque-free motion on a CUDA device: one thread per sample, float64 (issue 28).
+
+Written once: a thread runs the CPU's own per-sample functions of :mod:`tumble.kernels.elliptic`, which numba-cuda
+compiles for the device.
+
+* :func:`omega_at`, one time: :func:`tumble.kernels.elliptic._omega_at_sample`, the scalar path of the CPU's fused
+  one-time kernel (the invariants, the set-up and ``sn, cn, dn`` of ``nu t`` moved to the spin by Jacobi's addition
+  theorem; no initial argument). The CPU's :func:`~tumble.kernels.elliptic.torque_free_omega_at` runs the same
+  formulas in SIMD lanes; the two agree to a few ulps of ``|w|``.
+* :func:`omega_grid`, a time grid: the set-up of :func:`~tumble.kernels.elliptic.torque_free_solve` for the thread's
+  sample (:func:`~tumble.kernels.elliptic._solve_sample`, into local arrays of one sample), then at each time ``sn,
+  cn, dn`` of ``u = K + phase0 + nu t`` by the grid kernel's own cores (:func:`~tumble.kernels.elliptic._sncndn_once`:
+  the descending Landen transformations, or the hyperbolic series near the separatrix; ``sech, tanh`` on it) stored
+  by :func:`~tumble.kernels.elliptic._store`. The per-modulus constants of those cores are recomputed at each time
+  (a few square roots and divisions): a speed-up left for a session with a GPU to measure.
+
+Both return ``(out, tiny, non_finite)`` as the CPU kernels do: the number of spins too close to a principal axis
+for the invariants (:data:`tumble.kernels.elliptic.TINY_TRANSVERSE`; the caller lifts them) and of samples with a
+non-finite value.
+
+This module imports ``numba.cuda``; it is imported only when a run asks for ``device="cuda"``
+(:func:`tumble.kernels.device_closed_form`). On numba-cuda's simulator the kernel body runs in Python and the
+``@jit`` functions it calls as compiled CPU code (the local arrays are numpy arrays there).
+"""
+
+import math
+
+import numpy as np
+from numba import cuda, float64, int64
+
+from .elliptic import (
+    KIND_ELLIPTIC,
+    KIND_SEPARATRIX,
+    _column_weights,
+    _omega_at_sample,
+    _sech_tanh,
+    _sncndn_once,
+    _solve_sample,
+    _store,
+)
+from .jit import cuda_jit
+
+__all__ = ["THREADS", "omega_at", "omega_grid"]
+
+#: Threads per block of a launch (one sample each).
+THREADS = 128
+
+_TINY, _NON_FINITE = 1, 2  # bits of a sample's flag
+
+
+@cuda_jit
+def _omega_at_kernel(m0, m1, m2, w, t, out, flags):
+    """Sample ``cuda.grid(1)``'s angular velocity at time ``t`` into ``out[i]`` and its flag bits."""
+    i = cuda.grid(1)
+    if i >= w.shape[0]:
+        return
+    v0, v1, v2, small = _omega_at_sample(m0, m1, m2, w[i, 0], w[i, 1], w[i, 2], t)
+    out[i, 0], out[i, 1], out[i, 2] = v0, v1, v2
+    finite = math.isfinite(v0) and math.isfinite(v1) and math.isfinite(v2)
+    flags[i] = (_TINY if small else 0) | (0 if finite else _NON_FINITE)
+
+
+@cuda_jit
+def _omega_grid_kernel(m0, m1, m2, w, times, out, flags):
+    # size: the set-up's one-sample arrays (those torque_free_solve fills) made local, then the time loop
+    """Sample ``cuda.grid(1)`` set up, then evaluated at every time of ``times`` into ``out[i]`` (T, 3)."""
+    i = cuda.grid(1)
+    if i >= w.shape[0]:
+        return
+    spin = cuda.local.array(3, float64)
+    spin[0], spin[1], spin[2] = w[i, 0], w[i, 1], w[i, 2]
+    moments = cuda.local.array((1, 3), float64)
+    perm = cuda.local.array((1, 3), int64)
+    parity = cuda.local.array(1, float64)
+    scaled = cuda.local.array((5, 1), float64)
+    kind = cuda.local.array(1, int64)
+    amp = cuda.local.array((1, 3), float64)
+    cols = cuda.local.array((1, 3), int64)
+    params = cuda.local.array((5, 1), float64)
+    nome = cuda.local.array((2, 1), float64)
+    small = _solve_sample(0, m0, m1, m2, spin, moments, perm, parity, scaled, kind, amp, cols, params, nome)
+    weights = _column_weights(cols[0, 0], cols[0, 1], cols[0, 2], amp[0, 0], amp[0, 1], amp[0, 2])
+    k_c, K, phase0, nu, h, q = params[0, 0], params[2, 0], params[3, 0], params[4, 0], nome[0, 0], nome[1, 0]
+    value = cuda.local.array(3, float64)
+    finite = True
+    for j in range(times.shape[0]):
+        s = phase0 + nu * times[j]
+        if kind[0] == KIND_ELLIPTIC:
+            sn, cn, dn = _sncndn_once(s, k_c, K, h, q)
+            _store(value, 0, weights, cn, sn, dn)
+        elif kind[0] == KIND_SEPARATRIX:
+            sech, tanh = _sech_tanh(s)
+            _store(value, 0, weights, sech, tanh, sech)
+        else:
+            _store(value, 0, weights, 1.0, 1.0, 1.0)
+        for c in range(3):
+            out[i, j, c] = value[c]
+            finite = finite and math.isfinite(value[c])
+    flags[i] = (_TINY if small else 0) | (0 if finite else _NON_FINITE)
+
+
+def _launch(kernel, n, *args):
+    """Launch ``kernel`` over ``n`` samples; returns the flags' counts ``(tiny, non_finite)``."""
+    flags = cuda.device_array(n, dtype=np.int8)
+    threads = THREADS if n >= THREADS else 32 * -(-n // 32)
+    kernel[-(-n // threads), threads](*args, flags)
+    flags = flags.copy_to_host()
+    return int(np.count_nonzero(flags & _TINY)), int(np.count_nonzero(flags & _NON_FINITE))
+
+
+def omega_at(moments, w, t):
+    """:func:`tumble.kernels.elliptic.torque_free_omega_at` on the device: the body's moments (3,), the spins ``w``
+    (n, 3) and the time ``t`` (s) in; ``(out, tiny, non_finite)`` back, ``out`` (n, 3) the angular velocity at
+    ``t`` (rad/s) and the counts as the CPU kernel returns them."""
+    n = w.shape[0]
+    out = cuda.device_array((n, 3))
+    tiny, non_finite = _launch(_omega_at_kernel, n, float(moments[0]), float(moments[1]), float(moments[2]),
+                               cuda.to_device(np.ascontiguousarray(w, dtype=float)), float(t), out)
+    return out.copy_to_host(), tiny, non_finite
+
+
+def omega_grid(moments, w, times):
+    """:func:`tumble.kernels.elliptic.torque_free_omega_grid` on the device: as :func:`omega_at` at the times
+    ``times`` (T,), ``out`` of shape (n, T, 3)."""
+    n = w.shape[0]
+    times = np.ascontiguousarray(times, dtype=float)
+    out = cuda.device_array((n, times.shape[0], 3))
+    tiny, non_finite = _launch(_omega_grid_kernel, n, float(moments[0]), float(moments[1]), float(moments[2]),
+                               cuda.to_device(np.ascontiguousarray(w, dtype=float)), cuda.to_device(times), out)
+    return out.copy_to_host(), tiny, non_finite
