@@ -105,7 +105,7 @@ class InputError(ValueError):
 
 
 def _run(args):
-    from .measure import cost
+    from .engine import cost
     from .pipeline import checkpoint, runner
 
     overrides = {key: value for key, value in (("perturbation.samples", args.samples),

@@ -49,7 +49,7 @@ from ..engine.sampling import CHUNK, perturbed_spins, seed_entropy
 from ..physics import exact, theory
 from ..physics.bodies import Body, one_body
 from ..registry import STATUS_NAMES, STATUS_OK, STEPPING
-from . import cost
+from ..engine import cost
 from . import estimators as analysis
 
 __all__ = ["CURVES", "SAMPLE_STATUS_NAMES", "assemble_scan", "closed_form_samples", "flip_time_law", "inertia_triangle",
@@ -1059,7 +1059,7 @@ def assemble_scan(layout, records, body_coords=None):
             raise ValueError(f"body_coords[{name!r}] must have one value per body ({len(moments)}), got shape "
                              f"{v.shape}")
         out = out.assign_coords({name: ("body", v, {"units": "1", "long_name": name.replace("_", " ")})})
-    out = out.transpose("body", *swept, ..., "sample")
+    out = out.transpose("body", *swept, ..., "sample", missing_dims="ignore")  # no "sample": no per-sample array kept
     out.attrs["title"] = "tumble scan: measured rates against linear theory"
     return out
 

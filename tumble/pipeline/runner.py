@@ -28,7 +28,7 @@ from tqdm.auto import tqdm
 
 from .. import registry
 from ..engine.sampling import CHUNK
-from ..measure import cost
+from ..engine import cost
 from ..measure import model_scenes
 from ..measure import scenes as study
 from ..output import io
@@ -82,6 +82,7 @@ class Job(NamedTuple):
     body_coords: dict | None
     plan: StudyPlan
     file: str = "<mapping>"
+    arrays: tuple = tuple(PER_SAMPLE)  # the per-sample arrays the result keeps (outputs.arrays)
 
 
 def _bodies(resolved):
@@ -179,13 +180,13 @@ def _model_plan(resolved, file):
                      resolved["perturbation"]["samples"], resolved["perturbation"]["seed"])
 
 
-#: The study field a refusal names, by the bound it broke (:class:`tumble.measure.cost.TooLarge`).
+#: The study field a refusal names, by the bound it broke (:class:`tumble.engine.cost.TooLarge`).
 _BOUND_FIELDS = {"scenes": "scan", "steps": "integration", "memory": "perturbation.samples",
                  "size": "perturbation.samples"}
 
 
 def study_cost(resolved):
-    """:class:`tumble.measure.cost.Cost` of a resolved study, from its fields alone (no scene is planned, so
+    """:class:`tumble.engine.cost.Cost` of a resolved study, from its fields alone (no scene is planned, so
     this takes microseconds whatever the study's size)."""
     scan, integ = resolved["scan"], resolved["integration"]
     if "triangle" in scan:
@@ -216,7 +217,7 @@ def study_cost(resolved):
 
 def check_cost(resolved, file="<mapping>"):
     """:func:`study_cost`, refused with a :class:`~tumble.pipeline.config.StudyError` past the bounds of
-    :func:`tumble.measure.cost.check` (the message holds the estimate)."""
+    :func:`tumble.engine.cost.check` (the message holds the estimate)."""
     estimate = study_cost(resolved)
     try:
         return cost.check(estimate)
@@ -247,9 +248,10 @@ def scene_job(resolved, file="<mapping>"):
     if "model" in p.options:
         swept = [key for key in values if key in p.scanned or (key == "spin" and "rate" in p.scanned)]
         layout = model_scenes.scan_layout(p.moments, values, swept)
-        return Job(layout, bool(p.scanned), p.samples, p.seed, p.options, p.body_coords, p, str(file))
-    layout = study.scan_layout(p.moments, values["axis"], values["spin"], values["amplitude"], values["method"])
-    return Job(layout, bool(p.scanned), p.samples, p.seed, p.options, p.body_coords, p, str(file))
+    else:
+        layout = study.scan_layout(p.moments, values["axis"], values["spin"], values["amplitude"], values["method"])
+    return Job(layout, bool(p.scanned), p.samples, p.seed, p.options, p.body_coords, p, str(file),
+               tuple(resolved["outputs"]["arrays"]))
 
 
 class Task(NamedTuple):
@@ -300,11 +302,21 @@ def _model_scene_plan(job, moments, params):
                                    params["method"], **options)
 
 
+def _kept(job, record):
+    """A scene record with only the per-sample arrays the result keeps (``outputs.arrays``; the ``sample`` index
+    only with one of them): what a chunk stores and the result is assembled from. The others were a chunk's
+    bulk (a 2048-sample stability map's checkpoint was 140 times its result) and the result drops them anyway."""
+    dropped = [name for name in PER_SAMPLE if name not in job.arrays]
+    if not any(name in PER_SAMPLE for name in job.arrays):
+        dropped.append("sample")
+    return {name: value for name, value in record.items() if name not in dropped}
+
+
 def _scene_record(job, scene, parts):
-    """The record (:func:`tumble.measure.scenes.scene_records`) of a scene from its sample ranges."""
+    """The record (:func:`tumble.measure.scenes.scene_records`, :func:`_kept`) of a scene from its sample ranges."""
     if "model" in job.options:
-        return model_scenes.scene_records([scene], [parts])[0]
-    return study.scene_records([scene], [parts])[0]
+        return _kept(job, model_scenes.scene_records([scene], [parts])[0])
+    return _kept(job, study.scene_records([scene], [parts])[0])
 
 
 def compute_scenes(job, indices, *, progress=False):
@@ -313,9 +325,10 @@ def compute_scenes(job, indices, *, progress=False):
     if not indices:  # an empty task (a worker's warm-up) needs no job
         return {}
     if "model" in job.options:
-        return dict(zip(indices, model_scenes.scene_batch([_scene_plan(job, i) for i in indices])))
-    records = study.scene_batch([_scene_plan(job, i) for i in indices], progress=progress)
-    return dict(zip(indices, records))
+        records = model_scenes.scene_batch([_scene_plan(job, i) for i in indices])
+    else:
+        records = study.scene_batch([_scene_plan(job, i) for i in indices], progress=progress)
+    return {i: _kept(job, record) for i, record in zip(indices, records)}
 
 
 def compute_samples(job, index, start, stop, *, progress=False):
@@ -524,7 +537,7 @@ def _run(resolved, file, progress, *, job=None, store=None, client=None, chunk_s
     ds = checkpoint.normalise_scene(ds)
     keep = resolved["outputs"]["arrays"]
     ds = ds.drop_vars([name for name in PER_SAMPLE if name in ds and name not in keep])
-    if not any(name in ds for name in PER_SAMPLE):
+    if "sample" in ds and not any(name in ds for name in PER_SAMPLE):
         ds = ds.drop_vars("sample")
     figures = resolved["outputs"]["figures"]
     first_body = np.atleast_2d(p.moments)[0]
