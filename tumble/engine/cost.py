@@ -1,17 +1,24 @@
-"""What a measurement costs, estimated before anything is allocated, and the bounds a run must stay within.
+"""What a run costs, estimated before anything is allocated, and the one bound every entry point checks.
 
-The figures are deliberately rough (within a factor of a few): they exist to refuse, within a second and with
-the estimate in the message, what cannot fit in this machine's memory or would run for days, and to let
-``tumble run --dry-run`` say what a study will take. Throughputs are this project's measurements on a
-2-core AVX2 machine (``benchmarks/results/engine.md``).
+Every public call that allocates or loops in proportion to the user's numbers — ``tumble.integrate``,
+``propagate``, ``run_ensemble``, ``sampling.perturbed_spins`` and ``perturbed_states``, ``tumble.measure``,
+``scan`` and a study (``tumble run``, ``run_study``) — estimates its :class:`Cost` first and passes it to
+:func:`check` (through :func:`refuse`, which names the arguments that set the size): a run past a bound is a
+:class:`TooLarge` (a ``ValueError``; exit 2 on the command line) with the estimate in its message, within a second.
+The module sits in the engine, the lowest layer that needs it; ``measure`` and ``pipeline`` use it from here.
+
+The time figures are rough (within a factor of a few); throughputs are this project's measurements on a 2-core
+AVX2 machine (``benchmarks/results/engine.md``). The memory of a study is modelled from measured peaks
+(:func:`tumble.pipeline.runner.study_cost`; ``tests/test_memory.py`` holds it within 1.5x of the peak resident
+memory of a run above an idle ``import tumble``).
 """
 
 import math
 import os
 from typing import NamedTuple
 
-__all__ = ["BYTES_PER_SAMPLE", "MAX_SAMPLE_STEPS", "MAX_SCENES", "Cost", "TooLarge", "check", "describe",
-           "physical_memory", "scene_cost"]
+__all__ = ["BYTES_PER_SAMPLE", "MAX_SAMPLE_STEPS", "MAX_SCENES", "RUN_FOOTPRINT", "Cost", "TooLarge", "check",
+           "describe", "most_workers", "physical_memory", "refuse", "run_cost", "scene_cost"]
 
 #: Bytes held per sample of a scene while it is measured (the state, the observers' arrays, the per-sample
 #: results of the fits and the flips; measured with ``benchmarks/engine.py``'s memory part: 594 MiB for a
@@ -21,8 +28,21 @@ BYTES_PER_SAMPLE = 640
 #: More scenes than this in one study are refused (each scene costs ~10 ms of fixed work: hours per million).
 MAX_SCENES = 1_000_000
 
-#: More sample-steps than this are refused (days at the ~3e8 sample-steps/s of rk4 on 2 AVX2 cores).
-MAX_SAMPLE_STEPS = 1e14
+#: More sample-steps than this are refused: about an hour at the ~3e8 sample-steps/s of rk4 on 2 AVX2 cores (a run of
+#: more is a batch job: cut it into studies that checkpoint, or use fewer samples or a larger step).
+MAX_SAMPLE_STEPS = 1e12
+
+#: Bytes a study's run holds whatever its size, above an idle ``import tumble``: the kernels loaded from numba's
+#: cache, netCDF and xarray at work (measured: 122 MB for studies of 64 samples, closed form or rk4).
+RUN_FOOTPRINT = 120e6
+
+#: Bytes one local dask worker process holds before it runs anything (an ``import tumble`` and dask's own, measured
+#: ~200 MB), and the most such processes per core: more only compete for the cores.
+WORKER_FOOTPRINT = 200e6
+WORKERS_PER_CORE = 4
+
+#: Bytes per sample of one engine run besides what it stores: the state, its copy and the status.
+_BYTES_PER_STATE = 64
 
 #: The share of this machine's memory a run may plan to use.
 MEMORY_SHARE = 0.5
@@ -52,14 +72,40 @@ def physical_memory():
         return 0
 
 
-def scene_cost(samples, steps, *, scenes=1, kept_per_sample=0):
+def scene_cost(samples, steps, *, scenes=1, kept_per_sample=0, working=None):
     """:class:`Cost` of ``scenes`` scenes of ``samples`` samples and ``steps`` fixed steps each (0: closed
-    form), keeping ``kept_per_sample`` bytes per sample and scene in the result (per-sample arrays)."""
+    form), keeping ``kept_per_sample`` bytes per sample and scene in the result (per-sample arrays); ``working``
+    is the largest working set held at once, bytes (default ``samples * BYTES_PER_SAMPLE``)."""
     sample_steps = float(scenes) * float(samples) * float(steps)
-    peak = float(samples) * BYTES_PER_SAMPLE + float(scenes) * float(samples) * kept_per_sample + scenes * 4096.0
+    working = float(samples) * BYTES_PER_SAMPLE if working is None else float(working)
+    peak = working + float(scenes) * float(samples) * kept_per_sample + scenes * 4096.0
     seconds = (sample_steps / _STEPS_PER_SECOND + (0 if steps else float(scenes) * samples / _EXACT_PER_SECOND)
                + scenes * _SCENE_SECONDS)
     return Cost(int(scenes), int(samples), sample_steps, peak, seconds)
+
+
+def run_cost(samples, steps, stored=0):
+    """:class:`Cost` of one engine run: ``samples`` spins over ``steps`` fixed steps (0: the closed form), each
+    keeping ``stored`` float64 values (a trajectory, probes, flip times) for the whole run."""
+    return scene_cost(samples, steps, working=float(samples) * (_BYTES_PER_STATE + 8.0 * float(stored)))
+
+
+def refuse(estimate, what):
+    """:func:`check` ``estimate``; a refusal's message starts with ``what``: the arguments, as the caller named
+    them, that set the size (``"w0 (10 spins) over t_end / dt = 1e+14 steps"``)."""
+    try:
+        return check(estimate)
+    except TooLarge as err:
+        raise TooLarge(err.bound, f"{what}: {err}") from None
+
+
+def most_workers():
+    """The most local worker processes this machine can hold: :data:`WORKERS_PER_CORE` per core, and their
+    :data:`WORKER_FOOTPRINT` within :data:`MEMORY_SHARE` of its memory."""
+    cores = os.cpu_count() or 1
+    memory = physical_memory()
+    by_memory = int(MEMORY_SHARE * memory // WORKER_FOOTPRINT) if memory else cores * WORKERS_PER_CORE
+    return max(1, min(cores * WORKERS_PER_CORE, by_memory))
 
 
 def _size(n_bytes):

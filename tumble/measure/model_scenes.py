@@ -313,6 +313,7 @@ def scene_plan(model, axis, spin=1.0, amplitude=1e-3, samples=256, seed=0, metho
         norms = model.transverse_norm(y0, axis, spin)
     order = registry.method(chosen).order
     plan = _plan((model, int(axis), spin, amplitude, order), kind, value, norms, dt, horizon, linearised.eigenvalues)
+    scenes.refuse_plan(int(samples), plan, True, kind == "exponential", 0)
     return ModelScene(model, model.moments, int(axis), spin, amplitude, int(samples), method, chosen, kind, value,
                       plan, entropy, distribution, mode=scene_mode)
 

@@ -52,7 +52,7 @@ from ..registry import STATUS_NAMES, STATUS_OK, STEPPING
 from ..engine import cost
 from . import estimators as analysis
 
-__all__ = ["CURVES", "SAMPLE_STATUS_NAMES", "assemble_scan", "closed_form_samples", "flip_time_law", "inertia_triangle",
+__all__ = ["CURVES", "SAMPLE_STATUS_NAMES", "assemble_scan", "refuse_plan", "scene_estimate", "closed_form_samples", "flip_time_law", "inertia_triangle",
            "invariant_drift",
            "measure", "regress_scan", "scan", "scan_layout", "scan_scene", "scan_scene_parameters", "scene_plan",
            "scene_batch", "scene_dataset", "scene_records", "scene_result", "scene_samples"]
@@ -102,6 +102,42 @@ BATCH = 4096
 CONFIDENCE = 0.95
 
 _KIND_UNITS = {"periodic": "rad/s", "exponential": "1/s", "neutral": "rad/s"}
+
+#: Bytes per sample and observation time held while a slice of samples is measured — the observed components or
+#: probe norms and the fits' temporaries — by (stepping, kind is exponential): peaks measured over 32768-sample
+#: slices of 257 times (``tests/test_memory.py``). A stepping periodic scene keeps its trajectory and copies of
+#: two of its components for the phase fit; a stepping exponential scene keeps only the probe norms.
+_BYTES_PER_TIME = {(False, True): 28, (False, False): 28, (True, True): 14, (True, False): 52}
+
+#: Bytes per sample of a scene while its slices are reduced (the per-sample fits, their stack and the record).
+_BYTES_PER_REDUCED_SAMPLE = 200
+
+
+def scene_estimate(stepping, exponential, samples, times, *, steps=0, flips=0, scenes=1, kept_per_sample=0):
+    # size: the quantities the planner knows (or a study's estimate of them), each a factor of the cost
+    """:class:`tumble.engine.cost.Cost` of ``scenes`` scenes of ``samples`` samples observed at ``times`` times
+    over ``steps`` fixed steps (``stepping``; else the closed form) with ``flips`` flips timed, keeping
+    ``kept_per_sample`` bytes per sample and scene: the working set of one slice of samples (:data:`SLICE`;
+    closed-form scenes run together in batches of :data:`BATCH`) from :data:`_BYTES_PER_TIME`, the scene's
+    reduction and what is kept. ``exponential`` False: a periodic (or possibly periodic) scene."""
+    in_flight = min(samples if stepping else max(samples, min(BATCH, scenes * samples)), SLICE)
+    working = (float(in_flight) * (float(times) * _BYTES_PER_TIME[(bool(stepping), bool(exponential))]
+                                   + 32.0 * flips) + float(samples) * _BYTES_PER_REDUCED_SAMPLE)
+    return cost.scene_cost(samples, steps if stepping else 0, scenes=scenes, kept_per_sample=kept_per_sample,
+                           working=working)
+
+
+#: Bytes per sample and scene a scan keeps: its per-sample arrays (rate, status, flip times, the index), twice (the
+#: records and the stacked dataset).
+_SCAN_KEPT = 2 * (8 + 1 + 8 + 8 + 8)
+
+
+def refuse_plan(samples, plan, stepping, exponential, flips):
+    """Refuse a planned scene past the cost bound (:func:`tumble.engine.cost.refuse`), naming what set its size."""
+    times = len(plan.probe_times) if plan.probe_times is not None else plan.n_steps // (plan.save_every or 1) + 2
+    estimate = scene_estimate(stepping, exponential, samples, times, steps=plan.n_steps, flips=flips)
+    steps = f"{plan.n_steps:,} steps of {plan.dt:.3g} s" if stepping else "the closed form"
+    cost.refuse(estimate, f"samples = {samples} over a horizon of {plan.t_end:.3g} s ({steps}, flips = {flips})")
 
 
 def _check_method(method):
@@ -370,6 +406,7 @@ def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, metho
 
     plan = _plan(moments, a, kind, value, spin, amplitude, chosen, dt, flips if kind == "exponential" else 0,
                  probe_spins, horizon, spin_max)
+    refuse_plan(samples, plan, chosen != "exact", kind == "exponential", flips if kind == "exponential" else 0)
     return Scene(moments=moments, axis=axis, spin=spin, amplitude=amplitude, samples=samples, method=method,
                  chosen=chosen, kind=kind, value=value, spin_up=spin_up,
                  torque=torque if spin_up is not None else None, plan=plan,
@@ -1095,9 +1132,17 @@ def scan(bodies, axis=(1, 2, 3), spin=1.0, amplitude=1e-3, method="auto", *, sam
     does to checkpoint a scan and to run it on a dask cluster).
     """
     layout = scan_layout(bodies, axis, spin, amplitude, method)
+    n = layout["scenes"]
+    if isinstance(samples, (int, np.integer)) and not isinstance(samples, (bool, np.bool_)) and samples >= 1:
+        # before any scene is planned: every scene's per-sample arrays are kept (and stacked once more)
+        cost.refuse(scene_estimate(False, False, int(samples), PROBES + 1, scenes=n, kept_per_sample=_SCAN_KEPT),
+                    f"{n:,} scenes of samples = {samples}")
     progress = options.pop("progress", None)
     show = sys.stderr.isatty() if progress is None else progress
-    plans = [scan_scene(layout, index, samples=samples, seed=seed, **options) for index in range(layout["scenes"])]
+    plans = [scan_scene(layout, index, samples=samples, seed=seed, **options) for index in range(n)]
+    steps = sum(plan.plan.n_steps for plan in plans if plan.chosen != "exact")
+    cost.refuse(cost.scene_cost(samples, steps / n, scenes=n, working=0),
+                f"{n:,} scenes of samples = {samples} ({steps:,} steps in all)")
     records = []
     step = max(1, math.ceil(len(plans) / 32))
     with tqdm(total=len(plans), unit="scenes", disable=not show, desc="scan") as bar:

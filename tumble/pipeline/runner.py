@@ -185,9 +185,11 @@ _BOUND_FIELDS = {"scenes": "scan", "steps": "integration", "memory": "perturbati
                  "size": "perturbation.samples"}
 
 
-def study_cost(resolved):
+def study_cost(resolved, *, flips=None):
     """:class:`tumble.engine.cost.Cost` of a resolved study, from its fields alone (no scene is planned, so
-    this takes microseconds whatever the study's size)."""
+    this takes microseconds whatever the study's size; ``flips`` replaces ``integration.flips``). Its memory is the model of
+    :func:`tumble.measure.scenes.scene_estimate` (the worst kind the study may hold) plus the run's fixed
+    :data:`tumble.engine.cost.RUN_FOOTPRINT`: the peak resident memory above an idle ``import tumble``."""
     scan, integ = resolved["scan"], resolved["integration"]
     if "triangle" in scan:
         bodies = scan["triangle"] ** 2
@@ -201,28 +203,49 @@ def study_cost(resolved):
     stepping = [m for m in methods if m in STEPPING]
     if (resolved["torque"]["profile"] != "none" or "model" in resolved) and not stepping:
         stepping = [registry.AUTO_STEPPING]  # a model always steps (rk4 for "auto")
+    rate = abs(max(scan.get("rate", [resolved["spin"]["rate"]]), key=abs))
+    # the planner's horizon: a few periods (or growth times and flips) of the scene, about PERIODS turns of the spin
+    horizon = integ["horizon"] or study.PERIODS * 2 * math.pi / rate
     steps = 0.0
     if stepping:
-        rate = max(scan.get("rate", [resolved["spin"]["rate"]]), key=abs)
         per_radian = max(study.STEPS_PER_RADIAN[registry.method(m).order] for m in stepping)
-        if integ["dt"] and integ["horizon"]:
-            steps = integ["horizon"] / integ["dt"]
-        elif integ["horizon"]:
-            steps = integ["horizon"] * abs(rate) * per_radian
-        else:  # the planner's horizon: a few periods (or growth times) of the scene
-            steps = study.PERIODS * 2 * math.pi * per_radian
-    kept = 8 * len(resolved["outputs"]["arrays"])
-    return cost.scene_cost(resolved["perturbation"]["samples"], steps, scenes=scenes, kept_per_sample=kept)
+        steps = horizon / integ["dt"] if integ["dt"] else horizon * rate * per_radian
+    times = study.PROBES + 1
+    if integ["horizon"]:  # a periodic scene stores SAVES_PER_PERIOD states per period (at most MAX_SAVES)
+        times = max(times, min(integ["horizon"] * rate / (2 * math.pi) * study.SAVES_PER_PERIOD, study.MAX_SAVES) + 1)
+    arrays = resolved["outputs"]["arrays"]
+    kept = 2 * (8 * len(arrays) + 8 * bool(arrays))  # the records and the assembled dataset, with the sample index
+    estimate = study.scene_estimate(bool(stepping), _only_exponential(resolved), resolved["perturbation"]["samples"],
+                                    times, steps=steps, flips=integ["flips"] if flips is None else flips, scenes=scenes,
+                                    kept_per_sample=kept)
+    return estimate._replace(peak_bytes=estimate.peak_bytes + cost.RUN_FOOTPRINT)
+
+
+def _only_exponential(resolved):
+    """Whether every scene of a study spins about its body's intermediate axis (known from the fields for a study
+    of one free body; a scan of bodies or a model may hold periodic scenes)."""
+    scan = resolved["scan"]
+    if "model" in resolved or any(key in scan for key in ("triangle", "k1", "moments", "body")):
+        return False
+    moments = list(resolved["body"]["moments"])
+    if len(set(moments)) < 3:  # a symmetric body: neutral or periodic scenes
+        return False
+    middle = moments.index(sorted(moments)[1]) + 1
+    return all(axis == middle for axis in scan.get("axis", [resolved["spin"]["axis"]]))
 
 
 def check_cost(resolved, file="<mapping>"):
     """:func:`study_cost`, refused with a :class:`~tumble.pipeline.config.StudyError` past the bounds of
-    :func:`tumble.engine.cost.check` (the message holds the estimate)."""
+    :func:`tumble.engine.cost.check` (the message holds the estimate; the field named is the one that set the
+    size: ``integration.flips`` when the flip times alone overflow the memory)."""
     estimate = study_cost(resolved)
     try:
         return cost.check(estimate)
     except cost.TooLarge as err:
-        raise StudyError(file, _BOUND_FIELDS[err.bound], str(err)) from None
+        field = _BOUND_FIELDS[err.bound]
+        if err.bound == "memory" and study_cost(resolved, flips=0).peak_bytes <= cost.MEMORY_SHARE * cost.physical_memory():
+            field = "integration.flips"
+        raise StudyError(file, field, str(err)) from None
 
 
 def _first(value):
