@@ -355,6 +355,92 @@ def test_absurd_sizes_are_refused_within_a_second_with_the_estimate(tmp_path, ca
     assert not (tmp_path / "out").exists()
 
 
+# One shared bound at every door (issue 31, cause 1): each row a public call that allocated or looped in proportion to
+# the user's numbers before the bound (a hang, or a MemoryError of terabytes). They run in one child process: on a
+# tumble without the bound the first row never returns, and the child's timeout fails every row.
+BOUND_CALLS = {
+    "integrate-1e14-sample-steps": ("tumble.integrate(body, w * 10, 1e13, 0.1, method='rk4')", "w0 (10 spins)"),
+    "propagate-1e14-sample-steps": ("tumble.propagate(body, w * 10, 1e13, 0.1, method='rk4')", "w0 (10 spins)"),
+    "run_ensemble-1e14-sample-steps": ("tumble.run_ensemble(body, w * 10, 1e13, 0.1, method='rk4')", "w0 (10 spins)"),
+    "run_ensemble-closed-form-trajectory": ("tumble.run_ensemble(body, w * 10, 1e12, 0.1, save_every=1)",
+                                            "w0 (10 spins)"),
+    "perturbed_spins-1e12-samples": ("tumble.sampling.perturbed_spins(body, 2, 1.0, 1e-3, 10**12)",
+                                     "samples = 1000000000000"),
+    "measure-1e9-flips": ("tumble.measure(body, 2, samples=1024, flips=10**9)", "flips = 1000000000"),
+    "measure-steps-of-a-tiny-dt": ("tumble.measure(body, 1, samples=100_000, method='rk4', dt=1e-7)",
+                                   "samples = 100000 over a horizon"),
+    "scan-triangle-of-1e6-samples": ("tumble.scan(tumble.inertia_triangle(60)[0], samples=10**6)",
+                                     "10,800 scenes of samples = 1000000"),
+}
+
+_BOUND_CHILD = """
+import json, sys, time
+import tumble
+body, w = (1.0, 2.0, 3.0), [[0.01, 1.0, 0.0]]
+tumble.integrate(body, w, 0.1, 0.1, method="rk4"); tumble.measure(body, 2, samples=8)  # the JIT, not the bound
+for name, (call, _) in json.loads(sys.argv[1]).items():
+    started = time.perf_counter()
+    try:
+        eval(call)
+        out = {"error": None}
+    except Exception as err:
+        out = {"error": type(err).__name__, "value_error": isinstance(err, ValueError), "message": str(err)}
+    print(json.dumps({"name": name, "seconds": time.perf_counter() - started, **out}), flush=True)
+"""
+
+
+@pytest.fixture(scope="module")
+def bound_answers():
+    import json
+
+    try:
+        done = subprocess.run([sys.executable, "-c", _BOUND_CHILD, json.dumps(BOUND_CALLS)], capture_output=True,
+                              text=True, timeout=120)
+    except subprocess.TimeoutExpired as err:
+        done = err
+    lines = (done.stdout or b"").decode() if isinstance(done.stdout, bytes) else (done.stdout or "")
+    return {row["name"]: row for row in map(json.loads, lines.splitlines())}
+
+
+@pytest.mark.parametrize("name", list(BOUND_CALLS))
+def test_every_public_door_refuses_an_absurd_size_at_once_with_the_estimate(bound_answers, name):
+    answer = bound_answers.get(name)
+    assert answer is not None, "the call did not return (no bound: it ran on)"
+    assert answer["value_error"], answer
+    assert BOUND_CALLS[name][1] in answer["message"] and "peak memory" in answer["message"], answer["message"]
+    assert answer["seconds"] < 1.0, f"refused after {answer['seconds']:.2f} s"
+
+
+FLIPS = "[spin]\naxis = 2\n[integration]\nflips = 1_000_000_000\n"
+DT_ALONE = "[spin]\naxis = 2\n[integration]\nmethod = 'rk4'\ndt = 1e-200\n"
+STEPS_FROM_DT = "[spin]\naxis = 2\n[perturbation]\nsamples = 1_000_000\n[integration]\nmethod = 'rk4'\ndt = 1e-6\n"
+
+
+@pytest.mark.parametrize("text, args, field", [
+    (FLIPS, [], "integration.flips"),
+    (DT_ALONE, [], "integration"),
+    (STEPS_FROM_DT, ["--dry-run"], "integration"),
+], ids=["1e9-flips", "dt-of-1e-200-without-a-horizon", "1e12-sample-steps-from-dt"])
+def test_a_study_is_refused_by_the_bound_its_scenes_will_meet(tmp_path, capsys, text, args, field):
+    """The study's estimate took the planner's horizon in steps of the method's own dt, whatever dt said, and left
+    the flips out: MemoryError (exit 1), 'more than a run can count' (exit 1), or an hour-long run."""
+    study = tmp_path / "huge.toml"
+    study.write_text(text)
+    started = time.perf_counter()
+    status = cli.main(["run", str(study), "--out", str(tmp_path / "out"), *args])
+    err = capsys.readouterr().err
+    assert status == 2 and f"huge.toml: {field}:" in err and "peak memory" in err, err
+    assert time.perf_counter() - started < 1.0
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_absurd_worker_count_is_refused_before_anything_starts(tmp_path, capsys):
+    status = cli.main(["run", "intermediate_axis", "--scheduler", "local", "--workers", "100000", "--dry-run",
+                       "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert status == 2 and "--workers 100000: more than the" in err, err
+
+
 def test_dry_run_prints_the_estimate(tmp_path, capsys):
     assert cli.main(["run", "stability_map", "--dry-run", "--out", str(tmp_path / "out")]) == 0
     out = capsys.readouterr().out
