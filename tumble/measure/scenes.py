@@ -107,7 +107,7 @@ _KIND_UNITS = {"periodic": "rad/s", "exponential": "1/s", "neutral": "rad/s"}
 #: probe norms and the fits' temporaries — by (stepping, kind is exponential): peaks measured over 32768-sample
 #: slices of 257 times (``tests/test_memory.py``). A stepping periodic scene keeps its trajectory and copies of
 #: two of its components for the phase fit; a stepping exponential scene keeps only the probe norms.
-_BYTES_PER_TIME = {(False, True): 28, (False, False): 28, (True, True): 14, (True, False): 52}
+_BYTES_PER_TIME = {(False, True): 28, (False, False): 22, (True, True): 14, (True, False): 52}
 
 #: Bytes per sample of a scene while its slices are reduced (the per-sample fits, their stack and the record).
 _BYTES_PER_REDUCED_SAMPLE = 200
@@ -966,6 +966,8 @@ def inertia_triangle(n=20):
     coords : dict
         ``"i2_over_i3"`` and ``"i1_fraction"`` (where ``I1/I3`` lies between ``1 − s`` and ``s``), each (n * n,).
     """
+    if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise ValueError(f"n must be an integer >= 1 (points along each side of the triangle), got {n!r}")
     mid = (np.arange(n) + 0.5) / n
     s, u = np.meshgrid(0.5 + 0.5 * mid, mid, indexing="ij")
     i1 = (1.0 - s) + u * (2.0 * s - 1.0)
@@ -996,6 +998,8 @@ def scan_layout(bodies, axis=(1, 2, 3), spin=1.0, amplitude=1e-3, method="auto")
             isinstance(bodies, (list, tuple)) and len(bodies) == 3 and all(np.ndim(b) == 0 for b in bodies)):
         bodies = [bodies]
     moments = np.array([one_body(b) for b in bodies])
+    if not len(moments):
+        raise ValueError("bodies holds no body (an empty sequence)")
     values = {"axis": axis, "spin": spin, "amplitude": amplitude, "method": method}
     swept = {name: list(v) for name, v in values.items() if isinstance(v, (list, tuple, np.ndarray))}
     for name, v in swept.items():
