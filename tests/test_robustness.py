@@ -4,6 +4,7 @@ generated malformed studies."""
 import errno
 import os
 import random
+import re
 import signal
 import subprocess
 import sys
@@ -452,6 +453,59 @@ def test_measure_refuses_more_samples_than_memory_holds():
 
     with pytest.raises(ValueError, match=r"samples = 1000000000000: .*memory"):
         tumble.measure((1.0, 2.0, 3.0), 2, samples=10**12)
+
+
+# --- a rate that cannot be measured is refused, never returned (issue 31, cause 2) ----------------------------
+# Each row: a scene whose fit would report round-off (a horizon of 1e-9 s gave 265 1/s where theory says 0.577) or
+# nothing (a tilt of 1e-170 rad gave an all-NaN rate with exit 0, 1e-300 also a RuntimeWarning). Refused before
+# anything runs, naming the argument or field and why; no warning escapes.
+
+def _unmeasurable_calls():
+    import tumble
+    from tumble.measure import model_scenes
+
+    body = (1.0, 2.0, 3.0)
+    gyrostat = model_scenes.model_of("gyrostat", body, 2, {"rotor": [0.0, 0.1, 0.0]})
+    return {
+        "tilt-1e-170": (lambda: tumble.measure(body, 2, amplitude=1e-170, samples=8), "amplitude must be >= 1e-150"),
+        "tilt-1e-300": (lambda: tumble.measure(body, 2, amplitude=1e-300, samples=8), "amplitude must be >= 1e-150"),
+        "tilt-1e-170-stable-axis": (lambda: tumble.measure(body, 1, amplitude=1e-170, samples=8, method="rk4"),
+                                    "amplitude must be >= 1e-150"),
+        "scan-with-a-tilt-of-1e-170": (lambda: tumble.scan(body, axis=2, amplitude=[1e-3, 1e-170], samples=8),
+                                       "amplitude must be >= 1e-150"),
+        "horizon-of-1e-9-s": (lambda: tumble.measure(body, 2, horizon=1e-9, flips=0, samples=8),
+                              "horizon = 1e-09 s: the fit would span"),
+        "horizon-of-1e-6-s-rk4": (lambda: tumble.measure(body, 2, horizon=1e-6, flips=0, samples=8, method="rk4"),
+                                  "e-foldings of growth"),
+        "model-horizon-of-1e-9-s": (lambda: model_scenes.scene_plan(gyrostat, 2, horizon=1e-9, samples=8),
+                                    "horizon = 1e-09 s: the fit would span"),
+    }
+
+
+@pytest.mark.parametrize("name", ["tilt-1e-170", "tilt-1e-300", "tilt-1e-170-stable-axis", "scan-with-a-tilt-of-1e-170",
+                                  "horizon-of-1e-9-s", "horizon-of-1e-6-s-rk4", "model-horizon-of-1e-9-s"])
+def test_a_rate_that_cannot_be_measured_is_refused_with_the_reason(name):
+    import warnings
+
+    call, fragment = _unmeasurable_calls()[name]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a stray RuntimeWarning fails the row
+        with pytest.raises(ValueError, match=re.escape(fragment)):
+            call()
+
+
+@pytest.mark.parametrize("text, field", [
+    ("[spin]\naxis = 2\n[perturbation]\namplitude = 1e-170\n", "perturbation.amplitude"),
+    ("[spin]\naxis = 2\n[scan]\namplitude = [1e-3, 1e-300]\n", "scan.amplitude[1]"),
+    ("[spin]\naxis = 2\n[integration]\nhorizon = 1e-9\nflips = 0\n", "scene 0 (axis=2"),
+], ids=["tilt-1e-170", "scanned-tilt-1e-300", "horizon-of-1e-9-s"])
+def test_a_study_whose_rate_cannot_be_measured_exits_2_naming_the_field(tmp_path, capsys, text, field):
+    study = tmp_path / "unmeasurable.toml"
+    study.write_text(text + "[outputs]\nfigures = []\n")
+    status = cli.main(["run", str(study), "--out", str(tmp_path / "out")])
+    captured = capsys.readouterr()
+    assert status == 2 and f"unmeasurable.toml: {field}" in captured.err, captured.err
+    assert "Warning" not in captured.err and not (tmp_path / "out" / "unmeasurable.nc").exists()
 
 
 # --- a result set appears whole or not at all ------------------------------------------------------------------

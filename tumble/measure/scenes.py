@@ -52,7 +52,7 @@ from ..registry import STATUS_NAMES, STATUS_OK, STEPPING
 from ..engine import cost
 from . import estimators as analysis
 
-__all__ = ["CURVES", "SAMPLE_STATUS_NAMES", "assemble_scan", "refuse_plan", "scene_estimate", "closed_form_samples", "flip_time_law", "inertia_triangle",
+__all__ = ["CURVES", "SAMPLE_STATUS_NAMES", "assemble_scan", "check_amplitude", "check_fit_span", "refuse_plan", "scene_estimate", "closed_form_samples", "flip_time_law", "inertia_triangle",
            "invariant_drift",
            "measure", "regress_scan", "scan", "scan_layout", "scan_scene", "scan_scene_parameters", "scene_plan",
            "scene_batch", "scene_dataset", "scene_records", "scene_result", "scene_samples"]
@@ -73,6 +73,16 @@ SAVES_PER_PERIOD = 32
 
 #: Most stored states per sample of a periodic scene (bounds memory when a long horizon is asked for).
 MAX_SAVES = 8192
+
+#: Smallest tilt a scene measures, rad: below it the transverse components' squares leave float64's range against
+#: the spin (1e-170 about the intermediate axis gave no rate at all, 1e-300 also a RuntimeWarning); 1e-160 still
+#: measures the linear rate, the bound keeps a margin as the spin range does (:data:`tumble.registry.SPIN_RANGE`).
+MIN_AMPLITUDE = 1e-150
+
+#: Least growth (e-foldings, ``rate * span``) or phase (rad, ``frequency * span``) a scene's fit may span: over a
+#: horizon of 1e-6 s the (1, 2, 3) body's intermediate-axis rate came out 0.3 to 2 % off, over 1e-9 s 265 1/s
+#: for 0.577 (round-off, not growth); 1e-5 s (6e-6 e-foldings) still measured it to 0.03 %.
+MIN_FIT_SPAN = 1e-5
 
 #: Points of the optional curves: the traced sample's trajectory (flip_components figure).
 TRACE_POINTS = 1500
@@ -263,6 +273,26 @@ def _plan(moments, a, kind, value, spin, amplitude, method, dt, flips, probe_spi
     return StepPlan(t_end=n_steps * dt, dt=dt, n_steps=n_steps, **plan)
 
 
+def check_amplitude(amplitude):
+    """Refuse a tilt below :data:`MIN_AMPLITUDE` (no rate can be measured from it): a ValueError naming
+    ``amplitude`` and why."""
+    if 0 < float(amplitude) < MIN_AMPLITUDE:
+        raise ValueError(f"amplitude must be >= {MIN_AMPLITUDE:g} rad to be measured, got {amplitude!r}: a smaller tilt's "
+                         f"transverse components square below float64's range against the spin (no rate can be fitted); "
+                         f"the linear rate does not depend on the tilt, measure at 1e-6 rad")
+
+
+def check_fit_span(kind, value, span, horizon):
+    """Refuse a scene whose fit spans fewer than :data:`MIN_FIT_SPAN` e-foldings (``kind`` exponential) or radians
+    of phase (periodic) at the theory's ``value`` over ``span`` s: what it would report is round-off, not a rate."""
+    if kind == "neutral" or value * span >= MIN_FIT_SPAN:
+        return
+    what = "e-foldings of growth" if kind == "exponential" else "radians of phase"
+    raise ValueError(f"horizon = {horizon!r} s: the fit would span {value * span:.2g} {what} (theory: {value:.4g} "
+                     f"{_KIND_UNITS[kind]}), fewer than the {MIN_FIT_SPAN:g} a rate can be measured over above "
+                     f"round-off; give a horizon of at least {MIN_FIT_SPAN / value:.3g} s, or none (the planner's)")
+
+
 def _validate_scene(body, axis, spin, amplitude, samples, method, flips, distribution):
     moments = one_body(body)
     if isinstance(axis, (bool, np.bool_)) or axis not in (1, 2, 3):
@@ -273,6 +303,7 @@ def _validate_scene(body, axis, spin, amplitude, samples, method, flips, distrib
     if float(amplitude) == 0.0:
         raise ValueError("amplitude must be > 0 rad: a growth rate or frequency is measured on perturbed spins, "
                          "and a spin exactly on its axis never moves off it")
+    check_amplitude(amplitude)
     if isinstance(samples, (bool, np.bool_)) or not isinstance(samples, (int, np.integer)) or samples < 1:
         raise ValueError(f"samples must be an integer >= 1, got {samples!r}")
     try:
@@ -406,6 +437,7 @@ def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, metho
 
     plan = _plan(moments, a, kind, value, spin, amplitude, chosen, dt, flips if kind == "exponential" else 0,
                  probe_spins, horizon, spin_max)
+    check_fit_span(kind, value, plan.probe_times[-1] if kind == "exponential" else plan.t_end, horizon)
     refuse_plan(samples, plan, chosen != "exact", kind == "exponential", flips if kind == "exponential" else 0)
     return Scene(moments=moments, axis=axis, spin=spin, amplitude=amplitude, samples=samples, method=method,
                  chosen=chosen, kind=kind, value=value, spin_up=spin_up,
