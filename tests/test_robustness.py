@@ -508,6 +508,37 @@ def test_a_study_whose_rate_cannot_be_measured_exits_2_naming_the_field(tmp_path
     assert "Warning" not in captured.err and not (tmp_path / "out" / "unmeasurable.nc").exists()
 
 
+# --- tumble plot on a file lacking a variable a figure of its study needs (issue 31, cause 4) ---------------------
+# Each figure names the variables it reads (tumble.output.figures' checks). A figure the file's own study drew
+# (outputs.figures) that the file can no longer give is refused: exit 2 naming the figure and the variable, nothing
+# drawn (it was exit 0 with the other figures drawn and that one silently left out).
+
+@pytest.fixture(scope="module")
+def drawn_result(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("plot")
+    study = folder / "flip.toml"
+    study.write_text(_toml({"title": "flip", "body": {"moments": [1.0, 2.0, 3.0]}, "spin": {"axis": 2},
+                            "perturbation": {"samples": 64},
+                            "outputs": {"figures": ["norm_growth", "flip_components", "summary"], "arrays": []}}))
+    assert cli.main(["run", str(study), "--out", str(folder)]) == 0
+    return folder / "flip.nc"
+
+
+@pytest.mark.parametrize("variable, figure", [("rate", "summary"), ("growth_norm", "norm_growth"),
+                                              ("trace_omega", "flip_components")])
+def test_plot_refuses_a_file_lacking_a_variable_its_figures_need(drawn_result, tmp_path, capsys, variable, figure):
+    cut = tmp_path / "cut.nc"
+    with xr.open_dataset(drawn_result) as ds:
+        ds.drop_vars(variable).to_netcdf(cut)
+    capsys.readouterr()
+    status = cli.main(["plot", str(cut), "--out", str(tmp_path / "figures")])
+    err = capsys.readouterr().err
+    assert status == 2 and f"figure {figure!r}" in err and repr(variable) in err, err
+    assert not (tmp_path / "figures").exists() or not any((tmp_path / "figures").iterdir())
+    others = [name for name in ("norm_growth", "flip_components", "summary") if name != figure]
+    assert cli.main(["plot", str(cut), "--figures", *others, "--out", str(tmp_path / "others")]) == 0
+
+
 # --- a result set appears whole or not at all ------------------------------------------------------------------
 
 @pytest.mark.parametrize("failure", [OSError(errno.ENOSPC, os.strerror(errno.ENOSPC)), KeyboardInterrupt()],

@@ -8,6 +8,7 @@ traceback, no output file), 1 any other failure (``TUMBLE_DEBUG=1`` shows its tr
 import argparse
 import atexit
 import contextlib
+import json
 import os
 import subprocess
 import sys
@@ -207,7 +208,15 @@ def _plot(args):
         ds = io.read_dataset(path, require_tumble=True)
     except (ValueError, OSError) as err:
         raise InputError(f"{path}: not a tumble result file ({err})") from None
-    names = args.figures or [name for name in plots.FIGURES if plots.can_draw(ds, name)[0]]
+    # The figures the file's own study drew (outputs.figures) must all be drawable: a file lacking a variable one of
+    # them needs (cut down, or damaged) is refused naming it, not drawn in part with exit 0.
+    listed = [name for name in _study_figures(ds) if name in plots.FIGURES]
+    for name in [] if args.figures else listed:
+        ok, reason = plots.can_draw(ds, name)
+        if not ok:
+            raise InputError(f"{path}: figure {name!r} (outputs.figures of the file's study): {reason}; draw the "
+                             f"others with --figures")
+    names = args.figures or [name for name in plots.FIGURES if name in listed or plots.can_draw(ds, name)[0]]
     if not names:  # a file with tumble's attributes but none of the variables a figure reads (forged, or cut down)
         raise InputError(f"{path}: nothing to draw: {plots.can_draw(ds, 'summary')[1]}, and the file holds none of "
                          f"what the other figures read (figures: {', '.join(plots.FIGURES)})")
@@ -219,6 +228,15 @@ def _plot(args):
     written = plots.save_figures(ds, names, directory, path.stem, formats=tuple(args.format or ("png",)))
     for written_path in written:
         print(written_path)
+
+
+def _study_figures(ds):
+    """The figures the study stored in a result file asked for (``outputs.figures``; none when it stores no study)."""
+    try:
+        figures = json.loads(ds.attrs.get("study", "{}")).get("outputs", {}).get("figures", [])
+    except (ValueError, AttributeError):
+        return []
+    return [name for name in figures if isinstance(name, str)] if isinstance(figures, list) else []
 
 
 def _bench(args):
