@@ -659,6 +659,19 @@ def _api_cases():
         ("run_study-samples-negative", lambda: tumble.run_study({"perturbation": {"samples": -1}}), ValueError,
          "perturbation.samples: must be >= 1"),
         ("run_study-rate-inf", lambda: tumble.run_study({"spin": {"rate": inf}}), ValueError, "spin.rate: must be finite"),
+        # issue 31, cause 5: the message names the argument the user passed, not an internal one
+        ("exact.rotation_per_period-nodes-0", lambda: exact.rotation_per_period(body, w, nodes=0), ValueError,
+         "nodes must be an integer >= 2, got 0"),
+        ("exact.rotation_per_period-nodes-2.5", lambda: exact.rotation_per_period(body, w, nodes=2.5), ValueError,
+         "nodes must be an integer"),
+        ("exact.rotation_per_period-max_nodes-0", lambda: exact.rotation_per_period(body, w, max_nodes=0), ValueError,
+         "max_nodes must be an integer >= 256"),
+        ("exact.rotation_per_period-tol-nan", lambda: exact.rotation_per_period(body, w, tol=nan), ValueError,
+         "tol must be a number in (0, 1)"),
+        ("scan-bodies-empty", lambda: tumble.scan([], samples=8), ValueError, "bodies holds no body"),
+        ("inertia_triangle-n-0", lambda: tumble.inertia_triangle(0), ValueError, "n must be an integer >= 1"),
+        ("rotations.about_axis-axis-zero", lambda: tumble.rotations.about_axis(1.0, [0.0, 0.0, 0.0]), ValueError,
+         "axis must be a non-zero, finite vector"),
     ]
 
 
