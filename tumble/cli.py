@@ -118,9 +118,9 @@ def _run(args):
     if args.workers is not None and args.scheduler != "local":
         raise InputError("--workers sets the worker processes of --scheduler local; it needs --scheduler local")
     if args.workers is not None and args.workers > cost.most_workers():
-        raise InputError(f"--workers {args.workers}: more than the {cost.most_workers()} worker processes this machine "
-                         f"can hold ({cost.WORKERS_PER_CORE} per core, each ~{cost.WORKER_FOOTPRINT / 1e6:.0f} MB within "
-                         f"half its memory)")
+        raise InputError(f"--workers {args.workers}: more than the {cost.most_workers()} worker processes this "
+                         f"machine can hold ({cost.WORKERS_PER_CORE} per core, each ~{cost.WORKER_FOOTPRINT / 1e6:.0f} "
+                         f"MB within half its memory)")
     try:
         runner.chunk_samples_size(args.chunk_samples)
     except ValueError as err:

@@ -52,10 +52,10 @@ from ..registry import STATUS_NAMES, STATUS_OK, STEPPING
 from ..engine import cost
 from . import estimators as analysis
 
-__all__ = ["CURVES", "SAMPLE_STATUS_NAMES", "assemble_scan", "check_amplitude", "check_fit_span", "refuse_plan", "scene_estimate", "closed_form_samples", "flip_time_law", "inertia_triangle",
-           "invariant_drift",
-           "measure", "regress_scan", "scan", "scan_layout", "scan_scene", "scan_scene_parameters", "scene_plan",
-           "scene_batch", "scene_dataset", "scene_records", "scene_result", "scene_samples"]
+__all__ = ["CURVES", "SAMPLE_STATUS_NAMES", "assemble_scan", "check_amplitude", "check_fit_span",
+           "closed_form_samples", "flip_time_law", "inertia_triangle", "invariant_drift", "measure", "refuse_plan",
+           "regress_scan", "scan", "scan_layout", "scan_scene", "scan_scene_parameters", "scene_batch",
+           "scene_dataset", "scene_estimate", "scene_plan", "scene_records", "scene_result", "scene_samples"]
 
 #: Per-sample status in a measurement: the engine's (ok, non-finite, invariant drift), then the fit's.
 SAMPLE_STATUS_NAMES = STATUS_NAMES + analysis.FIT_NAMES[1:]
@@ -73,11 +73,6 @@ SAVES_PER_PERIOD = 32
 
 #: Most stored states per sample of a periodic scene (bounds memory when a long horizon is asked for).
 MAX_SAVES = 8192
-
-#: Smallest tilt a scene measures, rad: below it the transverse components' squares leave float64's range against
-#: the spin (1e-170 about the intermediate axis gave no rate at all, 1e-300 also a RuntimeWarning); 1e-160 still
-#: measures the linear rate, the bound keeps a margin as the spin range does (:data:`tumble.registry.SPIN_RANGE`).
-MIN_AMPLITUDE = 1e-150
 
 #: Least growth (e-foldings, ``rate * span``) or phase (rad, ``frequency * span``) a scene's fit may span: over a
 #: horizon of 1e-6 s the (1, 2, 3) body's intermediate-axis rate came out 0.3 to 2 % off, over 1e-9 s 265 1/s
@@ -274,12 +269,11 @@ def _plan(moments, a, kind, value, spin, amplitude, method, dt, flips, probe_spi
 
 
 def check_amplitude(amplitude):
-    """Refuse a tilt below :data:`MIN_AMPLITUDE` (no rate can be measured from it): a ValueError naming
-    ``amplitude`` and why."""
-    if 0 < float(amplitude) < MIN_AMPLITUDE:
-        raise ValueError(f"amplitude must be >= {MIN_AMPLITUDE:g} rad to be measured, got {amplitude!r}: a smaller tilt's "
-                         f"transverse components square below float64's range against the spin (no rate can be fitted); "
-                         f"the linear rate does not depend on the tilt, measure at 1e-6 rad")
+    """Refuse a tilt below :data:`tumble.registry.MIN_AMPLITUDE` (no rate can be measured from it): a ValueError
+    naming ``amplitude`` and why."""
+    problem = float(amplitude) > 0 and registry.amplitude_problem(float(amplitude))
+    if problem:
+        raise ValueError(f"amplitude {problem}")
 
 
 def check_fit_span(kind, value, span, horizon):

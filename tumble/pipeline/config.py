@@ -36,7 +36,6 @@ import numpy as np
 
 from .. import registry
 from ..engine.sampling import DISTRIBUTIONS
-from ..measure.scenes import check_amplitude
 from ..physics import models, shapes
 from ..physics.bodies import Body, validate_moments
 
@@ -470,10 +469,9 @@ def _amplitude(value, field, distribution):
     if x == 0:
         raise _Invalid(field, "must be > 0 rad: a growth rate or frequency is measured on perturbed spins, and "
                               "a spin exactly on its axis never moves off it")
-    try:
-        check_amplitude(x)
-    except ValueError as err:
-        raise _Invalid(field, str(err).removeprefix("amplitude ")) from None
+    problem = registry.amplitude_problem(x)
+    if problem:
+        raise _Invalid(field, problem)
     if distribution != "gaussian" and x >= 0.5 * math.pi:
         raise _Invalid(field, f"must be < pi/2 rad for distribution {distribution!r} (the tilt of the "
                               f"perturbed spins), got {x!r}")

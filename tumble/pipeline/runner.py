@@ -187,8 +187,8 @@ _BOUND_FIELDS = {"scenes": "scan", "steps": "integration", "memory": "perturbati
 
 def study_cost(resolved, *, flips=None):
     """:class:`tumble.engine.cost.Cost` of a resolved study, from its fields alone (no scene is planned, so
-    this takes microseconds whatever the study's size; ``flips`` replaces ``integration.flips``). Its memory is the model of
-    :func:`tumble.measure.scenes.scene_estimate` (the worst kind the study may hold) plus the run's fixed
+    this takes microseconds whatever the study's size; ``flips`` replaces ``integration.flips``). Its memory is
+    the model of :func:`tumble.measure.scenes.scene_estimate` (the worst kind the study may hold) plus the run's fixed
     :data:`tumble.engine.cost.RUN_FOOTPRINT`: the peak resident memory above an idle ``import tumble``."""
     scan, integ = resolved["scan"], resolved["integration"]
     if "triangle" in scan:
@@ -243,7 +243,8 @@ def check_cost(resolved, file="<mapping>"):
         return cost.check(estimate)
     except cost.TooLarge as err:
         field = _BOUND_FIELDS[err.bound]
-        if err.bound == "memory" and study_cost(resolved, flips=0).peak_bytes <= cost.MEMORY_SHARE * cost.physical_memory():
+        without_flips = study_cost(resolved, flips=0).peak_bytes
+        if err.bound == "memory" and without_flips <= cost.MEMORY_SHARE * cost.physical_memory():
             field = "integration.flips"
         raise StudyError(file, field, str(err)) from None
 
