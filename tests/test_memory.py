@@ -28,12 +28,14 @@ def test_the_checkpoint_keeps_only_what_the_result_needs(tmp_path, capsys, monke
 
 
 # --- the --dry-run memory estimate against a measured peak ------------------------------------------------------
-# Peak resident memory (ru_maxrss) of a child process that runs the study through the command line, minus the
-# peak of a child that only imports it: what the run itself adds, which is what the estimate
-# (tumble.pipeline.runner.study_cost: the run's fixed footprint and the modelled working set) claims. ru_maxrss rather
-# than tracemalloc: numba's kernels and netCDF allocate outside Python's allocator, and the bound protects the
-# machine's memory, all of it. Each child first runs the study at 64 samples, so that numba's cache is warm and the
-# peak is the run's, not the compiler's.
+# Peak resident memory of a child process that runs the study through the command line, minus the peak of a child
+# that only imports it: what the run itself adds, which is what the estimate (tumble.pipeline.runner.study_cost: the
+# run's fixed footprint and the modelled working set) claims. Resident memory rather than tracemalloc: numba's kernels
+# and netCDF allocate outside Python's allocator, and the bound protects the machine's memory, all of it. The peak is
+# the child's own VmHWM (/proc/self/status), not getrusage's ru_maxrss: Linux carries the parent's peak across
+# fork and exec into ru_maxrss (RUSAGE_CHILDREN too), so under a pytest worker of a few hundred MB the idle child
+# reported the worker's peak and the difference came out 112 MB for 353. Each child first runs the study at 64
+# samples, so that numba's cache is warm and the peak is the run's, not the compiler's.
 
 _PEAK_CHILD = """
 import json, resource, sys
@@ -44,7 +46,12 @@ if sys.argv[1] == "run":
         extra = ["--samples", samples] if samples else []
         assert cli.main(["run", sys.argv[2], "--out", sys.argv[3], "--fresh", *extra]) == 0
 estimate = runner.study_cost(runner.prepare_study(sys.argv[2], out=sys.argv[3]).resolved).peak_bytes
-print(json.dumps({"peak": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024, "estimate": estimate}))
+try:
+    with open("/proc/self/status") as status:
+        peak = next(int(line.split()[1]) for line in status if line.startswith("VmHWM:")) * 1024
+except OSError:  # no /proc: ru_maxrss (includes the parent's peak on Linux, not elsewhere)
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * (1 if sys.platform == "darwin" else 1024)
+print(json.dumps({"peak": peak, "estimate": estimate}))
 """
 
 
