@@ -304,6 +304,9 @@ def _validate_scene(body, axis, spin, amplitude, samples, method, flips, distrib
         cost.check(cost.scene_cost(samples, 0))
     except ValueError as err:
         raise ValueError(f"samples = {samples}: {err}") from None
+    # the flip times' memory before the plan (whose horizon the flips set): answered before any kernel loads
+    cost.refuse(scene_estimate(False, True, int(samples), PROBES + 1, flips=flips),
+                f"flips = {flips} for samples = {samples}")
     return moments, int(axis), float(spin), float(amplitude), int(samples), flips
 
 
