@@ -14,11 +14,14 @@ reported apart), throughput in sample-steps per second:
    propagate's bits);
 2. ``agreement``: the GPU's final states against ``device="cpu"`` on the same spins, max |difference| / max |w|
    (target 1e-10);
-3. ``cpu``: ``tumble.propagate(..., device="cpu")`` on this machine's cores (N/10 samples, S/5 steps);
-4. ``jax``: rk4 in ``jax.lax.fori_loop`` over the stacked (3, N) state, jit, float64, same GPU;
-5. ``diffrax``: Tsit5 and Dopri8 with ``ConstantStepSize``, ``jax.vmap`` over the samples, same GPU, at the step
+3. ``scene``: a growth scene, ``tumble.measure(I, 2, method="rk4", flips=3, device=...)`` (probe norms, the
+   growth fit, flips and the early stop in the kernel; the flip statistics and the reduction on the host), sample-steps per second on the GPU and on the CPU, and its
+   rates against the CPU's on the same samples;
+4. ``cpu``: ``tumble.propagate(..., device="cpu")`` on this machine's cores (N/10 samples, S/5 steps);
+5. ``jax``: rk4 in ``jax.lax.fori_loop`` over the stacked (3, N) state, jit, float64, same GPU;
+6. ``diffrax``: Tsit5 and Dopri8 with ``ConstantStepSize``, ``jax.vmap`` over the samples, same GPU, at the step
    count where their error against the exact solution equals tumble's rk4 / rk8 error;
-6. the FP64 bound of each method (:data:`FP64_COUNTS`), against the chip's vector FP64 peak (:data:`FP64_PEAK`).
+7. the FP64 bound of each method (:data:`FP64_COUNTS`), against the chip's vector FP64 peak (:data:`FP64_PEAK`).
 
 Every engine's error is measured against ``tumble.exact.omega`` on the first 4096 samples. A part whose package is
 missing is reported as skipped, a part that raises as failed, and the run goes on; ``results/gpu.{json,md}`` are
@@ -278,6 +281,10 @@ def part_gpu(ctx):
         start = cuda.to_device(np.ascontiguousarray(kernel_w))
         w = cuda.device_array_like(start)
         saved = cuda.device_array((0, 3, 1))
+        # no probes, flips, drift (after steps_taken: no early stop, drift limit or torque) nor growth fit
+        none = (cuda.to_device(np.zeros(0, dtype=np.int64)), cuda.device_array((0, 1)), cuda.device_array((1, 0)),
+                cuda.device_array(0, dtype=np.int64), cuda.device_array((0, 1)))
+        no_fit = (0.0, 0, 0.0, cuda.device_array((0, 1)), cuda.device_array(0, dtype=np.int64))
         status = cuda.device_array(p.samples, dtype=np.int8)
         steps_taken = cuda.device_array(p.samples, dtype=np.int64)
         threads = device.THREADS if p.samples >= device.THREADS else 32 * -(-p.samples // 32)
@@ -287,8 +294,8 @@ def part_gpu(ctx):
             w.copy_to_device(start)
             cuda.synchronize()
             started = time.perf_counter()
-            launch(w, constants, 0.0, float(dt), int(n_steps), 0, saved, status, steps_taken, 0.0, 0,
-                   device._NO_TORQUE)
+            launch(w, constants, 0.0, float(dt), int(n_steps), 0, saved, 0, (1.0, 1.0, 1.0), *none, status,
+                   steps_taken, 0.0, 0, 0.0, 0, device._NO_TORQUE, *no_fit)
             cuda.synchronize()
             times.append(time.perf_counter() - started)
         kernel_seconds = float(np.median(times[1:]))
@@ -464,7 +471,38 @@ def _equal_error_steps(errors, target):
     return int(min(n_hi, max(n_lo + 1, math.ceil(n)))), f"interpolated between {n_lo} and {n_hi} steps"
 
 
-PARTS = {"gpu": part_gpu, "agreement": part_agreement, "cpu": part_cpu, "jax": part_jax, "diffrax": part_diffrax}
+def part_scene(ctx):
+    """A growth scene on the device and on the CPU: ``tumble.measure`` about the intermediate axis with rk4 (probe
+    norms, the growth fit in registers, 3 flips and the early stop in the kernel; the flip statistics and the scene's
+    reduction on the host), its sample-steps per second, and its rate against the CPU's on the same samples (kinds
+    and statuses equal, rates within 1e-10)."""
+    import tumble
+
+    repeats = ctx["repeats"]
+    rows = []
+    for device, samples in (("cuda", ctx["scene_samples"]), ("cpu", ctx["cpu_scene_samples"])):
+        def call(device=device, samples=samples):
+            return tumble.measure(MOMENTS, 2, samples=samples, method="rk4", flips=3, device=device)
+
+        first, seconds, ds = timed(call, repeats)
+        steps = int(ds.sample_steps_computed)
+        rows.append(dict(device=device, samples=samples, first_call_s=first, seconds=seconds, sample_steps=steps,
+                         rate=steps / seconds, measured=float(ds.rate), theory=float(ds.rate_theory)))
+        print(f"  scene {device}: {samples} samples in {seconds:.3f} s, {steps / seconds:.3e} sample-steps/s, rate "
+              f"{float(ds.rate):.6f} (theory {float(ds.rate_theory):.6f})", flush=True)
+    n = ctx["cpu_scene_samples"]
+    cpu = tumble.measure(MOMENTS, 2, samples=n, method="rk4", flips=3, device="cpu")
+    gpu = tumble.measure(MOMENTS, 2, samples=n, method="rk4", flips=3, device="cuda")
+    rel = float(np.nanmax(np.abs(gpu.sample_rate.values / cpu.sample_rate.values - 1.0)))
+    same = bool(np.array_equal(gpu.sample_status.values, cpu.sample_status.values)) and gpu.kind.item() == cpu.kind.item()
+    print(f"  scene agreement on {n} samples: max per-sample rate difference {rel:.1e}, kinds and statuses equal: "
+          f"{same}", flush=True)
+    return dict(rows=rows, agreement=dict(samples=n, max_rel_rate_difference=rel, statuses_equal=same,
+                                          met=same and rel <= 1e-10))
+
+
+PARTS = {"gpu": part_gpu, "agreement": part_agreement, "scene": part_scene, "cpu": part_cpu, "jax": part_jax,
+         "diffrax": part_diffrax}
 
 
 # --------------------------------------------------------------------------------------------------------------
@@ -517,6 +555,15 @@ def targets(report):
     add(">= 50x tumble's CPU engine on the same machine (every method, kernel alone)", worst,
         worst and worst[1] >= 50,
         worst and ", ".join(f"{n} {k:.3g}x ({t:.3g}x with transfers)" for n, k, t in speedups))
+    scene = {r["device"]: r for r in parts.get("scene", {}).get("rows", [])}
+    g, c = scene.get("cuda"), scene.get("cpu")
+    add("a growth scene (tumble.measure, rk4, its fit in the kernel, flips, early stop) >= 2.5e11 sample-steps/s on "
+        "the GPU", g,
+        g and g["rate"] >= 2.5e11, g and f"{g['rate']:.2e}" + (f" ({c['rate']:.2e} on the CPU)" if c else ""))
+    agree = parts.get("scene", {}).get("agreement")
+    add("the growth scene: kinds and statuses equal the CPU's, rates within 1e-10", agree, agree and agree["met"],
+        agree and f"{agree['max_rel_rate_difference']:.1e} on {agree['samples']} samples, statuses equal: "
+                  f"{agree['statuses_equal']}")
     j = jax_rows.get("rk4")
     ratio = j and rk4 and rk4["rate_kernel"] / j["rate"]
     add(">= 30x JAX rk4 (same steps, same GPU)", ratio, ratio and ratio >= 30, ratio and f"{ratio:.1f}x")
@@ -593,6 +640,12 @@ def markdown(report):
     lines += ["", "The JAX and diffrax rows run on the same GPU; diffrax's step count is the one at which its error "
               "equals tumble's rk4 (Tsit5) or rk8 (Dopri8) error, so compare them by the time per sample over the "
               "horizon (the targets below), not by sample-steps/s.", ""]
+    for r in parts.get("scene", {}).get("rows", []):
+        lines.append(f"- growth scene (`tumble.measure(I, 2, method='rk4', flips=3)`, its fit in the kernel) on "
+                     f"{'the GPU' if r['device'] == 'cuda' else 'the CPU'}: {r['samples']:,} samples in "
+                     f"{r['seconds']:.3g} s, {r['rate']:.2e} sample-steps/s, rate {r['measured']:.6f} (theory "
+                     f"{r['theory']:.6f})")
+    lines.append("")
     for key in PARTS:
         part = parts.get(key)
         if part is None:
@@ -639,6 +692,8 @@ def main(argv=None):
     parser.add_argument("--steps", type=int, help="rk4 steps of 0.01 (default 2000; --quick 20)")
     parser.add_argument("--cpu-samples", type=int, help="CPU part's samples (default samples/10)")
     parser.add_argument("--cpu-steps", type=int, help="CPU part's rk4 steps (default steps/5)")
+    parser.add_argument("--scene-samples", type=int, help="samples of the growth scene on the GPU (default 1048576; "
+                                                          "--quick 64); on the CPU at most 16384 (--quick 32)")
     parser.add_argument("--repeats", type=int, help="timed runs per figure, median (default 5; --quick 2)")
     parser.add_argument("--quick", action="store_true", help="tiny sizes: a smoke run (also on the simulator)")
     parser.add_argument("--out", type=Path, help="report folder (default benchmarks/results; --quick or the "
@@ -696,7 +751,9 @@ def main(argv=None):
                   parts={})
     ctx = dict(problem=problem, repeats=repeats, report=report,
                cpu_samples=min(samples, args.cpu_samples or max(64, samples // 10)),
-               cpu_steps=args.cpu_steps or max(8, steps // 5))
+               cpu_steps=args.cpu_steps or max(8, steps // 5),
+               scene_samples=args.scene_samples or (64 if quick else 1 << 20),
+               cpu_scene_samples=min(args.scene_samples or (1 << 20), 32 if quick else 1 << 14))
     write(report, out)
     for name in args.parts:
         elapsed = time.perf_counter() - began

@@ -102,6 +102,89 @@ def test_stopped_samples_keep_their_state_and_status_as_on_the_cpu(cuda_device, 
     assert device.info["device"] == "cuda"
 
 
+# --- observers on the device: the CPU driver's records, sample by sample ------------------------------------------
+
+# About the intermediate axis (moment 2, axis 1) of BODY: the spins flip within the horizon.
+FLIPPING = np.array([1.0, 0.0, 0.0])
+HORIZON, STEP = 30.0, 0.05
+
+
+@pytest.fixture(scope="module")
+def flipping():
+    rng = np.random.default_rng(281)
+    return FLIPPING + 0.05 * rng.normal(size=(6, 3))
+
+
+def _same_records(device, cpu, names):
+    """Equal statuses, steps and flip counts; probes, flips and drift within 1e-10 relative (NaN where the CPU's)."""
+    for name in ("status", "steps_taken", "flip_count"):
+        if name in names:
+            np.testing.assert_array_equal(getattr(device, name), getattr(cpu, name), err_msg=name)
+    for name in ("probes", "flips", "drift"):
+        if name in names:
+            d, c = getattr(device, name), getattr(cpu, name)
+            np.testing.assert_array_equal(np.isnan(d), np.isnan(c), err_msg=name)
+            np.testing.assert_allclose(d, c, rtol=1e-10, atol=1e-15, err_msg=name)
+
+
+@pytest.mark.parametrize("torque", [None, (0.02, -0.01, 0.03)], ids=["torque_free", "constant_torque"])
+@pytest.mark.parametrize("method", STEPPED)
+def test_probes_flips_and_drift_on_the_device_are_the_cpu_records(cuda_device, flipping, method, torque):
+    kwargs = dict(method=method, torque=torque, axis=1, probe_times=np.linspace(0.0, HORIZON, 9), max_flips=1,
+                  drift=True, norm_weights=(1.0, 0.5, 2.0), progress=False)
+    cpu = tumble.run_ensemble(BODY, flipping, HORIZON, STEP, **kwargs)
+    device = tumble.run_ensemble(BODY, flipping, HORIZON, STEP, device="cuda", **kwargs)
+    # every sample flips, some more often than recorded; symplectic_euler drifts past drift_limit, torque-free
+    assert np.all((cpu.flip_count >= 1) | (cpu.status == 2)) and (cpu.flip_count.max() > 1 or cpu.status.all())
+    assert np.all(cpu.drift > 0)
+    _same_records(device, cpu, ("status", "steps_taken", "flip_count", "probes", "flips", "drift"))
+    _agree(device.final, cpu.final)
+
+
+@pytest.mark.parametrize("stop", [dict(stop_norm=0.2), dict(stop_flips=1), dict(stop_norm=0.2, stop_flips=2)],
+                         ids=["norm", "flips", "both"])
+@pytest.mark.parametrize("method", ["rk4", "splitting4"])
+def test_early_stop_on_the_device_stops_each_sample_at_the_cpu_step(cuda_device, flipping, method, stop):
+    """A sample stops once its norm reached stop_norm at a probe and it flipped stop_flips times; its later probes
+    are NaN, its trajectory is not kept (final=False), as the CPU driver does it."""
+    kwargs = dict(method=method, axis=1, final=False, probe_times=np.linspace(0.0, 40.0, 41), max_flips=3,
+                  progress=False, **stop)
+    cpu = tumble.run_ensemble(BODY, flipping, 40.0, STEP, **kwargs)
+    device = tumble.run_ensemble(BODY, flipping, 40.0, STEP, device="cuda", **kwargs)
+    assert cpu.info["early_stop"] and 0 < cpu.steps_taken.max() < 40.0 / STEP  # every sample stopped early
+    assert len(set(cpu.steps_taken.tolist())) > 1
+    _same_records(device, cpu, ("status", "steps_taken", "flip_count", "probes", "flips"))
+    assert device.info["sample_steps_skipped"] == cpu.info["sample_steps_skipped"] > 0
+
+
+@pytest.mark.parametrize("method", ["rk4", "splitting2"])
+def test_the_growth_fit_in_the_kernel_is_the_cpu_fit_of_the_probes(cuda_device, flipping, method):
+    """growth_window: the device feeds each probe norm to the fit in registers (keep_probes=False: no norm comes back);
+    the CPU fits the stored probes. Some windows end at saturation, some at the early stop, some are too short."""
+    kwargs = dict(method=method, axis=1, final=False, probe_times=np.linspace(0.0, 12.0, 41), max_flips=1,
+                  norm_weights=(1.0, 0.5, 2.0), stop_norm=0.3, stop_flips=1, growth_window=(0.25, 8), progress=False)
+    cpu = tumble.run_ensemble(BODY, flipping, 12.0, STEP, **kwargs)
+    device = tumble.run_ensemble(BODY, flipping, 12.0, STEP, device="cuda", keep_probes=False, **kwargs)
+    assert device.probes is None and cpu.probes is not None
+    rate, points, first, last = cpu.growth
+    assert (points > 0).any() and (points < 41).any()
+    np.testing.assert_array_equal(device.growth[1], points)
+    for name, d, c in zip(("rate", "first", "last"), device.growth[::2] + device.growth[3:], (rate, first, last)):
+        good = points > 0
+        np.testing.assert_allclose(d[good], c[good], rtol=1e-10, err_msg=name)
+    assert np.isnan(device.growth[0][points == 0]).all()
+
+
+def test_flips_check_every_step_for_a_blow_up_as_on_the_cpu(cuda_device):
+    """With flips observed the non-finite check runs every step (not every 32): the same step and status."""
+    w0 = np.array([[1.0, 0.05, 0.05], [1e150, 1e150, 1e150]])
+    kwargs = dict(method="rk4", torque=(0.0, 0.0, 1e-3), axis=1, max_flips=1, progress=False)
+    cpu = tumble.run_ensemble(BODY, w0, 0.8, 0.02, **kwargs)
+    device = tumble.run_ensemble(BODY, w0, 0.8, 0.02, device="cuda", **kwargs)
+    assert cpu.status.tolist() == [0, 1] and cpu.steps_taken[1] < 32
+    _same_records(device, cpu, ("status", "steps_taken", "flip_count"))
+
+
 # --- asking for what cannot run is an error, never a silent CPU run ----------------------------------------------
 
 @pytest.mark.parametrize("device", ["gpu", "CUDA", None, 0])
@@ -154,13 +237,8 @@ def test_cuda_with_a_numpy_numba_cuda_cannot_compile_with_says_so(monkeypatch):
     (dict(method="rk4", torque=lambda t, w1, w2, w3: (0.0, 0.0, 0.1)), "a Python torque function cannot run"),
     (dict(method="auto"), "the closed form (method 'exact', which 'auto' picks for a torque-free run) is not yet"),
     (dict(method="exact"), "the closed form"),
-    (dict(method="rk4", probe_times=[0.05]), "observing probe times is not yet on the device"),
-    (dict(method="rk4", max_flips=2), "observing flips is not yet"),
-    (dict(method="rk4", drift=True), "observing drift records is not yet"),
-    (dict(method="rk4", final=False, stop_norm=0.5), "observing early stop is not yet"),
     (dict(method="rk4", save_every=1, attitude=True), "the attitude (attitude=True) is not yet on the device"),
-], ids=["implicit_midpoint", "torque_function", "auto_closed_form", "exact", "probes", "flips", "drift", "early_stop",
-        "attitude"])
+], ids=["implicit_midpoint", "torque_function", "auto_closed_form", "exact", "attitude"])
 def test_what_the_device_does_not_do_yet_is_refused(cuda_device, kwargs, message):
     with pytest.raises(ValueError) as err:
         tumble.run_ensemble(BODY, [[0.0, 1.0, 0.0]], 0.1, 0.01, device="cuda", progress=False, **kwargs)
@@ -194,8 +272,9 @@ _PTX = textwrap.dedent("""
     # Device functions are compiled for the current GPU's compute capability; without a GPU, name one (H100).
     dispatcher.get_current_device = lambda: types.SimpleNamespace(compute_capability=(9, 0))
     f8, i8 = nt.float64, nt.int64
-    signature = (f8[:, ::1], nt.UniTuple(f8, 12), f8, f8, i8, i8, f8[:, :, ::1], nt.int8[::1], i8[::1], f8, i8,
-                 nt.UniTuple(f8, 4))
+    a2 = f8[:, ::1]
+    signature = (a2, nt.UniTuple(f8, 12), f8, f8, i8, i8, f8[:, :, ::1], i8, nt.UniTuple(f8, 3), i8[::1], a2, a2,
+                 i8[::1], a2, nt.int8[::1], i8[::1], f8, i8, f8, i8, nt.UniTuple(f8, 4), f8, i8, f8, a2, i8[::1])
     for name in ("rk4", "rk8", "symplectic_euler", "splitting2", "splitting4"):
         for torque_free in (True, False):
             kernel = device_kernels().make_kernel(METHODS[name], torque_free)
@@ -221,14 +300,31 @@ def test_every_device_kernel_compiles_to_ptx_for_a_gpu():
 
 @pytest.mark.parametrize("call", [
     lambda: tumble.measure((1.0, 2.0, 3.0), 2, samples=8, device="cuda"),
-    lambda: tumble.scan((1.0, 2.0, 3.0), axis=(1, 2), samples=8, device="cuda"),
+    lambda: tumble.measure((1.0, 2.0, 3.0), 2, samples=8, method="exact", device="cuda"),
+    lambda: tumble.scan((1.0, 2.0, 3.0), axis=(1, 2), samples=8, method=["rk4", "auto"], device="cuda"),
     lambda: tumble.run_study("intermediate_axis", device="cuda"),
-], ids=["measure", "scan", "run_study"])
-def test_scenes_on_the_device_are_refused_until_their_observers_are_there(cuda_device, call):
+], ids=["measure", "measure_exact", "scan", "run_study"])
+def test_closed_form_scenes_on_the_device_are_refused_until_it_is_there(cuda_device, call):
     with pytest.raises(ValueError) as err:
         call()
-    assert _one_line(err).startswith("device 'cuda': a scene's measurement")
+    assert _one_line(err).startswith("device 'cuda': a scene on the closed form (method 'exact', which 'auto' picks")
     assert "run it with device='cpu'" in str(err.value)
+
+
+def test_tumble_run_device_cuda_refuses_a_closed_form_study_in_one_line_and_writes_nothing(cuda_device, tmp_path):
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")  # the simulator: the device is there, the closed form is not
+    done = subprocess.run([sys.executable, "-m", "tumble", "run", "--device", "cuda", "--out", str(tmp_path / "out")],
+                          capture_output=True, text=True, env=env, timeout=120)
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("device 'cuda': a scene on the closed form"), done.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_model_studies_on_the_device_are_refused_before_anything_runs(cuda_device):
+    with pytest.raises(ValueError) as err:
+        tumble.run_study("gyrostat_map", device="cuda")
+    assert _one_line(err).startswith("device 'cuda': a model's scene (model.kind = 'gyrostat') is not yet")
 
 
 def test_scenes_asking_for_cuda_without_numba_cuda_say_how_to_install_it(monkeypatch):
@@ -255,3 +351,47 @@ def test_tumble_run_device_cuda_exits_2_with_the_device_line_and_writes_nothing(
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("device 'cuda':"), done.stderr
     assert not (tmp_path / "out").exists()
+
+
+# --- scenes on the device: measure, scan, studies and the command line ---------------------------------------------
+
+def _same_scene(device, cpu):
+    """Kinds and per-sample statuses equal, rates within 1e-10 relative (scene and per sample)."""
+    assert device.kind.values.tolist() == cpu.kind.values.tolist()
+    np.testing.assert_array_equal(device.sample_status.values, cpu.sample_status.values)
+    np.testing.assert_allclose(device.rate.values, cpu.rate.values, rtol=1e-10)
+    np.testing.assert_allclose(device.sample_rate.values, cpu.sample_rate.values, rtol=1e-10)
+    np.testing.assert_array_equal(device.rate_theory.values, cpu.rate_theory.values)
+
+
+@pytest.mark.parametrize("axis, method, kwargs", [
+    (2, "rk4", dict(curves=("norm",))),
+    (2, "splitting4", dict(flips=2)),
+    (1, "rk8", {}),
+    (3, "auto", dict(torque={"profile": "constant", "vector": (0.0, 0.0, 0.05)}, horizon=20.0)),
+], ids=["growth_rk4", "growth_splitting4_flips", "periodic_rk8", "periodic_torque_auto"])
+def test_a_stepping_scene_on_the_device_measures_the_cpu_rates(cuda_device, axis, method, kwargs):
+    cpu = tumble.measure((1.0, 2.0, 3.0), axis, samples=12, method=method, **kwargs)
+    device = tumble.measure((1.0, 2.0, 3.0), axis, samples=12, method=method, device="cuda", **kwargs)
+    _same_scene(device, cpu)
+    for name in ("flip_first", "sample_steps_computed", "sample_steps_skipped", "growth_norm", "fit_t_stop",
+                 "fit_norm_stop"):
+        if name in cpu:
+            np.testing.assert_allclose(device[name].values, cpu[name].values, rtol=1e-10, err_msg=name)
+
+
+def test_a_scan_on_the_device_measures_the_cpu_rates(cuda_device):
+    kwargs = dict(axis=(1, 2), method="splitting2", samples=8, flips=1)
+    cpu = tumble.scan([(1.0, 2.0, 3.0), (1.0, 1.5, 2.2)], **kwargs)
+    device = tumble.scan([(1.0, 2.0, 3.0), (1.0, 1.5, 2.2)], device="cuda", **kwargs)
+    assert cpu.rate.shape == (2, 2)
+    _same_scene(device, cpu)
+
+
+def test_a_bundled_torque_study_on_the_device_gives_the_cpu_results(cuda_device):
+    """space_station steps (a torque acts): the whole study, its flip_components trace included, runs on the device."""
+    overrides = {"perturbation.samples": 8, "outputs.arrays": ["sample_rate", "sample_status"]}
+    cpu = tumble.run_study("space_station", overrides=overrides)
+    device = tumble.run_study("space_station", overrides=overrides, device="cuda")
+    _same_scene(device, cpu)
+    np.testing.assert_allclose(device.trace_omega.values, cpu.trace_omega.values, rtol=1e-10, atol=1e-14)

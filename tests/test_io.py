@@ -204,8 +204,9 @@ def test_failed_write_leaves_old_file_and_no_temporary(tmp_path, monkeypatch):
         raise RuntimeError("disk full")
 
     monkeypatch.setattr(xr.Dataset, "to_netcdf", half_write)
-    with pytest.raises(RuntimeError, match="disk full"):
+    with pytest.raises(OSError, match="disk full") as raised:  # netCDF4's RuntimeError, with the file's name
         write_dataset(result_dataset(), path)
+    assert str(path) in str(raised.value) and isinstance(raised.value.__cause__, RuntimeError)
     assert path.read_bytes() == before
     assert [p.name for p in tmp_path.iterdir()] == ["result.nc"]
 

@@ -145,3 +145,70 @@ def test_the_command_ends_at_once_with_mains_status_its_output_flushed_and_exit_
         assert "intermediate_axis" in done.stdout and "studies in" in done.stdout
     else:
         assert done.stderr.startswith("tumble: error: no_such_study")
+
+
+@pytest.fixture(scope="module")
+def small_result(warm_kernels):
+    import tumble
+
+    return tumble.measure((1.0, 2.0, 3.0), 2, samples=64)
+
+
+STUDY = {"title": "figure process", "outputs": {"figures": ["summary"], "format": ["png"]}}
+
+
+def test_the_figure_process_draws_the_files_this_process_would(small_result, tmp_path):
+    from tumble.pipeline import figure_process, runner
+
+    here, paths_here = runner.write_outputs(small_result, STUDY, tmp_path / "here", "s")
+    with figure_process.FigureProcess() as drawer:
+        apart, paths_apart = runner.write_outputs(small_result, STUDY, tmp_path / "apart", "s", figure_process=drawer)
+    assert [p.name for p in paths_apart] == [p.name for p in paths_here] == ["s.nc", "s_summary.png"]
+    for mine, theirs in zip(paths_here[1:], paths_apart[1:]):
+        assert mine.read_bytes() == theirs.read_bytes(), mine.name
+    assert sorted(p.name for p in (tmp_path / "apart").iterdir()) == sorted(p.name for p in paths_apart)
+
+
+def test_an_error_in_the_figure_process_is_raised_here(small_result, tmp_path):
+    from tumble.pipeline import figure_process
+
+    blocker = tmp_path / "a file"
+    blocker.write_text("")
+    with figure_process.FigureProcess() as drawer:
+        drawer.submit(small_result, ["summary"], blocker / "figures", "s", ("png",))
+        with pytest.raises(OSError):
+            drawer.result()
+    with figure_process.FigureProcess() as drawer:
+        drawer.submit(small_result, ["no_such_figure"], tmp_path, "s", ("png",))
+        with pytest.raises(ValueError, match="no_such_figure"):
+            drawer.result()
+
+
+def test_when_the_figure_process_dies_the_figures_are_drawn_here(small_result, tmp_path):
+    from tumble.pipeline import figure_process, runner
+
+    with figure_process.FigureProcess() as drawer:
+        drawer._process.kill()
+        drawer._process.wait()
+        _, paths = runner.write_outputs(small_result, STUDY, tmp_path, "s", figure_process=drawer)
+    assert [p.name for p in paths] == ["s.nc", "s_summary.png"]
+    assert all(p.stat().st_size > 0 for p in paths)
+
+
+def test_tumble_run_neither_imports_dask_array_nor_leaves_its_figure_process_behind(tmp_path):
+    code = f"""import os, sys
+from tumble.cli import main
+assert main(['run', '--samples', '32', '--out', {str(tmp_path)!r}]) == 0
+assert 'dask.array' not in sys.modules, 'dask.array was imported'
+try:
+    os.waitpid(-1, os.WNOHANG)
+except ChildProcessError:
+    pass  # no child process left, ended or not
+else:
+    raise AssertionError('a child process is left')
+"""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "intermediate_axis.nc", "intermediate_axis_flip_components.png", "intermediate_axis_norm_growth.png",
+        "intermediate_axis_summary.png"]

@@ -101,7 +101,7 @@ def test_a_full_disk_exits_1_and_leaves_the_earlier_results_intact(earlier_resul
         monkeypatch.setattr(checkpoint.Path, "write_bytes", _disk_full)  # the first chunk file cannot be written
     status = cli.main(["run", str(study), "--out", str(out), "--seed", "5"])
     err = capsys.readouterr().err
-    assert status == 1 and "No space left on device" in err and "Traceback" not in err
+    assert status == 1 and f"the disk holding {out}" in err and "is full (" in err and "Traceback" not in err
     assert "earlier results there are unchanged" in err and len(err.strip().splitlines()) == 1
     assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before
     assert not [p for p in out.rglob("*.part")]
@@ -543,12 +543,15 @@ def test_plot_refuses_a_file_lacking_a_variable_its_figures_need(drawn_result, t
 
 @pytest.mark.parametrize("failure", [OSError(errno.ENOSPC, os.strerror(errno.ENOSPC)), KeyboardInterrupt()],
                          ids=["disk-full-while-drawing", "ctrl-c-while-drawing"])
+@pytest.mark.parametrize("where", ["here", "figure-process"])
 def test_a_failure_after_the_netcdf_is_written_leaves_the_earlier_result_set(earlier_result, capsys, monkeypatch,
-                                                                             failure):
+                                                                             failure, where):
     """The .nc used to be written before the figures: a failure while drawing left a new .nc beside old figures
-    (and, with Ctrl-C, a message that nothing was written)."""
+    (and, with Ctrl-C, a message that nothing was written). The command draws in its figure process; when that
+    process cannot, it draws here."""
     study, out, before = earlier_result
     from tumble.output import figures as plots
+    from tumble.pipeline import figure_process
 
     real = plots.save_figures
 
@@ -556,7 +559,17 @@ def test_a_failure_after_the_netcdf_is_written_leaves_the_earlier_result_set(ear
         real(ds, names[:1], directory, stem, **kwargs)
         raise failure
 
-    monkeypatch.setattr(plots, "save_figures", draws_one_then_fails)
+    if where == "here":
+        monkeypatch.setattr(plots, "save_figures", draws_one_then_fails)
+        monkeypatch.setattr(figure_process.FigureProcess, "result", lambda self: None)  # as when it died
+    else:
+        def fails_in_the_process(self):
+            real(*self.request[:4], formats=self.request[4])
+            raise failure
+
+        monkeypatch.setattr(figure_process.FigureProcess, "submit", lambda self, *request: setattr(self, "request",
+                                                                                                  request))
+        monkeypatch.setattr(figure_process.FigureProcess, "result", fails_in_the_process)
     status = cli.main(["run", str(study), "--out", str(out), "--seed", "5"])
     err = capsys.readouterr().err
     assert status == (130 if isinstance(failure, KeyboardInterrupt) else 1), err

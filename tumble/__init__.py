@@ -36,6 +36,7 @@ _FACE = {
     "integrate": ("tumble.engine.integration", "integrate"),
     "propagate": ("tumble.engine.integration", "propagate"),
     "run_study": ("tumble.pipeline.runner", "run_study"),
+    "check": ("tumble.measure.check", "check"),
     **{name: ("tumble.measure.scenes", name)
        for name in ("attitude_trace", "flip_time_law", "inertia_triangle", "measure", "regress_scan", "scan")},
 }
@@ -95,6 +96,6 @@ def __dir__():
     return sorted(set(globals()) | set(_FACE))
 
 
-__all__ = ["Body", "attitude_trace", "exact", "flip_time_law", "inertia_triangle", "integrate", "io", "measure",
+__all__ = ["Body", "attitude_trace", "check", "exact", "flip_time_law", "inertia_triangle", "integrate", "io", "measure",
            "models", "propagate", "regress_scan", "rotations", "run_ensemble", "run_study", "sampling", "scan", "shapes",
            "theory", "__version__"]

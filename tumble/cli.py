@@ -1,8 +1,9 @@
 """Command line: ``tumble run [STUDY]``, ``tumble studies``, ``tumble plot FILE.nc``, ``tumble bench``,
-``tumble demo``.
+``tumble demo``, ``tumble check TRAJECTORY``.
 
 Exit status: 0 success, 2 invalid input (one clear message naming the file, the field and what is wrong; no
-traceback, no output file), 1 any other failure (``TUMBLE_DEBUG=1`` shows its traceback).
+traceback, no output file), 1 any other failure (``TUMBLE_DEBUG=1`` shows its traceback); ``tumble check``: 3 when
+the trajectory fails the check (its files are written).
 """
 
 import argparse
@@ -10,10 +11,12 @@ import atexit
 import contextlib
 import json
 import os
+import re
 import subprocess
 import sys
 import time
 import traceback
+import warnings
 from pathlib import Path
 
 from . import _interrupt, registry
@@ -97,6 +100,9 @@ def demo(samples=2000, seed=0, dt=0.002, out=sys.stdout):
           f"(omega_{middle + 1} changed sign at t ≈ {first_flip:.2f} s).", file=out)
 
 
+#: Exit status of ``tumble check`` when the trajectory fails the check (distinct from invalid input, 2).
+EXIT_CHECK_FAILED = 3
+
 _BENCHMARKS = ("engine", "accuracy", "work_precision", "stress", "scale_out")
 _QUICK = ("work_precision", "stress")  # the benchmarks that take --quick
 
@@ -107,7 +113,10 @@ class InputError(ValueError):
 
 def _run(args):
     from .engine import cost
-    from .pipeline import checkpoint, runner
+    from .output import io
+    from .pipeline import checkpoint, figure_process, runner
+
+    io.assume_no_dask_arrays()  # this process makes none: xarray need not import dask.array to look for them
 
     overrides = {key: value for key, value in (("perturbation.samples", args.samples),
                                                ("perturbation.seed", args.seed),
@@ -143,20 +152,25 @@ def _run(args):
         print(f"estimate: {cost.describe(runner.study_cost(prepared.resolved))}")
         return
     print(f"tumble {__version__}: study {args.study!r} ({prepared.resolved['title']})", flush=True)
-    if args.fresh:
-        prepared.store.remove()
     command = " ".join(["tumble run", args.study] + [f"--{k.split('.')[1]} {v}" for k, v in overrides.items()])
-    options = {"chunk_scenes": chunk, "chunk_samples": args.chunk_samples, "action": command,
+    options = {"chunk_scenes": chunk, "chunk_samples": args.chunk_samples, "action": command, "fresh": args.fresh,
                "log": lambda line: print(line, flush=True)}
-    if scheduler is None:
-        stored, paths = runner.execute_study(prepared, **options)
-    else:
-        from .pipeline import distributed
+    try:
+        with contextlib.ExitStack() as stack:
+            if prepared.resolved["outputs"]["figures"]:  # matplotlib is imported there while the scenes run here
+                options["figure_process"] = stack.enter_context(figure_process.FigureProcess())
+            if scheduler is None:
+                stored, paths = runner.execute_study(prepared, **options)
+            else:
+                from .pipeline import distributed
 
-        with distributed.connect(scheduler, workers=args.workers) as client:
-            print(f"dask scheduler {client.scheduler.address}: {len(client.scheduler_info()['workers'])} "
-                  f"worker(s)", flush=True)
-            stored, paths = runner.execute_study(prepared, client=client, **options)
+                client = stack.enter_context(distributed.connect(scheduler, workers=args.workers))
+                print(f"dask scheduler {client.scheduler.address}: {len(client.scheduler_info()['workers'])} "
+                      f"worker(s)", flush=True)
+                stored, paths = runner.execute_study(prepared, client=client, **options)
+    except checkpoint.FolderBusy as err:
+        raise InputError(f"{_output_option(args, prepared)}: {err.strerror}; wait for it to finish, or choose another "
+                         f"--out") from None
     print(runner.summary_table(stored))
     print(f"\n{time.perf_counter() - started:.1f} s; wrote:")
     for path in paths:
@@ -171,9 +185,13 @@ def _check_output_folder(args, prepared):
     try:
         checkpoint.check_writable(prepared.directory)
     except checkpoint.OutputError as err:
-        where = ("--out" if args.out is not None else "outputs.directory" if prepared.resolved["outputs"]["directory"]
-                 else "the default output folder (choose another with --out)")
-        raise InputError(f"{where}: {err.strerror}") from None
+        raise InputError(f"{_output_option(args, prepared)}: {err.strerror}") from None
+
+
+def _output_option(args, prepared):
+    """Where the output folder came from, for a message: ``--out``, ``outputs.directory`` or the default."""
+    return ("--out" if args.out is not None else "outputs.directory" if prepared.resolved["outputs"]["directory"]
+            else "the default output folder (choose another with --out)")
 
 
 def _scheduler(args):
@@ -201,6 +219,7 @@ def _plot(args):
     from .output import figures as plots
     from .output import io
 
+    io.assume_no_dask_arrays()
     path = Path(args.file)
     if not path.is_file():
         raise InputError(f"{path}: no such file")
@@ -239,6 +258,82 @@ def _study_figures(ds):
     return [name for name in figures if isinstance(name, str)] if isinstance(figures, list) else []
 
 
+def _check_tolerances(args):
+    """The thresholds of ``--tolerances FILE.toml`` (its ``[tolerances]`` table), then each ``--tolerance NAME=VALUE``."""
+    import tomllib
+
+    from .measure import check as checking
+
+    tolerances = {}
+    if args.tolerances is not None:
+        try:
+            with open(args.tolerances, "rb") as f:
+                table = tomllib.load(f).get("tolerances")
+        except (OSError, tomllib.TOMLDecodeError) as err:
+            raise InputError(f"--tolerances {args.tolerances}: {err}") from None
+        if not isinstance(table, dict):
+            raise InputError(f"--tolerances {args.tolerances}: no [tolerances] table (NAME = VALUE lines under it)")
+        tolerances.update(table)
+    for item in args.tolerance or ():
+        name, _, value = item.partition("=")
+        try:
+            tolerances[name.strip()] = float(value)
+        except ValueError:
+            raise InputError(f"--tolerance {item!r}: expected NAME=VALUE with a number as VALUE") from None
+    try:
+        return checking.resolve_tolerances(tolerances)
+    except ValueError as err:
+        raise InputError(f"--tolerance{'s ' + args.tolerances if args.tolerances else ''}: {err}") from None
+
+
+def _check(args):
+    """``tumble check``: read, check, write the netCDF file and the figure, print the summary; the exit status."""
+    import numpy as np
+
+    from .measure import check as checking
+    from .output import check_figure, io, trajectory
+    from .physics.bodies import Body
+
+    tolerances = _check_tolerances(args)
+    inertia = None
+    try:
+        if args.moments is not None:
+            Body(*args.moments)
+        else:
+            xx, yy, zz, xy, xz, yz = args.inertia
+            inertia = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+            Body.from_tensor(inertia)
+    except ValueError as err:
+        raise InputError(f"{'--moments' if inertia is None else '--inertia'}: {err}") from None
+    path = Path(args.trajectory)
+    try:
+        columns = trajectory.read_trajectory(path)
+        labels = {"t": "column 't'", "omega": "columns wx wy wz", "quaternion": "columns qw qx qy qz"}
+        checking.validate_trajectory(columns["t"], columns.get("omega"), columns.get("quaternion"), labels=labels)
+        result = checking.check(columns["t"], columns.get("omega"), columns.get("quaternion"), moments=args.moments,
+                                inertia=inertia, omega_frame=args.omega_frame, tolerances=tolerances)
+    except FileNotFoundError as err:
+        raise InputError(str(err)) from None
+    except ValueError as err:
+        message = str(err)
+        raise InputError(message if message.startswith(str(path)) else f"{path}: {message}") from None
+    directory = Path(args.out)
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise InputError(f"--out {directory}: {err.strerror}") from None
+    stem = f"{path.stem}_check"
+    written = [directory / f"{stem}.nc", directory / f"{stem}.{args.format}"]
+    io.write_dataset(result, written[0], action=f"tumble check {path.name}")
+    check_figure.save_check_figure(result, written[1])
+    print(f"tumble check {path}")
+    print(checking.summary(result))
+    print("wrote:")
+    for written_path in written:
+        print(f"  {written_path}")
+    return 0 if result.attrs["verdict"] == "pass" else EXIT_CHECK_FAILED
+
+
 def _bench(args):
     folder = Path(__file__).resolve().parent.parent / "benchmarks"
     if not folder.is_dir():
@@ -272,7 +367,8 @@ def _parser():
     run.add_argument("--format", nargs="+", choices=("png", "pdf"), help="figure formats (override outputs.format)")
     run.add_argument("--device", choices=registry.DEVICES,
                      help="where the scenes run (override integration.device): cpu, or cuda for an NVIDIA GPU "
-                          "(pip install \"tumble[gpu]\"; a study's scenes are not on the GPU yet)")
+                          "(pip install \"tumble[gpu]\"; stepping scenes only: the closed form and models are not on "
+                          "the GPU yet)")
     run.add_argument("--scheduler", metavar="ADDRESS",
                      help="run the scenes on dask.distributed: 'local' (a LocalCluster on 127.0.0.1) or "
                           "tcp://HOST:PORT of a running scheduler (default: $DASK_SCHEDULER_ADDRESS, else in-process; "
@@ -301,7 +397,44 @@ def _parser():
     run_demo.add_argument("--samples", type=int, default=2000, help="ensemble size (default 2000)")
     run_demo.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     run_demo.add_argument("--dt", type=float, default=0.002, help="step in s (default 0.002)")
+    _add_check_parser(commands)
     return parser
+
+
+def _add_check_parser(commands):
+    """The ``tumble check`` subcommand's options (docs/check.md)."""
+    check = commands.add_parser(
+        "check", help="hold a simulator's free rigid-body trajectory against the exact torque-free solution",
+        description="Compare a free rigid body's recorded trajectory (any simulator) with the exact torque-free "
+                    "solution from its first state: angular velocity and attitude errors, energy and angular "
+                    "momentum drift, flips about the intermediate axis and their period; a verdict per criterion; "
+                    "a netCDF file and a figure. Exit status: 0 pass, 3 the trajectory fails the check, 2 invalid "
+                    "input (nothing written), 1 any other failure. See docs/check.md.",
+        epilog="Criteria and default tolerances: " + ", ".join(
+            f"{name}={value:g}" for name, value in registry.CHECK_TOLERANCES.items()))
+    check.add_argument("trajectory", metavar="TRAJECTORY",
+                       help="a .csv (header row), .npz or .nc file with columns t; wx wy wz (angular velocity, rad/s) "
+                            "and/or qw qx qy qz (attitude quaternion, body-to-world); other columns are ignored")
+    # argparse takes "-1.5e-06" for an option (its negative-number pattern has no exponent): an inertia tensor's
+    # off-diagonal elements are often negative and printed so. The same pattern with an exponent (argparse's own
+    # attribute; Python 3.11-3.13 read it the same way).
+    check._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")  # noqa: SLF001
+    body = check.add_mutually_exclusive_group(required=True)
+    body.add_argument("--moments", nargs=3, type=float, metavar=("I1", "I2", "I3"),
+                      help="principal moments, kg m^2, along the file's body axes x, y, z")
+    body.add_argument("--inertia", nargs=6, type=float, metavar=("XX", "YY", "ZZ", "XY", "XZ", "YZ"),
+                      help="instead of --moments: the inertia tensor in the file's body frame, kg m^2, in MuJoCo's "
+                           "fullinertia order (XY is the tensor element, -integral of x y dm); the principal axes are "
+                           "found and the data rotated onto them")
+    check.add_argument("--omega-frame", choices=("body", "world"), default="body",
+                       help="frame of wx wy wz (default body; world needs the quaternion columns)")
+    check.add_argument("--tolerance", action="append", metavar="NAME=VALUE",
+                       help="override one criterion's threshold (repeatable); see the list below")
+    check.add_argument("--tolerances", metavar="FILE.toml",
+                       help="thresholds from the [tolerances] table of a TOML file (--tolerance overrides them)")
+    check.add_argument("--out", default=".",
+                       help="output folder for <name>_check.nc and the figure (default: the current folder)")
+    check.add_argument("--format", choices=("png", "pdf"), default="png", help="figure format (default png)")
 
 
 def _raised_by(module, name):
@@ -315,13 +448,24 @@ def _raised_by(module, name):
     return (getattr(loaded, name),) if loaded is not None else ()
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """tumble's own warnings (e.g. :class:`tumble.kernels.jit.CacheWarning`) as one line, ``tumble: warning: ...``;
+    the others as Python shows them."""
+    text = (f"tumble: warning: {message}\n" if category.__module__.startswith("tumble.")
+            else warnings.formatwarning(message, category, filename, lineno, line))
+    (sys.stderr if file is None else file).write(text)
+
+
 def main(argv=None):
     """Entry point of ``tumble`` and ``python -m tumble``; returns the exit status."""
     args = _parser().parse_args(argv)
+    warnings.showwarning = _show_warning
     try:
         _interrupt.release()  # from here on Ctrl-C is a KeyboardInterrupt, reported below
         if args.command == "run":
             _run(args)
+        elif args.command == "check":
+            return _check(args)
         elif args.command == "studies":
             _studies(args)
         elif args.command == "plot":
@@ -341,6 +485,9 @@ def main(argv=None):
     except _raised_by("pipeline.checkpoint", "OutputError") as err:
         print(f"tumble: failed: {err.strerror or err}; earlier results there are unchanged, and finished chunks are "
               "kept for a rerun to resume from", file=sys.stderr)
+        return 1
+    except _raised_by("pipeline.distributed", "SchedulerLost") as err:
+        print(f"tumble: failed: {err}", file=sys.stderr)
         return 1
     except BrokenPipeError:  # output piped into a reader that stopped early (e.g. `| head`)
         sys.stderr.close()

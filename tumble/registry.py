@@ -307,3 +307,15 @@ def state_blocks(name):
 #: Where an ensemble runs (``device`` of every engine call, ``integration.device`` of a study, ``tumble run
 #: --device``): the CPU's cores, or a CUDA GPU through numba-cuda (:mod:`tumble.engine.device`).
 DEVICES = ("cpu", "cuda")
+
+#: ``tumble check`` / :func:`tumble.check`: criterion -> default threshold; each passes when its measured value is at
+#: most the threshold (:mod:`tumble.measure.check`; ``--tolerance NAME=VALUE`` overrides one).
+CHECK_TOLERANCES = {
+    "omega_error": 0.05,         # max over time of |w - w_exact| / |w_exact|
+    "attitude_error": 0.05,      # max attitude error angle, rad (needs the quaternion)
+    "energy_drift": 1e-3,        # max |E / E0 - 1|
+    "momentum_drift": 1e-3,      # max ||L| / |L0| - 1|
+    "momentum_direction": 1e-3,  # max angle of the space-frame L from its first direction, rad (needs the quaternion)
+    "period_error": 1e-2,        # |mean measured flip spacing / (2K/nu) - 1| (needs two exact flips)
+    "flip_count": 1,             # |measured flips - exact flips|; no flip at all where the exact motion flips fails
+}

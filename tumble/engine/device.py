@@ -14,11 +14,17 @@ import numpy as np
 from ..kernels import METHODS, device_kernels, run
 from ..registry import DEVICES
 
-__all__ = ["DEVICES", "DeviceError", "INSTALL", "check_on_device", "not_on_device", "resolve_device", "stepper"]
+__all__ = ["DEVICES", "DeviceError", "INSTALL", "LAUNCH_SAMPLES", "check_on_device", "not_on_device", "resolve_device",
+           "stepper"]
 
 
 class DeviceError(ValueError):
     """``device 'cuda': ...``: the device cannot run here, or cannot run this yet (the command line's exit 2)."""
+
+#: Fewest samples per launch on the device (where a run has that many): a GPU needs hundreds of thousands of threads
+#: to be busy (an H100 holds 132 SMs x 2048 resident threads), far more than a CPU chunk
+#: (:data:`tumble.engine.sampling.CHUNK`); a scene's growth probes of this many samples take 0.5 GB.
+LAUNCH_SAMPLES = 1 << 18
 
 #: How to install what the device needs (the ``gpu`` extra of pyproject.toml).
 INSTALL = 'pip install "tumble[gpu]"'
@@ -93,7 +99,7 @@ def not_on_device(what):
     return DeviceError(f"device 'cuda': {what} not yet on the device; run it with device='cpu'")
 
 
-def check_on_device(method, *, attitude=False, **observers):
+def check_on_device(method, *, attitude=False, torque_fn=None):
     """Raise the ``device 'cuda':`` ``ValueError`` for a run the device cannot do yet, before anything runs.
 
     Parameters
@@ -101,14 +107,13 @@ def check_on_device(method, *, attitude=False, **observers):
     method : str
         The chosen method (``"auto"`` already resolved).
     attitude : bool
-    **observers
-        The keywords of :func:`tumble.kernels.cuda.refusal`: ``torque_fn``, ``probe_steps``, ``max_flips``,
-        ``drift``, ``stop_norm``, ``stop_flips``.
+    torque_fn : callable or None
+        A user's torque function (:func:`tumble.kernels.cuda.refusal`). Every observer runs on the device.
     """
     if method == "exact":
         raise not_on_device("the closed form (method 'exact', which 'auto' picks for a torque-free run) is")
     if attitude:
         raise not_on_device("the attitude (attitude=True) is")
-    problem = device_kernels().refusal(METHODS[method], **observers)
+    problem = device_kernels().refusal(METHODS[method], torque_fn=torque_fn)
     if problem:
         raise DeviceError(problem)

@@ -32,12 +32,12 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .. import registry
-from ..kernels import BLOCK, METHODS, TORQUE_CONSTANT, TORQUE_SIGNATURE, TORQUE_USER, run, run_attitude
+from ..kernels import BLOCK, METHODS, TORQUE_CONSTANT, TORQUE_SIGNATURE, TORQUE_USER, fits, run, run_attitude
 from ..physics import exact
 from ..physics.bodies import finite_array, one_body, spin_vectors
 from ..registry import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK, choose_method
 from . import cost
-from .device import check_on_device, resolve_device, stepper
+from .device import LAUNCH_SAMPLES, check_on_device, resolve_device, stepper
 from .sampling import CHUNK
 
 __all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "Interrupted", "STATUS_NAMES", "run_ensemble", "torque_spec"]
@@ -63,6 +63,7 @@ class EnsembleResult(NamedTuple):
     steps_taken: np.ndarray  # (N,) steps each sample took (0 on the closed-form path)
     info: dict
     quaternion: np.ndarray | None = None  # (N, T, 4), body-to-space rotation, scalar first (attitude=True)
+    growth: tuple | None = None  # (rate 1/s, points, first and last norm rad/s), (N,) each (growth_window)
 
 
 def _torque_vector(vector):
@@ -266,8 +267,9 @@ def _stored_per_sample(steps, save_every, probe_times, max_flips, drift, attitud
 
 def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, final=True, save_every=None,
                  probe_times=None, norm_weights=None, max_flips=0, drift=False, stop_norm=0.0, stop_flips=0,
-                 drift_limit=DEFAULT_DRIFT_LIMIT, chunk=CHUNK, progress=None, attitude=False, device="cpu"):
-    # size: 19 keywords, the engine's public call (tumble.run_ensemble); each is one observer or stop request a caller
+                 drift_limit=DEFAULT_DRIFT_LIMIT, chunk=CHUNK, progress=None, attitude=False, device="cpu",
+                 growth_window=None, keep_probes=True):
+    # size: 21 keywords, the engine's public call (tumble.run_ensemble); each is one observer or stop request a caller
     # may name, checked at once by _checked_arguments and packed into the _Observe record below.
     """Run an ensemble of spins and observe it on the fly.
 
@@ -303,16 +305,25 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
     drift_limit : float
         Torque-free invariant drift that flags a sample as ``invariant drift`` (0: no flagging).
     chunk : int
-        Samples per kernel call (progress and Ctrl-C granularity).
+        Samples per kernel call (progress and Ctrl-C granularity); on the device at least
+        :data:`tumble.engine.device.LAUNCH_SAMPLES`.
     progress : bool, optional
         Show a progress bar; default: only when standard error is a terminal.
     attitude : bool
         Also integrate the orientation, stored with the trajectory (needs ``save_every``; no other observer).
         The body frame is the space frame at ``t = 0``.
+    growth_window : tuple (saturation, min_points), optional
+        Fit each sample's exponential growth rate from its norms at ``probe_times`` (equally spaced, at least 3)
+        inside its linear regime, up to the first norm above ``saturation`` (rad/s), with at least ``min_points``
+        points (:func:`tumble.kernels.fits.growth_fit`): ``growth`` holds ``(rate, points, first, last)``. On the
+        device the fit runs in the kernel as the norms come, on the CPU on the probes after the run.
+    keep_probes : bool
+        With ``growth_window``: also return the probe norms (False: on the device they never leave it).
     device : str
         ``"cpu"`` or ``"cuda"`` (:func:`tumble.engine.device.resolve_device`). On ``"cuda"`` today: a fixed-step
-        method other than the implicit midpoint rule, a constant torque or a named profile, the final state and the
-        trajectory; anything else is refused (``device 'cuda': ... not yet on the device``), never run on the CPU.
+        method other than the implicit midpoint rule, a constant torque or a named profile, and every observer (final
+        state, trajectory, probe norms, flips, drift records, early stop); anything else is refused (``device 'cuda':
+        ... not yet on the device``), never run on the CPU.
 
     Returns
     -------
@@ -347,18 +358,24 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
     n_steps = int(steps)
     if attitude and (not save_every or probe_times is not None or max_flips or drift or stop_norm or stop_flips):
         raise ValueError("attitude=True is stored with the trajectory: it needs save_every and no other observer")
+    if growth_window is not None and (probe_times is None or len(probe_times) < 3):
+        raise ValueError("growth_window fits the norms at probe_times: it needs at least 3 probe_times")
     save = int(save_every or 0)
     times, probe_steps, probe_times = observation_times(t_end, dt, save, probe_times)
+    if growth_window is not None:
+        saturation, min_points = growth_window
+        growth_window = (float(saturation), int(min_points),
+                         float((probe_times[-1] - probe_times[0]) / (len(probe_times) - 1)))
     early = (stop_norm > 0 or stop_flips > 0) and not final and not save
     observe = _Observe(
         final=final, save=save, times=times, probe_steps=probe_steps, probe_times=probe_times, axis=a,
         weights=np.ones(3) if norm_weights is None else np.asarray(norm_weights, dtype=float), max_flips=max_flips,
         drift=drift, attitude=attitude, stop_norm=stop_norm if early else 0.0, stop_flips=stop_flips if early else 0,
-        drift_limit=drift_limit if torque.free else 0.0)
+        drift_limit=drift_limit if torque.free else 0.0, growth=growth_window,
+        keep_probes=keep_probes or growth_window is None)
     if device == "cuda":
-        check_on_device(chosen, attitude=attitude, torque_fn=torque.fn, probe_steps=observe.probe_steps,
-                        max_flips=observe.max_flips, drift=observe.drift, stop_norm=observe.stop_norm,
-                        stop_flips=observe.stop_flips)
+        check_on_device(chosen, attitude=attitude, torque_fn=torque.fn)
+        chunk = max(chunk, LAUNCH_SAMPLES)
     info = {"path": "closed form" if chosen == "exact" else "fixed-step kernel", "method": chosen,
             "reason": reason, "dt": dt, "n_steps": n_steps, "torque": torque.text, "early_stop": early,
             "samples": n, "device": device}
@@ -380,7 +397,7 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         if chosen == "exact":
             result = _run_exact(moments, w0, t_end, observe, chunks())
             info.update(sample_steps_computed=0, sample_steps_skipped=n * n_steps, jit_seconds=0.0)
-            return result._replace(info=info)
+            return _fit_growth(result._replace(info=info), observe)
         if attitude:
             result = _run_attitude(METHODS[chosen], moments, w0, dt, n_steps, observe, torque, chunks())
             info.update(run_seconds=time.perf_counter() - started, sample_steps_computed=n * n_steps,
@@ -392,7 +409,23 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
     steps_taken = result.steps_taken
     info.update(run_seconds=time.perf_counter() - started, sample_steps_computed=_block_steps(steps_taken),
                 sample_steps_skipped=int(n * n_steps - steps_taken.sum()))
-    return result._replace(info=info)
+    return _fit_growth(result._replace(info=info), observe)
+
+
+def _fit_growth(result, observe):
+    """``result`` with its growth fit (``growth_window``): the kernels' fit of its probes where the run did not fit
+    them already (the device fits in the kernel); the probes dropped unless kept."""
+    if observe.growth is None or result.growth is not None:
+        return result
+    saturation, min_points, _ = observe.growth
+    norms = np.ascontiguousarray(result.probes)
+    n, p = norms.shape
+    rate, points, code = np.empty(n), np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int8)
+    fits.growth_fit(np.ascontiguousarray(result.probe_times[None, :]), np.zeros(n, dtype=np.int64), norms,
+                    np.full(n, saturation), min_points, rate, points, code)
+    last = norms[np.arange(n), np.clip(points - 1, 0, p - 1)]
+    return result._replace(growth=(rate, points, norms[:, 0].copy(), last),
+                           probes=result.probes if observe.keep_probes else None)
 
 
 class _NoBar:
@@ -437,16 +470,24 @@ class _Observe(NamedTuple):
     stop_norm: float
     stop_flips: int
     drift_limit: float
+    growth: tuple | None  # (saturation, min_points, probe spacing s): fit the growth rate (growth_window)
+    keep_probes: bool
 
 
 def _run_kernel(method, moments, w0, dt, n_steps, observe, torque, chunks, device="cpu"):
     # size: one more than the limit: the device, whose kernels take the CPU kernels' arguments
     """A fixed-step kernel over the samples, chunk by chunk, the observers' outputs gathered per sample."""
     step = run if device == "cpu" else stepper(device)
+    # The device fits the growth in the kernel (the CPU fits its probes after the run, _fit_growth)
+    fit = {} if device == "cpu" or observe.growth is None else dict(growth_window=observe.growth,
+                                                                     keep_probes=observe.keep_probes)
     n = len(w0)
     final_w = np.empty((n, 3)) if observe.final else None
     trajectory = np.empty((n, len(observe.times), 3)) if observe.save else None
-    probes = np.empty((n, len(observe.probe_steps))) if observe.probe_steps is not None else None
+    probes = None
+    if observe.probe_steps is not None and (observe.keep_probes or not fit):
+        probes = np.empty((n, len(observe.probe_steps)))
+    growth = (np.empty(n), np.empty(n, dtype=np.int64), np.empty(n), np.empty(n)) if fit else None
     flips = np.empty((n, observe.max_flips)) if observe.max_flips else None
     flip_count = np.empty(n, dtype=np.int64) if observe.max_flips else None
     drifts = np.empty((n, 2)) if observe.drift else None
@@ -458,7 +499,10 @@ def _run_kernel(method, moments, w0, dt, n_steps, observe, torque, chunks, devic
                         norm_weights=observe.weights, probe_steps=observe.probe_steps, max_flips=observe.max_flips,
                         drift=observe.drift, stop_norm=observe.stop_norm, stop_flips=observe.stop_flips,
                         drift_limit=observe.drift_limit, torque_kind=torque.kind, torque_params=torque.params,
-                        torque_fn=torque.fn)
+                        torque_fn=torque.fn, **fit)
+        if growth is not None:
+            for whole, part in zip(growth, observed.growth):
+                whole[lo:hi] = part
         if final_w is not None:
             final_w[lo:hi] = state.T
         if trajectory is not None:
@@ -473,7 +517,7 @@ def _run_kernel(method, moments, w0, dt, n_steps, observe, torque, chunks, devic
         status[lo:hi] = observed.status
         steps_taken[lo:hi] = observed.steps_taken
     return EnsembleResult(final_w, observe.times, trajectory, observe.probe_times, probes, flips, flip_count, drifts,
-                          status, steps_taken, {})
+                          status, steps_taken, {}, growth=growth)
 
 
 def _block_steps(steps_taken):

@@ -278,6 +278,7 @@ def perturbed_spins(body, axis, spin=1.0, amplitude=1e-3, samples=1024, *, seed=
         * ``"energy"``: rescale so that ``½ Σ Ij w_ij² = ½ I_a spin²``, the kinetic energy of the
           unperturbed spin;
         * ``"momentum"``: rescale so that ``|L_i| = |Σ Ij w_ij e_j| = I_a |spin|``.
+
         The direction of each spin is unchanged by the rescaling.
     start, stop : int
         Rows ``[start, stop)`` of the ensemble to return; ``0 <= start <= stop <= samples``;

@@ -86,20 +86,71 @@ def _restore_frozen(y1, y2, y3, active, frozen):
             y1[i], y2[i], y3[i] = frozen[0, i], frozen[1, i], frozen[2, i]
 
 
+# --- per-sample observers: one sample's state in scalars, shared by the block loops below and the device kernels
+# (tumble/kernels/cuda.py, which numba-cuda compiles them for) ------------------------------------------------------
+
+@jit(inline=True)
+def component(w1, w2, w3, k):
+    """Component ``k`` (0-based) of ``(w1, w2, w3)``."""
+    if k == 0:
+        return w1
+    return w2 if k == 1 else w3
+
+
+@jit(inline=True)
+def transverse_norm(w1, w2, w3, axis, weights):
+    """Weighted transverse norm ``sqrt(g_b w_b² + g_c w_c²)`` about ``axis`` (0-based), ``weights`` (3,) rad/s."""
+    b, c = (axis + 1) % 3, (axis + 2) % 3
+    wb, wc = component(w1, w2, w3, b), component(w1, w2, w3, c)
+    return math.sqrt(weights[b] * wb * wb + weights[c] * wc * wc)
+
+
+@jit(inline=True)
+def flip_in_step(axis, t, h, p1, p2, p3, w1, w2, w3, body, torque_kind, torque_params, torque_fn):
+    """``(flipped, time)``: whether the ``axis`` component changed sign during the step ``[t, t + h]`` from
+    ``(p1, p2, p3)`` to ``(w1, w2, w3)``, and when (cubic Hermite interpolation, s; 0.0 when it did not)."""
+    ya, yp = component(w1, w2, w3, axis), component(p1, p2, p3, axis)
+    if (ya < 0.0 < yp) or (yp < 0.0 < ya) or (ya == 0.0 and yp != 0.0):
+        r1, r2, r3 = euler_rate(t, p1, p2, p3, body, torque_kind, torque_params, torque_fn)
+        d0 = component(r1, r2, r3, axis)
+        r1, r2, r3 = euler_rate(t + h, w1, w2, w3, body, torque_kind, torque_params, torque_fn)
+        d1 = component(r1, r2, r3, axis)
+        return True, t + h * _hermite_root(yp, d0, ya, d1, h)
+    return False, 0.0
+
+
+@jit(inline=True)
+def invariant_errors(w1, w2, w3, body, e0, l0):
+    """``(|E/E0 - 1|, ||L|²/|L0|² - 1|)``: the relative errors of the energy and ``|L|**2``."""
+    return abs(energy(w1, w2, w3, body) / e0 - 1.0), abs(l_squared(w1, w2, w3, body) / l0 - 1.0)
+
+
+@jit(inline=True)
+def drifted(de, dl, drift_limit):
+    """The invariant errors are past ``drift_limit`` (<= 0: never); NaN counts as past."""
+    return drift_limit > 0.0 and not (de <= drift_limit and dl <= drift_limit)
+
+
+@jit(inline=True)
+def measurement_complete(reached, stop_norm, stop_flips, flip_count):
+    """A sample's measurement is complete: its norm reached ``stop_norm`` and it flipped ``stop_flips`` times (a
+    criterion <= 0 is met)."""
+    return (stop_norm <= 0.0 or reached) and (stop_flips <= 0 or flip_count >= stop_flips)
+
+
 @jit
 def _observe_flips(ys, previous, active, axis, t, h, body, flips, flip_count, lo, torque_kind, torque_params,
                    torque_fn):
     """Record sign changes of the ``axis`` component during the step ``[t, t + h]``."""
     for i in range(ys.shape[1]):
-        ya, yp = ys[axis, i], previous[axis, i]
-        if active[i] and ((ya < 0.0 < yp) or (yp < 0.0 < ya) or (ya == 0.0 and yp != 0.0)):
-            d0 = euler_rate(t, previous[0, i], previous[1, i], previous[2, i], body, torque_kind, torque_params,
-                            torque_fn)[axis]
-            d1 = euler_rate(t + h, ys[0, i], ys[1, i], ys[2, i], body, torque_kind, torque_params, torque_fn)[axis]
-            count = flip_count[lo + i]
-            if count < flips.shape[1]:
-                flips[lo + i, count] = t + h * _hermite_root(yp, d0, ya, d1, h)
-            flip_count[lo + i] = count + 1
+        if active[i]:
+            flipped, time = flip_in_step(axis, t, h, previous[0, i], previous[1, i], previous[2, i], ys[0, i],
+                                         ys[1, i], ys[2, i], body, torque_kind, torque_params, torque_fn)
+            if flipped:
+                count = flip_count[lo + i]
+                if count < flips.shape[1]:
+                    flips[lo + i, count] = time
+                flip_count[lo + i] = count + 1
 
 
 @jit
@@ -111,12 +162,11 @@ def _observe_drift(ys, active, body, e0, l0, drift, lo, drift_limit, k, frozen, 
     for i in range(ys.shape[1]):
         if not active[i]:
             continue
-        de = abs(energy(ys[0, i], ys[1, i], ys[2, i], body) / e0[i] - 1.0)
-        dl = abs(l_squared(ys[0, i], ys[1, i], ys[2, i], body) / l0[i] - 1.0)
+        de, dl = invariant_errors(ys[0, i], ys[1, i], ys[2, i], body, e0[i], l0[i])
         if drift.shape[0] > 0:
             drift[0, lo + i] = max(drift[0, lo + i], de)
             drift[1, lo + i] = max(drift[1, lo + i], dl)
-        if drift_limit > 0.0 and not (de <= drift_limit and dl <= drift_limit):
+        if drifted(de, dl, drift_limit):
             _freeze(i, k, STATUS_DRIFT, ys[0], ys[1], ys[2], active, frozen, status, last)
             stopped += 1
     return stopped
@@ -135,12 +185,10 @@ def _check_finite(ys, active, k, frozen, status, last):
 
 @jit
 def _observe_norm(ys, active, axis, weights, probes, lo, row, stop_norm, reached):
-    """Weighted transverse norm ``sqrt(g_b w_b² + g_c w_c²)`` about ``axis`` into ``probes[row]`` (NaN for
-    stopped samples); marks samples whose norm reached ``stop_norm``."""
-    b, c = (axis + 1) % 3, (axis + 2) % 3
-    gb, gc = weights[b], weights[c]
+    """Weighted transverse norm (:func:`transverse_norm`) about ``axis`` into ``probes[row]`` (NaN for stopped
+    samples); marks samples whose norm reached ``stop_norm``."""
     for i in range(ys.shape[1]):
-        norm = math.sqrt(gb * ys[b, i] * ys[b, i] + gc * ys[c, i] * ys[c, i])
+        norm = transverse_norm(ys[0, i], ys[1, i], ys[2, i], axis, weights)
         if probes.shape[0] > 0:
             probes[row, lo + i] = norm if active[i] else np.nan
         if active[i] and stop_norm > 0.0 and norm >= stop_norm:
@@ -153,7 +201,7 @@ def _stop_complete(ys, active, reached, stop_norm, stop_flips, flip_count, lo, k
     remaining = 0
     for i in range(ys.shape[1]):
         if active[i]:
-            if (stop_norm <= 0.0 or reached[i]) and (stop_flips <= 0 or flip_count[lo + i] >= stop_flips):
+            if measurement_complete(reached[i], stop_norm, stop_flips, flip_count[lo + i]):
                 _freeze(i, k, STATUS_OK, ys[0], ys[1], ys[2], active, frozen, status, last)
             else:
                 remaining += 1

@@ -22,8 +22,8 @@ import numpy as np
 from .jit import jit
 from .trig import atan2
 
-__all__ = ["FIT_NO_SIGNAL", "FIT_OK", "FIT_SHORT_WINDOW", "FIT_UNDERSAMPLED", "growth_fit", "modal_rows", "phase_fit",
-           "transverse_norms"]
+__all__ = ["FIT_NO_SIGNAL", "FIT_OK", "FIT_SHORT_WINDOW", "FIT_UNDERSAMPLED", "GROWTH_WINDOW_START", "growth_fit",
+           "growth_window_add", "growth_window_rate", "modal_rows", "phase_fit", "transverse_norms"]
 
 # Outcomes, as tumble.measure.estimators numbers them (checked there).
 FIT_OK = 0
@@ -240,6 +240,51 @@ def transverse_norms(states, columns, weights, out):
             out[i, j] = math.sqrt(gb * (x * x) + gc * (y * y))
 
 
+#: A growth window before its first probe (:func:`growth_window_add`): open (stop < 0), no norms, no sums.
+GROWTH_WINDOW_START = (-1, np.nan, np.nan, 0.0, 0, np.nan)
+
+
+@jit(inline=True)
+def growth_window_add(j, value, saturation, window):
+    """Feed probe ``j``'s scaled norm ``value`` to one sample's growth window, probe after probe (what the device
+    kernel does in registers, and :func:`growth_fit` along its stored probes).
+
+    ``window`` is ``(stop, older, old, total, count, first)``: ``stop`` the first probe whose norm is not finite and
+    positive or exceeds ``saturation`` (-1 while none has), the last two norms of the window, the sum and count of
+    the linear-prediction terms ``d_k = (s_{k+1} + s_{k-1} - 2 s_k) / (2 s_k)`` (``s = norm²``, ``k`` the window's
+    interior points) and the first norm. Returns the updated window (unchanged once closed).
+    """
+    stop, older, old, total, count, first = window
+    if stop >= 0:
+        return window
+    if not (math.isfinite(value) and value > 0.0) or value > saturation:
+        return j, older, old, total, count, first
+    if j == 0:
+        first = value
+    if j >= 2:
+        s0 = older * older
+        s1 = old * old
+        s2 = value * value
+        total += (s2 + s0 - 2.0 * s1) / (2.0 * s1)
+        count += 1
+    return stop, old, value, total, count, first
+
+
+@jit(inline=True)
+def growth_window_rate(window, p, h, min_points):
+    """``(rate, points, first, last)`` of a growth window fed ``p`` probes ``h`` apart: the rate
+    ``asinh(sqrt(d/2)) / h`` of the mean term ``d`` (1/s) and the window's length, or NaN and 0 when the window has
+    fewer than ``min_points`` points or does not grow; its first and last norm, rad/s."""
+    stop, _, last, total, count, first = window
+    if stop < 0:
+        stop = p
+    mean = total / count if count else np.nan
+    value = math.asinh(math.sqrt(mean / 2.0)) / h if mean > 0.0 else np.nan
+    if stop >= min_points and mean > 0.0 and math.isfinite(value):
+        return value, stop, first, last
+    return np.nan, 0, first, last
+
+
 @jit(parallel=True, contract=False)
 def growth_fit(times, row, norms, saturation, min_points, rate, points, code):
     """Exponential growth rate of each sample's norm by linear prediction inside its linear regime.
@@ -247,7 +292,8 @@ def growth_fit(times, row, norms, saturation, min_points, rate, points, code):
     The window is ``[0, stop)``, ``stop`` the first time whose norm is not finite and positive or exceeds the
     sample's ``saturation``; each interior point ``k`` of the window (``k + 1 < stop``) gives
     ``d_k = (s_{k+1} + s_{k-1} - 2 s_k) / (2 s_k)`` with ``s = norm²``; the rate is ``asinh(sqrt(d/2)) / h``
-    of their mean ``d`` (see :func:`tumble.measure.estimators.growth_rates`).
+    of their mean ``d`` (see :func:`tumble.measure.estimators.growth_rates`). The window is fed probe by probe
+    (:func:`growth_window_add`, :func:`growth_window_rate`), as the device kernel feeds it without storing the probes.
 
     Parameters
     ----------
@@ -271,30 +317,15 @@ def growth_fit(times, row, norms, saturation, min_points, rate, points, code):
     for i in numba.prange(n):
         t = times[row[i]]
         h = (t[p - 1] - t[0]) / (p - 1)
-        stop = p
+        window = GROWTH_WINDOW_START
         for j in range(p):
-            value = norms[i, j]
-            if not (math.isfinite(value) and value > 0.0) or value > saturation[i]:
-                stop = j
+            window = growth_window_add(j, norms[i, j], saturation[i], window)
+            if window[0] >= 0:
                 break
-        total = 0.0
-        count = 0
-        for k in range(1, min(p - 1, stop - 1)):
-            s0 = norms[i, k - 1] * norms[i, k - 1]
-            s1 = norms[i, k] * norms[i, k]
-            s2 = norms[i, k + 1] * norms[i, k + 1]
-            total += (s2 + s0 - 2.0 * s1) / (2.0 * s1)
-            count += 1
-        mean = total / count if count else np.nan
-        value = math.asinh(math.sqrt(mean / 2.0)) / h if mean > 0.0 else np.nan
-        if stop >= min_points and mean > 0.0 and math.isfinite(value):
-            rate[i] = value
-            points[i] = stop
-            code[i] = FIT_OK
-        else:
-            rate[i] = np.nan
-            points[i] = 0
-            code[i] = FIT_SHORT_WINDOW
+        value, stop, _, _ = growth_window_rate(window, p, h, min_points)
+        rate[i] = value
+        points[i] = stop
+        code[i] = FIT_OK if stop > 0 else FIT_SHORT_WINDOW
 
 
 @jit

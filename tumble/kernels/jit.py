@@ -3,7 +3,15 @@
 Every kernel in :mod:`tumble.kernels` is compiled through :func:`jit` so that caching, fast-math and the
 error model are decided here and nowhere else.
 
-* ``cache=True``: compiled machine code is kept on disk (``__pycache__``) so only the first run pays.
+* A disk cache: compiled machine code is kept on disk (numba's ``__pycache__`` beside the sources, else its
+  user-wide folder, or ``NUMBA_CACHE_DIR``) so only the first run pays. It is numba's cache with two changes
+  (:class:`CheckedCache`), because the cache is an optimisation and must never stop a run: every file carries the
+  SHA-256 of its bytes and is checked before use, so a damaged file (cut short, zeroed, one bit flipped: numba
+  itself would raise ``UnpicklingError``, an LLVM bitcode error, or run the damaged machine code and die of
+  SIGILL) is removed and its kernel compiled again, with one :class:`CacheWarning` naming the folder; and a cache
+  that cannot be written (a full disk, a folder made read-only) warns once and the run goes on. Where no folder
+  can hold a cache at all (a read-only install and a read-only home), kernels run uncached, with one warning.
+  The files are ``*.tbi`` / ``*.tbc`` (numba's own are ``*.nbi`` / ``*.nbc``).
 * ``fastmath``: only ``contract`` (fused multiply-add), ``arcp`` (multiply by a reciprocal) and ``nsz``
   (ignore the sign of zero). ``nnan``/``ninf`` are deliberately left out: they let LLVM delete
   ``x != x`` and ``isfinite`` tests, and blow-up detection must keep working (numba issues #9383, #6217).
@@ -16,13 +24,153 @@ The device kernels (:mod:`tumble.kernels.cuda`) are compiled through :func:`cuda
 call are compiled for the device by numba-cuda with the options above (it copies a CPU function's options).
 """
 
+import hashlib
+import io
+import os
+import pickle
+import warnings
+
 import numba
+from numba.core import caching
+
+from .. import _disk
 
 FASTMATH = frozenset({"contract", "arcp", "nsz"})
 
 _NUMBA_IR_INLINE = True
 
-_OPTIONS = dict(cache=True, fastmath=set(FASTMATH), error_model="numpy", nogil=True)
+# No ``cache=True``: :func:`jit` gives every kernel a :class:`CheckedCache` itself.
+_OPTIONS = dict(fastmath=set(FASTMATH), error_model="numpy", nogil=True)
+
+
+class CacheWarning(UserWarning):
+    """numba's disk cache of compiled kernels is damaged, full or unwritable; the run goes on (see :class:`CheckedCache`)."""
+
+
+class _Damaged(Exception):
+    """A cache file whose checksum does not match its bytes."""
+
+
+_DIGEST_SIZE = hashlib.sha256().digest_size
+
+
+class _CheckedCacheFile(caching.IndexDataCacheFile):
+    """numba's index and data files of one function, each written as the SHA-256 of its bytes followed by the
+    bytes, and checked when read (:class:`_Damaged`)."""
+
+    def __init__(self, cache_path, filename_base, source_stamp):
+        super().__init__(cache_path, filename_base, source_stamp)
+        self._index_name = f"{filename_base}.tbi"
+        self._index_path = os.path.join(cache_path, self._index_name)
+        self._data_name_pattern = f"{filename_base}.{{number:d}}.tbc"
+
+    def _read(self, path):
+        with open(path, "rb") as f:
+            raw = f.read()
+        payload = raw[_DIGEST_SIZE:]
+        if len(raw) < _DIGEST_SIZE or hashlib.sha256(payload).digest() != raw[:_DIGEST_SIZE]:
+            raise _Damaged(f"{path}: its checksum does not match its bytes")
+        return payload
+
+    def _write(self, path, payload):
+        with self._open_for_write(path) as f:
+            f.write(hashlib.sha256(payload).digest())
+            f.write(payload)
+
+    def _load_index(self):
+        try:
+            stream = io.BytesIO(self._read(self._index_path))
+        except FileNotFoundError:
+            return {}
+        if pickle.load(stream) != self._version:  # another numba: its entries are not ours to read
+            return {}
+        stamp, overloads = pickle.loads(stream.read())
+        return overloads if stamp == self._source_stamp else {}
+
+    def _save_index(self, overloads):
+        version = pickle.dumps(self._version, protocol=-1)
+        self._write(self._index_path, version + self._dump((self._source_stamp, overloads)))
+
+    def _load_data(self, name):
+        return pickle.loads(self._read(self._data_path(name)))
+
+    def _save_data(self, name, data):
+        self._write(self._data_path(name), self._dump(data))
+
+    def discard(self):
+        """Remove this function's index and data files (the kernel is then compiled and saved afresh)."""
+        prefix = self._index_name[: -len(".tbi")] + "."
+        with os.scandir(self._cache_path) as entries:
+            for entry in entries:
+                if entry.name.startswith(prefix) and entry.name.endswith((".tbi", ".tbc")):
+                    try:
+                        os.unlink(entry.path)
+                    except FileNotFoundError:
+                        pass
+
+
+#: Cache folders already reported (one warning per folder and kind of trouble, not one per kernel).
+_REPORTED = set()
+
+
+def _warn_once(kind, folder, message):
+    if (kind, folder) not in _REPORTED:
+        _REPORTED.add((kind, folder))
+        warnings.warn(message, CacheWarning, stacklevel=4)
+
+
+class CheckedCache(caching.FunctionCache):
+    """numba's cache of one function, made safe to lose.
+
+    * Loading: a file whose checksum does not match, or that numba cannot read (``UnpicklingError``, an LLVM
+      bitcode error, any other error), is removed and the kernel compiled again; one :class:`CacheWarning` per
+      folder names it.
+    * Saving: a folder that cannot be written (full disk, read-only) is reported once per folder, with its disk's
+      free space; the compiled kernel is used all the same.
+    """
+
+    def __init__(self, py_func):
+        super().__init__(py_func)
+        self._cache_file = _CheckedCacheFile(self._cache_path, self._impl.filename_base,
+                                             self._impl.locator.get_source_stamp())
+
+    def load_overload(self, sig, target_context):
+        try:
+            return super().load_overload(sig, target_context)
+        except Exception as err:  # noqa: BLE001 - a cache entry that cannot be loaded is recompiled, never trusted
+            try:
+                self._cache_file.discard()
+            except OSError:
+                pass
+            reason = str(err) if isinstance(err, _Damaged) else f"{type(err).__name__}: {err}"
+            _warn_once("damaged", self._cache_path,
+                       f"numba's cache of compiled kernels in {self._cache_path} held a damaged file ({reason}); "
+                       f"removed it, compiling that kernel again")
+            return None
+
+    def save_overload(self, sig, data):
+        try:
+            super().save_overload(sig, data)
+        except OSError as err:
+            what = _disk.disk_problem(err, self._cache_path) or err.strerror or str(err)
+            _warn_once("unwritable", self._cache_path,
+                       f"cannot save compiled kernels in numba's cache {self._cache_path}: {what}; this run goes on, "
+                       f"the next one compiles them again")
+
+
+def _enable_cache(dispatcher):
+    """Give ``dispatcher`` a :class:`CheckedCache` (what ``numba.njit(cache=True)`` does with numba's own), or run it
+    uncached, with one warning, where numba finds no folder it can write a cache in."""
+    try:
+        dispatcher._cache = CheckedCache(dispatcher.py_func)  # noqa: SLF001 - numba's enable_caching sets the same
+    except RuntimeError as err:  # "cannot cache function ...: no locator available for file ..."
+        if "no locator available" not in str(err):
+            raise
+        folder = os.path.join(os.path.dirname(os.path.abspath(dispatcher.py_func.__code__.co_filename)), "__pycache__")
+        _warn_once("nowhere", "", f"no folder can hold numba's cache of compiled kernels ({folder} and numba's "
+                                  f"user-wide cache folder are read-only): running without a cache, every run compiles "
+                                  f"its kernels again; set NUMBA_CACHE_DIR to a writable folder to keep them")
+    return dispatcher
 
 
 def jit(fn=None, *, parallel=False, inline=False, contract=True):
@@ -47,7 +195,7 @@ def jit(fn=None, *, parallel=False, inline=False, contract=True):
         options["inline"] = "always"
 
     def wrap(f):
-        return numba.njit(**options)(f)
+        return _enable_cache(numba.njit(**options)(f))
 
     return wrap if fn is None else wrap(fn)
 

@@ -11,7 +11,8 @@ from .attitude import FAMILY_MIDPOINT, FAMILY_RUNGE_KUTTA, FAMILY_SPLITTING, pro
 from .drivers import driver
 from .steppers import TORQUE_CONSTANT, body_constants
 
-__all__ = ["BLOCK", "METHODS", "Method", "Observed", "from_kernel_frame", "kernel_frame", "run", "run_attitude"]
+__all__ = ["BLOCK", "METHODS", "Method", "Observed", "from_kernel_frame", "kernel_frame", "kernel_observed_axis", "run",
+           "run_attitude"]
 
 # Samples per SIMD block: large enough to amortise the per-step dispatch, small enough to stay in L1.
 BLOCK = 256
@@ -61,6 +62,7 @@ class Observed(NamedTuple):
     drift: np.ndarray | None  # (2, N): max |E/E0 - 1|, max ||L|²/|L0|² - 1|
     status: np.ndarray  # (N,) int8
     steps_taken: np.ndarray  # (N,) int64
+    growth: tuple | None = None  # the device's growth fit (tumble.kernels.cuda.run): rate, points, first, last (N,)
 
 
 def _relabelling(method, moments, torque_params, torque_fn):
@@ -156,6 +158,17 @@ def kernel_frame(method, w, moments, torque_params, torque_fn):
     return w, body_constants(moments), torque_params, relabel
 
 
+def kernel_observed_axis(relabel, axis, norm_weights):
+    """The spin axis (0-based) and the transverse norm's weights (ndarray (3,)) in the kernel frame of
+    :func:`kernel_frame` (``relabel``), from ``axis`` and ``norm_weights`` (None: all 1) in the body's; shared by the
+    CPU driver and the device."""
+    weights = _UNIT_WEIGHTS if norm_weights is None else np.ascontiguousarray(norm_weights, dtype=float)
+    if relabel is None:
+        return axis, weights
+    perm, _ = relabel
+    return int(np.argsort(perm)[axis]), weights[perm]
+
+
 def from_kernel_frame(relabel, x, axis=0):
     """``x`` (components along ``axis``) back from the kernel frame of :func:`kernel_frame`."""
     if relabel is None:
@@ -207,12 +220,7 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
     """
     n = w.shape[1]
     kernel_w, constants, torque_params, relabel = kernel_frame(method, w, moments, torque_params, torque_fn)
-    kernel_axis = axis
-    weights = _UNIT_WEIGHTS if norm_weights is None else np.ascontiguousarray(norm_weights, dtype=float)
-    if relabel is not None:
-        perm, sign = relabel
-        kernel_axis = int(np.argsort(perm)[axis])
-        weights = weights[perm]
+    kernel_axis, weights = kernel_observed_axis(relabel, axis, norm_weights)
     if torque_fn is not None and torque_params is None:
         torque_params = np.zeros(0)
 

@@ -40,6 +40,7 @@ __all__ = [
     "Summary",
     "flip_statistics",
     "growth_rates",
+    "growth_window_fit",
     "invariant_weights",
     "medians",
     "median_interval_rank",
@@ -160,12 +161,20 @@ def growth_rates(times, norms, saturation, *, row=None):
     rate, points, code = np.empty(n), np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int8)
     row = np.ascontiguousarray(row, dtype=np.int64)
     fits.growth_fit(times, row, norms, saturation, MIN_POINTS, rate, points, code)
-    good = code == FIT_OK
-    last = np.clip(points - 1, 0, p - 1)
-    rows = np.arange(n)
-    nan = np.full(n, np.nan)
-    return GrowthFit(rate, np.where(good, times[row, 0], nan), np.where(good, times[row, last], nan),
-                     np.where(good, norms[:, 0], nan), np.where(good, norms[rows, last], nan), points, code)
+    last = norms[np.arange(n), np.clip(points - 1, 0, p - 1)]
+    return growth_window_fit(times[row], rate, points, norms[:, 0], last)
+
+
+def growth_window_fit(times, rate, points, first, last):
+    """The :class:`GrowthFit` of per-sample growth windows fitted already (the engine's ``growth_window``, which the
+    device fits in its kernel): ``rate`` (1/s, NaN where the fit failed), ``points`` (0 there), the window's
+    ``first`` and ``last`` norm (rad/s), on probe ``times`` (P,) or one row per sample (N, P), s."""
+    good = points > 0
+    times = np.broadcast_to(times, (len(rate), np.shape(times)[-1]))
+    nan = np.full(len(rate), np.nan)
+    stop = times[np.arange(len(rate)), np.clip(points - 1, 0, times.shape[1] - 1)]
+    return GrowthFit(rate, np.where(good, times[:, 0], nan), np.where(good, stop, nan), np.where(good, first, nan),
+                     np.where(good, last, nan), points, np.where(good, FIT_OK, FIT_SHORT_WINDOW).astype(np.int8))
 
 
 #: Rows (samples x times) a modal projection gathers at a time: a block of rows stays in the CPU's cache between the

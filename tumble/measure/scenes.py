@@ -43,7 +43,7 @@ from tqdm.auto import tqdm
 from .. import registry
 from .._version import __version__
 from ..engine.ensemble import flip_times, observation_times, run_ensemble, torque_spec
-from ..engine.device import not_on_device, resolve_device
+from ..engine.device import LAUNCH_SAMPLES, not_on_device, resolve_device
 from ..engine.integration import integrate
 from ..engine.sampling import CHUNK, perturbed_spins, seed_entropy
 from ..physics import exact, theory
@@ -192,6 +192,7 @@ class Scene:
     entropy: int  # the seed's entropy
     distribution: str
     curves: tuple = field(default=())
+    device: str = "cpu"  # where the samples step (resolved: "cpu" or "cuda")
 
 
 def _neutral_plane(moments, a):
@@ -352,9 +353,11 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
     progress : bool, optional
         Progress bar (default: on a terminal only).
     device : {"cpu", "cuda"}
-        Where the scene runs. A scene's observers (probe norms, fits, flips) and the closed form are not on the
-        CUDA device yet: ``"cuda"`` raises the ``ValueError`` ``device 'cuda': ...`` (where numba-cuda or a GPU is
-        missing, saying so), never a silent run on the CPU.
+        Where the scene's samples step. On ``"cuda"`` a stepping scene (a named fixed-step method, or a torque) runs
+        its samples and their observers (probe norms, flips, early stop) on the device and only the per-sample
+        arrays the fits need come back; the fits and the reduction run on the host. The closed form is not on the
+        device yet: a closed-form scene (``"exact"``, or ``"auto"`` torque-free) raises the ``ValueError``
+        ``device 'cuda': ...``, as does a device that is missing (saying what is), never a silent run on the CPU.
 
     Returns
     -------
@@ -383,11 +386,18 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
     return scene_result(scene, [scene_samples(scene, 0, scene.samples, progress=progress)])
 
 
-def scenes_on_device(device):
-    """Check a scene's ``device`` (``"cpu"`` passes): a scene measures with observers that are not on the CUDA device
-    yet, so ``"cuda"`` raises :class:`tumble.engine.device.DeviceError` (after saying what is missing, where it is)."""
-    if resolve_device(device) == "cuda":
-        raise not_on_device("a scene's measurement (the closed form, probe norms, growth and phase fits, flips) is")
+def scenes_on_device(device, methods=(), *, torque_free=True):
+    """Check the ``device`` of scenes asking for ``methods`` (as given: ``"auto"`` too), and return it resolved.
+
+    On ``"cuda"`` a scene on the closed form (``"exact"``, or ``"auto"`` for a torque-free scene) raises
+    :class:`tumble.engine.device.DeviceError`: the closed form is not on the device yet. A device that cannot run
+    raises it too, saying what is missing (:func:`tumble.engine.device.resolve_device`).
+    """
+    device = resolve_device(device)
+    if device == "cuda" and any(m == "exact" or (m == registry.AUTO and torque_free) for m in methods):
+        raise not_on_device("a scene on the closed form (method 'exact', which 'auto' picks for a torque-free scene) "
+                            "is")
+    return device
 
 
 def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="auto", *, dt=None, flips=3,
@@ -407,7 +417,7 @@ def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, metho
     """
     moments, axis, spin, amplitude, samples, flips = _validate_scene(body, axis, spin, amplitude, samples,
                                                                      method, flips, distribution)
-    scenes_on_device(device)
+    device = resolve_device(device)
     if dt is not None and (not np.isfinite(dt) or dt <= 0):
         raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
     if horizon is not None and (not np.isfinite(horizon) or horizon <= 0):
@@ -420,6 +430,7 @@ def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, metho
     a = axis - 1
     kind, value = theory.linear(moments, axis, spin)
     spin_up = _axial_spin_up(torque, moments, a, kind, spin)
+    scenes_on_device(device, [method], torque_free=spin_up is None)
     chosen, _ = registry.choose_method(method, torque_free=spin_up is None)
     if chosen == "exact":  # before the plan, whose horizon already takes the closed form's set-up
         exact.compile_kernels_side_by_side(kind)
@@ -440,7 +451,7 @@ def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, metho
                  chosen=chosen, kind=kind, value=value, spin_up=spin_up,
                  torque=torque if spin_up is not None else None, plan=plan,
                  flips=flips if kind == "exponential" else 0, entropy=entropy, distribution=distribution,
-                 curves=curves)
+                 curves=curves, device=device)
 
 
 #: Per-sample arrays of a :func:`scene_samples` range, by scene kind (and the flip times, when timed).
@@ -481,8 +492,9 @@ def scene_samples(scene, start, stop, *, progress=False):
     out = _empty_part(scene, start, stop)
     value = scene.value
     computed = skipped = 0
-    for lo in range(start, stop, SLICE):
-        hi = min(lo + SLICE, stop)
+    step = SLICE if scene.device == "cpu" else max(SLICE, LAUNCH_SAMPLES)  # a device launch needs many samples
+    for lo in range(start, stop, step):
+        hi = min(lo + step, stop)
         w0 = perturbed_spins(moments, axis, spin, scene.amplitude, samples, seed=scene.entropy,
                              distribution=scene.distribution, start=lo, stop=hi)
         result = run_ensemble(moments, w0, plan.t_end, plan.dt, method=scene.chosen, axis=axis, final=False,
@@ -490,17 +502,18 @@ def scene_samples(scene, start, stop, *, progress=False):
                               probe_times=plan.probe_times if growth else None,
                               norm_weights=plan.weights if growth else None, max_flips=n_flips,
                               stop_norm=plan.saturation if growth else 0.0, stop_flips=n_flips,
-                              torque=scene.torque, progress=progress)
+                              torque=scene.torque, progress=progress, device=scene.device,
+                              growth_window=(plan.saturation, analysis.MIN_POINTS) if growth else None,
+                              keep_probes=keep_norm and lo == 0)
         info = result.info
-        computed += info["sample_steps_computed"]
-        skipped += info["sample_steps_skipped"]
+        computed, skipped = computed + info["sample_steps_computed"], skipped + info["sample_steps_skipped"]
         rows = slice(lo - start, hi - start)
-        if growth:
-            fit = analysis.growth_rates(result.probe_times, result.probes, plan.saturation)
+        if growth:  # fitted by the engine: on the device in the kernel, no norm comes back (but the norm curve's)
+            fit = analysis.growth_window_fit(result.probe_times, *result.growth)
             if keep_norm and lo == 0:
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns after every sample stopped
-                    quartiles = np.nanquantile(result.probes, [0.25, 0.5, 0.75], axis=0)
+                    quartiles = np.nanquantile(result.probes[:SLICE], [0.25, 0.5, 0.75], axis=0)  # as on the CPU
                 out.update(norm_time=result.probe_times, norm_q1=quartiles[0], norm_median=quartiles[1],
                            norm_q3=quartiles[2])
             out["rate"][rows] = fit.rate
@@ -752,7 +765,7 @@ def _scene_record(scene, joined, summary, rate, code, medians, flips):
     if "trace" in scene.curves:
         w_trace = perturbed_spins(moments, axis, spin, amplitude, 1, seed=scene.entropy,
                                   distribution=scene.distribution)
-        kept["trace"] = _trace(moments, w_trace, plan, scene.chosen, scene.torque)
+        kept["trace"] = _trace(moments, w_trace, plan, scene.chosen, scene.torque, scene.device)
     record.update(_curves(kept, scene.curves))
     record.update(I1=moments[0], I2=moments[1], I3=moments[2], axis=np.int64(axis), spin=spin, amplitude=amplitude,
                   method=scene.method, sample=np.arange(scene.samples, dtype=np.int64))
@@ -801,7 +814,7 @@ def _spin_up_rate(spin_up, value, spin, times):
     return float(np.polyfit(times, phase, 1)[0])
 
 
-def _trace(moments, w0, plan, method, torque):
+def _trace(moments, w0, plan, method, torque, device="cpu"):
     """``(times, omega (T, 3))`` of one sample over the scene's horizon, about :data:`TRACE_POINTS` points."""
     if method == "exact":
         # The set-up and the grid kernel apart, which the scene's samples have loaded already: the fused one-call
@@ -809,7 +822,7 @@ def _trace(moments, w0, plan, method, torque):
         times = np.linspace(0.0, plan.t_end, TRACE_POINTS)
         return times, exact.omega_apart(moments, w0, times)[0]
     every = max(1, -(-plan.n_steps // TRACE_POINTS))
-    ds = integrate(moments, w0, plan.t_end, plan.dt, method=method, torque=torque, save_every=every)
+    ds = integrate(moments, w0, plan.t_end, plan.dt, method=method, torque=torque, save_every=every, device=device)
     return ds.time.values, ds.omega.values[0]
 
 

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import contextlib
 import datetime
+import errno
 import json
 import numbers
 import os
@@ -46,9 +47,11 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from .. import _disk
 from .._version import __version__
 
-__all__ = ["check_tumble_result", "netcdf_safe_attrs", "provenance", "read_dataset", "write_dataset"]
+__all__ = ["assume_no_dask_arrays", "check_tumble_result", "netcdf_safe_attrs", "provenance", "read_dataset",
+           "stored_form", "write_dataset"]
 
 #: Value of the global ``Conventions`` attribute.
 CONVENTIONS = "CF-1.10"
@@ -304,7 +307,19 @@ def _fsync_path(path):
         os.close(fd)
 
 
-def write_dataset(ds, path, *, compression=4, **provenance_kwargs):
+def stored_form(ds, **provenance_kwargs):
+    """``ds`` as :func:`write_dataset` stores it: with its provenance, object-dtype strings as ``<U``, no encodings.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+    **provenance_kwargs
+        ``title``, ``study``, ``seed_entropy``, ``action``: passed to :func:`provenance`.
+    """
+    return _strings_as_unicode(provenance(ds, **provenance_kwargs)).drop_encoding()
+
+
+def write_dataset(ds, path, *, compression=4, stored=False, **provenance_kwargs):
     """Write ``ds`` to a netCDF4 file atomically; return the dataset exactly as stored.
 
     The file is written to a temporary ``.<name>.*.part`` file in the folder of ``path``, flushed to disk
@@ -319,14 +334,15 @@ def write_dataset(ds, path, *, compression=4, **provenance_kwargs):
         Destination; missing parent folders are created.
     compression : int, 0..9
         zlib level for numeric variables (with the shuffle filter); 0 writes uncompressed.
+    stored : bool
+        ``ds`` is already :func:`stored_form`'s result (``provenance_kwargs`` are then not used).
     **provenance_kwargs
         ``title``, ``study``, ``seed_entropy``, ``action``: passed to :func:`provenance`.
 
     Returns
     -------
     xarray.Dataset
-        ``provenance(ds, ...)`` with object-dtype string variables converted to ``<U`` and encodings
-        dropped; ``read_dataset(path)`` is identical to it.
+        :func:`stored_form` of ``ds``; ``read_dataset(path)`` is identical to it.
 
     Raises
     ------
@@ -335,7 +351,8 @@ def write_dataset(ds, path, *, compression=4, **provenance_kwargs):
     TypeError
         If an attribute cannot be stored (see :func:`netcdf_safe_attrs`).
     OSError
-        If the file cannot be written.
+        If the file cannot be written; for a full disk (which netCDF4 reports as "Permission denied" or
+        ``RuntimeError: NetCDF: HDF error``) the message says so: ``the disk holding <folder> is full (...)``.
     """
     if (
         isinstance(compression, (bool, np.bool_))
@@ -344,14 +361,48 @@ def write_dataset(ds, path, *, compression=4, **provenance_kwargs):
     ):
         raise ValueError(f"compression must be an integer from 0 to 9, got {compression!r}")
     compression = int(compression)
-    stored = _strings_as_unicode(provenance(ds, **provenance_kwargs)).drop_encoding()
-    encoding = _encoding(stored, compression)
+    if not stored:
+        ds = stored_form(ds, **provenance_kwargs)
+    encoding = _encoding(ds, compression)
 
     path = Path(os.fspath(path))
     path.parent.mkdir(parents=True, exist_ok=True)
     with replaced_atomically(path, durable=True) as tmp:
-        stored.to_netcdf(tmp, mode="w", format="NETCDF4", engine="netcdf4", encoding=encoding)
-    return stored
+        try:
+            ds.to_netcdf(tmp, mode="w", format="NETCDF4", engine="netcdf4", encoding=encoding)
+        except (OSError, RuntimeError) as err:  # netCDF4: a full disk is "Permission denied" or "NetCDF: HDF error"
+            # asked while the half-written file still takes its room
+            problem = _disk.disk_problem(err, path.parent, needed=ds.nbytes)
+            if problem:
+                raise OSError(errno.ENOSPC, f"{problem} (writing {path.name})") from err
+            if isinstance(err, RuntimeError):  # netCDF4's bare "NetCDF: HDF error" names no file
+                raise OSError(errno.EIO, f"{err} (writing {path})") from err
+            raise
+    return ds
+
+
+def assume_no_dask_arrays():
+    """Tell xarray that this process holds no dask array, so that it does not import ``dask.array`` to look for one.
+
+    Where dask is installed (the ``distributed`` extra), xarray imports ``dask.array`` (0.35 s on 2 cores) the
+    first time it builds a variable, to recognise dask arrays among its inputs. tumble never makes one (its dask
+    use is futures of whole chunks), so the processes that are tumble's own — the command line and its
+    :mod:`figure process <tumble.pipeline.figure_process>` — call this first. It fills xarray's cache of array
+    modules with what it finds where dask is not installed; were a dask array met after all, xarray would treat
+    it as array-like and compute it, which is slower, not different. A library caller's process is never told
+    this. It uses a private name of xarray's: where that is gone, nothing is done (and the import is paid).
+    """
+    try:
+        from xarray.namedarray import pycompat
+    except ImportError:
+        return
+    cache = getattr(pycompat, "_cached_duck_array_modules", None)
+    module_class = getattr(pycompat, "DuckArrayModule", None)
+    if not isinstance(cache, dict) or module_class is None or "dask" in cache:
+        return
+    absent = object.__new__(module_class)  # the fields DuckArrayModule.__init__ sets when the import fails
+    absent.module, absent.version, absent.type, absent.available = None, pycompat.Version("0.0.0"), (), False
+    cache["dask"] = absent
 
 
 @contextlib.contextmanager

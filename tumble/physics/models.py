@@ -229,18 +229,26 @@ class Model:
 
     # Each model defines: rhs, jacobian, invariants, equilibrium, transverse.
     def rhs(self, state):  # pragma: no cover - abstract
+        """The time derivative of ``state`` (shape (..., n), n = :attr:`state_size`), same shape; each model
+        says its units."""
         raise NotImplementedError
 
     def jacobian(self, state):  # pragma: no cover - abstract
+        """``∂ rhs / ∂ state`` at ``state`` (shape (..., n)): shape (..., n, n)."""
         raise NotImplementedError
 
     def invariants(self, state):  # pragma: no cover - abstract
+        """The conserved quantities of ``state`` (shape (..., n)): ``{name: array of shape (...)}``, named as in
+        ``registry.MODELS``."""
         raise NotImplementedError
 
     def equilibrium(self, axis, spin=1.0):  # pragma: no cover - abstract
+        """The steady state of a spin ``spin`` (rad/s) about body ``axis`` (1, 2 or 3): shape (..., n)."""
         raise NotImplementedError
 
     def transverse(self, axis, spin=1.0):  # pragma: no cover - abstract
+        """The :class:`Transverse` description of a perturbation of the steady spin about ``axis``: the state
+        columns across it and their weights (:meth:`transverse_norm`)."""
         raise NotImplementedError
 
 

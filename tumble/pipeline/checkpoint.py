@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import fcntl
 import hashlib
 import io as io_module
 import json
@@ -40,10 +41,11 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .. import _disk
 from .._version import __version__
 from ..output import io
 
-__all__ = ["Checkpoint", "Finished", "OutputError", "chunk_folder", "local_file_locks", "normalise_scene",
+__all__ = ["Checkpoint", "Finished", "FolderBusy", "OutputError", "chunk_folder", "local_file_locks", "normalise_scene",
            "pack_samples", "pack_scenes", "samples_name", "scenes_name", "study_hash", "unpack"]
 
 #: Suffix of a finished chunk file (a NumPy archive; deliberately not ``.nc``).
@@ -61,6 +63,15 @@ _NOT_HASHED = {"outputs": ("format", "directory")}
 
 class OutputError(OSError):
     """A result or checkpoint file could not be written (unwritable folder, disk full)."""
+
+
+class FolderBusy(OutputError):
+    """Another process is running the study that writes the same ``<stem>.nc`` in the same folder."""
+
+
+def lock_path(directory, stem):
+    """``<directory>/.<stem>.lock``: the file a run writing ``<stem>.nc`` there holds locked (:meth:`Checkpoint.locked`)."""
+    return Path(directory) / f".{stem}.lock"
 
 
 def staging_folder(directory, stem):
@@ -132,7 +143,7 @@ def local_file_locks():
 
 
 def _write_error(path, err):
-    what = err.strerror or str(err)
+    what = _disk.disk_problem(err, Path(path).parent) or err.strerror or str(err)
     return OutputError(err.errno, f"cannot write {path}: {what}")
 
 
@@ -332,6 +343,58 @@ class Checkpoint:
         except OSError as err:
             raise _write_error(path, err) from err
         return path
+
+    @contextlib.contextmanager
+    def locked(self):
+        """Hold ``<directory>/.<stem>.lock`` (:func:`lock_path`) for the ``with`` block: one run at a time writes a
+        study's chunks, staging folder and result file in one folder.
+
+        The lock is the operating system's (``fcntl.flock``): it goes with the process, so a run killed by
+        ``kill -9`` or a power cut leaves no lock that blocks the next one. The lock file holds the process id of
+        its holder (for the message) and is removed when the block ends.
+
+        Raises
+        ------
+        FolderBusy
+            Another process holds the lock; nothing was changed.
+        OutputError
+            The lock file cannot be created (the message names it).
+        """
+        path = lock_path(self.directory, self.stem)
+        while True:
+            try:
+                self.directory.mkdir(parents=True, exist_ok=True)
+                fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+            except OSError as err:
+                raise _write_error(path, err) from err
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = os.read(fd, 32).decode(errors="replace").strip()
+                os.close(fd)
+                raise FolderBusy(errno.EBUSY, f"another tumble run (process {holder or 'unknown'}) is writing "
+                                              f"{self.stem}.nc in {self.directory}") from None
+            except BaseException:
+                os.close(fd)
+                raise
+            # The holder before us may have removed the file between our open and our lock: then we locked a file
+            # no one else will open, and must lock the one at the path now.
+            try:
+                same = os.stat(path).st_ino == os.fstat(fd).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
+            os.close(fd)
+        try:
+            with contextlib.suppress(OSError):  # the holder's id is for the message only (a full disk may refuse it)
+                os.ftruncate(fd, 0)
+                os.write(fd, f"{os.getpid()}\n".encode())
+            yield self
+        finally:
+            with contextlib.suppress(OSError):
+                os.unlink(path)  # while still locked: a waiting opener then finds another inode and retries
+            os.close(fd)
 
     def remove(self):
         """Remove the checkpoint folder (after the result file is written)."""

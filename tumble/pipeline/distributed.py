@@ -21,7 +21,7 @@ from __future__ import annotations
 import contextlib
 import os
 
-__all__ = ["SchedulerError", "available", "connect", "run_chunks", "scheduler_address"]
+__all__ = ["SchedulerError", "SchedulerLost", "available", "connect", "run_chunks", "scheduler_address"]
 
 #: Environment variable naming a running scheduler (dask's own convention).
 ENV_ADDRESS = "DASK_SCHEDULER_ADDRESS"
@@ -56,6 +56,11 @@ QUIET_LOCAL_CLUSTER = {
 
 class SchedulerError(ValueError):
     """An unusable ``--scheduler``: dask.distributed missing, or an address that is not one."""
+
+
+class SchedulerLost(RuntimeError):
+    """The dask scheduler went away mid-run (killed, its machine down, the network cut): the client cancelled every
+    task still out. The chunks that finished before are in the checkpoint; a rerun resumes from them."""
 
 
 def available():
@@ -231,6 +236,24 @@ def run_chunks(client, compute_task, job, tasks, digest=""):
     futures = {client.submit(compute_task, job_future, task, digest, threads=1, pure=False): task for task in tasks}
     try:
         for future, data in as_completed(futures, with_results=True, loop=client.loop):
+            if future.status == "cancelled" or not isinstance(data, bytes):  # dask's CancelledError, not a chunk
+                raise SchedulerLost(f"the dask scheduler at {client.scheduler.address} was lost: its tasks were "
+                                    f"cancelled ({data})")
             yield futures[future], data
+    except SchedulerLost:
+        _quiet_client(client)
+        raise
     finally:
-        client.cancel(list(futures))
+        if client.status == "running":
+            client.cancel(list(futures))
+
+
+def _quiet_client(client):
+    """Stop a client whose scheduler is gone from retrying and from logging its ERROR lines about it: close it now
+    (the caller reports the loss in one line)."""
+    import logging
+
+    for name in ("distributed.client", "distributed.batched", "distributed.core", "distributed.comm"):
+        logging.getLogger(name).setLevel(logging.CRITICAL)
+    with contextlib.suppress(Exception):
+        client.close(timeout=1)

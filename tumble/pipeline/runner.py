@@ -26,7 +26,8 @@ from typing import NamedTuple
 import numpy as np
 from tqdm.auto import tqdm
 
-from .. import registry
+from .. import _disk, registry
+from ..engine.device import DeviceError, not_on_device, resolve_device
 from ..engine.sampling import CHUNK
 from ..engine import cost
 from ..measure import model_scenes
@@ -124,7 +125,7 @@ def plan(resolved, file="<mapping>"):
     integ = resolved["integration"]
     options = {"dt": integ["dt"] or None, "flips": integ["flips"], "horizon": integ["horizon"] or None,
                "distribution": resolved["perturbation"]["distribution"], "torque": torque,
-               "curves": tuple(sorted({_CURVES[f] for f in figures if f in _CURVES}))}
+               "curves": tuple(sorted({_CURVES[f] for f in figures if f in _CURVES})), "device": integ["device"]}
     bodies = np.atleast_2d(moments)
     axes = values["axis"] if isinstance(values["axis"], list) else [values["axis"]]
     kinds = set(np.atleast_1d(theory.linear(bodies[:, None, :], np.asarray(axes)[None, :], 1.0)[0]).ravel().tolist())
@@ -266,9 +267,9 @@ def scene_job(resolved, file="<mapping>"):
         As :func:`plan`.
     """
     check_cost(resolved, file)
-    study.scenes_on_device(resolved["integration"]["device"])  # device 'cuda': refused before anything runs
     p = plan(resolved, file)
     values = p.values
+    _scenes_on_device(p, resolved["integration"]["device"])  # device 'cuda': refused before anything runs
     if "model" in p.options:
         swept = [key for key in values if key in p.scanned or (key == "spin" and "rate" in p.scanned)]
         layout = model_scenes.scan_layout(p.moments, values, swept)
@@ -276,6 +277,17 @@ def scene_job(resolved, file="<mapping>"):
         layout = study.scan_layout(p.moments, values["axis"], values["spin"], values["amplitude"], values["method"])
     return Job(layout, bool(p.scanned), p.samples, p.seed, p.options, p.body_coords, p, str(file),
                tuple(resolved["outputs"]["arrays"]))
+
+
+def _scenes_on_device(p, device):
+    """Refuse a study's scenes that cannot run on ``device`` before any runs (``device 'cuda': ...``): a model's
+    scenes, and scenes on the closed form (:func:`tumble.measure.scenes.scenes_on_device`)."""
+    if "model" in p.options:
+        if resolve_device(device) == "cuda":
+            raise not_on_device(f"a model's scene (model.kind = {p.options['model']!r}) is")
+        return
+    methods = p.values["method"] if isinstance(p.values["method"], list) else [p.values["method"]]
+    study.scenes_on_device(device, methods, torque_free=p.options["torque"] is None)
 
 
 class Task(NamedTuple):
@@ -303,6 +315,8 @@ def _scene_plan(job, index):
             return _model_scene_plan(job, moments, params)
         scene = study.scene_plan(moments, params["axis"], params["spin"], params["amplitude"], job.samples,
                                  job.seed, params["method"], **job.options)
+    except DeviceError:  # the device's own one line (device 'cuda': ...), as every call gives it
+        raise
     except ValueError as err:  # a value this scene cannot take: the study's fault, named as such (exit 2)
         label = " ".join(f"{key}={value}" for key, value in params.items())
         raise StudyError(file, f"scene {index} ({label})", str(err)) from None
@@ -536,8 +550,14 @@ def run_scenes(job, *, store=None, client=None, chunk_scenes=None, chunk_samples
     if client is not None:
         from . import distributed
 
-        for task, data in distributed.run_chunks(client, compute_task, job, tasks, digest):
-            finish(task, checkpoint.unpack(data, digest, n), data)
+        try:
+            for task, data in distributed.run_chunks(client, compute_task, job, tasks, digest):
+                finish(task, checkpoint.unpack(data, digest, n), data)
+        except distributed.SchedulerLost as err:
+            kept = (f"{sum(1 for _ in store.folder.glob('*' + checkpoint.CHUNK_SUFFIX))} finished chunk(s) are kept in "
+                    f"{store.folder}: rerun to resume" if store is not None and store.folder.is_dir()
+                    else "no finished chunk is kept")
+            raise distributed.SchedulerLost(f"{err}; {kept}") from None
     else:
         show = sys.stderr.isatty() if progress is None else progress
         with tqdm(total=n, initial=len(scenes), unit="scenes", disable=not (show and n > 1), desc="scan") as bar:
@@ -596,8 +616,11 @@ def open_checkpoint(resolved, job, directory, stem):
     return checkpoint.Checkpoint(directory, stem, checkpoint.study_hash(resolved), job.layout["scenes"])
 
 
-def write_outputs(ds, resolved, directory, stem, *, action=None):
+def write_outputs(ds, resolved, directory, stem, *, action=None, figure_process=None):
     """Write ``<directory>/<stem>.nc`` and the study's figures; return ``(stored dataset, paths)``.
+
+    ``figure_process`` (a :class:`~tumble.pipeline.figure_process.FigureProcess`, as ``tumble run`` starts one) draws
+    the figures while the netCDF file is written; without it, or if it cannot, they are drawn here.
 
     Raises
     ------
@@ -606,6 +629,7 @@ def write_outputs(ds, resolved, directory, stem, *, action=None):
     """
     directory = Path(directory)
     path = directory / f"{stem}.nc"
+    names, formats = resolved["outputs"]["figures"], tuple(resolved["outputs"]["format"])
     # The result set appears whole or not at all: the file and the figures are written into a hidden staging
     # folder beside the results, then renamed into place, figures first and the .nc last (renames within a
     # folder do not fail half-way); on any error or Ctrl-C before that, the staging folder goes and earlier
@@ -614,13 +638,17 @@ def write_outputs(ds, resolved, directory, stem, *, action=None):
     try:
         shutil.rmtree(staging, ignore_errors=True)
         staging.mkdir(parents=True)
+        stored = io.stored_form(ds, title=resolved["title"], study=resolved, seed_entropy=ds.attrs.get("seed_entropy"),
+                                action=action)
+        if figure_process is not None and names:
+            figure_process.submit(stored, names, staging, stem, formats)
         with checkpoint.local_file_locks():
-            stored = io.write_dataset(ds, staging / path.name, title=resolved["title"], study=resolved,
-                                      seed_entropy=ds.attrs.get("seed_entropy"), action=action)
-        from ..output import figures as plots  # matplotlib: only where figures are drawn
+            io.write_dataset(stored, staging / path.name, stored=True)
+        staged = figure_process.result() if figure_process is not None and names else None
+        if staged is None:
+            from ..output import figures as plots  # matplotlib: only where figures are drawn
 
-        staged = plots.save_figures(stored, resolved["outputs"]["figures"], staging, stem,
-                                    formats=tuple(resolved["outputs"]["format"]))
+            staged = plots.save_figures(stored, names, staging, stem, formats=formats)
         figures = [directory / figure.name for figure in staged]
         for figure in staged:
             os.replace(figure, directory / figure.name)
@@ -628,9 +656,11 @@ def write_outputs(ds, resolved, directory, stem, *, action=None):
     except checkpoint.OutputError:
         raise
     except OSError as err:
-        raise checkpoint.OutputError(err.errno, f"cannot write the results to {directory}: "
-                                                f"{err.strerror or err}") from err
+        what = _disk.disk_problem(err, directory) or err.strerror or err
+        raise checkpoint.OutputError(err.errno, f"cannot write the results to {directory}: {what}") from err
     finally:
+        if figure_process is not None:
+            figure_process.close()  # before the staging folder goes: it may still be writing into it
         shutil.rmtree(staging, ignore_errors=True)
     return stored, [path, *figures]
 
@@ -668,17 +698,31 @@ def prepare_study(source, *, overrides=None, out=None, formats=None, default_dir
 
 
 def execute_study(prepared, *, progress=None, client=None, chunk_scenes=None, chunk_samples=None, log=None,
-                  action=None):
+                  action=None, fresh=False, figure_process=None):
     """Run a prepared study's scenes (here, or on the dask ``client``), resuming from its checkpoint, and write
     its outputs; return ``(dataset, paths written)`` — the stored dataset when written, else ``(dataset, [])``.
-    ``log`` receives one line per resumed or finished chunk; ``action`` is the provenance's command."""
-    ds = _run(prepared.resolved, prepared.file, progress, job=prepared.job, store=prepared.store, client=client,
-              chunk_scenes=chunk_scenes, chunk_samples=chunk_samples, log=log)
+    ``log`` receives one line per resumed or finished chunk; ``action`` is the provenance's command; ``fresh``
+    discards the checkpoint first instead of resuming from it; ``figure_process`` draws the figures
+    (:func:`write_outputs`).
+
+    A run that writes holds its folder's lock for the study's stem (:meth:`tumble.pipeline.checkpoint.Checkpoint.locked`)
+    from before it reads the checkpoint until its files are in place: a second run of the same stem into the same
+    folder is refused at once (:class:`tumble.pipeline.checkpoint.FolderBusy`) instead of sharing its chunks and
+    staging folder.
+    """
     if prepared.directory is None:
+        ds = _run(prepared.resolved, prepared.file, progress, job=prepared.job, client=client,
+                  chunk_scenes=chunk_scenes, chunk_samples=chunk_samples, log=log)
         return ds, []
-    stored, paths = write_outputs(ds, prepared.resolved, prepared.directory, prepared.stem, action=action)
-    prepared.store.remove()
-    prepared.store.clean_partial_results()
+    with prepared.store.locked():
+        if fresh:
+            prepared.store.remove()
+        ds = _run(prepared.resolved, prepared.file, progress, job=prepared.job, store=prepared.store, client=client,
+                  chunk_scenes=chunk_scenes, chunk_samples=chunk_samples, log=log)
+        stored, paths = write_outputs(ds, prepared.resolved, prepared.directory, prepared.stem, action=action,
+                                      figure_process=figure_process)
+        prepared.store.remove()
+        prepared.store.clean_partial_results()
     return stored, paths
 
 
@@ -705,8 +749,10 @@ def run_study(source, *, overrides=None, out=None, progress=None, scheduler=None
         ``"tcp://HOST:PORT"``, or a connected ``distributed.Client`` (see :mod:`tumble.pipeline.distributed`).
         Default: in this process. The results are the same bits either way.
     device : {"cpu", "cuda"}, optional
-        Overrides the study's ``integration.device``; ``"cuda"`` is refused for now (``device 'cuda': ...``,
-        :func:`tumble.measure.scenes.scenes_on_device`), an invalid value is a ``StudyError`` naming the field.
+        Overrides the study's ``integration.device``. ``"cuda"`` runs the stepping scenes on the device; a study with
+        closed-form scenes (``method = "auto"`` torque-free, or ``"exact"``) or a ``[model]`` is refused before anything
+        runs (``device 'cuda': ...``, :func:`tumble.measure.scenes.scenes_on_device`); an invalid value is a
+        ``StudyError`` naming the field.
     chunk_scenes : int, optional
         Scenes per chunk (checkpoint and dask task); the results do not depend on it.
     chunk_samples : int, optional

@@ -1,0 +1,364 @@
+"""Sphinx extension of tumble's site: reference pages generated from the code, and the docstring check.
+
+Directives (used from the Markdown pages under ``docs/reference/``), each writing Markdown that MyST parses:
+
+``tumble-api``
+    The Python API: every name of ``tumble.__all__``, a function or class by autodoc, a module (``tumble.exact``,
+    ...) with the members of its ``__all__``.
+``tumble-study-keys``
+    Every key of ``studies/defaults.toml`` with its default, units, allowed values and the comment above it; the
+    ``[scan]`` keys from :data:`tumble.pipeline.config.SCAN_KEYS`. Allowed values come from
+    :mod:`tumble.registry` and :mod:`tumble.pipeline.config`, never from a copy.
+``tumble-netcdf``
+    The variables (dimensions, units, long name) and global attributes of a result file written by ``tumble run``
+    (the argument: a netCDF file, relative to the page).
+``tumble-gallery``
+    The figures of the bundled studies (the argument: ``studies/gallery/``, relative to the page), each under the
+    command that made it.
+
+Links: a Markdown link to a file of the repository outside ``docs/`` becomes its text (:class:`RepositoryLinks`);
+a Python reference may name a public module by its short path or where it lives (``tumble.io`` or
+``tumble.output.io``: :func:`_public_alias`).
+
+At ``builder-inited`` every public name (``tumble.__all__`` and the ``__all__`` of the public modules, with the
+public methods of public classes) is checked for a docstring; each one missing is a warning, so that the build
+with ``-W`` fails and names it.
+"""
+
+import inspect
+import re
+import tomllib
+from pathlib import Path
+
+from docutils import nodes
+from sphinx import addnodes
+from sphinx.transforms.post_transforms import SphinxPostTransform
+from sphinx.util import logging
+from sphinx.util.docutils import SphinxDirective
+
+logger = logging.getLogger(__name__)
+
+#: Units of the numeric study keys the registry does not describe (the models' keys come from
+#: ``registry.MODEL_PARAMETERS``); a numeric key found in neither fails the build.
+_UNITS = {
+    "body.moments": "kg m²",
+    "spin.axis": "1 (1-based axis)",
+    "spin.rate": "rad/s",
+    "spin.momentum": "N m s",
+    "perturbation.amplitude": "rad",
+    "perturbation.samples": "1 (count)",
+    "perturbation.seed": "1",
+    "integration.dt": "s",
+    "integration.horizon": "s",
+    "integration.flips": "1 (count)",
+    "torque.vector": "N m",
+    "torque.period": "s",
+    "torque.duration": "s",
+}
+
+
+def _allowed():
+    """Field path -> the values a study may give there, read from the code that checks them."""
+    from tumble import registry
+    from tumble.engine.sampling import DISTRIBUTIONS
+    from tumble.pipeline import config
+
+    return {
+        "body.shape": ("", *config.SHAPES),
+        "spin.axis": (1, 2, 3),
+        "model.kind": config.MODEL_KINDS,
+        "perturbation.distribution": DISTRIBUTIONS,
+        "integration.method": config.METHOD_NAMES,
+        "integration.device": registry.DEVICES,
+        "torque.profile": config.PROFILES,
+        "outputs.figures": config.FIGURES,
+        "outputs.format": config.FORMATS,
+        "outputs.arrays": config.ARRAYS,
+    }
+
+
+def _units():
+    from tumble import registry
+
+    return {**_UNITS, **{f"model.{p.key}": p.units for p in registry.MODEL_PARAMETERS}}
+
+
+def study_keys(path):
+    """``{(table, key): comment lines}`` for every ``key = value`` line of the defaults file at ``path``
+    (``table`` "" for the top level): the comment block right above the key. A table's first comment block that
+    stands alone (followed by a blank line, as ``[scan]``'s, a table without keys) is the table's, under key ""."""
+    comments, comment, table = {}, [], ""
+    for line in Path(path).read_text(encoding="utf-8").splitlines():
+        stripped = line.strip()
+        if stripped.startswith("#"):
+            comment.append(stripped[1:].removeprefix(" "))
+            continue
+        if stripped.startswith("["):
+            table = stripped.strip("[]")
+        elif stripped:
+            comments[(table, stripped.split("=")[0].strip())] = comment
+        elif comment:  # a comment block that ends in a blank line: the table's own (the first such)
+            comments.setdefault((table, ""), comment)
+        comment = []
+    return comments
+
+
+def _cell(text):
+    return str(text).replace("|", "\\|").replace("\n", " ")
+
+
+def _code(value):
+    return f"`{value!r}`" if isinstance(value, str) else f"`{value}`".replace("True", "true").replace("False", "false")
+
+
+def study_reference(path):
+    """Markdown: one table per study table of the defaults file at ``path``."""
+    from tumble.pipeline import config
+
+    defaults = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    allowed, units = _allowed(), _units()
+    comments, lines = study_keys(path), []
+    tables = ["", *(t for t in defaults if isinstance(defaults[t], dict))]
+    for table in tables:
+        values = defaults.get(table, {}) if table else {k: v for k, v in defaults.items() if not isinstance(v, dict)}
+        lines += [f"## `[{table}]`" if table else "## Top level", ""]
+        if table == "scan":
+            lines += ["```text", *comments.get((table, ""), []), "```", ""]
+            lines += ["| key | replaces |", "|---|---|"]
+            lines += [f"| `scan.{key}` | `{field}` |" for key, field in config.SCAN_KEYS.items()]
+            lines.append("")
+            continue
+        lines += ["| key | default | units | allowed values | meaning |", "|---|---|---|---|---|"]
+        for key, value in values.items():
+            field = f"{table}.{key}" if table else key
+            numeric = isinstance(value, (int, float)) and not isinstance(value, bool) or (
+                isinstance(value, list) and value and all(isinstance(v, (int, float)) for v in value))
+            unit = units.get(field, "")
+            if numeric and not unit:
+                logger.warning(f"study key {field!r} ({path}) is numeric but has no units: add it to _UNITS in "
+                               f"{__file__} (or to registry.MODEL_PARAMETERS)")
+            choice = allowed.get(field)
+            shown = ", ".join(_code(v) for v in choice) if choice else ""
+            text = " ".join(comments.get((table, key), []))
+            lines.append(f"| `{field}` | {_cell(_code(value))} | {_cell(unit)} | {_cell(shown)} | {_cell(text)} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def netcdf_reference(path):
+    """Markdown: the coordinates, variables and global attributes of the netCDF file at ``path``."""
+    import xarray as xr
+
+    with xr.open_dataset(path) as ds:
+        lines = ["| variable | dimensions | units | long name |", "|---|---|---|---|"]
+        for kind, names in (("coordinate", ds.coords), ("data", ds.data_vars)):
+            for name in names:
+                var = ds[name]
+                dims = ", ".join(var.dims) if var.dims else "(scalar)"
+                label = f"`{name}`" + (" (coordinate)" if kind == "coordinate" else "")
+                lines.append(f"| {label} | {_cell(dims)} | {_cell(var.attrs.get('units', ''))} | "
+                             f"{_cell(var.attrs.get('long_name', ''))} |")
+        lines += ["", "| global attribute | value in this file |", "|---|---|"]
+        for name, value in ds.attrs.items():
+            text = str(value)
+            lines.append(f"| `{name}` | {_cell(text if len(text) <= 100 else text[:100] + ' ...')} |")
+    return "\n".join(lines)
+
+
+def gallery(folder, page_dir):
+    """Markdown: every figure in ``folder`` (``studies/gallery/``), grouped by the bundled study whose name starts
+    its file name, with the study's title and the command that made it; paths relative to ``page_dir``."""
+    import os
+
+    from tumble.pipeline.config import bundled_studies
+
+    if not Path(folder).is_dir():
+        logger.warning(f"tumble-gallery: no folder {folder}")
+        return ""
+    studies = bundled_studies()
+    lines = []
+    for study, title in studies.items():
+        figures = sorted(f for f in Path(folder).iterdir() if f.stem.startswith(study + "_")
+                         and not any(f.stem.startswith(other + "_") and len(other) > len(study) for other in studies))
+        if not figures:
+            continue
+        lines += [f"## `{study}`", "", title, "", "```bash", f"tumble run {study}", "```", ""]
+        for figure in figures:
+            name = figure.stem.removeprefix(study + "_")
+            lines += [f"```{{figure}} {Path(os.path.relpath(figure, page_dir)).as_posix()}",
+                      f":alt: {study}: {name}", "", f"`{name}` (`{figure.name}`)", "```", ""]
+    unmatched = [f.name for f in Path(folder).iterdir() if not any(f.stem.startswith(s + "_") for s in studies)]
+    for name in unmatched:
+        logger.warning(f"gallery figure {name} in {folder} names no bundled study")
+    return "\n".join(lines)
+
+
+def _public_modules():
+    """``{public name: module}`` of the modules ``tumble.__all__`` exports (``tumble.exact`` is
+    ``tumble.physics.exact``)."""
+    import tumble
+
+    return {name: getattr(tumble, name) for name in tumble.__all__ if inspect.ismodule(getattr(tumble, name))}
+
+
+def api_reference():
+    """Markdown: autodoc directives for every name of ``tumble.__all__`` (reStructuredText in ``eval-rst`` blocks:
+    autodoc writes reStructuredText)."""
+    import tumble
+
+    modules = _public_modules()
+    rst = []
+    for name in tumble.__all__:
+        if name.startswith("_") or name in modules:
+            continue
+        kind = "autoclass" if inspect.isclass(getattr(tumble, name)) else "autofunction"
+        rst += [f".. {kind}:: tumble.{name}", *(["   :members:"] if kind == "autoclass" else []), ""]
+    lines = ["## Functions and classes", "", "```{eval-rst}", *rst, "```", ""]
+    for name, module in modules.items():
+        lines += [f"## `tumble.{name}`", "", "```{eval-rst}", f".. automodule:: {module.__name__}", "   :members:",
+                  "```", ""]
+    return "\n".join(lines)
+
+
+def missing_docstrings():
+    """Dotted names of the public objects without a docstring: ``tumble.__all__``, the members of the public
+    modules' ``__all__``, and the public methods and properties of the public classes."""
+    import tumble
+
+    found = []
+
+    def check(label, obj):
+        if inspect.ismodule(obj) or inspect.isclass(obj) or callable(obj) or isinstance(obj, property):
+            if not inspect.getdoc(obj):
+                found.append(label)
+        if inspect.isclass(obj):
+            for attr, member in vars(obj).items():
+                if attr.startswith("_") or not (inspect.isfunction(member) or isinstance(member, (property,
+                                                                                              classmethod,
+                                                                                              staticmethod))):
+                    continue
+                target = member.__func__ if isinstance(member, (classmethod, staticmethod)) else member
+                if not inspect.getdoc(target):
+                    found.append(f"{label}.{attr}")
+
+    for name in tumble.__all__:
+        if name.startswith("_"):
+            continue
+        obj = getattr(tumble, name)
+        check(f"tumble.{name}", obj)
+        if inspect.ismodule(obj):
+            for member in getattr(obj, "__all__", ()):
+                value = getattr(obj, member)
+                if not re.fullmatch(r"[A-Z][A-Z0-9_]*", member):  # constants are documented by #: comments
+                    check(f"tumble.{name}.{member}", value)
+    return found
+
+
+def _check_docstrings(app):
+    for name in missing_docstrings():
+        logger.warning(f"public name without a docstring: {name}")
+
+
+class _Generated(SphinxDirective):
+    """A directive whose body is Markdown generated by a function of this module."""
+
+    has_content = False
+
+    def markdown(self):
+        raise NotImplementedError
+
+    def run(self):
+        return self.parse_text_to_nodes(self.markdown(), allow_section_headings=True)
+
+
+class ApiReference(_Generated):
+    """``tumble-api``: the Python API."""
+
+    def markdown(self):
+        return api_reference()
+
+
+class StudyKeys(_Generated):
+    """``tumble-study-keys``: every key of ``studies/defaults.toml``."""
+
+    def markdown(self):
+        from tumble.pipeline.config import DEFAULTS_PATH
+
+        self.env.note_dependency(str(DEFAULTS_PATH))
+        return study_reference(DEFAULTS_PATH)
+
+
+class NetcdfReference(_Generated):
+    """``tumble-netcdf FILE``: the variables and attributes of a result file."""
+
+    required_arguments = 1
+
+    def markdown(self):
+        rel, path = self.env.relfn2path(self.arguments[0])
+        self.env.note_dependency(rel)
+        return netcdf_reference(path)
+
+
+class RepositoryLinks(SphinxPostTransform):
+    """A Markdown link from a page to a file of the repository outside ``docs/`` (``../README.md``,
+    ``../benchmarks/results/attitude.md``): right where the pages are read as Markdown (GitHub, an editor), but
+    no page of the site. It becomes its link text; a link to a file that does not exist
+    is left to MyST, which fails the build on it."""
+
+    default_priority = 8  # before MyST resolves its references (9) and warns about the unresolved ones
+
+    def run(self, **kwargs):
+        source_dir = Path(self.env.srcdir)
+        repository = source_dir.parent
+        for node in list(self.document.findall(addnodes.pending_xref)):
+            if node.get("reftype") != "myst":
+                continue
+            target = node["reftarget"].split("#")[0]
+            page = Path(self.env.doc2path(node.get("refdoc", self.env.docname))).parent
+            candidates = [Path(target + suffix) if Path(target).is_absolute() else page / (target + suffix)
+                          for suffix in ("", ".md")]
+            found = next((c.resolve() for c in candidates if c.resolve().is_file()), None)
+            if found is None or found.is_relative_to(source_dir) or not found.is_relative_to(repository):
+                continue
+            node.replace_self(nodes.inline(node.astext(), node.astext()))
+
+
+class Gallery(_Generated):
+    """``tumble-gallery FOLDER``: the figures of the bundled studies in ``FOLDER`` (relative to the page)."""
+
+    required_arguments = 1
+
+    def markdown(self):
+        _, folder = self.env.relfn2path(self.arguments[0])
+        return gallery(folder, Path(self.env.doc2path(self.env.docname)).parent)
+
+
+def _public_alias(app, env, node, contnode):
+    """Resolve a Python reference by the other name of a public module: ``tumble.io.read_dataset`` (the name users
+    write) is documented as ``tumble.output.io.read_dataset`` (where it lives), and a docstring may use either."""
+    import tumble
+
+    target = node.get("reftarget", "")
+    if node.get("refdomain") != "py" or not target.startswith("tumble."):
+        return None
+    for short, module in tumble._ALIASES.items():  # noqa: SLF001 - the face's own table of short module paths
+        for a, b in ((f"tumble.{short}", module), (module, f"tumble.{short}")):
+            if target == a or target.startswith(a + "."):
+                domain = env.get_domain("py")
+                node["reftarget"] = b + target[len(a):]
+                found = domain.resolve_xref(env, node["refdoc"], app.builder, node["reftype"], node["reftarget"],
+                                            node, contnode)
+                node["reftarget"] = target
+                return found
+    return None
+
+
+def setup(app):
+    app.connect("missing-reference", _public_alias)
+    app.add_directive("tumble-gallery", Gallery)
+    app.add_post_transform(RepositoryLinks)
+    app.add_directive("tumble-api", ApiReference)
+    app.add_directive("tumble-study-keys", StudyKeys)
+    app.add_directive("tumble-netcdf", NetcdfReference)
+    app.connect("builder-inited", _check_docstrings)
+    return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
