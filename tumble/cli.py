@@ -124,12 +124,7 @@ def _run(args):
     for flag, value in (("--chunk-scenes", args.chunk_scenes), ("--workers", args.workers)):
         if value is not None and value < 1:
             raise InputError(f"{flag} must be >= 1, got {value}")
-    if args.workers is not None and args.scheduler != "local":
-        raise InputError("--workers sets the worker processes of --scheduler local; it needs --scheduler local")
-    if args.workers is not None and args.workers > cost.most_workers():
-        raise InputError(f"--workers {args.workers}: more than the {cost.most_workers()} worker processes this "
-                         f"machine can hold ({cost.WORKERS_PER_CORE} per core, each ~{cost.WORKER_FOOTPRINT / 1e6:.0f} "
-                         f"MB within half its memory)")
+    _check_workers(args.workers, args.scheduler)
     try:
         runner.chunk_samples_size(args.chunk_samples)
     except ValueError as err:
@@ -175,6 +170,19 @@ def _run(args):
     print(f"\n{time.perf_counter() - started:.1f} s; wrote:")
     for path in paths:
         print(f"  {path}")
+
+
+def _check_workers(workers, scheduler):
+    """``--workers``: only with ``--scheduler local``, and no more than this machine can hold
+    (:func:`tumble.engine.cost.most_workers`: an absurd count started processes until the machine hung)."""
+    from .engine import cost
+
+    if workers is not None and scheduler != "local":
+        raise InputError("--workers sets the worker processes of --scheduler local; it needs --scheduler local")
+    if workers is not None and workers > cost.most_workers():
+        raise InputError(f"--workers {workers}: more than the {cost.most_workers()} worker processes this machine "
+                         f"can hold ({cost.WORKERS_PER_CORE} per core, each ~{cost.WORKER_FOOTPRINT / 1e6:.0f} MB "
+                         f"within half its memory)")
 
 
 def _check_output_folder(args, prepared):

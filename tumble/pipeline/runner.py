@@ -699,6 +699,7 @@ def prepare_study(source, *, overrides=None, out=None, formats=None, default_dir
 
 def execute_study(prepared, *, progress=None, client=None, chunk_scenes=None, chunk_samples=None, log=None,
                   action=None, fresh=False, figure_process=None):
+    # size: the prepared study and the run's options (progress, cluster, chunking, log, history, fresh, figures)
     """Run a prepared study's scenes (here, or on the dask ``client``), resuming from its checkpoint, and write
     its outputs; return ``(dataset, paths written)`` — the stored dataset when written, else ``(dataset, [])``.
     ``log`` receives one line per resumed or finished chunk; ``action`` is the provenance's command; ``fresh``
