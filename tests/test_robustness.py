@@ -4,6 +4,7 @@ generated malformed studies."""
 import errno
 import os
 import random
+import re
 import signal
 import subprocess
 import sys
@@ -355,6 +356,92 @@ def test_absurd_sizes_are_refused_within_a_second_with_the_estimate(tmp_path, ca
     assert not (tmp_path / "out").exists()
 
 
+# One shared bound at every door (issue 31, cause 1): each row a public call that allocated or looped in proportion to
+# the user's numbers before the bound (a hang, or a MemoryError of terabytes). They run in one child process: on a
+# tumble without the bound the first row never returns, and the child's timeout fails every row.
+BOUND_CALLS = {
+    "integrate-1e14-sample-steps": ("tumble.integrate(body, w * 10, 1e13, 0.1, method='rk4')", "w0 (10 spins)"),
+    "propagate-1e14-sample-steps": ("tumble.propagate(body, w * 10, 1e13, 0.1, method='rk4')", "w0 (10 spins)"),
+    "run_ensemble-1e14-sample-steps": ("tumble.run_ensemble(body, w * 10, 1e13, 0.1, method='rk4')", "w0 (10 spins)"),
+    "run_ensemble-closed-form-trajectory": ("tumble.run_ensemble(body, w * 10, 1e12, 0.1, save_every=1)",
+                                            "w0 (10 spins)"),
+    "perturbed_spins-1e12-samples": ("tumble.sampling.perturbed_spins(body, 2, 1.0, 1e-3, 10**12)",
+                                     "samples = 1000000000000"),
+    "measure-1e9-flips": ("tumble.measure(body, 2, samples=1024, flips=10**9)", "flips = 1000000000"),
+    "measure-steps-of-a-tiny-dt": ("tumble.measure(body, 1, samples=100_000, method='rk4', dt=1e-7)",
+                                   "samples = 100000 over a horizon"),
+    "scan-triangle-of-1e6-samples": ("tumble.scan(tumble.inertia_triangle(60)[0], samples=10**6)",
+                                     "10,800 scenes of samples = 1000000"),
+}
+
+_BOUND_CHILD = """
+import json, sys, time
+import tumble
+body, w = (1.0, 2.0, 3.0), [[0.01, 1.0, 0.0]]
+tumble.integrate(body, w, 0.1, 0.1, method="rk4"); tumble.measure(body, 2, samples=8)  # the JIT, not the bound
+for name, (call, _) in json.loads(sys.argv[1]).items():
+    started = time.perf_counter()
+    try:
+        eval(call)
+        out = {"error": None}
+    except Exception as err:
+        out = {"error": type(err).__name__, "value_error": isinstance(err, ValueError), "message": str(err)}
+    print(json.dumps({"name": name, "seconds": time.perf_counter() - started, **out}), flush=True)
+"""
+
+
+@pytest.fixture(scope="module")
+def bound_answers():
+    import json
+
+    try:
+        done = subprocess.run([sys.executable, "-c", _BOUND_CHILD, json.dumps(BOUND_CALLS)], capture_output=True,
+                              text=True, timeout=120)
+    except subprocess.TimeoutExpired as err:
+        done = err
+    lines = (done.stdout or b"").decode() if isinstance(done.stdout, bytes) else (done.stdout or "")
+    return {row["name"]: row for row in map(json.loads, lines.splitlines())}
+
+
+@pytest.mark.parametrize("name", list(BOUND_CALLS))
+def test_every_public_door_refuses_an_absurd_size_at_once_with_the_estimate(bound_answers, name):
+    answer = bound_answers.get(name)
+    assert answer is not None, "the call did not return (no bound: it ran on)"
+    assert answer["value_error"], answer
+    assert BOUND_CALLS[name][1] in answer["message"] and "peak memory" in answer["message"], answer["message"]
+    assert answer["seconds"] < 1.0, f"refused after {answer['seconds']:.2f} s"
+
+
+FLIPS = "[spin]\naxis = 2\n[integration]\nflips = 1_000_000_000\n"
+DT_ALONE = "[spin]\naxis = 2\n[integration]\nmethod = 'rk4'\ndt = 1e-200\n"
+STEPS_FROM_DT = "[spin]\naxis = 2\n[perturbation]\nsamples = 1_000_000\n[integration]\nmethod = 'rk4'\ndt = 1e-6\n"
+
+
+@pytest.mark.parametrize("text, args, field", [
+    (FLIPS, [], "integration.flips"),
+    (DT_ALONE, [], "integration"),
+    (STEPS_FROM_DT, ["--dry-run"], "integration"),
+], ids=["1e9-flips", "dt-of-1e-200-without-a-horizon", "1e12-sample-steps-from-dt"])
+def test_a_study_is_refused_by_the_bound_its_scenes_will_meet(tmp_path, capsys, text, args, field):
+    """The study's estimate took the planner's horizon in steps of the method's own dt, whatever dt said, and left
+    the flips out: MemoryError (exit 1), 'more than a run can count' (exit 1), or an hour-long run."""
+    study = tmp_path / "huge.toml"
+    study.write_text(text)
+    started = time.perf_counter()
+    status = cli.main(["run", str(study), "--out", str(tmp_path / "out"), *args])
+    err = capsys.readouterr().err
+    assert status == 2 and f"huge.toml: {field}:" in err and "peak memory" in err, err
+    assert time.perf_counter() - started < 1.0
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_absurd_worker_count_is_refused_before_anything_starts(tmp_path, capsys):
+    status = cli.main(["run", "intermediate_axis", "--scheduler", "local", "--workers", "100000", "--dry-run",
+                       "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert status == 2 and "--workers 100000: more than the" in err, err
+
+
 def test_dry_run_prints_the_estimate(tmp_path, capsys):
     assert cli.main(["run", "stability_map", "--dry-run", "--out", str(tmp_path / "out")]) == 0
     out = capsys.readouterr().out
@@ -366,6 +453,90 @@ def test_measure_refuses_more_samples_than_memory_holds():
 
     with pytest.raises(ValueError, match=r"samples = 1000000000000: .*memory"):
         tumble.measure((1.0, 2.0, 3.0), 2, samples=10**12)
+
+
+# --- a rate that cannot be measured is refused, never returned (issue 31, cause 2) ----------------------------
+# Each row: a scene whose fit would report round-off (a horizon of 1e-9 s gave 265 1/s where theory says 0.577) or
+# nothing (a tilt of 1e-170 rad gave an all-NaN rate with exit 0, 1e-300 also a RuntimeWarning). Refused before
+# anything runs, naming the argument or field and why; no warning escapes.
+
+def _unmeasurable_calls():
+    import tumble
+    from tumble.measure import model_scenes
+
+    body = (1.0, 2.0, 3.0)
+    gyrostat = model_scenes.model_of("gyrostat", body, 2, {"rotor": [0.0, 0.1, 0.0]})
+    return {
+        "tilt-1e-170": (lambda: tumble.measure(body, 2, amplitude=1e-170, samples=8), "amplitude must be >= 1e-150"),
+        "tilt-1e-300": (lambda: tumble.measure(body, 2, amplitude=1e-300, samples=8), "amplitude must be >= 1e-150"),
+        "tilt-1e-170-stable-axis": (lambda: tumble.measure(body, 1, amplitude=1e-170, samples=8, method="rk4"),
+                                    "amplitude must be >= 1e-150"),
+        "scan-with-a-tilt-of-1e-170": (lambda: tumble.scan(body, axis=2, amplitude=[1e-3, 1e-170], samples=8),
+                                       "amplitude must be >= 1e-150"),
+        "horizon-of-1e-9-s": (lambda: tumble.measure(body, 2, horizon=1e-9, flips=0, samples=8),
+                              "horizon = 1e-09 s: the fit would span"),
+        "horizon-of-1e-6-s-rk4": (lambda: tumble.measure(body, 2, horizon=1e-6, flips=0, samples=8, method="rk4"),
+                                  "e-foldings of growth"),
+        "model-horizon-of-1e-9-s": (lambda: model_scenes.scene_plan(gyrostat, 2, horizon=1e-9, samples=8),
+                                    "horizon = 1e-09 s: the fit would span"),
+    }
+
+
+@pytest.mark.parametrize("name", ["tilt-1e-170", "tilt-1e-300", "tilt-1e-170-stable-axis", "scan-with-a-tilt-of-1e-170",
+                                  "horizon-of-1e-9-s", "horizon-of-1e-6-s-rk4", "model-horizon-of-1e-9-s"])
+def test_a_rate_that_cannot_be_measured_is_refused_with_the_reason(name):
+    import warnings
+
+    call, fragment = _unmeasurable_calls()[name]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a stray RuntimeWarning fails the row
+        with pytest.raises(ValueError, match=re.escape(fragment)):
+            call()
+
+
+@pytest.mark.parametrize("text, field", [
+    ("[spin]\naxis = 2\n[perturbation]\namplitude = 1e-170\n", "perturbation.amplitude"),
+    ("[spin]\naxis = 2\n[scan]\namplitude = [1e-3, 1e-300]\n", "scan.amplitude[1]"),
+    ("[spin]\naxis = 2\n[integration]\nhorizon = 1e-9\nflips = 0\n", "scene 0 (axis=2"),
+], ids=["tilt-1e-170", "scanned-tilt-1e-300", "horizon-of-1e-9-s"])
+def test_a_study_whose_rate_cannot_be_measured_exits_2_naming_the_field(tmp_path, capsys, text, field):
+    study = tmp_path / "unmeasurable.toml"
+    study.write_text(text + "[outputs]\nfigures = []\n")
+    status = cli.main(["run", str(study), "--out", str(tmp_path / "out")])
+    captured = capsys.readouterr()
+    assert status == 2 and f"unmeasurable.toml: {field}" in captured.err, captured.err
+    assert "Warning" not in captured.err and not (tmp_path / "out" / "unmeasurable.nc").exists()
+
+
+# --- tumble plot on a file lacking a variable a figure of its study needs (issue 31, cause 4) ---------------------
+# Each figure names the variables it reads (tumble.output.figures' checks). A figure the file's own study drew
+# (outputs.figures) that the file can no longer give is refused: exit 2 naming the figure and the variable, nothing
+# drawn (it was exit 0 with the other figures drawn and that one silently left out).
+
+@pytest.fixture(scope="module")
+def drawn_result(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("plot")
+    study = folder / "flip.toml"
+    study.write_text(_toml({"title": "flip", "body": {"moments": [1.0, 2.0, 3.0]}, "spin": {"axis": 2},
+                            "perturbation": {"samples": 64},
+                            "outputs": {"figures": ["norm_growth", "flip_components", "summary"], "arrays": []}}))
+    assert cli.main(["run", str(study), "--out", str(folder)]) == 0
+    return folder / "flip.nc"
+
+
+@pytest.mark.parametrize("variable, figure", [("rate", "summary"), ("growth_norm", "norm_growth"),
+                                              ("trace_omega", "flip_components")])
+def test_plot_refuses_a_file_lacking_a_variable_its_figures_need(drawn_result, tmp_path, capsys, variable, figure):
+    cut = tmp_path / "cut.nc"
+    with xr.open_dataset(drawn_result) as ds:
+        ds.drop_vars(variable).to_netcdf(cut)
+    capsys.readouterr()
+    status = cli.main(["plot", str(cut), "--out", str(tmp_path / "figures")])
+    err = capsys.readouterr().err
+    assert status == 2 and f"figure {figure!r}" in err and repr(variable) in err, err
+    assert not (tmp_path / "figures").exists() or not any((tmp_path / "figures").iterdir())
+    others = [name for name in ("norm_growth", "flip_components", "summary") if name != figure]
+    assert cli.main(["plot", str(cut), "--figures", *others, "--out", str(tmp_path / "others")]) == 0
 
 
 # --- a result set appears whole or not at all ------------------------------------------------------------------
@@ -501,6 +672,19 @@ def _api_cases():
         ("run_study-samples-negative", lambda: tumble.run_study({"perturbation": {"samples": -1}}), ValueError,
          "perturbation.samples: must be >= 1"),
         ("run_study-rate-inf", lambda: tumble.run_study({"spin": {"rate": inf}}), ValueError, "spin.rate: must be finite"),
+        # issue 31, cause 5: the message names the argument the user passed, not an internal one
+        ("exact.rotation_per_period-nodes-0", lambda: exact.rotation_per_period(body, w, nodes=0), ValueError,
+         "nodes must be an integer >= 2, got 0"),
+        ("exact.rotation_per_period-nodes-2.5", lambda: exact.rotation_per_period(body, w, nodes=2.5), ValueError,
+         "nodes must be an integer"),
+        ("exact.rotation_per_period-max_nodes-0", lambda: exact.rotation_per_period(body, w, max_nodes=0), ValueError,
+         "max_nodes must be an integer >= 256"),
+        ("exact.rotation_per_period-tol-nan", lambda: exact.rotation_per_period(body, w, tol=nan), ValueError,
+         "tol must be a number in (0, 1)"),
+        ("scan-bodies-empty", lambda: tumble.scan([], samples=8), ValueError, "bodies holds no body"),
+        ("inertia_triangle-n-0", lambda: tumble.inertia_triangle(0), ValueError, "n must be an integer >= 1"),
+        ("rotations.about_axis-axis-zero", lambda: tumble.rotations.about_axis(1.0, [0.0, 0.0, 0.0]), ValueError,
+         "axis must be a non-zero, finite vector"),
     ]
 
 

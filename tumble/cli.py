@@ -9,6 +9,7 @@ the trajectory fails the check (its files are written).
 import argparse
 import atexit
 import contextlib
+import json
 import os
 import re
 import subprocess
@@ -111,7 +112,7 @@ class InputError(ValueError):
 
 
 def _run(args):
-    from .measure import cost
+    from .engine import cost
     from .output import io
     from .pipeline import checkpoint, figure_process, runner
 
@@ -123,8 +124,7 @@ def _run(args):
     for flag, value in (("--chunk-scenes", args.chunk_scenes), ("--workers", args.workers)):
         if value is not None and value < 1:
             raise InputError(f"{flag} must be >= 1, got {value}")
-    if args.workers is not None and args.scheduler != "local":
-        raise InputError("--workers sets the worker processes of --scheduler local; it needs --scheduler local")
+    _check_workers(args.workers, args.scheduler)
     try:
         runner.chunk_samples_size(args.chunk_samples)
     except ValueError as err:
@@ -170,6 +170,19 @@ def _run(args):
     print(f"\n{time.perf_counter() - started:.1f} s; wrote:")
     for path in paths:
         print(f"  {path}")
+
+
+def _check_workers(workers, scheduler):
+    """``--workers``: only with ``--scheduler local``, and no more than this machine can hold
+    (:func:`tumble.engine.cost.most_workers`: an absurd count started processes until the machine hung)."""
+    from .engine import cost
+
+    if workers is not None and scheduler != "local":
+        raise InputError("--workers sets the worker processes of --scheduler local; it needs --scheduler local")
+    if workers is not None and workers > cost.most_workers():
+        raise InputError(f"--workers {workers}: more than the {cost.most_workers()} worker processes this machine "
+                         f"can hold ({cost.WORKERS_PER_CORE} per core, each ~{cost.WORKER_FOOTPRINT / 1e6:.0f} MB "
+                         f"within half its memory)")
 
 
 def _check_output_folder(args, prepared):
@@ -222,7 +235,15 @@ def _plot(args):
         ds = io.read_dataset(path, require_tumble=True)
     except (ValueError, OSError) as err:
         raise InputError(f"{path}: not a tumble result file ({err})") from None
-    names = args.figures or [name for name in plots.FIGURES if plots.can_draw(ds, name)[0]]
+    # The figures the file's own study drew (outputs.figures) must all be drawable: a file lacking a variable one of
+    # them needs (cut down, or damaged) is refused naming it, not drawn in part with exit 0.
+    listed = [name for name in _study_figures(ds) if name in plots.FIGURES]
+    for name in [] if args.figures else listed:
+        ok, reason = plots.can_draw(ds, name)
+        if not ok:
+            raise InputError(f"{path}: figure {name!r} (outputs.figures of the file's study): {reason}; draw the "
+                             f"others with --figures")
+    names = args.figures or [name for name in plots.FIGURES if name in listed or plots.can_draw(ds, name)[0]]
     if not names:  # a file with tumble's attributes but none of the variables a figure reads (forged, or cut down)
         raise InputError(f"{path}: nothing to draw: {plots.can_draw(ds, 'summary')[1]}, and the file holds none of "
                          f"what the other figures read (figures: {', '.join(plots.FIGURES)})")
@@ -234,6 +255,15 @@ def _plot(args):
     written = plots.save_figures(ds, names, directory, path.stem, formats=tuple(args.format or ("png",)))
     for written_path in written:
         print(written_path)
+
+
+def _study_figures(ds):
+    """The figures the study stored in a result file asked for (``outputs.figures``; none when it stores no study)."""
+    try:
+        figures = json.loads(ds.attrs.get("study", "{}")).get("outputs", {}).get("figures", [])
+    except (ValueError, AttributeError):
+        return []
+    return [name for name in figures if isinstance(name, str)] if isinstance(figures, list) else []
 
 
 def _check_tolerances(args):

@@ -9,10 +9,10 @@ checks that the kernels' coefficient tables agree with them.
 from typing import NamedTuple
 
 __all__ = ["ATTITUDE_FIGURES", "AUTO", "AUTO_STEPPING", "CHOICES", "DEFAULT_MODEL", "FIGURES", "FORMATS", "METHODS",
-           "MODELS", "MODEL_KINDS", "MODEL_PARAMETERS", "Method", "Model", "ModelParameter", "PER_SAMPLE_ARRAYS",
-           "STATE_BLOCKS", "STATUSES", "STATUS_DRIFT", "STATUS_NAMES", "STATUS_NONFINITE", "STATUS_OK", "STEPPING",
-           "Status", "TORQUE_PROFILES", "TORQUE_USER", "TorqueProfile", "choose_method", "method", "model_kind",
-           "model_parameter", "state_blocks", "torque_profile"]
+           "MIN_AMPLITUDE", "MODELS", "MODEL_KINDS", "MODEL_PARAMETERS", "Method", "Model", "ModelParameter",
+           "PER_SAMPLE_ARRAYS", "STATE_BLOCKS", "STATUSES", "STATUS_DRIFT", "STATUS_NAMES", "STATUS_NONFINITE",
+           "STATUS_OK", "STEPPING", "Status", "TORQUE_PROFILES", "TORQUE_USER", "TorqueProfile", "amplitude_problem",
+           "choose_method", "method", "model_kind", "model_parameter", "state_blocks", "torque_profile"]
 
 
 class Method(NamedTuple):
@@ -133,6 +133,20 @@ _PROFILE_BY_NAME = {p.name: p for p in TORQUE_PROFILES}
 #: within the float range (beyond, the estimators give NaN). The motion is scale invariant: a spin of w rad/s
 #: is the motion of 1 rad/s with times divided by w, so rescale the time unit to study another range.
 SPIN_RANGE = (1e-150, 1e150)
+
+#: Smallest tilt a scene measures, rad: below it the transverse components' squares leave float64's range against
+#: the spin (1e-170 about the intermediate axis gave no rate at all, 1e-300 also a RuntimeWarning); 1e-160 still
+#: measures the linear rate, the bound keeps a margin as :data:`SPIN_RANGE` does.
+MIN_AMPLITUDE = 1e-150
+
+
+def amplitude_problem(amplitude):
+    """Why a tilt of ``amplitude`` rad (> 0) cannot be measured (:data:`MIN_AMPLITUDE`), or None when it can."""
+    if amplitude >= MIN_AMPLITUDE:
+        return None
+    return (f"must be >= {MIN_AMPLITUDE:g} rad to be measured, got {amplitude!r}: a smaller tilt's transverse "
+            f"components square below float64's range against the spin (no rate can be fitted); the linear rate "
+            f"does not depend on the tilt, measure at 1e-6 rad")
 
 
 #: Steps a sine's period or a pulse's duration must span at least: a fixed step samples the profile only at its

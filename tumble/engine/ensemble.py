@@ -37,6 +37,7 @@ from ..kernels import (BLOCK, METHODS, TORQUE_CONSTANT, TORQUE_SIGNATURE, TORQUE
 from ..physics import exact
 from ..physics.bodies import finite_array, one_body, spin_vectors
 from ..registry import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK, choose_method
+from . import cost
 from .device import LAUNCH_SAMPLES, check_on_device, resolve_device, stepper
 from .sampling import CHUNK
 
@@ -237,8 +238,6 @@ def _checked_arguments(w0, t_end, dt, axis, save_every, probe_times, norm_weight
         raise ValueError("w0 holds no spins (shape (0, 3))")
     t_end = _number(t_end, "t_end", low=0)
     dt = _number(dt, "dt", positive=True)
-    if t_end / dt > np.iinfo(np.int64).max:
-        raise ValueError(f"t_end / dt = {t_end / dt:.3g} steps: more than a run can count")
     if isinstance(axis, (bool, np.bool_)) or axis not in (1, 2, 3):
         raise ValueError(f"axis must be 1, 2 or 3 (a principal axis, 1-based), got {axis!r}")
     if save_every is not None:
@@ -259,6 +258,12 @@ def _checked_arguments(w0, t_end, dt, axis, save_every, probe_times, norm_weight
     _number(drift_limit, "drift_limit", low=0)
     _count(chunk, "chunk", low=1)
     return w0, t_end, dt, probe_times, norm_weights
+
+
+def _stored_per_sample(steps, save_every, probe_times, max_flips, drift, attitude):
+    """Float64 values a run keeps per sample: the final state, the trajectory (and attitude), probes, flips, drift."""
+    saved = steps // save_every + 2 if save_every else 0
+    return 3 + saved * (7 if attitude else 3) + (0 if probe_times is None else len(probe_times)) + max_flips + 2 * drift
 
 
 def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, final=True, save_every=None,
@@ -338,7 +343,7 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         w0, t_end, dt, axis, save_every, probe_times, norm_weights, max_flips, stop_norm, stop_flips, drift_limit,
         chunk)
     n = len(w0)
-    n_steps = int(round(t_end / dt)) if t_end > 0 else 0
+    steps = float(np.rint(t_end / dt))  # a float (inf at worst): an absurd t_end / dt is refused by the cost bound
     a = int(axis) - 1
     torque = _Torque(*torque_spec(torque))
     if torque.params is not None:
@@ -349,6 +354,10 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
     axis_is_intermediate = a == int(np.argsort(moments, kind="stable")[1])
     chosen, reason = choose_method(method, torque_free=torque.free, axis_is_intermediate=axis_is_intermediate,
                                    flips=max_flips)
+    stored = _stored_per_sample(steps, save_every, probe_times, max_flips, drift, attitude)
+    cost.refuse(cost.run_cost(n, 0 if chosen == "exact" else steps, stored),
+                f"w0 ({n:,} spins) over t_end / dt = {steps:.3g} steps")
+    n_steps = int(steps)
     if attitude and (not save_every or probe_times is not None or max_flips or drift or stop_norm or stop_flips):
         raise ValueError("attitude=True is stored with the trajectory: it needs save_every and no other observer")
     if growth_window is not None and (probe_times is None or len(probe_times) < 3):

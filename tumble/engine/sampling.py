@@ -34,6 +34,7 @@ import numpy as np
 from .. import registry
 from ..physics.bodies import finite_array, one_body
 from ..physics.models import Model
+from . import cost
 
 __all__ = [
     "CHUNK",
@@ -336,6 +337,8 @@ def perturbed_spins(body, axis, spin=1.0, amplitude=1e-3, samples=1024, *, seed=
         raise ValueError(f"start must be in [0, samples] = [0, {n}], got {start}")
     if not start <= stop <= n:
         raise ValueError(f"stop must be in [start, samples] = [{start}, {n}], got {stop}")
+    cost.refuse(cost.run_cost(stop - start, 0, 3),
+                f"samples = {n}" if (start, stop) == (0, n) else f"start, stop = {start}, {stop}")
     entropy = seed_entropy(seed)
 
     out = np.empty((stop - start, 3))

@@ -259,6 +259,7 @@ def _checked(model, axis, amplitude, samples, method):
         raise ValueError(f"method must be auto or one of {', '.join(METHODS)} for a model, got {method!r}")
     if isinstance(amplitude, (bool, np.bool_)) or not float(amplitude) > 0:
         raise ValueError(f"amplitude must be > 0 rad, got {amplitude!r}")
+    scenes.check_amplitude(amplitude)
     if isinstance(samples, (bool, np.bool_)) or not isinstance(samples, (int, np.integer)) or samples < 1:
         raise ValueError(f"samples must be an integer >= 1, got {samples!r}")
     return METHODS[0] if method == "auto" else method
@@ -313,6 +314,8 @@ def scene_plan(model, axis, spin=1.0, amplitude=1e-3, samples=256, seed=0, metho
         norms = model.transverse_norm(y0, axis, spin)
     order = registry.method(chosen).order
     plan = _plan((model, int(axis), spin, amplitude, order), kind, value, norms, dt, horizon, linearised.eigenvalues)
+    scenes.check_fit_span(kind, value, plan.t_end, horizon)
+    scenes.refuse_plan(int(samples), plan, True, kind == "exponential", 0)
     return ModelScene(model, model.moments, int(axis), spin, amplitude, int(samples), method, chosen, kind, value,
                       plan, entropy, distribution, mode=scene_mode)
 

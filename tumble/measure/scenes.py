@@ -49,13 +49,13 @@ from ..engine.sampling import CHUNK, perturbed_spins, seed_entropy
 from ..physics import exact, theory
 from ..physics.bodies import Body, one_body
 from ..registry import STATUS_NAMES, STATUS_OK, STEPPING
-from . import cost
+from ..engine import cost
 from . import estimators as analysis
 
-__all__ = ["CURVES", "SAMPLE_STATUS_NAMES", "assemble_scan", "closed_form_samples", "flip_time_law", "inertia_triangle",
-           "invariant_drift",
-           "measure", "regress_scan", "scan", "scan_layout", "scan_scene", "scan_scene_parameters", "scene_plan",
-           "scene_batch", "scene_dataset", "scene_records", "scene_result", "scene_samples"]
+__all__ = ["CURVES", "SAMPLE_STATUS_NAMES", "assemble_scan", "check_amplitude", "check_fit_span",
+           "closed_form_samples", "flip_time_law", "inertia_triangle", "invariant_drift", "measure", "refuse_plan",
+           "regress_scan", "scan", "scan_layout", "scan_scene", "scan_scene_parameters", "scene_batch",
+           "scene_dataset", "scene_estimate", "scene_plan", "scene_records", "scene_result", "scene_samples"]
 
 #: Per-sample status in a measurement: the engine's (ok, non-finite, invariant drift), then the fit's.
 SAMPLE_STATUS_NAMES = STATUS_NAMES + analysis.FIT_NAMES[1:]
@@ -73,6 +73,11 @@ SAVES_PER_PERIOD = 32
 
 #: Most stored states per sample of a periodic scene (bounds memory when a long horizon is asked for).
 MAX_SAVES = 8192
+
+#: Least growth (e-foldings, ``rate * span``) or phase (rad, ``frequency * span``) a scene's fit may span: over a
+#: horizon of 1e-6 s the (1, 2, 3) body's intermediate-axis rate came out 0.3 to 2 % off, over 1e-9 s 265 1/s
+#: for 0.577 (round-off, not growth); 1e-5 s (6e-6 e-foldings) still measured it to 0.03 %.
+MIN_FIT_SPAN = 1e-5
 
 #: Points of the optional curves: the traced sample's trajectory (flip_components figure).
 TRACE_POINTS = 1500
@@ -102,6 +107,42 @@ BATCH = 4096
 CONFIDENCE = 0.95
 
 _KIND_UNITS = {"periodic": "rad/s", "exponential": "1/s", "neutral": "rad/s"}
+
+#: Bytes per sample and observation time held while a slice of samples is measured — the observed components or
+#: probe norms and the fits' temporaries — by (stepping, kind is exponential): peaks measured over 32768-sample
+#: slices of 257 times (``tests/test_memory.py``). A stepping periodic scene keeps its trajectory and copies of
+#: two of its components for the phase fit; a stepping exponential scene keeps only the probe norms.
+_BYTES_PER_TIME = {(False, True): 28, (False, False): 22, (True, True): 14, (True, False): 52}
+
+#: Bytes per sample of a scene while its slices are reduced (the per-sample fits, their stack and the record).
+_BYTES_PER_REDUCED_SAMPLE = 200
+
+
+def scene_estimate(stepping, exponential, samples, times, *, steps=0, flips=0, scenes=1, kept_per_sample=0):
+    # size: the quantities the planner knows (or a study's estimate of them), each a factor of the cost
+    """:class:`tumble.engine.cost.Cost` of ``scenes`` scenes of ``samples`` samples observed at ``times`` times
+    over ``steps`` fixed steps (``stepping``; else the closed form) with ``flips`` flips timed, keeping
+    ``kept_per_sample`` bytes per sample and scene: the working set of one slice of samples (:data:`SLICE`;
+    closed-form scenes run together in batches of :data:`BATCH`) from :data:`_BYTES_PER_TIME`, the scene's
+    reduction and what is kept. ``exponential`` False: a periodic (or possibly periodic) scene."""
+    in_flight = min(samples if stepping else max(samples, min(BATCH, scenes * samples)), SLICE)
+    working = (float(in_flight) * (float(times) * _BYTES_PER_TIME[(bool(stepping), bool(exponential))]
+                                   + 32.0 * flips) + float(samples) * _BYTES_PER_REDUCED_SAMPLE)
+    return cost.scene_cost(samples, steps if stepping else 0, scenes=scenes, kept_per_sample=kept_per_sample,
+                           working=working)
+
+
+#: Bytes per sample and scene a scan keeps: its per-sample arrays (rate, status, flip times, the index), twice (the
+#: records and the stacked dataset).
+_SCAN_KEPT = 2 * (8 + 1 + 8 + 8 + 8)
+
+
+def refuse_plan(samples, plan, stepping, exponential, flips):
+    """Refuse a planned scene past the cost bound (:func:`tumble.engine.cost.refuse`), naming what set its size."""
+    times = len(plan.probe_times) if plan.probe_times is not None else plan.n_steps // (plan.save_every or 1) + 2
+    estimate = scene_estimate(stepping, exponential, samples, times, steps=plan.n_steps, flips=flips)
+    steps = f"{plan.n_steps:,} steps of {plan.dt:.3g} s" if stepping else "the closed form"
+    cost.refuse(estimate, f"samples = {samples} over a horizon of {plan.t_end:.3g} s ({steps}, flips = {flips})")
 
 
 def _check_method(method):
@@ -228,6 +269,25 @@ def _plan(moments, a, kind, value, spin, amplitude, method, dt, flips, probe_spi
     return StepPlan(t_end=n_steps * dt, dt=dt, n_steps=n_steps, **plan)
 
 
+def check_amplitude(amplitude):
+    """Refuse a tilt below :data:`tumble.registry.MIN_AMPLITUDE` (no rate can be measured from it): a ValueError
+    naming ``amplitude`` and why."""
+    problem = float(amplitude) > 0 and registry.amplitude_problem(float(amplitude))
+    if problem:
+        raise ValueError(f"amplitude {problem}")
+
+
+def check_fit_span(kind, value, span, horizon):
+    """Refuse a scene whose fit spans fewer than :data:`MIN_FIT_SPAN` e-foldings (``kind`` exponential) or radians
+    of phase (periodic) at the theory's ``value`` over ``span`` s: what it would report is round-off, not a rate."""
+    if kind == "neutral" or value * span >= MIN_FIT_SPAN:
+        return
+    what = "e-foldings of growth" if kind == "exponential" else "radians of phase"
+    raise ValueError(f"horizon = {horizon!r} s: the fit would span {value * span:.2g} {what} (theory: {value:.4g} "
+                     f"{_KIND_UNITS[kind]}), fewer than the {MIN_FIT_SPAN:g} a rate can be measured over above "
+                     f"round-off; give a horizon of at least {MIN_FIT_SPAN / value:.3g} s, or none (the planner's)")
+
+
 def _validate_scene(body, axis, spin, amplitude, samples, method, flips, distribution):
     moments = one_body(body)
     if isinstance(axis, (bool, np.bool_)) or axis not in (1, 2, 3):
@@ -238,12 +298,16 @@ def _validate_scene(body, axis, spin, amplitude, samples, method, flips, distrib
     if float(amplitude) == 0.0:
         raise ValueError("amplitude must be > 0 rad: a growth rate or frequency is measured on perturbed spins, "
                          "and a spin exactly on its axis never moves off it")
+    check_amplitude(amplitude)
     if isinstance(samples, (bool, np.bool_)) or not isinstance(samples, (int, np.integer)) or samples < 1:
         raise ValueError(f"samples must be an integer >= 1, got {samples!r}")
     try:
         cost.check(cost.scene_cost(samples, 0))
     except ValueError as err:
         raise ValueError(f"samples = {samples}: {err}") from None
+    # the flip times' memory before the plan (whose horizon the flips set): answered before any kernel loads
+    cost.refuse(scene_estimate(False, True, int(samples), PROBES + 1, flips=flips),
+                f"flips = {flips} for samples = {samples}")
     return moments, int(axis), float(spin), float(amplitude), int(samples), flips
 
 
@@ -381,6 +445,8 @@ def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, metho
 
     plan = _plan(moments, a, kind, value, spin, amplitude, chosen, dt, flips if kind == "exponential" else 0,
                  probe_spins, horizon, spin_max)
+    check_fit_span(kind, value, plan.probe_times[-1] if kind == "exponential" else plan.t_end, horizon)
+    refuse_plan(samples, plan, chosen != "exact", kind == "exponential", flips if kind == "exponential" else 0)
     return Scene(moments=moments, axis=axis, spin=spin, amplitude=amplitude, samples=samples, method=method,
                  chosen=chosen, kind=kind, value=value, spin_up=spin_up,
                  torque=torque if spin_up is not None else None, plan=plan,
@@ -942,6 +1008,8 @@ def inertia_triangle(n=20):
     coords : dict
         ``"i2_over_i3"`` and ``"i1_fraction"`` (where ``I1/I3`` lies between ``1 − s`` and ``s``), each (n * n,).
     """
+    if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise ValueError(f"n must be an integer >= 1 (points along each side of the triangle), got {n!r}")
     mid = (np.arange(n) + 0.5) / n
     s, u = np.meshgrid(0.5 + 0.5 * mid, mid, indexing="ij")
     i1 = (1.0 - s) + u * (2.0 * s - 1.0)
@@ -972,6 +1040,8 @@ def scan_layout(bodies, axis=(1, 2, 3), spin=1.0, amplitude=1e-3, method="auto")
             isinstance(bodies, (list, tuple)) and len(bodies) == 3 and all(np.ndim(b) == 0 for b in bodies)):
         bodies = [bodies]
     moments = np.array([one_body(b) for b in bodies])
+    if not len(moments):
+        raise ValueError("bodies holds no body (an empty sequence)")
     values = {"axis": axis, "spin": spin, "amplitude": amplitude, "method": method}
     swept = {name: list(v) for name, v in values.items() if isinstance(v, (list, tuple, np.ndarray))}
     for name, v in swept.items():
@@ -1072,7 +1142,7 @@ def assemble_scan(layout, records, body_coords=None):
             raise ValueError(f"body_coords[{name!r}] must have one value per body ({len(moments)}), got shape "
                              f"{v.shape}")
         out = out.assign_coords({name: ("body", v, {"units": "1", "long_name": name.replace("_", " ")})})
-    out = out.transpose("body", *swept, ..., "sample")
+    out = out.transpose("body", *swept, ..., "sample", missing_dims="ignore")  # no "sample": no per-sample array kept
     out.attrs["title"] = "tumble scan: measured rates against linear theory"
     return out
 
@@ -1108,9 +1178,17 @@ def scan(bodies, axis=(1, 2, 3), spin=1.0, amplitude=1e-3, method="auto", *, sam
     does to checkpoint a scan and to run it on a dask cluster).
     """
     layout = scan_layout(bodies, axis, spin, amplitude, method)
+    n = layout["scenes"]
+    if isinstance(samples, (int, np.integer)) and not isinstance(samples, (bool, np.bool_)) and samples >= 1:
+        # before any scene is planned: every scene's per-sample arrays are kept (and stacked once more)
+        cost.refuse(scene_estimate(False, False, int(samples), PROBES + 1, scenes=n, kept_per_sample=_SCAN_KEPT),
+                    f"{n:,} scenes of samples = {samples}")
     progress = options.pop("progress", None)
     show = sys.stderr.isatty() if progress is None else progress
-    plans = [scan_scene(layout, index, samples=samples, seed=seed, **options) for index in range(layout["scenes"])]
+    plans = [scan_scene(layout, index, samples=samples, seed=seed, **options) for index in range(n)]
+    steps = sum(plan.plan.n_steps for plan in plans if plan.chosen != "exact")
+    cost.refuse(cost.scene_cost(samples, steps / n, scenes=n, working=0),
+                f"{n:,} scenes of samples = {samples} ({steps:,} steps in all)")
     records = []
     step = max(1, math.ceil(len(plans) / 32))
     with tqdm(total=len(plans), unit="scenes", disable=not show, desc="scan") as bar:

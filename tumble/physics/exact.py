@@ -755,6 +755,11 @@ def rotation_per_period(body, w0, *, nodes=256, max_nodes=1 << 16, tol=1e-13):
         ``S``, sr.
     """
     moments = one_body(body)
+    for name, value, low in (("nodes", nodes, 2), ("max_nodes", max_nodes, nodes)):
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < low:
+            raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+    if isinstance(tol, (bool, np.bool_)) or not isinstance(tol, (int, float, np.number)) or not 0 < tol < 1:
+        raise ValueError(f"tol must be a number in (0, 1), got {tol!r}")
     sol = _solve(body, w0)
     w = np.ascontiguousarray(spin_vectors(w0).reshape(-1, 3))
     n = w.shape[0]

@@ -44,7 +44,10 @@ def about_axis(angle, axis):
         n[axis] = 1.0
     else:
         n = np.asarray(axis, dtype=float)
-        n = n / np.linalg.norm(n, axis=-1, keepdims=True)
+        norm = np.linalg.norm(n, axis=-1, keepdims=True)
+        if not (np.isfinite(norm) & (norm > 0)).all():
+            raise ValueError(f"axis must be a non-zero, finite vector, got {n.tolist()}")
+        n = n / norm
     half = 0.5 * angle[..., None]
     return np.concatenate([np.cos(half), np.sin(half) * n], axis=-1)
 

@@ -174,7 +174,9 @@ def _pack(manifest, arrays):
     manifest = {**manifest, "arrays": index, "tumble_version": __version__,
                 "comment": "checkpoint of a running tumble study (not a result); removed when it finishes"}
     buffer = io_module.BytesIO()
-    np.savez(buffer, manifest=np.array(json.dumps(manifest, sort_keys=True)),
+    # The manifest as UTF-8 bytes: a NumPy string array is UTF-32, four times the size (for a chunk of small scenes
+    # the manifest is most of the file).
+    np.savez(buffer, manifest=np.frombuffer(json.dumps(manifest, sort_keys=True).encode(), dtype=np.uint8),
              data=np.frombuffer(b"".join(blobs), dtype=np.uint8))
     return buffer.getvalue()
 
@@ -184,7 +186,8 @@ def _unpack(source):
     if isinstance(source, (bytes, bytearray)):
         source = io_module.BytesIO(source)
     with np.load(source, allow_pickle=False) as archive:
-        manifest = json.loads(str(archive["manifest"][()]))
+        raw = archive["manifest"]
+        manifest = json.loads(raw.tobytes().decode() if raw.dtype == np.uint8 else str(raw[()]))
         blob = archive["data"]
     arrays = {}
     for key, (dtype, shape, offset) in manifest["arrays"].items():

@@ -469,6 +469,9 @@ def _amplitude(value, field, distribution):
     if x == 0:
         raise _Invalid(field, "must be > 0 rad: a growth rate or frequency is measured on perturbed spins, and "
                               "a spin exactly on its axis never moves off it")
+    problem = registry.amplitude_problem(x)
+    if problem:
+        raise _Invalid(field, problem)
     if distribution != "gaussian" and x >= 0.5 * math.pi:
         raise _Invalid(field, f"must be < pi/2 rad for distribution {distribution!r} (the tilt of the "
                               f"perturbed spins), got {x!r}")

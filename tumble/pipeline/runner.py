@@ -29,7 +29,7 @@ from tqdm.auto import tqdm
 from .. import _disk, registry
 from ..engine.device import DeviceError, not_on_device, resolve_device
 from ..engine.sampling import CHUNK
-from ..measure import cost
+from ..engine import cost
 from ..measure import model_scenes
 from ..measure import scenes as study
 from ..output import io
@@ -83,6 +83,7 @@ class Job(NamedTuple):
     body_coords: dict | None
     plan: StudyPlan
     file: str = "<mapping>"
+    arrays: tuple = tuple(PER_SAMPLE)  # the per-sample arrays the result keeps (outputs.arrays)
 
 
 def _bodies(resolved):
@@ -180,14 +181,16 @@ def _model_plan(resolved, file):
                      resolved["perturbation"]["samples"], resolved["perturbation"]["seed"])
 
 
-#: The study field a refusal names, by the bound it broke (:class:`tumble.measure.cost.TooLarge`).
+#: The study field a refusal names, by the bound it broke (:class:`tumble.engine.cost.TooLarge`).
 _BOUND_FIELDS = {"scenes": "scan", "steps": "integration", "memory": "perturbation.samples",
                  "size": "perturbation.samples"}
 
 
-def study_cost(resolved):
-    """:class:`tumble.measure.cost.Cost` of a resolved study, from its fields alone (no scene is planned, so
-    this takes microseconds whatever the study's size)."""
+def study_cost(resolved, *, flips=None):
+    """:class:`tumble.engine.cost.Cost` of a resolved study, from its fields alone (no scene is planned, so
+    this takes microseconds whatever the study's size; ``flips`` replaces ``integration.flips``). Its memory is
+    the model of :func:`tumble.measure.scenes.scene_estimate` (the worst kind the study may hold) plus the run's fixed
+    :data:`tumble.engine.cost.RUN_FOOTPRINT`: the peak resident memory above an idle ``import tumble``."""
     scan, integ = resolved["scan"], resolved["integration"]
     if "triangle" in scan:
         bodies = scan["triangle"] ** 2
@@ -201,28 +204,50 @@ def study_cost(resolved):
     stepping = [m for m in methods if m in STEPPING]
     if (resolved["torque"]["profile"] != "none" or "model" in resolved) and not stepping:
         stepping = [registry.AUTO_STEPPING]  # a model always steps (rk4 for "auto")
+    rate = abs(max(scan.get("rate", [resolved["spin"]["rate"]]), key=abs))
+    # the planner's horizon: a few periods (or growth times and flips) of the scene, about PERIODS turns of the spin
+    horizon = integ["horizon"] or study.PERIODS * 2 * math.pi / rate
     steps = 0.0
     if stepping:
-        rate = max(scan.get("rate", [resolved["spin"]["rate"]]), key=abs)
         per_radian = max(study.STEPS_PER_RADIAN[registry.method(m).order] for m in stepping)
-        if integ["dt"] and integ["horizon"]:
-            steps = integ["horizon"] / integ["dt"]
-        elif integ["horizon"]:
-            steps = integ["horizon"] * abs(rate) * per_radian
-        else:  # the planner's horizon: a few periods (or growth times) of the scene
-            steps = study.PERIODS * 2 * math.pi * per_radian
-    kept = 8 * len(resolved["outputs"]["arrays"])
-    return cost.scene_cost(resolved["perturbation"]["samples"], steps, scenes=scenes, kept_per_sample=kept)
+        steps = horizon / integ["dt"] if integ["dt"] else horizon * rate * per_radian
+    times = study.PROBES + 1
+    if integ["horizon"]:  # a periodic scene stores SAVES_PER_PERIOD states per period (at most MAX_SAVES)
+        times = max(times, min(integ["horizon"] * rate / (2 * math.pi) * study.SAVES_PER_PERIOD, study.MAX_SAVES) + 1)
+    arrays = resolved["outputs"]["arrays"]
+    kept = 2 * (8 * len(arrays) + 8 * bool(arrays))  # the records and the assembled dataset, with the sample index
+    estimate = study.scene_estimate(bool(stepping), _only_exponential(resolved), resolved["perturbation"]["samples"],
+                                    times, steps=steps, flips=integ["flips"] if flips is None else flips, scenes=scenes,
+                                    kept_per_sample=kept)
+    return estimate._replace(peak_bytes=estimate.peak_bytes + cost.RUN_FOOTPRINT)
+
+
+def _only_exponential(resolved):
+    """Whether every scene of a study spins about its body's intermediate axis (known from the fields for a study
+    of one free body; a scan of bodies or a model may hold periodic scenes)."""
+    scan = resolved["scan"]
+    if "model" in resolved or any(key in scan for key in ("triangle", "k1", "moments", "body")):
+        return False
+    moments = list(resolved["body"]["moments"])
+    if len(set(moments)) < 3:  # a symmetric body: neutral or periodic scenes
+        return False
+    middle = moments.index(sorted(moments)[1]) + 1
+    return all(axis == middle for axis in scan.get("axis", [resolved["spin"]["axis"]]))
 
 
 def check_cost(resolved, file="<mapping>"):
     """:func:`study_cost`, refused with a :class:`~tumble.pipeline.config.StudyError` past the bounds of
-    :func:`tumble.measure.cost.check` (the message holds the estimate)."""
+    :func:`tumble.engine.cost.check` (the message holds the estimate; the field named is the one that set the
+    size: ``integration.flips`` when the flip times alone overflow the memory)."""
     estimate = study_cost(resolved)
     try:
         return cost.check(estimate)
     except cost.TooLarge as err:
-        raise StudyError(file, _BOUND_FIELDS[err.bound], str(err)) from None
+        field = _BOUND_FIELDS[err.bound]
+        without_flips = study_cost(resolved, flips=0).peak_bytes
+        if err.bound == "memory" and without_flips <= cost.MEMORY_SHARE * cost.physical_memory():
+            field = "integration.flips"
+        raise StudyError(file, field, str(err)) from None
 
 
 def _first(value):
@@ -248,9 +273,10 @@ def scene_job(resolved, file="<mapping>"):
     if "model" in p.options:
         swept = [key for key in values if key in p.scanned or (key == "spin" and "rate" in p.scanned)]
         layout = model_scenes.scan_layout(p.moments, values, swept)
-        return Job(layout, bool(p.scanned), p.samples, p.seed, p.options, p.body_coords, p, str(file))
-    layout = study.scan_layout(p.moments, values["axis"], values["spin"], values["amplitude"], values["method"])
-    return Job(layout, bool(p.scanned), p.samples, p.seed, p.options, p.body_coords, p, str(file))
+    else:
+        layout = study.scan_layout(p.moments, values["axis"], values["spin"], values["amplitude"], values["method"])
+    return Job(layout, bool(p.scanned), p.samples, p.seed, p.options, p.body_coords, p, str(file),
+               tuple(resolved["outputs"]["arrays"]))
 
 
 def _scenes_on_device(p, device):
@@ -314,11 +340,21 @@ def _model_scene_plan(job, moments, params):
                                    params["method"], **options)
 
 
+def _kept(job, record):
+    """A scene record with only the per-sample arrays the result keeps (``outputs.arrays``; the ``sample`` index
+    only with one of them): what a chunk stores and the result is assembled from. The others were a chunk's
+    bulk (a 2048-sample stability map's checkpoint was 140 times its result) and the result drops them anyway."""
+    dropped = [name for name in PER_SAMPLE if name not in job.arrays]
+    if not any(name in PER_SAMPLE for name in job.arrays):
+        dropped.append("sample")
+    return {name: value for name, value in record.items() if name not in dropped}
+
+
 def _scene_record(job, scene, parts):
-    """The record (:func:`tumble.measure.scenes.scene_records`) of a scene from its sample ranges."""
+    """The record (:func:`tumble.measure.scenes.scene_records`, :func:`_kept`) of a scene from its sample ranges."""
     if "model" in job.options:
-        return model_scenes.scene_records([scene], [parts])[0]
-    return study.scene_records([scene], [parts])[0]
+        return _kept(job, model_scenes.scene_records([scene], [parts])[0])
+    return _kept(job, study.scene_records([scene], [parts])[0])
 
 
 def compute_scenes(job, indices, *, progress=False):
@@ -327,9 +363,10 @@ def compute_scenes(job, indices, *, progress=False):
     if not indices:  # an empty task (a worker's warm-up) needs no job
         return {}
     if "model" in job.options:
-        return dict(zip(indices, model_scenes.scene_batch([_scene_plan(job, i) for i in indices])))
-    records = study.scene_batch([_scene_plan(job, i) for i in indices], progress=progress)
-    return dict(zip(indices, records))
+        records = model_scenes.scene_batch([_scene_plan(job, i) for i in indices])
+    else:
+        records = study.scene_batch([_scene_plan(job, i) for i in indices], progress=progress)
+    return {i: _kept(job, record) for i, record in zip(indices, records)}
 
 
 def compute_samples(job, index, start, stop, *, progress=False):
@@ -544,7 +581,7 @@ def _run(resolved, file, progress, *, job=None, store=None, client=None, chunk_s
     ds = checkpoint.normalise_scene(ds)
     keep = resolved["outputs"]["arrays"]
     ds = ds.drop_vars([name for name in PER_SAMPLE if name in ds and name not in keep])
-    if not any(name in ds for name in PER_SAMPLE):
+    if "sample" in ds and not any(name in ds for name in PER_SAMPLE):
         ds = ds.drop_vars("sample")
     figures = resolved["outputs"]["figures"]
     first_body = np.atleast_2d(p.moments)[0]
@@ -662,6 +699,7 @@ def prepare_study(source, *, overrides=None, out=None, formats=None, default_dir
 
 def execute_study(prepared, *, progress=None, client=None, chunk_scenes=None, chunk_samples=None, log=None,
                   action=None, fresh=False, figure_process=None):
+    # size: the prepared study and the run's options (progress, cluster, chunking, log, history, fresh, figures)
     """Run a prepared study's scenes (here, or on the dask ``client``), resuming from its checkpoint, and write
     its outputs; return ``(dataset, paths written)`` — the stored dataset when written, else ``(dataset, [])``.
     ``log`` receives one line per resumed or finished chunk; ``action`` is the provenance's command; ``fresh``

@@ -1,0 +1,154 @@
+"""What a run costs, estimated before anything is allocated, and the one bound every entry point checks.
+
+Every public call that allocates or loops in proportion to the user's numbers — ``tumble.integrate``,
+``propagate``, ``run_ensemble``, ``sampling.perturbed_spins`` and ``perturbed_states``, ``tumble.measure``,
+``scan`` and a study (``tumble run``, ``run_study``) — estimates its :class:`Cost` first and passes it to
+:func:`check` (through :func:`refuse`, which names the arguments that set the size): a run past a bound is a
+:class:`TooLarge` (a ``ValueError``; exit 2 on the command line) with the estimate in its message, within a second.
+The module sits in the engine, the lowest layer that needs it; ``measure`` and ``pipeline`` use it from here.
+
+The time figures are rough (within a factor of a few); throughputs are this project's measurements on a 2-core
+AVX2 machine (``benchmarks/results/engine.md``). The memory of a study is modelled from measured peaks
+(:func:`tumble.pipeline.runner.study_cost`; ``tests/test_memory.py`` holds it within 1.5x of the peak resident
+memory of a run above an idle ``import tumble``).
+"""
+
+import math
+import os
+from typing import NamedTuple
+
+__all__ = ["BYTES_PER_SAMPLE", "MAX_SAMPLE_STEPS", "MAX_SCENES", "RUN_FOOTPRINT", "Cost", "TooLarge", "check",
+           "describe", "most_workers", "physical_memory", "refuse", "run_cost", "scene_cost"]
+
+#: Bytes held per sample of a scene while it is measured (the state, the observers' arrays, the per-sample
+#: results of the fits and the flips; measured with ``benchmarks/engine.py``'s memory part: 594 MiB for a
+#: million-sample rk4 scene, a quarter of it numpy's temporaries).
+BYTES_PER_SAMPLE = 640
+
+#: More scenes than this in one study are refused (each scene costs ~10 ms of fixed work: hours per million).
+MAX_SCENES = 1_000_000
+
+#: More sample-steps than this are refused: about an hour at the ~3e8 sample-steps/s of rk4 on 2 AVX2 cores (a run of
+#: more is a batch job: cut it into studies that checkpoint, or use fewer samples or a larger step).
+MAX_SAMPLE_STEPS = 1e12
+
+#: Bytes a study's run holds whatever its size, above an idle ``import tumble``: the kernels loaded from numba's
+#: cache, netCDF and xarray at work (measured: 122 MB for studies of 64 samples, closed form or rk4).
+RUN_FOOTPRINT = 120e6
+
+#: Bytes one local dask worker process holds before it runs anything (an ``import tumble`` and dask's own, measured
+#: ~200 MB), and the most such processes per core: more only compete for the cores.
+WORKER_FOOTPRINT = 200e6
+WORKERS_PER_CORE = 4
+
+#: Bytes per sample of one engine run besides what it stores: the state, its copy and the status.
+_BYTES_PER_STATE = 64
+
+#: The share of this machine's memory a run may plan to use.
+MEMORY_SHARE = 0.5
+
+#: Throughputs for the time estimate: fixed-step sample-steps/s, closed-form sample evaluations/s, and the
+#: fixed cost of a scene (planning, fits, summaries, dataset), s.
+_STEPS_PER_SECOND = 3e8
+_EXACT_PER_SECOND = 2e6
+_SCENE_SECONDS = 0.03
+
+
+class Cost(NamedTuple):
+    """The estimated size of a run."""
+
+    scenes: int
+    samples: int  # per scene
+    sample_steps: float  # fixed steps over all samples and scenes (0 on the closed-form path)
+    peak_bytes: float
+    seconds: float
+
+
+def physical_memory():
+    """This machine's physical memory, bytes (0 where the system does not say)."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return 0
+
+
+def scene_cost(samples, steps, *, scenes=1, kept_per_sample=0, working=None):
+    """:class:`Cost` of ``scenes`` scenes of ``samples`` samples and ``steps`` fixed steps each (0: closed
+    form), keeping ``kept_per_sample`` bytes per sample and scene in the result (per-sample arrays); ``working``
+    is the largest working set held at once, bytes (default ``samples * BYTES_PER_SAMPLE``)."""
+    sample_steps = float(scenes) * float(samples) * float(steps)
+    working = float(samples) * BYTES_PER_SAMPLE if working is None else float(working)
+    peak = working + float(scenes) * float(samples) * kept_per_sample + scenes * 4096.0
+    seconds = (sample_steps / _STEPS_PER_SECOND + (0 if steps else float(scenes) * samples / _EXACT_PER_SECOND)
+               + scenes * _SCENE_SECONDS)
+    return Cost(int(scenes), int(samples), sample_steps, peak, seconds)
+
+
+def run_cost(samples, steps, stored=0):
+    """:class:`Cost` of one engine run: ``samples`` spins over ``steps`` fixed steps (0: the closed form), each
+    keeping ``stored`` float64 values (a trajectory, probes, flip times) for the whole run."""
+    return scene_cost(samples, steps, working=float(samples) * (_BYTES_PER_STATE + 8.0 * float(stored)))
+
+
+def refuse(estimate, what):
+    """:func:`check` ``estimate``; a refusal's message starts with ``what``: the arguments, as the caller named
+    them, that set the size (``"w0 (10 spins) over t_end / dt = 1e+14 steps"``)."""
+    try:
+        return check(estimate)
+    except TooLarge as err:
+        raise TooLarge(err.bound, f"{what}: {err}") from None
+
+
+def most_workers():
+    """The most local worker processes this machine can hold: :data:`WORKERS_PER_CORE` per core, and their
+    :data:`WORKER_FOOTPRINT` within :data:`MEMORY_SHARE` of its memory."""
+    cores = os.cpu_count() or 1
+    memory = physical_memory()
+    by_memory = int(MEMORY_SHARE * memory // WORKER_FOOTPRINT) if memory else cores * WORKERS_PER_CORE
+    return max(1, min(cores * WORKERS_PER_CORE, by_memory))
+
+
+def _size(n_bytes):
+    for unit in ("B", "kB", "MB", "GB", "TB", "PB"):
+        if n_bytes < 1000 or unit == "PB":
+            return f"{n_bytes:.3g} {unit}"
+        n_bytes /= 1000.0
+    return f"{n_bytes:.3g} PB"  # pragma: no cover
+
+
+def _duration(seconds):
+    for unit, size in (("days", 86400.0), ("h", 3600.0), ("min", 60.0)):
+        if seconds >= size:
+            return f"{seconds / size:.3g} {unit}"
+    return f"{seconds:.2g} s"
+
+
+def describe(cost):
+    """One line: scenes, sample-steps, peak memory, a rough time on a 2-core machine."""
+    return (f"{cost.scenes:,} scene(s) of {cost.samples:,} samples, {cost.sample_steps:.3g} sample-steps, "
+            f"peak memory ~{_size(cost.peak_bytes)}, roughly {_duration(cost.seconds)} on 2 cores")
+
+
+class TooLarge(ValueError):
+    """A run past a bound; ``bound`` is ``"scenes"``, ``"steps"``, ``"memory"`` or ``"size"``."""
+
+    def __init__(self, bound, message):
+        super().__init__(message)
+        self.bound = bound
+
+
+def check(cost):
+    """Refuse a run that cannot fit or would not end: :class:`TooLarge` with the estimate and the bound."""
+    memory = physical_memory()
+    if cost.scenes > MAX_SCENES:
+        raise TooLarge("scenes", f"{cost.scenes:,} scenes is more than the {MAX_SCENES:,} a study may hold "
+                         f"({describe(cost)}); split the scan")
+    if cost.sample_steps > MAX_SAMPLE_STEPS:
+        raise TooLarge("steps", f"{cost.sample_steps:.3g} sample-steps is more than the {MAX_SAMPLE_STEPS:.0e} a run may "
+                         f"take ({describe(cost)}); use fewer samples, a larger step or a shorter horizon")
+    if memory and cost.peak_bytes > MEMORY_SHARE * memory:
+        raise TooLarge("memory", f"needs ~{_size(cost.peak_bytes)} of memory, more than half of this machine's "
+                         f"{_size(memory)} ({describe(cost)}); use fewer samples or keep fewer per-sample arrays")
+    if not math.isfinite(cost.seconds):
+        raise TooLarge("size", f"the run's size is not finite ({describe(cost)})")
+    return cost
