@@ -391,3 +391,15 @@ def test_a_bundled_torque_study_on_the_device_gives_the_cpu_results(cuda_device)
     device = tumble.run_study("space_station", overrides=overrides, device="cuda")
     _same_scene(device, cpu)
     np.testing.assert_allclose(device.trace_omega.values, cpu.trace_omega.values, rtol=1e-10, atol=1e-14)
+
+
+def test_the_bound_on_sample_steps_is_the_devices_own():
+    # 1e13 sample-steps: hours on two CPU cores, half a minute on one GPU
+    from tumble.engine import cost
+
+    estimate = cost.run_cost(10**7, 10**6)
+    with pytest.raises(ValueError, match="more than the 1e\\+12 a run may take"):
+        cost.check(estimate)
+    assert cost.check(estimate, "cuda") is estimate
+    with pytest.raises(ValueError, match="more than the 1e\\+15 a run may take"):
+        cost.check(cost.run_cost(10**9, 10**7), "cuda")

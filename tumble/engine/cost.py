@@ -17,7 +17,7 @@ import math
 import os
 from typing import NamedTuple
 
-__all__ = ["BYTES_PER_SAMPLE", "MAX_SAMPLE_STEPS", "MAX_SCENES", "RUN_FOOTPRINT", "Cost", "TooLarge", "check",
+__all__ = ["BYTES_PER_SAMPLE", "MAX_DEVICE_SAMPLE_STEPS", "MAX_SAMPLE_STEPS", "MAX_SCENES", "RUN_FOOTPRINT", "Cost", "TooLarge", "check",
            "describe", "most_workers", "physical_memory", "refuse", "run_cost", "scene_cost"]
 
 #: Bytes held per sample of a scene while it is measured (the state, the observers' arrays, the per-sample
@@ -31,6 +31,10 @@ MAX_SCENES = 1_000_000
 #: More sample-steps than this are refused: about an hour at the ~3e8 sample-steps/s of rk4 on 2 AVX2 cores (a run of
 #: more is a batch job: cut it into studies that checkpoint, or use fewer samples or a larger step).
 MAX_SAMPLE_STEPS = 1e12
+
+#: The same bound for a run on a CUDA device (``device="cuda"``): about an hour at the ~3e11 sample-steps/s of rk4 on
+#: one H100/H200-class GPU (the issue-28 measurement of a plain kernel; not yet measured through tumble).
+MAX_DEVICE_SAMPLE_STEPS = 1e15
 
 #: Bytes a study's run holds whatever its size, above an idle ``import tumble``: the kernels loaded from numba's
 #: cache, netCDF and xarray at work (measured: 122 MB for studies of 64 samples, closed form or rk4).
@@ -90,11 +94,11 @@ def run_cost(samples, steps, stored=0):
     return scene_cost(samples, steps, working=float(samples) * (_BYTES_PER_STATE + 8.0 * float(stored)))
 
 
-def refuse(estimate, what):
-    """:func:`check` ``estimate``; a refusal's message starts with ``what``: the arguments, as the caller named
-    them, that set the size (``"w0 (10 spins) over t_end / dt = 1e+14 steps"``)."""
+def refuse(estimate, what, device="cpu"):
+    """:func:`check` ``estimate`` (of a run on ``device``); a refusal's message starts with ``what``: the arguments,
+    as the caller named them, that set the size (``"w0 (10 spins) over t_end / dt = 1e+14 steps"``)."""
     try:
-        return check(estimate)
+        return check(estimate, device)
     except TooLarge as err:
         raise TooLarge(err.bound, f"{what}: {err}") from None
 
@@ -137,14 +141,16 @@ class TooLarge(ValueError):
         self.bound = bound
 
 
-def check(cost):
-    """Refuse a run that cannot fit or would not end: :class:`TooLarge` with the estimate and the bound."""
+def check(cost, device="cpu"):
+    """Refuse a run that cannot fit or would not end: :class:`TooLarge` with the estimate and the bound. The bound on
+    sample-steps is :data:`MAX_SAMPLE_STEPS` on the CPU, :data:`MAX_DEVICE_SAMPLE_STEPS` on ``device="cuda"``."""
     memory = physical_memory()
+    most_steps = MAX_DEVICE_SAMPLE_STEPS if device == "cuda" else MAX_SAMPLE_STEPS
     if cost.scenes > MAX_SCENES:
         raise TooLarge("scenes", f"{cost.scenes:,} scenes is more than the {MAX_SCENES:,} a study may hold "
                          f"({describe(cost)}); split the scan")
-    if cost.sample_steps > MAX_SAMPLE_STEPS:
-        raise TooLarge("steps", f"{cost.sample_steps:.3g} sample-steps is more than the {MAX_SAMPLE_STEPS:.0e} a run may "
+    if cost.sample_steps > most_steps:
+        raise TooLarge("steps", f"{cost.sample_steps:.3g} sample-steps is more than the {most_steps:.0e} a run may "
                          f"take ({describe(cost)}); use fewer samples, a larger step or a shorter horizon")
     if memory and cost.peak_bytes > MEMORY_SHARE * memory:
         raise TooLarge("memory", f"needs ~{_size(cost.peak_bytes)} of memory, more than half of this machine's "

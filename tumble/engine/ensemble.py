@@ -356,7 +356,7 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
                                    flips=max_flips)
     stored = _stored_per_sample(steps, save_every, probe_times, max_flips, drift, attitude)
     cost.refuse(cost.run_cost(n, 0 if chosen == "exact" else steps, stored),
-                f"w0 ({n:,} spins) over t_end / dt = {steps:.3g} steps")
+                f"w0 ({n:,} spins) over t_end / dt = {steps:.3g} steps", device)
     n_steps = int(steps)
     if attitude and (not save_every or probe_times is not None or max_flips or drift or stop_norm or stop_flips):
         raise ValueError("attitude=True is stored with the trajectory: it needs save_every and no other observer")

@@ -54,13 +54,13 @@ def _initial_spins(w0):
     return w
 
 
-def _bounded_step_plan(t_end, dt, w, save_every, *, exact_path, per_state=3):
+def _bounded_step_plan(t_end, dt, w, save_every, *, exact_path, per_state=3, device="cpu"):
     """:func:`_step_plan` after the cost bound (:func:`tumble.engine.cost.refuse`) of the spins ``w`` keeping
     ``per_state`` values per stored state (a trajectory with ``save_every``, else the final state)."""
     steps = t_end / dt
     stored = per_state * (steps / save_every + 2 if save_every else 2)
     cost.refuse(cost.run_cost(len(w), 0 if exact_path else steps, stored),
-                f"w0 ({len(w):,} spins) over t_end / dt = {steps:.3g} steps")
+                f"w0 ({len(w):,} spins) over t_end / dt = {steps:.3g} steps", device)
     return _step_plan(t_end, dt)
 
 
@@ -142,7 +142,7 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
     save_every = _save_every(save_every)
     kind, params, fn, _ = torque_spec(torque)
     chosen, _ = registry.choose_method(method, torque_free=params is None and fn is None)
-    n_steps, step = _bounded_step_plan(t_end, dt, w, save_every, exact_path=chosen == "exact")
+    n_steps, step = _bounded_step_plan(t_end, dt, w, save_every, exact_path=chosen == "exact", device=device)
     if chosen == "exact" and not save_every:
         out = exact.omega_at(moments, w, t_end) if device == "cpu" else exact.omega_on_device(
             moments, w, np.array([t_end]))[:, 0]
@@ -214,7 +214,7 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
         raise ValueError(f"method must be one of {', '.join(METHOD_NAMES)}; got {method!r}")
     save_every = _save_every(save_every)
     n_steps, step = _bounded_step_plan(t_end, dt, w, save_every, exact_path=method == "exact",
-                                       per_state=7 if attitude else 3)
+                                       per_state=7 if attitude else 3, device=device)
     # A plain integration returns what the method computes: no early stop, no drift flagging. The final state
     # alone is the driver's final-state path, as tumble.propagate's (the same bits, and no trajectory to store: 0.1 ms
     # less for 2000 spins and 200 rk4 steps); with the attitude it is read off a trajectory of two states (start, end).

@@ -137,12 +137,13 @@ def scene_estimate(stepping, exponential, samples, times, *, steps=0, flips=0, s
 _SCAN_KEPT = 2 * (8 + 1 + 8 + 8 + 8)
 
 
-def refuse_plan(samples, plan, stepping, exponential, flips):
+def refuse_plan(samples, plan, stepping, exponential, flips, device="cpu"):
     """Refuse a planned scene past the cost bound (:func:`tumble.engine.cost.refuse`), naming what set its size."""
     times = len(plan.probe_times) if plan.probe_times is not None else plan.n_steps // (plan.save_every or 1) + 2
     estimate = scene_estimate(stepping, exponential, samples, times, steps=plan.n_steps, flips=flips)
     steps = f"{plan.n_steps:,} steps of {plan.dt:.3g} s" if stepping else "the closed form"
-    cost.refuse(estimate, f"samples = {samples} over a horizon of {plan.t_end:.3g} s ({steps}, flips = {flips})")
+    cost.refuse(estimate, f"samples = {samples} over a horizon of {plan.t_end:.3g} s ({steps}, flips = {flips})",
+                device)
 
 
 def _check_method(method):
@@ -446,7 +447,8 @@ def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, metho
     plan = _plan(moments, a, kind, value, spin, amplitude, chosen, dt, flips if kind == "exponential" else 0,
                  probe_spins, horizon, spin_max)
     check_fit_span(kind, value, plan.probe_times[-1] if kind == "exponential" else plan.t_end, horizon)
-    refuse_plan(samples, plan, chosen != "exact", kind == "exponential", flips if kind == "exponential" else 0)
+    refuse_plan(samples, plan, chosen != "exact", kind == "exponential", flips if kind == "exponential" else 0,
+                device)
     return Scene(moments=moments, axis=axis, spin=spin, amplitude=amplitude, samples=samples, method=method,
                  chosen=chosen, kind=kind, value=value, spin_up=spin_up,
                  torque=torque if spin_up is not None else None, plan=plan,
@@ -1188,7 +1190,7 @@ def scan(bodies, axis=(1, 2, 3), spin=1.0, amplitude=1e-3, method="auto", *, sam
     plans = [scan_scene(layout, index, samples=samples, seed=seed, **options) for index in range(n)]
     steps = sum(plan.plan.n_steps for plan in plans if plan.chosen != "exact")
     cost.refuse(cost.scene_cost(samples, steps / n, scenes=n, working=0),
-                f"{n:,} scenes of samples = {samples} ({steps:,} steps in all)")
+                f"{n:,} scenes of samples = {samples} ({steps:,} steps in all)", options.get("device", "cpu"))
     records = []
     step = max(1, math.ceil(len(plans) / 32))
     with tqdm(total=len(plans), unit="scenes", disable=not show, desc="scan") as bar:

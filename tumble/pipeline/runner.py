@@ -241,7 +241,7 @@ def check_cost(resolved, file="<mapping>"):
     size: ``integration.flips`` when the flip times alone overflow the memory)."""
     estimate = study_cost(resolved)
     try:
-        return cost.check(estimate)
+        return cost.check(estimate, resolved["integration"].get("device", "cpu"))
     except cost.TooLarge as err:
         field = _BOUND_FIELDS[err.bound]
         without_flips = study_cost(resolved, flips=0).peak_bytes
