@@ -12,6 +12,7 @@ import xarray as xr
 from xarray.testing import assert_identical
 
 from tumble._version import __version__
+from tumble.output import io
 from tumble.output.io import check_tumble_result, netcdf_safe_attrs, provenance, read_dataset, write_dataset
 
 STUDY = {
@@ -198,12 +199,12 @@ def test_failed_write_leaves_old_file_and_no_temporary(tmp_path, monkeypatch):
     write_dataset(result_dataset(), path)
     before = path.read_bytes()
 
-    def half_write(self, target, *args, **kwargs):
+    def half_write(ds, target, encoding):
         with open(target, "wb") as f:
             f.write(before[: len(before) // 2])
         raise RuntimeError("disk full")
 
-    monkeypatch.setattr(xr.Dataset, "to_netcdf", half_write)
+    monkeypatch.setattr(io, "_to_netcdf4", half_write)
     with pytest.raises(OSError, match="disk full") as raised:  # netCDF4's RuntimeError, with the file's name
         write_dataset(result_dataset(), path)
     assert str(path) in str(raised.value) and isinstance(raised.value.__cause__, RuntimeError)

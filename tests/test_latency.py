@@ -158,6 +158,9 @@ STUDY = {"title": "figure process", "outputs": {"figures": ["summary"], "format"
 
 
 def test_the_figure_process_draws_the_files_this_process_would(small_result, tmp_path):
+    import xarray as xr
+
+    from tumble.output import io
     from tumble.pipeline import figure_process, runner
 
     here, paths_here = runner.write_outputs(small_result, STUDY, tmp_path / "here", "s")
@@ -166,6 +169,7 @@ def test_the_figure_process_draws_the_files_this_process_would(small_result, tmp
     assert [p.name for p in paths_apart] == [p.name for p in paths_here] == ["s.nc", "s_summary.png"]
     for mine, theirs in zip(paths_here[1:], paths_apart[1:]):
         assert mine.read_bytes() == theirs.read_bytes(), mine.name
+    xr.testing.assert_identical(io.read_dataset(paths_apart[0]), apart)  # written past to_netcdf's dask query
     assert sorted(p.name for p in (tmp_path / "apart").iterdir()) == sorted(p.name for p in paths_apart)
 
 
@@ -195,11 +199,12 @@ def test_when_the_figure_process_dies_the_figures_are_drawn_here(small_result, t
     assert all(p.stat().st_size > 0 for p in paths)
 
 
-def test_tumble_run_neither_imports_dask_array_nor_leaves_its_figure_process_behind(tmp_path):
+def test_tumble_run_imports_neither_dask_array_nor_distributed_nor_leaves_its_figure_process_behind(tmp_path):
     code = f"""import os, sys
 from tumble.cli import main
 assert main(['run', '--samples', '32', '--out', {str(tmp_path)!r}]) == 0
 assert 'dask.array' not in sys.modules, 'dask.array was imported'
+assert 'distributed' not in sys.modules, 'dask.distributed was imported'
 try:
     os.waitpid(-1, os.WNOHANG)
 except ChildProcessError:

@@ -112,9 +112,20 @@ class InputError(ValueError):
 
 
 def _run(args):
+    from .pipeline import figure_process  # the standard library only
+
+    # Started before this process imports anything heavy: the figure process imports matplotlib and xarray on the
+    # other core meanwhile, and draws once the scenes are done (a dry run starts none; invalid input or a study
+    # without figures ends it unused).
+    with contextlib.nullcontext() if args.dry_run else figure_process.FigureProcess() as drawer:
+        _run_study(args, drawer)
+
+
+def _run_study(args, drawer):
+    """``tumble run``: check, plan and run the study, its figures drawn by ``drawer`` (a ``FigureProcess``, or None)."""
     from .engine import cost
     from .output import io
-    from .pipeline import checkpoint, figure_process, runner
+    from .pipeline import checkpoint, runner
 
     io.assume_no_dask_arrays()  # this process makes none: xarray need not import dask.array to look for them
 
@@ -152,8 +163,8 @@ def _run(args):
                "log": lambda line: print(line, flush=True)}
     try:
         with contextlib.ExitStack() as stack:
-            if prepared.resolved["outputs"]["figures"]:  # matplotlib is imported there while the scenes run here
-                options["figure_process"] = stack.enter_context(figure_process.FigureProcess())
+            if drawer is not None and prepared.resolved["outputs"]["figures"]:
+                options["figure_process"] = drawer
             if scheduler is None:
                 stored, paths = runner.execute_study(prepared, **options)
             else:

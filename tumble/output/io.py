@@ -369,7 +369,7 @@ def write_dataset(ds, path, *, compression=4, stored=False, **provenance_kwargs)
     path.parent.mkdir(parents=True, exist_ok=True)
     with replaced_atomically(path, durable=True) as tmp:
         try:
-            ds.to_netcdf(tmp, mode="w", format="NETCDF4", engine="netcdf4", encoding=encoding)
+            _to_netcdf4(ds, tmp, encoding)
         except (OSError, RuntimeError) as err:  # netCDF4: a full disk is "Permission denied" or "NetCDF: HDF error"
             # asked while the half-written file still takes its room
             problem = _disk.disk_problem(err, path.parent, needed=ds.nbytes)
@@ -379,6 +379,28 @@ def write_dataset(ds, path, *, compression=4, stored=False, **provenance_kwargs)
                 raise OSError(errno.EIO, f"{err} (writing {path})") from err
             raise
     return ds
+
+
+def _to_netcdf4(ds, path, encoding):
+    """``ds.to_netcdf(path, format="NETCDF4", engine="netcdf4", encoding=encoding)``, without asking dask anything.
+
+    ``to_netcdf`` asks dask which scheduler runs — importing ``dask.distributed``, 0.25 s on 2 cores, in every
+    ``tumble run`` where dask is installed — to pick a file lock and whether to close the file after each write:
+    choices for dask arrays, which tumble never writes. The same store is opened here with the lock xarray itself
+    takes for a netCDF4 file named by a path object (the netCDF-C and HDF5 library lock) and written by xarray's
+    :meth:`xarray.Dataset.dump_to_store`, the step ``to_netcdf`` takes (``tests/test_io.py`` reads back what
+    ``write_dataset`` returns). Where those names are gone (another xarray), ``to_netcdf`` writes it.
+    """
+    try:
+        from xarray.backends.netCDF4_ import NETCDF4_PYTHON_LOCK, NetCDF4DataStore
+    except ImportError:
+        ds.to_netcdf(path, mode="w", format="NETCDF4", engine="netcdf4", encoding=encoding)
+        return
+    store = NetCDF4DataStore.open(path, mode="w", format="NETCDF4", lock=NETCDF4_PYTHON_LOCK)
+    try:
+        ds.dump_to_store(store, encoding=encoding)
+    finally:
+        store.close()
 
 
 def assume_no_dask_arrays():
