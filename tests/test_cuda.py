@@ -294,27 +294,31 @@ def test_every_device_kernel_compiles_to_ptx_for_a_gpu():
 
 # --- the device choice beyond the engine: measure, scan, studies, the command line ---------------------------------
 
-@pytest.mark.parametrize("call", [
-    lambda: tumble.measure((1.0, 2.0, 3.0), 2, samples=8, device="cuda"),
-    lambda: tumble.measure((1.0, 2.0, 3.0), 2, samples=8, method="exact", device="cuda"),
-    lambda: tumble.scan((1.0, 2.0, 3.0), axis=(1, 2), samples=8, method=["rk4", "auto"], device="cuda"),
-    lambda: tumble.run_study("intermediate_axis", device="cuda"),
-], ids=["measure", "measure_exact", "scan", "run_study"])
-def test_closed_form_scenes_on_the_device_are_refused_until_it_is_there(cuda_device, call):
-    with pytest.raises(ValueError) as err:
-        call()
-    assert _one_line(err).startswith("device 'cuda': a scene on the closed form (method 'exact', which 'auto' picks")
-    assert "run it with device='cpu'" in str(err.value)
+@pytest.mark.parametrize("axis, method, kwargs", [
+    (2, "auto", dict(flips=2, curves=("norm",))),
+    (1, "exact", {}),
+    (3, "auto", {}),
+], ids=["growth_flips", "periodic_exact", "periodic_auto"])
+def test_a_closed_form_scene_on_the_device_measures_the_cpu_rates(cuda_device, axis, method, kwargs):
+    """The set-up and the time grid on the device (exact.omega_on_device), the fits and the flips on the host."""
+    cpu = tumble.measure((1.0, 2.0, 3.0), axis, samples=8, method=method, **kwargs)
+    device = tumble.measure((1.0, 2.0, 3.0), axis, samples=8, method=method, device="cuda", **kwargs)
+    assert device.path.item() == "closed form"
+    _same_scene(device, cpu)
+    for name in ("flip_first", "flip_spacing", "norm_median"):
+        if name in cpu:
+            np.testing.assert_allclose(device[name].values, cpu[name].values, rtol=1e-10, err_msg=name)
 
 
-def test_tumble_run_device_cuda_refuses_a_closed_form_study_in_one_line_and_writes_nothing(cuda_device, tmp_path):
-    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")  # the simulator: the device is there, the closed form is not
-    done = subprocess.run([sys.executable, "-m", "tumble", "run", "--device", "cuda", "--out", str(tmp_path / "out")],
-                          capture_output=True, text=True, env=env, timeout=120)
-    assert done.returncode == 2
-    lines = done.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("device 'cuda': a scene on the closed form"), done.stderr
-    assert not (tmp_path / "out").exists()
+def test_tumble_run_device_cuda_runs_the_default_closed_form_study_as_the_cpu_does(cuda_device, tmp_path):
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")  # the simulator: the device is there
+    runs = {}
+    for device in ("cpu", "cuda"):
+        done = subprocess.run([sys.executable, "-m", "tumble", "run", "--device", device, "--samples", "8", "--out",
+                               str(tmp_path / device)], capture_output=True, text=True, env=env, timeout=600)
+        assert done.returncode == 0, done.stderr
+        runs[device] = tumble.io.read_dataset(tmp_path / device / "intermediate_axis.nc")
+    _same_scene(runs["cuda"], runs["cpu"])
 
 
 def test_model_studies_on_the_device_are_refused_before_anything_runs(cuda_device):

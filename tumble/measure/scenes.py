@@ -43,7 +43,7 @@ from tqdm.auto import tqdm
 from .. import registry
 from .._version import __version__
 from ..engine.ensemble import flip_times, observation_times, run_ensemble, torque_spec
-from ..engine.device import LAUNCH_SAMPLES, not_on_device, resolve_device
+from ..engine.device import LAUNCH_SAMPLES, resolve_device
 from ..engine.integration import integrate
 from ..engine.sampling import CHUNK, perturbed_spins, seed_entropy
 from ..physics import exact, theory
@@ -356,9 +356,10 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
     device : {"cpu", "cuda"}
         Where the scene's samples step. On ``"cuda"`` a stepping scene (a named fixed-step method, or a torque) runs
         its samples and their observers (probe norms, flips, early stop) on the device and only the per-sample
-        arrays the fits need come back; the fits and the reduction run on the host. The closed form is not on the
-        device yet: a closed-form scene (``"exact"``, or ``"auto"`` torque-free) raises the ``ValueError``
-        ``device 'cuda': ...``, as does a device that is missing (saying what is), never a silent run on the CPU.
+        arrays the fits need come back; a closed-form scene (``"exact"``, or ``"auto"`` torque-free) sets up and
+        evaluates its samples on the device (:func:`tumble.physics.exact.omega_on_device`) and times its flips on the
+        host; the fits and the reduction run on the host. A device that is missing raises the ``ValueError``
+        ``device 'cuda': ...`` (saying what is), never a silent run on the CPU.
 
     Returns
     -------
@@ -388,17 +389,13 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
 
 
 def scenes_on_device(device, methods=(), *, torque_free=True):
+    # size: the signature the study runner and the scene planner share (methods and torque_free say what a scene runs)
     """Check the ``device`` of scenes asking for ``methods`` (as given: ``"auto"`` too), and return it resolved.
 
-    On ``"cuda"`` a scene on the closed form (``"exact"``, or ``"auto"`` for a torque-free scene) raises
-    :class:`tumble.engine.device.DeviceError`: the closed form is not on the device yet. A device that cannot run
-    raises it too, saying what is missing (:func:`tumble.engine.device.resolve_device`).
+    Every fixed-step method and the closed form run their scenes on ``"cuda"``; a device that cannot run raises
+    :class:`tumble.engine.device.DeviceError`, saying what is missing (:func:`tumble.engine.device.resolve_device`).
     """
-    device = resolve_device(device)
-    if device == "cuda" and any(m == "exact" or (m == registry.AUTO and torque_free) for m in methods):
-        raise not_on_device("a scene on the closed form (method 'exact', which 'auto' picks for a torque-free scene) "
-                            "is")
-    return device
+    return resolve_device(device)
 
 
 def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="auto", *, dt=None, flips=3,
@@ -582,7 +579,7 @@ def closed_form_samples(scenes, start, stop):
     grids = [_observation_grid(scene) for scene in scenes]
     groups = {}
     for k, scene in enumerate(scenes):
-        key = (scene.kind == "exponential", len(grids[k]), scene.flips)
+        key = (scene.kind == "exponential", len(grids[k]), scene.flips, scene.device)
         groups.setdefault(key, []).extend((k, lo, min(lo + SLICE, stop)) for lo in range(start, stop, SLICE))
     for items in groups.values():
         batch, size = [], 0
@@ -615,8 +612,13 @@ def _closed_form_batch(scenes, grids, batch, parts, start):
                                          scene.samples, seed=scene.entropy, distribution=scene.distribution,
                                          start=lo, stop=hi) for scene, (_, lo, hi) in zip(per_sample, batch)])
     times = np.stack([grids[k] for k, _, _ in batch])
-    sol = exact.solve_rows(moments, w0)
-    omega = exact.omega_rows(sol, times, row)
+    sol = exact.solve_rows(moments, w0)  # also the flips' times and spacings: on the host, whatever the device
+    if per_sample[0].device == "cuda":  # each slice's set-up and time grid on the device, one thread per sample
+        bounds = np.cumsum([0, *sizes])
+        omega = np.concatenate([exact.omega_on_device(scene.moments, w0[a:b], grids[k])
+                                for scene, (k, _, _), a, b in zip(per_sample, batch, bounds[:-1], bounds[1:])])
+    else:
+        omega = exact.omega_rows(sol, times, row)
     first = per_sample[0]
     if first.kind == "exponential":
         columns = each([(s.axis % 3, (s.axis + 1) % 3) for s in per_sample])

@@ -750,10 +750,9 @@ def run_study(source, *, overrides=None, out=None, progress=None, scheduler=None
         ``"tcp://HOST:PORT"``, or a connected ``distributed.Client`` (see :mod:`tumble.pipeline.distributed`).
         Default: in this process. The results are the same bits either way.
     device : {"cpu", "cuda"}, optional
-        Overrides the study's ``integration.device``. ``"cuda"`` runs the stepping scenes on the device; a study with
-        closed-form scenes (``method = "auto"`` torque-free, or ``"exact"``) or a ``[model]`` is refused before anything
-        runs (``device 'cuda': ...``, :func:`tumble.measure.scenes.scenes_on_device`); an invalid value is a
-        ``StudyError`` naming the field.
+        Overrides the study's ``integration.device``. ``"cuda"`` runs the scenes on the device (stepping and closed
+        form); a study with a ``[model]`` is refused before anything runs (``device 'cuda': ...``); an invalid value is
+        a ``StudyError`` naming the field.
     chunk_scenes : int, optional
         Scenes per chunk (checkpoint and dask task); the results do not depend on it.
     chunk_samples : int, optional
