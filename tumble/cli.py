@@ -386,7 +386,7 @@ def _parser():
     run.add_argument("--format", nargs="+", choices=("png", "pdf"), help="figure formats (override outputs.format)")
     run.add_argument("--device", choices=registry.DEVICES,
                      help="where the scenes run (override integration.device): cpu, or cuda for an NVIDIA GPU "
-                          "(pip install \"tumble[gpu]\"; model studies are not on the GPU yet)")
+                          "(pip install \"tumble[gpu]\")")
     run.add_argument("--scheduler", metavar="ADDRESS",
                      help="run the scenes on dask.distributed: 'local' (a LocalCluster on 127.0.0.1) or "
                           "tcp://HOST:PORT of a running scheduler (default: $DASK_SCHEDULER_ADDRESS, else in-process; "

@@ -62,6 +62,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import registry
+from ..engine.device import LAUNCH_SAMPLES, resolve_device
 from ..engine.models import run_model_ensemble
 from ..engine.sampling import CHUNK, perturbed_states, seed_entropy
 from ..physics import models, theory
@@ -113,6 +114,7 @@ class ModelScene:
     torque: None = None
     curves: tuple = field(default=())
     mode: Mode | None = None  # a modal model's measured mode (:func:`mode`), planned once for the fits
+    device: str = "cpu"  # where the samples step (resolved: "cpu" or "cuda")
 
 
 class Mode(NamedTuple):
@@ -266,7 +268,7 @@ def _checked(model, axis, amplitude, samples, method):
 
 
 def scene_plan(model, axis, spin=1.0, amplitude=1e-3, samples=256, seed=0, method="auto", *, dt=None,
-               horizon=None, distribution="cone"):
+               horizon=None, distribution="cone", device="cpu"):
     # size: a public call: the scene's physics, its ensemble and the study's integration options
     """Plan one model scene (nothing runs but the first samples' initial norms).
 
@@ -284,6 +286,8 @@ def scene_plan(model, axis, spin=1.0, amplitude=1e-3, samples=256, seed=0, metho
     method : {"auto", "rk4", "rk8", "symplectic_euler", "splitting2", "splitting4"}
     dt, horizon : float, optional
         Step and horizon, s (default: planned from the linear theory).
+    device : {"cpu", "cuda"}
+        Where the samples step (:func:`tumble.engine.models.run_model_ensemble`); the fits run on the host.
 
     Returns
     -------
@@ -295,6 +299,7 @@ def scene_plan(model, axis, spin=1.0, amplitude=1e-3, samples=256, seed=0, metho
         An invalid argument; an axis the model has no steady spin about; a neutral spin (no rate to measure).
     """
     chosen = _checked(model, axis, amplitude, samples, method)
+    device = resolve_device(device)
     spin, amplitude = float(spin), float(amplitude)
     linearised = theory.linearisation(model, int(axis), spin)  # one Jacobian for the kind, the step and the mode
     kind, value = linearised.kind, linearised.value
@@ -315,9 +320,9 @@ def scene_plan(model, axis, spin=1.0, amplitude=1e-3, samples=256, seed=0, metho
     order = registry.method(chosen).order
     plan = _plan((model, int(axis), spin, amplitude, order), kind, value, norms, dt, horizon, linearised.eigenvalues)
     scenes.check_fit_span(kind, value, plan.t_end, horizon)
-    scenes.refuse_plan(int(samples), plan, True, kind == "exponential", 0)
+    scenes.refuse_plan(int(samples), plan, True, kind == "exponential", 0, device)
     return ModelScene(model, model.moments, int(axis), spin, amplitude, int(samples), method, chosen, kind, value,
-                      plan, entropy, distribution, mode=scene_mode)
+                      plan, entropy, distribution, mode=scene_mode, device=device)
 
 
 class _Call(NamedTuple):
@@ -402,12 +407,14 @@ def _run(scene, start, stop):
         raise ValueError(f"a sample range must lie in [0, {scene.samples}) and start at a multiple of {CHUNK}, "
                          f"got [{start}, {stop})")
     calls = []
-    for lo in range(start, stop, SLICE):
-        hi = min(lo + SLICE, stop)
+    step = SLICE if scene.device == "cpu" else max(SLICE, LAUNCH_SAMPLES)  # a device launch needs many samples
+    for lo in range(start, stop, step):
+        hi = min(lo + step, stop)
         result = run_model_ensemble(scene.model, _initial_states(scene, lo, hi), plan.t_end, plan.dt,
                                     method=scene.chosen, axis=scene.axis, spin=scene.spin, final=False,
                                     save_every=plan.save_every, time_major=modal,
-                                    probe_times=plan.probe_times if growth and not plan.save_every else None)
+                                    probe_times=plan.probe_times if growth and not plan.save_every else None,
+                                    device=scene.device)
         if modal:
             calls.append(_Call(lo, hi, result._replace(trajectory=None), _modal_signal(scene, result)))
         else:

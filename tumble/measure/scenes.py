@@ -388,16 +388,6 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
     return scene_result(scene, [scene_samples(scene, 0, scene.samples, progress=progress)])
 
 
-def scenes_on_device(device, methods=(), *, torque_free=True):
-    # size: the signature the study runner and the scene planner share (methods and torque_free say what a scene runs)
-    """Check the ``device`` of scenes asking for ``methods`` (as given: ``"auto"`` too), and return it resolved.
-
-    Every fixed-step method and the closed form run their scenes on ``"cuda"``; a device that cannot run raises
-    :class:`tumble.engine.device.DeviceError`, saying what is missing (:func:`tumble.engine.device.resolve_device`).
-    """
-    return resolve_device(device)
-
-
 def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="auto", *, dt=None, flips=3,
                distribution="cone", torque=None, horizon=None, curves=(), device="cpu"):
     # size: the arguments of measure (a public call), checked and frozen into a Scene record
@@ -428,7 +418,6 @@ def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, metho
     a = axis - 1
     kind, value = theory.linear(moments, axis, spin)
     spin_up = _axial_spin_up(torque, moments, a, kind, spin)
-    scenes_on_device(device, [method], torque_free=spin_up is None)
     chosen, _ = registry.choose_method(method, torque_free=spin_up is None)
     if chosen == "exact":  # before the plan, whose horizon already takes the closed form's set-up
         exact.compile_kernels_side_by_side(kind)

@@ -27,7 +27,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .. import _disk, registry
-from ..engine.device import DeviceError, not_on_device, resolve_device
+from ..engine.device import DeviceError, resolve_device
 from ..engine.sampling import CHUNK
 from ..engine import cost
 from ..measure import model_scenes
@@ -165,7 +165,8 @@ def _model_plan(resolved, file):
         values[key] = scan.get(key, model[key])
     integ = resolved["integration"]
     options = {"dt": integ["dt"] or None, "horizon": integ["horizon"] or None,
-               "distribution": resolved["perturbation"]["distribution"], "model": model["kind"]}
+               "distribution": resolved["perturbation"]["distribution"], "model": model["kind"],
+               "device": integ["device"]}
     needs = {"gyrostat_map": ("gyrostat", "rotor", "scan.rotor (rotor momentum along the spin axis)"),
              "sleeping_top": ("heavy_top", "rate", "scan.rate (the spin w3 through the threshold)"),
              "debra_delp_map": ("gravity_gradient", "k1", "scan.k1 and scan.k3 (the grid of inertia ratios)"),
@@ -269,7 +270,7 @@ def scene_job(resolved, file="<mapping>"):
     check_cost(resolved, file)
     p = plan(resolved, file)
     values = p.values
-    _scenes_on_device(p, resolved["integration"]["device"])  # device 'cuda': refused before anything runs
+    resolve_device(resolved["integration"]["device"])  # a device that cannot run: refused before anything runs
     if "model" in p.options:
         swept = [key for key in values if key in p.scanned or (key == "spin" and "rate" in p.scanned)]
         layout = model_scenes.scan_layout(p.moments, values, swept)
@@ -277,17 +278,6 @@ def scene_job(resolved, file="<mapping>"):
         layout = study.scan_layout(p.moments, values["axis"], values["spin"], values["amplitude"], values["method"])
     return Job(layout, bool(p.scanned), p.samples, p.seed, p.options, p.body_coords, p, str(file),
                tuple(resolved["outputs"]["arrays"]))
-
-
-def _scenes_on_device(p, device):
-    """Refuse a study's scenes that cannot run on ``device`` before any runs (``device 'cuda': ...``): a model's
-    scenes, and scenes on the closed form (:func:`tumble.measure.scenes.scenes_on_device`)."""
-    if "model" in p.options:
-        if resolve_device(device) == "cuda":
-            raise not_on_device(f"a model's scene (model.kind = {p.options['model']!r}) is")
-        return
-    methods = p.values["method"] if isinstance(p.values["method"], list) else [p.values["method"]]
-    study.scenes_on_device(device, methods, torque_free=p.options["torque"] is None)
 
 
 class Task(NamedTuple):
@@ -750,9 +740,9 @@ def run_study(source, *, overrides=None, out=None, progress=None, scheduler=None
         ``"tcp://HOST:PORT"``, or a connected ``distributed.Client`` (see :mod:`tumble.pipeline.distributed`).
         Default: in this process. The results are the same bits either way.
     device : {"cpu", "cuda"}, optional
-        Overrides the study's ``integration.device``. ``"cuda"`` runs the scenes on the device (stepping and closed
-        form); a study with a ``[model]`` is refused before anything runs (``device 'cuda': ...``); an invalid value is
-        a ``StudyError`` naming the field.
+        Overrides the study's ``integration.device``. ``"cuda"`` runs the scenes on the device (stepping, closed
+        form and a ``[model]``'s); a device that cannot run is refused before anything runs (``device 'cuda': ...``);
+        an invalid value is a ``StudyError`` naming the field.
     chunk_scenes : int, optional
         Scenes per chunk (checkpoint and dask task); the results do not depend on it.
     chunk_samples : int, optional
