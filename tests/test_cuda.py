@@ -310,6 +310,20 @@ def test_a_closed_form_scene_on_the_device_measures_the_cpu_rates(cuda_device, a
             np.testing.assert_allclose(device[name].values, cpu[name].values, rtol=1e-10, err_msg=name)
 
 
+def test_a_closed_form_scan_on_the_device_launches_per_batch_of_scenes_not_per_scene(cuda_device, monkeypatch):
+    from tumble.kernels import device_closed_form
+
+    kernels = device_closed_form()
+    launches = []
+    real = kernels.omega_rows
+    monkeypatch.setattr(kernels, "omega_rows", lambda *args: launches.append(len(args[1])) or real(*args))
+    bodies = np.column_stack([np.ones(64), np.linspace(1.6, 2.0, 64), np.full(64, 2.5)])
+    cpu = tumble.scan(bodies, axis=1, samples=4)
+    device = tumble.scan(bodies, axis=1, samples=4, device="cuda")
+    _same_scene(device, cpu)
+    assert launches == [2 * 4] * 32  # 64 periodic scenes of 4 samples: the scan's 32 batches, one launch each
+
+
 def test_tumble_run_device_cuda_runs_the_default_closed_form_study_as_the_cpu_does(cuda_device, tmp_path):
     env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")  # the simulator: the device is there
     runs = {}

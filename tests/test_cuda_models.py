@@ -189,9 +189,11 @@ _PTX = textwrap.dedent("""
                         (f8[:, ::1], nt.UniTuple(f8, 26), f8, i8, i8, f8[:, :, ::1], i8[::1], f8[::1], f8[::1],
                          i8[::1], f8[:, ::1], f8[:, ::1], f8, nt.int8[::1], i8[::1])))
     for torque_free in (True, False):  # the free body's implicit midpoint rule (kernels/cuda.py)
+        a2 = f8[:, ::1]  # the arguments of kernels/cuda.py's kernel, its observers included (as in test_cuda.py)
         kernels.append((device_kernels().make_kernel(METHODS["implicit_midpoint"], torque_free),
-                        (f8[:, ::1], nt.UniTuple(f8, 12), f8, f8, i8, i8, f8[:, :, ::1], nt.int8[::1], i8[::1], f8,
-                         i8, nt.UniTuple(f8, 4))))
+                        (a2, nt.UniTuple(f8, 12), f8, f8, i8, i8, f8[:, :, ::1], i8, nt.UniTuple(f8, 3), i8[::1], a2,
+                         a2, i8[::1], a2, nt.int8[::1], i8[::1], f8, i8, f8, i8, nt.UniTuple(f8, 4), f8, i8, f8, a2,
+                         i8[::1])))
     from tumble.kernels import device_attitude
     from tumble.kernels.methods import attitude_frame
 
@@ -203,7 +205,8 @@ _PTX = textwrap.dedent("""
                          nt.int8[::1], nt.UniTuple(i8, 3), f8, i8, nt.UniTuple(f8, 4))))
     exact = device_closed_form()
     kernels.append((exact._omega_at_kernel, (f8, f8, f8, f8[:, ::1], f8, f8[:, ::1], nt.int8[::1])))
-    kernels.append((exact._omega_grid_kernel, (f8, f8, f8, f8[:, ::1], f8[::1], f8[:, :, ::1], nt.int8[::1])))
+    kernels.append((exact._omega_grid_kernel, (f8[:, ::1], f8[:, ::1], f8[:, ::1], nt.int64[::1], f8[:, :, ::1],
+                                               nt.int8[::1])))
     for kernel, signature in kernels:
         ptx, _ = cuda.compile_ptx(kernel.py_func, signature, cc=(9, 0))
         assert "div.approx" not in ptx and "fma.rn.f64" in ptx

@@ -40,7 +40,7 @@ from .elliptic import (
 )
 from .jit import cuda_jit
 
-__all__ = ["THREADS", "omega_at", "omega_grid"]
+__all__ = ["THREADS", "omega_at", "omega_grid", "omega_rows"]
 
 #: Threads per block of a launch (one sample each).
 THREADS = 128
@@ -61,12 +61,16 @@ def _omega_at_kernel(m0, m1, m2, w, t, out, flags):
 
 
 @cuda_jit
-def _omega_grid_kernel(m0, m1, m2, w, times, out, flags):
+def _omega_grid_kernel(bodies, w, times, row, out, flags):
     # size: the set-up's one-sample arrays (those torque_free_solve fills) made local, then the time loop
-    """Sample ``cuda.grid(1)`` set up, then evaluated at every time of ``times`` into ``out[i]`` (T, 3)."""
+    """Sample ``cuda.grid(1)`` set up, then evaluated at every time of its grid into ``out[i]`` (T, 3): its body's
+    moments are ``bodies[r]`` and its times ``times[r]``, ``r = row[i]`` (``row`` of one element: every sample
+    ``r = 0``), so that the samples of many scenes go in one launch."""
     i = cuda.grid(1)
     if i >= w.shape[0]:
         return
+    r = row[i] if row.shape[0] == w.shape[0] else 0
+    m0, m1, m2 = bodies[r, 0], bodies[r, 1], bodies[r, 2]
     spin = cuda.local.array(3, float64)
     spin[0], spin[1], spin[2] = w[i, 0], w[i, 1], w[i, 2]
     moments = cuda.local.array((1, 3), float64)
@@ -83,8 +87,8 @@ def _omega_grid_kernel(m0, m1, m2, w, times, out, flags):
     k_c, K, phase0, nu, h, q = params[0, 0], params[2, 0], params[3, 0], params[4, 0], nome[0, 0], nome[1, 0]
     value = cuda.local.array(3, float64)
     finite = True
-    for j in range(times.shape[0]):
-        s = phase0 + nu * times[j]
+    for j in range(times.shape[1]):
+        s = phase0 + nu * times[r, j]
         if kind[0] == KIND_ELLIPTIC:
             sn, cn, dn = _sncndn_once(s, k_c, K, h, q)
             _store(value, 0, weights, cn, sn, dn)
@@ -122,9 +126,16 @@ def omega_at(moments, w, t):
 def omega_grid(moments, w, times):
     """:func:`tumble.kernels.elliptic.torque_free_omega_grid` on the device: as :func:`omega_at` at the times
     ``times`` (T,), ``out`` of shape (n, T, 3)."""
+    return omega_rows(np.reshape(moments, (1, 3)), w, np.reshape(times, (1, -1)), np.zeros(1, dtype=np.int64))
+
+
+def omega_rows(bodies, w, times, row):
+    """:func:`omega_grid` for the samples of many scenes in one launch: sample ``i`` of the body ``bodies[row[i]]``
+    (R, 3) at the times ``times[row[i]]`` (R, T) (``row`` of one element: every sample row 0); ``out`` (n, T, 3)."""
     n = w.shape[0]
     times = np.ascontiguousarray(times, dtype=float)
-    out = cuda.device_array((n, times.shape[0], 3))
-    tiny, non_finite = _launch(_omega_grid_kernel, n, float(moments[0]), float(moments[1]), float(moments[2]),
-                               cuda.to_device(np.ascontiguousarray(w, dtype=float)), cuda.to_device(times), out)
+    out = cuda.device_array((n, times.shape[1], 3))
+    tiny, non_finite = _launch(_omega_grid_kernel, n, cuda.to_device(np.ascontiguousarray(bodies, dtype=float)),
+                               cuda.to_device(np.ascontiguousarray(w, dtype=float)), cuda.to_device(times),
+                               cuda.to_device(np.ascontiguousarray(row, dtype=np.int64)), out)
     return out.copy_to_host(), tiny, non_finite

@@ -602,10 +602,8 @@ def _closed_form_batch(scenes, grids, batch, parts, start):
                                          start=lo, stop=hi) for scene, (_, lo, hi) in zip(per_sample, batch)])
     times = np.stack([grids[k] for k, _, _ in batch])
     sol = exact.solve_rows(moments, w0)  # also the flips' times and spacings: on the host, whatever the device
-    if per_sample[0].device == "cuda":  # each slice's set-up and time grid on the device, one thread per sample
-        bounds = np.cumsum([0, *sizes])
-        omega = np.concatenate([exact.omega_on_device(scene.moments, w0[a:b], grids[k])
-                                for scene, (k, _, _), a, b in zip(per_sample, batch, bounds[:-1], bounds[1:])])
+    if per_sample[0].device == "cuda":  # set-up and time grids on the device: one launch, one thread per sample
+        omega = exact.omega_rows_on_device(np.stack([scene.moments for scene in per_sample]), w0, times, row)
     else:
         omega = exact.omega_rows(sol, times, row)
     first = per_sample[0]

@@ -77,8 +77,8 @@ from ..kernels import side_by_side as _side_by_side
 from . import rotations
 from .bodies import finite_array, one_body, spin_vectors
 
-__all__ = ["EllipticParameters", "attitude", "omega", "omega_on_device", "period", "parameters", "first_flip_time",
-           "flip_spacing", "rotation_per_period"]
+__all__ = ["EllipticParameters", "attitude", "omega", "omega_on_device", "omega_rows_on_device", "period",
+           "parameters", "first_flip_time", "flip_spacing", "rotation_per_period"]
 
 REGIME_LARGEST = 1  # L² > 2E I_mid: w along the largest-moment axis never changes sign (dn there)
 REGIME_SEPARATRIX = 0  # L² = 2E I_mid
@@ -414,6 +414,19 @@ def omega_apart(moments, w, times):
     the kernels a scene's samples use: the same bits as :func:`omega` on a grid, without compiling its fused kernel."""
     sol = solve_rows(np.broadcast_to(moments, w.shape), w)
     return omega_rows(sol, times.reshape(1, -1), np.zeros(w.shape[0], dtype=np.int64))
+
+
+def omega_rows_on_device(moments, w, times, row):
+    """:func:`omega_rows` on the CUDA device, set-up included, for the samples of many scenes in one launch: sample
+    ``i`` (of ``w``, (n, 3)) of the body ``moments[row[i]]`` ((R, 3)) at the times ``times[row[i]]`` ((R, T)), all
+    validated; :func:`tumble.kernels.cuda_exact.omega_rows`. A launch with a spin within ``TINY_TRANSVERSE`` of an
+    axis is evaluated as the CPU's is (:func:`solve_rows`, :func:`omega_rows`), on the CPU."""
+    out, tiny, non_finite = device_closed_form().omega_rows(moments, w, times, row)
+    if tiny:
+        return omega_rows(solve_rows(np.ascontiguousarray(moments[row]), w), times, row)
+    if non_finite:
+        raise FloatingPointError("exact.omega produced non-finite values; please report this spin")
+    return out
 
 
 def omega_on_device(moments, w, times):
