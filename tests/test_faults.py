@@ -179,9 +179,13 @@ def test_the_command_line_shows_a_cache_warning_as_one_line(capsys):
         warnings.showwarning = cli._show_warning
         warnings.warn("numba's cache of compiled kernels in X held a damaged file (...)", jit.CacheWarning)
         warnings.warn("not tumble's", RuntimeWarning)
+        warnings.warn_explicit("no sample of the scene (axis 2, amplitude 0.001) gave a rate; statuses: non-finite 8",
+                               RuntimeWarning, os.path.join(os.path.dirname(cli.__file__), "pipeline", "runner.py"), 1)
     err = capsys.readouterr().err
     assert err.startswith("tumble: warning: numba's cache of compiled kernels in X held a damaged file (...)\n")
     assert "RuntimeWarning: not tumble's" in err, "other warnings as Python shows them"
+    assert err.endswith("\ntumble: warning: no sample of the scene (axis 2, amplitude 0.001) gave a rate; statuses: "
+                        "non-finite 8\n"), "a warning raised in tumble's code: one line"
 
 # --- cause 3: a full disk ------------------------------------------------------------------------------------------
 

@@ -466,10 +466,15 @@ def _raised_by(module, name):
     return (getattr(loaded, name),) if loaded is not None else ()
 
 
+_PACKAGE = os.path.dirname(os.path.abspath(__file__))
+
+
 def _show_warning(message, category, filename, lineno, file=None, line=None):
-    """tumble's own warnings (e.g. :class:`tumble.kernels.jit.CacheWarning`) as one line, ``tumble: warning: ...``;
+    """tumble's own warnings — of its classes (e.g. :class:`tumble.kernels.jit.CacheWarning`) or raised in its code
+    (a scene with no rate, samples that became non-finite: each says why) — as one line, ``tumble: warning: ...``;
     the others as Python shows them."""
-    text = (f"tumble: warning: {message}\n" if category.__module__.startswith("tumble.")
+    ours = category.__module__.startswith("tumble.") or os.path.abspath(str(filename)).startswith(_PACKAGE + os.sep)
+    text = (f"tumble: warning: {message}\n" if ours
             else warnings.formatwarning(message, category, filename, lineno, line))
     (sys.stderr if file is None else file).write(text)
 
