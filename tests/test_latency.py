@@ -199,6 +199,16 @@ def test_when_the_figure_process_dies_the_figures_are_drawn_here(small_result, t
     assert all(p.stat().st_size > 0 for p in paths)
 
 
+def test_a_dataset_too_large_to_send_is_drawn_here(small_result, tmp_path, monkeypatch):
+    from tumble.pipeline import figure_process, runner
+
+    monkeypatch.setattr(figure_process, "MAX_BYTES", small_result.nbytes - 1)
+    with figure_process.FigureProcess() as drawer:
+        _, paths = runner.write_outputs(small_result, STUDY, tmp_path, "s", figure_process=drawer)
+        assert drawer._process is None  # ended unused
+    assert [p.name for p in paths] == ["s.nc", "s_summary.png"] and paths[1].stat().st_size > 0
+
+
 def test_tumble_run_imports_neither_dask_array_nor_distributed_nor_leaves_its_figure_process_behind(tmp_path):
     code = f"""import os, sys
 from tumble.cli import main

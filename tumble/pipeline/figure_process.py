@@ -27,7 +27,11 @@ import subprocess
 import sys
 from pathlib import Path
 
-__all__ = ["FigureProcess"]
+__all__ = ["FigureProcess", "MAX_BYTES"]
+
+#: A stored dataset larger than this is drawn by the command itself: sending it would pickle it through a pipe, the
+#: process holding a second copy, for figures that read a small part of it (a scan's per-sample arrays).
+MAX_BYTES = 100e6
 
 
 class FigureProcess:
@@ -44,8 +48,12 @@ class FigureProcess:
         self._submitted = False
 
     def submit(self, ds, names, directory, stem, formats):
-        """Send the figures to draw: :func:`tumble.output.figures.save_figures`'s arguments (``ds`` is pickled)."""
+        """Send the figures to draw: :func:`tumble.output.figures.save_figures`'s arguments (``ds`` is pickled; over
+        :data:`MAX_BYTES` nothing is sent, the process ends and :meth:`result` says None)."""
         if self._process is None:
+            return
+        if ds.nbytes > MAX_BYTES:
+            self.close()
             return
         try:
             pickle.dump((ds, list(names), str(directory), stem, tuple(formats)), self._process.stdin,
