@@ -35,7 +35,6 @@ import math
 import os
 import re
 import shutil
-import sys
 from pathlib import Path
 from typing import NamedTuple
 
@@ -45,7 +44,7 @@ from .. import _disk
 from .._version import __version__
 from ..output import io
 
-__all__ = ["Checkpoint", "Finished", "FolderBusy", "OutputError", "chunk_folder", "local_file_locks", "normalise_scene",
+__all__ = ["Checkpoint", "Finished", "FolderBusy", "OutputError", "chunk_folder", "normalise_scene",
            "pack_samples", "pack_scenes", "samples_name", "scenes_name", "study_hash", "unpack"]
 
 #: Suffix of a finished chunk file (a NumPy archive; deliberately not ``.nc``).
@@ -126,20 +125,6 @@ def normalise_scene(ds):
         var.attrs = io.netcdf_safe_attrs(var.attrs)
     ds.attrs = io.netcdf_safe_attrs(ds.attrs)
     return ds
-
-
-def local_file_locks():
-    """A context in which xarray locks netCDF files with plain thread locks.
-
-    While a dask ``Client`` is the default scheduler, xarray takes a ``distributed.Lock`` — a round trip to
-    the scheduler — for every access to a netCDF file it writes, which made writing a chunk 20× slower. The
-    files tumble writes are its own, written by one thread of the client process: a thread lock is enough.
-    """
-    if sys.modules.get("dask") is None:
-        return contextlib.nullcontext()
-    import dask
-
-    return dask.config.set(scheduler="synchronous")
 
 
 def _write_error(path, err):

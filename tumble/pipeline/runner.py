@@ -632,8 +632,7 @@ def write_outputs(ds, resolved, directory, stem, *, action=None, figure_process=
                                 action=action)
         if figure_process is not None and names:
             figure_process.submit(stored, names, staging, stem, formats)
-        with checkpoint.local_file_locks():
-            io.write_dataset(stored, staging / path.name, stored=True)
+        io.write_dataset(stored, staging / path.name, stored=True)  # its own lock: no dask scheduler is asked
         staged = figure_process.result() if figure_process is not None and names else None
         if staged is None:
             from ..output import figures as plots  # matplotlib: only where figures are drawn
