@@ -113,12 +113,12 @@ def test_neutral_symmetric_top_measures_the_precession_of_its_equal_pair():
 
 
 def test_bad_samples_are_excluded_and_counted(monkeypatch):
-    def on_the_axis(moments, axis, spin, amplitude, samples, **kwargs):  # no tilt: the phase is noise
-        w = np.zeros((samples, 3))
+    def on_the_axis(moments, axis, spin, amplitude, entropy, distribution, start, stop):  # no tilt: the phase is noise
+        w = np.zeros((stop - start, 3))
         w[:, axis - 1] = spin
         return w
 
-    monkeypatch.setattr(study, "perturbed_spins", on_the_axis)  # (amplitude = 0 itself is refused)
+    monkeypatch.setattr(study, "drawn_spins", on_the_axis)  # (amplitude = 0 itself is refused)
     with pytest.warns(RuntimeWarning, match="no sample"):
         ds = measure(MOMENTS, 1, amplitude=1e-3, samples=8)
     assert int(ds.samples_used) == 0 and int(ds.samples_excluded) == 8

@@ -13,6 +13,7 @@ AVX2 machine (``benchmarks/results/engine.md``). The memory of a study is modell
 memory of a run above an idle ``import tumble``).
 """
 
+import functools
 import math
 import os
 from typing import NamedTuple
@@ -68,8 +69,10 @@ class Cost(NamedTuple):
     seconds: float
 
 
+@functools.lru_cache(maxsize=1)
 def physical_memory():
-    """This machine's physical memory, bytes (0 where the system does not say)."""
+    """This machine's physical memory, bytes (0 where the system does not say); asked once per process (a scan
+    checks the bound for every scene it plans)."""
     try:
         return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (ValueError, OSError, AttributeError):

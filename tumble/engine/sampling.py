@@ -42,6 +42,7 @@ __all__ = [
     "DISTRIBUTIONS",
     "chunk_count",
     "chunk_ranges",
+    "drawn_spins",
     "perturbed_spins",
     "perturbed_states",
     "seed_entropy",
@@ -340,7 +341,15 @@ def perturbed_spins(body, axis, spin=1.0, amplitude=1e-3, samples=1024, *, seed=
     cost.refuse(cost.run_cost(stop - start, 0, 3),
                 f"samples = {n}" if (start, stop) == (0, n) else f"start, stop = {start}, {stop}")
     entropy = seed_entropy(seed)
+    out = drawn_spins(moments, axis, spin, amplitude, entropy, distribution, start, stop, constraint)
+    return (out, entropy) if return_entropy else out
 
+
+def drawn_spins(moments, axis, spin, amplitude, entropy, distribution, start, stop, constraint=None):
+    # size: perturbed_spins' arguments once checked (the values a Scene holds), and the sample range
+    """Rows ``[start, stop)`` of :func:`perturbed_spins` from arguments it has already checked (moments (3,), axis
+    1-3, Python floats, the entropy of :func:`seed_entropy`): the same bits, without the checks, which cost ten times
+    the drawing of a slice a scan already drew (a scene planned from checked options draws its slices here)."""
     out = np.empty((stop - start, 3))
     chunks = range(start // CHUNK, -(-stop // CHUNK)) if stop > start else range(0)
     for j in chunks:
@@ -352,7 +361,7 @@ def perturbed_spins(body, axis, spin=1.0, amplitude=1e-3, samples=1024, *, seed=
             directions = directions * _constraint_scale(directions, moments, axis, constraint)[:, None]
         keep_lo, keep_hi = max(lo, start), min(hi, stop)
         out[keep_lo - start:keep_hi - start] = spin * directions[keep_lo - lo:keep_hi - lo]
-    return (out, entropy) if return_entropy else out
+    return out
 
 
 #: The spawn key of the stream that tilts a heavy top's up vector: two entries, so it is none of the chunks' keys

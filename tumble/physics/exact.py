@@ -69,7 +69,6 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from scipy.special import elliprf, elliprj
 
 from ..kernels import device_closed_form
 from ..kernels import elliptic as _ell
@@ -617,6 +616,8 @@ def _pi_integral(u, K, kc, n_char, separatrix):
     ``Π(n; φ|m) = s R_F(c², d², 1) + (n/3) s³ R_J(c², d², 1, 1 - n s²)``, ``s, c, d = sn, cn, dn (r)``
     (DLMF 19.25.14), and ``am(u) = j π + atan2(s, c)``.
     """
+    from scipy.special import elliprf, elliprj  # here: scipy.special costs 0.1-0.3 s to import; only the attitude needs it
+
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         j = np.where(separatrix, 0.0, np.floor(u / (2.0 * K) + 0.5))
         r = np.where(separatrix, u, u - 2.0 * K * j)

@@ -296,15 +296,22 @@ class Task(NamedTuple):
         return checkpoint.samples_name(self.scenes[0], self.start, self.stop)
 
 
-def _scene_plan(job, index):
-    """:func:`tumble.measure.scenes.scene_plan` of scene ``index`` of a :func:`scene_job`."""
+def _planner(job):
+    """A :class:`tumble.measure.scenes.ScenePlanner` of a :func:`scene_job`'s scenes (None for a model study)."""
+    if "model" in job.options:
+        return None
+    return study.ScenePlanner(job.layout, samples=job.samples, seed=job.seed, **job.options)
+
+
+def _scene_plan(job, index, planner=None):
+    """:func:`tumble.measure.scenes.scene_plan` of scene ``index`` of a :func:`scene_job` (through ``planner``, a
+    :func:`_planner` of the job, when several scenes are planned)."""
     moments, params = study.scan_scene_parameters(job.layout, index)
     file = job.file
     try:
         if "model" in job.options:
             return _model_scene_plan(job, moments, params)
-        scene = study.scene_plan(moments, params["axis"], params["spin"], params["amplitude"], job.samples,
-                                 job.seed, params["method"], **job.options)
+        scene = (planner or _planner(job))(index)
     except DeviceError:  # the device's own one line (device 'cuda': ...), as every call gives it
         raise
     except ValueError as err:  # a value this scene cannot take: the study's fault, named as such (exit 2)
@@ -355,7 +362,8 @@ def compute_scenes(job, indices, *, progress=False):
     if "model" in job.options:
         records = model_scenes.scene_batch([_scene_plan(job, i) for i in indices])
     else:
-        records = study.scene_batch([_scene_plan(job, i) for i in indices], progress=progress)
+        planner = _planner(job)
+        records = study.scene_batch([_scene_plan(job, i, planner) for i in indices], progress=progress)
     return {i: _kept(job, record) for i, record in zip(indices, records)}
 
 
