@@ -667,3 +667,12 @@ def test_transverse_norms_are_the_numpy_expression_bit_for_bit():
     got = analysis.transverse_norms(states, np.stack([b, c], axis=1), weights)
     assert got.shape == (n, t)
     assert np.array_equal(got, expected)
+
+
+def test_median_interval_rank_is_scipy_binomial_rank_without_importing_scipy_special():
+    from scipy.special import bdtr
+
+    for confidence in (0.9, 0.95, 0.99):
+        for n in [*range(1, 2001), 4096, 65536, 2**20, 1000003]:
+            expected = max(1, int(np.count_nonzero(bdtr(np.arange(n), n, 0.5) <= 0.5 * (1.0 - confidence))))
+            assert analysis.median_interval_rank(n, confidence) == expected, (n, confidence)

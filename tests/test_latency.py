@@ -209,12 +209,12 @@ def test_a_dataset_too_large_to_send_is_drawn_here(small_result, tmp_path, monke
     assert [p.name for p in paths] == ["s.nc", "s_summary.png"] and paths[1].stat().st_size > 0
 
 
-def test_tumble_run_imports_neither_dask_array_nor_distributed_nor_leaves_its_figure_process_behind(tmp_path):
+def test_tumble_run_imports_neither_dask_nor_scipy_special_nor_leaves_its_figure_process_behind(tmp_path):
     code = f"""import os, sys
 from tumble.cli import main
 assert main(['run', '--samples', '32', '--out', {str(tmp_path)!r}]) == 0
-assert 'dask.array' not in sys.modules, 'dask.array was imported'
-assert 'distributed' not in sys.modules, 'dask.distributed was imported'
+assert 'dask.base' not in sys.modules, 'dask was imported'  # dask.array, distributed: 0.3-0.35 s each, dask 0.1 s
+assert 'scipy.special' not in sys.modules, 'scipy.special was imported'
 try:
     os.waitpid(-1, os.WNOHANG)
 except ChildProcessError:

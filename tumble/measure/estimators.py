@@ -23,6 +23,7 @@ is a uniform rotation at ``ω = W sqrt(q)`` or a uniform hyperbolic rotation at 
 from __future__ import annotations
 
 import functools
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -342,13 +343,14 @@ def median_interval_rank(n, confidence=0.95):
     *Statistical Intervals*, §5.2). Below ``n = 6`` (at 95 %) no rank reaches it and ``l = 1``: the range of
     the values, whose coverage ``1 - 2^(1-n)`` is then less than asked.
     """
-    # scipy.special's binomial distribution function, not scipy.stats.binom: the same ranks (checked for every n up
-    # to 3000 and up to 2**20, at 90, 95 and 99 %), and scipy.stats costs 0.8 s to import. Imported only here: the
-    # estimators module stays numpy-only at import.
-    from scipy.special import bdtr
-
-    tail = bdtr(np.arange(n), n, 0.5)  # P(B <= k), k = 0 .. n-1
-    return max(1, int(np.count_nonzero(tail <= 0.5 * (1.0 - confidence))))
+    # P(B <= k), k = 0 .. n-1, in logarithms (no underflow for large n): log C(n, k) by the recurrence
+    # C(n, k+1) = C(n, k) (n - k) / (k + 1), summed. The same ranks as scipy.special.bdtr (tests/test_analysis.py:
+    # every n up to 5000 and powers of two up to 2**20, at 90, 95 and 99 %), without importing scipy.special (0.1-0.2 s
+    # of every `tumble run`; scipy.stats.binom would cost 0.8 s).
+    k = np.arange(n - 1, dtype=float)
+    log_pmf = np.concatenate(([0.0], np.cumsum(np.log((n - k) / (k + 1.0))))) - n * math.log(2.0)
+    log_tail = np.logaddexp.accumulate(log_pmf)
+    return max(1, int(np.count_nonzero(log_tail <= math.log(0.5 * (1.0 - confidence)))))
 
 
 def _lerp(a, b, t):
