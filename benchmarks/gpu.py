@@ -287,10 +287,20 @@ def part_gpu(ctx):
         start = cuda.to_device(np.ascontiguousarray(kernel_w))
         w = cuda.device_array_like(start)
         saved = cuda.device_array((0, 3, 1))
-        # no probes, flips, drift (after steps_taken: no early stop, drift limit or torque) nor growth fit
-        none = (cuda.to_device(np.zeros(0, dtype=np.int64)), cuda.device_array((0, 1)), cuda.device_array((1, 0)),
-                cuda.device_array(0, dtype=np.int64), cuda.device_array((0, 1)))
-        no_fit = (0.0, 0, 0.0, cuda.device_array((0, 1)), cuda.device_array(0, dtype=np.int64))
+        # one scene (its table's rows); no probes, flips, drift (after steps_taken: no early stop, drift limit or
+        # torque) nor growth fit
+        def table_row(*values):
+            return cuda.to_device(np.array([values], dtype=float))
+
+        def one(value, dtype=float):
+            return cuda.to_device(np.array([value], dtype=dtype))
+
+        scene_table = (cuda.to_device(np.zeros(0, dtype=np.int64)), table_row(*constants), 0.0, one(float(dt)),
+                       one(int(n_steps), np.int64), one(0, np.int64))
+        observers = (one(0, np.int64), table_row(1.0, 1.0, 1.0), cuda.to_device(np.zeros((1, 0), dtype=np.int64)),
+                     cuda.device_array((0, 1)), cuda.device_array((1, 0)), cuda.device_array(0, dtype=np.int64),
+                     cuda.device_array((0, 1)))
+        no_fit = (one(0.0), 0, one(0.0), cuda.device_array((0, 1)), cuda.device_array(0, dtype=np.int64))
         status = cuda.device_array(p.samples, dtype=np.int8)
         steps_taken = cuda.device_array(p.samples, dtype=np.int64)
         threads = device.THREADS if p.samples >= device.THREADS else 32 * -(-p.samples // 32)
@@ -300,8 +310,8 @@ def part_gpu(ctx):
             w.copy_to_device(start)
             cuda.synchronize()
             started = time.perf_counter()
-            launch(w, constants, 0.0, float(dt), int(n_steps), 0, saved, 0, (1.0, 1.0, 1.0), *none, status,
-                   steps_taken, 0.0, 0, 0.0, 0, device._NO_TORQUE, *no_fit)
+            launch(w, *scene_table, saved, *observers, status, steps_taken, one(0.0), 0, 0.0, 0,
+                   table_row(0.0, 0.0, 0.0, 0.0), *no_fit)
             cuda.synchronize()
             times.append(time.perf_counter() - started)
         kernel_seconds = float(np.median(times[1:]))
@@ -609,8 +619,39 @@ def part_closed_form(ctx):
     return dict(rows=rows)
 
 
+def part_maps(ctx):
+    """The scans of issue 28's targets, in one process, warm, device against this machine's CPU cores: the bundled
+    ``stability_map`` study (``run_study``, closed form), the 100 x 100 x 3 map (``tumble.scan`` of
+    ``inertia_triangle(100)``, 256 samples, closed form) and a fixed-step map (rk4, many scenes a launch) of
+    ``inertia_triangle(20)``; the two smaller maps on the CPU too (the large one takes 22 s on 16 cores: left out to
+    stay in the time budget)."""
+    import tumble
+    from tumble.measure.scenes import inertia_triangle
+
+    quick = ctx["report"]["quick"]
+    repeats = 1 if quick else 3
+    rows = []
+
+    def add(label, call, devices=("cuda", "cpu")):
+        for device in devices:
+            first, seconds, ds = timed(lambda: call(device), repeats)
+            rows.append(dict(map=label, device=device, first_call_s=first, seconds=seconds, scenes=int(ds.rate.size)))
+            print(f"  map {label} on {device}: {seconds:.3f} s ({int(ds.rate.size)} scenes; first call {first:.1f} s)",
+                  flush=True)
+
+    add("bundled stability_map", lambda device: tumble.run_study(
+        "stability_map", device=device, overrides={"perturbation.samples": 8, "scan.triangle": 2} if quick else None))
+    large = inertia_triangle(3 if quick else 100)[0]
+    add("100 x 100 x 3 closed form" if not quick else "3 x 3 x 3 closed form",
+        lambda device: tumble.scan(large, samples=8 if quick else 256, flips=0, device=device), devices=("cuda",))
+    small = inertia_triangle(2 if quick else 20)[0]
+    add("20 x 20 x 3 rk4" if not quick else "2 x 2 x 3 rk4", lambda device: tumble.scan(
+        small, samples=4 if quick else 256, flips=0, method="rk4", device=device, dt=0.05 if quick else None))
+    return dict(rows=rows)
+
+
 PARTS = {"gpu": part_gpu, "agreement": part_agreement, "scene": part_scene, "cpu": part_cpu, "models": part_models,
-         "closed_form": part_closed_form, "jax": part_jax, "diffrax": part_diffrax}
+         "closed_form": part_closed_form, "maps": part_maps, "jax": part_jax, "diffrax": part_diffrax}
 
 
 # --------------------------------------------------------------------------------------------------------------
@@ -680,6 +721,12 @@ def targets(report):
         ratio = d and g and horizon_seconds(d) / horizon_seconds(g)
         add(f">= 30x diffrax {solver} at tumble {peer}'s error (time per sample over the horizon)", ratio,
             ratio and ratio >= 30, ratio and f"{ratio:.1f}x ({d['steps']} steps against {g['steps']})")
+    maps = {(r["map"], r["device"]): r for r in parts.get("maps", {}).get("rows", [])}
+    for label, limit in (("bundled stability_map", 0.3), ("100 x 100 x 3 closed form", 2.0)):
+        m = maps.get((label, "cuda"))
+        add(f"the {label} map in <= {limit:g} s on the GPU (one process, warm)", m, m and m["seconds"] <= limit,
+            m and f"{m['seconds']:.3f} s" + (f" ({maps[(label, 'cpu')]['seconds']:.3f} s on the CPU)"
+                                              if (label, "cpu") in maps else ""))
     closed = {r["times"]: r for r in parts.get("closed_form", {}).get("rows", [])}.get(1)
     add("the closed form at one time >= 3e9 evaluations/s (kernel alone)", closed,
         closed and closed["rate_kernel"] >= 3e9,

@@ -269,8 +269,8 @@ _PTX = textwrap.dedent("""
     dispatcher.get_current_device = lambda: types.SimpleNamespace(compute_capability=(9, 0))
     f8, i8 = nt.float64, nt.int64
     a2 = f8[:, ::1]
-    signature = (a2, nt.UniTuple(f8, 12), f8, f8, i8, i8, f8[:, :, ::1], i8, nt.UniTuple(f8, 3), i8[::1], a2, a2,
-                 i8[::1], a2, nt.int8[::1], i8[::1], f8, i8, f8, i8, nt.UniTuple(f8, 4), f8, i8, f8, a2, i8[::1])
+    signature = (a2, i8[::1], a2, f8, f8[::1], i8[::1], i8[::1], f8[:, :, ::1], i8[::1], a2, i8[:, ::1], a2, a2,
+                 i8[::1], a2, nt.int8[::1], i8[::1], f8[::1], i8, f8, i8, a2, f8[::1], i8, f8[::1], a2, i8[::1])
     for name in ("rk4", "rk8", "symplectic_euler", "splitting2", "splitting4"):
         for torque_free in (True, False):
             kernel = device_kernels().make_kernel(METHODS[name], torque_free)
@@ -322,6 +322,37 @@ def test_a_closed_form_scan_on_the_device_launches_per_batch_of_scenes_not_per_s
     device = tumble.scan(bodies, axis=1, samples=4, device="cuda")
     _same_scene(device, cpu)
     assert launches == [2 * 4] * 32  # 64 periodic scenes of 4 samples: the scan's 32 batches, one launch each
+
+
+@pytest.mark.parametrize("method, axis, torque, launched", [("rk4", (1, 2), None, [3, 3]),
+                                                            ("splitting2", (2, 3), None, [3, 3]),
+                                                            # a torque spins each body up at its own rate: each
+                                                            # stores its own number of states, one launch each
+                                                            ("splitting2", (3,), (0.0, 0.0, 0.01), [1, 1, 1])])
+def test_a_fixed_step_scan_on_the_device_launches_per_batch_of_scenes_with_the_bits_of_one_scene_a_launch(
+        cuda_device, monkeypatch, method, axis, torque, launched):
+    """Fixed-step scenes of a scan share launches (a row of the scene table each; splitting2 relabels each scene's axes
+    by its own moments): the same bits as each scene alone on the device, and the CPU's rates."""
+    from tumble.kernels import device_kernels
+    from tumble.measure import scenes as study
+
+    kernels = device_kernels()
+    launches = []
+    real = kernels.run_scenes
+    monkeypatch.setattr(kernels, "run_scenes", lambda *args, **kw: launches.append(len(args[2])) or real(*args, **kw))
+    bodies = [(1.0, 2.0, 3.0), (1.0, 1.5, 2.2), (2.0, 2.5, 3.5)]
+    kwargs = dict(axis=axis, method=method, samples=6, flips=1, torque=torque)
+    layout = study.scan_layout(bodies, axis, method=method)
+    planner = study.ScenePlanner(layout, samples=6, flips=1, torque=torque, device="cuda")
+    plans = [planner(index) for index in range(layout["scenes"])]
+    records = study.scene_batch(plans)
+    assert launches == launched  # scenes a launch: the periodic ones in one, the growing ones in another
+    for scene, record in zip(plans, records):
+        alone = study.scene_samples(scene, 0, 6)  # one launch of its own (run_ensemble on the device)
+        np.testing.assert_array_equal(record["sample_status"], alone["code"])
+        np.testing.assert_array_equal(record["sample_rate"], np.where(alone["code"] == 0, alone["rate"], np.nan))
+        assert record["sample_steps_computed"] == alone["sample_steps_computed"]
+    _same_scene(study.assemble_scan(layout, records), tumble.scan(bodies, **kwargs))
 
 
 def test_tumble_run_device_cuda_runs_the_default_closed_form_study_as_the_cpu_does(cuda_device, tmp_path):

@@ -32,8 +32,8 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .. import registry
-from ..kernels import (BLOCK, METHODS, TORQUE_CONSTANT, TORQUE_SIGNATURE, TORQUE_USER, device_attitude, fits, run,
-                       run_attitude)
+from ..kernels import (BLOCK, METHODS, TORQUE_CONSTANT, TORQUE_SIGNATURE, TORQUE_USER, device_attitude,
+                       device_kernels, fits, run, run_attitude)
 from ..physics import exact
 from ..physics.bodies import finite_array, one_body, spin_vectors
 from ..registry import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK, choose_method
@@ -41,7 +41,8 @@ from . import cost
 from .device import LAUNCH_SAMPLES, check_on_device, resolve_device, stepper
 from .sampling import CHUNK
 
-__all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "Interrupted", "STATUS_NAMES", "run_ensemble", "torque_spec"]
+__all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "Interrupted", "STATUS_NAMES", "run_ensemble", "run_scene_table",
+           "torque_spec"]
 
 # Torque-free samples whose energy or |L|^2 drift by more than this (relative) are flagged, not trusted.
 DEFAULT_DRIFT_LIMIT = 1e-2
@@ -412,6 +413,87 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
     info.update(run_seconds=time.perf_counter() - started, sample_steps_computed=_block_steps(steps_taken),
                 sample_steps_skipped=int(n * n_steps - steps_taken.sum()))
     return _fit_growth(result._replace(info=info), observe)
+
+
+def run_scene_table(method, moments, w0, sizes, t_end, dt, *, axis, save_every=None, probe_times=None,
+                    norm_weights=None, max_flips=0, stop_norm=None, torque=None, growth_window=None):
+    # size: run_ensemble's observers of a scene, a row per scene: what a scan's planned scenes differ in
+    """The samples of many planned scenes in one device launch: :func:`run_ensemble` on ``device="cuda"`` with a row
+    per scene (:func:`tumble.kernels.cuda.run_scenes`), for a scan whose scenes are each too small to fill a GPU.
+
+    Each scene is observed as ``run_ensemble(moments[k], w0 of scene k, t_end[k], dt[k], method=method,
+    axis=axis[k], final=False, save_every=..., probe_times=..., norm_weights=..., max_flips=max_flips,
+    stop_norm=stop_norm[k], stop_flips=max_flips, torque=torque, growth_window=(saturation[k], min_points),
+    keep_probes=False, device="cuda")`` observes it, with the same bits; the arguments come from planned scenes and
+    are not checked again.
+
+    Parameters
+    ----------
+    method : str
+        A fixed-step method (every scene's).
+    moments : ndarray, shape (S, 3)
+    w0 : ndarray, shape (N, 3)
+        The samples of every scene, scene after scene (``sizes`` of them each).
+    sizes : array_like of int, shape (S,)
+    t_end, dt : ndarray, shape (S,)
+        A whole number of steps each.
+    axis : ndarray of int, shape (S,)
+        1-based.
+    save_every : ndarray of int (S,), optional
+        Stored states (a trajectory), giving every scene the same number of them.
+    probe_times, norm_weights : ndarray (S, P), ndarray (S, 3), optional
+        Probe norms (at ``P`` times each); with ``growth_window = (saturation (S,), min_points)`` fitted in the
+        kernel, and not kept.
+    max_flips : int
+        Flips timed per sample (also the early stop's count, as a scene stops).
+    stop_norm : ndarray (S,), optional
+    torque
+        As :func:`run_ensemble` (a constant or a named profile): the same for every scene.
+
+    Returns
+    -------
+    list of EnsembleResult
+        One per scene, as :func:`run_ensemble` returns it (``trajectory``, ``flips``, ``growth``, ``status`` and
+        ``steps_taken`` as asked; no probes).
+    """
+    count = len(sizes)
+    torque = _Torque(*torque_spec(torque))
+    n_steps = np.rint(np.asarray(t_end) / np.asarray(dt)).astype(np.int64)
+    times, probe_rows, probe_step_rows, fit_h = [], [], [], np.zeros(count)
+    for k in range(count):
+        observed = observation_times(float(t_end[k]), float(dt[k]), None if save_every is None else int(save_every[k]),
+                                     None if probe_times is None else probe_times[k])
+        times.append(observed[0])
+        probe_step_rows.append(np.zeros(0, dtype=np.int64) if observed[1] is None else observed[1])
+        probe_rows.append(observed[2])
+        if growth_window is not None:
+            fit_h[k] = (observed[2][-1] - observed[2][0]) / (len(observed[2]) - 1)
+    w = np.array(np.asarray(w0).T, order="C")
+    observed = device_kernels().run_scenes(
+        METHODS[method], w, sizes, moments, 0.0, dt, n_steps,
+        save_every=np.zeros(count, np.int64) if save_every is None else np.asarray(save_every, np.int64),
+        axis=np.asarray(axis, np.int64) - 1, norm_weights=norm_weights, probe_steps=np.stack(probe_step_rows),
+        max_flips=max_flips, stop_norm=np.zeros(count) if stop_norm is None or save_every is not None else stop_norm,
+        stop_flips=max_flips if save_every is None else 0,
+        drift_limit=DEFAULT_DRIFT_LIMIT if torque.free else 0.0, torque_kind=torque.kind,
+        torque_params=torque.params,
+        growth_window=None if growth_window is None else (growth_window[0], int(growth_window[1]), fit_h),
+        keep_probes=False)
+    results, lo = [], 0
+    for k, size in enumerate(sizes):
+        rows = slice(lo, lo + int(size))
+        lo += int(size)
+        steps_taken = observed.steps_taken[rows]
+        info = {"path": "fixed-step kernel", "method": method, "dt": float(dt[k]), "n_steps": int(n_steps[k]),
+                "torque": torque.text, "samples": int(size), "device": "cuda",
+                "sample_steps_computed": _block_steps(steps_taken),
+                "sample_steps_skipped": int(size * n_steps[k] - steps_taken.sum())}
+        results.append(EnsembleResult(
+            None, times[k], None if observed.saved is None else observed.saved[:, :, rows].transpose(2, 0, 1),
+            probe_rows[k], None, None if observed.flips is None else observed.flips[rows],
+            None if observed.flip_count is None else observed.flip_count[rows], None, observed.status[rows],
+            steps_taken, info, growth=None if observed.growth is None else tuple(x[rows] for x in observed.growth)))
+    return results
 
 
 def _fit_growth(result, observe):

@@ -44,13 +44,12 @@ from .jit import cuda_jit
 from .methods import Observed, from_kernel_frame, kernel_frame, kernel_observed_axis
 from .steppers import TORQUE_CONSTANT, energy, l_squared, splitting_free_sample, splitting_with_torque
 
-__all__ = ["THREADS", "kernel", "make_kernel", "refusal", "run"]
+__all__ = ["THREADS", "kernel", "make_kernel", "refusal", "run", "run_scenes"]
 
 #: Threads per block of a launch (one sample each).
 THREADS = 128
 
 _NOT_YET = "not yet on the device"
-_NO_TORQUE = (0.0, 0.0, 0.0, 0.0)  # the torque argument of a torque-free kernel (never read)
 
 
 def refusal(method, *, torque_fn=None):
@@ -81,27 +80,38 @@ def make_kernel(method, torque_free):
         sample = getattr(fused, f"{method.name}_sample", None) or steppers.implicit_midpoint_sample
 
     @cuda_jit
-    def propagate(w, body, t0, h, n_steps, save_every, saved, axis, weights, probe_steps, probes, flips, flip_count,
-                  drift, status, steps_taken, stop_norm, stop_flips, drift_limit, torque_kind, torque_params,
-                  fit_saturation, fit_min_points, fit_h, fit, fit_points):
-        # size: a kernel's flat arguments (DESIGN.md: arrays and scalars below the kernels' door), packed by run(),
-        # and one time loop with its observers, status checks and stores in the CPU driver's order
-        """Advance sample ``cuda.grid(1)`` by ``n_steps`` steps of ``h`` from ``t0``, observing as asked; the arguments
-        up to ``torque_params`` are those of :func:`tumble.kernels.drivers.make_propagate`'s driver that the device
-        serves (:func:`run` packs them; ``weights`` is a tuple, and ``probes`` may be empty while ``probe_steps`` is
-        not: the norms then only feed the growth fit). The observers are the CPU's per-sample ones
-        (:func:`flip_in_step`, :func:`invariant_errors`, :func:`transverse_norm`, :func:`measurement_complete`),
-        called in the CPU driver's order, so that a sample stops at the same step with the same status; the flip
-        count and the drift maxima stay in registers.
+    def propagate(w, scene, bodies, t0, hs, step_counts, saves, saved, axes, weight_rows, probe_step_rows, probes,
+                  flips, flip_count, drift, status, steps_taken, stop_norms, stop_flips, drift_limit, torque_kind,
+                  torque_rows, fit_saturations, fit_min_points, fit_hs, fit, fit_points):
+        # size: a kernel's flat arguments (DESIGN.md: arrays and scalars below the kernels' door), packed by
+        # run_scenes(), and one time loop with its observers, status checks and stores in the CPU driver's order
+        """Advance sample ``i = cuda.grid(1)`` of scene ``s = scene[i]`` (0 when ``scene`` is empty: one scene) by
+        ``step_counts[s]`` steps of ``hs[s]`` from ``t0``, observing as asked. Each scene's quantities are a row of a
+        per-scene table, read once into registers: ``bodies`` (S, 12) the body constants, ``axes``, ``saves``
+        (steps between stored states), ``weight_rows`` (S, 3), ``probe_step_rows`` (S, P), ``stop_norms``,
+        ``torque_rows`` (S, 4), ``fit_saturations`` and ``fit_hs``; for one scene they are the arguments of
+        :func:`tumble.kernels.drivers.make_propagate`'s driver that the device serves (``probes`` may be empty
+        while the probe steps are not: the norms then only feed the growth fit). The observers are the CPU's
+        per-sample ones (:func:`flip_in_step`, :func:`invariant_errors`, :func:`transverse_norm`,
+        :func:`measurement_complete`), called in the CPU driver's order, so that a sample stops at the same step with
+        the same status; the flip count and the drift maxima stay in registers.
 
-        ``fit_saturation > 0`` fits the growth rate of the norms at the probes (``fit_h`` apart) in registers as they
-        come (:func:`tumble.kernels.fits.growth_window_add`, the CPU fit's own step): ``fit`` (3, N) receives the rate
-        (1/s, NaN unless the window has ``fit_min_points``), the first and the last norm of the window, ``fit_points``
-        its length (0 unless the fit is good).
+        ``fit_saturations[s] > 0`` fits the growth rate of the norms at the probes (``fit_hs[s]`` apart) in registers
+        as they come (:func:`tumble.kernels.fits.growth_window_add`, the CPU fit's own step): ``fit`` (3, N) receives
+        the rate (1/s, NaN unless the window has ``fit_min_points``), the first and the last norm of the window,
+        ``fit_points`` its length (0 unless the fit is good).
         """
         i = cuda.grid(1)
         if i >= w.shape[1]:
             return
+        s = scene[i] if scene.shape[0] > 0 else 0
+        body = (bodies[s, 0], bodies[s, 1], bodies[s, 2], bodies[s, 3], bodies[s, 4], bodies[s, 5], bodies[s, 6],
+                bodies[s, 7], bodies[s, 8], bodies[s, 9], bodies[s, 10], bodies[s, 11])  # registers, as a tuple
+        h, n_steps, save_every, axis = hs[s], step_counts[s], saves[s], axes[s]
+        weights = (weight_rows[s, 0], weight_rows[s, 1], weight_rows[s, 2])
+        probe_steps = probe_step_rows[s]
+        stop_norm, fit_saturation, fit_h = stop_norms[s], fit_saturations[s], fit_hs[s]
+        torque_params = (torque_rows[s, 0], torque_rows[s, 1], torque_rows[s, 2], torque_rows[s, 3])
         w1, w2, w3 = w[0, i], w[1, i], w[2, i]
         target = l_squared(w1, w2, w3, body)
         e0 = energy(w1, w2, w3, body)
@@ -220,49 +230,112 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
     norms at the probes (``h`` apart) in the kernel (:func:`tumble.kernels.fits.growth_fit`'s window, fed as they
     come): ``Observed.growth`` is ``(rate, points, first, last)`` (N,) each, and with ``keep_probes=False`` the probe
     norms stay on the device. Raises ``ValueError`` (``device 'cuda': ...``) for what the device does not do yet
-    (:func:`refusal`).
+    (:func:`refusal`). One scene of :func:`run_scenes`.
     """
     problem = refusal(method, torque_fn=torque_fn)
     if problem:
         raise ValueError(problem)
-    n = w.shape[1]
-    torque_free = torque_params is None
-    kernel_w, constants, torque_params, relabel = kernel_frame(method, w, moments, torque_params, None)
-    kernel_axis, weights = kernel_observed_axis(relabel, axis, norm_weights)
-    n_saved = 0
-    if save_every > 0:
-        n_saved = 1 + n_steps // save_every + (1 if n_steps % save_every else 0)
     probe_steps = np.zeros(0, dtype=np.int64) if probe_steps is None else np.asarray(probe_steps, dtype=np.int64)
-    n_probes = len(probe_steps)
-    device_w = cuda.to_device(np.ascontiguousarray(kernel_w))
+    saturation, min_points, fit_h = growth_window or (0.0, 0, 0.0)
+    return run_scenes(method, w, np.array([w.shape[1]]), np.asarray(moments, dtype=float)[None], float(t0),
+                      np.array([float(h)]), np.array([int(n_steps)]), save_every=np.array([int(save_every)]),
+                      axis=np.array([int(axis)]), norm_weights=None if norm_weights is None else
+                      np.asarray(norm_weights, dtype=float)[None], probe_steps=probe_steps[None],
+                      max_flips=max_flips, drift=drift, stop_norm=np.array([float(stop_norm)]), stop_flips=stop_flips,
+                      drift_limit=drift_limit, torque_kind=torque_kind, torque_params=torque_params,
+                      growth_window=(np.array([float(saturation)]), min_points, np.array([float(fit_h)]))
+                      if growth_window else None, keep_probes=keep_probes)
+
+
+def run_scenes(method, w, sizes, moments, t0, h, n_steps, *, save_every, axis, norm_weights=None, probe_steps,
+               max_flips=0, drift=False, stop_norm, stop_flips=0, drift_limit=0.0, torque_kind=TORQUE_CONSTANT,
+               torque_params=None, growth_window=None, keep_probes=True):
+    # size: run()'s keywords with a row per scene: the scene table of one launch
+    """The samples of many scenes in one launch: :func:`run` with a row per scene.
+
+    Parameters
+    ----------
+    method : Method
+    w : ndarray, shape (3, N)
+        The samples of every scene, scene after scene; overwritten with the final states.
+    sizes : ndarray of int, shape (S,)
+        Samples of each scene (summing to N).
+    moments : ndarray, shape (S, 3)
+    t0 : float
+    h, n_steps, save_every, axis, stop_norm : ndarray, shape (S,)
+        Per scene, as :func:`run` takes them; ``save_every`` (0: no trajectory) must give every scene the same number
+        of stored states.
+    norm_weights : ndarray (S, 3) or None
+    probe_steps : ndarray of int, shape (S, P)
+        Every scene has the same number ``P`` of probes (``P = 0``: none).
+    max_flips, drift, stop_flips, drift_limit, torque_kind, torque_params, keep_probes
+        As :func:`run`, the same for every scene (``torque_params`` in the body frame of every scene's moments).
+    growth_window : tuple (saturation (S,), min_points, h (S,)), optional
+
+    Returns
+    -------
+    Observed
+        As :func:`run`, samples in the order of ``w``.
+    """
+    sizes = np.asarray(sizes, dtype=np.int64)
+    n, count = w.shape[1], len(sizes)
+    starts = np.concatenate(([0], np.cumsum(sizes)))
+    torque_free = torque_params is None
+    frames = []
+    bodies, torque_rows = np.empty((count, 12)), np.zeros((count, 4))
+    axes, weight_rows = np.empty(count, dtype=np.int64), np.empty((count, 3))
+    kernel_w = np.empty((3, n))
+    for k in range(count):  # each scene in its kernel frame (a splitting relabels the axes by its moments)
+        rows = slice(starts[k], starts[k + 1])
+        scene_w, constants, params, relabel = kernel_frame(method, w[:, rows], moments[k], torque_params, None)
+        kernel_w[:, rows] = scene_w
+        bodies[k] = constants
+        if not torque_free:
+            torque_rows[k] = params
+        axes[k], weight_rows[k] = kernel_observed_axis(relabel, int(axis[k]), None if norm_weights is None
+                                                       else norm_weights[k])
+        frames.append((rows, relabel))
+    save_every = np.asarray(save_every, dtype=np.int64)
+    n_steps = np.asarray(n_steps, dtype=np.int64)
+    stored = {1 + int(m) // int(e) + (1 if int(m) % int(e) else 0) if e > 0 else 0 for m, e in zip(n_steps, save_every)}
+    if len(stored) > 1:
+        raise ValueError(f"the scenes of one launch store different numbers of states: {sorted(stored)}")
+    n_saved = stored.pop()
+    probe_steps = np.ascontiguousarray(probe_steps, dtype=np.int64)
+    n_probes = probe_steps.shape[1]
+    device_w = cuda.to_device(kernel_w)
     saved = cuda.device_array((n_saved, 3, n)) if n_saved else cuda.device_array((0, 3, 1))
     flips = cuda.device_array((n, max_flips)) if max_flips > 0 else cuda.device_array((1, 0))
     flip_count = cuda.device_array(n if max_flips > 0 else 0, dtype=np.int64)
     drifts = cuda.device_array((2, n)) if drift else cuda.device_array((0, 1))
     keep_probes = n_probes > 0 and (keep_probes or growth_window is None)
-    if keep_probes:
-        probes = cuda.device_array((n_probes, n))
-    else:
-        probes = cuda.device_array((0, 1))
-    saturation, min_points, fit_h = growth_window or (0.0, 0, 0.0)
+    probes = cuda.device_array((n_probes, n)) if keep_probes else cuda.device_array((0, 1))
+    saturation, min_points, fit_h = growth_window or (np.zeros(count), 0, np.zeros(count))
     fit = cuda.device_array((3, n)) if growth_window else cuda.device_array((0, 1))
     fit_points = cuda.device_array(n if growth_window else 0, dtype=np.int64)
     status = cuda.device_array(n, dtype=np.int8)
     steps_taken = cuda.device_array(n, dtype=np.int64)
+    scene = np.repeat(np.arange(count, dtype=np.int64), sizes) if count > 1 else np.zeros(0, dtype=np.int64)
     threads = THREADS if n >= THREADS else 32 * -(-n // 32)
-    params = _NO_TORQUE if torque_free else tuple(float(x) for x in torque_params)
     kernel(method, torque_free)[-(-n // threads), threads](
-        device_w, constants, float(t0), float(h), int(n_steps), int(save_every), saved, int(kernel_axis),
-        tuple(float(g) for g in weights), cuda.to_device(np.ascontiguousarray(probe_steps)), probes, flips,
-        flip_count, drifts, status, steps_taken, float(stop_norm), int(stop_flips),
-        float(drift_limit) if torque_free else 0.0, int(torque_kind), params, float(saturation), int(min_points),
-        float(fit_h), fit, fit_points)
-    w[:] = from_kernel_frame(relabel, device_w.copy_to_host())
+        device_w, cuda.to_device(scene), cuda.to_device(bodies), float(t0), cuda.to_device(np.asarray(h, float)),
+        cuda.to_device(n_steps), cuda.to_device(save_every), saved, cuda.to_device(axes),
+        cuda.to_device(weight_rows), cuda.to_device(probe_steps), probes, flips, flip_count, drifts, status,
+        steps_taken, cuda.to_device(np.asarray(stop_norm, float)), int(stop_flips),
+        float(drift_limit) if torque_free else 0.0, int(torque_kind), cuda.to_device(torque_rows),
+        cuda.to_device(np.asarray(saturation, float)), int(min_points), cuda.to_device(np.asarray(fit_h, float)),
+        fit, fit_points)
+    final = device_w.copy_to_host()
+    trajectory = saved.copy_to_host() if n_saved else None
+    for rows, relabel in frames:
+        w[:, rows] = from_kernel_frame(relabel, final[:, rows])
+        if trajectory is not None and relabel is not None:
+            trajectory[:, :, rows] = from_kernel_frame(relabel, trajectory[:, :, rows], axis=1)
     growth = None
     if growth_window:
         rate, first, last = fit.copy_to_host()
         growth = (rate, fit_points.copy_to_host(), first, last)
-    return Observed(from_kernel_frame(relabel, saved.copy_to_host(), axis=1) if n_saved else None,
-                    probes.copy_to_host() if keep_probes else None, flips.copy_to_host() if max_flips > 0 else None,
+    return Observed(trajectory, probes.copy_to_host() if keep_probes else None,
+                    flips.copy_to_host() if max_flips > 0 else None,
                     flip_count.copy_to_host() if max_flips > 0 else None, drifts.copy_to_host() if drift else None,
                     status.copy_to_host(), steps_taken.copy_to_host(), growth)

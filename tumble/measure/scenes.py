@@ -42,7 +42,7 @@ from tqdm.auto import tqdm
 
 from .. import registry
 from .._version import __version__
-from ..engine.ensemble import flip_times, observation_times, run_ensemble, torque_spec
+from ..engine.ensemble import flip_times, observation_times, run_ensemble, run_scene_table, torque_spec
 from ..engine.device import LAUNCH_SAMPLES, resolve_device
 from ..engine.integration import integrate
 from ..engine.sampling import CHUNK, drawn_spins, perturbed_spins, seed_entropy
@@ -55,7 +55,8 @@ from . import estimators as analysis
 __all__ = ["CURVES", "SAMPLE_STATUS_NAMES", "ScenePlanner", "assemble_scan", "check_amplitude", "check_fit_span",
            "closed_form_samples", "flip_time_law", "inertia_triangle", "invariant_drift", "measure", "refuse_plan",
            "regress_scan", "scan", "scan_layout", "scan_scene", "scan_scene_parameters", "scene_batch",
-           "scene_dataset", "scene_estimate", "scene_plan", "scene_records", "scene_result", "scene_samples"]
+           "scene_dataset", "scene_estimate", "scene_plan", "scene_records", "scene_result", "scene_samples",
+           "stepping_samples_on_device"]
 
 #: Per-sample status in a measurement: the engine's (ok, non-finite, invariant drift), then the fit's.
 SAMPLE_STATUS_NAMES = STATUS_NAMES + analysis.FIT_NAMES[1:]
@@ -489,7 +490,7 @@ def scene_samples(scene, start, stop, *, progress=False):
     if scene.chosen == "exact":
         return closed_form_samples([scene], start, stop)[0]
     moments, axis, spin = scene.moments, scene.axis, scene.spin
-    growth, n_flips, a = kind == "exponential", scene.flips, scene.axis - 1
+    growth, n_flips = kind == "exponential", scene.flips
     out = _empty_part(scene, start, stop)
     value = scene.value
     computed = skipped = 0
@@ -505,38 +506,97 @@ def scene_samples(scene, start, stop, *, progress=False):
                               torque=scene.torque, progress=progress, device=scene.device,
                               growth_window=(plan.saturation, analysis.MIN_POINTS) if growth else None,
                               keep_probes=keep_norm and lo == 0)
+        value = _observed(scene, result, w0, out, slice(lo - start, hi - start))
         info = result.info
         computed, skipped = computed + info["sample_steps_computed"], skipped + info["sample_steps_skipped"]
-        rows = slice(lo - start, hi - start)
-        if growth:  # fitted by the engine: on the device in the kernel, no norm comes back (but the norm curve's)
-            fit = analysis.growth_window_fit(result.probe_times, *result.growth)
-            if keep_norm and lo == 0:
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns after every sample stopped
-                    quartiles = np.nanquantile(result.probes[:SLICE], [0.25, 0.5, 0.75], axis=0)  # as on the CPU
-                out.update(norm_time=result.probe_times, norm_q1=quartiles[0], norm_median=quartiles[1],
-                           norm_q3=quartiles[2])
-            out["rate"][rows] = fit.rate
-            for name in _GROWTH_FIT:
-                out[name][rows] = getattr(fit, name)
-        else:
-            b, c = plan.plane or ((a + 1) % 3, (a + 2) % 3)
-            weights = (analysis.invariant_weights(moments, axis)[[b, c]] if kind == "periodic" else np.ones(2))
-            fit = analysis.oscillation_frequencies(result.times, result.trajectory[..., [b, c]], weights, spin)
-            out["rate"][rows] = fit.frequency
-            out["radius"][rows] = fit.radius
-            if scene.spin_up is not None:
-                value = _spin_up_rate(scene.spin_up, scene.value, spin, result.times)
-        out["code"][rows] = np.where(result.status != STATUS_OK, result.status,
-                                     np.where(fit.code != analysis.FIT_OK, fit.code + _FIT_OFFSET, 0))
-        if n_flips:
-            stats = analysis.flip_statistics(result.flips)
-            out["flip_first"][rows], out["flip_spacing"][rows] = stats.first, stats.spacing
-            out["flip_exact"][rows] = exact.flip_spacing(moments, w0)
-            out["flip_asymptote"][rows] = theory.flip_time_asymptote(moments, w0)
     out.update(sample_steps_computed=np.int64(computed), sample_steps_skipped=np.int64(skipped),
                rate_theory=np.float64(value), path=np.array(info["path"]), torque=np.array(info.get("torque", "")))
     return out
+
+
+def _observed(scene, result, w0, out, rows):
+    """Fill ``out[...][rows]`` (a :func:`scene_samples` part) from a run of the scene's samples ``w0`` (an
+    :class:`tumble.engine.ensemble.EnsembleResult` with its growth fit, or its trajectory), the norm curve from its
+    probes when they were kept; returns the theory's value (a torque's spin-up changes it)."""
+    moments, kind, a, value = scene.moments, scene.kind, scene.axis - 1, scene.value
+    if kind == "exponential":  # fitted by the engine: on the device in the kernel, no norm comes back (but the norm curve's)
+        fit = analysis.growth_window_fit(result.probe_times, *result.growth)
+        if result.probes is not None:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns after every sample stopped
+                quartiles = np.nanquantile(result.probes[:SLICE], [0.25, 0.5, 0.75], axis=0)  # as on the CPU
+            out.update(norm_time=result.probe_times, norm_q1=quartiles[0], norm_median=quartiles[1],
+                       norm_q3=quartiles[2])
+        out["rate"][rows] = fit.rate
+        for name in _GROWTH_FIT:
+            out[name][rows] = getattr(fit, name)
+    else:
+        b, c = scene.plan.plane or ((a + 1) % 3, (a + 2) % 3)
+        weights = (analysis.invariant_weights(moments, scene.axis)[[b, c]] if kind == "periodic" else np.ones(2))
+        fit = analysis.oscillation_frequencies(result.times, result.trajectory[..., [b, c]], weights, scene.spin)
+        out["rate"][rows] = fit.frequency
+        out["radius"][rows] = fit.radius
+        if scene.spin_up is not None:
+            value = _spin_up_rate(scene.spin_up, scene.value, scene.spin, result.times)
+    out["code"][rows] = np.where(result.status != STATUS_OK, result.status,
+                                 np.where(fit.code != analysis.FIT_OK, fit.code + _FIT_OFFSET, 0))
+    if scene.flips:
+        stats = analysis.flip_statistics(result.flips)
+        out["flip_first"][rows], out["flip_spacing"][rows] = stats.first, stats.spacing
+        out["flip_exact"][rows] = exact.flip_spacing(moments, w0)
+        out["flip_asymptote"][rows] = theory.flip_time_asymptote(moments, w0)
+    return value
+
+
+def stepping_samples_on_device(scenes, start, stop):
+    """:func:`scene_samples` of fixed-step scenes on the device, many scenes a launch
+    (:func:`tumble.engine.ensemble.run_scene_table`): a scan's scenes, each too small to fill a GPU, run in batches
+    of up to :data:`tumble.engine.device.LAUNCH_SAMPLES` samples of scenes that store or probe as many times; the
+    parts are the same bits as scene by scene.
+
+    Parameters
+    ----------
+    scenes : list of Scene
+        :func:`scene_plan` results with ``device == "cuda"``, a fixed-step method, the same ``samples`` and method,
+        flips and torque, and no norm curve (whose probes a launch does not keep).
+    start, stop : int
+        The sample range of every scene (as :func:`scene_samples`).
+    """
+    parts = [_empty_part(scene, start, stop) for scene in scenes]
+    groups = {}
+    for k, scene in enumerate(scenes):
+        plan = scene.plan
+        n, every = plan.n_steps, plan.save_every
+        stored = len(plan.probe_times) if scene.kind == "exponential" else 1 + n // every + (n % every > 0)
+        key = (scene.kind == "exponential", stored, scene.chosen, scene.flips, repr(scene.torque))
+        groups.setdefault(key, []).append(k)
+    size = stop - start
+    per_launch = max(1, LAUNCH_SAMPLES // size)
+    for (growth, *_), members in groups.items():
+        for lo in range(0, len(members), per_launch):
+            _stepping_batch([scenes[k] for k in members[lo:lo + per_launch]],
+                            [parts[k] for k in members[lo:lo + per_launch]], growth, start, stop)
+    return parts
+
+
+def _stepping_batch(scenes, parts, growth, start, stop):
+    """Run the samples ``[start, stop)`` of ``scenes`` (see :func:`stepping_samples_on_device`) in one launch."""
+    first, plans = scenes[0], [scene.plan for scene in scenes]
+    w0 = [drawn_spins(s.moments, s.axis, s.spin, s.amplitude, s.entropy, s.distribution, start, stop) for s in scenes]
+    results = run_scene_table(
+        first.chosen, np.stack([s.moments for s in scenes]), np.concatenate(w0), [stop - start] * len(scenes),
+        np.array([p.t_end for p in plans]), np.array([p.dt for p in plans]), axis=np.array([s.axis for s in scenes]),
+        save_every=None if growth else np.array([p.save_every for p in plans]),
+        probe_times=np.stack([p.probe_times for p in plans]) if growth else None,
+        norm_weights=np.stack([p.weights for p in plans]) if growth else None, max_flips=first.flips,
+        stop_norm=np.array([p.saturation for p in plans]) if growth else None, torque=first.torque,
+        growth_window=(np.array([p.saturation for p in plans]), analysis.MIN_POINTS) if growth else None)
+    for scene, part, result, spins in zip(scenes, parts, results, w0):
+        value = _observed(scene, result, spins, part, slice(0, stop - start))
+        info = result.info
+        part.update(sample_steps_computed=np.int64(info["sample_steps_computed"]),
+                    sample_steps_skipped=np.int64(info["sample_steps_skipped"]), rate_theory=np.float64(value),
+                    path=np.array(info["path"]), torque=np.array(info["torque"]))
 
 
 def _empty_part(scene, start, stop):
@@ -1107,15 +1167,17 @@ class ScenePlanner:
 
 
 def scene_batch(scenes, *, progress=False):
-    """The records (:func:`scene_records`) of whole scenes, every closed-form scene of them in batches
-    (:func:`closed_form_samples`), the others one by one."""
+    """The records (:func:`scene_records`) of whole scenes: the closed-form scenes in batches
+    (:func:`closed_form_samples`), the fixed-step scenes on the device many a launch
+    (:func:`stepping_samples_on_device`), the others one by one."""
     parts = [None] * len(scenes)
-    exact_ones = [i for i, scene in enumerate(scenes) if scene.chosen == "exact"]
-    by_samples = {}
-    for i in exact_ones:
-        by_samples.setdefault(scenes[i].samples, []).append(i)
-    for samples, members in by_samples.items():
-        for i, part in zip(members, closed_form_samples([scenes[i] for i in members], 0, samples)):
+    together = {}  # closed-form scenes; fixed-step scenes on the device (many a launch), but those with a norm curve
+    for i, scene in enumerate(scenes):
+        if scene.chosen == "exact" or (scene.device == "cuda" and "norm" not in scene.curves):
+            together.setdefault((scene.chosen == "exact", scene.samples), []).append(i)
+    for (closed_form, samples), members in together.items():
+        run_together = closed_form_samples if closed_form else stepping_samples_on_device
+        for i, part in zip(members, run_together([scenes[i] for i in members], 0, samples)):
             parts[i] = [part]
     for i, scene in enumerate(scenes):
         if parts[i] is None:
