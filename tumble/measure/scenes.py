@@ -672,12 +672,14 @@ def _closed_form_batch(scenes, grids, batch, parts, start):
     w0 = np.concatenate([drawn_spins(scene.moments, scene.axis, scene.spin, scene.amplitude, scene.entropy,
                                      scene.distribution, lo, hi) for scene, (_, lo, hi) in zip(per_sample, batch)])
     times = np.stack([grids[k] for k, _, _ in batch])
-    sol = exact.solve_rows(moments, w0)  # also the flips' times and spacings: on the host, whatever the device
-    if per_sample[0].device == "cuda":  # set-up and time grids on the device: one launch, one thread per sample
+    first = per_sample[0]
+    on_device = first.device == "cuda"
+    # the set-up on the host: the CPU's evaluation, and the flips' times and spacings whatever the device
+    sol = exact.solve_rows(moments, w0) if first.flips or not on_device else None
+    if on_device:  # set-up and time grids on the device: one launch, one thread per sample
         omega = exact.omega_rows_on_device(np.stack([scene.moments for scene in per_sample]), w0, times, row)
     else:
         omega = exact.omega_rows(sol, times, row)
-    first = per_sample[0]
     if first.kind == "exponential":
         columns = each([(s.axis % 3, (s.axis + 1) % 3) for s in per_sample])
         weights = each([s.plan.weights for s in per_sample])
