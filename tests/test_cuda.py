@@ -355,6 +355,20 @@ def test_a_fixed_step_scan_on_the_device_launches_per_batch_of_scenes_with_the_b
     _same_scene(study.assemble_scan(layout, records), tumble.scan(bodies, **kwargs))
 
 
+def test_the_device_counts_the_steps_of_each_warp_as_computed(cuda_device):
+    """A warp's threads step together: a sample that stopped early still waits for its warp's slowest one."""
+    from tumble.engine import ensemble
+    from tumble.engine.sampling import perturbed_spins
+
+    w0 = perturbed_spins((1.0, 2.0, 3.0), 2, samples=40)
+    w0[::3] *= 1.0 + np.linspace(0.0, 0.5, 14)[:, None]  # spins of other rates: other stopping steps
+    result = tumble.run_ensemble((1.0, 2.0, 3.0), w0, 30.0, 0.05, method="rk4", axis=2, final=False,
+                                 probe_times=np.linspace(0.0, 30.0, 31), stop_norm=0.1, device="cuda")
+    assert len(set(result.steps_taken)) > 1
+    assert result.info["sample_steps_computed"] == ensemble._block_steps(result.steps_taken, 32)
+    assert result.info["sample_steps_computed"] < ensemble._block_steps(result.steps_taken)  # not a CPU block's
+
+
 def test_tumble_run_device_cuda_runs_the_default_closed_form_study_as_the_cpu_does(cuda_device, tmp_path):
     env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")  # the simulator: the device is there
     runs = {}

@@ -98,11 +98,11 @@ def test_the_sample_steps_of_blocks_vectorised_equal_the_block_by_block_sum():
     from tumble.engine import ensemble
 
     rng = np.random.default_rng(2)
-    for n in (0, 1, ensemble.BLOCK - 1, ensemble.BLOCK, 3 * ensemble.BLOCK + 5):
-        steps = rng.integers(0, 1000, n)
-        expected = sum(len(part) * int(part.max())
-                       for part in np.split(steps, range(ensemble.BLOCK, n, ensemble.BLOCK)) if len(part))
-        assert ensemble._block_steps(steps) == expected
+    for block in (ensemble.BLOCK, ensemble.WARP):  # a CPU block, a device warp
+        for n in (0, 1, block - 1, block, 3 * block + 5):
+            steps = rng.integers(0, 1000, n)
+            expected = sum(len(part) * int(part.max()) for part in np.split(steps, range(block, n, block)) if len(part))
+            assert ensemble._block_steps(steps, block) == expected
 
 
 def test_the_side_by_side_signatures_are_those_the_closed_form_scenes_call(warm_kernels):

@@ -14,8 +14,8 @@ import numpy as np
 from ..kernels import METHODS, device_kernels, run
 from ..registry import DEVICES
 
-__all__ = ["DEVICES", "DeviceError", "INSTALL", "LAUNCH_SAMPLES", "check_on_device", "not_on_device", "resolve_device",
-           "stepper"]
+__all__ = ["DEVICES", "DeviceError", "INSTALL", "LAUNCH_SAMPLES", "WARP", "check_on_device", "not_on_device",
+           "resolve_device", "stepper"]
 
 
 class DeviceError(ValueError):
@@ -25,6 +25,10 @@ class DeviceError(ValueError):
 #: to be busy (an H100 holds 132 SMs x 2048 resident threads), far more than a CPU chunk
 #: (:data:`tumble.engine.sampling.CHUNK`); a scene's growth probes of this many samples take 0.5 GB.
 LAUNCH_SAMPLES = 1 << 18
+
+#: Threads that step together on the device (a warp): each takes as many steps as its slowest sample, which is what
+#: a run's ``sample_steps_computed`` counts there.
+WARP = 32
 
 #: How to install what the device needs (the ``gpu`` extra of pyproject.toml).
 INSTALL = 'pip install "tumble[gpu]"'

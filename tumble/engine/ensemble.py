@@ -38,7 +38,7 @@ from ..physics import exact
 from ..physics.bodies import finite_array, one_body, spin_vectors
 from ..registry import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK, choose_method
 from . import cost
-from .device import LAUNCH_SAMPLES, check_on_device, resolve_device, stepper
+from .device import LAUNCH_SAMPLES, WARP, check_on_device, resolve_device, stepper
 from .sampling import CHUNK
 
 __all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "Interrupted", "STATUS_NAMES", "run_ensemble", "run_scene_table",
@@ -410,7 +410,8 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         started = time.perf_counter()
         result = _run_kernel(METHODS[chosen], moments, w0, dt, n_steps, observe, torque, chunks(), device)
     steps_taken = result.steps_taken
-    info.update(run_seconds=time.perf_counter() - started, sample_steps_computed=_block_steps(steps_taken),
+    info.update(run_seconds=time.perf_counter() - started,
+                sample_steps_computed=_block_steps(steps_taken, BLOCK if device == "cpu" else WARP),
                 sample_steps_skipped=int(n * n_steps - steps_taken.sum()))
     return _fit_growth(result._replace(info=info), observe)
 
@@ -486,7 +487,7 @@ def run_scene_table(method, moments, w0, sizes, t_end, dt, *, axis, save_every=N
         steps_taken = observed.steps_taken[rows]
         info = {"path": "fixed-step kernel", "method": method, "dt": float(dt[k]), "n_steps": int(n_steps[k]),
                 "torque": torque.text, "samples": int(size), "device": "cuda",
-                "sample_steps_computed": _block_steps(steps_taken),
+                "sample_steps_computed": _block_steps(steps_taken, WARP),
                 "sample_steps_skipped": int(size * n_steps[k] - steps_taken.sum())}
         results.append(EnsembleResult(
             None, times[k], None if observed.saved is None else observed.saved[:, :, rows].transpose(2, 0, 1),
@@ -604,16 +605,17 @@ def _run_kernel(method, moments, w0, dt, n_steps, observe, torque, chunks, devic
                           status, steps_taken, {}, growth=growth)
 
 
-def _block_steps(steps_taken):
+def _block_steps(steps_taken, block=BLOCK):
     """Sample-steps the kernel actually computed: every sample of a block steps until the block's last one
-    stops (the SIMD lanes of a block move together)."""
+    stops (the SIMD lanes of a CPU block, :data:`tumble.kernels.BLOCK` samples, move together; on the device, the
+    :data:`tumble.engine.device.WARP` threads of a warp)."""
     n = len(steps_taken)
     if n == 0:
         return 0
-    blocks = np.zeros(-(-n // BLOCK) * BLOCK, dtype=np.int64)
+    blocks = np.zeros(-(-n // block) * block, dtype=np.int64)
     blocks[:n] = steps_taken
-    sizes = np.minimum(BLOCK, n - np.arange(0, n, BLOCK))
-    return int(np.dot(sizes, blocks.reshape(-1, BLOCK).max(axis=1)))
+    sizes = np.minimum(block, n - np.arange(0, n, block))
+    return int(np.dot(sizes, blocks.reshape(-1, block).max(axis=1)))
 
 
 def _run_attitude(method, moments, w0, dt, n_steps, observe, torque, chunks, device="cpu"):
