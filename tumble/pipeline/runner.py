@@ -749,7 +749,8 @@ def run_study(source, *, overrides=None, out=None, progress=None, scheduler=None
     device : {"cpu", "cuda"}, optional
         Overrides the study's ``integration.device``. ``"cuda"`` runs the scenes on the device (stepping, closed
         form and a ``[model]``'s); a device that cannot run is refused before anything runs (``device 'cuda': ...``);
-        an invalid value is a ``StudyError`` naming the field.
+        an invalid value is a ``StudyError`` naming the field. The figures' traces of a few samples (invariant drift,
+        attitude, flat spin, work-precision) run on the CPU.
     chunk_scenes : int, optional
         Scenes per chunk (checkpoint and dask task); the results do not depend on it.
     chunk_samples : int, optional
