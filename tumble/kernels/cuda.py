@@ -210,8 +210,9 @@ def kernel(method, torque_free):
 
 def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weights=None, probe_steps=None,
         max_flips=0, drift=False, stop_norm=0.0, stop_flips=0, drift_limit=0.0, torque_kind=TORQUE_CONSTANT,
-        torque_params=None, torque_fn=None, block=None, growth_window=None, keep_probes=True):
-    # size: the keywords of tumble.kernels.methods.run, so that the engine calls either the same way, and the growth fit
+        torque_params=None, torque_fn=None, block=None, growth_window=None, keep_probes=True, phase_window=None,
+        keep_saved=True):
+    # size: the keywords of tumble.kernels.methods.run, so that the engine calls either the same way, and the fits
     """:func:`tumble.kernels.methods.run` on the device: the same arguments and the same :class:`Observed`.
 
     Only what was asked comes back from the device: the final state, and the trajectory, probe norms, flips and drift
@@ -219,8 +220,13 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
     (a thread is a sample). ``growth_window=(saturation, min_points, h)`` fits each sample's growth rate from its
     norms at the probes (``h`` apart) in the kernel (:func:`tumble.kernels.fits.growth_fit`'s window, fed as they
     come): ``Observed.growth`` is ``(rate, points, first, last)`` (N,) each, and with ``keep_probes=False`` the probe
-    norms stay on the device. Raises ``ValueError`` (``device 'cuda': ...``) for what the device does not do yet
-    (:func:`refusal`).
+    norms stay on the device. ``phase_window=(times, plane, weights, floor, max_step)`` fits each sample's
+    oscillation frequency from the phase of its stored components on the device (:mod:`tumble.kernels.cuda_fits`,
+    the CPU's per-sample fit), ``times`` (n_saved,) the stored times (s), ``plane`` the two columns ``(b, c)``
+    (0-based, body frame), ``weights`` ``(g_b, g_c)``, ``floor`` the no-signal radius (rad/s) and ``max_step`` (rad)
+    as :func:`tumble.kernels.fits.phase_fit` takes them: ``Observed.phase`` is ``(frequency, radius, code)`` (N,)
+    each, and with ``keep_saved=False`` the trajectory stays on the device. Raises ``ValueError`` (``device 'cuda':
+    ...``) for what the device does not do yet (:func:`refusal`).
     """
     problem = refusal(method, torque_fn=torque_fn)
     if problem:
@@ -262,7 +268,26 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
     if growth_window:
         rate, first, last = fit.copy_to_host()
         growth = (rate, fit_points.copy_to_host(), first, last)
-    return Observed(from_kernel_frame(relabel, saved.copy_to_host(), axis=1) if n_saved else None,
+    phase = None
+    if phase_window is not None:
+        phase = _phase_fit(saved, relabel, n, *phase_window)
+    keep_saved = n_saved and (keep_saved or phase_window is None)
+    return Observed(from_kernel_frame(relabel, saved.copy_to_host(), axis=1) if keep_saved else None,
                     probes.copy_to_host() if keep_probes else None, flips.copy_to_host() if max_flips > 0 else None,
                     flip_count.copy_to_host() if max_flips > 0 else None, drifts.copy_to_host() if drift else None,
-                    status.copy_to_host(), steps_taken.copy_to_host(), growth)
+                    status.copy_to_host(), steps_taken.copy_to_host(), growth, phase)
+
+
+def _phase_fit(saved, relabel, n, times, plane, weights, floor, max_step):
+    """The phase fit of the trajectory ``saved`` (n_saved, 3, n) the kernel left on the device, in its frame
+    (``relabel``: the plane's columns there, and the sign of every component): ``(frequency, radius, code)``."""
+    from .cuda_fits import phase_fit
+
+    sign = 1.0
+    columns = np.asarray(plane, dtype=np.int64)
+    if relabel is not None:
+        perm, sign = relabel
+        columns = np.argsort(perm)[columns]
+    return phase_fit(np.reshape(times, (1, -1)), np.zeros(1, dtype=np.int64), saved, np.tile(columns, (n, 1)),
+                     np.tile(np.asarray(weights, dtype=float), (n, 1)), np.full(n, float(floor)), max_step,
+                     time_major=True, sign=float(sign))

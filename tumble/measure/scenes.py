@@ -448,6 +448,7 @@ _FLIP_ARRAYS = ("flip_first", "flip_spacing", "flip_exact", "flip_asymptote")
 
 
 def scene_samples(scene, start, stop, *, progress=False):
+    # size: the run of each slice of samples and its fits (on the device: the phase fitted where the trajectory is)
     """Run samples ``[start, stop)`` of a :func:`scene_plan`: per-sample fits, no reduction.
 
     ``start`` must be a multiple of :data:`tumble.engine.sampling.CHUNK` (the engine and the sampler work in whole
@@ -485,6 +486,7 @@ def scene_samples(scene, start, stop, *, progress=False):
         hi = min(lo + step, stop)
         w0 = perturbed_spins(moments, axis, spin, scene.amplitude, samples, seed=scene.entropy,
                              distribution=scene.distribution, start=lo, stop=hi)
+        phase = analysis.phase_window(moments, axis, kind, plan.plane, spin) if scene.device == "cuda" else None
         result = run_ensemble(moments, w0, plan.t_end, plan.dt, method=scene.chosen, axis=axis, final=False,
                               save_every=None if growth else plan.save_every,
                               probe_times=plan.probe_times if growth else None,
@@ -492,7 +494,7 @@ def scene_samples(scene, start, stop, *, progress=False):
                               stop_norm=plan.saturation if growth else 0.0, stop_flips=n_flips,
                               torque=scene.torque, progress=progress, device=scene.device,
                               growth_window=(plan.saturation, analysis.MIN_POINTS) if growth else None,
-                              keep_probes=keep_norm and lo == 0)
+                              keep_probes=keep_norm and lo == 0, phase_window=phase, keep_trajectory=phase is None)
         info = result.info
         computed, skipped = computed + info["sample_steps_computed"], skipped + info["sample_steps_skipped"]
         rows = slice(lo - start, hi - start)
@@ -510,7 +512,8 @@ def scene_samples(scene, start, stop, *, progress=False):
         else:
             b, c = plan.plane or ((a + 1) % 3, (a + 2) % 3)
             weights = (analysis.invariant_weights(moments, axis)[[b, c]] if kind == "periodic" else np.ones(2))
-            fit = analysis.oscillation_frequencies(result.times, result.trajectory[..., [b, c]], weights, spin)
+            fit = (analysis.PhaseFit(*result.phase) if result.phase is not None else  # fitted on the device
+                   analysis.oscillation_frequencies(result.times, result.trajectory[..., [b, c]], weights, spin))
             out["rate"][rows] = fit.frequency
             out["radius"][rows] = fit.radius
             if scene.spin_up is not None:
@@ -602,11 +605,13 @@ def _closed_form_batch(scenes, grids, batch, parts, start):
                                          start=lo, stop=hi) for scene, (_, lo, hi) in zip(per_sample, batch)])
     times = np.stack([grids[k] for k, _, _ in batch])
     sol = exact.solve_rows(moments, w0)  # also the flips' times and spacings: on the host, whatever the device
-    if per_sample[0].device == "cuda":  # set-up and time grids on the device: one launch, one thread per sample
+    first = per_sample[0]
+    if first.device == "cuda" and first.kind != "exponential":  # evaluated and phase-fitted on the device (below)
+        omega = None
+    elif first.device == "cuda":  # set-up and time grids on the device: one launch, one thread per sample
         omega = exact.omega_rows_on_device(np.stack([scene.moments for scene in per_sample]), w0, times, row)
     else:
         omega = exact.omega_rows(sol, times, row)
-    first = per_sample[0]
     if first.kind == "exponential":
         columns = each([(s.axis % 3, (s.axis + 1) % 3) for s in per_sample])
         weights = each([s.plan.weights for s in per_sample])
@@ -625,8 +630,13 @@ def _closed_form_batch(scenes, grids, batch, parts, start):
         b, c = each(planes).T
         weights = each([analysis.invariant_weights(s.moments, s.axis)[list(plane)] if s.kind == "periodic"
                         else np.ones(2) for s, plane in zip(per_sample, planes)])
-        fit = analysis.oscillation_frequencies(times, omega, weights, each([s.spin for s in per_sample]),
-                                               columns=np.stack([b, c], axis=1), row=row)
+        if omega is None:  # on the device: the states stay there, only the fits come back
+            fit = analysis.closed_form_frequencies_on_device(np.stack([scene.moments for scene in per_sample]), w0,
+                                                             times, weights, each([s.spin for s in per_sample]),
+                                                             columns=np.stack([b, c], axis=1), row=row)
+        else:
+            fit = analysis.oscillation_frequencies(times, omega, weights, each([s.spin for s in per_sample]),
+                                                   columns=np.stack([b, c], axis=1), row=row)
         results = {"rate": fit.frequency, "radius": fit.radius}
     code = np.where(fit.code != analysis.FIT_OK, fit.code + _FIT_OFFSET, 0)
     offset = 0
