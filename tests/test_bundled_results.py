@@ -76,10 +76,14 @@ def across_vector_widths(var, stored):
     differences of nearly equal numbers: a 1e-12 relative change of the rates moves them by 1e-12 of the rates' scale.
     Errors against a reference and drifts of invariants (``wp_error*``, ``*_drift``) are differences too, of states
     of order 1: they move by round-off, 1e-13 absolute (errors of 3e-14 seen moving by half). A trajectory over a long
-    damped horizon (``trace_*``) amplifies round-off (1.7e-10 relative seen for ``explorer1``'s nutation).
+    damped horizon (``trace_*``) amplifies round-off (1.7e-10 relative seen for ``explorer1``'s nutation). A
+    quaternion's components are of order 1 together, and one that is zero in exact arithmetic is round-off: 1e-13
+    absolute (``attitude_quaternion``).
     """
     tolerance = {"rtol": 1e-9 if var.startswith("trace_") else 1e-12, "atol": 0.0}
-    if "rel_error" in var:
+    if "quaternion" in var:
+        tolerance["atol"] = 1e-13
+    elif "rel_error" in var:
         tolerance["atol"] = 1e-12
     elif "error" in var or "drift" in var:
         tolerance["atol"] = 1e-13

@@ -185,6 +185,114 @@ def test_flips_check_every_step_for_a_blow_up_as_on_the_cpu(cuda_device):
     _same_records(device, cpu, ("status", "steps_taken", "flip_count"))
 
 
+# --- the phase fit on the device: the CPU's per-sample fit, run where the states are -------------------------------
+
+def _simulated():
+    from numba.core import config
+
+    return bool(config.ENABLE_CUDASIM)
+
+
+def _same_fit(device, cpu):
+    """Equal codes and NaNs; frequencies and radii equal on the simulator (the fit runs as the CPU's compiled code),
+    within 1e-13 relative on a GPU (NVVM may fuse a multiply-add the CPU's fit does not)."""
+    np.testing.assert_array_equal(device[2], cpu[2])
+    for d, c in zip(device[:2], cpu[:2]):
+        if _simulated():
+            np.testing.assert_array_equal(d, c)
+        np.testing.assert_allclose(d, c, rtol=1e-13)
+
+
+def _phase_fit_states():
+    """Stored states (n, T, 3) of oscillations of several frequencies, radii and ellipticities, and four that the fit
+    must tell apart: a NaN (no signal), one at round-off level (no signal), one beyond 1e150 (radii by hypot, still
+    fitted), one whose phase steps by more than pi/2 between stored times (undersampled)."""
+    rng = np.random.default_rng(2811)
+    times = np.linspace(0.0, 8.0, 40)
+    phase = rng.uniform(0.3, 1.5, (10, 1)) * times + rng.uniform(0.0, 6.0, (10, 1))
+    phase[4] = 9.0 * times  # 1.85 rad between stored times
+    radius = rng.uniform(0.5, 2.0, (10, 1))
+    states = np.stack([radius * np.cos(phase), 1.3 * radius * np.sin(phase), rng.normal(size=(10, 40))], axis=2)
+    states[1, 7, 0] = np.nan
+    states[2, :, :2] *= 1e-14
+    states[3] *= 1e200
+    return times, states
+
+
+@pytest.mark.parametrize("time_major, sign", [(False, 1.0), (True, -1.0)],
+                         ids=["closed_form_layout", "stepping_layout"])
+def test_the_phase_fit_on_the_device_is_the_cpu_fit_of_the_same_states(cuda_device, time_major, sign):
+    """The device's fit (kernels/cuda_fits.py) reads the closed form's (n, T, 3) or a stepping kernel's (T, 3, n)
+    states, in a splitting's relabelled frame (every component times -1), and gives the CPU's fit of them."""
+    from tumble.kernels import device_fits, fits
+
+    times, states = _phase_fit_states()
+    n = len(states)
+    columns = np.array([[0, 1], [1, 0]] * (n // 2), dtype=np.int64)
+    weights = np.random.default_rng(28).uniform(0.5, 2.0, (n, 2))
+    floor = np.full(n, 1e-11)
+    cpu = np.empty(n), np.empty(n), np.empty(n, dtype=np.int8)
+    fits.phase_fit(times[None, :], np.zeros(n, dtype=np.int64), states, columns, weights, floor, np.pi / 2, *cpu)
+    assert set(cpu[2].tolist()) == {0, 2, 3} and cpu[2][3] == 0
+    stored = np.ascontiguousarray(sign * (states.transpose(1, 2, 0) if time_major else states))
+    device = device_fits().phase_fit(times[None, :], np.zeros(1, dtype=np.int64), stored, columns, weights, floor,
+                                     np.pi / 2, time_major=time_major, sign=sign)
+    _same_fit(device, cpu)
+
+
+def test_a_periodic_closed_form_batch_is_fitted_on_the_device_and_only_its_fits_come_back(cuda_device):
+    """Two scenes of one batch (each its body and time grid): the device's fit of its own evaluation equals the host's
+    fit of that evaluation copied back; a launch with a spin within 1e-151 of an axis is evaluated and fitted on the
+    CPU, as the CPU does it."""
+    from tumble.measure import estimators
+    from tumble.physics import exact
+
+    bodies = np.array([[1.0, 2.0, 3.0], [1.0, 1.5, 2.2]])
+    row = np.repeat([0, 1], 6)
+    w0 = np.array([0.0, 0.0, 1.0]) + 0.02 * np.random.default_rng(2812).normal(size=(12, 3))
+    times = np.stack([np.linspace(0.0, 20.0, 65), np.linspace(0.0, 15.0, 65)])
+    columns = np.tile([0, 1], (12, 1))
+    weights = np.stack([estimators.invariant_weights(b, 3)[[0, 1]] for b in bodies])[row]
+    on_host = estimators.oscillation_frequencies(times, exact.omega_rows_on_device(bodies, w0, times, row), weights,
+                                                 1.0, columns=columns, row=row)
+    on_device = estimators.closed_form_frequencies_on_device(bodies, w0, times, weights, 1.0, columns=columns, row=row)
+    assert (on_host.code == 0).all()
+    _same_fit(on_device, on_host)
+    w0[5] = (1e-160, -1e-160, 1.0)  # tiny: the invariants underflow, the CPU's lifted set-up takes the launch
+    cpu = estimators.oscillation_frequencies(times, exact.omega_rows(exact.solve_rows(bodies[row], w0), times, row),
+                                             weights, 1.0, columns=columns, row=row)
+    on_device = estimators.closed_form_frequencies_on_device(bodies, w0, times, weights, 1.0, columns=columns, row=row)
+    for d, c in zip(on_device, cpu):
+        np.testing.assert_array_equal(d, c)
+
+
+@pytest.mark.parametrize("method", ["rk4", "splitting2"])
+def test_the_phase_fit_of_a_run_on_the_device_is_the_cpu_fit(cuda_device, method):
+    """phase_window: the device fits the trajectory where its kernel stored it (keep_trajectory=False: it never comes
+    back); the CPU fits it after the run. BODY is unsorted: a splitting's frame is relabelled, its sign -1. Then the
+    same with the closed form."""
+    w0 = np.array([0.0, 0.0, 1.0]) + 0.05 * np.random.default_rng(2813).normal(size=(8, 3))
+    kwargs = dict(method=method, axis=3, save_every=4, phase_window=((0, 1), (1.2, 0.8), 1e-11, np.pi / 2),
+                  progress=False)
+    cpu = tumble.run_ensemble(BODY, w0, 6.0, 0.05, **kwargs)
+    device = tumble.run_ensemble(BODY, w0, 6.0, 0.05, device="cuda", keep_trajectory=False, **kwargs)
+    assert device.trajectory is None and cpu.trajectory is not None and (cpu.phase[2] == 0).all()
+    _same_fit(device.phase, cpu.phase)
+    kwargs.update(method="exact")  # the closed form, evaluated and fitted on the device (phase_fit_rows_on_device)
+    cpu = tumble.run_ensemble(BODY, w0, 6.0, 0.05, **kwargs)
+    device = tumble.run_ensemble(BODY, w0, 6.0, 0.05, device="cuda", keep_trajectory=False, **kwargs)
+    assert device.trajectory is None
+    np.testing.assert_array_equal(device.phase[2], cpu.phase[2])
+    np.testing.assert_allclose(device.phase[0], cpu.phase[0], rtol=1e-13)  # a few ulps of |w| apart (omega_on_device)
+
+
+def test_a_phase_window_needs_a_stored_trajectory_and_a_plane():
+    with pytest.raises(ValueError, match="phase_window fits the phase of the stored trajectory: it needs save_every"):
+        tumble.run_ensemble(BODY, [[0.0, 0.0, 1.0]], 1.0, 0.1, phase_window=((0, 1), (1, 1), 0.0, 1.0))
+    with pytest.raises(ValueError, match="plane must be two different columns"):
+        tumble.run_ensemble(BODY, [[0.0, 0.0, 1.0]], 1.0, 0.1, save_every=1, phase_window=((1, 1), (1, 1), 0.0, 1.0))
+
+
 # --- asking for what cannot run is an error, never a silent CPU run ----------------------------------------------
 
 @pytest.mark.parametrize("device", ["gpu", "CUDA", None, 0])
@@ -234,10 +342,7 @@ def test_cuda_with_a_numpy_numba_cuda_cannot_compile_with_says_so(monkeypatch):
 
 @pytest.mark.parametrize("kwargs, message", [
     (dict(method="rk4", torque=lambda t, w1, w2, w3: (0.0, 0.0, 0.1)), "a Python torque function cannot run"),
-    (dict(method="exact", max_flips=2), "the closed form's flips (method 'exact', which 'auto' picks for a "
-                                        "torque-free run, with max_flips) are not yet"),
-    (dict(method="auto", save_every=1, attitude=True), "the closed form's attitude"),
-], ids=["torque_function", "closed_form_flips", "closed_form_attitude"])
+], ids=["torque_function"])
 def test_what_the_device_does_not_do_yet_is_refused(cuda_device, kwargs, message):
     with pytest.raises(ValueError) as err:
         tumble.run_ensemble(BODY, [[0.0, 1.0, 0.0]], 0.1, 0.01, device="cuda", progress=False, **kwargs)
@@ -315,8 +420,9 @@ def test_a_closed_form_scan_on_the_device_launches_per_batch_of_scenes_not_per_s
 
     kernels = device_closed_form()
     launches = []
-    real = kernels.omega_rows
-    monkeypatch.setattr(kernels, "omega_rows", lambda *args: launches.append(len(args[1])) or real(*args))
+    real = kernels._omega_rows
+    monkeypatch.setattr(kernels, "_omega_rows", lambda *args: launches.append(len(args[1])) or real(*args))
+    monkeypatch.setattr(kernels, "omega_rows", None)  # a periodic scene's states never come back to the host
     bodies = np.column_stack([np.ones(64), np.linspace(1.6, 2.0, 64), np.full(64, 2.5)])
     cpu = tumble.scan(bodies, axis=1, samples=4)
     device = tumble.scan(bodies, axis=1, samples=4, device="cuda")

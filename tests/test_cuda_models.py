@@ -141,13 +141,38 @@ def test_run_ensemble_auto_on_the_device_runs_the_closed_form_with_its_observers
     _agree(dataset.omega.values[:, -1], cpu.final, CLOSED_FORM_RELATIVE)
 
 
-def test_the_closed_form_flips_and_attitude_are_refused_on_the_device(cuda_device):
-    with pytest.raises(ValueError, match=r"^device 'cuda': the closed form's flips .* not yet on the device"):
-        tumble.run_ensemble((1.0, 2.0, 3.0), [[0.1, 1.0, 0.1]], 1.0, 0.1, method="exact", max_flips=2,
-                           device="cuda", progress=False)
-    with pytest.raises(ValueError, match=r"^device 'cuda': the closed form's attitude .* not yet on the device"):
-        tumble.integrate((1.0, 2.0, 3.0), [[0.1, 1.0, 0.1]], 1.0, 0.1, method="exact", save_every=1, attitude=True,
-                         device="cuda")
+def test_the_closed_form_flips_on_the_device_are_the_cpus(cuda_device, closed_form_spins):
+    """The flips are analytic in the set-up (the first flip time and the spacing), timed on the host from the same
+    set-up on either device: the same bits; the state at the end evaluated on the device."""
+    kwargs = dict(method="exact", axis=1, max_flips=3, progress=False)
+    spins = np.vstack([closed_form_spins, [[1.0, 0.05, 0.02], [1.0, -0.01, 0.03]]])  # about the intermediate axis
+    cpu = tumble.run_ensemble((4.0, 3.0, 6.0), spins, 30.0, 0.1, **kwargs)
+    device = tumble.run_ensemble((4.0, 3.0, 6.0), spins, 30.0, 0.1, device="cuda", **kwargs)
+    assert cpu.flip_count.max() > 3 and (cpu.flip_count == 0).any()
+    np.testing.assert_array_equal(device.flips, cpu.flips)
+    np.testing.assert_array_equal(device.flip_count, cpu.flip_count)
+    _agree(device.final, cpu.final, CLOSED_FORM_RELATIVE)
+
+
+@pytest.mark.parametrize("body", [(3.0, 4.0, 6.0), (4.0, 6.0, 3.0), (2.0, 2.0, 3.0)],
+                         ids=["sorted", "unsorted", "symmetric"])
+def test_the_closed_form_attitude_on_the_device_gives_the_cpu_quaternions(cuda_device, closed_form_spins, body):
+    """A thread sets up its sample, evaluates its angular velocity at t = 0 and at each time, and runs the CPU's
+    per-sample attitude code (kernels/elliptic_attitude.py): both regimes, a steady spin, a spin 1e-9 from the
+    intermediate axis, the separatrix; a launch with a spin within 1e-151 of an axis goes to the CPU (lifted)."""
+    cpu = tumble.integrate(body, closed_form_spins, 1.1, 0.1, method="exact", save_every=3, attitude=True)
+    device = tumble.integrate(body, closed_form_spins, 1.1, 0.1, method="exact", save_every=3, attitude=True,
+                              device="cuda")
+    assert device.attrs["device"] == "cuda" and device.quaternion.shape == (12, 5, 4)
+    _agree(device.quaternion.values, cpu.quaternion.values, CLOSED_FORM_RELATIVE)
+    _agree(device.omega.values, cpu.omega.values, CLOSED_FORM_RELATIVE)
+    from tumble.physics import exact
+
+    times = np.array([-0.7, 0.0, 0.3, 2.5, 11.0])
+    near_an_axis = np.vstack([closed_form_spins[:3], [1e-160, 1.0, 1e-160]])
+    for spins in (closed_form_spins, near_an_axis):
+        _agree(exact.attitude_on_device(np.array(body), spins, times), exact.attitude(body, spins, times),
+               CLOSED_FORM_RELATIVE)
 
 
 # --- the attitude ----------------------------------------------------------------------------------------------------
@@ -207,6 +232,14 @@ _PTX = textwrap.dedent("""
     kernels.append((exact._omega_at_kernel, (f8, f8, f8, f8[:, ::1], f8, f8[:, ::1], nt.int8[::1])))
     kernels.append((exact._omega_grid_kernel, (f8[:, ::1], f8[:, ::1], f8[:, ::1], nt.int64[::1], f8[:, :, ::1],
                                                nt.int8[::1])))
+    kernels.append((exact._attitude_grid_kernel, (f8[:, ::1], f8[:, ::1], f8[:, ::1], nt.int64[::1], f8[:, :, ::1],
+                                                  nt.int8[::1])))
+    from tumble.kernels import device_fits
+
+    for time_major in (False, True):  # the phase fit, over the closed form's and a stepping kernel's layouts
+        kernels.append((device_fits().make_kernel(65, time_major),
+                        (f8[:, ::1], nt.int64[::1], f8[:, :, ::1], nt.int64[:, ::1], f8[:, ::1], f8, f8[::1], f8,
+                         f8[::1], f8[::1], nt.int8[::1])))
     for kernel, signature in kernels:
         ptx, _ = cuda.compile_ptx(kernel.py_func, signature, cc=(9, 0))
         assert "div.approx" not in ptx and "fma.rn.f64" in ptx
@@ -219,10 +252,11 @@ _PTX = textwrap.dedent("""
                     "nvidia-cuda-nvrtc, or the gpu extra)")
 def test_the_model_closed_form_midpoint_and_attitude_kernels_compile_to_ptx_for_a_gpu():
     """numba-cuda compiles the models' kernels (the CPU's _step, invariants and splittings inside), the closed
-    form's (the CPU's set-up and elliptic cores), the free body's implicit midpoint rule and the attitude's kernels
-    (the CPU's attitude steps, the coefficients as constants) to PTX for sm_90 with IEEE division and fused multiply-adds (about
+    form's (the CPU's set-up and elliptic cores, its attitude code), the phase fit's (the CPU's per-sample fit), the
+    free body's implicit midpoint rule and the attitude's kernels (the CPU's attitude steps, the coefficients as
+    constants) to PTX for sm_90 with IEEE division and fused multiply-adds (about
     90 s on 2 cores; a private hook stands in for the GPU's compute capability)."""
     env = dict(os.environ, NUMBA_ENABLE_CUDASIM="0")
     result = subprocess.run([sys.executable, "-c", _PTX], capture_output=True, text=True, env=env)
     assert result.returncode == 0, result.stderr[-3000:]
-    assert len(result.stdout.splitlines()) == 11
+    assert len(result.stdout.splitlines()) == 14

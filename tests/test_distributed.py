@@ -187,3 +187,42 @@ def test_a_closed_port_is_refused_at_once(tmp_path, capsys):
     status = cli.main(["run", "intermediate_axis", "--out", str(tmp_path / "out"), "--scheduler",
                        "tcp://127.0.0.1:9"])
     assert status == 1 and time.perf_counter() - started < 5 and "Connection refused" in capsys.readouterr().err
+
+
+# --- the GPU of each worker (device = "cuda") ---------------------------------------------------------------------
+
+@pytest.mark.parametrize("name, count, visible, gpu", [
+    (0, 4, None, 0), (1, 4, None, 1), (5, 4, None, 1), ("3", 2, None, 1), (7, 1, None, 0),  # LocalCluster: k mod G
+    (2, 4, "2,3,0,1", 0), (1, 2, "1", 0),  # dask-cuda lists the worker's own GPU first
+    (3, 4, "", 3), (3, 4, " ", 3),  # set but empty: as unset
+], ids=["first", "second", "wraps", "named_by_digits", "one_gpu", "dask_cuda", "one_visible", "empty", "blank"])
+def test_a_worker_runs_on_gpu_index_mod_count_unless_cuda_visible_devices_lists_its_own_first(name, count, visible,
+                                                                                              gpu):
+    assert distributed.gpu_for_worker(name, count, visible) == gpu
+
+
+def test_a_worker_named_otherwise_is_spread_over_the_gpus_the_same_way_every_run():
+    import zlib
+
+    names = [f"tcp://10.0.0.{k}:40000" for k in range(16)] + ["gpu-node-a", "-1"]
+    picked = [distributed.gpu_for_worker(name, 4) for name in names]
+    assert picked == [zlib.crc32(name.encode()) % 4 for name in names] and len(set(picked)) == 4
+    with pytest.raises(ValueError, match="gpu_count must be an integer >= 1"):
+        distributed.gpu_for_worker(0, 0)
+
+
+def test_a_device_study_on_the_cluster_runs_each_task_on_its_workers_gpu(client, tmp_path):
+    """With device = "cuda" every task selects its worker's GPU before its first launch (use_worker_gpu; numba-cuda's
+    simulator in the workers here, one device), and the result is the in-process run's, bit for bit."""
+    study = {"title": "device", "body": {"moments": [1.0, 2.0, 3.0]}, "perturbation": {"samples": 16},
+             "scan": {"axis": [1, 2, 3]}, "integration": {"flips": 1, "device": "cuda"},
+             "outputs": {"figures": [], "arrays": ["sample_rate", "sample_first_flip"]}}
+    tumble.run_study(study, out=tmp_path / "here")
+    tumble.run_study(study, out=tmp_path / "cluster", scheduler=client, chunk_scenes=1)
+    assert_same_result(tmp_path / "here" / "device.nc", tmp_path / "cluster" / "device.nc")
+    selected = client.run(lambda: distributed.SELECTED_GPU)
+    assert set(selected.values()) <= {0, None} and 0 in selected.values()
+    workers = list(client.scheduler_info()["workers"])
+    picked = client.gather([client.submit(distributed.use_worker_gpu, workers=[w], pure=False) for w in workers])
+    assert picked == [0, 0]
+    assert distributed.use_worker_gpu() is None  # outside a worker: numba's default device

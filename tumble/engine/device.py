@@ -103,26 +103,18 @@ def not_on_device(what):
     return DeviceError(f"device 'cuda': {what} not yet on the device; run it with device='cpu'")
 
 
-def check_on_device(method, *, attitude=False, torque_fn=None, max_flips=0):
+def check_on_device(method, *, torque_fn=None):
     """Raise the ``device 'cuda':`` ``ValueError`` for a run the device cannot do yet, before anything runs.
 
     Parameters
     ----------
     method : str
-        The chosen method (``"auto"`` already resolved).
-    attitude : bool
+        The chosen method (``"auto"`` already resolved). The closed form (``"exact"``) runs on the device with every
+        observer, its flips (analytic in the set-up, timed on the host) and its attitude included.
     torque_fn : callable or None
         A user's torque function (:func:`tumble.kernels.cuda.refusal`). Every observer runs on the device.
-    max_flips : int
-        Flips observed: not yet with the closed form on the device.
     """
-    if method == "exact":  # the closed form observes on the host what the device evaluates, its flips excepted
-        if attitude:
-            raise not_on_device("the closed form's attitude (method 'exact', which 'auto' picks for a torque-free "
-                                "run, with attitude=True) is")
-        if max_flips > 0:
-            raise not_on_device("the closed form's flips (method 'exact', which 'auto' picks for a torque-free "
-                                "run, with max_flips) are")
+    if method == "exact":
         return
     problem = device_kernels().refusal(METHODS[method], torque_fn=torque_fn)
     if problem:

@@ -66,6 +66,7 @@ class EnsembleResult(NamedTuple):
     info: dict
     quaternion: np.ndarray | None = None  # (N, T, 4), body-to-space rotation, scalar first (attitude=True)
     growth: tuple | None = None  # (rate 1/s, points, first and last norm rad/s), (N,) each (growth_window)
+    phase: tuple | None = None  # (frequency rad/s, median radius rad/s, code int8), (N,) each (phase_window)
 
 
 def _torque_vector(vector):
@@ -270,8 +271,8 @@ def _stored_per_sample(steps, save_every, probe_times, max_flips, drift, attitud
 def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, final=True, save_every=None,
                  probe_times=None, norm_weights=None, max_flips=0, drift=False, stop_norm=0.0, stop_flips=0,
                  drift_limit=DEFAULT_DRIFT_LIMIT, chunk=CHUNK, progress=None, attitude=False, device="cpu",
-                 growth_window=None, keep_probes=True):
-    # size: 21 keywords, the engine's public call (tumble.run_ensemble); each is one observer or stop request a caller
+                 growth_window=None, keep_probes=True, phase_window=None, keep_trajectory=True):
+    # size: 23 keywords, the engine's public call (tumble.run_ensemble); each is one observer or stop request a caller
     # may name, checked at once by _checked_arguments and packed into the _Observe record below.
     """Run an ensemble of spins and observe it on the fly.
 
@@ -321,12 +322,23 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         device the fit runs in the kernel as the norms come, on the CPU on the probes after the run.
     keep_probes : bool
         With ``growth_window``: also return the probe norms (False: on the device they never leave it).
+    phase_window : tuple (plane, weights, floor, max_step), optional
+        Fit each sample's oscillation frequency from the phase of its stored transverse components (needs
+        ``save_every``; the window is the whole stored trajectory): ``plane`` the two columns ``(b, c)`` (0-based),
+        ``weights`` ``(g_b, g_c)``, ``floor`` the radius (rad/s) at or below which a sample has no signal,
+        ``max_step`` the largest phase step that unwraps safely (rad), as :func:`tumble.kernels.fits.phase_fit`
+        takes them: ``phase`` holds ``(frequency, radius, code)``. On the device the fit runs there, on the
+        trajectory where the kernel stored it (the CPU's per-sample fit, :mod:`tumble.kernels.cuda_fits`); on the CPU
+        after the run.
+    keep_trajectory : bool
+        With ``phase_window``: also return the trajectory (False: on the device it never leaves it).
     device : str
         ``"cpu"`` or ``"cuda"`` (:func:`tumble.engine.device.resolve_device`). On ``"cuda"`` today: every fixed-step
         method, a constant torque or a named profile, every observer (final state, trajectory, probe norms, flips,
-        drift records, early stop) and the attitude; the closed form (``"exact"``, and ``"auto"`` torque-free) with
-        every observer but the flips and the attitude; anything else is refused (``device 'cuda': ... not yet on the
-        device``), never run on the CPU.
+        drift records, early stop), the growth and phase fits and the attitude; the closed form (``"exact"``, and
+        ``"auto"`` torque-free) with every observer and the attitude (its flips are analytic in the set-up and timed
+        on the host, from the set-up the CPU uses). A Python torque function is refused (``device 'cuda': ...``),
+        never run on the CPU.
 
     Returns
     -------
@@ -363,6 +375,7 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         raise ValueError("attitude=True is stored with the trajectory: it needs save_every and no other observer")
     if growth_window is not None and (probe_times is None or len(probe_times) < 3):
         raise ValueError("growth_window fits the norms at probe_times: it needs at least 3 probe_times")
+    phase_window = _checked_phase_window(phase_window, save_every, attitude)
     save = int(save_every or 0)
     times, probe_steps, probe_times = observation_times(t_end, dt, save, probe_times)
     if growth_window is not None:
@@ -375,9 +388,10 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         weights=np.ones(3) if norm_weights is None else np.asarray(norm_weights, dtype=float), max_flips=max_flips,
         drift=drift, attitude=attitude, stop_norm=stop_norm if early else 0.0, stop_flips=stop_flips if early else 0,
         drift_limit=drift_limit if torque.free else 0.0, growth=growth_window,
-        keep_probes=keep_probes or growth_window is None)
+        keep_probes=keep_probes or growth_window is None, phase=phase_window,
+        keep_trajectory=keep_trajectory or phase_window is None)
     if device == "cuda":
-        check_on_device(chosen, attitude=attitude, torque_fn=torque.fn, max_flips=observe.max_flips)
+        check_on_device(chosen, torque_fn=torque.fn)
         chunk = max(chunk, LAUNCH_SAMPLES)
     info = {"path": "closed form" if chosen == "exact" else "fixed-step kernel", "method": chosen,
             "reason": reason, "dt": dt, "n_steps": n_steps, "torque": torque.text, "early_stop": early,
@@ -400,7 +414,7 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         if chosen == "exact":
             result = _run_exact(moments, w0, t_end, observe, chunks(), device)
             info.update(sample_steps_computed=0, sample_steps_skipped=n * n_steps, jit_seconds=0.0)
-            return _fit_growth(result._replace(info=info), observe)
+            return _fit_phase(_fit_growth(result._replace(info=info), observe), observe)
         if attitude:
             result = _run_attitude(METHODS[chosen], moments, w0, dt, n_steps, observe, torque, chunks(), device)
             info.update(run_seconds=time.perf_counter() - started, sample_steps_computed=n * n_steps,
@@ -413,11 +427,52 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
     info.update(run_seconds=time.perf_counter() - started,
                 sample_steps_computed=_block_steps(steps_taken, BLOCK if device == "cpu" else WARP),
                 sample_steps_skipped=int(n * n_steps - steps_taken.sum()))
-    return _fit_growth(result._replace(info=info), observe)
+    return _fit_phase(_fit_growth(result._replace(info=info), observe), observe)
+
+
+def _checked_phase_window(phase_window, save_every, attitude):
+    """``run_ensemble``'s ``phase_window`` as ``((b, c), (g_b, g_c), floor, max_step)`` of ints and floats, or None;
+    ValueError naming what is wrong."""
+    if phase_window is None:
+        return None
+    if not save_every or attitude:
+        raise ValueError("phase_window fits the phase of the stored trajectory: it needs save_every (and no attitude)")
+    try:
+        plane, weights, floor, max_step = phase_window
+        plane = tuple(int(k) for k in plane)
+        weights = tuple(float(g) for g in weights)
+        floor, max_step = float(floor), float(max_step)
+    except (TypeError, ValueError):
+        raise ValueError(f"phase_window must be (plane (b, c), weights (g_b, g_c), floor, max_step), got "
+                         f"{phase_window!r}") from None
+    if len(plane) != 2 or plane[0] == plane[1] or not set(plane) <= {0, 1, 2}:
+        raise ValueError(f"phase_window's plane must be two different columns of 0, 1, 2, got {plane}")
+    if len(weights) != 2 or not all(math.isfinite(g) and g >= 0 for g in weights):
+        raise ValueError(f"phase_window's weights must be two finite numbers >= 0, got {weights}")
+    if not (math.isfinite(floor) and floor >= 0 and math.isfinite(max_step) and max_step > 0):
+        raise ValueError(f"phase_window's floor must be >= 0 and max_step > 0, both finite, got {floor}, {max_step}")
+    return plane, weights, floor, max_step
+
+
+def _fit_phase(result, observe):
+    """``result`` with its phase fit (``phase_window``): the kernels' fit of its trajectory where the run did not fit
+    it already (the device fits where it stored it); the trajectory dropped unless kept."""
+    if observe.phase is None:
+        return result
+    if result.phase is None:
+        plane, weights, floor, max_step = observe.phase
+        n = len(result.status)
+        phase = np.empty(n), np.empty(n), np.empty(n, dtype=np.int8)
+        fits.phase_fit(np.ascontiguousarray(result.times[None, :]), np.zeros(n, dtype=np.int64), result.trajectory,
+                       np.tile(np.array(plane, dtype=np.int64), (n, 1)), np.tile(np.array(weights), (n, 1)),
+                       np.full(n, floor), max_step, *phase)
+        result = result._replace(phase=phase)
+    return result._replace(trajectory=result.trajectory if observe.keep_trajectory else None)
 
 
 def run_scene_table(method, moments, w0, sizes, t_end, dt, *, axis, save_every=None, probe_times=None,
-                    norm_weights=None, max_flips=0, stop_norm=None, torque=None, growth_window=None):
+                    norm_weights=None, max_flips=0, stop_norm=None, torque=None, growth_window=None,
+                    phase_window=None):
     # size: run_ensemble's observers of a scene, a row per scene: what a scan's planned scenes differ in
     """The samples of many planned scenes in one device launch: :func:`run_ensemble` on ``device="cuda"`` with a row
     per scene (:func:`tumble.kernels.cuda.run_scenes`), for a scan whose scenes are each too small to fill a GPU.
@@ -425,8 +480,8 @@ def run_scene_table(method, moments, w0, sizes, t_end, dt, *, axis, save_every=N
     Each scene is observed as ``run_ensemble(moments[k], w0 of scene k, t_end[k], dt[k], method=method,
     axis=axis[k], final=False, save_every=..., probe_times=..., norm_weights=..., max_flips=max_flips,
     stop_norm=stop_norm[k], stop_flips=max_flips, torque=torque, growth_window=(saturation[k], min_points),
-    keep_probes=False, device="cuda")`` observes it, with the same bits; the arguments come from planned scenes and
-    are not checked again.
+    keep_probes=False, phase_window=..., keep_trajectory=False, device="cuda")`` observes it, with the same bits; the
+    arguments come from planned scenes and are not checked again.
 
     Parameters
     ----------
@@ -450,12 +505,15 @@ def run_scene_table(method, moments, w0, sizes, t_end, dt, *, axis, save_every=N
     stop_norm : ndarray (S,), optional
     torque
         As :func:`run_ensemble` (a constant or a named profile): the same for every scene.
+    phase_window : tuple (plane (S, 2), weights (S, 2), floor (S,), max_step), optional
+        With ``save_every``: each scene's :func:`run_ensemble` ``phase_window``, fitted on the device; the
+        trajectories are then not kept.
 
     Returns
     -------
     list of EnsembleResult
-        One per scene, as :func:`run_ensemble` returns it (``trajectory``, ``flips``, ``growth``, ``status`` and
-        ``steps_taken`` as asked; no probes).
+        One per scene, as :func:`run_ensemble` returns it (``trajectory`` or ``phase``, ``flips``, ``growth``,
+        ``status`` and ``steps_taken`` as asked; no probes).
     """
     count = len(sizes)
     torque = _Torque(*torque_spec(torque))
@@ -479,7 +537,8 @@ def run_scene_table(method, moments, w0, sizes, t_end, dt, *, axis, save_every=N
         drift_limit=DEFAULT_DRIFT_LIMIT if torque.free else 0.0, torque_kind=torque.kind,
         torque_params=torque.params,
         growth_window=None if growth_window is None else (growth_window[0], int(growth_window[1]), fit_h),
-        keep_probes=False)
+        keep_probes=False, keep_saved=phase_window is None,
+        phase_window=None if phase_window is None else (np.stack(times), *phase_window))
     results, lo = [], 0
     for k, size in enumerate(sizes):
         rows = slice(lo, lo + int(size))
@@ -493,7 +552,8 @@ def run_scene_table(method, moments, w0, sizes, t_end, dt, *, axis, save_every=N
             None, times[k], None if observed.saved is None else observed.saved[:, :, rows].transpose(2, 0, 1),
             probe_rows[k], None, None if observed.flips is None else observed.flips[rows],
             None if observed.flip_count is None else observed.flip_count[rows], None, observed.status[rows],
-            steps_taken, info, growth=None if observed.growth is None else tuple(x[rows] for x in observed.growth)))
+            steps_taken, info, growth=None if observed.growth is None else tuple(x[rows] for x in observed.growth),
+            phase=None if observed.phase is None else tuple(x[rows] for x in observed.phase)))
     return results
 
 
@@ -557,6 +617,8 @@ class _Observe(NamedTuple):
     drift_limit: float
     growth: tuple | None  # (saturation, min_points, probe spacing s): fit the growth rate (growth_window)
     keep_probes: bool
+    phase: tuple | None  # ((b, c), (g_b, g_c), floor, max_step): fit the phase of the trajectory (phase_window)
+    keep_trajectory: bool
 
 
 def _run_kernel(method, moments, w0, dt, n_steps, observe, torque, chunks, device="cpu"):
@@ -566,13 +628,21 @@ def _run_kernel(method, moments, w0, dt, n_steps, observe, torque, chunks, devic
     # The device fits the growth in the kernel (the CPU fits its probes after the run, _fit_growth)
     fit = {} if device == "cpu" or observe.growth is None else dict(growth_window=observe.growth,
                                                                      keep_probes=observe.keep_probes)
+    # and the phase where it stored the trajectory (the CPU fits the trajectory after the run, _fit_phase)
+    if device != "cpu" and observe.phase is not None:
+        fit.update(phase_window=(observe.times, *observe.phase), keep_saved=observe.keep_trajectory)
     n = len(w0)
     final_w = np.empty((n, 3)) if observe.final else None
-    trajectory = np.empty((n, len(observe.times), 3)) if observe.save else None
+    trajectory = None
+    if observe.save and (observe.keep_trajectory or "phase_window" not in fit):
+        trajectory = np.empty((n, len(observe.times), 3))
     probes = None
-    if observe.probe_steps is not None and (observe.keep_probes or not fit):
+    if observe.probe_steps is not None and (observe.keep_probes or "growth_window" not in fit):
         probes = np.empty((n, len(observe.probe_steps)))
-    growth = (np.empty(n), np.empty(n, dtype=np.int64), np.empty(n), np.empty(n)) if fit else None
+    growth = None
+    if "growth_window" in fit:
+        growth = (np.empty(n), np.empty(n, dtype=np.int64), np.empty(n), np.empty(n))
+    phase = (np.empty(n), np.empty(n), np.empty(n, dtype=np.int8)) if "phase_window" in fit else None
     flips = np.empty((n, observe.max_flips)) if observe.max_flips else None
     flip_count = np.empty(n, dtype=np.int64) if observe.max_flips else None
     drifts = np.empty((n, 2)) if observe.drift else None
@@ -585,9 +655,10 @@ def _run_kernel(method, moments, w0, dt, n_steps, observe, torque, chunks, devic
                         drift=observe.drift, stop_norm=observe.stop_norm, stop_flips=observe.stop_flips,
                         drift_limit=observe.drift_limit, torque_kind=torque.kind, torque_params=torque.params,
                         torque_fn=torque.fn, **fit)
-        if growth is not None:
-            for whole, part in zip(growth, observed.growth):
-                whole[lo:hi] = part
+        for gathered, parts in ((growth, observed.growth), (phase, observed.phase)):
+            if gathered is not None:
+                for whole, part in zip(gathered, parts):
+                    whole[lo:hi] = part
         if final_w is not None:
             final_w[lo:hi] = state.T
         if trajectory is not None:
@@ -602,7 +673,7 @@ def _run_kernel(method, moments, w0, dt, n_steps, observe, torque, chunks, devic
         status[lo:hi] = observed.status
         steps_taken[lo:hi] = observed.steps_taken
     return EnsembleResult(final_w, observe.times, trajectory, observe.probe_times, probes, flips, flip_count, drifts,
-                          status, steps_taken, {}, growth=growth)
+                          status, steps_taken, {}, growth=growth, phase=phase)
 
 
 def _block_steps(steps_taken, block=BLOCK):
@@ -640,14 +711,22 @@ def _run_attitude(method, moments, w0, dt, n_steps, observe, torque, chunks, dev
 
 def _run_exact(moments, w0, t_end, observe, chunks, device="cpu"):
     """The closed form, chunk by chunk: each chunk's per-sample set-up computed once and evaluated at every time
-    the observers ask for (final state, trajectory, probe times) and for the flips. On the device
-    (:func:`tumble.physics.exact.omega_on_device`) each evaluation is set up anew, one thread per sample; the
-    flips are refused there (:func:`tumble.engine.device.check_on_device`)."""
+    the observers ask for (final state, trajectory, probe times, attitude) and for the flips. On the device
+    (:func:`tumble.physics.exact.omega_on_device`, :func:`~tumble.physics.exact.attitude_on_device`,
+    :func:`~tumble.physics.exact.phase_fit_rows_on_device`) each evaluation is set up anew, one thread per sample.
+    The flips are analytic in the set-up (the first flip time and the spacing, :func:`tumble.physics.exact.first_flips`,
+    :func:`~tumble.physics.exact.flip_spacings`): timed on the host on either device from the same set-up
+    (:func:`tumble.physics.exact.solve_rows`), so they are the CPU's bit for bit."""
     n = len(w0)
     b, c = (observe.axis + 1) % 3, (observe.axis + 2) % 3
     times = observe.times
     final_w = np.empty((n, 3)) if observe.final else None
-    trajectory = np.empty((n, len(times), 3)) if times is not None else None
+    phase = None
+    if device != "cpu" and observe.phase is not None:  # evaluated and fitted on the device, where the states are
+        phase = (np.empty(n), np.empty(n), np.empty(n, dtype=np.int8))
+    trajectory = None
+    if times is not None and (observe.keep_trajectory or phase is None):
+        trajectory = np.empty((n, len(times), 3))
     probes = np.empty((n, len(observe.probe_times))) if observe.probe_times is not None else None
     flips = np.empty((n, observe.max_flips)) if observe.max_flips else None
     flip_count = np.empty(n, dtype=np.int64) if observe.max_flips else None
@@ -656,9 +735,12 @@ def _run_exact(moments, w0, t_end, observe, chunks, device="cpu"):
     for lo, hi in chunks:
         w = w0[lo:hi]
         if quaternion is not None:
-            quaternion[lo:hi] = exact.attitude(moments, w, times)
-        if device == "cpu":
+            quaternion[lo:hi] = (exact.attitude(moments, w, times) if device == "cpu" else
+                                 exact.attitude_on_device(moments, w, times))
+        sol = None
+        if device == "cpu" or flips is not None:  # the flips are analytic in the set-up: on the host on either device
             sol = exact.solve_rows(np.broadcast_to(moments, w.shape), w)
+        if device == "cpu":
             row = np.zeros(hi - lo, dtype=np.int64)
 
             def at(grid):  # (n, T, 3) at the times grid (T,)
@@ -676,6 +758,14 @@ def _run_exact(moments, w0, t_end, observe, chunks, device="cpu"):
                 drifts[lo:hi] = np.stack([np.abs(e1 / e0 - 1), np.abs(l1 / l0 - 1)], axis=1)
         if trajectory is not None:
             trajectory[lo:hi] = at(times)
+        if phase is not None:
+            plane, weights, floor, max_step = observe.phase
+            k = hi - lo
+            fitted = exact.phase_fit_rows_on_device(moments[None, :], w, times[None, :], np.zeros(k, dtype=np.int64),
+                                                    np.tile(np.array(plane, dtype=np.int64), (k, 1)),
+                                                    np.tile(np.array(weights), (k, 1)), np.full(k, floor), max_step)
+            for whole, part in zip(phase, fitted):
+                whole[lo:hi] = part
         if probes is not None:
             probed = at(observe.probe_times)
             probes[lo:hi] = np.sqrt(observe.weights[b] * probed[..., b] ** 2 + observe.weights[c] * probed[..., c] ** 2)
@@ -686,4 +776,4 @@ def _run_exact(moments, w0, t_end, observe, chunks, device="cpu"):
     if final_w is not None:
         status[~np.all(np.isfinite(final_w), axis=1)] = STATUS_NONFINITE
     return EnsembleResult(final_w, times, trajectory, observe.probe_times, probes, flips, flip_count, drifts, status,
-                          np.zeros(n, dtype=np.int64), {}, quaternion)
+                          np.zeros(n, dtype=np.int64), {}, quaternion, phase=phase)

@@ -15,7 +15,7 @@ from .steppers import TORQUE_CONSTANT, TORQUE_PULSE, TORQUE_RAMP, TORQUE_SINE, T
 
 __all__ = ["BLOCK", "METHODS", "MODEL_BLOCK", "MODEL_CODES", "MODEL_METHODS", "TORQUE_CONSTANT", "TORQUE_PULSE",
            "TORQUE_RAMP", "TORQUE_SIGNATURE", "TORQUE_SINE", "TORQUE_USER", "device_attitude", "device_closed_form",
-           "device_kernels", "device_models", "elliptic", "fits",
+           "device_fits", "device_kernels", "device_models", "elliptic", "fits",
            "Method", "model_methods", "model_rhs", "ModelObserved", "Observed", "parallel_block", "run",
            "run_attitude", "run_model", "side_by_side"]
 
@@ -43,6 +43,14 @@ def device_closed_form():
     from . import cuda_exact
 
     return cuda_exact
+
+
+def device_fits():
+    """The phase fit's CUDA kernels, :mod:`tumble.kernels.cuda_fits` (its ``phase_fit`` takes :func:`fits.phase_fit`'s
+    arguments, over states on the device), imported on the first call as :func:`device_kernels`."""
+    from . import cuda_fits
+
+    return cuda_fits
 
 
 def device_attitude():

@@ -220,8 +220,9 @@ def kernel(method, torque_free):
 
 def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weights=None, probe_steps=None,
         max_flips=0, drift=False, stop_norm=0.0, stop_flips=0, drift_limit=0.0, torque_kind=TORQUE_CONSTANT,
-        torque_params=None, torque_fn=None, block=None, growth_window=None, keep_probes=True):
-    # size: the keywords of tumble.kernels.methods.run, so that the engine calls either the same way, and the growth fit
+        torque_params=None, torque_fn=None, block=None, growth_window=None, keep_probes=True, phase_window=None,
+        keep_saved=True):
+    # size: the keywords of tumble.kernels.methods.run, so that the engine calls either the same way, and the fits
     """:func:`tumble.kernels.methods.run` on the device: the same arguments and the same :class:`Observed`.
 
     Only what was asked comes back from the device: the final state, and the trajectory, probe norms, flips and drift
@@ -229,8 +230,13 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
     (a thread is a sample). ``growth_window=(saturation, min_points, h)`` fits each sample's growth rate from its
     norms at the probes (``h`` apart) in the kernel (:func:`tumble.kernels.fits.growth_fit`'s window, fed as they
     come): ``Observed.growth`` is ``(rate, points, first, last)`` (N,) each, and with ``keep_probes=False`` the probe
-    norms stay on the device. Raises ``ValueError`` (``device 'cuda': ...``) for what the device does not do yet
-    (:func:`refusal`). One scene of :func:`run_scenes`.
+    norms stay on the device. ``phase_window=(times, plane, weights, floor, max_step)`` fits each sample's
+    oscillation frequency from the phase of its stored components on the device (:mod:`tumble.kernels.cuda_fits`,
+    the CPU's per-sample fit), ``times`` (n_saved,) the stored times (s), ``plane`` the two columns ``(b, c)``
+    (0-based, body frame), ``weights`` ``(g_b, g_c)``, ``floor`` the no-signal radius (rad/s) and ``max_step`` (rad)
+    as :func:`tumble.kernels.fits.phase_fit` takes them: ``Observed.phase`` is ``(frequency, radius, code)`` (N,)
+    each, and with ``keep_saved=False`` the trajectory stays on the device. Raises ``ValueError`` (``device 'cuda':
+    ...``) for what the device does not do yet (:func:`refusal`). One scene of :func:`run_scenes`.
     """
     problem = refusal(method, torque_fn=torque_fn)
     if problem:
@@ -244,12 +250,19 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
                       max_flips=max_flips, drift=drift, stop_norm=np.array([float(stop_norm)]), stop_flips=stop_flips,
                       drift_limit=drift_limit, torque_kind=torque_kind, torque_params=torque_params,
                       growth_window=(np.array([float(saturation)]), min_points, np.array([float(fit_h)]))
-                      if growth_window else None, keep_probes=keep_probes)
+                      if growth_window else None, keep_probes=keep_probes,
+                      phase_window=None if phase_window is None else _one_row(*phase_window), keep_saved=keep_saved)
+
+
+def _one_row(times, plane, weights, floor, max_step):
+    """:func:`run`'s ``phase_window`` as :func:`run_scenes` takes it (one scene)."""
+    return (np.asarray(times, dtype=float)[None], np.asarray(plane, dtype=np.int64)[None],
+            np.asarray(weights, dtype=float)[None], np.array([float(floor)]), float(max_step))
 
 
 def run_scenes(method, w, sizes, moments, t0, h, n_steps, *, save_every, axis, norm_weights=None, probe_steps,
                max_flips=0, drift=False, stop_norm, stop_flips=0, drift_limit=0.0, torque_kind=TORQUE_CONSTANT,
-               torque_params=None, growth_window=None, keep_probes=True):
+               torque_params=None, growth_window=None, keep_probes=True, phase_window=None, keep_saved=True):
     # size: run()'s keywords with a row per scene: the scene table of one launch
     """The samples of many scenes in one launch: :func:`run` with a row per scene.
 
@@ -271,6 +284,8 @@ def run_scenes(method, w, sizes, moments, t0, h, n_steps, *, save_every, axis, n
     max_flips, drift, stop_flips, drift_limit, torque_kind, torque_params, keep_probes
         As :func:`run`, the same for every scene (``torque_params`` in the body frame of every scene's moments).
     growth_window : tuple (saturation (S,), min_points, h (S,)), optional
+    phase_window : tuple (times (S, T), plane (S, 2), weights (S, 2), floor (S,), max_step), optional
+        :func:`run`'s, a row per scene; with ``keep_saved=False`` the trajectories stay on the device.
 
     Returns
     -------
@@ -326,7 +341,8 @@ def run_scenes(method, w, sizes, moments, t0, h, n_steps, *, save_every, axis, n
         cuda.to_device(np.asarray(saturation, float)), int(min_points), cuda.to_device(np.asarray(fit_h, float)),
         fit, fit_points)
     final = device_w.copy_to_host()
-    trajectory = saved.copy_to_host() if n_saved else None
+    keep_saved = n_saved and (keep_saved or phase_window is None)
+    trajectory = saved.copy_to_host() if keep_saved else None
     for rows, relabel in frames:
         w[:, rows] = from_kernel_frame(relabel, final[:, rows])
         if trajectory is not None and relabel is not None:
@@ -335,7 +351,28 @@ def run_scenes(method, w, sizes, moments, t0, h, n_steps, *, save_every, axis, n
     if growth_window:
         rate, first, last = fit.copy_to_host()
         growth = (rate, fit_points.copy_to_host(), first, last)
+    phase = None if phase_window is None else _phase_fit(saved, frames, sizes, *phase_window)
     return Observed(trajectory, probes.copy_to_host() if keep_probes else None,
                     flips.copy_to_host() if max_flips > 0 else None,
                     flip_count.copy_to_host() if max_flips > 0 else None, drifts.copy_to_host() if drift else None,
-                    status.copy_to_host(), steps_taken.copy_to_host(), growth)
+                    status.copy_to_host(), steps_taken.copy_to_host(), growth, phase)
+
+
+def _phase_fit(saved, frames, sizes, times, planes, weights, floors, max_step):
+    """The phase fit of the trajectories ``saved`` (n_saved, 3, N) the kernel left on the device, each scene's in its
+    kernel frame (``frames``: its samples and relabelling, which moves the plane's columns and may flip the sign of
+    every component): ``(frequency, radius, code)``."""
+    from .cuda_fits import phase_fit
+
+    columns, signs = np.empty((len(sizes), 2), dtype=np.int64), np.ones(len(sizes))
+    for k, (_, relabel) in enumerate(frames):
+        columns[k] = planes[k]
+        if relabel is not None:
+            perm, signs[k] = relabel
+            columns[k] = np.argsort(perm)[planes[k]]
+
+    def each(values):
+        return np.repeat(values, sizes, axis=0)
+
+    return phase_fit(times, each(np.arange(len(sizes))), saved, each(columns), each(weights), each(floors), max_step,
+                     time_major=True, sign=each(signs))

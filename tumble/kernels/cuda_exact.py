@@ -1,7 +1,7 @@
 """The closed form of the torque-free motion on a CUDA device: one thread per sample, float64 (issue 28).
 
-Written once: a thread runs the CPU's own per-sample functions of :mod:`tumble.kernels.elliptic`, which numba-cuda
-compiles for the device.
+Written once: a thread runs the CPU's own per-sample functions of :mod:`tumble.kernels.elliptic` (and of
+:mod:`tumble.kernels.elliptic_attitude`), which numba-cuda compiles for the device.
 
 * :func:`omega_at`, one time: :func:`tumble.kernels.elliptic._omega_at_sample`, the scalar path of the CPU's fused
   one-time kernel (the invariants, the set-up and ``sn, cn, dn`` of ``nu t`` moved to the spin by Jacobi's addition
@@ -13,8 +13,14 @@ compiles for the device.
   the descending Landen transformations, or the hyperbolic series near the separatrix; ``sech, tanh`` on it) stored
   by :func:`~tumble.kernels.elliptic._store`. The per-modulus constants of those cores are recomputed at each time
   (a few square roots and divisions): a speed-up left for a session with a GPU to measure.
+* :func:`attitude_rows`, the attitude on a time grid: the set-up as :func:`omega_grid`'s, the angular velocity at
+  ``t = 0`` and at each time by the same cores, and from them the CPU's per-sample attitude code
+  (:func:`tumble.kernels.elliptic_attitude.attitude_constants` once,
+  :func:`~tumble.kernels.elliptic_attitude.attitude_at` at each time: Carlson's ``R_F`` and ``R_J``, the Landen tables in local arrays).
+* :func:`omega_rows_phase_fit`: :func:`omega_rows` whose states stay on the device, where the CPU's per-sample phase
+  fit runs on them (:mod:`tumble.kernels.cuda_fits`); only the fits come back.
 
-Both return ``(out, tiny, non_finite)`` as the CPU kernels do: the number of spins too close to a principal axis
+They return ``(out, tiny, non_finite)`` as the CPU kernels do: the number of spins too close to a principal axis
 for the invariants (:data:`tumble.kernels.elliptic.TINY_TRANSVERSE`; the caller lifts them) and of samples with a
 non-finite value.
 
@@ -38,9 +44,10 @@ from .elliptic import (
     _solve_sample,
     _store,
 )
-from .jit import cuda_jit
+from .elliptic_attitude import CONSTANTS, LANDEN, attitude_at, attitude_constants
+from .jit import cuda_jit, jit
 
-__all__ = ["THREADS", "omega_at", "omega_grid", "omega_rows"]
+__all__ = ["THREADS", "attitude_rows", "omega_at", "omega_grid", "omega_rows", "omega_rows_phase_fit"]
 
 #: Threads per block of a launch (one sample each).
 THREADS = 128
@@ -88,18 +95,67 @@ def _omega_grid_kernel(bodies, w, times, row, out, flags):
     value = cuda.local.array(3, float64)
     finite = True
     for j in range(times.shape[1]):
-        s = phase0 + nu * times[r, j]
-        if kind[0] == KIND_ELLIPTIC:
-            sn, cn, dn = _sncndn_once(s, k_c, K, h, q)
-            _store(value, 0, weights, cn, sn, dn)
-        elif kind[0] == KIND_SEPARATRIX:
-            sech, tanh = _sech_tanh(s)
-            _store(value, 0, weights, sech, tanh, sech)
-        else:
-            _store(value, 0, weights, 1.0, 1.0, 1.0)
+        _grid_value(kind[0], phase0 + nu * times[r, j], k_c, K, h, q, weights, value)
         for c in range(3):
             out[i, j, c] = value[c]
             finite = finite and math.isfinite(value[c])
+    flags[i] = (_TINY if small else 0) | (0 if finite else _NON_FINITE)
+
+
+@jit
+def _grid_value(kind, s, k_c, K, h, q, weights, value):
+    """A grid kernel's angular velocity at phase ``s`` (``phase0 + nu t``) into ``value`` (3,): ``sn, cn, dn`` of
+    ``K + s`` by the CPU grid kernel's cores, ``sech, tanh`` on the separatrix, the constant parts of a steady spin."""
+    if kind == KIND_ELLIPTIC:
+        sn, cn, dn = _sncndn_once(s, k_c, K, h, q)
+        _store(value, 0, weights, cn, sn, dn)
+    elif kind == KIND_SEPARATRIX:
+        sech, tanh = _sech_tanh(s)
+        _store(value, 0, weights, sech, tanh, sech)
+    else:
+        _store(value, 0, weights, 1.0, 1.0, 1.0)
+
+
+@cuda_jit
+def _attitude_grid_kernel(bodies, w, times, row, out, flags):
+    # size: the grid kernel's set-up (its one-sample arrays made local), then the attitude at each time
+    """The closed form's attitude: sample ``cuda.grid(1)`` set up (as :func:`_omega_grid_kernel`), its angular
+    velocity evaluated at ``t = 0`` and at each time of its grid, and from them the CPU's per-sample attitude
+    (:func:`tumble.kernels.elliptic_attitude.attitude_constants`, :func:`~tumble.kernels.elliptic_attitude.attitude_at`)
+    into ``out[i]`` (T, 4); ``bodies``, ``times`` and ``row`` as :func:`_omega_grid_kernel` reads them."""
+    i = cuda.grid(1)
+    if i >= w.shape[0]:
+        return
+    r = row[i] if row.shape[0] == w.shape[0] else 0
+    m0, m1, m2 = bodies[r, 0], bodies[r, 1], bodies[r, 2]
+    spin = cuda.local.array(3, float64)
+    spin[0], spin[1], spin[2] = w[i, 0], w[i, 1], w[i, 2]
+    moments = cuda.local.array((1, 3), float64)
+    perm = cuda.local.array((1, 3), int64)
+    parity = cuda.local.array(1, float64)
+    scaled = cuda.local.array((5, 1), float64)
+    kind = cuda.local.array(1, int64)
+    amp = cuda.local.array((1, 3), float64)
+    cols = cuda.local.array((1, 3), int64)
+    params = cuda.local.array((5, 1), float64)
+    nome = cuda.local.array((2, 1), float64)
+    small = _solve_sample(0, m0, m1, m2, spin, moments, perm, parity, scaled, kind, amp, cols, params, nome)
+    weights = _column_weights(cols[0, 0], cols[0, 1], cols[0, 2], amp[0, 0], amp[0, 1], amp[0, 2])
+    k_c, K, phase0, nu, h, q = params[0, 0], params[2, 0], params[3, 0], params[4, 0], nome[0, 0], nome[1, 0]
+    value = cuda.local.array(3, float64)
+    constants = cuda.local.array(CONSTANTS, float64)
+    landen_a = cuda.local.array(LANDEN, float64)
+    landen_c = cuda.local.array(LANDEN, float64)
+    _grid_value(kind[0], phase0 + nu * 0.0, k_c, K, h, q, weights, value)
+    attitude_constants(m0, m1, m2, spin[0], spin[1], spin[2], kind[0], amp[0, 0], amp[0, 1], cols[0, 0], cols[0, 1],
+                       cols[0, 2], k_c, K, phase0, nu, value[0], value[1], value[2], constants, landen_a, landen_c)
+    finite = True
+    for j in range(times.shape[1]):
+        t = times[r, j]
+        _grid_value(kind[0], phase0 + nu * t, k_c, K, h, q, weights, value)
+        q0, q1, q2, q3 = attitude_at(constants, landen_a, landen_c, t, value[0], value[1], value[2])
+        out[i, j, 0], out[i, j, 1], out[i, j, 2], out[i, j, 3] = q0, q1, q2, q3
+        finite = finite and math.isfinite(q0) and math.isfinite(q1) and math.isfinite(q2) and math.isfinite(q3)
     flags[i] = (_TINY if small else 0) | (0 if finite else _NON_FINITE)
 
 
@@ -132,10 +188,44 @@ def omega_grid(moments, w, times):
 def omega_rows(bodies, w, times, row):
     """:func:`omega_grid` for the samples of many scenes in one launch: sample ``i`` of the body ``bodies[row[i]]``
     (R, 3) at the times ``times[row[i]]`` (R, T) (``row`` of one element: every sample row 0); ``out`` (n, T, 3)."""
+    out, tiny, non_finite = _omega_rows(bodies, w, times, row)
+    return out.copy_to_host(), tiny, non_finite
+
+
+def omega_rows_phase_fit(bodies, w, times, row, columns, weights, floor, max_step):
+    """:func:`omega_rows` and the phase fit of each sample's transverse components on the device, where the
+    evaluation leaves them (:func:`tumble.kernels.cuda_fits.phase_fit`, the CPU's per-sample fit): ``columns``,
+    ``weights`` (n, 2), ``floor`` (n,) and ``max_step`` as :func:`tumble.kernels.fits.phase_fit` takes them. Returns
+    ``(fit, tiny, non_finite)``, ``fit`` the ``(frequency, radius, code)`` arrays (n,) each, or None where a sample
+    was too close to an axis (``tiny``: the caller evaluates the launch on the CPU); the states never come back."""
+    out, tiny, non_finite = _omega_rows(bodies, w, times, row)
+    if tiny:
+        return None, tiny, non_finite
+    from .cuda_fits import phase_fit
+
+    return phase_fit(times, row, out, columns, weights, floor, max_step), tiny, non_finite
+
+
+def attitude_rows(bodies, w, times, row):
+    """The closed form's attitude (:func:`tumble.physics.exact.attitude`) on the device, set-up included, for the
+    samples of many scenes in one launch (``bodies``, ``w``, ``times``, ``row`` as :func:`omega_rows`): ``(out, tiny,
+    non_finite)``, ``out`` (n, T, 4) the body-to-space quaternions (scalar first, ``q(0) = 1``) and the counts as
+    :func:`omega_rows` returns them."""
+    n = w.shape[0]
+    times = np.ascontiguousarray(times, dtype=float)
+    out = cuda.device_array((n, times.shape[1], 4))
+    tiny, non_finite = _launch(_attitude_grid_kernel, n, cuda.to_device(np.ascontiguousarray(bodies, dtype=float)),
+                               cuda.to_device(np.ascontiguousarray(w, dtype=float)), cuda.to_device(times),
+                               cuda.to_device(np.ascontiguousarray(row, dtype=np.int64)), out)
+    return out.copy_to_host(), tiny, non_finite
+
+
+def _omega_rows(bodies, w, times, row):
+    """:func:`omega_rows` with ``out`` left on the device."""
     n = w.shape[0]
     times = np.ascontiguousarray(times, dtype=float)
     out = cuda.device_array((n, times.shape[1], 3))
     tiny, non_finite = _launch(_omega_grid_kernel, n, cuda.to_device(np.ascontiguousarray(bodies, dtype=float)),
                                cuda.to_device(np.ascontiguousarray(w, dtype=float)), cuda.to_device(times),
                                cuda.to_device(np.ascontiguousarray(row, dtype=np.int64)), out)
-    return out.copy_to_host(), tiny, non_finite
+    return out, tiny, non_finite

@@ -23,7 +23,8 @@ from .jit import jit
 from .trig import atan2
 
 __all__ = ["FIT_NO_SIGNAL", "FIT_OK", "FIT_SHORT_WINDOW", "FIT_UNDERSAMPLED", "GROWTH_WINDOW_START", "growth_fit",
-           "growth_window_add", "growth_window_rate", "modal_rows", "phase_fit", "transverse_norms"]
+           "growth_window_add", "growth_window_rate", "modal_rows", "phase_fit", "phase_fit_sample",
+           "transverse_norms"]
 
 # Outcomes, as tumble.measure.estimators numbers them (checked there).
 FIT_OK = 0
@@ -108,10 +109,113 @@ def _median_in_place(a):
     return 0.5 * middle + 0.5 * upper
 
 
+@jit(contract=False)
+def phase_fit_sample(t, x, y, floor, max_step):
+    # size: the fit's passes over one sample (radius and phase, unwrapping, slope), the CPU's and the device's
+    """The phase fit of one sample (:func:`phase_fit`), written once: the CPU's ``prange`` body and a device thread
+    (:mod:`tumble.kernels.cuda_fits`) call it.
+
+    Parameters
+    ----------
+    t : ndarray, shape (T,)
+        Increasing times, s.
+    x, y : ndarray, shape (T,)
+        The sample's scaled transverse components ``(sqrt(g_b) w_b, sqrt(g_c) w_c)`` at each time, rad/s; used as
+        scratch: ``x`` receives the radii (reordered by the median's selection), ``y`` the unwrapped phase.
+    floor : float
+        The radius at or below which (or not finite) the sample has no signal.
+    max_step : float
+        Largest phase change between two stored times that unwraps safely, rad.
+
+    Returns
+    -------
+    frequency : float
+        ``|slope|`` of the phase, rad/s (NaN unless the fit is ``FIT_OK``).
+    radius : float
+        The median radius, rad/s (NaN if a radius is NaN).
+    code : int
+        ``FIT_OK``, ``FIT_NO_SIGNAL`` or ``FIT_UNDERSAMPLED``.
+    """
+    t_count = x.shape[0]
+    radii = x
+    phases = y
+    # 1. radius and raw phase at every time, in place (radii and phases hold x and y). Squares that could over- or
+    #    underflow (or NaN) anywhere: every radius by hypot (:func:`_radius`); else straight-line code (the
+    #    branch-free atan2, the square root) that packs the times of a sample into SIMD lanes on the CPU
+    unsafe = 0
+    for j in range(t_count):
+        unsafe |= 0 if _SQUARE_MIN < max(abs(x[j]), abs(y[j])) < _SQUARE_MAX else 1
+    if unsafe:
+        for j in range(t_count):
+            xj = x[j]
+            yj = y[j]
+            radii[j] = _radius(xj, yj)
+            phases[j] = atan2(yj, xj)
+    else:
+        for j in range(t_count):
+            xj = x[j]
+            yj = y[j]
+            radii[j] = math.sqrt(xj * xj + yj * yj)
+            phases[j] = atan2(yj, xj)
+    quiet = 0
+    any_nan = 0
+    for j in range(t_count):
+        radius = radii[j]
+        quiet |= 0 if floor < radius < math.inf else 1
+        any_nan |= 1 if radius != radius else 0
+    # 2. unwrap in time order (numpy.unwrap's rule, bit for bit) and the means
+    finite = True
+    steps_ok = True
+    correction = 0.0
+    previous_raw = 0.0
+    previous = 0.0
+    t_mean = 0.0
+    phase_mean = 0.0
+    for j in range(t_count):
+        raw = phases[j]
+        if j > 0:
+            jump = raw - previous_raw
+            if not abs(jump) < math.pi:
+                wrapped = (jump + math.pi) % (2.0 * math.pi) - math.pi
+                if wrapped == -math.pi and jump > 0.0:
+                    wrapped = math.pi
+                correction += wrapped - jump
+        previous_raw = raw
+        phase = raw + correction
+        if not math.isfinite(phase):
+            finite = False
+            phase = 0.0
+        elif j > 0 and not abs(phase - previous) <= max_step:
+            steps_ok = False
+        previous = phase
+        phases[j] = phase
+        t_mean += t[j]
+        phase_mean += phase
+    t_mean /= t_count
+    phase_mean /= t_count
+    # 3. the least-squares slope about both means: a phase that does not move gives 0 to round-off of its own size,
+    #    not of the size of the times
+    sxy = 0.0
+    sxx = 0.0
+    for j in range(t_count):
+        dt = t[j] - t_mean
+        sxy += dt * (phases[j] - phase_mean)
+        sxx += dt * dt
+    median = np.nan if any_nan else _median_in_place(radii)
+    if not finite or quiet:
+        code = FIT_NO_SIGNAL
+    elif steps_ok:
+        code = FIT_OK
+    else:
+        code = FIT_UNDERSAMPLED
+    frequency = abs(sxy / sxx) if code == FIT_OK and t_count >= 2 else np.nan
+    return frequency, median, code
+
+
 @jit(parallel=True, contract=False)
 def phase_fit(times, row, states, columns, weights, floor, max_step, frequency, radius, code):
-    # size: flat arrays (numba); the fit's passes over one sample (phase, unwrapping, slope) in one prange body, so a
-    # sample's scratch stays in cache
+    # size: flat arrays (numba); the gather of one sample's components, then its fit (phase_fit_sample) in one prange
+    # body, so a sample's scratch stays in cache
     """Angular frequency of each sample's transverse oscillation from its unwrapped phase.
 
     Parameters
@@ -134,83 +238,24 @@ def phase_fit(times, row, states, columns, weights, floor, max_step, frequency, 
     code : ndarray of int8, shape (n,)
         Receives ``FIT_OK``, ``FIT_NO_SIGNAL`` (no signal, or a non-finite phase) or ``FIT_UNDERSAMPLED`` (a
         phase step beyond ``max_step``).
+
+    Notes
+    -----
+    The fit of a sample is :func:`phase_fit_sample`, which the device runs too
+    (:func:`tumble.kernels.cuda_fits.phase_fit`); here the two components are gathered first (a strided read,
+    which AVX2 cannot pack cheaply) into the scratch it works in.
     """
     n, t_count = states.shape[0], states.shape[1]
     for i in numba.prange(n):
-        t = times[row[i]]
         gb = math.sqrt(weights[i, 0])
         gc = math.sqrt(weights[i, 1])
         b, c = columns[i, 0], columns[i, 1]
-        radii = np.empty(t_count)
-        phases = np.empty(t_count)
-        # 1. radius and raw phase at every time. The two components are gathered first (a strided read, which
-        #    AVX2 cannot pack cheaply); then straight-line code (the branch-free atan2, the square root, flags kept
-        #    as integers) packs the times of a sample into SIMD lanes, in place: radii and phases hold x and y
+        x = np.empty(t_count)
+        y = np.empty(t_count)
         for j in range(t_count):
-            radii[j] = gb * states[i, j, b]
-            phases[j] = gc * states[i, j, c]
-        unsafe = 0
-        for j in range(t_count):
-            x = radii[j]
-            y = phases[j]
-            radii[j] = math.sqrt(x * x + y * y)
-            phases[j] = atan2(y, x)
-            unsafe |= 0 if _SQUARE_MIN < max(abs(x), abs(y)) < _SQUARE_MAX else 1
-        if unsafe:  # squares that could over- or underflow (or NaN): the radius by hypot
-            for j in range(t_count):
-                radii[j] = _radius(gb * states[i, j, b], gc * states[i, j, c])
-        quiet = 0
-        any_nan = 0
-        for j in range(t_count):
-            r = radii[j]
-            quiet |= 0 if floor[i] < r < math.inf else 1
-            any_nan |= 1 if r != r else 0
-        # 2. unwrap in time order (numpy.unwrap's rule, bit for bit) and the means
-        finite = True
-        steps_ok = True
-        correction = 0.0
-        previous_raw = 0.0
-        previous = 0.0
-        t_mean = 0.0
-        phase_mean = 0.0
-        for j in range(t_count):
-            raw = phases[j]
-            if j > 0:
-                jump = raw - previous_raw
-                if not abs(jump) < math.pi:
-                    wrapped = (jump + math.pi) % (2.0 * math.pi) - math.pi
-                    if wrapped == -math.pi and jump > 0.0:
-                        wrapped = math.pi
-                    correction += wrapped - jump
-            previous_raw = raw
-            phase = raw + correction
-            if not math.isfinite(phase):
-                finite = False
-                phase = 0.0
-            elif j > 0 and not abs(phase - previous) <= max_step:
-                steps_ok = False
-            previous = phase
-            phases[j] = phase
-            t_mean += t[j]
-            phase_mean += phase
-        t_mean /= t_count
-        phase_mean /= t_count
-        # 3. the least-squares slope about both means: a phase that does not move gives 0 to round-off of its
-        #    own size, not of the size of the times
-        sxy = 0.0
-        sxx = 0.0
-        for j in range(t_count):
-            dt = t[j] - t_mean
-            sxy += dt * (phases[j] - phase_mean)
-            sxx += dt * dt
-        radius[i] = np.nan if any_nan else _median_in_place(radii)
-        if not finite or quiet:
-            code[i] = FIT_NO_SIGNAL
-        elif steps_ok:
-            code[i] = FIT_OK
-        else:
-            code[i] = FIT_UNDERSAMPLED
-        frequency[i] = abs(sxy / sxx) if code[i] == FIT_OK and t_count >= 2 else np.nan
+            x[j] = gb * states[i, j, b]
+            y[j] = gc * states[i, j, c]
+        frequency[i], radius[i], code[i] = phase_fit_sample(times[row[i]], x, y, floor[i], max_step)
 
 
 @jit(parallel=True, contract=False)

@@ -63,6 +63,7 @@ class Observed(NamedTuple):
     status: np.ndarray  # (N,) int8
     steps_taken: np.ndarray  # (N,) int64
     growth: tuple | None = None  # the device's growth fit (tumble.kernels.cuda.run): rate, points, first, last (N,)
+    phase: tuple | None = None  # the device's phase fit (tumble.kernels.cuda.run): frequency, radius, code (N,)
 
 
 def _relabelling(method, moments, torque_params, torque_fn):

@@ -29,6 +29,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..kernels import fits
+from ..physics import exact
 from ..physics.bodies import moment_unit
 
 __all__ = [
@@ -39,6 +40,7 @@ __all__ = [
     "FIT_UNDERSAMPLED",
     "Regression",
     "Summary",
+    "closed_form_frequencies_on_device",
     "flip_statistics",
     "growth_rates",
     "growth_window_fit",
@@ -47,6 +49,8 @@ __all__ = [
     "median_interval_rank",
     "modal_amplitudes",
     "oscillation_frequencies",
+    "phase_fit_arguments",
+    "phase_window",
     "regression",
     "summarize",
     "transverse_norms",
@@ -278,6 +282,46 @@ def oscillation_frequencies(times, transverse, weights, spin, *, columns=None, r
     """
     transverse = np.ascontiguousarray(transverse, dtype=float)
     n, t = transverse.shape[:2]
+    times, row, columns, weights, floor = phase_fit_arguments(n, t, times, weights, spin, columns=columns, row=row)
+    frequency, radius, code = np.empty(n), np.empty(n), np.empty(n, dtype=np.int8)
+    fits.phase_fit(times, row, transverse, columns, weights, floor, MAX_PHASE_STEP, frequency, radius, code)
+    return PhaseFit(frequency, radius, code)
+
+
+def closed_form_frequencies_on_device(bodies, w0, times, weights, spin, *, columns, row):
+    """:func:`oscillation_frequencies` of the closed-form motion of spins ``w0`` (N, 3), sample ``i`` of the body
+    ``bodies[row[i]]`` (R, 3) at ``times[row[i]]`` (R, T), evaluated and fitted on the CUDA device
+    (:func:`tumble.physics.exact.phase_fit_rows_on_device`): the states stay on the device, where the CPU's
+    per-sample fit runs on them, and only the frequency, the radius and the code of each sample come back.
+    ``weights``, ``spin`` and ``columns`` as :func:`oscillation_frequencies` takes them (``columns`` in the body
+    frame). Returns a :class:`PhaseFit` equal to the CPU's where the device's evaluation is (a few ulps of ``|w|``,
+    :func:`tumble.physics.exact.omega_on_device`)."""
+    n = len(w0)
+    times, row, columns, weights, floor = phase_fit_arguments(n, np.shape(times)[-1], times, weights, spin,
+                                                              columns=columns, row=row)
+    return PhaseFit(*exact.phase_fit_rows_on_device(np.ascontiguousarray(bodies, dtype=float),
+                                                    np.ascontiguousarray(w0, dtype=float), times, row, columns,
+                                                    weights, floor, MAX_PHASE_STEP))
+
+
+def phase_window(moments, axis, kind, plane, spin):
+    """The engine's ``phase_window`` (:func:`tumble.engine.ensemble.run_ensemble`) of a scene spun at ``spin``
+    (rad/s) about ``axis`` (1-based) of a body of ``moments``: the plane of the fit (``plane``, 0-based, or the two
+    axes after ``axis``), its weights (:func:`invariant_weights` for a ``"periodic"`` scene, else 1), the no-signal
+    radius and :data:`MAX_PHASE_STEP`: the fit :func:`oscillation_frequencies` makes of the scene's trajectory.
+    None for an ``"exponential"`` scene (its growth is fitted instead)."""
+    if kind == "exponential":
+        return None
+    a = int(axis) - 1
+    b, c = plane or ((a + 1) % 3, (a + 2) % 3)
+    weights = invariant_weights(moments, axis)[[b, c]] if kind == "periodic" else np.ones(2)
+    return (b, c), (float(weights[0]), float(weights[1])), NO_SIGNAL * abs(float(spin)), MAX_PHASE_STEP
+
+
+def phase_fit_arguments(n, t, times, weights, spin, *, columns=None, row=None):
+    """:func:`oscillation_frequencies`' arguments for ``n`` samples stored at ``t`` times as the phase fit's kernels
+    take them (:func:`tumble.kernels.fits.phase_fit`, and its device counterpart): ``(times (R, t), row (n,),
+    columns (n, 2), weights (n, 2), floor (n,))``, contiguous; ``floor`` is ``NO_SIGNAL · |spin|``."""
     times = np.ascontiguousarray(np.asarray(times, dtype=float).reshape(-1, t))
     if row is None:
         row = np.zeros(n, dtype=np.int64) if len(times) == 1 else np.arange(n, dtype=np.int64)
@@ -285,11 +329,8 @@ def oscillation_frequencies(times, transverse, weights, spin, *, columns=None, r
         columns = np.tile(np.arange(2, dtype=np.int64), (n, 1))
     weights = np.ascontiguousarray(np.broadcast_to(np.asarray(weights, dtype=float), (n, 2)))
     floor = NO_SIGNAL * np.abs(np.broadcast_to(np.asarray(spin, dtype=float), (n,)))
-    frequency, radius, code = np.empty(n), np.empty(n), np.empty(n, dtype=np.int8)
-    fits.phase_fit(times, np.ascontiguousarray(row, dtype=np.int64), transverse,
-                   np.ascontiguousarray(columns, dtype=np.int64), weights,
-                   np.ascontiguousarray(floor), MAX_PHASE_STEP, frequency, radius, code)
-    return PhaseFit(frequency, radius, code)
+    return (times, np.ascontiguousarray(row, dtype=np.int64), np.ascontiguousarray(columns, dtype=np.int64), weights,
+            np.ascontiguousarray(floor))
 
 
 class FlipStats(NamedTuple):

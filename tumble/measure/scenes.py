@@ -462,6 +462,7 @@ _FLIP_ARRAYS = ("flip_first", "flip_spacing", "flip_exact", "flip_asymptote")
 
 
 def scene_samples(scene, start, stop, *, progress=False):
+    # size: the run of each slice of samples and its fits (on the device: the phase fitted where the trajectory is)
     """Run samples ``[start, stop)`` of a :func:`scene_plan`: per-sample fits, no reduction.
 
     ``start`` must be a multiple of :data:`tumble.engine.sampling.CHUNK` (the engine and the sampler work in whole
@@ -498,6 +499,7 @@ def scene_samples(scene, start, stop, *, progress=False):
     for lo in range(start, stop, step):
         hi = min(lo + step, stop)
         w0 = drawn_spins(moments, axis, spin, scene.amplitude, scene.entropy, scene.distribution, lo, hi)
+        phase = analysis.phase_window(moments, axis, kind, plan.plane, spin) if scene.device == "cuda" else None
         result = run_ensemble(moments, w0, plan.t_end, plan.dt, method=scene.chosen, axis=axis, final=False,
                               save_every=None if growth else plan.save_every,
                               probe_times=plan.probe_times if growth else None,
@@ -505,7 +507,7 @@ def scene_samples(scene, start, stop, *, progress=False):
                               stop_norm=plan.saturation if growth else 0.0, stop_flips=n_flips,
                               torque=scene.torque, progress=progress, device=scene.device,
                               growth_window=(plan.saturation, analysis.MIN_POINTS) if growth else None,
-                              keep_probes=keep_norm and lo == 0)
+                              keep_probes=keep_norm and lo == 0, phase_window=phase, keep_trajectory=phase is None)
         value = _observed(scene, result, w0, out, slice(lo - start, hi - start))
         info = result.info
         computed, skipped = computed + info["sample_steps_computed"], skipped + info["sample_steps_skipped"]
@@ -531,9 +533,12 @@ def _observed(scene, result, w0, out, rows):
         for name in _GROWTH_FIT:
             out[name][rows] = getattr(fit, name)
     else:
-        b, c = scene.plan.plane or ((a + 1) % 3, (a + 2) % 3)
-        weights = (analysis.invariant_weights(moments, scene.axis)[[b, c]] if kind == "periodic" else np.ones(2))
-        fit = analysis.oscillation_frequencies(result.times, result.trajectory[..., [b, c]], weights, scene.spin)
+        if result.phase is not None:  # fitted on the device, where the trajectory stayed
+            fit = analysis.PhaseFit(*result.phase)
+        else:
+            b, c = scene.plan.plane or ((a + 1) % 3, (a + 2) % 3)
+            weights = analysis.invariant_weights(moments, scene.axis)[[b, c]] if kind == "periodic" else np.ones(2)
+            fit = analysis.oscillation_frequencies(result.times, result.trajectory[..., [b, c]], weights, scene.spin)
         out["rate"][rows] = fit.frequency
         out["radius"][rows] = fit.radius
         if scene.spin_up is not None:
@@ -583,6 +588,11 @@ def _stepping_batch(scenes, parts, growth, start, stop):
     """Run the samples ``[start, stop)`` of ``scenes`` (see :func:`stepping_samples_on_device`) in one launch."""
     first, plans = scenes[0], [scene.plan for scene in scenes]
     w0 = [drawn_spins(s.moments, s.axis, s.spin, s.amplitude, s.entropy, s.distribution, start, stop) for s in scenes]
+    phase = None
+    if not growth:  # fitted on the device, where the trajectories stay
+        windows = [analysis.phase_window(s.moments, s.axis, s.kind, s.plan.plane, s.spin) for s in scenes]
+        phase = (np.array([wi[0] for wi in windows]), np.array([wi[1] for wi in windows]),
+                 np.array([wi[2] for wi in windows]), windows[0][3])
     results = run_scene_table(
         first.chosen, np.stack([s.moments for s in scenes]), np.concatenate(w0), [stop - start] * len(scenes),
         np.array([p.t_end for p in plans]), np.array([p.dt for p in plans]), axis=np.array([s.axis for s in scenes]),
@@ -590,7 +600,8 @@ def _stepping_batch(scenes, parts, growth, start, stop):
         probe_times=np.stack([p.probe_times for p in plans]) if growth else None,
         norm_weights=np.stack([p.weights for p in plans]) if growth else None, max_flips=first.flips,
         stop_norm=np.array([p.saturation for p in plans]) if growth else None, torque=first.torque,
-        growth_window=(np.array([p.saturation for p in plans]), analysis.MIN_POINTS) if growth else None)
+        growth_window=(np.array([p.saturation for p in plans]), analysis.MIN_POINTS) if growth else None,
+        phase_window=phase)
     for scene, part, result, spins in zip(scenes, parts, results, w0):
         value = _observed(scene, result, spins, part, slice(0, stop - start))
         info = result.info
@@ -676,7 +687,9 @@ def _closed_form_batch(scenes, grids, batch, parts, start):
     on_device = first.device == "cuda"
     # the set-up on the host: the CPU's evaluation, and the flips' times and spacings whatever the device
     sol = exact.solve_rows(moments, w0) if first.flips or not on_device else None
-    if on_device:  # set-up and time grids on the device: one launch, one thread per sample
+    if on_device and first.kind != "exponential":  # evaluated and phase-fitted on the device (below)
+        omega = None
+    elif on_device:  # set-up and time grids on the device: one launch, one thread per sample
         omega = exact.omega_rows_on_device(np.stack([scene.moments for scene in per_sample]), w0, times, row)
     else:
         omega = exact.omega_rows(sol, times, row)
@@ -698,8 +711,13 @@ def _closed_form_batch(scenes, grids, batch, parts, start):
         b, c = each(planes).T
         weights = each([analysis.invariant_weights(s.moments, s.axis)[list(plane)] if s.kind == "periodic"
                         else np.ones(2) for s, plane in zip(per_sample, planes)])
-        fit = analysis.oscillation_frequencies(times, omega, weights, each([s.spin for s in per_sample]),
-                                               columns=np.stack([b, c], axis=1), row=row)
+        if omega is None:  # on the device: the states stay there, only the fits come back
+            fit = analysis.closed_form_frequencies_on_device(np.stack([scene.moments for scene in per_sample]), w0,
+                                                             times, weights, each([s.spin for s in per_sample]),
+                                                             columns=np.stack([b, c], axis=1), row=row)
+        else:
+            fit = analysis.oscillation_frequencies(times, omega, weights, each([s.spin for s in per_sample]),
+                                                   columns=np.stack([b, c], axis=1), row=row)
         results = {"rate": fit.frequency, "radius": fit.radius}
     code = np.where(fit.code != analysis.FIT_OK, fit.code + _FIT_OFFSET, 0)
     offset = 0

@@ -72,12 +72,14 @@ import numpy as np
 
 from ..kernels import device_closed_form
 from ..kernels import elliptic as _ell
+from ..kernels import elliptic_attitude as _ell_attitude
+from ..kernels import fits as _fits
 from ..kernels import side_by_side as _side_by_side
-from . import rotations
 from .bodies import finite_array, one_body, spin_vectors
 
-__all__ = ["EllipticParameters", "attitude", "omega", "omega_on_device", "omega_rows_on_device", "period",
-           "parameters", "first_flip_time", "flip_spacing", "rotation_per_period"]
+__all__ = ["EllipticParameters", "attitude", "attitude_on_device", "attitude_rows", "omega", "omega_on_device",
+           "omega_rows_on_device", "period", "parameters", "first_flip_time", "flip_spacing", "phase_fit_rows_on_device",
+           "rotation_per_period"]
 
 REGIME_LARGEST = 1  # L² > 2E I_mid: w along the largest-moment axis never changes sign (dn there)
 REGIME_SEPARATRIX = 0  # L² = 2E I_mid
@@ -428,6 +430,34 @@ def omega_rows_on_device(moments, w, times, row):
     return out
 
 
+def phase_fit_rows_on_device(moments, w, times, row, columns, weights, floor, max_step):
+    """The phase fit (:func:`tumble.kernels.fits.phase_fit`) of the motion of the samples of
+    :func:`omega_rows_on_device` (its first four arguments), evaluated and fitted on the CUDA device
+    (:func:`tumble.kernels.cuda_exact.omega_rows_phase_fit`): the states stay there and only the frequency, the median
+    radius and the fit's code of each sample come back. ``columns``, ``weights``, ``floor`` and ``max_step`` as
+    :func:`tumble.kernels.fits.phase_fit` takes them. A launch with a spin within ``TINY_TRANSVERSE`` of an axis is
+    evaluated and fitted as the CPU's is, on the CPU.
+
+    Returns
+    -------
+    frequency, radius : ndarray, shape (n,)
+    code : ndarray of int8, shape (n,)
+    """
+    fit, tiny, non_finite = device_closed_form().omega_rows_phase_fit(moments, w, times, row, columns, weights, floor,
+                                                                      max_step)
+    if tiny:
+        states = omega_rows(solve_rows(np.ascontiguousarray(moments[row]), w), times, row)
+        n = w.shape[0]
+        fit = np.empty(n), np.empty(n), np.empty(n, dtype=np.int8)
+        _fits.phase_fit(np.ascontiguousarray(times, dtype=float), np.ascontiguousarray(row, dtype=np.int64), states,
+                        np.ascontiguousarray(columns, dtype=np.int64), np.ascontiguousarray(weights, dtype=float),
+                        np.ascontiguousarray(floor, dtype=float), float(max_step), *fit)
+        return fit
+    if non_finite:
+        raise FloatingPointError("exact.omega produced non-finite values; please report this spin")
+    return fit
+
+
 def omega_on_device(moments, w, times):
     """Angular velocity (n, T, 3), rad/s, of spins ``w`` (n, 3) of one body ``moments`` (3,) at ``times`` (T,), all
     validated, on the CUDA device (resolved by the caller: :func:`tumble.engine.device.resolve_device`), one thread
@@ -588,59 +618,6 @@ def first_flip_time(body, w0):
 
 # ---------------------------------------------------------------------------------------------------
 # The attitude: body-to-space rotation in closed form
-def _cyclic_frame(p):
-    """Quaternion of the proper rotation taking body coordinates to ``(a, b, p)``, ``a, b = p+1, p+2``
-    (mod 3), for each reference axis ``p`` (0-based)."""
-    table = np.array([[0.5, -0.5, -0.5, -0.5],  # p = 0: (x0, x1, x2) -> (x1, x2, x0), -120° about (1, 1, 1)
-                      [0.5, 0.5, 0.5, 0.5],  # p = 1: -> (x2, x0, x1), +120° about (1, 1, 1)
-                      [1.0, 0.0, 0.0, 0.0]])  # p = 2: identity
-    return table[p]
-
-
-def _wrap(z):
-    return z - 2.0 * np.pi * np.round(z / (2.0 * np.pi))
-
-
-def _sncndn(u, kc):
-    out = np.empty(u.shape + (3,))
-    _ell.jacobi_sncndn(np.ascontiguousarray(u.ravel()), np.ascontiguousarray(np.broadcast_to(kc, u.shape).ravel()),
-                       out.reshape(-1, 3))
-    return out[..., 0], out[..., 1], out[..., 2]
-
-
-def _pi_integral(u, K, kc, n_char, separatrix):
-    """``∫_0^u du' / (1 - n sn²(u'))`` for ``n <= 0`` and the elliptic argument ``u`` (continuous in ``u``),
-    and the amplitude ``am(u)``; on the separatrix (``m = 1``, ``sn = tanh``) in elementary functions.
-
-    Elliptic: ``u = 2K j + r``, ``|r| <= K``; the integral is ``2 j Π(n|m) + Π(n; am r | m)`` with Carlson's
-    ``Π(n; φ|m) = s R_F(c², d², 1) + (n/3) s³ R_J(c², d², 1, 1 - n s²)``, ``s, c, d = sn, cn, dn (r)``
-    (DLMF 19.25.14), and ``am(u) = j π + atan2(s, c)``.
-    """
-    from scipy.special import elliprf, elliprj  # here: scipy.special costs 0.1-0.3 s to import; only the attitude needs it
-
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        j = np.where(separatrix, 0.0, np.floor(u / (2.0 * K) + 0.5))
-        r = np.where(separatrix, u, u - 2.0 * K * j)
-    s, c, d = _sncndn(r, np.where(separatrix, 0.0, kc))
-    amplitude = j * np.pi + np.arctan2(s, c)
-    a = np.sqrt(-n_char)
-
-    def tangent(v):  # ∫_0^v du / (1 + a² tanh² u): the separatrix's integral (sn = tanh)
-        return (v + a * np.arctan(a * np.tanh(v))) / (1.0 + a * a)
-
-    # k' below 1e-100 (a spin within about that of the intermediate axis): sn = tanh + O(k'²) on [-K, K], so the
-    # integrals take the separatrix form (Carlson's arguments cn², dn² would underflow there)
-    tiny = ~separatrix & (kc < 1e-100)
-    c2, d2 = c * c, d * d
-    with np.errstate(invalid="ignore", divide="ignore"):  # infinite on the separatrix and for tiny k' (unused)
-        incomplete = s * elliprf(c2, d2, 1.0) + (n_char / 3.0) * s**3 * elliprj(c2, d2, 1.0, 1.0 - n_char * s * s)
-        complete = elliprf(0.0, kc * kc, 1.0) + (n_char / 3.0) * elliprj(0.0, kc * kc, 1.0, 1.0 - n_char)
-        incomplete = np.where(tiny, tangent(r), incomplete)
-        complete = np.where(tiny, tangent(K), complete)
-        integral = np.where(separatrix, tangent(u), 2.0 * j * complete + incomplete)
-    return integral, amplitude
-
-
 def attitude(body, w0, t):
     """Orientation of the torque-free rigid body in closed form: the body-to-space rotation.
 
@@ -655,7 +632,7 @@ def attitude(body, w0, t):
 
     ``Π(u) = ∫_0^u du' / (1 - n sn² u')``, ``n = -I_p (I_mid - I_q) / (I_q (I_p - I_mid))`` (``q`` the third
     extreme axis, ``u = u0 + ν t`` the elliptic argument of :func:`omega`): an elliptic integral of the third
-    kind, evaluated with Carlson's ``R_F`` and ``R_J`` (scipy.special); ``φ`` never needs a quadrature.
+    kind, evaluated with Carlson's ``R_F`` and ``R_J``; ``φ`` never needs a quadrature.
     ``ψ`` is carried continuously in time from the amplitude ``am u``, so ``q(t)`` is continuous in ``t``
     (``q`` and ``-q`` are the same rotation; the sign here is the one reached continuously from ``q(0) = 1``).
     Steady spins turn uniformly about their fixed axis.
@@ -673,68 +650,57 @@ def attitude(body, w0, t):
     -------
     ndarray, shape (..., T, 4)
         Unit quaternions, scalar first (``v_space = q v_body q*``); shape ``(..., 4)`` for a scalar ``t``.
+
+    Notes
+    -----
+    Evaluated by :mod:`tumble.kernels.elliptic_attitude`, one sample and one time at a time, in parallel over both:
+    the per-sample code the CUDA device runs too (:func:`attitude_on_device`). Carlson's ``R_J`` there agrees with
+    ``scipy.special.elliprj`` to a few ulps.
     """
     tt = _check_t(t)
     moments = one_body(body)
     sol = _solve(body, w0)
     times = np.ascontiguousarray(np.atleast_1d(tt))
     w = np.ascontiguousarray(spin_vectors(w0).reshape(-1, 3))
-    n = w.shape[0]
-    w_t = omega_rows(sol, times[None, :], np.zeros(n, dtype=np.int64))
-    out = np.empty((n, times.shape[0], 4))
-
-    steady = sol.kind == _ell.KIND_STATIONARY
-    spin = np.linalg.norm(w[steady], axis=1)
-    axis = np.where(spin[:, None] > 0, w[steady], [1.0, 0.0, 0.0])
-    out[steady] = rotations.about_axis(spin[:, None] * times, axis[:, None, :])
-
-    moving = ~steady
-    if moving.any():  # t = 0 is prepended: the attitude is taken relative to the start
-        start = omega_rows(sol, np.zeros((1, 1)), np.zeros(n, dtype=np.int64))
-        out[moving] = _moving_attitude(moments, sol, moving, w[moving],
-                                       np.concatenate([start[moving], w_t[moving]], axis=1),
-                                       np.concatenate([[0.0], times]))[:, 1:]
-    if not np.all(np.isfinite(out)):
-        raise FloatingPointError("exact.attitude produced non-finite values; please report this spin")
+    out = attitude_rows(np.broadcast_to(moments, w.shape), w, sol, times)
     out = out.reshape(sol.shape + (times.shape[0], 4))
     return out[..., 0, :] if tt.ndim == 0 else out
 
 
-def _moving_attitude(moments, sol, rows, w, w_t, times):
-    """Attitude of the non-steady spins ``rows`` at ``times`` (``times[0] = 0``), from ``w_t = omega(times)``."""
-    cq, cm, cp = (sol.cols[rows, j] for j in range(3))
-    Iq, Im, Ip = moments[cq], moments[cm], moments[cp]
-    kc, K, nu, phase0 = sol.kc[rows], sol.K[rows], sol.nu[rows], sol.phase0[rows]
-    separatrix = sol.kind[rows] == _ell.KIND_SEPARATRIX
-    size = np.sqrt(((moments * w) ** 2).sum(axis=1))  # |L|
-    ca, cb = (cp + 1) % 3, (cp + 2) % 3
-    L = moments * w_t
-    la, lb, lp = (np.take_along_axis(L, c[:, None, None], axis=2)[..., 0] for c in (ca, cb, cp))
-    theta = np.arctan2(np.hypot(la, lb), lp)
+def attitude_rows(moments, w, sol, times):
+    """The attitude (n, T, 4) of spins ``w`` (n, 3) of bodies ``moments`` (n, 3), set up as ``sol``
+    (:func:`solve_rows`), at ``times`` (T,), all validated: :func:`attitude` below its checks. Raises
+    ``FloatingPointError`` on a non-finite quaternion (the one check at the layer boundary)."""
+    n = w.shape[0]
+    row = np.zeros(n, dtype=np.int64)
+    omega_t = omega_rows(sol, times[None, :], row)
+    start = omega_rows(sol, np.zeros((1, 1)), row)[:, 0]
+    constants = np.empty((n, _ell_attitude.CONSTANTS))
+    landen_a, landen_c = np.zeros((n, _ell_attitude.LANDEN)), np.zeros((n, _ell_attitude.LANDEN))
+    _ell_attitude.attitude_setup(np.ascontiguousarray(moments, dtype=float), w, sol.kind, sol.amp, sol.cols, sol.kc,
+                                 sol.K, sol.phase0, sol.nu, np.ascontiguousarray(start), constants, landen_a,
+                                 landen_c)
+    out = np.empty((n, times.shape[0], 4))
+    _ell_attitude.attitude_rows(constants, landen_a, landen_c, times, omega_t, out)
+    if not np.all(np.isfinite(out)):
+        raise FloatingPointError("exact.attitude produced non-finite values; please report this spin")
+    return out
 
-    # the elliptic argument u = u0 + nu t (separatrix: the argument of tanh, sech)
-    with np.errstate(invalid="ignore"):
-        u = np.where(separatrix, 0.0, K)[:, None] + phase0[:, None] + nu[:, None] * times
-        u0 = np.where(separatrix, 0.0, K) + phase0
-    n_char = -Ip * (Im - Iq) / (Iq * (Ip - Im))
-    sep = separatrix[:, None]
-    integral, am = _pi_integral(u, K[:, None], kc[:, None], n_char[:, None], sep)
-    integral0, _ = _pi_integral(u0, K, kc, n_char, separatrix)
-    phi = size[:, None] * times / Ip[:, None] + (size * (Ip - Iq) / (Iq * Ip * nu))[:, None] * (
-        integral - integral0[:, None])
 
-    # psi = atan2(L_a, L_b), carried continuously through the amplitude am(u): L_q ∝ X cn, L_mid ∝ Y sn
-    X = (Iq * sol.amp[rows, 0])[:, None]
-    Y = (Im * sol.amp[rows, 1])[:, None]
-    reference = np.where(X > 0, np.sign(Y) * am, np.pi - np.sign(Y) * am)  # near atan2(Y sn, X cn)
-    reference = np.where((ca == cm)[:, None], reference, 0.5 * np.pi - reference)
-    psi = reference + _wrap(np.arctan2(la, lb) - reference)
-
-    frame = _cyclic_frame(cp)[:, None, :]
-    local = rotations.product(rotations.product(rotations.about_axis(phi, 2), rotations.about_axis(theta, 0)),
-                              rotations.about_axis(psi, 2))
-    start = rotations.product(local[:, :1], frame)
-    return rotations.product(rotations.conjugate(start), rotations.product(local, frame))
+def attitude_on_device(moments, w, times):
+    """:func:`attitude` (n, T, 4) of spins ``w`` (n, 3) of one body ``moments`` (3,) at ``times`` (T,), all validated,
+    on the CUDA device (resolved by the caller), one thread per sample: the closed form's set-up, its angular velocity
+    at each time and the CPU's per-sample attitude code (:func:`tumble.kernels.cuda_exact.attitude_rows`). Agrees
+    with :func:`attitude` to a few ulps where the angular velocity does (:func:`omega_on_device`). A call with a spin
+    within ``TINY_TRANSVERSE`` of an axis is evaluated as the CPU's is (the lifted set-up), on the CPU."""
+    out, tiny, non_finite = device_closed_form().attitude_rows(np.reshape(moments, (1, 3)), w,
+                                                               np.reshape(times, (1, -1)), np.zeros(1, dtype=np.int64))
+    if tiny:
+        rows = np.broadcast_to(moments, w.shape)
+        return attitude_rows(rows, w, solve_rows(rows, w), np.ascontiguousarray(times, dtype=float))
+    if non_finite:
+        raise FloatingPointError("exact.attitude produced non-finite values; please report this spin")
+    return out
 
 
 def rotation_per_period(body, w0, *, nodes=256, max_nodes=1 << 16, tol=1e-13):

@@ -13,6 +13,12 @@ shared out between dask's worker threads instead), and LocalCluster workers star
 process — on its first task, or at start-up through :class:`NumbaWorkerPlugin` — and stay loaded for every
 later task.
 
+GPUs: with ``device = "cuda"`` each worker runs its chunks on its own GPU, chosen by :func:`gpu_for_worker` and
+selected (``numba.cuda.select_device``) in the thread that runs the task, before its first launch
+(:func:`use_worker_gpu`): the first GPU of ``CUDA_VISIBLE_DEVICES`` where the worker's environment sets it (dask-cuda's
+``LocalCUDACluster`` lists each worker's own GPU first), else GPU ``worker index mod GPU count`` (a LocalCluster names
+its workers 0, 1, 2, ...).
+
 Nothing here binds beyond 127.0.0.1: a remote cluster is one the user started and names.
 """
 
@@ -20,8 +26,11 @@ from __future__ import annotations
 
 import contextlib
 import os
+import threading
+import zlib
 
-__all__ = ["SchedulerError", "SchedulerLost", "available", "connect", "run_chunks", "scheduler_address"]
+__all__ = ["SchedulerError", "SchedulerLost", "available", "connect", "gpu_for_worker", "run_chunks",
+           "scheduler_address", "use_worker_gpu"]
 
 #: Environment variable naming a running scheduler (dask's own convention).
 ENV_ADDRESS = "DASK_SCHEDULER_ADDRESS"
@@ -220,11 +229,98 @@ def connect(address, *, workers=None):
         yield client
 
 
+def gpu_for_worker(name, gpu_count, visible_devices=None):
+    """The GPU on which a dask worker runs its chunks with ``device="cuda"``: an index into the devices numba-cuda
+    sees in that worker (``numba.cuda.gpus``, which lists the GPUs of ``CUDA_VISIBLE_DEVICES`` in its order, else all).
+
+    The rule:
+
+    * ``CUDA_VISIBLE_DEVICES`` set and not empty in the worker's environment (``visible_devices``): 0, the first GPU
+      it lists. dask-cuda's ``LocalCUDACluster`` and ``dask cuda worker`` start worker ``k`` with its own GPU listed
+      first (``k, k+1, ..., 0, ..., k-1``), so each worker keeps to its GPU. A list set alike for every worker of a
+      plain LocalCluster puts them all on its first GPU: give each worker its own list, or use dask-cuda.
+    * otherwise the worker's index modulo ``gpu_count``: a LocalCluster (``tumble run --scheduler local``) names its
+      workers 0, 1, 2, ..., so on a machine of ``G`` GPUs worker ``k`` runs on GPU ``k mod G`` (workers share a GPU
+      only when there are more workers than GPUs). A worker named otherwise (``dask worker --name NAME``; by default
+      its address) takes the CRC-32 of its name as its index: spread over the GPUs, the same in every run, but two
+      workers may share one; start such workers with ``CUDA_VISIBLE_DEVICES`` naming their GPU.
+
+    Parameters
+    ----------
+    name : int or str
+        The worker's name (``distributed.get_worker().name``).
+    gpu_count : int
+        GPUs numba-cuda sees in the worker (>= 1).
+    visible_devices : str, optional
+        The worker's ``CUDA_VISIBLE_DEVICES``.
+
+    Returns
+    -------
+    int
+        In ``[0, gpu_count)``.
+    """
+    if isinstance(gpu_count, bool) or not isinstance(gpu_count, int) or gpu_count < 1:
+        raise ValueError(f"gpu_count must be an integer >= 1, got {gpu_count!r}")
+    if visible_devices is not None and visible_devices.strip():
+        return 0
+    if isinstance(name, int) and not isinstance(name, bool) and name >= 0:
+        index = name
+    elif isinstance(name, str) and name.isascii() and name.isdigit():
+        index = int(name)
+    else:
+        index = zlib.crc32(str(name).encode())
+    return index % gpu_count
+
+
+#: The GPU this worker process selected (:func:`use_worker_gpu`), None before; and the threads that selected it.
+SELECTED_GPU = None
+_SELECTED_IN = threading.local()
+
+
+def use_worker_gpu():
+    """Select this dask worker's GPU (:func:`gpu_for_worker`) in the calling thread, before its first launch: numba-cuda
+    keeps the current device per thread, so the task's thread selects it (once; later tasks in the thread find it
+    selected). Outside a dask worker nothing is selected (numba's default, device 0). Returns the GPU's index, or None
+    outside a worker.
+
+    Raises
+    ------
+    ValueError
+        ``device 'cuda': ...`` where the worker has no usable device (:func:`tumble.engine.device.resolve_device`).
+    """
+    global SELECTED_GPU
+    selected = getattr(_SELECTED_IN, "gpu", None)
+    if selected is not None:
+        return selected
+    try:
+        from distributed import get_worker
+
+        worker = get_worker()
+    except (ImportError, ValueError):  # not in a worker
+        return None
+    from ..engine.device import resolve_device
+
+    resolve_device("cuda")  # no numba-cuda or no GPU in this worker: its one line, before numba.cuda is asked
+    from numba import cuda
+
+    index = gpu_for_worker(worker.name, len(cuda.gpus), os.environ.get("CUDA_VISIBLE_DEVICES"))
+    cuda.select_device(index)
+    _SELECTED_IN.gpu = SELECTED_GPU = index
+    return index
+
+
+def _on_worker_gpu(compute_task, job, task, digest, threads):
+    """``compute_task`` of a device job in a dask worker, on the worker's GPU (:func:`use_worker_gpu`)."""
+    use_worker_gpu()
+    return compute_task(job, task, digest, threads=threads)
+
+
 def run_chunks(client, compute_task, job, tasks, digest=""):
     """Submit every task to the cluster; yield ``(task, chunk bytes)`` for each as it finishes.
 
     The job is scattered to every worker once (tasks carry only a reference to it); each task returns its
-    chunk file's bytes (:func:`tumble.pipeline.runner.compute_task`), which the caller writes and reads. On an error (or
+    chunk file's bytes (:func:`tumble.pipeline.runner.compute_task`), which the caller writes and reads; a job on the
+    CUDA device (``job.options["device"]``) runs each task on its worker's GPU (:func:`use_worker_gpu`). On an error (or
     when the caller stops early) the tasks still queued are cancelled; the error of a task is raised again here
     as it was raised on the worker.
     """
@@ -233,7 +329,12 @@ def run_chunks(client, compute_task, job, tasks, digest=""):
     if not tasks:
         return
     job_future = client.scatter(job, broadcast=True)
-    futures = {client.submit(compute_task, job_future, task, digest, threads=1, pure=False): task for task in tasks}
+    if getattr(job, "options", {}).get("device") == "cuda":
+        futures = {client.submit(_on_worker_gpu, compute_task, job_future, task, digest, 1, pure=False): task
+                   for task in tasks}
+    else:
+        futures = {client.submit(compute_task, job_future, task, digest, threads=1, pure=False): task
+                   for task in tasks}
     try:
         for future, data in as_completed(futures, with_results=True, loop=client.loop):
             if future.status == "cancelled" or not isinstance(data, bytes):  # dask's CancelledError, not a chunk
