@@ -14,8 +14,8 @@ import numpy as np
 from ..kernels import METHODS, device_kernels, run
 from ..registry import DEVICES
 
-__all__ = ["DEVICES", "DeviceError", "INSTALL", "LAUNCH_SAMPLES", "WARP", "check_on_device", "not_on_device",
-           "resolve_device", "stepper"]
+__all__ = ["DEVICES", "DeviceError", "INSTALL", "LAUNCH_SAMPLES", "WARP", "check_on_device", "resolve_device",
+           "stepper"]
 
 
 class DeviceError(ValueError):
@@ -96,11 +96,6 @@ def stepper(device):
     """The fixed-step kernels' run of ``device`` (resolved): :func:`tumble.kernels.run` or its device counterpart,
     which takes the same arguments and returns the same record."""
     return run if device == "cpu" else device_kernels().run
-
-
-def not_on_device(what):
-    """The ``ValueError`` for a part of a run that the device does not do yet (``what`` ends with its verb)."""
-    return DeviceError(f"device 'cuda': {what} not yet on the device; run it with device='cpu'")
 
 
 def check_on_device(method, *, torque_fn=None):

@@ -49,7 +49,6 @@ __all__ = ["THREADS", "kernel", "make_kernel", "refusal", "run", "run_scenes"]
 #: Threads per block of a launch (one sample each).
 THREADS = 128
 
-_NOT_YET = "not yet on the device"
 
 
 def refusal(method, *, torque_fn=None):
