@@ -50,7 +50,6 @@ __all__ = ["THREADS", "kernel", "make_kernel", "refusal", "run", "run_scenes"]
 THREADS = 128
 
 
-
 def refusal(method, *, torque_fn=None):
     """The one-line reason why a run cannot go to the device, or None when it can."""
     if torque_fn is not None:
