@@ -238,8 +238,8 @@ _PTX = textwrap.dedent("""
 
     for time_major in (False, True):  # the phase fit, over the closed form's and a stepping kernel's layouts
         kernels.append((device_fits().make_kernel(65, time_major),
-                        (f8[:, ::1], nt.int64[::1], f8[:, :, ::1], nt.int64[:, ::1], f8[:, ::1], f8, f8[::1], f8,
-                         f8[::1], f8[::1], nt.int8[::1])))
+                        (f8[:, ::1], nt.int64[::1], f8[:, :, ::1], nt.int64[:, ::1], f8[:, ::1], f8[::1], f8[::1],
+                         f8, f8[::1], f8[::1], nt.int8[::1])))
     for kernel, signature in kernels:
         ptx, _ = cuda.compile_ptx(kernel.py_func, signature, cc=(9, 0))
         assert "div.approx" not in ptx and "fma.rn.f64" in ptx

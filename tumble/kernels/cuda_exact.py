@@ -67,19 +67,13 @@ def _omega_at_kernel(m0, m1, m2, w, t, out, flags):
     flags[i] = (_TINY if small else 0) | (0 if finite else _NON_FINITE)
 
 
-@cuda_jit
-def _omega_grid_kernel(bodies, w, times, row, out, flags):
-    # size: the set-up's one-sample arrays (those torque_free_solve fills) made local, then the time loop
-    """Sample ``cuda.grid(1)`` set up, then evaluated at every time of its grid into ``out[i]`` (T, 3): its body's
-    moments are ``bodies[r]`` and its times ``times[r]``, ``r = row[i]`` (``row`` of one element: every sample
-    ``r = 0``), so that the samples of many scenes go in one launch."""
-    i = cuda.grid(1)
-    if i >= w.shape[0]:
-        return
-    r = row[i] if row.shape[0] == w.shape[0] else 0
-    m0, m1, m2 = bodies[r, 0], bodies[r, 1], bodies[r, 2]
+@cuda.jit(device=True)
+def _grid_setup(m0, m1, m2, w0, w1, w2):
+    """The set-up of :func:`tumble.kernels.elliptic.torque_free_solve` for one sample (its one-sample arrays made
+    local): ``(tiny, kind, weights, k_c, K, phase0, nu, h, q, amplitudes (3,), columns (3,))``, what the grid kernels
+    evaluate from."""
     spin = cuda.local.array(3, float64)
-    spin[0], spin[1], spin[2] = w[i, 0], w[i, 1], w[i, 2]
+    spin[0], spin[1], spin[2] = w0, w1, w2
     moments = cuda.local.array((1, 3), float64)
     perm = cuda.local.array((1, 3), int64)
     parity = cuda.local.array(1, float64)
@@ -91,11 +85,25 @@ def _omega_grid_kernel(bodies, w, times, row, out, flags):
     nome = cuda.local.array((2, 1), float64)
     small = _solve_sample(0, m0, m1, m2, spin, moments, perm, parity, scaled, kind, amp, cols, params, nome)
     weights = _column_weights(cols[0, 0], cols[0, 1], cols[0, 2], amp[0, 0], amp[0, 1], amp[0, 2])
-    k_c, K, phase0, nu, h, q = params[0, 0], params[2, 0], params[3, 0], params[4, 0], nome[0, 0], nome[1, 0]
+    return (small, kind[0], weights, params[0, 0], params[2, 0], params[3, 0], params[4, 0], nome[0, 0], nome[1, 0],
+            (amp[0, 0], amp[0, 1], amp[0, 2]), (cols[0, 0], cols[0, 1], cols[0, 2]))
+
+
+@cuda_jit
+def _omega_grid_kernel(bodies, w, times, row, out, flags):
+    """Sample ``cuda.grid(1)`` set up, then evaluated at every time of its grid into ``out[i]`` (T, 3): its body's
+    moments are ``bodies[r]`` and its times ``times[r]``, ``r = row[i]`` (``row`` of one element: every sample
+    ``r = 0``), so that the samples of many scenes go in one launch."""
+    i = cuda.grid(1)
+    if i >= w.shape[0]:
+        return
+    r = row[i] if row.shape[0] == w.shape[0] else 0
+    m0, m1, m2 = bodies[r, 0], bodies[r, 1], bodies[r, 2]
+    small, kind, weights, k_c, K, phase0, nu, h, q, _, _ = _grid_setup(m0, m1, m2, w[i, 0], w[i, 1], w[i, 2])
     value = cuda.local.array(3, float64)
     finite = True
     for j in range(times.shape[1]):
-        _grid_value(kind[0], phase0 + nu * times[r, j], k_c, K, h, q, weights, value)
+        _grid_value(kind, phase0 + nu * times[r, j], k_c, K, h, q, weights, value)
         for c in range(3):
             out[i, j, c] = value[c]
             finite = finite and math.isfinite(value[c])
@@ -118,7 +126,7 @@ def _grid_value(kind, s, k_c, K, h, q, weights, value):
 
 @cuda_jit
 def _attitude_grid_kernel(bodies, w, times, row, out, flags):
-    # size: the grid kernel's set-up (its one-sample arrays made local), then the attitude at each time
+    # size: the set-up (_grid_setup), the attitude constants with their Landen tables, then the attitude at each time
     """The closed form's attitude: sample ``cuda.grid(1)`` set up (as :func:`_omega_grid_kernel`), its angular
     velocity evaluated at ``t = 0`` and at each time of its grid, and from them the CPU's per-sample attitude
     (:func:`tumble.kernels.elliptic_attitude.attitude_constants`, :func:`~tumble.kernels.elliptic_attitude.attitude_at`)
@@ -128,31 +136,18 @@ def _attitude_grid_kernel(bodies, w, times, row, out, flags):
         return
     r = row[i] if row.shape[0] == w.shape[0] else 0
     m0, m1, m2 = bodies[r, 0], bodies[r, 1], bodies[r, 2]
-    spin = cuda.local.array(3, float64)
-    spin[0], spin[1], spin[2] = w[i, 0], w[i, 1], w[i, 2]
-    moments = cuda.local.array((1, 3), float64)
-    perm = cuda.local.array((1, 3), int64)
-    parity = cuda.local.array(1, float64)
-    scaled = cuda.local.array((5, 1), float64)
-    kind = cuda.local.array(1, int64)
-    amp = cuda.local.array((1, 3), float64)
-    cols = cuda.local.array((1, 3), int64)
-    params = cuda.local.array((5, 1), float64)
-    nome = cuda.local.array((2, 1), float64)
-    small = _solve_sample(0, m0, m1, m2, spin, moments, perm, parity, scaled, kind, amp, cols, params, nome)
-    weights = _column_weights(cols[0, 0], cols[0, 1], cols[0, 2], amp[0, 0], amp[0, 1], amp[0, 2])
-    k_c, K, phase0, nu, h, q = params[0, 0], params[2, 0], params[3, 0], params[4, 0], nome[0, 0], nome[1, 0]
+    small, kind, weights, k_c, K, phase0, nu, h, q, amp, cols = _grid_setup(m0, m1, m2, w[i, 0], w[i, 1], w[i, 2])
     value = cuda.local.array(3, float64)
     constants = cuda.local.array(CONSTANTS, float64)
     landen_a = cuda.local.array(LANDEN, float64)
     landen_c = cuda.local.array(LANDEN, float64)
-    _grid_value(kind[0], phase0 + nu * 0.0, k_c, K, h, q, weights, value)
-    attitude_constants(m0, m1, m2, spin[0], spin[1], spin[2], kind[0], amp[0, 0], amp[0, 1], cols[0, 0], cols[0, 1],
-                       cols[0, 2], k_c, K, phase0, nu, value[0], value[1], value[2], constants, landen_a, landen_c)
+    _grid_value(kind, phase0 + nu * 0.0, k_c, K, h, q, weights, value)
+    attitude_constants(m0, m1, m2, w[i, 0], w[i, 1], w[i, 2], kind, amp[0], amp[1], cols[0], cols[1], cols[2], k_c, K,
+                       phase0, nu, value[0], value[1], value[2], constants, landen_a, landen_c)
     finite = True
     for j in range(times.shape[1]):
         t = times[r, j]
-        _grid_value(kind[0], phase0 + nu * t, k_c, K, h, q, weights, value)
+        _grid_value(kind, phase0 + nu * t, k_c, K, h, q, weights, value)
         q0, q1, q2, q3 = attitude_at(constants, landen_a, landen_c, t, value[0], value[1], value[2])
         out[i, j, 0], out[i, j, 1], out[i, j, 2], out[i, j, 3] = q0, q1, q2, q3
         finite = finite and math.isfinite(q0) and math.isfinite(q1) and math.isfinite(q2) and math.isfinite(q3)
