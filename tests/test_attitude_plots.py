@@ -23,6 +23,8 @@ from tumble.output import attitude_figures as attitude_plots
 from tumble.output import figures as plots
 from tumble.physics import shapes
 
+from layout_checks import misplaced
+
 ATTITUDE_FIGURES = ("flip_strip", "flip_animation", "polhode", "herpolhode")
 SPIN = 10.0  # rad/s, about the T-handle's intermediate axis
 TILT = 1e-3  # rad
@@ -367,3 +369,9 @@ def test_full_size_animation_is_small(t_handle_flip, tmp_path, monkeypatch):
     with Image.open(path) as gif:
         assert gif.n_frames == attitude_plots.FRAMES
     assert path.stat().st_size < 1.5e6
+
+
+def test_the_herpolhode_keeps_its_texts_inside_and_apart_without_a_layout_engine(t_handle_flip):
+    fig = plots.herpolhode(t_handle_flip)
+    assert fig.get_layout_engine() is None
+    assert misplaced(fig) == []

@@ -11,6 +11,8 @@ from tumble import cli
 from tumble.measure import check as checking
 from tumble.physics import exact, rotations
 
+from layout_checks import misplaced
+
 DATA = Path(__file__).resolve().parent.parent / "data"
 EXAMPLE = DATA / "check_t_handle_rk4.csv"
 EULER_EXAMPLE = DATA / "check_t_handle_euler.csv"
@@ -261,3 +263,15 @@ def test_inertia_elements_in_exponent_notation_may_be_negative(tmp_path, capsys)
                                  tmp_path)
     assert status == 0, err
     assert "verdict: PASS" in out
+
+
+@pytest.mark.parametrize("example", [EXAMPLE, EULER_EXAMPLE], ids=["rk4", "euler"])
+def test_the_check_figure_keeps_its_texts_inside_and_apart(example):
+    from tumble.output import check_figure, trajectory
+
+    recording = trajectory.read_trajectory(example)
+    ds = tumble.check(recording["t"], recording["omega"], recording.get("quaternion"),
+                      moments=np.array(T_HANDLE, dtype=float))
+    fig = check_figure.draw_check(ds)
+    assert fig.get_layout_engine() is None
+    assert misplaced(fig, dpi=150, style=check_figure._STYLE) == []

@@ -227,3 +227,69 @@ else:
     assert sorted(p.name for p in tmp_path.iterdir()) == [
         "intermediate_axis.nc", "intermediate_axis_flip_components.png", "intermediate_axis_norm_growth.png",
         "intermediate_axis_summary.png"]
+
+
+@pytest.fixture(scope="module")
+def curves_result(warm_kernels):
+    import tumble
+
+    return tumble.measure((1.0, 2.0, 3.0), 2, samples=64, curves=("norm", "trace"))
+
+
+FIGURES = ["norm_growth", "flip_components", "summary"]
+
+
+def test_several_figures_are_shared_with_a_forked_child_and_are_the_files_this_process_would_write(curves_result,
+                                                                                                     tmp_path):
+    from tumble.output import figures
+    from tumble.pipeline import figure_process
+
+    here = figures.save_figures(curves_result, FIGURES, tmp_path / "here", "s", formats=("png", "pdf"))
+    with figure_process.FigureProcess() as drawer:
+        drawer.submit(curves_result, FIGURES, tmp_path / "apart", "s", ("png", "pdf"))
+        apart = drawer.result()
+    assert [p.name for p in apart] == [p.name for p in here]
+    for mine, theirs in zip(here, apart):
+        assert mine.read_bytes() == theirs.read_bytes(), mine.name
+
+
+def test_figures_the_child_cannot_draw_are_drawn_by_the_figure_process(curves_result, tmp_path, monkeypatch):
+    from tumble.pipeline import figure_process
+
+    monkeypatch.setattr(figure_process, "_cores", lambda: 2)
+    monkeypatch.setattr(figure_process, "_linux_die_with_parent", lambda: lambda: False)  # the child gives up
+    paths = figure_process._draw(curves_result, FIGURES, tmp_path, "s", ("png",))
+    assert paths == [str(tmp_path / f"s_{name}.png") for name in FIGURES]
+    assert all(os.path.getsize(p) > 0 for p in paths)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the child is tied to its parent on Linux only")
+def test_the_forked_child_ends_when_the_figure_process_is_killed(curves_result, tmp_path):
+    import time
+
+    from tumble.pipeline import figure_process
+
+    many = FIGURES * 20  # seconds of drawing: the child is still at it when its parent is killed
+    with figure_process.FigureProcess() as drawer:
+        drawer.submit(curves_result, many, tmp_path, "s", ("png", "pdf"))
+        pid = drawer._process.pid
+        children, deadline = [], time.monotonic() + 60
+        while not children and time.monotonic() < deadline and drawer._process.poll() is None:
+            try:
+                children = open(f"/proc/{pid}/task/{pid}/children").read().split()
+            except OSError:
+                break
+            time.sleep(0.005)
+    killed = time.monotonic()  # close() killed the figure process
+    if not children:
+        pytest.skip("the figure process's child was not seen")
+    child = int(children[0])
+    while time.monotonic() < killed + 2.0:
+        try:
+            state = open(f"/proc/{child}/stat").read().rsplit(")", 1)[1].split()[0]
+        except OSError:
+            return  # gone
+        if state in ("Z", "X"):
+            return  # dead, not yet reaped
+        time.sleep(0.01)
+    raise AssertionError(f"the figure process's child {child} outlived it")

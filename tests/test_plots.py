@@ -12,6 +12,8 @@ import tumble
 from tumble.output import figures as plots
 from tumble.physics import theory
 
+from layout_checks import misplaced
+
 LAMBDA = 1.0 / np.sqrt(3.0)  # growth rate of I = (1, 2, 3) spun at 1 rad/s about axis 2
 
 #: Figures of a traced spin's attitude: tested in test_attitude_plots.py.
@@ -306,3 +308,33 @@ def test_plots_module_keeps_to_its_layer():
 def test_real_curves_as_measure_keeps_them_draw(name, measured_curves):
     assert plots.can_draw(measured_curves, name) == (True, "")
     _assert_paper_axes(getattr(plots, name)(measured_curves))
+
+
+# --------------------------------------------------------------------------------------------- layout
+
+
+@pytest.mark.parametrize("name", SCAN_FIGURES)
+def test_each_figure_keeps_its_texts_inside_and_apart_without_a_layout_engine(name, drawable):
+    fig = getattr(plots, name)(drawable[name])
+    assert fig.get_layout_engine() is None, "savefig draws the figure once: no layout engine draws it first"
+    assert misplaced(fig) == []
+
+
+def test_the_layout_holds_legends_at_the_right_a_suptitle_and_one_scene(triangle_scan, measured_curves):
+    two_spins = xr.concat([triangle_scan, triangle_scan.assign_coords(spin=2.0)], dim="spin")
+    for fig in (plots.norm_growth(triangle_scan), plots.stability_map(two_spins), plots.summary(measured_curves),
+                plots.norm_growth(measured_curves), plots.flip_components(measured_curves)):
+        assert misplaced(fig) == [], fig.axes[0].get_title()
+
+
+def test_a_legend_below_takes_as_many_columns_as_the_width_holds(triangle_scan):
+    from tumble.output import layout
+
+    wide, narrow = plots.stability_map(triangle_scan), plots.norm_growth(triangle_scan.isel(body=5, axis=1))
+    assert wide.legends[0]._ncols == 3 and narrow.legends[0]._ncols == 1
+    fig = Figure(figsize=(3.0, 2.0))
+    ax = fig.subplots()
+    handles = ax.plot([0, 1], [0, 1], label="a") + ax.plot([0, 1], [1, 0], label="b")
+    assert layout.legend(fig, handles)._ncols == 2
+    assert misplaced(layout.fit(fig)) == []
+    assert fig.get_figheight() > 2.0, "the figure grows by the legend's height"

@@ -54,7 +54,7 @@ from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 from PIL import Image
 
 from ..physics import shapes
-from . import io
+from . import io, layout
 
 __all__ = ["ATTITUDE_VARIABLES", "AttitudeTrace", "FlipAnimation", "animation_format", "box_proportions",
            "flip_animation", "flip_strip", "flip_times", "herpolhode", "herpolhode_points", "invariable_frame",
@@ -875,7 +875,7 @@ def herpolhode(source, *, width=_SINGLE):
     """
     trace = _trace(source)
     _, plane, height = herpolhode_points(trace)
-    fig = Figure(figsize=(width, width * 0.92 + 0.4), layout="constrained")
+    fig = Figure(figsize=(width, width * 0.92 + 0.4))
     ax = fig.subplots()
     radius = np.hypot(*plane.T)
     circle = np.linspace(0, 2 * np.pi, 241)
@@ -891,7 +891,6 @@ def herpolhode(source, *, width=_SINGLE):
                  f"{np.median(height):.4g} rad/s", fontsize=8)
     handles = [curve, Line2D([], [], color="k", marker="+", ms=8, ls="none", label="$\\mathbf{L}$ (normal)"),
                Line2D([], [], color="0.7", lw=0.5, ls=":", label="bounding circles")]
-    fig.legend(handles=handles, loc="outside lower center", ncols=3, fontsize=7, frameon=False, columnspacing=1.0,
-               handlelength=1.5)
-    return fig
+    layout.legend(fig, handles, "below", ncols=3, fontsize=7, frameon=False, columnspacing=1.0, handlelength=1.5)
+    return layout.fit(fig)
 
