@@ -462,7 +462,6 @@ _FLIP_ARRAYS = ("flip_first", "flip_spacing", "flip_exact", "flip_asymptote")
 
 
 def scene_samples(scene, start, stop, *, progress=False):
-    # size: the run of each slice of samples and its fits (on the device: the phase fitted where the trajectory is)
     """Run samples ``[start, stop)`` of a :func:`scene_plan`: per-sample fits, no reduction.
 
     ``start`` must be a multiple of :data:`tumble.engine.sampling.CHUNK` (the engine and the sampler work in whole
@@ -521,7 +520,7 @@ def _observed(scene, result, w0, out, rows):
     :class:`tumble.engine.ensemble.EnsembleResult` with its growth fit, or its trajectory), the norm curve from its
     probes when they were kept; returns the theory's value (a torque's spin-up changes it)."""
     moments, kind, a, value = scene.moments, scene.kind, scene.axis - 1, scene.value
-    if kind == "exponential":  # fitted by the engine: on the device in the kernel, no norm comes back (but the norm curve's)
+    if kind == "exponential":  # fitted by the engine (on the device in the kernel: no norm comes back but the curve's)
         fit = analysis.growth_window_fit(result.probe_times, *result.growth)
         if result.probes is not None:
             with warnings.catch_warnings():
