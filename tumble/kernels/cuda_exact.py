@@ -68,12 +68,15 @@ def _omega_at_kernel(m0, m1, m2, w, t, out, flags):
 
 
 @cuda.jit(device=True)
-def _grid_setup(m0, m1, m2, w0, w1, w2):
-    """The set-up of :func:`tumble.kernels.elliptic.torque_free_solve` for one sample (its one-sample arrays made
-    local): ``(tiny, kind, weights, k_c, K, phase0, nu, h, q, amplitudes (3,), columns (3,))``, what the grid kernels
+def _grid_setup(bodies, w, row, i):
+    """The set-up of :func:`tumble.kernels.elliptic.torque_free_solve` for sample ``i`` of a grid kernel (its body's
+    moments ``bodies[r]``, ``r = row[i]``, or row 0 when ``row`` has one element; the one-sample arrays made local):
+    ``(r, tiny, kind, weights, k_c, K, phase0, nu, h, q, amplitudes (3,), columns (3,))``, what the grid kernels
     evaluate from."""
+    r = row[i] if row.shape[0] == w.shape[0] else 0
+    m0, m1, m2 = bodies[r, 0], bodies[r, 1], bodies[r, 2]
     spin = cuda.local.array(3, float64)
-    spin[0], spin[1], spin[2] = w0, w1, w2
+    spin[0], spin[1], spin[2] = w[i, 0], w[i, 1], w[i, 2]
     moments = cuda.local.array((1, 3), float64)
     perm = cuda.local.array((1, 3), int64)
     parity = cuda.local.array(1, float64)
@@ -85,7 +88,7 @@ def _grid_setup(m0, m1, m2, w0, w1, w2):
     nome = cuda.local.array((2, 1), float64)
     small = _solve_sample(0, m0, m1, m2, spin, moments, perm, parity, scaled, kind, amp, cols, params, nome)
     weights = _column_weights(cols[0, 0], cols[0, 1], cols[0, 2], amp[0, 0], amp[0, 1], amp[0, 2])
-    return (small, kind[0], weights, params[0, 0], params[2, 0], params[3, 0], params[4, 0], nome[0, 0], nome[1, 0],
+    return (r, small, kind[0], weights, params[0, 0], params[2, 0], params[3, 0], params[4, 0], nome[0, 0], nome[1, 0],
             (amp[0, 0], amp[0, 1], amp[0, 2]), (cols[0, 0], cols[0, 1], cols[0, 2]))
 
 
@@ -97,9 +100,7 @@ def _omega_grid_kernel(bodies, w, times, row, out, flags):
     i = cuda.grid(1)
     if i >= w.shape[0]:
         return
-    r = row[i] if row.shape[0] == w.shape[0] else 0
-    m0, m1, m2 = bodies[r, 0], bodies[r, 1], bodies[r, 2]
-    small, kind, weights, k_c, K, phase0, nu, h, q, _, _ = _grid_setup(m0, m1, m2, w[i, 0], w[i, 1], w[i, 2])
+    r, small, kind, weights, k_c, K, phase0, nu, h, q, _, _ = _grid_setup(bodies, w, row, i)
     value = cuda.local.array(3, float64)
     finite = True
     for j in range(times.shape[1]):
@@ -134,16 +135,15 @@ def _attitude_grid_kernel(bodies, w, times, row, out, flags):
     i = cuda.grid(1)
     if i >= w.shape[0]:
         return
-    r = row[i] if row.shape[0] == w.shape[0] else 0
-    m0, m1, m2 = bodies[r, 0], bodies[r, 1], bodies[r, 2]
-    small, kind, weights, k_c, K, phase0, nu, h, q, amp, cols = _grid_setup(m0, m1, m2, w[i, 0], w[i, 1], w[i, 2])
+    r, small, kind, weights, k_c, K, phase0, nu, h, q, amp, cols = _grid_setup(bodies, w, row, i)
     value = cuda.local.array(3, float64)
     constants = cuda.local.array(CONSTANTS, float64)
     landen_a = cuda.local.array(LANDEN, float64)
     landen_c = cuda.local.array(LANDEN, float64)
     _grid_value(kind, phase0 + nu * 0.0, k_c, K, h, q, weights, value)
-    attitude_constants(m0, m1, m2, w[i, 0], w[i, 1], w[i, 2], kind, amp[0], amp[1], cols[0], cols[1], cols[2], k_c, K,
-                       phase0, nu, value[0], value[1], value[2], constants, landen_a, landen_c)
+    attitude_constants(bodies[r, 0], bodies[r, 1], bodies[r, 2], w[i, 0], w[i, 1], w[i, 2], kind, amp[0], amp[1],
+                       cols[0], cols[1], cols[2], k_c, K, phase0, nu, value[0], value[1], value[2], constants,
+                       landen_a, landen_c)
     finite = True
     for j in range(times.shape[1]):
         t = times[r, j]
@@ -206,21 +206,22 @@ def attitude_rows(bodies, w, times, row):
     samples of many scenes in one launch (``bodies``, ``w``, ``times``, ``row`` as :func:`omega_rows`): ``(out, tiny,
     non_finite)``, ``out`` (n, T, 4) the body-to-space quaternions (scalar first, ``q(0) = 1``) and the counts as
     :func:`omega_rows` returns them."""
-    n = w.shape[0]
-    times = np.ascontiguousarray(times, dtype=float)
-    out = cuda.device_array((n, times.shape[1], 4))
-    tiny, non_finite = _launch(_attitude_grid_kernel, n, cuda.to_device(np.ascontiguousarray(bodies, dtype=float)),
-                               cuda.to_device(np.ascontiguousarray(w, dtype=float)), cuda.to_device(times),
-                               cuda.to_device(np.ascontiguousarray(row, dtype=np.int64)), out)
+    out, tiny, non_finite = _grid_launch(_attitude_grid_kernel, 4, bodies, w, times, row)
     return out.copy_to_host(), tiny, non_finite
 
 
 def _omega_rows(bodies, w, times, row):
     """:func:`omega_rows` with ``out`` left on the device."""
+    return _grid_launch(_omega_grid_kernel, 3, bodies, w, times, row)
+
+
+def _grid_launch(kernel, components, bodies, w, times, row):
+    """Launch a grid kernel over the samples ``w`` (n, 3): ``(out, tiny, non_finite)``, ``out`` (n, T, components) left
+    on the device."""
     n = w.shape[0]
     times = np.ascontiguousarray(times, dtype=float)
-    out = cuda.device_array((n, times.shape[1], 3))
-    tiny, non_finite = _launch(_omega_grid_kernel, n, cuda.to_device(np.ascontiguousarray(bodies, dtype=float)),
+    out = cuda.device_array((n, times.shape[1], components))
+    tiny, non_finite = _launch(kernel, n, cuda.to_device(np.ascontiguousarray(bodies, dtype=float)),
                                cuda.to_device(np.ascontiguousarray(w, dtype=float)), cuda.to_device(times),
                                cuda.to_device(np.ascontiguousarray(row, dtype=np.int64)), out)
     return out, tiny, non_finite
