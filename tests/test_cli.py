@@ -9,7 +9,7 @@ import pytest
 import tumble
 from tumble import cli
 from tumble.output import io
-from tumble.pipeline import config, runner
+from tumble.pipeline import config, results, runner
 
 # A study small enough to run in a second on the closed-form path.
 TINY = """
@@ -200,7 +200,7 @@ def test_a_scan_study_puts_its_parameters_in_coordinates():
     assert list(ds.axis.values) == [1, 2, 3] and list(ds.kind.sel(amplitude=1e-3).values.ravel()) == [
         "periodic", "exponential", "periodic"]
     assert float(ds.rel_error.max()) < 5e-3
-    assert "1 scene" not in runner.summary_table(ds)
+    assert "1 scene" not in results.summary_table(ds)
 
 
 def test_the_space_station_spin_up_matches_linear_theory(warm_kernels):

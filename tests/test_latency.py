@@ -209,12 +209,13 @@ def test_a_dataset_too_large_to_send_is_drawn_here(small_result, tmp_path, monke
     assert [p.name for p in paths] == ["s.nc", "s_summary.png"] and paths[1].stat().st_size > 0
 
 
-def test_tumble_run_imports_neither_dask_nor_scipy_special_nor_leaves_its_figure_process_behind(tmp_path):
+def test_tumble_run_imports_neither_xarray_dask_nor_scipy_special_nor_leaves_its_figure_process_behind(tmp_path):
     code = f"""import os, sys
 from tumble.cli import main
 assert main(['run', '--samples', '32', '--out', {str(tmp_path)!r}]) == 0
 assert 'dask.base' not in sys.modules, 'dask was imported'  # dask.array, distributed: 0.3-0.35 s each, dask 0.1 s
 assert 'scipy.special' not in sys.modules, 'scipy.special was imported'
+assert 'xarray' not in sys.modules, 'xarray was imported'  # the figure process builds and writes the result
 try:
     os.waitpid(-1, os.WNOHANG)
 except ChildProcessError:
@@ -258,7 +259,7 @@ def test_figures_the_child_cannot_draw_are_drawn_by_the_figure_process(curves_re
 
     monkeypatch.setattr(figure_process, "_cores", lambda: 2)
     monkeypatch.setattr(figure_process, "_linux_die_with_parent", lambda: lambda: False)  # the child gives up
-    paths = figure_process._draw(curves_result, FIGURES, tmp_path, "s", ("png",))
+    paths = figure_process._figures(curves_result, FIGURES, tmp_path, "s", ("png",))
     assert paths == [str(tmp_path / f"s_{name}.png") for name in FIGURES]
     assert all(os.path.getsize(p) > 0 for p in paths)
 
@@ -311,3 +312,53 @@ def test_the_run_command_settles_its_process_without_scipy_and_keeps_blas_usable
     env["OMP_WAIT_POLICY"] = "ACTIVE"
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
     assert done.stdout.split()[0] == "ACTIVE"
+
+
+@pytest.mark.parametrize("study", ["stability_map", "gyrostat_map", "intermediate_axis"])
+def test_scene_records_cross_to_another_process_exactly(warm_kernels, study):
+    import pickle
+
+    import numpy as np
+
+    from tumble.measure.records import stack_records, unstack_records
+    from tumble.pipeline import runner
+
+    overrides = {"perturbation.samples": 16}
+    if study != "intermediate_axis":
+        overrides["outputs.arrays"] = ["sample_rate", "sample_status"]
+    job = runner.prepare_study(study, overrides=overrides).job
+    records = runner.run_scenes(job, chunk_scenes=1000)
+    back = unstack_records(pickle.loads(pickle.dumps(stack_records(records))))
+    assert len(back) == len(records)
+    for mine, theirs in zip(records, back):
+        assert list(mine) == list(theirs)
+        for name, value in mine.items():
+            assert (type(value), value.dtype, value.shape) == (type(theirs[name]), theirs[name].dtype,
+                                                               theirs[name].shape), name
+            assert np.array_equal(value, theirs[name], equal_nan=value.dtype.kind == "f"), name
+
+
+def test_the_figure_process_writes_from_the_records_what_this_process_would(warm_kernels, tmp_path, monkeypatch):
+    import numpy as np
+    import xarray as xr
+
+    from tumble.output import io
+    from tumble.pipeline import figure_process, results, runner
+
+    prepared = runner.prepare_study("stability_map", overrides={"perturbation.samples": 16}, out=tmp_path)
+    records = runner.run_scenes(prepared.job)
+    ds = results.result_dataset(records, **runner._result_shape(prepared.job), resolved=prepared.resolved)
+    stored, paths_here = runner.write_outputs(ds, prepared.resolved, tmp_path / "here", "s")
+    monkeypatch.setattr(results, "result_dataset", None)  # built in the figure process, not here
+    with figure_process.FigureProcess() as process:
+        summary, paths_apart = runner.write_records(records, prepared.job, prepared.resolved, tmp_path / "apart", "s",
+                                                    figure_process=process)
+    assert [p.name for p in paths_apart] == [p.name for p in paths_here] == [
+        "s.nc", "s_stability_map.png", "s_summary.png"]
+    for mine, theirs in zip(paths_here[1:], paths_apart[1:]):
+        assert mine.read_bytes() == theirs.read_bytes(), mine.name
+    apart = io.read_dataset(paths_apart[0])
+    xr.testing.assert_identical(apart.drop_attrs(deep=False), stored.drop_attrs(deep=False))
+    assert apart.attrs.keys() == stored.attrs.keys()
+    assert all(np.array_equal(apart.attrs[k], stored.attrs[k]) for k in stored.attrs if k != "history")  # a time
+    assert summary == results.summary_table(stored)

@@ -17,6 +17,7 @@ from hypothesis import strategies as st
 from test_resume import _toml, assert_same_result, finished_chunks
 
 from tumble import cli
+from tumble.measure.records import stack_records
 from tumble.pipeline import checkpoint, config, runner
 
 # 48 closed-form scenes of 256 samples: about 3 s, cut into 24 chunks.
@@ -92,13 +93,21 @@ def _disk_full(*args, **kwargs):
     raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
 
-@pytest.mark.parametrize("where", ["result", "chunk"])
+@pytest.mark.parametrize("where", ["result", "result-in-figure-process", "chunk"])
 def test_a_full_disk_exits_1_and_leaves_the_earlier_results_intact(earlier_result, monkeypatch, capsys, where):
     study, out, before = earlier_result
-    if where == "result":
+    if where.startswith("result"):
         from tumble.output import io
+        from tumble.pipeline import figure_process
 
         monkeypatch.setattr(io, "_to_netcdf4", _disk_full)  # the result file's write (chunks are written apart)
+        if where == "result":  # the command writes it (as when its figure process died)
+            monkeypatch.setattr(figure_process.FigureProcess, "result", lambda self: None)
+        else:  # what the figure process does with the records, done in this process (where the write fails)
+            monkeypatch.setattr(figure_process.FigureProcess, "submit_result", lambda self, records, *request: setattr(
+                self, "request", (stack_records(records), *request)))
+            monkeypatch.setattr(figure_process.FigureProcess, "result",
+                                lambda self: figure_process._result(*self.request))
     else:
         monkeypatch.setattr(checkpoint.Path, "write_bytes", _disk_full)  # the first chunk file cannot be written
     status = cli.main(["run", str(study), "--out", str(out), "--seed", "5"])
@@ -107,7 +116,7 @@ def test_a_full_disk_exits_1_and_leaves_the_earlier_results_intact(earlier_resul
     assert "earlier results there are unchanged" in err and len(err.strip().splitlines()) == 1
     assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before
     assert not [p for p in out.rglob("*.part")]
-    if where == "result":  # the scenes were finished: a rerun resumes from them
+    if where != "chunk":  # the scenes were finished: a rerun resumes from them
         assert finished_chunks(out, "small")
         monkeypatch.undo()
         assert cli.main(["run", str(study), "--out", str(out), "--seed", "5"]) == 0
@@ -302,7 +311,7 @@ def test_an_internal_value_error_is_not_reported_as_the_users_input(tmp_path, mo
     def broken(*args, **kwargs):
         raise ValueError("an internal inconsistency")
 
-    monkeypatch.setattr(runner, "_run", broken)
+    monkeypatch.setattr(runner, "run_scenes", broken)
     status = cli.main(["run", "intermediate_axis", "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err
     assert status == 1 and "tumble: failed: ValueError: an internal inconsistency" in err
@@ -312,7 +321,7 @@ def test_ctrl_c_exits_130(tmp_path, monkeypatch, capsys):
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(runner, "_run", interrupted)
+    monkeypatch.setattr(runner, "run_scenes", interrupted)
     status = cli.main(["run", "intermediate_axis", "--out", str(tmp_path / "out")])
     assert status == 130 and "interrupted" in capsys.readouterr().err
 
@@ -561,17 +570,14 @@ def test_a_failure_after_the_netcdf_is_written_leaves_the_earlier_result_set(ear
         real(ds, names[:1], directory, stem, **kwargs)
         raise failure
 
+    monkeypatch.setattr(plots, "save_figures", draws_one_then_fails)
     if where == "here":
-        monkeypatch.setattr(plots, "save_figures", draws_one_then_fails)
         monkeypatch.setattr(figure_process.FigureProcess, "result", lambda self: None)  # as when it died
-    else:
-        def fails_in_the_process(self):
-            real(*self.request[:4], formats=self.request[4])
-            raise failure
-
-        monkeypatch.setattr(figure_process.FigureProcess, "submit", lambda self, *request: setattr(self, "request",
-                                                                                                  request))
-        monkeypatch.setattr(figure_process.FigureProcess, "result", fails_in_the_process)
+    else:  # what the figure process does with the records, done in this process (where save_figures fails)
+        monkeypatch.setattr(figure_process, "_cores", lambda: 1)  # no forked child
+        monkeypatch.setattr(figure_process.FigureProcess, "submit_result",
+                            lambda self, records, *request: setattr(self, "request", (stack_records(records), *request)))
+        monkeypatch.setattr(figure_process.FigureProcess, "result", lambda self: figure_process._result(*self.request))
     status = cli.main(["run", str(study), "--out", str(out), "--seed", "5"])
     err = capsys.readouterr().err
     assert status == (130 if isinstance(failure, KeyboardInterrupt) else 1), err

@@ -149,10 +149,7 @@ def _run_study(args, drawer):
     """``tumble run``: check, plan and run the study, its figures drawn by ``drawer`` (a ``FigureProcess``, or None)."""
     _lean_kernel_process()
     from .engine import cost
-    from .output import io
-    from .pipeline import checkpoint, runner
-
-    io.assume_no_dask_arrays()  # this process makes none: xarray need not import dask.array to look for them
+    from .pipeline import checkpoint, results, runner
 
     overrides = {key: value for key, value in (("perturbation.samples", args.samples),
                                                ("perturbation.seed", args.seed),
@@ -169,6 +166,10 @@ def _run_study(args, drawer):
     prepared = runner.prepare_study(args.study, overrides=overrides, out=args.out, formats=args.format,
                                     default_directory=True)
     job, directory, stem = prepared.job, prepared.directory, prepared.stem
+    if runner.needs_traces(prepared.resolved):  # this process builds the result (else the figure process does)
+        from .output import io
+
+        io.assume_no_dask_arrays()  # it makes no dask array: xarray need not import dask.array to look for them
     _check_output_folder(args, prepared)
     scheduler = _scheduler(args)
     chunk = args.chunk_scenes or runner.default_chunk_scenes(job.layout["scenes"])
@@ -188,23 +189,23 @@ def _run_study(args, drawer):
                "log": lambda line: print(line, flush=True)}
     try:
         with contextlib.ExitStack() as stack:
-            if drawer is not None and prepared.resolved["outputs"]["figures"]:
+            if drawer is not None:
                 options["figure_process"] = drawer
             if scheduler is None:
-                stored, paths = runner.execute_study(prepared, **options)
+                outputs = runner.execute_study(prepared, **options)
             else:
                 from .pipeline import distributed
 
                 client = stack.enter_context(distributed.connect(scheduler, workers=args.workers))
                 print(f"dask scheduler {client.scheduler.address}: {len(client.scheduler_info()['workers'])} "
                       f"worker(s)", flush=True)
-                stored, paths = runner.execute_study(prepared, client=client, **options)
+                outputs = runner.execute_study(prepared, client=client, **options)
     except checkpoint.FolderBusy as err:
         raise InputError(f"{_output_option(args, prepared)}: {err.strerror}; wait for it to finish, or choose another "
                          f"--out") from None
-    print(runner.summary_table(stored))
+    print(outputs.summary if outputs.summary is not None else results.summary_table(outputs.dataset))
     print(f"\n{time.perf_counter() - started:.1f} s; wrote:")
-    for path in paths:
+    for path in outputs.paths:
         print(f"  {path}")
 
 

@@ -8,9 +8,9 @@ checks that the kernels' coefficient tables agree with them.
 
 from typing import NamedTuple
 
-__all__ = ["ATTITUDE_FIGURES", "AUTO", "AUTO_STEPPING", "CHOICES", "DEFAULT_MODEL", "FIGURES", "FORMATS", "METHODS",
-           "MIN_AMPLITUDE", "MODELS", "MODEL_KINDS", "MODEL_PARAMETERS", "Method", "Model", "ModelParameter",
-           "PER_SAMPLE_ARRAYS", "STATE_BLOCKS", "STATUSES", "STATUS_DRIFT", "STATUS_NAMES", "STATUS_NONFINITE",
+__all__ = ["ATTITUDE_FIGURES", "AUTO", "AUTO_STEPPING", "CHOICES", "DEFAULT_MODEL", "FIGURES", "FIT_NAMES", "FORMATS",
+           "METHODS", "MIN_AMPLITUDE", "MODELS", "MODEL_KINDS", "MODEL_PARAMETERS", "Method", "Model", "ModelParameter",
+           "PER_SAMPLE_ARRAYS", "SAMPLE_STATUS_NAMES", "STATE_BLOCKS", "STATUSES", "STATUS_DRIFT", "STATUS_NAMES", "STATUS_NONFINITE",
            "STATUS_OK", "STEPPING", "Status", "TORQUE_PROFILES", "TORQUE_USER", "TorqueProfile", "amplitude_problem",
            "choose_method", "method", "model_kind", "model_parameter", "state_blocks", "torque_profile"]
 
@@ -107,6 +107,10 @@ STATUSES = (
 )
 STATUS_NAMES = tuple(s.name for s in STATUSES)
 STATUS_OK, STATUS_NONFINITE, STATUS_DRIFT = (STATUS_NAMES.index(name) for name in ("ok", "non-finite", "invariant drift"))
+#: Outcomes of a sample's rate fit, by code (:mod:`tumble.kernels.fits` writes the codes).
+FIT_NAMES = ("ok", "fit window too short", "no signal", "undersampled")
+#: Per-sample status of a scene, as written in files: the engine's statuses, then the fit's failures.
+SAMPLE_STATUS_NAMES = STATUS_NAMES + FIT_NAMES[1:]
 
 
 class TorqueProfile(NamedTuple):

@@ -9,7 +9,6 @@ import math
 import warnings
 
 import numpy as np
-import xarray as xr
 
 from .. import registry
 from ..kernels import METHODS, run
@@ -275,6 +274,8 @@ def indexed_dataset(variables, attrs):
     constructor of a Dataset from its parts (present since 2017; ``tests/test_latency.py`` checks the result is
     ``identical`` to the public constructor's). Should a future xarray drop it, the public constructor is used.
     """
+    import xarray as xr  # here, not at the top: the scenes of a study import this module and run without xarray
+
     made = {name: xr.Variable(dims, np.asarray(values), dict(var_attrs)) for name, (dims, values, var_attrs)
             in variables.items()}
     coords = [name for name, var in made.items() if var.dims == (name,)]
@@ -292,6 +293,8 @@ def _index(name, variable):
     """The pandas index of the coordinate ``variable``. The last few small ones of each name are reused while their
     values are the same (an index is immutable: xarray shares one between a Dataset and its copies, selections and
     results): building one costs 30-60 us, comparing a few thousand values 2 us."""
+    import xarray as xr
+
     values = variable.values
     for key, index in _INDEXES.get(name, ()):
         if key.shape == values.shape and key.dtype == values.dtype and np.array_equal(key, values):

@@ -28,6 +28,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .. import registry
 from ..kernels import fits
 from ..physics import exact
 from ..physics.bodies import moment_unit
@@ -61,7 +62,7 @@ FIT_OK = fits.FIT_OK
 FIT_SHORT_WINDOW = fits.FIT_SHORT_WINDOW  # fewer than MIN_POINTS before saturation, or no growth
 FIT_NO_SIGNAL = fits.FIT_NO_SIGNAL  # the transverse perturbation is at round-off level: its phase means nothing
 FIT_UNDERSAMPLED = fits.FIT_UNDERSAMPLED  # the phase moved by more than MAX_PHASE_STEP between two samples: unwrapping is unsafe
-FIT_NAMES = ("ok", "fit window too short", "no signal", "undersampled")
+FIT_NAMES = registry.FIT_NAMES
 
 #: Fewest points in a growth fit window.
 MIN_POINTS = 8

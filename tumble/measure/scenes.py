@@ -37,7 +37,6 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
-import xarray as xr
 from tqdm.auto import tqdm
 
 from .. import registry
@@ -51,6 +50,10 @@ from ..physics.bodies import Body, one_body
 from ..registry import STATUS_NAMES, STATUS_OK, STEPPING
 from ..engine import cost
 from . import estimators as analysis
+from .records import CONFIDENCE, INTERVAL_TEXT, KIND_UNITS, assemble_scan, scene_dataset
+
+# xarray is imported by the functions that make a dataset: a study's scenes run without it (``tumble run`` builds
+# their dataset in its figure process, :mod:`tumble.pipeline.figure_process`).
 
 __all__ = ["CURVES", "SAMPLE_STATUS_NAMES", "ScenePlanner", "assemble_scan", "check_amplitude", "check_fit_span",
            "closed_form_samples", "flip_time_law", "inertia_triangle", "invariant_drift", "measure", "refuse_plan",
@@ -59,7 +62,7 @@ __all__ = ["CURVES", "SAMPLE_STATUS_NAMES", "ScenePlanner", "assemble_scan", "ch
            "stepping_samples_on_device"]
 
 #: Per-sample status in a measurement: the engine's (ok, non-finite, invariant drift), then the fit's.
-SAMPLE_STATUS_NAMES = STATUS_NAMES + analysis.FIT_NAMES[1:]
+SAMPLE_STATUS_NAMES = registry.SAMPLE_STATUS_NAMES
 _FIT_OFFSET = len(STATUS_NAMES) - 1
 
 #: Fixed steps per radian of the scene's fastest phase (1/rate, 1/ω or 1/|spin|), by order of the method:
@@ -102,12 +105,6 @@ SLICE = 8 * CHUNK
 #: arrays stay in the processor's cache between the kernel and the estimators, large enough that a kernel call
 #: and an estimator call cost little next to their work. A slice of one scene may be larger (it runs alone).
 BATCH = 4096
-
-#: Level of a scene's confidence interval of the median (distribution-free, from order statistics:
-#: :func:`tumble.measure.estimators.summarize`).
-CONFIDENCE = 0.95
-
-_KIND_UNITS = {"periodic": "rad/s", "exponential": "1/s", "neutral": "rad/s"}
 
 #: Bytes per sample and observation time held while a slice of samples is measured — the observed components or
 #: probe norms and the fits' temporaries — by (stepping, kind is exponential): peaks measured over 32768-sample
@@ -286,7 +283,7 @@ def check_fit_span(kind, value, span, horizon):
         return
     what = "e-foldings of growth" if kind == "exponential" else "radians of phase"
     raise ValueError(f"horizon = {horizon!r} s: the fit would span {value * span:.2g} {what} (theory: {value:.4g} "
-                     f"{_KIND_UNITS[kind]}), fewer than the {MIN_FIT_SPAN:g} a rate can be measured over above "
+                     f"{KIND_UNITS[kind]}), fewer than the {MIN_FIT_SPAN:g} a rate can be measured over above "
                      f"round-off; give a horizon of at least {MIN_FIT_SPAN / value:.3g} s, or none (the planner's)")
 
 
@@ -853,7 +850,7 @@ def _scene_record(scene, joined, summary, rate, code, medians, flips):
         record["component"] = np.array([1, 2, 3])
     record.update({"@title": f"tumble measurement: {kind} rate about axis {axis}", "@method_run": scene.chosen,
                    "@samples": scene.samples, "@seed_entropy": str(scene.entropy),
-                   "@distribution": scene.distribution, "@median_interval": _INTERVAL_TEXT,
+                   "@distribution": scene.distribution, "@median_interval": INTERVAL_TEXT,
                    "@source": f"tumble {__version__}"})
     if scene.spin_up is not None:
         record["@torque"] = joined["torque"]
@@ -923,105 +920,9 @@ def _curves(kept, curves):
 
 
 def _var(value, units, long_name, dims=(), **attrs):
+    import xarray as xr
+
     return xr.Variable(dims, value, {"units": units, "long_name": long_name, **attrs})
-
-
-_INTERVAL_TEXT = (f"{CONFIDENCE:.0%} distribution-free interval of the median: order statistics x_(l), x_(n+1-l) with "
-                  "l from Binomial(n, 1/2)")
-
-
-def _metadata(kind, value):
-    # size: a table with one row per variable a scene record may hold (the free body's and the models')
-    """``name -> (dims, attrs)`` of every variable and coordinate a scene record may hold."""
-    unit = _KIND_UNITS[kind]
-    flag_names = " ".join(name.replace(" ", "_").replace("-", "_") for name in SAMPLE_STATUS_NAMES)
-    table = {
-        "rate": (unit, f"measured {kind} rate: median over valid samples"),
-        "rate_theory": (unit, f"linear-theory {kind} rate"),
-        "rel_error": ("1", "relative error of the measured rate, |rate - rate_theory| / "
-                      + ("rate_theory" if value > 0 else "|spin| (neutral: theory is 0)")),
-        "kind": ("1", "linear-theory kind: periodic, exponential or neutral"),
-        "rate_ci_low": (unit, f"lower bound of the {CONFIDENCE:.0%} confidence interval of the median rate "
-                              "(order statistics)"),
-        "rate_ci_high": (unit, f"upper bound of the {CONFIDENCE:.0%} confidence interval of the median rate "
-                               "(order statistics)"),
-        "rate_spread": (unit, "half the interquartile range of the sample rates"),
-        "samples_used": ("1", "samples with a valid rate"),
-        "samples_excluded": ("1", "samples left out (bad status or failed fit)"),
-        "sample_rate": (unit, f"measured {kind} rate of each sample (NaN: excluded)", ("sample",)),
-        "sample_status": ("1", "status of each sample", ("sample",),
-                          {"flag_values": np.arange(len(SAMPLE_STATUS_NAMES), dtype=np.int8),
-                           "flag_meanings": flag_names}),
-        "dt": ("s", "time step (closed form: spacing of the evaluation times)"),
-        "t_end": ("s", "horizon of the scene"),
-        "n_steps": ("1", "fixed steps to the horizon"),
-        "sample_steps_computed": ("1", "sample-steps the kernel computed"),
-        "sample_steps_skipped": ("1", "sample-steps skipped (closed form, early stop)"),
-        "path": ("1", "how the scene ran"),
-        "fit_t_start": ("s", "start of the fit window (median over samples)"),
-        "fit_t_stop": ("s", "end of the fit window (median over samples)"),
-        "fit_norm_start": ("rad/s", "scaled transverse norm at the start of the fit window (median over samples)"),
-        "fit_norm_stop": ("rad/s", "scaled transverse norm at the end of the fit window (median over samples)"),
-        "fit_saturation": ("rad/s", "end of the linear regime (scaled norm)"),
-        "signal_radius": ("rad/s", "median scaled transverse radius (the signal of the phase fit)"),
-        "flips_timed": ("1", "samples with at least two flips timed"),
-        "flip_first": ("s", "time of the first flip (median over samples)"),
-        "flip_first_asymptote": ("s", "linear-theory first flip time (1/lambda) ln(4/k') (median)"),
-        "flip_spacing": ("s", "time between flips (median over samples)"),
-        "flip_spacing_exact": ("s", "exact time between flips 2K/nu (median)"),
-        "flip_spacing_asymptote": ("s", "linear-theory time between flips (2/lambda) ln(4/k') (median)"),
-        "flip_spacing_rel_error": ("1", "largest |spacing / (2K/nu) - 1| over samples"),
-        "sample_first_flip": ("s", "time of the first flip", ("sample",)),
-        "sample_flip_spacing": ("s", "mean time between flips", ("sample",)),
-        "growth_time": ("s", "probe time of the transverse norm", ("growth_point",)),
-        "growth_norm": ("rad/s", "scaled transverse norm, median over samples", ("growth_point",)),
-        "growth_norm_q1": ("rad/s", "scaled transverse norm, lower quartile over samples", ("growth_point",)),
-        "growth_norm_q3": ("rad/s", "scaled transverse norm, upper quartile over samples", ("growth_point",)),
-        "trace_time": ("s", "time along the traced sample (NaN: padding)", ("trace_point",)),
-        "trace_omega": ("rad/s", "body-frame angular velocity of the first sample", ("trace_point", "component")),
-        "I1": ("kg m2", "principal moment of inertia 1"),
-        "I2": ("kg m2", "principal moment of inertia 2"),
-        "I3": ("kg m2", "principal moment of inertia 3"),
-        "axis": ("1", "spin axis (1-based principal axis)"),
-        "spin": ("rad/s", "unperturbed spin about the axis"),
-        "amplitude": ("rad", "tilt of the perturbed spins from the axis"),
-        "method": ("1", "integration method asked for"),
-        "sample": ("1", "sample index", ("sample",)),
-        "component": ("1", "body-frame component (principal axis)", ("component",)),
-        "model": ("1", "model kind (registry.MODELS): free, gyrostat, heavy_top, gravity_gradient, damper"),
-        "rotor": ("N m s", "gyrostat: rotor angular momentum along the spin axis, body frame"),
-        "mgl": ("N m", "heavy_top: M g l, weight times the pivot-to-centre-of-mass distance"),
-        "orbit_rate": ("rad/s", "gravity_gradient: orbital angular rate n of the circular orbit"),
-        "damper_inertia": ("kg m2", "damper: moment of inertia J of the damper sphere"),
-        "damping": ("N m s", "damper: viscous coupling c between the sphere and the body"),
-    }
-    return {name: (entry[2] if len(entry) > 2 else (), {"units": entry[0], "long_name": entry[1],
-                                                        **(entry[3] if len(entry) > 3 else {})})
-            for name, entry in table.items()}
-
-
-#: Record entries that are coordinates of the scene's dataset (the rest are variables, or ``@`` attributes).
-_COORDS = ("I1", "I2", "I3", "axis", "spin", "amplitude", "method", "sample", "component", "model", "rotor", "mgl",
-           "orbit_rate", "damper_inertia", "damping")
-
-
-def _record_variables(record):
-    """``(data variables, coordinates, attributes)`` of a scene record, as xarray Variables and a dict."""
-    meta = _metadata(str(record["kind"]), float(record["rate_theory"]))
-    data, coords, attrs = {}, {}, {}
-    for name, value in record.items():
-        if name.startswith("@"):
-            attrs[name[1:]] = value.item() if value.ndim == 0 else value
-            continue
-        dims, var_attrs = meta[name]
-        (coords if name in _COORDS else data)[name] = xr.Variable(dims, value, var_attrs)
-    return data, coords, attrs
-
-
-def scene_dataset(record):
-    """The dataset of one scene (:func:`measure`) from its record (:func:`scene_records`)."""
-    data, coords, attrs = _record_variables(record)
-    return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
 #: Stored times of an invariant-drift record (:func:`invariant_drift`).
@@ -1042,6 +943,8 @@ def invariant_drift(body, axis, spin=1.0, amplitude=1e-3, methods=tuple(STEPPING
         ``drift_l2(drift_method, drift_time)`` and ``drift_energy(drift_method, drift_time)``: the largest
         relative error ``|X(t)/X(0) − 1|`` over the samples; ``drift_dt(drift_method)``.
     """
+    import xarray as xr
+
     moments, axis, spin, amplitude, samples, _ = _validate_scene(body, axis, spin, amplitude, samples, "auto", 0,
                                                                  "cone")
     methods = [_check_method(m) for m in methods]
@@ -1204,64 +1107,6 @@ def scene_batch(scenes, *, progress=False):
     return scene_records(scenes, parts)
 
 
-def assemble_scan(layout, records, body_coords=None):
-    """The scan's dataset from the records (:func:`scene_records`) of every scene of a :func:`scan_layout`, in order.
-
-    Every variable and coordinate that differs between scenes (the swept parameters) gains the scan dimensions
-    ``(body, *swept)`` in front of its own; a variable some scenes lack (a periodic scene has no growth fit window)
-    is NaN there; attributes are the first scene's. The values are stacked from the records with NumPy, once per
-    variable; the variables' metadata comes from the first scene holding each (no per-scene dataset is made).
-    """
-    moments, swept = layout["moments"], layout["swept"]
-    if len(records) != layout["scenes"]:
-        raise ValueError(f"a scan of {layout['scenes']} scenes cannot be assembled from {len(records)}")
-    shape, dims = (len(moments), *(len(v) for v in swept.values())), ("body", *swept)
-    owners, seen = {}, set()
-    for record in records:  # one set of Variables per distinct layout of record (kind, fields)
-        key = (str(record["kind"]), tuple(record))
-        if key not in seen:
-            seen.add(key)
-            data, coords, attrs = _record_variables(record)
-            for name, var in (*data.items(), *coords.items()):
-                owners.setdefault(name, (var, name in coords))
-    first_attrs = _record_variables(records[0])[2]
-    data, coords = {}, {}
-    for name, (var, is_coord) in owners.items():
-        if name in ("I1", "I2", "I3"):
-            continue
-        values = [record.get(name) for record in records]
-        if is_coord and name not in swept and all(v is not None and np.array_equal(v, var.values) for v in values):
-            coords[name] = var  # the same in every scene (the sample index, a fixed parameter)
-            continue
-        if any(v is None for v in values):
-            if var.dtype.kind not in "biuf":
-                raise ValueError(f"scene variable {name!r} ({var.dtype}) is missing from some scenes")
-            dtype = np.result_type(var.dtype, np.float64) if var.dtype.kind in "biu" else var.dtype
-            values = [np.full(var.shape, np.nan, dtype) if v is None else v for v in values]
-        stacked = np.stack(values).reshape(shape + var.shape)
-        if name in swept:  # a swept parameter: the coordinate of its dimension
-            axis = dims.index(name)
-            coords[name] = xr.Variable((name,), stacked[(0,) * axis + (slice(None),) + (0,) * (len(dims) - axis - 1)],
-                                       var.attrs)
-            continue
-        (coords if is_coord else data)[name] = xr.Variable(dims + var.dims, stacked, var.attrs)
-    out = xr.Dataset(data, coords=coords, attrs=first_attrs)
-    out = out.assign_coords(
-        I1=("body", moments[:, 0], {"units": "kg m2", "long_name": "principal moment of inertia 1"}),
-        I2=("body", moments[:, 1], {"units": "kg m2", "long_name": "principal moment of inertia 2"}),
-        I3=("body", moments[:, 2], {"units": "kg m2", "long_name": "principal moment of inertia 3"}),
-        body=("body", np.arange(len(moments), dtype=np.int64), {"units": "1", "long_name": "body index"}))
-    for name, v in (body_coords or {}).items():
-        v = np.asarray(v)
-        if v.shape != (len(moments),):
-            raise ValueError(f"body_coords[{name!r}] must have one value per body ({len(moments)}), got shape "
-                             f"{v.shape}")
-        out = out.assign_coords({name: ("body", v, {"units": "1", "long_name": name.replace("_", " ")})})
-    out = out.transpose("body", *swept, ..., "sample", missing_dims="ignore")  # no "sample": no per-sample array kept
-    out.attrs["title"] = "tumble scan: measured rates against linear theory"
-    return out
-
-
 def scan(bodies, axis=(1, 2, 3), spin=1.0, amplitude=1e-3, method="auto", *, samples=256, seed=0,
          body_coords=None, **options):
     """Measure every combination of scene parameters; scan parameters become coordinates.
@@ -1329,6 +1174,8 @@ def regress_scan(ds):
         ``intercept``, ``r2``, ``median_rel_error``, ``worst_rel_error``, ``points``, and the worst point's
         ``rate``, ``rate_theory`` and scan coordinates.
     """
+    import xarray as xr
+
     rows = []
     for kind in ("periodic", "exponential"):
         mask = ds["kind"] == kind
@@ -1344,13 +1191,13 @@ def regress_scan(ds):
             for name, variable in [*point.data_vars.items(), *point.coords.items()]:
                 if variable.ndim == 0:
                     worst[f"worst_{name}"] = ((), variable.values.item(),
-                                              {"units": _KIND_UNITS[kind] if name.startswith("rate")
+                                              {"units": KIND_UNITS[kind] if name.startswith("rate")
                                                else variable.attrs.get("units", "1"),
                                                "long_name": f"{name} of the scene with the largest error"})
         rel = ds["rel_error"].where(mask).values
         rows.append(xr.Dataset({
             "slope": ((), fit.slope, {"units": "1", "long_name": "slope of measured rate against theory"}),
-            "intercept": ((), fit.intercept, {"units": _KIND_UNITS[kind], "long_name": "intercept"}),
+            "intercept": ((), fit.intercept, {"units": KIND_UNITS[kind], "long_name": "intercept"}),
             "r2": ((), fit.r2, {"units": "1", "long_name": "coefficient of determination"}),
             "median_rel_error": ((), float(np.nanmedian(rel)), {"units": "1",
                                                                 "long_name": "median relative error over scenes"}),
@@ -1381,6 +1228,8 @@ def flip_time_law(ds):
         ``slope`` (s), ``slope_theory = 1/rate_theory`` (s), ``rel_error``, ``intercept`` (s), ``r2``, over the
         scan's other dimensions.
     """
+    import xarray as xr
+
     if "amplitude" not in ds.dims or ds.sizes["amplitude"] < 2:
         raise ValueError("the flip-time law needs a scan over at least two amplitudes (an 'amplitude' dimension)")
     if "flip_first" not in ds:
@@ -1455,6 +1304,8 @@ def attitude_trace(body, axis=2, spin=1.0, amplitude=1e-3, method="auto", *, hor
         ``attitude_moments(component)`` (kg m²); ``component`` is the principal axis (1, 2, 3), as in
         ``trace_omega``.
     """
+    import xarray as xr
+
     moments = one_body(body)
     w0 = perturbed_spins(moments, axis, spin, amplitude, 1, seed=seed)
     _, params, fn, _ = torque_spec(torque)

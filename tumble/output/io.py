@@ -46,7 +46,6 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
-import xarray as xr
 
 from .. import _disk
 from .._version import __version__
@@ -246,6 +245,8 @@ def provenance(ds, *, title=None, study=None, seed_entropy=None, action=None):
     ValueError
         If ``seed_entropy`` is not a non-negative integer.
     """
+    import xarray as xr  # here, not at the top: the command's process runs scenes with this module and no xarray
+
     if not isinstance(ds, xr.Dataset):
         raise TypeError(f"ds must be an xarray.Dataset, got {type(ds).__name__}")
     attrs = dict(ds.attrs)
@@ -510,6 +511,8 @@ def read_dataset(path, *, require_tumble=False):
         ``"<path> is not a netCDF file: ..."`` for a directory, an empty, foreign or damaged file;
         ``"<path> is not a tumble result: ..."`` with ``require_tumble``.
     """
+    import xarray as xr
+
     path = os.fspath(path)
     if not os.path.exists(path):
         raise FileNotFoundError(f"{path}: no such file")

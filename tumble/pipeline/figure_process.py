@@ -1,21 +1,27 @@
-"""A study's figures drawn by a process of their own, started before the scenes run (``tumble run``).
+"""A study's result written and its figures drawn by a process of their own, started before the scenes run
+(``tumble run``).
 
-From the shell, a small study's figures cost more than its scenes: importing matplotlib takes 0.3 s and drawing
-a figure at 200 dpi 0.15-0.3 s, on one core, after the scenes. :class:`FigureProcess` starts
-``python -m tumble.pipeline.figure_process`` as soon as the study is planned: it imports matplotlib and xarray on
-the second core while this process imports numba and runs the scenes, then draws the figures
-(:func:`tumble.output.figures.save_figures`, the same call on the same stored dataset, pickled to it) while this
-process writes the netCDF file. With two figures or more and two cores it forks once it has the dataset, and the
-two draw the figures at once, each taking the next from a common queue (a study's two figures: 0.3 s instead of
-0.6). The files are those the in-process call writes, byte for byte.
+From the shell, a small study's figures and result file cost more than its scenes: importing matplotlib takes
+0.3 s, xarray with pandas 0.3 s, and drawing a figure at 200 dpi 0.15-0.3 s, on one core, after the scenes.
+:class:`FigureProcess` starts ``python -m tumble.pipeline.figure_process`` before the study is planned: it imports
+matplotlib, xarray and netCDF4 on the second core while this process imports numba and runs the scenes. Then,
+for most studies, it takes the scenes' records (plain NumPy arrays, pickled to it), builds the result dataset
+(:func:`tumble.pipeline.results.result_dataset`, the call :func:`tumble.run_study` makes), writes the netCDF file
+and draws the figures (:func:`~tumble.pipeline.results.stage_result`) and sends back the summary: the command's
+process never imports xarray (:meth:`FigureProcess.submit_result`). A study whose figures need a trace besides
+the scenes' (attitude, invariant drift, flat spin, work-precision) builds its dataset itself and sends it here
+to be drawn while it writes the file (:meth:`FigureProcess.submit`). With two figures or more and two cores the
+process forks once it has the dataset, and the two draw the figures at once, each taking the next from a common
+queue (a study's two figures: 0.3 s instead of 0.6). The files are those the in-process call writes, byte for
+byte.
 
 The process is a helper, never a second place where things can go wrong silently:
 
 - it ignores Ctrl-C (the terminal sends SIGINT to both; this process reports it) and ends when its input closes,
   which happens when this process ends, however it ends;
-- an error while drawing (an unwritable folder, a full disk) comes back as the exception it was and is raised here;
-- if the process cannot start or dies, :meth:`FigureProcess.result` returns None and the caller draws the
-  figures itself: slower, never different;
+- an error while writing or drawing (an unwritable folder, a full disk) comes back as the exception it was and is raised here;
+- if the process cannot start or dies, :meth:`FigureProcess.result` returns None and the caller builds, writes and
+  draws itself: slower, never different;
 - :meth:`FigureProcess.close` ends it before the caller removes a staging folder it may still be writing into; its
   forked child ends with it (Linux's ``PR_SET_PDEATHSIG``; elsewhere it draws alone, without a child).
 
@@ -39,7 +45,8 @@ MAX_BYTES = 100e6
 
 
 class FigureProcess:
-    """A process that imports matplotlib now and draws one set of figures later (:meth:`submit`, :meth:`result`)."""
+    """A process that imports matplotlib and xarray now, and later writes one result and draws its figures
+    (:meth:`submit_result`) or draws one set of figures (:meth:`submit`); :meth:`result` waits for it."""
 
     def __init__(self):
         package_root = str(Path(__file__).resolve().parents[2])  # the folder holding the tumble package
@@ -54,21 +61,37 @@ class FigureProcess:
     def submit(self, ds, names, directory, stem, formats):
         """Send the figures to draw: :func:`tumble.output.figures.save_figures`'s arguments (``ds`` is pickled; over
         :data:`MAX_BYTES` nothing is sent, the process ends and :meth:`result` says None)."""
+        self._send(("figures", ds, list(names), str(directory), stem, tuple(formats)), ds.nbytes)
+
+    def _send(self, request, nbytes):
         if self._process is None:
             return
-        if ds.nbytes > MAX_BYTES:
+        if nbytes > MAX_BYTES:
             self.close()
             return
         try:
-            pickle.dump((ds, list(names), str(directory), stem, tuple(formats)), self._process.stdin,
-                        protocol=pickle.HIGHEST_PROTOCOL)
+            pickle.dump(request, self._process.stdin, protocol=pickle.HIGHEST_PROTOCOL)
             self._process.stdin.close()
             self._submitted = True
         except (OSError, ValueError):  # the process is gone (BrokenPipeError) or its pipe closed
             self.close()
 
+    def submit_result(self, records, shape, resolved, directory, stem, action):
+        # size: tumble.pipeline.results.result_dataset's and stage_result's arguments
+        """Send a study's scene records to build its result from (:func:`tumble.pipeline.results.result_dataset` with
+        the keywords ``shape``), write it and its figures into ``directory`` (:func:`~tumble.pipeline.results.
+        stage_result`) and summarise it: :meth:`result` then says ``(summary text, figure paths)``. Over
+        :data:`MAX_BYTES` of records nothing is sent, as :meth:`submit`."""
+        from ..measure.records import stack_records  # NumPy only: this module is imported before numpy is
+
+        nbytes = sum(getattr(value, "nbytes", 0) for record in records for value in record.values())
+        if self._process is not None and nbytes <= MAX_BYTES:
+            records = stack_records(records)  # sent in a few large arrays, not thousands of small ones
+        self._send(("result", records, shape, resolved, str(directory), stem, action), nbytes)
+
     def result(self):
-        """The paths written, once the process is done; None if it could not draw them (the caller draws them).
+        """The paths written, once the process is done (after :meth:`submit_result`: the summary and the paths);
+        None if it could not do it (the caller does it itself).
 
         Raises
         ------
@@ -86,6 +109,8 @@ class FigureProcess:
             return None
         if not ok:
             raise value
+        if isinstance(value, tuple):  # a result's (summary, paths)
+            return value[0], [Path(path) for path in value[1]]
         return [Path(path) for path in value]
 
     def close(self):
@@ -138,21 +163,22 @@ def _cores():
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
-def _draw(ds, names, directory, stem, formats):
-    """:func:`tumble.output.figures.save_figures`, shared with a forked child when there are two figures or more
-    and two cores. Returns the paths in ``save_figures``' order.
+def _start_drawing(ds, names, directory, stem, formats):
+    """Start :func:`tumble.output.figures.save_figures`, shared with a forked child when there are two figures or
+    more and two cores; return a function that finishes it and returns the paths in ``save_figures``' order.
 
-    The request is checked first, as ``save_figures`` does, so an unsuitable one writes no file. Then this process
-    and the child take the figures one at a time from a common queue (a pipe holding their indices) until it is
-    empty: whichever is free draws the next, so a long figure does not hold up the rest. The child ends with this
-    process (Linux's ``PR_SET_PDEATHSIG``; :meth:`FigureProcess.close` kills this one); where that cannot be
-    arranged there is no child, and a figure the child took but did not draw (it died) is drawn here."""
+    The request is checked first, as ``save_figures`` does, so an unsuitable one writes no file. The child starts
+    at once; this process joins it when the returned function is called (after writing the netCDF file, for a
+    result): both then take the figures one at a time from a common queue (a pipe holding their indices) until it
+    is empty, so a long figure does not hold up the rest. The child ends with this process (Linux's
+    ``PR_SET_PDEATHSIG``; :meth:`FigureProcess.close` kills this one); where that cannot be arranged there is no
+    child, and a figure the child took but did not draw (it died) is drawn here."""
     from ..output import figures
 
     names, formats = figures.check_request(ds, names, formats)
     die_with_parent = _linux_die_with_parent() if len(names) > 1 and _cores() > 1 else None
     if die_with_parent is None:
-        return [str(path) for path in figures.save_figures(ds, names, directory, stem, formats=formats)]
+        return lambda: [str(path) for path in figures.save_figures(ds, names, directory, stem, formats=formats)]
 
     def draw(name):
         return [str(path) for path in figures.save_figures(ds, [name], directory, stem, formats=formats)]
@@ -181,24 +207,45 @@ def _draw(ds, names, directory, stem, formats):
         finally:
             os._exit(0)
     os.close(answer_in)
-    try:
-        paths = drain()
-    finally:
-        with os.fdopen(answer, "rb") as pipe:
-            data = pipe.read()
-        os.waitpid(child, 0)
-        os.close(queue)
-    try:
-        ok, value = pickle.loads(data)
-    except Exception:  # noqa: BLE001 - the child died: what it took and did not answer for is drawn below
-        ok, value = True, {}
-    if not ok:
-        raise value
-    paths.update(value)
-    for name in names:
-        if name not in paths:
-            paths[name] = draw(name)
-    return [path for name in names for path in paths[name]]
+
+    def finish():
+        try:
+            paths = drain()
+        finally:
+            with os.fdopen(answer, "rb") as pipe:
+                data = pipe.read()
+            os.waitpid(child, 0)
+            os.close(queue)
+        try:
+            ok, value = pickle.loads(data)
+        except Exception:  # noqa: BLE001 - the child died: what it took and did not answer for is drawn below
+            ok, value = True, {}
+        if not ok:
+            raise value
+        paths.update(value)
+        for name in names:
+            if name not in paths:
+                paths[name] = draw(name)
+        return [path for name in names for path in paths[name]]
+
+    return finish
+
+
+def _figures(ds, names, directory, stem, formats):
+    """A ``figures`` request: draw them."""
+    return _start_drawing(ds, names, directory, stem, formats)()
+
+
+def _result(records, shape, resolved, directory, stem, action):
+    """A ``result`` request: build the dataset, write it and its figures (drawn by two processes while the file is
+    written), return ``(summary text, figure paths)``."""
+    from ..measure.records import unstack_records
+    from . import results
+
+    ds = results.result_dataset(unstack_records(records), **shape, resolved=resolved)
+    stored, figures = results.stage_result(ds, resolved, Path(directory), stem, action=action,
+                                           start_drawing=_start_drawing)
+    return results.summary_table(stored), [str(path) for path in figures]
 
 
 def _warm_up():
@@ -217,15 +264,17 @@ def _serve():
     """The process's side: import what drawing needs, wait for one request, draw, answer."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to report
     from ..output import figures, io  # noqa: F401 - imported while the parent runs the scenes
+    from . import results  # noqa: F401 - xarray, netCDF4; no numba
 
     io.assume_no_dask_arrays()
     if _cores() > 1 and os.name == "posix" and not select.select([sys.stdin], [], [], 0)[0]:
         _warm_up()  # nothing sent yet: the scenes still run
     try:
-        ds, names, directory, stem, formats = pickle.load(sys.stdin.buffer)
+        kind, *request = pickle.load(sys.stdin.buffer)
     except EOFError:  # the parent ended (or needs no figures) before sending any
         return
-    sys.stdout.buffer.write(_reply(lambda: _draw(ds, names, directory, stem, formats)))
+    serve = {"figures": _figures, "result": _result}[kind]
+    sys.stdout.buffer.write(_reply(lambda: serve(*request)))
     sys.stdout.buffer.flush()
 
 

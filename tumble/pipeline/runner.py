@@ -32,18 +32,18 @@ from ..engine.sampling import CHUNK
 from ..engine import cost
 from ..measure import model_scenes
 from ..measure import scenes as study
-from ..output import io
 from ..physics import theory
 from ..registry import STEPPING
-from . import checkpoint, config
+from . import checkpoint, config, results
 from .config import StudyError
 
-__all__ = ["DEFAULT_CHUNK_SAMPLES", "PER_SAMPLE", "PreparedStudy", "Task", "chunk_samples_size", "compute_samples",
-           "compute_scenes", "compute_task", "default_chunk_scenes", "execute_study", "open_checkpoint", "output_stem",
-           "plan", "plan_tasks", "prepare_study", "run_scenes", "run_study", "sample_ranges", "scene_job", "summary_table", "write_outputs"]
+__all__ = ["DEFAULT_CHUNK_SAMPLES", "Outputs", "PER_SAMPLE", "PreparedStudy", "TRACE_FIGURES", "Task",
+           "chunk_samples_size", "compute_samples", "compute_scenes", "compute_task", "default_chunk_scenes",
+           "execute_study", "needs_traces", "open_checkpoint", "output_stem", "plan", "plan_tasks", "prepare_study",
+           "run_scenes", "run_study", "sample_ranges", "scene_job", "write_outputs", "write_records"]
 
-#: Per-sample variables a result may keep (``outputs.arrays``); the rest are dropped after the fit.
-PER_SAMPLE = registry.PER_SAMPLE_ARRAYS
+#: Per-sample variables a result may keep (``outputs.arrays``): :data:`tumble.pipeline.results.PER_SAMPLE`.
+PER_SAMPLE = results.PER_SAMPLE
 
 #: Figures that need curves :func:`tumble.measure.scenes.measure` keeps only on request.
 _CURVES = {"norm_growth": "norm", "flip_components": "trace"}
@@ -566,47 +566,55 @@ def run_scenes(job, *, store=None, client=None, chunk_scenes=None, chunk_samples
     return [scenes[i] for i in range(n)]
 
 
-def _run(resolved, file, progress, *, job=None, store=None, client=None, chunk_scenes=None, chunk_samples=None,
-         log=None):
-    # size: the prepared study's parts and the run's options (client, chunking, log), each passed on to run_scenes
-    """The result dataset of a resolved study (nothing written but the checkpoint's chunks)."""
-    job = job or scene_job(resolved, file)
+#: Figures that draw a trace besides the scenes' records (:func:`_extras`).
+TRACE_FIGURES = frozenset({"invariant_drift", "work_precision", "flat_spin", *config.ATTITUDE_FIGURES})
+
+
+def needs_traces(resolved):
+    """Whether the study's figures draw a trace besides its scenes' records: its result is then built where the
+    scenes ran (the traces are xarray Datasets), not from the records alone (:func:`write_records`)."""
+    return not TRACE_FIGURES.isdisjoint(resolved["outputs"]["figures"])
+
+
+def _extras(resolved, job, progress):
+    """The datasets some figures draw besides the scenes' (invariant drift, work-precision, flat spin, attitude),
+    computed from the study's first scene; none when its figures need none."""
+    if not needs_traces(resolved):
+        return []
     p = job.plan
     values, options = p.values, p.options
-    scenes = run_scenes(job, store=store, client=client, chunk_scenes=chunk_scenes, chunk_samples=chunk_samples,
-                        progress=progress, log=log)
-    ds = study.assemble_scan(job.layout, scenes, p.body_coords) if job.scanned else study.scene_dataset(scenes[0])
-    ds = checkpoint.normalise_scene(ds)
-    keep = resolved["outputs"]["arrays"]
-    ds = ds.drop_vars([name for name in PER_SAMPLE if name in ds and name not in keep])
-    if "sample" in ds and not any(name in ds for name in PER_SAMPLE):
-        ds = ds.drop_vars("sample")
     figures = resolved["outputs"]["figures"]
     first_body = np.atleast_2d(p.moments)[0]
     scene = (first_body, _first(values["axis"]), _first(values["spin"]), _first(values["amplitude"]))
+    extras = []
     if "invariant_drift" in figures:
         methods = [m for m in np.atleast_1d(values["method"]) if m in STEPPING] or list(STEPPING)
-        ds = ds.merge(study.invariant_drift(*scene, methods, samples=min(_DRIFT_SAMPLES, p.samples),
-                                            seed=p.seed, horizon=options["horizon"]))
+        extras.append(study.invariant_drift(*scene, methods, samples=min(_DRIFT_SAMPLES, p.samples), seed=p.seed,
+                                            horizon=options["horizon"]))
     if "work_precision" in figures:
         from ..measure import precision  # scipy's solve_ivp runs: imported only when asked for
 
-        ds = ds.merge(precision.work_precision(*scene, samples=p.samples, t_end=options["horizon"] or 20.0,
+        extras.append(precision.work_precision(*scene, samples=p.samples, t_end=options["horizon"] or 20.0,
                                                seed=p.seed, progress=progress))
     if "flat_spin" in figures:  # a damper's turn-over to the flat spin, from the first scene
         parameters = {key: _first(values[key]) for key in registry.model_kind("damper").parameters}
         damper = model_scenes.model_of("damper", first_body, _first(values["axis"]), parameters)
         method = _first(values["method"])
-        ds = ds.merge(model_scenes.flat_spin_trace(damper, *scene[1:], seed=p.seed,
+        extras.append(model_scenes.flat_spin_trace(damper, *scene[1:], seed=p.seed,
                                                    method="rk8" if method == "auto" else method))
     if any(name in config.ATTITUDE_FIGURES for name in figures):
         body = resolved["body"] if "body" not in resolved["scan"] else {}
         method = _first(values["method"])
-        ds = ds.merge(study.attitude_trace(*scene, method if method in STEPPING else "auto", seed=p.seed,
+        extras.append(study.attitude_trace(*scene, method if method in STEPPING else "auto", seed=p.seed,
                                            torque=options["torque"], horizon=options["horizon"],
                                            shape=body.get("shape", ""), shape_parameters=body.get("dimensions")))
-    ds.attrs["title"] = resolved["title"]
-    return ds
+    return extras
+
+
+def _result_shape(job):
+    """What places a study's records in its dataset (:func:`tumble.pipeline.results.result_dataset`'s keywords),
+    as plain data."""
+    return {"layout": job.layout, "scanned": job.scanned, "body_coords": job.body_coords}
 
 
 def open_checkpoint(resolved, job, directory, stem):
@@ -614,11 +622,15 @@ def open_checkpoint(resolved, job, directory, stem):
     return checkpoint.Checkpoint(directory, stem, checkpoint.study_hash(resolved), job.layout["scenes"])
 
 
-def write_outputs(ds, resolved, directory, stem, *, action=None, figure_process=None):
-    """Write ``<directory>/<stem>.nc`` and the study's figures; return ``(stored dataset, paths)``.
+def _write_staged(directory, stem, stage, figure_process=None):
+    """Write a study's files through a staging folder: ``stage(staging)`` writes ``<stem>.nc`` and the figures into
+    it and returns ``(what to return, figure paths)``; then they are renamed into ``directory``. Returns ``(that,
+    paths written)``.
 
-    ``figure_process`` (a :class:`~tumble.pipeline.figure_process.FigureProcess`, as ``tumble run`` starts one) draws
-    the figures while the netCDF file is written; without it, or if it cannot, they are drawn here.
+    The result set appears whole or not at all: the file and the figures are written into a hidden staging folder
+    beside the results, then renamed into place, figures first and the .nc last (renames within a folder do not
+    fail half-way); on any error or Ctrl-C before that, the staging folder goes and earlier results are left as
+    they were. A staging folder left by kill -9 is removed by the next run.
 
     Raises
     ------
@@ -627,25 +639,11 @@ def write_outputs(ds, resolved, directory, stem, *, action=None, figure_process=
     """
     directory = Path(directory)
     path = directory / f"{stem}.nc"
-    names, formats = resolved["outputs"]["figures"], tuple(resolved["outputs"]["format"])
-    # The result set appears whole or not at all: the file and the figures are written into a hidden staging
-    # folder beside the results, then renamed into place, figures first and the .nc last (renames within a
-    # folder do not fail half-way); on any error or Ctrl-C before that, the staging folder goes and earlier
-    # results are left as they were. A staging folder left by kill -9 is removed by the next run.
     staging = checkpoint.staging_folder(directory, stem)
     try:
         shutil.rmtree(staging, ignore_errors=True)
         staging.mkdir(parents=True)
-        stored = io.stored_form(ds, title=resolved["title"], study=resolved, seed_entropy=ds.attrs.get("seed_entropy"),
-                                action=action)
-        if figure_process is not None and names:
-            figure_process.submit(stored, names, staging, stem, formats)
-        io.write_dataset(stored, staging / path.name, stored=True)  # its own lock: no dask scheduler is asked
-        staged = figure_process.result() if figure_process is not None and names else None
-        if staged is None:
-            from ..output import figures as plots  # matplotlib: only where figures are drawn
-
-            staged = plots.save_figures(stored, names, staging, stem, formats=formats)
+        value, staged = stage(staging)
         figures = [directory / figure.name for figure in staged]
         for figure in staged:
             os.replace(figure, directory / figure.name)
@@ -659,7 +657,45 @@ def write_outputs(ds, resolved, directory, stem, *, action=None, figure_process=
         if figure_process is not None:
             figure_process.close()  # before the staging folder goes: it may still be writing into it
         shutil.rmtree(staging, ignore_errors=True)
-    return stored, [path, *figures]
+    return value, [path, *figures]
+
+
+def write_outputs(ds, resolved, directory, stem, *, action=None, figure_process=None):
+    """Write ``<directory>/<stem>.nc`` and the study's figures; return ``(stored dataset, paths)``.
+
+    ``figure_process`` (a :class:`~tumble.pipeline.figure_process.FigureProcess`, as ``tumble run`` starts one) draws
+    the figures while the netCDF file is written; without it, or if it cannot, they are drawn here.
+
+    Raises
+    ------
+    tumble.pipeline.checkpoint.OutputError
+        A file cannot be written (unwritable folder, disk full): an earlier ``<stem>.nc`` is left as it was.
+    """
+    def start_drawing(stored, names, staging, stem, formats):
+        figure_process.submit(stored, names, staging, stem, formats)
+        return figure_process.result
+
+    return _write_staged(directory, stem, lambda staging: results.stage_result(
+        ds, resolved, staging, stem, action=action, start_drawing=figure_process and start_drawing), figure_process)
+
+
+def write_records(records, job, resolved, directory, stem, *, action=None, figure_process):
+    # size: the records, the job that places them, and write_outputs' arguments
+    """What :func:`write_outputs` writes, from the scene records of a study without extra traces (:func:`_extras`):
+    ``figure_process`` builds the dataset, writes the files and returns the summary
+    (:meth:`~tumble.pipeline.figure_process.FigureProcess.submit_result`), so that this process never imports
+    xarray; if it cannot, the dataset is built and written here. Returns ``(summary text, paths)``."""
+    def stage(staging):
+        figure_process.submit_result(records, _result_shape(job), resolved, staging, stem, action)
+        answer = figure_process.result()
+        if answer is not None:
+            return answer
+        stored, figures = results.stage_result(results.result_dataset(records, **_result_shape(job),
+                                                                      resolved=resolved),
+                                               resolved, staging, stem, action=action)
+        return results.summary_table(stored), figures
+
+    return _write_staged(directory, stem, stage, figure_process)
 
 
 class PreparedStudy(NamedTuple):
@@ -694,34 +730,52 @@ def prepare_study(source, *, overrides=None, out=None, formats=None, default_dir
     return PreparedStudy(resolved, file, stem, directory, job, store)
 
 
+class Outputs(NamedTuple):
+    """What :func:`execute_study` gives back."""
+
+    dataset: object  # the result (as stored, when written); None where the figure process built and wrote it
+    paths: list  # the files written: <stem>.nc, then the figures
+    summary: str | None  # results.summary_table's text, where the figure process built the result (else None)
+
+
 def execute_study(prepared, *, progress=None, client=None, chunk_scenes=None, chunk_samples=None, log=None,
                   action=None, fresh=False, figure_process=None):
     # size: the prepared study and the run's options (progress, cluster, chunking, log, history, fresh, figures)
     """Run a prepared study's scenes (here, or on the dask ``client``), resuming from its checkpoint, and write
-    its outputs; return ``(dataset, paths written)`` — the stored dataset when written, else ``(dataset, [])``.
+    its outputs; return :class:`Outputs`: the dataset (the stored one when written) and the paths written.
     ``log`` receives one line per resumed or finished chunk; ``action`` is the provenance's command; ``fresh``
-    discards the checkpoint first instead of resuming from it; ``figure_process`` draws the figures
-    (:func:`write_outputs`).
+    discards the checkpoint first instead of resuming from it.
+
+    ``figure_process`` (``tumble run``'s :class:`~tumble.pipeline.figure_process.FigureProcess`) draws the figures
+    (:func:`write_outputs`); for a study whose figures need no extra trace it also builds and writes the result
+    from the scene records (:func:`write_records`), and :class:`Outputs` holds its summary instead of a dataset.
 
     A run that writes holds its folder's lock for the study's stem (:meth:`tumble.pipeline.checkpoint.Checkpoint.locked`)
     from before it reads the checkpoint until its files are in place: a second run of the same stem into the same
     folder is refused at once (:class:`tumble.pipeline.checkpoint.FolderBusy`) instead of sharing its chunks and
     staging folder.
     """
-    if prepared.directory is None:
-        ds = _run(prepared.resolved, prepared.file, progress, job=prepared.job, client=client,
-                  chunk_scenes=chunk_scenes, chunk_samples=chunk_samples, log=log)
-        return ds, []
-    with prepared.store.locked():
-        if fresh:
-            prepared.store.remove()
-        ds = _run(prepared.resolved, prepared.file, progress, job=prepared.job, store=prepared.store, client=client,
-                  chunk_scenes=chunk_scenes, chunk_samples=chunk_samples, log=log)
-        stored, paths = write_outputs(ds, prepared.resolved, prepared.directory, prepared.stem, action=action,
-                                      figure_process=figure_process)
-        prepared.store.remove()
-        prepared.store.clean_partial_results()
-    return stored, paths
+    job, resolved, store = prepared.job, prepared.resolved, prepared.store
+    with store.locked() if store is not None else contextlib.nullcontext():
+        if fresh and store is not None:
+            store.remove()
+        records = run_scenes(job, store=store, client=client, chunk_scenes=chunk_scenes, chunk_samples=chunk_samples,
+                             progress=progress, log=log)
+        extras = _extras(resolved, job, progress)
+        if prepared.directory is None:
+            return Outputs(results.result_dataset(records, **_result_shape(job), resolved=resolved, extras=extras), [],
+                           None)
+        if figure_process is not None and not needs_traces(resolved):
+            summary, paths = write_records(records, job, resolved, prepared.directory, prepared.stem, action=action,
+                                           figure_process=figure_process)
+            outputs = Outputs(None, paths, summary)
+        else:
+            ds = results.result_dataset(records, **_result_shape(job), resolved=resolved, extras=extras)
+            outputs = Outputs(*write_outputs(ds, resolved, prepared.directory, prepared.stem, action=action,
+                                             figure_process=figure_process), None)
+        store.remove()
+        store.clean_partial_results()
+    return outputs
 
 
 def run_study(source, *, overrides=None, out=None, progress=None, scheduler=None, chunk_scenes=None,
@@ -775,9 +829,8 @@ def run_study(source, *, overrides=None, out=None, progress=None, scheduler=None
         overrides = {**(overrides or {}), "integration.device": device}
     prepared = prepare_study(source, overrides=overrides, out=out)
     with _scheduler(scheduler) as client:
-        ds, _ = execute_study(prepared, progress=progress, client=client, chunk_scenes=chunk_scenes,
-                              chunk_samples=chunk_samples)
-    return ds
+        return execute_study(prepared, progress=progress, client=client, chunk_scenes=chunk_scenes,
+                             chunk_samples=chunk_samples).dataset
 
 
 @contextlib.contextmanager
@@ -790,64 +843,3 @@ def _scheduler(scheduler):
 
     with distributed.connect(scheduler) as client:
         yield client
-
-
-def _scene_label(ds, index):
-    """``axis=2 amplitude=0.001``: the scan coordinates of one scene (dimensions of length 1 left out)."""
-    if not index:
-        return f"axis={int(_only(ds.axis))} spin={_only(ds.spin):g} amplitude={_only(ds.amplitude):g}"
-    parts = []
-    for dim, i in zip(ds.rate.dims, index):
-        if ds.sizes[dim] == 1:
-            continue
-        value = (ds["body_label"] if dim == "body" and "body_label" in ds.coords else ds[dim]).values[i]
-        parts.append(f"{dim}={value:g}" if isinstance(value, float) else f"{dim}={value}")
-    return " ".join(parts) or "scene"
-
-
-def _only(variable):
-    """The value of a variable holding one value, whatever its number of (length-1) dimensions."""
-    return float(np.asarray(variable).reshape(-1)[0])
-
-
-def summary_table(ds, limit=24):
-    """Measured against theory, as text: one line per scene, or per kind for a scan of more than ``limit``."""
-    rate = np.atleast_1d(ds.rate.values)
-    kinds, errors = np.atleast_1d(ds.kind.values).astype(str), np.atleast_1d(ds.rel_error.values)
-    lines = []
-    if rate.size <= limit:
-        lines.append(f"{'scene':38s} {'kind':11s} {'measured':>12s} {'theory':>12s} {'rel. error':>10s}")
-        for index in np.ndindex(ds.rate.shape):
-            lines.append(f"{_scene_label(ds, index)[:38]:38s} {str(ds.kind.values[index]):11s} "
-                         f"{float(ds.rate.values[index]):12.6g} {float(ds.rate_theory.values[index]):12.6g} "
-                         f"{float(ds.rel_error.values[index]):10.2e}")
-    else:
-        lines.append(f"{'kind':11s} {'scenes':>7s} {'median rel. error':>18s} {'worst':>10s}  worst scene")
-        for kind in sorted(set(kinds.ravel())):
-            picked = np.where(kinds == kind, errors, np.nan)
-            if np.isfinite(picked).any():
-                worst = np.unravel_index(np.nanargmax(picked), picked.shape)
-                lines.append(f"{kind:11s} {np.count_nonzero(kinds == kind):7d} {np.nanmedian(picked):18.2e} "
-                             f"{picked[worst]:10.2e}  {_scene_label(ds, worst)}")
-    if "wp_error" in ds:
-        from ..measure import precision
-
-        fast = precision.speedups(ds)
-        lines.append(f"\n{'error':>8s} {'best tumble method':>20s} {'x DOP853':>9s} {'exact x DOP853':>15s}")
-        for i, error in enumerate(fast.error.values):
-            lines.append(f"{error:8.0e} {str(fast.best_tumble.values[i]):>20s} "
-                         f"{float(fast.best_tumble_speedup[i]):9.1f} {float(fast.exact_speedup[i]):15.1f}")
-        if "heyoka" not in [str(s) for s in ds["solver"].values]:
-            lines.append("heyoka not installed: no heyoka curve, errors against the closed form "
-                         "(pip install 'tumble[bench]')")
-    bad = int(np.count_nonzero(~np.isfinite(rate)))
-    if bad:
-        lines.append(f"{bad} scene(s) gave no rate: every sample was excluded (see sample_status)")
-    if rate.size == 1 and "rate_ci_low" in ds and "samples_used" in ds:  # one scene, perhaps a scan of one value
-        lines.append(f"95% interval of the median (order statistics) [{_only(ds.rate_ci_low):.8g}, {_only(ds.rate_ci_high):.8g}] "
-                     f"{ds.rate.attrs.get('units', '')}; {int(_only(ds.samples_used))} samples used, "
-                     f"{int(_only(ds.samples_excluded))} excluded")
-    if "flip_first" in ds and np.isfinite(ds.flip_first.values).any() and ds.flip_first.size == 1:
-        lines.append(f"first flip {_only(ds.flip_first):.4g} s (asymptote {_only(ds.flip_first_asymptote):.4g} s), "
-                     f"then every {_only(ds.flip_spacing):.6g} s (exact 2K/nu {_only(ds.flip_spacing_exact):.6g} s)")
-    return "\n".join(lines)
