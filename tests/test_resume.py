@@ -142,6 +142,20 @@ def test_a_chunk_of_another_tumble_version_is_never_reused(tmp_path, monkeypatch
     assert store.load() == ({}, {}) and store.stale == 1 and finished_chunks(tmp_path) == []
 
 
+def test_a_chunk_in_the_earlier_layout_is_never_reused(tmp_path):
+    # before the records were stacked, a chunk held each array of each scene under "<scene>/<name>"
+    resolved = config.load_study(SCAN)
+    job = runner.scene_job(resolved)
+    store = runner.open_checkpoint(resolved, job, tmp_path, "resume")
+    record = runner.compute_scenes(job, [0])[0]
+    store.write(checkpoint.scenes_name([0]), checkpoint._pack(
+        {checkpoint.HASH_ATTR: store.digest, "kind": "scenes", "scenes": {"0": list(record)}},
+        {f"0/{name}": value for name, value in record.items()}))
+    with pytest.raises(ValueError, match="earlier layout"):
+        checkpoint.unpack(store.folder / checkpoint.scenes_name([0]), store.digest, job.layout["scenes"])
+    assert store.load() == ({}, {}) and store.stale == 1 and finished_chunks(tmp_path) == []
+
+
 def test_the_study_hash_follows_every_number_but_not_where_or_how_figures_are_written():
     base = config.load_study(SCAN)
     digest = checkpoint.study_hash(base)

@@ -208,7 +208,7 @@ def stack_records(records):
         for name, dtype, _ in key:
             values = [records[i][name] for i in positions]
             if dtype == "U":
-                text[name] = ([str(value) if value.ndim == 0 else value.tolist() for value in values],
+                text[name] = ([value.tolist() for value in values],  # a str (0-d) or a list of them
                               [value.dtype.str for value in values])
             else:
                 numeric[name] = np.stack(values)

@@ -5,10 +5,11 @@ A study runs in *chunks*: a group of whole scenes, or — for a scene of many sa
 flushed, renamed) into the hidden folder ``<out>/.<stem>.chunks/`` as ``scenes-<first>-<last>.chunk`` or
 ``samples-<scene>-<start>-<stop>.chunk``. A chunk file is a NumPy ``.npz`` archive of two members, read with
 ``allow_pickle=False``: a JSON manifest (the study's hash, :func:`study_hash`; what the chunk holds; the dtype,
-shape and offset of every array) and one byte blob holding the arrays — each scene's record (every value of its
-dataset, :func:`tumble.measure.scenes.scene_records`) with its exact dtype, or the per-sample arrays of a range (:func:`tumble.measure.scenes.scene_samples`). (netCDF,
-one group per scene, cost 35 ms a scene to write; one archive member per array cost 10 ms a scene; the blob
-costs well under 1 ms.) The bytes are made where the chunk ran (:func:`pack_scenes`, :func:`pack_samples`: in a
+shape and offset of every array) and one byte blob holding the arrays — the scenes' records (every value of
+their datasets, :func:`tumble.measure.scenes.scene_records`) with their exact dtypes, stacked over the scenes that
+share their layout (:func:`tumble.measure.records.stack_records`; strings in the manifest), or the per-sample arrays
+of a range (:func:`tumble.measure.scenes.scene_samples`). (netCDF, one group per scene, cost 35 ms a scene to
+write; one archive member per array cost 10 ms a scene; one blob of every array 0.06 ms; stacked 0.03 ms.) The bytes are made where the chunk ran (:func:`pack_scenes`, :func:`pack_samples`: in a
 dask worker, that is the task's result) and written by the process that runs the study.
 
 A rerun of the same study into the same folder reads the chunks whose hash matches and runs only what they
@@ -42,6 +43,7 @@ import numpy as np
 
 from .. import _disk
 from .._version import __version__
+from ..measure.records import stack_records, unstack_records
 from ..output import io
 
 __all__ = ["Checkpoint", "Finished", "FolderBusy", "OutputError", "chunk_folder", "normalise_scene",
@@ -185,6 +187,11 @@ def _unpack(source):
 def pack_scenes(scenes, digest):
     """The bytes of a chunk of whole scenes.
 
+    The records are stored as :func:`tumble.measure.records.stack_records` columns (the numbers of the scenes
+    that share their names, dtypes and shapes stacked into one array; their strings in the manifest): a chunk of
+    38 scenes of a stability map packs in 1.3 ms and unpacks in 0.8 ms, against 2.4 and 3-4 ms with every array
+    of every scene apart, and is a fifth of the size.
+
     Parameters
     ----------
     scenes : Mapping[int, dict]
@@ -193,11 +200,13 @@ def pack_scenes(scenes, digest):
     digest : str
         :func:`study_hash` of the study.
     """
-    arrays, names = {}, {}
-    for index in sorted(scenes):
-        names[str(index)] = list(scenes[index])
-        arrays.update((f"{index}/{name}", value) for name, value in scenes[index].items())
-    return _pack({HASH_ATTR: digest, "kind": "scenes", "scenes": names}, arrays)
+    indices = sorted(scenes)
+    _, groups = stack_records([scenes[i] for i in indices])
+    arrays, layout = {}, []
+    for g, (positions, numeric, text, names) in enumerate(groups):
+        arrays.update((f"{g}/{name}", column) for name, column in numeric.items())
+        layout.append({"scenes": [indices[k] for k in positions], "names": names, "text": text})
+    return _pack({HASH_ATTR: digest, "kind": "scenes", "groups": layout}, arrays)
 
 
 def pack_samples(scene, stop, part, digest):
@@ -248,12 +257,17 @@ def unpack(source, digest, scenes):
     if manifest.get(HASH_ATTR) != digest:
         raise ValueError("a chunk of another study or tumble version")
     if manifest["kind"] == "scenes":
+        if "groups" not in manifest:
+            raise ValueError("a chunk of scenes in an earlier layout")
         out = {}
-        for key, names in manifest["scenes"].items():
-            index = int(key)
-            if not 0 <= index < scenes:
-                raise ValueError(f"scene {index} is not one of the study's {scenes}")
-            out[index] = {name: arrays[f"{index}/{name}"] for name in names}
+        for g, group in enumerate(manifest["groups"]):
+            indices = [int(index) for index in group["scenes"]]
+            outside = [index for index in indices if not 0 <= index < scenes]
+            if outside:
+                raise ValueError(f"scene {outside[0]} is not one of the study's {scenes}")
+            numeric = {name: arrays[f"{g}/{name}"] for name in group["names"] if name not in group["text"]}
+            out.update(zip(indices, unstack_records((len(indices), [(range(len(indices)), numeric, group["text"],
+                                                                     group["names"])]))))
         return Finished(out, {})
     index, start, stop = int(manifest["scene"]), int(manifest["start"]), int(manifest["stop"])
     if not (0 <= index < scenes and 0 <= start < stop and start == int(arrays["start"])
