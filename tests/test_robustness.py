@@ -575,8 +575,8 @@ def test_a_failure_after_the_netcdf_is_written_leaves_the_earlier_result_set(ear
         monkeypatch.setattr(figure_process.FigureProcess, "result", lambda self: None)  # as when it died
     else:  # what the figure process does with the records, done in this process (where save_figures fails)
         monkeypatch.setattr(figure_process, "_cores", lambda: 1)  # no forked child
-        monkeypatch.setattr(figure_process.FigureProcess, "submit_result",
-                            lambda self, records, *request: setattr(self, "request", (stack_records(records), *request)))
+        monkeypatch.setattr(figure_process.FigureProcess, "submit_result", lambda self, records, *request: setattr(
+            self, "request", (stack_records(records), *request)))
         monkeypatch.setattr(figure_process.FigureProcess, "result", lambda self: figure_process._result(*self.request))
     status = cli.main(["run", str(study), "--out", str(out), "--seed", "5"])
     err = capsys.readouterr().err

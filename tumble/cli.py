@@ -112,7 +112,7 @@ class InputError(ValueError):
 
 
 def _lean_kernel_process():
-    """Two settings of the command's own process (never of a Python caller's: ``tumble.run_study`` leaves the
+    """For ``tumble run`` and ``tumble check``: two settings of the command's own process (never of a Python caller's: ``tumble.run_study`` leaves the
     process as it found it) that cut the fixed costs of a run; each leaves alone what the user set.
 
     - ``OMP_WAIT_POLICY=PASSIVE``: between the many short parallel regions of a scan, numba's OpenMP workers sleep
@@ -333,6 +333,7 @@ def _check_tolerances(args):
 
 def _check(args):
     """``tumble check``: read, check, write the netCDF file and the figure, print the summary; the exit status."""
+    _lean_kernel_process()
     import numpy as np
 
     from .measure import check as checking

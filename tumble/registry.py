@@ -10,9 +10,10 @@ from typing import NamedTuple
 
 __all__ = ["ATTITUDE_FIGURES", "AUTO", "AUTO_STEPPING", "CHOICES", "DEFAULT_MODEL", "FIGURES", "FIT_NAMES", "FORMATS",
            "METHODS", "MIN_AMPLITUDE", "MODELS", "MODEL_KINDS", "MODEL_PARAMETERS", "Method", "Model", "ModelParameter",
-           "PER_SAMPLE_ARRAYS", "SAMPLE_STATUS_NAMES", "STATE_BLOCKS", "STATUSES", "STATUS_DRIFT", "STATUS_NAMES", "STATUS_NONFINITE",
-           "STATUS_OK", "STEPPING", "Status", "TORQUE_PROFILES", "TORQUE_USER", "TorqueProfile", "amplitude_problem",
-           "choose_method", "method", "model_kind", "model_parameter", "state_blocks", "torque_profile"]
+           "PER_SAMPLE_ARRAYS", "SAMPLE_STATUS_NAMES", "STATE_BLOCKS", "STATUSES", "STATUS_DRIFT", "STATUS_NAMES",
+           "STATUS_NONFINITE", "STATUS_OK", "STEPPING", "Status", "TORQUE_PROFILES", "TORQUE_USER", "TorqueProfile",
+           "amplitude_problem", "choose_method", "method", "model_kind", "model_parameter", "state_blocks",
+           "torque_profile"]
 
 
 class Method(NamedTuple):

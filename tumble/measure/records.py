@@ -120,7 +120,8 @@ def record_variables(record):
 
 
 def scene_dataset(record):
-    """The dataset of one scene (:func:`tumble.measure`) from its record (:func:`~tumble.measure.scenes.scene_records`)."""
+    """The dataset of one scene (:func:`tumble.measure`) from its record
+    (:func:`~tumble.measure.scenes.scene_records`)."""
     import xarray as xr
 
     data, coords, attrs = record_variables(record)

@@ -5,12 +5,13 @@ A study runs in *chunks*: a group of whole scenes, or — for a scene of many sa
 flushed, renamed) into the hidden folder ``<out>/.<stem>.chunks/`` as ``scenes-<first>-<last>.chunk`` or
 ``samples-<scene>-<start>-<stop>.chunk``. A chunk file is a NumPy ``.npz`` archive of two members, read with
 ``allow_pickle=False``: a JSON manifest (the study's hash, :func:`study_hash`; what the chunk holds; the dtype,
-shape and offset of every array) and one byte blob holding the arrays — the scenes' records (every value of
-their datasets, :func:`tumble.measure.scenes.scene_records`) with their exact dtypes, stacked over the scenes that
-share their layout (:func:`tumble.measure.records.stack_records`; strings in the manifest), or the per-sample arrays
-of a range (:func:`tumble.measure.scenes.scene_samples`). (netCDF, one group per scene, cost 35 ms a scene to
-write; one archive member per array cost 10 ms a scene; one blob of every array 0.06 ms; stacked 0.03 ms.) The bytes are made where the chunk ran (:func:`pack_scenes`, :func:`pack_samples`: in a
-dask worker, that is the task's result) and written by the process that runs the study.
+shape and offset of every array) and one byte blob holding the arrays — the scenes' records (every value of their
+datasets, :func:`tumble.measure.scenes.scene_records`) with their exact dtypes, stacked over the scenes that share
+their layout (:func:`tumble.measure.records.stack_records`; strings in the manifest), or the per-sample arrays of a
+range (:func:`tumble.measure.scenes.scene_samples`). (netCDF, one group per scene, cost 35 ms a scene to write; one
+archive member per array cost 10 ms a scene; one blob of every array 0.06 ms; stacked 0.03 ms.) The bytes are made
+where the chunk ran (:func:`pack_scenes`, :func:`pack_samples`: in a dask worker, that is the task's result) and
+written by the process that runs the study.
 
 A rerun of the same study into the same folder reads the chunks whose hash matches and runs only what they
 lack; a chunk with another hash (another study, another tumble version) is never used, and is removed. The

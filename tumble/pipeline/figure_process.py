@@ -19,7 +19,8 @@ The process is a helper, never a second place where things can go wrong silently
 
 - it ignores Ctrl-C (the terminal sends SIGINT to both; this process reports it) and ends when its input closes,
   which happens when this process ends, however it ends;
-- an error while writing or drawing (an unwritable folder, a full disk) comes back as the exception it was and is raised here;
+- an error while writing or drawing (an unwritable folder, a full disk) comes back as the exception it was and is
+  raised here;
 - if the process cannot start or dies, :meth:`FigureProcess.result` returns None and the caller builds, writes and
   draws itself: slower, never different;
 - :meth:`FigureProcess.close` ends it before the caller removes a staging folder it may still be writing into; its

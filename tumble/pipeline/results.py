@@ -124,8 +124,9 @@ def summary_table(ds, limit=24):
     if bad:
         lines.append(f"{bad} scene(s) gave no rate: every sample was excluded (see sample_status)")
     if rate.size == 1 and "rate_ci_low" in ds and "samples_used" in ds:  # one scene, perhaps a scan of one value
-        lines.append(f"95% interval of the median (order statistics) [{_only(ds.rate_ci_low):.8g}, {_only(ds.rate_ci_high):.8g}] "
-                     f"{ds.rate.attrs.get('units', '')}; {int(_only(ds.samples_used))} samples used, "
+        lines.append(f"95% interval of the median (order statistics) [{_only(ds.rate_ci_low):.8g}, "
+                     f"{_only(ds.rate_ci_high):.8g}] {ds.rate.attrs.get('units', '')}; "
+                     f"{int(_only(ds.samples_used))} samples used, "
                      f"{int(_only(ds.samples_excluded))} excluded")
     if "flip_first" in ds and np.isfinite(ds.flip_first.values).any() and ds.flip_first.size == 1:
         lines.append(f"first flip {_only(ds.flip_first):.4g} s (asymptote {_only(ds.flip_first_asymptote):.4g} s), "

@@ -617,6 +617,10 @@ def _result_shape(job):
     return {"layout": job.layout, "scanned": job.scanned, "body_coords": job.body_coords}
 
 
+def _result_dataset(records, job, resolved, extras=()):
+    return results.result_dataset(records, **_result_shape(job), resolved=resolved, extras=extras)
+
+
 def open_checkpoint(resolved, job, directory, stem):
     """The :class:`~tumble.pipeline.checkpoint.Checkpoint` of a study writing ``<directory>/<stem>.nc``."""
     return checkpoint.Checkpoint(directory, stem, checkpoint.study_hash(resolved), job.layout["scenes"])
@@ -675,8 +679,11 @@ def write_outputs(ds, resolved, directory, stem, *, action=None, figure_process=
         figure_process.submit(stored, names, staging, stem, formats)
         return figure_process.result
 
-    return _write_staged(directory, stem, lambda staging: results.stage_result(
-        ds, resolved, staging, stem, action=action, start_drawing=figure_process and start_drawing), figure_process)
+    def stage(staging):
+        return results.stage_result(ds, resolved, staging, stem, action=action,
+                                    start_drawing=start_drawing if figure_process is not None else None)
+
+    return _write_staged(directory, stem, stage, figure_process)
 
 
 def write_records(records, job, resolved, directory, stem, *, action=None, figure_process):
@@ -690,9 +697,8 @@ def write_records(records, job, resolved, directory, stem, *, action=None, figur
         answer = figure_process.result()
         if answer is not None:
             return answer
-        stored, figures = results.stage_result(results.result_dataset(records, **_result_shape(job),
-                                                                      resolved=resolved),
-                                               resolved, staging, stem, action=action)
+        stored, figures = results.stage_result(_result_dataset(records, job, resolved), resolved, staging, stem,
+                                               action=action)
         return results.summary_table(stored), figures
 
     return _write_staged(directory, stem, stage, figure_process)
@@ -763,14 +769,13 @@ def execute_study(prepared, *, progress=None, client=None, chunk_scenes=None, ch
                              progress=progress, log=log)
         extras = _extras(resolved, job, progress)
         if prepared.directory is None:
-            return Outputs(results.result_dataset(records, **_result_shape(job), resolved=resolved, extras=extras), [],
-                           None)
+            return Outputs(_result_dataset(records, job, resolved, extras), [], None)
         if figure_process is not None and not needs_traces(resolved):
             summary, paths = write_records(records, job, resolved, prepared.directory, prepared.stem, action=action,
                                            figure_process=figure_process)
             outputs = Outputs(None, paths, summary)
         else:
-            ds = results.result_dataset(records, **_result_shape(job), resolved=resolved, extras=extras)
+            ds = _result_dataset(records, job, resolved, extras)
             outputs = Outputs(*write_outputs(ds, resolved, prepared.directory, prepared.stem, action=action,
                                              figure_process=figure_process), None)
         store.remove()
