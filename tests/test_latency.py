@@ -362,3 +362,24 @@ def test_the_figure_process_writes_from_the_records_what_this_process_would(warm
     assert apart.attrs.keys() == stored.attrs.keys()
     assert all(np.array_equal(apart.attrs[k], stored.attrs[k]) for k in stored.attrs if k != "history")  # a time
     assert summary == results.summary_table(stored)
+
+
+def test_tumble_checks_kernels_compile_side_by_side_in_the_variants_it_calls(monkeypatch):
+    # the jobs' signatures are those check() calls: after a check here, each is among the compiled ones (a drifted
+    # signature would have the worker compile a variant the run never loads)
+    import numpy as np
+
+    import tumble
+    from tumble.kernels import side_by_side
+    from tumble.physics import exact
+
+    asked = []
+    monkeypatch.setattr(exact._side_by_side, "compile_side_by_side", lambda jobs: asked.append(jobs) or [])
+    exact.compile_check_kernels_side_by_side.cache_clear()
+    t = np.linspace(0.0, 5.0, 101)
+    w0 = np.array([0.01, 1.0, 0.01])
+    tumble.check(t, exact.omega((1.0, 2.0, 3.0), w0, t), exact.attitude((1.0, 2.0, 3.0), w0, t), moments=(1, 2, 3))
+    exact.compile_check_kernels_side_by_side.cache_clear()
+    assert asked == [side_by_side.CHECK[True]]
+    for name, signature in side_by_side.CHECK[True]:
+        assert tuple(signature) in side_by_side._dispatcher(name).overloads, name

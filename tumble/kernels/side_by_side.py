@@ -18,7 +18,7 @@ import sys
 import numba
 from numba import types
 
-from . import elliptic, fits
+from . import elliptic, elliptic_attitude, fits
 
 
 def _array(dtype, ndim, readonly=False):
@@ -44,7 +44,16 @@ CLOSED_FORM = {
     "neutral": (_EVALUATE, _SET_UP),  # a degenerate axis: no rate to fit
 }
 
-_MODULES = {"elliptic": elliptic, "fits": fits}
+_GRID = ("elliptic.torque_free_omega_grid", (_F1, _F2, _F1, _F3))
+_ATTITUDE = (("elliptic_attitude.attitude_rows", (_F2, _F2, _F2, _F1, _F3, _F3)),
+             ("elliptic_attitude.attitude_setup", (_F2, _F2, _I1, _F2, _I2, _F1, _F1, _F1, _F1, _F2, _F2, _F2, _F2)))
+
+#: What ``tumble check`` (:func:`tumble.measure.check.check`) runs: the closed form on the recording's times (its
+#: grid kernel, about 10 s to compile, and the set-up, 3.5 s), and the attitude's kernels when the recording has one
+#: (0.9 and 3.7 s), by whether it has; dealt out on two cores as grid and attitude rows, set-up and attitude set-up.
+CHECK = {False: (_GRID, _SET_UP), True: (_GRID, _SET_UP, *_ATTITUDE)}
+
+_MODULES = {"elliptic": elliptic, "elliptic_attitude": elliptic_attitude, "fits": fits}
 
 
 def _dispatcher(name):
@@ -69,7 +78,8 @@ def is_cached(name, signature=None):
 
 
 def compile_side_by_side(jobs, workers=None):
-    """Compile the kernels of ``jobs`` (one of the lists of :data:`CLOSED_FORM`: names and signatures) that are not cached,
+    """Compile the kernels of ``jobs`` (one of the lists of :data:`CLOSED_FORM` or :data:`CHECK`: names and signatures)
+    that are not cached,
     this process and worker processes at once; returns the names compiled.
 
     ``workers`` defaults to numba's thread count: the cores tumble may use (1 where a user or the test suite limits
@@ -103,7 +113,7 @@ def _compile(names):
         _dispatcher(name).compile(_SIGNATURES[name])  # cache=True: numba writes it to its cache
 
 
-_SIGNATURES = {name: signature for jobs in CLOSED_FORM.values() for name, signature in jobs}
+_SIGNATURES = {name: signature for jobs in (*CLOSED_FORM.values(), *CHECK.values()) for name, signature in jobs}
 
 if __name__ == "__main__":
     _compile(sys.argv[1:])
