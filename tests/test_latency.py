@@ -383,3 +383,19 @@ def test_tumble_checks_kernels_compile_side_by_side_in_the_variants_it_calls(mon
     assert asked == [side_by_side.CHECK[True]]
     for name, signature in side_by_side.CHECK[True]:
         assert tuple(signature) in side_by_side._dispatcher(name).overloads, name
+
+
+@pytest.mark.parametrize("study, overrides, asked", [
+    ("dzhanibekov_flip", {}, [("exponential", True)]),
+    ("dzhanibekov_flip", {"integration.method": "rk4"}, []),  # the attitude steps: no closed-form kernel
+    ("stability_map", {}, []),  # no attitude figure
+])
+def test_a_study_drawing_the_closed_form_attitude_compiles_it_with_its_scenes(monkeypatch, study, overrides, asked):
+    from tumble.pipeline import runner
+
+    calls = []
+    monkeypatch.setattr(runner.exact, "compile_kernels_side_by_side", lambda kind, attitude=False: calls.append(
+        (kind, attitude)))
+    prepared = runner.prepare_study(study, overrides=overrides)
+    runner._compile_the_attitude_with_the_scenes(prepared.resolved, prepared.job)
+    assert calls == asked

@@ -45,13 +45,14 @@ CLOSED_FORM = {
 }
 
 _GRID = ("elliptic.torque_free_omega_grid", (_F1, _F2, _F1, _F3))
-_ATTITUDE = (("elliptic_attitude.attitude_rows", (_F2, _F2, _F2, _F1, _F3, _F3)),
+#: The closed form's attitude (:func:`tumble.physics.exact.attitude`): its rows, then its set-up.
+ATTITUDE = (("elliptic_attitude.attitude_rows", (_F2, _F2, _F2, _F1, _F3, _F3)),
              ("elliptic_attitude.attitude_setup", (_F2, _F2, _I1, _F2, _I2, _F1, _F1, _F1, _F1, _F2, _F2, _F2, _F2)))
 
 #: What ``tumble check`` (:func:`tumble.measure.check.check`) runs: the closed form on the recording's times (its
 #: grid kernel, about 10 s to compile, and the set-up, 3.5 s), and the attitude's kernels when the recording has one
 #: (0.9 and 3.7 s), by whether it has; dealt out on two cores as grid and attitude rows, set-up and attitude set-up.
-CHECK = {False: (_GRID, _SET_UP), True: (_GRID, _SET_UP, *_ATTITUDE)}
+CHECK = {False: (_GRID, _SET_UP), True: (_GRID, _SET_UP, *ATTITUDE)}
 
 _MODULES = {"elliptic": elliptic, "elliptic_attitude": elliptic_attitude, "fits": fits}
 
