@@ -399,3 +399,25 @@ def test_a_study_drawing_the_closed_form_attitude_compiles_it_with_its_scenes(mo
     prepared = runner.prepare_study(study, overrides=overrides)
     runner._compile_the_attitude_with_the_scenes(prepared.resolved, prepared.job)
     assert calls == asked
+
+
+@pytest.mark.parametrize("trouble", ["dead", "too large"])
+def test_records_the_figure_process_cannot_take_are_written_here(warm_kernels, tmp_path, monkeypatch, trouble):
+    from tumble.pipeline import figure_process, results, runner
+
+    prepared = runner.prepare_study("stability_map", overrides={"perturbation.samples": 16}, out=tmp_path)
+    records = runner.run_scenes(prepared.job)
+    if trouble == "too large":
+        monkeypatch.setattr(figure_process, "MAX_BYTES", 1)
+    with figure_process.FigureProcess() as process:
+        if trouble == "dead":
+            process._process.kill()
+            process._process.wait()
+        summary, paths = runner.write_records(records, prepared.job, prepared.resolved, tmp_path, "s",
+                                              figure_process=process)
+        assert process._process is None  # ended
+    assert [p.name for p in paths] == ["s.nc", "s_stability_map.png", "s_summary.png"]
+    assert all(p.stat().st_size > 0 for p in paths)
+    ds = results.result_dataset(records, layout=prepared.job.layout, scanned=True,
+                                body_coords=prepared.job.body_coords, resolved=prepared.resolved)
+    assert summary == results.summary_table(ds)
