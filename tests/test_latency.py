@@ -375,13 +375,14 @@ def test_tumble_checks_kernels_compile_side_by_side_in_the_variants_it_calls(mon
 
     asked = []
     monkeypatch.setattr(exact._side_by_side, "compile_side_by_side", lambda jobs: asked.append(jobs) or [])
-    exact.compile_check_kernels_side_by_side.cache_clear()
+    exact.compile_kernels_side_by_side.cache_clear()
     t = np.linspace(0.0, 5.0, 101)
     w0 = np.array([0.01, 1.0, 0.01])
     tumble.check(t, exact.omega((1.0, 2.0, 3.0), w0, t), exact.attitude((1.0, 2.0, 3.0), w0, t), moments=(1, 2, 3))
-    exact.compile_check_kernels_side_by_side.cache_clear()
-    assert asked == [side_by_side.CHECK[True]]
-    for name, signature in side_by_side.CHECK[True]:
+    exact.compile_kernels_side_by_side.cache_clear()
+    check_jobs = side_by_side.CLOSED_FORM["grid"] + side_by_side.ATTITUDE
+    assert asked == [check_jobs]
+    for name, signature in check_jobs:
         assert tuple(signature) in side_by_side._dispatcher(name).overloads, name
 
 

@@ -42,17 +42,15 @@ CLOSED_FORM = {
     "periodic": (_EVALUATE, _SET_UP, ("fits.phase_fit", (_F2, _I1, _F3, _I2, _array(types.float64, 2, readonly=True),
                                                          _F1, types.float64, _F1, _F1, _CODES))),
     "neutral": (_EVALUATE, _SET_UP),  # a degenerate axis: no rate to fit
+    # tumble check: the closed form on a recording's times (the grid kernel, about 10 s to compile; the set-up 3.5 s);
+    # with ATTITUDE dealt out on two cores as grid and attitude rows, set-up and attitude set-up
+    "grid": (("elliptic.torque_free_omega_grid", (_F1, _F2, _F1, _F3)), _SET_UP),
 }
 
-_GRID = ("elliptic.torque_free_omega_grid", (_F1, _F2, _F1, _F3))
-#: The closed form's attitude (:func:`tumble.physics.exact.attitude`): its rows, then its set-up.
+#: The closed form's attitude (:func:`tumble.physics.exact.attitude`): its rows, then its set-up (3.7 s and 0.9 s to
+#: compile), appended to a list of :data:`CLOSED_FORM` where a run draws an attitude.
 ATTITUDE = (("elliptic_attitude.attitude_rows", (_F2, _F2, _F2, _F1, _F3, _F3)),
-             ("elliptic_attitude.attitude_setup", (_F2, _F2, _I1, _F2, _I2, _F1, _F1, _F1, _F1, _F2, _F2, _F2, _F2)))
-
-#: What ``tumble check`` (:func:`tumble.measure.check.check`) runs: the closed form on the recording's times (its
-#: grid kernel, about 10 s to compile, and the set-up, 3.5 s), and the attitude's kernels when the recording has one
-#: (0.9 and 3.7 s), by whether it has; dealt out on two cores as grid and attitude rows, set-up and attitude set-up.
-CHECK = {False: (_GRID, _SET_UP), True: (_GRID, _SET_UP, *ATTITUDE)}
+            ("elliptic_attitude.attitude_setup", (_F2, _F2, _I1, _F2, _I2, _F1, _F1, _F1, _F1, _F2, _F2, _F2, _F2)))
 
 _MODULES = {"elliptic": elliptic, "elliptic_attitude": elliptic_attitude, "fits": fits}
 
@@ -79,8 +77,8 @@ def is_cached(name, signature=None):
 
 
 def compile_side_by_side(jobs, workers=None):
-    """Compile the kernels of ``jobs`` (one of the lists of :data:`CLOSED_FORM` or :data:`CHECK`: names and signatures)
-    that are not cached,
+    """Compile the kernels of ``jobs`` (a list of :data:`CLOSED_FORM`, perhaps with :data:`ATTITUDE`: names and
+    signatures) that are not cached,
     this process and worker processes at once; returns the names compiled.
 
     ``workers`` defaults to numba's thread count: the cores tumble may use (1 where a user or the test suite limits
@@ -114,7 +112,7 @@ def _compile(names):
         _dispatcher(name).compile(_SIGNATURES[name])  # cache=True: numba writes it to its cache
 
 
-_SIGNATURES = {name: signature for jobs in (*CLOSED_FORM.values(), *CHECK.values()) for name, signature in jobs}
+_SIGNATURES = {name: signature for jobs in (*CLOSED_FORM.values(), ATTITUDE) for name, signature in jobs}
 
 if __name__ == "__main__":
     _compile(sys.argv[1:])

@@ -338,19 +338,13 @@ def omega_at(moments, w, t):
 @functools.cache
 def compile_kernels_side_by_side(kind, attitude=False):
     """Compile the closed form's kernels, and those of the estimators that scenes of ``kind`` (``"exponential"`` or
-    ``"periodic"``) run on its samples, side by side where numba's cache lacks them
+    ``"periodic"``; ``"grid"``: the closed form on a time grid, as ``tumble check`` runs it) run on its samples, side by side where numba's cache lacks them
     (:func:`tumble.kernels.side_by_side.compile_side_by_side`: on two cores the first run of the default study after
     an install compiles in about 6 s instead of 11); with ``attitude``, the attitude's kernels too (a study drawing
     one spin's attitude, as ``dzhanibekov_flip``); checked once per process, kind and ``attitude``."""
     return tuple(_side_by_side.compile_side_by_side(_side_by_side.CLOSED_FORM[kind]
                                                     + (_side_by_side.ATTITUDE if attitude else ())))
 
-
-@functools.cache
-def compile_check_kernels_side_by_side(attitude):
-    """:func:`compile_kernels_side_by_side` for ``tumble check``: the closed form on a time grid, and its attitude
-    when ``attitude`` (on two cores the first check after an install compiles in about 11 s instead of 15)."""
-    return tuple(_side_by_side.compile_side_by_side(_side_by_side.CHECK[bool(attitude)]))
 
 
 def flip_spacings(sol):

@@ -85,10 +85,11 @@ class FigureProcess:
         :data:`MAX_BYTES` of records nothing is sent, as :meth:`submit`."""
         from ..measure.records import stack_records  # NumPy only: this module is imported before numpy is
 
-        nbytes = sum(getattr(value, "nbytes", 0) for record in records for value in record.values())
-        if self._process is not None and nbytes <= MAX_BYTES:
-            records = stack_records(records)  # sent in a few large arrays, not thousands of small ones
-        self._send(("result", records, shape, resolved, str(directory), stem, action), nbytes)
+        if self._process is None:
+            return
+        stacked = stack_records(records)  # sent in a few large arrays, not thousands of small ones
+        nbytes = sum(column.nbytes for _, numeric, _, _ in stacked[1] for column in numeric.values())
+        self._send(("result", stacked, shape, resolved, str(directory), stem, action), nbytes)
 
     def result(self):
         """The paths written, once the process is done (after :meth:`submit_result`: the summary and the paths);
