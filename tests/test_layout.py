@@ -19,7 +19,7 @@ def paper_style():
     with matplotlib.rc_context(figures._STYLE):
         yield
 
-LABELS = ["−0.025", "300", "1.00", "$\\mathdefault{10^{-16}}$", "$\\mathdefault{4\\times10^{-1}}$",
+LABELS = ["−0.025", "300", "1.00", "$\\mathdefault{10^{-16}}$", "$\\mathdefault{4\\times10^{-1}}$", "10⁻¹⁶", "4×10⁻¹",
           "time $t$ (s)", "measured rate: $\\omega$ (rad/s) or $\\lambda$ (1/s)", "linear theory $\\sqrt{-q}$",
           "$k_1 = (I_2 - I_3)/I_1$", "$1 + 3k_1 + k_1k_3 = 4\\sqrt{k_1k_3}$", "$|L|^2/(2(I_{max}+J))$",
           "$\\ln(1/\\varepsilon)$, tilt $\\varepsilon$ in rad", "flip ($\\omega_2$ changes sign)",
@@ -41,6 +41,50 @@ def test_lines_add_up_and_empty_text_takes_no_room():
     one, two = layout.text_size("abc", 8.0), layout.text_size("abc\nabcdef", 8.0)
     assert two[0] > one[0] and two[1] > 2 * one[1]
     assert layout.text_size("", 8.0) == (0.0, 0.0)
+
+
+def _log_axes(low, high):
+    fig = Figure(figsize=(3.4, 2.5))
+    ax = fig.subplots()
+    ax.plot([low, high], [low, high])
+    layout.log_scale(ax, "x")
+    layout.log_scale(ax, "y")
+    ax.set_xlim(low, high)
+    return ax
+
+
+def _labels(axis, which):
+    ticker = getattr(axis, which)
+    low, high = axis.get_view_interval()
+    locs = [x for x in ticker.locator() if low <= x <= high]
+    return locs, ticker.formatter.format_ticks(locs)
+
+
+def test_log_scale_labels_decades_in_plain_text_as_matplotlib_would_in_mathtext():
+    ax = _log_axes(1e-7, 1e-3)
+    locs, labels = _labels(ax.xaxis, "major")
+    assert np.allclose(locs, [1e-7, 1e-6, 1e-5, 1e-4, 1e-3])
+    assert labels == ["10⁻⁷", "10⁻⁶", "10⁻⁵", "10⁻⁴", "10⁻³"]
+    assert layout._PlainLogFormatter()(1.0) == "10⁰" and layout._PlainLogFormatter()(1e12) == "10¹²"
+    # under a decade matplotlib labels the minor ticks too: 2×10⁻¹ ... in the same plain form, no "$" anywhere
+    ax = _log_axes(0.15, 0.9)
+    _, minor = _labels(ax.xaxis, "minor")
+    assert {"2×10⁻¹", "3×10⁻¹", "6×10⁻¹"} <= set(minor) and not any("$" in text for text in minor)
+
+
+def test_log_scale_drops_minor_ticks_only_beyond_a_few_decades():
+    assert len(_labels(_log_axes(1e-2, 1.0).xaxis, "minor")[0]) == 16  # 2..9 in each of two decades
+    assert len(_labels(_log_axes(1e-7, 1e-3).xaxis, "minor")[0]) == 0  # four decades: none
+    assert len(_labels(_log_axes(1e-3, 1.0).xaxis, "minor")[0]) == 3 * 8  # layout.MINOR_DECADES, exactly
+    with pytest.raises(ValueError, match="which is 'x' or 'y'"):
+        layout.log_scale(_log_axes(1.0, 10.0), "z")
+
+
+def test_a_label_the_plain_form_cannot_hold_is_left_as_mathtext(monkeypatch):
+    assert layout._PlainLogFormatter(base=2.5)(2.5 ** 3) == "2.5³"
+    odd = r"$\mathdefault{10^{0.50}}$"  # a fractional exponent has no superscript form
+    monkeypatch.setattr(matplotlib.ticker.LogFormatterSciNotation, "__call__", lambda self, x, pos=None: odd)
+    assert layout._PlainLogFormatter()(10 ** 0.5) == odd
 
 
 def _panels(ncols=1, **kwargs):

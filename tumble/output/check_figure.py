@@ -50,13 +50,17 @@ def draw_check(ds):
     for name, label in (("omega_error", r"$|\omega - \omega_{exact}| / |\omega_{exact}|$"),
                         ("attitude_error", "attitude error (rad)")):
         if name in ds:
-            ax_err.semilogy(*_envelope(t, ds[name].values), lw=1.0, label=label)
+            ax_err.plot(*_envelope(t, ds[name].values), lw=1.0, label=label)
+    if ax_err.lines:
+        layout.log_scale(ax_err, "y")
     ax_err.set(xlabel="time (s)", title="error against the exact solution")
     ax_err.legend(fontsize=7)
     for name, label in (("energy_drift", "$|E/E_0 - 1|$"), ("momentum_drift", "$||L|/|L_0| - 1|$"),
                         ("momentum_direction", "direction of $L$ in space (rad)")):
         if name in ds:
-            ax_drift.semilogy(*_envelope(t, ds[name].values), lw=1.0, label=label)
+            ax_drift.plot(*_envelope(t, ds[name].values), lw=1.0, label=label)
+    if ax_drift.lines:
+        layout.log_scale(ax_drift, "y")
     ax_drift.set(xlabel="time (s)", title="drift of the invariants")
     ax_drift.legend(fontsize=7)
     shared = min(ds.sizes.get("flip", 0), ds.sizes.get("flip_exact", 0))

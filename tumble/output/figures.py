@@ -355,7 +355,7 @@ def norm_growth(ds):
                     markevery=[0, -1], ms=7)
         if np.isfinite(saturation):
             ax.axhline(saturation, color=color, ls="--", lw=0.8)
-    ax.set_yscale("log")
+    layout.log_scale(ax, "y")
     ax.set_xlabel("time $t$ (s)")
     ax.set_ylabel("scaled transverse norm (rad/s)")
     ax.set_title(title)
@@ -518,7 +518,7 @@ def invariant_drift(ds):
             if np.isfinite(drift[j]).any():
                 handles[method], = ax.plot(t, np.clip(drift[j], FLOOR, None), color=f"C{j % 10}",
                                            ls=("-", "--", "-.", ":")[j // 10 % 4], label=method)
-        ax.set_yscale("log")
+        layout.log_scale(ax, "y")
         ax.set_title(title)
         ax.set_xlabel("time $t$ (s)")
     axes[0].set_ylabel(_floor_note("relative drift $|X(t)/X(0) - 1|$"))
@@ -564,8 +564,8 @@ def work_precision(ds):
             peer = kinds[j] in ("scipy", "heyoka")
             handles += ax.plot(*points, color=f"C{j % 10}", ls="--" if peer else "-",
                                marker="osD^v<>ph"[j % 9], mfc="none" if peer else f"C{j % 10}", label=solver)
-    ax.set_xscale("log")
-    ax.set_yscale("log")
+    layout.log_scale(ax, "x")
+    layout.log_scale(ax, "y")
     ax.set_xlabel("median wall time (s)")
     ax.set_ylabel(_floor_note("relative error at the final time"))
     about = [text.format(ds.attrs[k]) for k, text in (("samples", "{} samples"), ("t_end", "$t$ = {:.3g} s"))
@@ -667,8 +667,8 @@ def _summary_scan(ds):
                          max(rate[finite].max(), rate_theory[finite].max())])
         ax.plot(ends, ends, color="k", lw=0.6, zorder=0, label="measured = theory")
         if (ends > 0).all():
-            ax.set_xscale("log")
-            ax.set_yscale("log")
+            layout.log_scale(ax, "x")
+            layout.log_scale(ax, "y")
         ax.legend(loc="upper left")  # the points lie along y = x; "best" scans every error bar (0.2 s)
     ax.set_xlabel(_rate_label(present, "linear theory"))
     ax.set_ylabel(_rate_label(present, "measured"))
@@ -677,7 +677,7 @@ def _summary_scan(ds):
         values = np.concatenate(errors)
         bins = np.logspace(np.floor(np.log10(values.min()) - 0.25), np.ceil(np.log10(values.max()) + 0.25), 25)
         hist.hist(errors, bins=bins, stacked=True, color=[_KIND_STYLE[k][0] for k in present])
-    hist.set_xscale("log")
+    layout.log_scale(hist, "x")
     hist.set_xlabel(_floor_note("relative error |measured − theory| / theory"))
     hist.set_ylabel("scenes")
     hist.yaxis.set_major_locator(MaxNLocator(integer=True))  # counts: no tick at 0.5 scenes
@@ -931,9 +931,10 @@ def flat_spin(ds):
     drift = np.abs(undamped / undamped[:, :1] - 1.0)
     spread = np.abs(size / size[:, :1] - 1.0)
     floor = 1e-17
-    panels[2].semilogy(t[1:], lost[0, 1:] + floor, color="C3", label="energy lost, |E/E(0) - 1|")
-    panels[2].semilogy(t[1:], drift.max(axis=0)[1:] + floor, color="0.4", label="integrator: c ≈ 0, |E/E(0) - 1|")
-    panels[2].semilogy(t[1:], spread.max(axis=0)[1:] + floor, color="C0", lw=0.8, label="| |L|/|L(0)| - 1 |")
+    panels[2].plot(t[1:], lost[0, 1:] + floor, color="C3", label="energy lost, |E/E(0) - 1|")
+    panels[2].plot(t[1:], drift.max(axis=0)[1:] + floor, color="0.4", label="integrator: c ≈ 0, |E/E(0) - 1|")
+    panels[2].plot(t[1:], spread.max(axis=0)[1:] + floor, color="C0", lw=0.8, label="| |L|/|L(0)| - 1 |")
+    layout.log_scale(panels[2], "y")
     panels[2].set_ylabel("relative change")
     panels[2].legend(fontsize=7, loc="center right")  # the relative changes lie near 1 and below 1e-12
     for ax in panels[:3]:

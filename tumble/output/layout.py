@@ -23,10 +23,10 @@ from typing import NamedTuple
 
 import matplotlib
 import numpy as np
-from matplotlib import font_manager, ft2font
+from matplotlib import font_manager, ft2font, ticker
 from matplotlib.font_manager import FontProperties
 
-__all__ = ["EDGE", "colorbar", "fit", "legend", "text_size"]
+__all__ = ["EDGE", "MINOR_DECADES", "colorbar", "fit", "legend", "log_scale", "text_size"]
 
 #: White space kept at the figure's edges and between a panel's decorations and what sits beside them, inches.
 EDGE = 0.05
@@ -261,6 +261,52 @@ def legend(fig, handles, where="below", **kwargs):
     leg = fig.legend(handles=handles, loc=loc, borderaxespad=0.0, **kwargs)
     leg._tumble_where = where  # noqa: SLF001 - read by fit()
     return leg
+
+
+#: A log axis spanning more decades than this has no minor ticks: there they are dense enough to read as a grey
+#: band, and each costs about 1 ms to make and draw (a scan summary's histogram over five decades: 40 of them).
+MINOR_DECADES = 3
+
+_MATHTEXT_LABEL = re.compile(r"\$\\mathdefault\{(.*)\}\$")
+_EXPONENT = re.compile(r"\^\{(-?\d+)\}")
+_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+
+class _PlainLogFormatter(ticker.LogFormatterSciNotation):
+    """matplotlib's log-axis labels (10⁻³, 2×10⁻³) as plain text with Unicode superscripts instead of mathtext: the
+    same look in DejaVu Sans, without mathtext's parse and glyph-by-glyph drawing (3-6 ms a label in a process
+    that draws once). A label of another form is left as matplotlib makes it."""
+
+    def __call__(self, x, pos=None):
+        label = super().__call__(x, pos)
+        match = _MATHTEXT_LABEL.fullmatch(label)
+        if match is None:
+            return label
+        plain = _EXPONENT.sub(lambda m: m.group(1).translate(_SUPERSCRIPT), match.group(1).replace("\\times", "×"))
+        return label if any(c in plain for c in "\\^{}$") else plain.replace("-", "−")
+
+
+class _MinorLogLocator(ticker.LogLocator):
+    """matplotlib's minor ticks of a log axis (2 to 9 in each decade), none where the axis spans more than
+    :data:`MINOR_DECADES` decades."""
+
+    def tick_values(self, vmin, vmax):
+        if vmin > 0 and vmax > 0 and abs(np.log10(vmax / vmin)) > MINOR_DECADES:
+            return np.array([])
+        return super().tick_values(vmin, vmax)
+
+
+def log_scale(ax, which="y"):
+    """Put ``ax``'s ``which`` ("x" or "y") axis on a base-10 log scale whose labels are plain text
+    (:class:`_PlainLogFormatter`) and whose minor ticks stop beyond :data:`MINOR_DECADES` decades. Call it after
+    plotting: ``semilogy`` and ``set_yscale`` put matplotlib's own locators and formatters back."""
+    if which not in ("x", "y"):
+        raise ValueError(f"which is 'x' or 'y', not {which!r}")
+    (ax.set_xscale if which == "x" else ax.set_yscale)("log")
+    axis = ax.xaxis if which == "x" else ax.yaxis
+    axis.set_major_formatter(_PlainLogFormatter())
+    axis.set_minor_formatter(_PlainLogFormatter(labelOnlyBase=False))
+    axis.set_minor_locator(_MinorLogLocator(subs="auto"))
 
 
 def colorbar(fig, mappable, **kwargs):
