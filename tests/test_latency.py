@@ -338,6 +338,25 @@ def test_scene_records_cross_to_another_process_exactly(warm_kernels, study):
             assert np.array_equal(value, theirs[name], equal_nan=value.dtype.kind == "f"), name
 
 
+def test_records_of_different_dtypes_shapes_or_names_are_stacked_apart_and_come_back_exactly():
+    import numpy as np
+
+    from tumble.measure.records import stack_records, unstack_records
+
+    records = [{"x": np.array(1.5), "kind": np.array("periodic")},
+               {"x": np.array(2, dtype=np.int64), "kind": np.array("exponential")},  # int: not promoted to float
+               {"x": np.array([1.0, 2.0]), "kind": np.array("neutral")},  # another shape
+               {"kind": np.array("periodic"), "x": np.array(0.5)},  # another order of names
+               {"x": np.array(3.5), "kind": np.array("periodic")}]
+    count, groups = stack_records(records)
+    assert count == 5 and sorted(positions for positions, *_ in groups) == [[0, 4], [1], [2], [3]]
+    for mine, theirs in zip(records, unstack_records((count, groups))):
+        assert list(mine) == list(theirs)
+        for name, value in mine.items():
+            assert (value.dtype, value.shape, value.tolist()) == (theirs[name].dtype, theirs[name].shape,
+                                                                  theirs[name].tolist())
+
+
 def test_the_figure_process_writes_from_the_records_what_this_process_would(warm_kernels, tmp_path, monkeypatch):
     import numpy as np
     import xarray as xr

