@@ -145,7 +145,7 @@ def assemble_scan(layout, records, body_coords=None):
     shape, dims = (len(moments), *(len(v) for v in swept.values())), ("body", *swept)
     owners, seen = {}, set()
     for record in records:  # one set of Variables per distinct layout of record (kind, fields)
-        key = (str(record["kind"]), tuple(record))
+        key = (record["kind"].item(), tuple(record))
         if key not in seen:
             seen.add(key)
             data, coords, attrs = record_variables(record)
@@ -157,15 +157,18 @@ def assemble_scan(layout, records, body_coords=None):
         if name in ("I1", "I2", "I3"):
             continue
         values = [record.get(name) for record in records]
-        if is_coord and name not in swept and all(v is not None and np.array_equal(v, var.values) for v in values):
-            coords[name] = var  # the same in every scene (the sample index, a fixed parameter)
-            continue
-        if any(v is None for v in values):
+        missing = any(v is None for v in values)
+        if missing:
             if var.dtype.kind not in "biuf":
                 raise ValueError(f"scene variable {name!r} ({var.dtype}) is missing from some scenes")
             dtype = np.result_type(var.dtype, np.float64) if var.dtype.kind in "biu" else var.dtype
-            values = [np.full(var.shape, np.nan, dtype) if v is None else v for v in values]
-        stacked = np.stack(values).reshape(shape + var.shape)
+            gap = np.full(var.shape, np.nan, dtype)
+            values = [gap if v is None else v for v in values]
+        stacked = np.stack(values)
+        if is_coord and name not in swept and not missing and (stacked == var.values).all():
+            coords[name] = var  # the same in every scene (the sample index, a fixed parameter)
+            continue
+        stacked = stacked.reshape(shape + var.shape)
         if name in swept:  # a swept parameter: the coordinate of its dimension
             axis = dims.index(name)
             coords[name] = xr.Variable((name,), stacked[(0,) * axis + (slice(None),) + (0,) * (len(dims) - axis - 1)],
