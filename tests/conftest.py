@@ -15,6 +15,10 @@ import os  # noqa: E402
 # (NUMBA_ENABLE_CUDASIM=0 on a GPU machine runs the same tests on the GPU). numba reads the switch once, when it is
 # first imported, so it is set here, before anything imports numba; no other test touches numba.cuda.
 os.environ.setdefault("NUMBA_ENABLE_CUDASIM", "1")
+# Every finished chunk is checkpointed as it finishes, as a long run does: the tests' studies are short, and a run
+# of under two seconds would otherwise write none (tumble.pipeline.runner.CHECKPOINT_AFTER; tests/test_resume.py
+# tests that rule itself). Subprocesses of the tests inherit it.
+os.environ["TUMBLE_CHECKPOINT_AFTER"] = "0"
 
 import numba  # noqa: E402
 import numpy as np  # noqa: E402

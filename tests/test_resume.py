@@ -91,6 +91,58 @@ def test_a_finished_run_leaves_only_its_result(reference):
     assert sorted(p.name for p in reference.parent.iterdir()) == ["resume.nc"]
 
 
+def _run_with_clock(tmp_path, monkeypatch, after, ticks, fail_at=None):
+    """run_scenes of SCAN (one chunk per 3 scenes: 9 chunks) with TUMBLE_CHECKPOINT_AFTER=``after`` on a clock that
+    advances ``ticks`` seconds per reading; the chunk files written, by the time of each write (in chunks done)."""
+    monkeypatch.setenv("TUMBLE_CHECKPOINT_AFTER", after)
+    clock = iter(range(0, 10_000, 1))
+    monkeypatch.setattr(runner.time, "monotonic", lambda: next(clock) * ticks)
+    resolved = config.load_study(SCAN)
+    job = runner.scene_job(resolved)
+    store = runner.open_checkpoint(resolved, job, tmp_path, "resume")
+    written, done = [], []
+    write = store.write
+    monkeypatch.setattr(store, "write", lambda name, data: written.append((len(done), name)) or write(name, data))
+    compute = runner._compute
+
+    def counted(job, task, **kw):
+        if len(done) == fail_at:
+            raise KeyboardInterrupt
+        done.append(task)
+        return compute(job, task, **kw)
+
+    monkeypatch.setattr(runner, "_compute", counted)
+    return runner.run_scenes(job, store=store, chunk_scenes=3), written
+
+
+def test_a_run_shorter_than_the_checkpoint_delay_writes_no_chunk(tmp_path, monkeypatch):
+    scenes, written = _run_with_clock(tmp_path, monkeypatch, "2", ticks=0.01)  # 9 chunks in well under 2 s
+    assert len(scenes) == 27 and written == [] and finished_chunks(tmp_path) == []
+
+
+def test_a_longer_run_writes_the_chunks_held_once_the_delay_has_passed_then_each_as_it_finishes(tmp_path,
+                                                                                                  monkeypatch):
+    _, written = _run_with_clock(tmp_path, monkeypatch, "2.5", ticks=1.0)  # the clock is read once per chunk
+    assert [done for done, _ in written] == [3, 3, 3, 4, 5, 6, 7, 8, 9]  # the first three at 3 s, together
+    assert len(finished_chunks(tmp_path)) == 9
+
+
+def test_an_interrupted_run_writes_what_it_holds_before_it_stops(tmp_path, monkeypatch):
+    with pytest.raises(KeyboardInterrupt):
+        _run_with_clock(tmp_path, monkeypatch, "2", ticks=0.01, fail_at=4)
+    assert finished_chunks(tmp_path) == ["scenes-000000-000002.chunk", "scenes-000003-000005.chunk",
+                                         "scenes-000006-000008.chunk", "scenes-000009-000011.chunk"]
+
+
+@pytest.mark.parametrize("text", ["soon", "-1", "nan"])
+def test_a_checkpoint_delay_that_is_no_number_of_seconds_is_said_and_the_default_used(monkeypatch, text):
+    monkeypatch.setenv("TUMBLE_CHECKPOINT_AFTER", text)
+    with pytest.warns(RuntimeWarning, match=f"TUMBLE_CHECKPOINT_AFTER='{text}' is not a number of seconds >= 0"):
+        assert runner.checkpoint_after() == runner.CHECKPOINT_AFTER
+    monkeypatch.delenv("TUMBLE_CHECKPOINT_AFTER")
+    assert runner.checkpoint_after() == runner.CHECKPOINT_AFTER == 2.0
+
+
 def test_a_rerun_skips_the_finished_chunks_and_gives_the_same_bits(reference, tmp_path, monkeypatch):
     resolved = config.load_study(SCAN)
     job = runner.scene_job(resolved)
