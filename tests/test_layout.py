@@ -72,10 +72,13 @@ def test_log_scale_labels_decades_in_plain_text_as_matplotlib_would_in_mathtext(
     assert {"2×10⁻¹", "3×10⁻¹", "6×10⁻¹"} <= set(minor) and not any("$" in text for text in minor)
 
 
-def test_log_scale_drops_minor_ticks_only_beyond_a_few_decades():
-    assert len(_labels(_log_axes(1e-2, 1.0).xaxis, "minor")[0]) == 16  # 2..9 in each of two decades
+def test_log_scale_thins_minor_ticks_as_the_axis_spans_more_decades():
+    locs = _labels(_log_axes(0.1, 1.0).xaxis, "minor")[0]  # one decade: 2..9, as matplotlib
+    assert np.allclose(locs, np.arange(2, 10) / 10)
+    locs = _labels(_log_axes(1e-2, 1.0).xaxis, "minor")[0]  # two decades: 2 and 5 of each
+    assert np.allclose(locs, [0.02, 0.05, 0.2, 0.5])
+    assert len(_labels(_log_axes(1e-3, 1.0).xaxis, "minor")[0]) == 3 * 2  # layout.MINOR_DECADES, exactly
     assert len(_labels(_log_axes(1e-7, 1e-3).xaxis, "minor")[0]) == 0  # four decades: none
-    assert len(_labels(_log_axes(1e-3, 1.0).xaxis, "minor")[0]) == 3 * 8  # layout.MINOR_DECADES, exactly
     with pytest.raises(ValueError, match="which is 'x' or 'y'"):
         layout.log_scale(_log_axes(1.0, 10.0), "z")
 
