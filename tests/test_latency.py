@@ -441,3 +441,23 @@ def test_records_the_figure_process_cannot_take_are_written_here(warm_kernels, t
     ds = results.result_dataset(records, layout=prepared.job.layout, scanned=True,
                                 body_coords=prepared.job.body_coords, resolved=prepared.resolved)
     assert summary == results.summary_table(ds)
+
+
+def test_the_commands_import_with_the_collector_paused_then_frozen_and_leave_it_as_it_was():
+    import gc
+
+    from tumble import _startup
+
+    frozen = gc.get_freeze_count()
+    try:
+        with _startup.collector_paused():
+            assert not gc.isenabled()
+            made = [[i] for i in range(1000)]  # what an import leaves: long-lived objects
+        assert gc.isenabled() and gc.get_freeze_count() >= frozen + len(made)
+        gc.disable()  # a caller that turned it off keeps it off
+        with _startup.collector_paused():
+            pass
+        assert not gc.isenabled()
+    finally:
+        gc.unfreeze()  # the test process's objects back in sight, as before the test
+        gc.enable()

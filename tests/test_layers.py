@@ -13,8 +13,9 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "tumble"
 
 # Bottom to top; a module may import its own layer and the layers below it. `_interrupt` (Ctrl-C while the command
-# starts) and `_disk` (a failed write's diagnosis) import nothing of tumble, like `_version`.
-LAYERS = ("_version", "_interrupt", "_disk", "registry", "kernels", "physics", "engine", "measure", "output", "pipeline", "cli",
+# starts), `_startup` (the command's imports without the garbage collector) and `_disk` (a failed write's diagnosis)
+# import nothing of tumble, like `_version`.
+LAYERS = ("_version", "_interrupt", "_startup", "_disk", "registry", "kernels", "physics", "engine", "measure", "output", "pipeline", "cli",
           "__main__", "__init__")
 FORBIDDEN = {"output": {"engine", "measure"}}
 # Third-party packages a layer must not import.

@@ -19,7 +19,7 @@ import traceback
 import warnings
 from pathlib import Path
 
-from . import _interrupt, registry
+from . import _interrupt, _startup, registry
 from ._version import __version__
 
 # Imports below are made inside the commands that need them: `tumble --help` and `tumble studies` load neither numpy
@@ -112,7 +112,7 @@ class InputError(ValueError):
 
 
 def _lean_kernel_process():
-    """For ``tumble run`` and ``tumble check``: two settings of the command's own process (never of a Python caller's: ``tumble.run_study`` leaves the
+    """For ``tumble run`` and ``tumble check``: three settings of the command's own process (never of a Python caller's: ``tumble.run_study`` leaves the
     process as it found it) that cut the fixed costs of a run; each leaves alone what the user set.
 
     - ``OMP_WAIT_POLICY=PASSIVE``: between the many short parallel regions of a scan, numba's OpenMP workers sleep
@@ -123,6 +123,8 @@ def _lean_kernel_process():
       to learn whether ``np.cov`` and ``np.corrcoef`` may call BLAS; no tumble kernel calls them (or any BLAS). The
       import is made here with ``scipy.linalg.cython_blas`` unfindable, then findable again: numba compiles
       ``np.dot`` and ``np.linalg`` as before (they import it when first compiled).
+    - numba (and numpy) imported with the garbage collector paused, then frozen out of its sight
+      (:func:`tumble._startup.collector_paused`).
     """
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
     probe = "scipy.linalg.cython_blas"
@@ -130,7 +132,8 @@ def _lean_kernel_process():
         return
     sys.modules[probe] = None  # `import scipy.linalg.cython_blas` raises ImportError at once
     try:
-        import numba.np.arraymath  # noqa: F401
+        with _startup.collector_paused():
+            import numba.np.arraymath  # noqa: F401
     finally:
         del sys.modules[probe]
 
@@ -147,21 +150,15 @@ def _run(args):
 
 def _run_study(args, drawer):
     """``tumble run``: check, plan and run the study, its figures drawn by ``drawer`` (a ``FigureProcess``, or None)."""
-    _lean_kernel_process()
-    from .engine import cost
-    from .pipeline import checkpoint, results, runner
+    with _startup.collector_paused():  # numba, then the pipeline with the kernels' dispatchers
+        _lean_kernel_process()
+        from .engine import cost
+        from .pipeline import checkpoint, results, runner
 
     overrides = {key: value for key, value in (("perturbation.samples", args.samples),
                                                ("perturbation.seed", args.seed),
                                                ("integration.device", args.device)) if value is not None}
-    for flag, value in (("--chunk-scenes", args.chunk_scenes), ("--workers", args.workers)):
-        if value is not None and value < 1:
-            raise InputError(f"{flag} must be >= 1, got {value}")
-    _check_workers(args.workers, args.scheduler)
-    try:
-        runner.chunk_samples_size(args.chunk_samples)
-    except ValueError as err:
-        raise InputError(f"--chunk-samples: {err}") from None
+    _check_chunks_and_workers(args, runner)
     started = time.perf_counter()
     prepared = runner.prepare_study(args.study, overrides=overrides, out=args.out, formats=args.format,
                                     default_directory=True)
@@ -207,6 +204,18 @@ def _run_study(args, drawer):
     print(f"\n{time.perf_counter() - started:.1f} s; wrote:")
     for path in outputs.paths:
         print(f"  {path}")
+
+
+def _check_chunks_and_workers(args, runner):
+    """``--chunk-scenes``, ``--chunk-samples`` and ``--workers`` of ``tumble run`` (:class:`InputError`)."""
+    for flag, value in (("--chunk-scenes", args.chunk_scenes), ("--workers", args.workers)):
+        if value is not None and value < 1:
+            raise InputError(f"{flag} must be >= 1, got {value}")
+    _check_workers(args.workers, args.scheduler)
+    try:
+        runner.chunk_samples_size(args.chunk_samples)
+    except ValueError as err:
+        raise InputError(f"--chunk-samples: {err}") from None
 
 
 def _check_workers(workers, scheduler):

@@ -38,6 +38,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from .. import _startup
+
 __all__ = ["FigureProcess", "MAX_BYTES"]
 
 #: A stored dataset larger than this is drawn by the command itself: sending it would pickle it through a pipe, the
@@ -265,12 +267,13 @@ def _warm_up():
 def _serve():
     """The process's side: import what drawing needs, wait for one request, draw, answer."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to report
-    from ..output import figures, io  # noqa: F401 - imported while the parent runs the scenes
-    from . import results  # noqa: F401 - xarray, netCDF4; no numba
+    with _startup.collector_paused():
+        from ..output import figures, io  # noqa: F401 - imported while the parent runs the scenes
+        from . import results  # noqa: F401 - xarray, netCDF4; no numba
 
-    io.assume_no_dask_arrays()
-    if _cores() > 1 and os.name == "posix" and not select.select([sys.stdin], [], [], 0)[0]:
-        _warm_up()  # nothing sent yet: the scenes still run
+        io.assume_no_dask_arrays()
+        if _cores() > 1 and os.name == "posix" and not select.select([sys.stdin], [], [], 0)[0]:
+            _warm_up()  # nothing sent yet: the scenes still run
     try:
         kind, *request = pickle.load(sys.stdin.buffer)
     except EOFError:  # the parent ended (or needs no figures) before sending any
