@@ -296,22 +296,26 @@ def test_the_forked_child_ends_when_the_figure_process_is_killed(curves_result, 
     raise AssertionError(f"the figure process's child {child} outlived it")
 
 
-def test_the_run_command_settles_its_process_without_scipy_and_keeps_blas_usable():
+def test_the_run_command_settles_its_process_without_scipy_and_keeps_blas_usable(tmp_path):
     # tumble.cli._lean_kernel_process: numba's first kernel load without scipy.linalg; the user's OMP_WAIT_POLICY
     # kept; np.dot still compiles (numba imports scipy's BLAS when it needs it)
     code = ("import os, sys\nfrom tumble import cli\ncli._lean_kernel_process()\n"
-            "assert 'numba.np.arraymath' in sys.modules and 'scipy.linalg' not in sys.modules\n"
-            "assert 'scipy.linalg.cython_blas' not in sys.modules\n"
-            "print(os.environ['OMP_WAIT_POLICY'])\n"
+            "assert 'numba.np.arraymath' in sys.modules and 'scipy' not in sys.modules\n"
+            "assert not [name for name in ('scipy', 'scipy.linalg.cython_blas', 'yaml') if sys.modules.get(name, 0) is None]\n"
+            "print(os.environ['OMP_WAIT_POLICY'], 'yaml' in sys.modules)\n"
             "import numba, numpy as np\n"
-            "print(numba.njit(lambda a: np.dot(a, a))(np.arange(3.0)))")
+            "print(numba.njit(lambda a: np.dot(a, a))(np.arange(3.0)), numba.config.NUMBA_NUM_THREADS)")
     env = dict(os.environ)
     env.pop("OMP_WAIT_POLICY", None)
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
-    assert done.stdout.split() == ["PASSIVE", "5.0"]
+    env.pop("NUMBA_NUM_THREADS", None)
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env,
+                          cwd=tmp_path)
+    assert done.stdout.split()[:3] == ["PASSIVE", "False", "5.0"]
     env["OMP_WAIT_POLICY"] = "ACTIVE"
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
-    assert done.stdout.split()[0] == "ACTIVE"
+    (tmp_path / ".numba_config.yaml").write_text("num_threads: 1\n")  # numba reads it with PyYAML: found as usual
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env,
+                          cwd=tmp_path)
+    assert done.stdout.split() == ["ACTIVE", "True", "5.0", "1"]
 
 
 @pytest.mark.parametrize("study", ["stability_map", "gyrostat_map", "intermediate_axis"])

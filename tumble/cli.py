@@ -120,22 +120,26 @@ def _lean_kernel_process():
       2 cores: ``run_study('stability_map')`` 0.90 -> 0.85 s, 1.7 -> 1.4 s of CPU time; ``tumble run
       stability_map`` -0.13 s). libgomp reads it when numba first starts its thread pool, later than here.
     - numba's first kernel load imports ``numba.np.arraymath``, which imports ``scipy.linalg`` (0.12-0.18 s) only
-      to learn whether ``np.cov`` and ``np.corrcoef`` may call BLAS; no tumble kernel calls them (or any BLAS). The
-      import is made here with ``scipy.linalg.cython_blas`` unfindable, then findable again: numba compiles
-      ``np.dot`` and ``np.linalg`` as before (they import it when first compiled).
+      to learn whether ``np.cov`` and ``np.corrcoef`` may call BLAS; no tumble kernel calls them (or any BLAS).
+      numba also imports ``scipy`` to check its version (5 ms) and PyYAML to read a ``.numba_config.yaml`` in the
+      current folder (10 ms). The import is made here with those modules unfindable (PyYAML only where there is
+      no such file), then findable again: numba compiles ``np.dot`` and ``np.linalg`` as before (they import
+      scipy's BLAS when first compiled).
     - numba (and numpy) imported with the garbage collector paused, then frozen out of its sight
       (:func:`tumble._startup.collector_paused`).
     """
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-    probe = "scipy.linalg.cython_blas"
-    if "numba.np.arraymath" in sys.modules or probe in sys.modules:
+    if "numba.np.arraymath" in sys.modules:
         return
-    sys.modules[probe] = None  # `import scipy.linalg.cython_blas` raises ImportError at once
+    unneeded = ["scipy", "scipy.linalg.cython_blas"] + ([] if os.path.isfile(".numba_config.yaml") else ["yaml"])
+    hidden = [name for name in unneeded if name not in sys.modules]
+    sys.modules.update(dict.fromkeys(hidden))  # None: `import name` raises ImportError at once
     try:
         with _startup.collector_paused():
             import numba.np.arraymath  # noqa: F401
     finally:
-        del sys.modules[probe]
+        for name in hidden:
+            del sys.modules[name]
 
 
 def _run(args):
