@@ -209,13 +209,16 @@ def test_a_dataset_too_large_to_send_is_drawn_here(small_result, tmp_path, monke
     assert [p.name for p in paths] == ["s.nc", "s_summary.png"] and paths[1].stat().st_size > 0
 
 
-def test_tumble_run_imports_neither_xarray_dask_nor_scipy_special_nor_leaves_its_figure_process_behind(tmp_path):
+def test_tumble_run_imports_neither_xarray_dask_scipy_special_nor_asyncio_nor_leaves_its_figure_process_behind(
+        tmp_path):
     code = f"""import os, sys
 from tumble.cli import main
 assert main(['run', '--samples', '32', '--out', {str(tmp_path)!r}]) == 0
 assert 'dask.base' not in sys.modules, 'dask was imported'  # dask.array, distributed: 0.3-0.35 s each, dask 0.1 s
 assert 'scipy.special' not in sys.modules, 'scipy.special was imported'
 assert 'xarray' not in sys.modules, 'xarray was imported'  # the figure process builds and writes the result
+assert 'asyncio' not in sys.modules, 'asyncio was imported'  # tqdm.auto's: 13-18 ms (tumble.engine.progress)
+assert 'yaml' not in sys.modules, 'yaml was imported'  # numba reads no .numba_config.yaml here
 try:
     os.waitpid(-1, os.WNOHANG)
 except ChildProcessError:

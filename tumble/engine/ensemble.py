@@ -29,7 +29,6 @@ from typing import NamedTuple
 
 import numba
 import numpy as np
-from tqdm.auto import tqdm
 
 from .. import registry
 from ..kernels import (BLOCK, METHODS, TORQUE_CONSTANT, TORQUE_SIGNATURE, TORQUE_USER, device_attitude,
@@ -39,6 +38,7 @@ from ..physics.bodies import finite_array, one_body, spin_vectors
 from ..registry import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK, choose_method
 from . import cost
 from .device import LAUNCH_SAMPLES, WARP, check_on_device, resolve_device, stepper
+from .progress import tqdm
 from .sampling import CHUNK
 
 __all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "Interrupted", "STATUS_NAMES", "run_ensemble", "run_scene_table",

@@ -37,13 +37,13 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
-from tqdm.auto import tqdm
 
 from .. import registry
 from .._version import __version__
 from ..engine.ensemble import flip_times, observation_times, run_ensemble, run_scene_table, torque_spec
 from ..engine.device import LAUNCH_SAMPLES, resolve_device
 from ..engine.integration import integrate
+from ..engine.progress import tqdm
 from ..engine.sampling import CHUNK, drawn_spins, perturbed_spins, seed_entropy
 from ..physics import exact, theory
 from ..physics.bodies import Body, one_body

@@ -26,13 +26,13 @@ from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
-from tqdm.auto import tqdm
 
 from .. import _disk, registry
 from ..engine.device import DeviceError, resolve_device
 from ..engine.ensemble import torque_spec
 from ..engine.sampling import CHUNK
 from ..engine import cost
+from ..engine.progress import tqdm
 from ..measure import model_scenes
 from ..measure import scenes as study
 from ..physics import exact, theory
