@@ -9,6 +9,9 @@ estimated from the font's glyph advances (FreeType, as the Agg backend measures 
 glyph by glyph, scripts at 70 %. The margins are those sums; a figure with a legend below grows by the legend's
 height, as it did under constrained layout.
 
+:func:`log_scale` makes the figures' log axes: matplotlib's decade labels in plain text with Unicode superscripts
+(no mathtext to parse and draw glyph by glyph) and fewer minor ticks as the axis spans more decades.
+
 Used by :mod:`tumble.output.figures`, :mod:`tumble.output.attitude_figures` (herpolhode) and
 :mod:`tumble.output.check_figure`. The tests render every figure with Agg and check that no text leaves the
 figure and that no two of its texts, panels and legends overlap (``tests/layout_checks.py``); the estimates are
@@ -300,8 +303,8 @@ class _MinorLogLocator(ticker.LogLocator):
 
 def log_scale(ax, which="y"):
     """Put ``ax``'s ``which`` ("x" or "y") axis on a base-10 log scale whose labels are plain text
-    (:class:`_PlainLogFormatter`) and whose minor ticks stop beyond :data:`MINOR_DECADES` decades. Call it after
-    plotting: ``semilogy`` and ``set_yscale`` put matplotlib's own locators and formatters back."""
+    (:class:`_PlainLogFormatter`) and whose minor ticks thin out as it spans more decades (:data:`MINOR_DECADES`).
+    Call it after plotting: ``semilogy`` and ``set_yscale`` put matplotlib's own locators and formatters back."""
     if which not in ("x", "y"):
         raise ValueError(f"which is 'x' or 'y', not {which!r}")
     (ax.set_xscale if which == "x" else ax.set_yscale)("log")

@@ -404,11 +404,12 @@ def _compute(job, task, *, threads=None, progress=False):
 
 
 class _Unwritten:
-    """A run's finished chunks not yet in its checkpoint ``store`` (None: nothing is written): held until the scenes
-    have run :func:`checkpoint_after` seconds, then written, and each later one as it finishes."""
+    """A run's finished chunks not yet in its checkpoint ``store`` (None: nothing is written): those that finish in
+    the first :func:`checkpoint_after` seconds are held, and written with the first that finishes later."""
 
     def __init__(self, store):
-        self.store, self.started, self.held = store, time.monotonic(), []
+        self.store, self.held = store, []
+        self.due = time.monotonic() + checkpoint_after()
 
     def add(self, task, finished, data=None):
         """``task`` finished (``data``: its chunk file's bytes, where a dask worker packed them)."""
@@ -417,7 +418,7 @@ class _Unwritten:
             self.save(now=False)
 
     def save(self, now=True):
-        if not (now or time.monotonic() - self.started >= checkpoint_after()):
+        if not (now or time.monotonic() >= self.due):
             return
         while self.held:
             task, finished, data = self.held[0]
@@ -439,11 +440,12 @@ def _pack(task, finished, digest):
     return checkpoint.pack_samples(index, task.stop, finished.parts[index][(task.start, task.stop)], digest)
 
 
-#: Seconds the scenes of a run may take before their finished chunks are written to the checkpoint: a run that
-#: ends sooner writes none (a chunk file costs 1-2 ms to pack and write durably: 7 % of a one-second scan of 32
-#: chunks), a longer run writes the chunks held so far at that moment, then each as it finishes. A run that is
-#: interrupted (Ctrl-C, an error) writes what it holds first; one killed outright loses less than this much work.
-#: ``TUMBLE_CHECKPOINT_AFTER`` (seconds, 0: every chunk as it finishes) overrides it.
+#: Seconds the scenes of a run may take before their finished chunks are written to the checkpoint: the chunks
+#: that finish sooner are held and written with the first chunk that finishes later (then each as it finishes), so
+#: a run that ends sooner writes none (a chunk file costs 1-2 ms to pack and write durably: 7 % of a one-second
+#: scan of 32 chunks). A run that is interrupted (Ctrl-C, SIGTERM, an error) writes what it holds first; one killed
+#: outright loses it: less than this many seconds of work. ``TUMBLE_CHECKPOINT_AFTER`` (seconds, 0: every chunk as
+#: it finishes) overrides it.
 CHECKPOINT_AFTER = 2.0
 
 
@@ -551,8 +553,9 @@ def run_scenes(job, *, store=None, client=None, chunk_scenes=None, chunk_samples
     job : dict
         From :func:`scene_job`.
     store : tumble.pipeline.checkpoint.Checkpoint, optional
-        Finished chunks are read from it and every newly finished chunk is written to it (atomically), once the
-        scenes have run :func:`checkpoint_after` seconds (the chunks finished before, then).
+        Finished chunks are read from it and every newly finished chunk is written to it (atomically); those that
+        finish in the first :func:`checkpoint_after` seconds are held, and written with the first that finishes
+        later (or as the run stops on an error or Ctrl-C).
     client : distributed.Client, optional
         Run the chunks on this dask cluster (:mod:`tumble.pipeline.distributed`); default: in this process.
     chunk_scenes : int, optional
