@@ -112,7 +112,7 @@ class InputError(ValueError):
 
 
 def _lean_kernel_process():
-    """For ``tumble run`` and ``tumble check``: three settings of the command's own process (never of a Python caller's: ``tumble.run_study`` leaves the
+    """For ``tumble run`` and ``tumble check``: two settings of the command's own process (never of a Python caller's: ``tumble.run_study`` leaves the
     process as it found it) that cut the fixed costs of a run; each leaves alone what the user set.
 
     - ``OMP_WAIT_POLICY=PASSIVE``: between the many short parallel regions of a scan, numba's OpenMP workers sleep
@@ -125,8 +125,9 @@ def _lean_kernel_process():
       current folder (10 ms). The import is made here with those modules unfindable (PyYAML only where there is
       no such file), then findable again: numba compiles ``np.dot`` and ``np.linalg`` as before (they import
       scipy's BLAS when first compiled).
-    - numba (and numpy) imported with the garbage collector paused, then frozen out of its sight
-      (:func:`tumble._startup.collector_paused`).
+
+    Both commands call it, and import what they need, with the garbage collector paused
+    (:func:`tumble._startup.collector_paused`).
     """
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
     if "numba.np.arraymath" in sys.modules:
@@ -135,8 +136,7 @@ def _lean_kernel_process():
     hidden = [name for name in unneeded if name not in sys.modules]
     sys.modules.update(dict.fromkeys(hidden))  # None: `import name` raises ImportError at once
     try:
-        with _startup.collector_paused():
-            import numba.np.arraymath  # noqa: F401
+        import numba.np.arraymath  # noqa: F401
     finally:
         for name in hidden:
             del sys.modules[name]
@@ -346,12 +346,13 @@ def _check_tolerances(args):
 
 def _check(args):
     """``tumble check``: read, check, write the netCDF file and the figure, print the summary; the exit status."""
-    _lean_kernel_process()
-    import numpy as np
+    with _startup.collector_paused():  # numba, then xarray and matplotlib
+        _lean_kernel_process()
+        import numpy as np
 
-    from .measure import check as checking
-    from .output import check_figure, io, trajectory
-    from .physics.bodies import Body
+        from .measure import check as checking
+        from .output import check_figure, io, trajectory
+        from .physics.bodies import Body
 
     tolerances = _check_tolerances(args)
     inertia = None

@@ -176,11 +176,10 @@ def assemble_scan(layout, records, body_coords=None):
             continue
         (coords if is_coord else data)[name] = xr.Variable(dims + var.dims, stacked, var.attrs)
     out = xr.Dataset(data, coords=coords, attrs=first_attrs)
+    meta = variable_metadata("periodic", 1.0)  # the moments' entries depend on neither
     out = out.assign_coords(
-        I1=("body", moments[:, 0], {"units": "kg m2", "long_name": "principal moment of inertia 1"}),
-        I2=("body", moments[:, 1], {"units": "kg m2", "long_name": "principal moment of inertia 2"}),
-        I3=("body", moments[:, 2], {"units": "kg m2", "long_name": "principal moment of inertia 3"}),
-        body=("body", np.arange(len(moments), dtype=np.int64), {"units": "1", "long_name": "body index"}))
+        {name: ("body", moments[:, k], meta[name][1]) for k, name in enumerate(("I1", "I2", "I3"))}
+        | {"body": ("body", np.arange(len(moments), dtype=np.int64), {"units": "1", "long_name": "body index"})})
     for name, v in (body_coords or {}).items():
         v = np.asarray(v)
         if v.shape != (len(moments),):
