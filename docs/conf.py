@@ -21,7 +21,8 @@ extensions = [
     "myst_parser",           # the Markdown pages (docs/*.md) as they are
     "sphinx.ext.autodoc",    # the Python API from the docstrings
     "numpydoc",              # ... which are numpydoc style
-    "sphinx.ext.mathjax",
+    "sphinx.ext.mathjax",    # the equations, with a MathJax the site carries (_ext/tumble_docs.py: no CDN)
+    "sphinx_copybutton",     # a copy button on every code block that leaves out >>> prompts and output
     "sphinxarg.ext",         # the command line from tumble.cli's parser
     "tumble_docs",           # generated reference tables and the docstring check (_ext/tumble_docs.py)
 ]
@@ -53,3 +54,8 @@ nitpick_ignore_regex = [
 html_theme = "furo"
 html_title = f"tumble {release}"
 html_static_path = []
+
+# Copy buttons: a pycon block's prompts (>>>, ...) and output are left out by their highlighting classes; the regular
+# expression does the same for prompts written in a plain block.
+copybutton_prompt_text = r">>> |\.\.\. |\$ "
+copybutton_prompt_is_regexp = True

@@ -1,5 +1,7 @@
-"""Command line: ``tumble run [STUDY]``, ``tumble studies``, ``tumble plot FILE.nc``, ``tumble bench``,
-``tumble demo``, ``tumble check TRAJECTORY``.
+"""Command line of tumble, Monte Carlo stability studies of rigid-body rotation: ``tumble run [STUDY]`` runs a study
+(a TOML file or a bundled study's name), ``tumble studies`` lists the bundled studies, ``tumble plot FILE.nc`` draws
+a result file's figures again, ``tumble bench`` runs the benchmarks, ``tumble demo`` the physics-core demo, and
+``tumble check TRAJECTORY`` holds another simulator's trajectory against the exact torque-free solution.
 
 Exit status: 0 success, 2 invalid input (one clear message naming the file, the field and what is wrong; no
 traceback, no output file), 1 any other failure (``TUMBLE_DEBUG=1`` shows its traceback); ``tumble check``: 3 when
@@ -415,7 +417,10 @@ def _bench(args):
 
 
 def _parser():
-    parser = argparse.ArgumentParser(prog="tumble", description=__doc__.splitlines()[0])
+    # The module docstring's two paragraphs, as plain text (no ``literals``): what `tumble --help` prints and the
+    # command-line reference on the site (docs/reference/cli.md) opens with.
+    intro, statuses = (" ".join(part.replace("``", "").split()) for part in __doc__.split("\n\n")[:2])
+    parser = argparse.ArgumentParser(prog="tumble", description=intro, epilog=statuses)
     parser.add_argument("--version", action="version", version=f"tumble {__version__}")
     commands = parser.add_subparsers(dest="command", required=True)
     run = commands.add_parser("run", help="run a study: netCDF file, figures and a summary")
@@ -427,11 +432,11 @@ def _parser():
     run.add_argument("--format", nargs="+", choices=("png", "pdf"), help="figure formats (override outputs.format)")
     run.add_argument("--device", choices=registry.DEVICES,
                      help="where the scenes run (override integration.device): cpu, or cuda for an NVIDIA GPU "
-                          "(pip install \"tumble[gpu]\")")
+                          "(the gpu extra: pip install \".[gpu]\" from a checkout)")
     run.add_argument("--scheduler", metavar="ADDRESS",
                      help="run the scenes on dask.distributed: 'local' (a LocalCluster on 127.0.0.1) or "
                           "tcp://HOST:PORT of a running scheduler (default: $DASK_SCHEDULER_ADDRESS, else in-process; "
-                          "needs pip install \"tumble[distributed]\")")
+                          "needs the distributed extra: pip install \".[distributed]\")")
     run.add_argument("--workers", type=int, help="worker processes of --scheduler local (default: one per core)")
     run.add_argument("--chunk-scenes", type=int, metavar="N",
                      help="scenes per chunk: the unit of checkpointing and of dask tasks (default: about 32 chunks)")

@@ -25,8 +25,10 @@ public methods of public classes) is checked for a docstring; each one missing i
 with ``-W`` fails and names it.
 """
 
+import importlib.util
 import inspect
 import re
+import shutil
 import tomllib
 from pathlib import Path
 
@@ -35,6 +37,7 @@ from sphinx import addnodes
 from sphinx.transforms.post_transforms import SphinxPostTransform
 from sphinx.util import logging
 from sphinx.util.docutils import SphinxDirective
+from docutils.transforms import Transform
 
 logger = logging.getLogger(__name__)
 
@@ -323,6 +326,37 @@ class RepositoryLinks(SphinxPostTransform):
             node.replace_self(nodes.inline(node.astext(), node.astext()))
 
 
+#: In the command line's help strings (plain text, parsed as reStructuredText by sphinx-argparse): an option name, a
+#: quoted install command, an environment variable and a URI template, shown as code.
+_HELP_CODE = re.compile(r"""--[a-z][\w-]*|pip install "[^"]*"|\$[A-Z][A-Z0-9_]*|\b[a-z]+://\S+?(?=[ ,;)]|$)""")
+
+
+class CommandLineLiterals(Transform):
+    """In the descriptions of sphinx-argparse's option lists (``docs/reference/cli.md``), the words that are code
+    become code: an option (``--scheduler``, which smart quotes would turn into an en dash), ``pip install ".[gpu]"``,
+    ``$DASK_SCHEDULER_ADDRESS``; a URI template such as ``tcp://HOST:PORT``, which the parser made a link to nowhere,
+    becomes code too. Runs before smart quotes (750)."""
+
+    default_priority = 700
+
+    def apply(self, **kwargs):
+        for description in list(self.document.findall(nodes.description)):
+            if not isinstance(description.parent, nodes.option_list_item):
+                continue
+            for ref in list(description.findall(nodes.reference)):
+                if not ref.get("refuri", "").startswith(("http://", "https://")):
+                    ref.replace_self(nodes.literal(ref.astext(), ref.astext()))
+            for text in list(description.findall(nodes.Text)):
+                if isinstance(text.parent, nodes.literal) or not _HELP_CODE.search(text):
+                    continue
+                parts, last = [], 0
+                for match in _HELP_CODE.finditer(text):
+                    parts += [nodes.Text(text[last:match.start()]), nodes.literal(match.group(), match.group())]
+                    last = match.end()
+                parts.append(nodes.Text(text[last:]))
+                text.parent.replace(text, [part for part in parts if part.astext()])
+
+
 class Gallery(_Generated):
     """``tumble-gallery FOLDER``: the figures of the bundled studies in ``FOLDER`` (relative to the page)."""
 
@@ -353,12 +387,50 @@ def _public_alias(app, env, node, contnode):
     return None
 
 
+#: The parts of MathJax 3 the site loads (from the sphinx-mathjax-offline package, which ships MathJax 3.2.2): the
+#: TeX-to-HTML component, its fonts and the TeX extensions it loads on demand (``\\boldsymbol``, ...). About 2 MB of
+#: the package's 24: the speech and explorer parts of the accessibility menu are left out.
+MATHJAX_FILES = ("tex-chtml.js", "output/chtml/fonts/woff-v2", "input/tex/extensions")
+
+
+def mathjax_folder():
+    """The folder of MathJax's files in the installed sphinx-mathjax-offline package (the docs extra)."""
+    from sphinx.errors import ExtensionError
+
+    spec = importlib.util.find_spec("sphinx-mathjax-offline")  # the package's module name has hyphens
+    if spec is None or not spec.submodule_search_locations:
+        raise ExtensionError("the site typesets its equations with a local MathJax: pip install -e \".[docs]\" "
+                             "(sphinx-mathjax-offline)")
+    return Path(next(iter(spec.submodule_search_locations))) / "static" / "mathjax"
+
+
+def _local_mathjax(app, config):
+    """The pages load MathJax from the site itself (``_static/mathjax/``), never from a CDN: the site reads offline."""
+    mathjax_folder()  # fails the build early where the package is missing
+    config.mathjax_path = "mathjax/tex-chtml.js"
+
+
+def _copy_mathjax(app, exception):
+    if exception is not None or app.builder.format != "html":
+        return
+    source, target = mathjax_folder(), Path(app.outdir) / "_static" / "mathjax"
+    for part in MATHJAX_FILES:
+        if (source / part).is_dir():
+            shutil.copytree(source / part, target / part, dirs_exist_ok=True)
+        else:
+            (target / part).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(source / part, target / part)
+
+
 def setup(app):
     app.connect("missing-reference", _public_alias)
     app.add_directive("tumble-gallery", Gallery)
     app.add_post_transform(RepositoryLinks)
+    app.add_transform(CommandLineLiterals)
     app.add_directive("tumble-api", ApiReference)
     app.add_directive("tumble-study-keys", StudyKeys)
     app.add_directive("tumble-netcdf", NetcdfReference)
     app.connect("builder-inited", _check_docstrings)
+    app.connect("config-inited", _local_mathjax)
+    app.connect("build-finished", _copy_mathjax)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
