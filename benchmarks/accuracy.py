@@ -41,7 +41,7 @@ from provenance import source_digest  # benchmarks/provenance.py
 import tumble
 from tumble.engine.sampling import perturbed_spins, seed_entropy
 from tumble.measure import estimators
-from tumble.measure.scenes import SAMPLE_STATUS_NAMES
+from tumble.measure.running import SAMPLE_STATUS_NAMES
 from tumble.physics import exact
 
 import timing  # benchmarks/timing.py (the script's folder is on sys.path)
@@ -178,7 +178,7 @@ def triangle(grid, samples, method):
 
 
 def _status_counts(codes):
-    """Excluded samples by reason (tumble.study.SAMPLE_STATUS_NAMES), zero counts left out."""
+    """Excluded samples by reason (tumble.measure.running.SAMPLE_STATUS_NAMES), zero counts left out."""
     counts = np.bincount(np.asarray(codes).ravel(), minlength=len(SAMPLE_STATUS_NAMES))
     return {SAMPLE_STATUS_NAMES[k]: int(n) for k, n in enumerate(counts) if k and n}
 

@@ -626,7 +626,7 @@ def part_maps(ctx):
     ``inertia_triangle(20)``; the two smaller maps on the CPU too (the large one takes 22 s on 16 cores: left out to
     stay in the time budget)."""
     import tumble
-    from tumble.measure.scenes import inertia_triangle
+    from tumble.measure.scans import inertia_triangle
 
     quick = ctx["report"]["quick"]
     repeats = 1 if quick else 3

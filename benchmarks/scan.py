@@ -6,7 +6,7 @@
 * ``study``: ``tumble.run_study("stability_map")`` in this process (20 x 20 bodies x 3 axes, 256 samples a
   scene, closed form), warm: planning, the batched closed form, the estimators, the summaries and the dataset;
   figures and the netCDF file are not written (no ``out``).
-* ``batched`` against ``one by one``: the same 1200 scene plans measured by :func:`tumble.measure.scenes.scene_batch`
+* ``batched`` against ``one by one``: the same 1200 scene plans measured by :func:`tumble.measure.scans.scene_batch`
   in chunks of 38 scenes (what ``tumble run`` does) and one scene per call (the scene-by-scene path), in the
   same run, on the same plans; the records are checked to be the same bits.
 
@@ -29,7 +29,8 @@ import numba
 import numpy as np
 
 import tumble
-from tumble.measure import scenes as study
+from tumble.measure import scans
+from tumble.measure.records import assemble_scan
 from tumble.pipeline import config, runner
 
 import timing  # benchmarks/timing.py (the script's folder is on sys.path)
@@ -74,16 +75,16 @@ def main(parts=()):
     step = runner.default_chunk_scenes(n)
 
     def batched():
-        return [r for lo in range(0, n, step) for r in study.scene_batch(plans[lo:lo + step])]
+        return [r for lo in range(0, n, step) for r in scans.scene_batch(plans[lo:lo + step])]
 
     def one_by_one():
-        return [study.scene_batch([plan])[0] for plan in plans]
+        return [scans.scene_batch([plan])[0] for plan in plans]
 
     same = all(all(np.array_equal(a[k], b[k], equal_nan=a[k].dtype.kind == "f") for k in a)
                for a, b in zip(batched(), one_by_one()))
     t_batched, t_single = median_seconds(batched), median_seconds(one_by_one)
     records = batched()
-    assemble = median_seconds(lambda: study.assemble_scan(job.layout, records, job.body_coords))
+    assemble = median_seconds(lambda: assemble_scan(job.layout, records, job.body_coords))
 
     big = big_map() if "big" in parts else None
     report = {"date": str(date.today()), "machine": machine, "threads": numba.get_num_threads(), "scenes": n,

@@ -251,11 +251,11 @@ def test_the_dzhanibekov_flip_study_draws_its_attitude_figures_and_plot_redraws_
 
 
 def test_attitude_trace_by_a_fixed_step_method_matches_the_closed_form():
-    from tumble.measure import scenes as study
+    from tumble.measure import traces
 
     handle = shapes.t_handle()
-    closed = study.attitude_trace(handle, 2, 10.0, 1e-3)
-    stepped = study.attitude_trace(handle, 2, 10.0, 1e-3, method="splitting4")
+    closed = traces.attitude_trace(handle, 2, 10.0, 1e-3)
+    stepped = traces.attitude_trace(handle, 2, 10.0, 1e-3, method="splitting4")
     assert closed["attitude_quaternion"].attrs["method"] == "exact"
     assert stepped.attitude_time.values[-1] == pytest.approx(closed.attitude_time.values[-1])
     end = rotations.angle_between(closed.attitude_quaternion.values[-1], stepped.attitude_quaternion.values[-1])

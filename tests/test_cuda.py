@@ -440,7 +440,8 @@ def test_a_fixed_step_scan_on_the_device_launches_per_batch_of_scenes_with_the_b
     """Fixed-step scenes of a scan share launches (a row of the scene table each; splitting2 relabels each scene's axes
     by its own moments): the same bits as each scene alone on the device, and the CPU's rates."""
     from tumble.kernels import device_kernels
-    from tumble.measure import scenes as study
+    from tumble.measure import running, scans
+    from tumble.measure.records import assemble_scan
 
     kernels = device_kernels()
     launches = []
@@ -448,17 +449,17 @@ def test_a_fixed_step_scan_on_the_device_launches_per_batch_of_scenes_with_the_b
     monkeypatch.setattr(kernels, "run_scenes", lambda *args, **kw: launches.append(len(args[2])) or real(*args, **kw))
     bodies = [(1.0, 2.0, 3.0), (1.0, 1.5, 2.2), (2.0, 2.5, 3.5)]
     kwargs = dict(axis=axis, method=method, samples=6, flips=1, torque=torque)
-    layout = study.scan_layout(bodies, axis, method=method)
-    planner = study.ScenePlanner(layout, samples=6, flips=1, torque=torque, device="cuda")
+    layout = scans.scan_layout(bodies, axis, method=method)
+    planner = scans.ScenePlanner(layout, samples=6, flips=1, torque=torque, device="cuda")
     plans = [planner(index) for index in range(layout["scenes"])]
-    records = study.scene_batch(plans)
+    records = scans.scene_batch(plans)
     assert launches == launched  # scenes a launch: the periodic ones in one, the growing ones in another
     for scene, record in zip(plans, records):
-        alone = study.scene_samples(scene, 0, 6)  # one launch of its own (run_ensemble on the device)
+        alone = running.scene_samples(scene, 0, 6)  # one launch of its own (run_ensemble on the device)
         np.testing.assert_array_equal(record["sample_status"], alone["code"])
         np.testing.assert_array_equal(record["sample_rate"], np.where(alone["code"] == 0, alone["rate"], np.nan))
         assert record["sample_steps_computed"] == alone["sample_steps_computed"]
-    _same_scene(study.assemble_scan(layout, records), tumble.scan(bodies, **kwargs))
+    _same_scene(assemble_scan(layout, records), tumble.scan(bodies, **kwargs))
 
 
 def test_the_device_counts_the_steps_of_each_warp_as_computed(cuda_device):

@@ -41,7 +41,7 @@ def test_each_public_name_loads_only_its_own_layers():
 
 def test_the_short_import_paths_give_the_layers_modules():
     code = ("import sys, tumble, tumble.exact, tumble.io\nfrom tumble.theory import linear\n"
-            "from tumble.models import Gyrostat\nimport tumble.measure.scenes\n"
+            "from tumble.models import Gyrostat\nimport tumble.measure.scans\n"
             "assert tumble.exact is sys.modules['tumble.physics.exact']\n"
             "assert tumble.exact.__spec__.name == 'tumble.physics.exact'\n"
             "assert tumble.io is sys.modules['tumble.output.io']\n"

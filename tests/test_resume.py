@@ -11,7 +11,7 @@ import xarray as xr
 
 import tumble
 from tumble import cli
-from tumble.measure import scenes as study
+from tumble.measure import planning, reduction, running
 from tumble.output import io
 from tumble.pipeline import checkpoint, config, runner
 
@@ -313,14 +313,14 @@ def test_the_norm_curve_keeps_its_samples_when_a_scene_is_cut(monkeypatch):
     job = runner.scene_job(config.load_study(BIG, overrides={"outputs.figures": ["norm_growth"]}))
     tasks = runner.plan_tasks(job, checkpoint.Finished({}, {}), chunk_samples=4096)
     assert [(t.start, t.stop) for t in tasks] == [(0, 12388)]  # SLICE > 12388 samples: one range
-    monkeypatch.setattr(study, "SLICE", 8192)  # a smaller slice, to cut a small scene
+    monkeypatch.setattr(planning, "SLICE", 8192)  # a smaller slice, to cut a small scene
     tasks = runner.plan_tasks(job, checkpoint.Finished({}, {}), chunk_samples=4096)
     assert [(t.start, t.stop) for t in tasks] == [(0, 8192), (8192, 12288), (12288, 12388)]
-    scene = study.scene_plan((1.0, 2.0, 3.0), 2, samples=12388, flips=0, curves=("norm",))
+    scene = planning.scene_plan((1.0, 2.0, 3.0), 2, samples=12388, flips=0, curves=("norm",))
     with pytest.raises(ValueError, match="norm curve"):
-        study.scene_samples(scene, 0, 4096)
-    whole = study.scene_result(scene, [study.scene_samples(scene, 0, 12388)])
-    cut = study.scene_result(scene, [study.scene_samples(scene, t.start, t.stop) for t in tasks])
+        running.scene_samples(scene, 0, 4096)
+    whole = reduction.scene_result(scene, [running.scene_samples(scene, 0, 12388)])
+    cut = reduction.scene_result(scene, [running.scene_samples(scene, t.start, t.stop) for t in tasks])
     xr.testing.assert_identical(whole, cut)
     assert whole.growth_norm.values.tobytes() == cut.growth_norm.values.tobytes()
 

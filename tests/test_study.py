@@ -7,8 +7,11 @@ import xarray as xr
 
 import tumble
 from tumble.engine import sampling
-from tumble.measure import scenes as study
-from tumble.measure.scenes import SAMPLE_STATUS_NAMES, flip_time_law, inertia_triangle, measure, regress_scan, scan
+from tumble.measure import planning, reduction, running, scans, traces
+from tumble.measure.regression import flip_time_law, regress_scan
+from tumble.measure.running import SAMPLE_STATUS_NAMES
+from tumble.measure.scans import inertia_triangle, scan
+from tumble.measure.scene import measure
 from tumble.output import io
 from tumble.physics import exact, shapes, theory
 
@@ -118,7 +121,7 @@ def test_bad_samples_are_excluded_and_counted(monkeypatch):
         w[:, axis - 1] = spin
         return w
 
-    monkeypatch.setattr(study, "drawn_spins", on_the_axis)  # (amplitude = 0 itself is refused)
+    monkeypatch.setattr(running, "drawn_spins", on_the_axis)  # (amplitude = 0 itself is refused)
     with pytest.warns(RuntimeWarning, match="no sample"):
         ds = measure(MOMENTS, 1, amplitude=1e-3, samples=8)
     assert int(ds.samples_used) == 0 and int(ds.samples_excluded) == 8
@@ -245,7 +248,7 @@ def test_curves_are_kept_only_when_asked_and_follow_the_theory():
 
 
 def test_invariant_drift_separates_geometric_methods_from_runge_kutta(warm_kernels):
-    ds = study.invariant_drift(MOMENTS, 2, methods=("rk4", "splitting2"), samples=4)
+    ds = traces.invariant_drift(MOMENTS, 2, methods=("rk4", "splitting2"), samples=4)
     assert ds.drift_l2.dims == ("drift_method", "drift_time") and ds.drift_time.size == 201
     worst = ds.drift_l2.max("drift_time")
     assert float(worst.sel(drift_method="splitting2")) < 1e-14 < float(worst.sel(drift_method="rk4"))
@@ -266,16 +269,16 @@ def test_closed_form_scenes_batched_are_the_same_bits_as_one_by_one():
     """Periodic, exponential (with flips and the norm curve) and neutral scenes of several bodies, mixed in one
     batch, against each scene alone and against a scene cut into sample ranges."""
     bodies = [(0.6, 0.8, 1.0), (1.0, 2.0, 3.0), (1.0, 1.0, 2.0), (2.0, 3.0, 4.5)]
-    plans = [study.scene_plan(body, axis, 1.5, amplitude, 96, 3, flips=2, curves=("norm",))
+    plans = [planning.scene_plan(body, axis, 1.5, amplitude, 96, 3, flips=2, curves=("norm",))
              for body in bodies for axis in (1, 2, 3) for amplitude in (1e-3, 1e-2)]
     assert {plan.kind for plan in plans} == {"periodic", "exponential", "neutral"}
-    batched = study.scene_batch(plans)
+    batched = scans.scene_batch(plans)
     for plan, record in zip(plans, batched):
-        _same_records(record, study.scene_batch([plan])[0])
-    plan = study.scene_plan((1.0, 2.0, 3.0), 2, 1.0, 1e-3, 3 * sampling.CHUNK, 0, flips=2)
-    cut = study.scene_records([plan], [[study.scene_samples(plan, lo, lo + sampling.CHUNK)
-                                        for lo in range(0, 3 * sampling.CHUNK, sampling.CHUNK)]])[0]
-    _same_records(cut, study.scene_batch([plan])[0])
+        _same_records(record, scans.scene_batch([plan])[0])
+    plan = planning.scene_plan((1.0, 2.0, 3.0), 2, 1.0, 1e-3, 3 * sampling.CHUNK, 0, flips=2)
+    cut = reduction.scene_records([plan], [[running.scene_samples(plan, lo, lo + sampling.CHUNK)
+                                            for lo in range(0, 3 * sampling.CHUNK, sampling.CHUNK)]])[0]
+    _same_records(cut, scans.scene_batch([plan])[0])
 
 
 def test_a_scan_is_its_scenes_measured_alone():

@@ -15,8 +15,8 @@ each name is imported on its first use (``tumble.integrate`` loads the engine, `
 pipeline), so that the command line answers at once and a script pays only for what it calls
 (``tests/test_latency.py`` holds it).
 
-Note that ``tumble.measure`` is the function :func:`tumble.measure.scenes.measure`; the ``tumble/measure/``
-package's modules are reached with ``from tumble.measure import scenes`` (or ``import tumble.measure.scenes``
+Note that ``tumble.measure`` is the function :func:`tumble.measure.scene.measure`; the ``tumble/measure/``
+package's modules are reached with ``from tumble.measure import scans`` (or ``import tumble.measure.scans``
 followed by ``sys.modules``), never by attribute access through the face.
 """
 
@@ -37,8 +37,12 @@ _FACE = {
     "propagate": ("tumble.engine.integration", "propagate"),
     "run_study": ("tumble.pipeline.runner", "run_study"),
     "check": ("tumble.measure.check", "check"),
-    **{name: ("tumble.measure.scenes", name)
-       for name in ("attitude_trace", "flip_time_law", "inertia_triangle", "measure", "regress_scan", "scan")},
+    "measure": ("tumble.measure.scene", "measure"),
+    "scan": ("tumble.measure.scans", "scan"),
+    "inertia_triangle": ("tumble.measure.scans", "inertia_triangle"),
+    "regress_scan": ("tumble.measure.regression", "regress_scan"),
+    "flip_time_law": ("tumble.measure.regression", "flip_time_law"),
+    "attitude_trace": ("tumble.measure.traces", "attitude_trace"),
 }
 
 # The physics modules of the public contract keep their short import paths (`import tumble.exact`,

@@ -1,6 +1,6 @@
 """Estimators: growth rates, oscillation frequencies, flip statistics, scene summaries and scan regressions.
 
-Plain numpy in, plain numpy out (no xarray here; :mod:`tumble.measure.scenes` builds the datasets). The phase
+Plain numpy in, plain numpy out (no xarray here; :mod:`tumble.measure.records` builds the datasets). The phase
 fit's loop over samples and times is a numba kernel (:func:`tumble.kernels.fits.phase_fit`): in numpy it made
 eight full-size temporaries and cost about 130 ns per sample and time, ten times the kernel.
 
@@ -258,7 +258,7 @@ def oscillation_frequencies(times, transverse, weights, spin, *, columns=None, r
     round-off is noise), those whose unwrapped phase steps by more than :data:`MAX_PHASE_STEP` between two
     stored times ``FIT_UNDERSAMPLED``; both get NaN and are left out of scene statistics. The check catches
     true steps between ``MAX_PHASE_STEP`` and ``π``; a step beyond ``π`` aliases and no check on the samples
-    alone can see it — the caller stores enough times per period (:mod:`tumble.measure.scenes` stores 32).
+    alone can see it — the caller stores enough times per period (:mod:`tumble.measure.planning` stores 32).
 
     Parameters
     ----------

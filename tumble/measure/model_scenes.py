@@ -1,9 +1,9 @@
 """Scenes of the models beyond the free body (issue 18): a gyrostat's or a heavy top's steady spin, perturbed, measured.
 
-A model scene is a free-body scene (:mod:`tumble.measure.scenes`) for a model of :mod:`tumble.physics.models`: an
+A model scene is a free-body scene (:mod:`tumble.measure.scene`) for a model of :mod:`tumble.physics.models`: an
 ensemble of states near the model's steady spin (:func:`tumble.engine.sampling.perturbed_states`), stepped by the
 model kernels (:func:`tumble.engine.models.run_model_ensemble`, rk4 or rk8), measured with the free body's
-estimators, and reduced by the free body's :func:`tumble.measure.scenes.scene_records`, so that its record holds
+estimators, and reduced by the free body's :func:`tumble.measure.reduction.scene_records`, so that its record holds
 the same variables (``kind``, ``rate``, ``rate_theory``, ``rel_error``, the interval, ``sample_rate``, ...) plus the
 model's coordinates (``model``; ``rotor``, the rotor's angular momentum along the spin axis, N m s; ``mgl``, N m).
 
@@ -11,13 +11,13 @@ Planning (:func:`scene_plan`):
 
 * kind and ``rate_theory`` from the model's linearisation, :func:`tumble.physics.theory.linear` (the largest real
   part of the Jacobian's eigenvalues, else the largest imaginary part);
-* the step resolves the fastest eigenvalue (:data:`tumble.measure.scenes.STEPS_PER_RADIAN`), and a heavy top's spin
+* the step resolves the fastest eigenvalue (:data:`tumble.measure.planning.STEPS_PER_RADIAN`), and a heavy top's spin
   too (its up vector turns at ``w3`` in the body frame). A gyrostat's spin is no time scale of its body-frame
   motion: the transverse Jacobian ``[[0, a], [b, 0]]`` has ``J² = ab = -ν²`` (or ``λ²``), so a Runge-Kutta step,
   a polynomial in ``J dt``, is as accurate as ``ν dt`` (``λ dt``) allows, however small ``ν`` is against the spin
   near a threshold (the map's slow precessions: 16 periods at 40 steps per radian of the spin took 300 000 steps);
 * exponential: the model's transverse norm (:meth:`~tumble.physics.models.Model.transverse`) is probed at
-  :data:`~tumble.measure.scenes.PROBES` + 1 equally spaced times up to ``2`` e-foldings past the end of the linear
+  :data:`~tumble.measure.planning.PROBES` + 1 equally spaced times up to ``2`` e-foldings past the end of the linear
   regime (the norm reaching ``SATURATION`` (1 %) of the norm of a perturbation one radian large, or
   ``SATURATION_TILTS`` times the tilt), and the growth rate is :func:`~tumble.measure.estimators.growth_rates`'
   linear-prediction fit up to that end. Near a gyrostat's threshold (``rate_theory`` small against the spin) the
@@ -26,7 +26,7 @@ Planning (:func:`scene_plan`):
   ``rate_theory / |spin|`` (below 1), which brought the worst scene of a 20 x 20 x 3 map (h = 0.1 N m s) from 0.75 %
   to 4e-5. A gyrostat's weighted norm squared is a sum of a growing and a decaying
   exponential (the circular weights), as the free body's, so the fit starts at t = 0;
-* periodic: states stored :data:`~tumble.measure.scenes.SAVES_PER_PERIOD` times per period of ``rate_theory`` over
+* periodic: states stored :data:`~tumble.measure.planning.SAVES_PER_PERIOD` times per period of ``rate_theory`` over
   :data:`PERIODS` periods; the frequency is :func:`~tumble.measure.estimators.oscillation_frequencies` of the
   transverse phase pair (a gyrostat's ``(w_b, w_c)`` with their circular weights). That estimator is
   model-agnostic (a phase's least-squares slope) — nothing of the free body in it.
@@ -45,7 +45,7 @@ eigenvector ``u`` of the measured eigenvalue ``lambda`` (the largest real part, 
 body's asymmetry: ``|z|^2`` is one exponential, whose rate linear prediction recovers exactly from t = 0, and the
 phase of ``z`` turns uniformly at ``Im lambda``. ``u`` is scaled so that ``|z|`` is the amplitude of a mode of unit
 transverse norm (rad/s). The states are stored at the probe times (exponential) or
-:data:`~tumble.measure.scenes.SAVES_PER_PERIOD` times a period (periodic) and projected as soon as the engine returns
+:data:`~tumble.measure.planning.SAVES_PER_PERIOD` times a period (periodic) and projected as soon as the engine returns
 (:func:`tumble.measure.estimators.modal_amplitudes`: a compiled gather, then ``matmul``). The ensemble is
 that of before (the up direction tilted by ``amplitude``, the spin by ``amplitude`` x
 :data:`HEAVY_TOP_SPIN_TILT`), so the sleeping top's scenes run the same samples; only their measurement changed.
@@ -69,7 +69,7 @@ from ..physics import models, theory
 from ..physics.models import Model
 from ..registry import STATUS_OK
 from . import estimators as analysis
-from . import scenes
+from . import planning, reduction
 
 __all__ = ["HEAVY_TOP_SPIN_TILT", "METHODS", "MODAL", "Mode", "ModelScene", "PERIODS", "mode", "model_of", "scan_layout",
            "flat_spin_trace", "scene_batch", "scene_plan", "scene_records", "scene_samples"]
@@ -93,7 +93,7 @@ SLICE = 2 * CHUNK
 class ModelScene:
     """One model scene, validated and planned (:func:`scene_plan`): plain data that pickles (dask, checkpoints).
 
-    Its fields are those of :class:`tumble.measure.scenes.Scene` that :func:`tumble.measure.scenes.scene_records`
+    Its fields are those of :class:`tumble.measure.planning.Scene` that :func:`tumble.measure.reduction.scene_records`
     reads (no torque, no flips, no curves), plus the model and the measured mode."""
 
     model: Model
@@ -106,7 +106,7 @@ class ModelScene:
     chosen: str  # rk4 or rk8
     kind: str  # "periodic" or "exponential"
     value: float  # rate_theory: frequency (rad/s) or growth rate (1/s)
-    plan: scenes.StepPlan
+    plan: planning.StepPlan
     entropy: int
     distribution: str
     flips: int = 0
@@ -216,39 +216,39 @@ def _grid(t_first, t_last, points, dt):
 
 
 def _plan(scene_args, kind, value, y0_norms, dt, horizon, eigenvalues=None):
-    """The :class:`~tumble.measure.scenes.StepPlan` of a model scene (horizon, step, observation times);
+    """The :class:`~tumble.measure.planning.StepPlan` of a model scene (horizon, step, observation times);
     ``eigenvalues``: :func:`tumble.physics.theory.eigenvalues` at the steady spin, when the caller has them."""
     model, axis, spin, amplitude, order = scene_args
     lam = np.abs(theory.eigenvalues(model, axis, spin) if eigenvalues is None else eigenvalues).max()
     if dt is None:
         fastest = max(lam, abs(spin)) if model.kind == "heavy_top" else lam  # see the module docstring
-        dt = 1.0 / fastest / scenes.STEPS_PER_RADIAN[order]
+        dt = 1.0 / fastest / planning.STEPS_PER_RADIAN[order]
     if kind == "exponential":
         tilt = math.sin(min(amplitude, 0.5 * np.pi))
         start = float(np.median(y0_norms))
         per_radian = start / tilt  # the norm of a perturbation one radian large
-        saturation = max(scenes.SATURATION, scenes.SATURATION_TILTS * tilt) * per_radian
+        saturation = max(planning.SATURATION, planning.SATURATION_TILTS * tilt) * per_radian
         if model.kind in ("gyrostat", "gravity_gradient", "free"):  # near a threshold the linear regime ends
             saturation *= min(1.0, value / abs(spin))  # sooner (module docstring); a gravity gradient's spin: n
         t_growth = (math.log(max(saturation / start, math.e)) + 2.0) / value
         if horizon:
             t_growth = min(t_growth, horizon)
-        dt, first, every = _grid(0.0, t_growth, scenes.PROBES, dt)
-        probes = (first + np.arange(scenes.PROBES + 1) * every) * dt
-        n_steps = first + scenes.PROBES * every
-        return scenes.StepPlan(t_end=n_steps * dt, dt=dt, n_steps=n_steps, probe_times=probes, saturation=saturation,
+        dt, first, every = _grid(0.0, t_growth, planning.PROBES, dt)
+        probes = (first + np.arange(planning.PROBES + 1) * every) * dt
+        n_steps = first + planning.PROBES * every
+        return planning.StepPlan(t_end=n_steps * dt, dt=dt, n_steps=n_steps, probe_times=probes, saturation=saturation,
                                save_every=every if model.kind in MODAL else None)
     period = 2 * np.pi / value
     t_end = horizon or PERIODS * period
-    spacing = period / scenes.SAVES_PER_PERIOD
-    if t_end / spacing > scenes.MAX_SAVES:
+    spacing = period / planning.SAVES_PER_PERIOD
+    if t_end / spacing > planning.MAX_SAVES:
         raise ValueError(f"horizon {t_end:g} s needs {t_end / spacing:.0f} stored states per sample for the phase "
-                         f"fit ({scenes.SAVES_PER_PERIOD} per period), more than {scenes.MAX_SAVES}; choose a "
+                         f"fit ({planning.SAVES_PER_PERIOD} per period), more than {planning.MAX_SAVES}; choose a "
                          f"shorter horizon")
     every = max(1, math.ceil(spacing / dt))
     dt = spacing / every
     n_steps = max(1, math.ceil(t_end / dt - 1e-9))
-    return scenes.StepPlan(t_end=n_steps * dt, dt=dt, n_steps=n_steps, save_every=every)
+    return planning.StepPlan(t_end=n_steps * dt, dt=dt, n_steps=n_steps, save_every=every)
 
 
 def _checked(model, axis, amplitude, samples, method):
@@ -261,7 +261,7 @@ def _checked(model, axis, amplitude, samples, method):
         raise ValueError(f"method must be auto or one of {', '.join(METHODS)} for a model, got {method!r}")
     if isinstance(amplitude, (bool, np.bool_)) or not float(amplitude) > 0:
         raise ValueError(f"amplitude must be > 0 rad, got {amplitude!r}")
-    scenes.check_amplitude(amplitude)
+    planning.check_amplitude(amplitude)
     if isinstance(samples, (bool, np.bool_)) or not isinstance(samples, (int, np.integer)) or samples < 1:
         raise ValueError(f"samples must be an integer >= 1, got {samples!r}")
     return METHODS[0] if method == "auto" else method
@@ -319,8 +319,8 @@ def scene_plan(model, axis, spin=1.0, amplitude=1e-3, samples=256, seed=0, metho
         norms = model.transverse_norm(y0, axis, spin)
     order = registry.method(chosen).order
     plan = _plan((model, int(axis), spin, amplitude, order), kind, value, norms, dt, horizon, linearised.eigenvalues)
-    scenes.check_fit_span(kind, value, plan.t_end, horizon)
-    scenes.refuse_plan(int(samples), plan, True, kind == "exponential", 0, device)
+    planning.check_fit_span(kind, value, plan.t_end, horizon)
+    planning.refuse_plan(int(samples), plan, True, kind == "exponential", 0, device)
     return ModelScene(model, model.moments, int(axis), spin, amplitude, int(samples), method, chosen, kind, value,
                       plan, entropy, distribution, mode=scene_mode, device=device)
 
@@ -350,7 +350,7 @@ def _modal_signal(scene, result):
 def _fit_group(pieces):
     """Per-sample ``(rate, code, extras)`` of engine calls of one kind of measurement, in one estimator call:
     ``pieces`` are ``(scene, call)`` (:class:`_Call`) of the same kind, model family and number of observed times (a
-    chunk's scenes, whose bodies differ, are measured together, as :func:`tumble.measure.scenes.scene_batch` does)."""
+    chunk's scenes, whose bodies differ, are measured together, as :func:`tumble.measure.scans.scene_batch` does)."""
     first = pieces[0][0]
     heavy, counts = first.model.kind in MODAL, [len(call.result.status) for _, call in pieces]
     row = np.repeat(np.arange(len(pieces), dtype=np.int64), counts)
@@ -443,7 +443,7 @@ def _part(scene, start, stop, runs, fits):
 
 def scene_samples(scene, start, stop):
     """Run samples ``[start, stop)`` of a :func:`scene_plan`: per-sample fits, no reduction — the part
-    :func:`tumble.measure.scenes.scene_samples` returns (same keys), so that scene records, checkpoints and dask
+    :func:`tumble.measure.running.scene_samples` returns (same keys), so that scene records, checkpoints and dask
     tasks take it as they take a free body's."""
     runs = _run(scene, start, stop)
     return _part(scene, start, stop, runs, _fit_all([(scene, call) for call in runs]))
@@ -463,8 +463,8 @@ def _model_coordinates(scene):
 
 def scene_records(model_scenes, parts):
     """The records of model scenes from their :func:`scene_samples` ranges: the free body's
-    (:func:`tumble.measure.scenes.scene_records`) and the model's coordinates."""
-    records = scenes.scene_records(model_scenes, parts)
+    (:func:`tumble.measure.reduction.scene_records`) and the model's coordinates."""
+    records = reduction.scene_records(model_scenes, parts)
     for scene, record in zip(model_scenes, records):
         for name, value in _model_coordinates(scene).items():
             record[name] = np.asarray(value)
@@ -485,7 +485,7 @@ def scene_batch(model_scenes):
 
 
 def scan_layout(moments, values, swept):
-    """The scenes of a model study in the form of :func:`tumble.measure.scenes.scan_layout` (``moments`` (B, 3) or
+    """The scenes of a model study in the form of :func:`tumble.measure.scans.scan_layout` (``moments`` (B, 3) or
     (3,); ``values`` by name: axis, spin, amplitude, method and the model's parameters; ``swept``: the names whose
     value is a list of scene values, in the order of the scan's dimensions)."""
     moments = np.atleast_2d(np.asarray(moments, dtype=float))

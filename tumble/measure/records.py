@@ -1,6 +1,6 @@
 """Scene records and the xarray Datasets built from them: NumPy and xarray only, no kernel.
 
-A scene record (:func:`tumble.measure.scenes.scene_records`) is a flat dict of NumPy values: every variable,
+A scene record (:func:`tumble.measure.reduction.scene_records`) is a flat dict of NumPy values: every variable,
 coordinate and ``@attribute`` of the scene's dataset. This module holds what a record's names mean (units, long
 names, dimensions: :func:`variable_metadata`) and builds the datasets: one scene (:func:`scene_dataset`) or a scan
 (:func:`assemble_scan`). It imports no numba, so the process that writes a study's results (the figure process of
@@ -121,7 +121,7 @@ def record_variables(record):
 
 def scene_dataset(record):
     """The dataset of one scene (:func:`tumble.measure`) from its record
-    (:func:`~tumble.measure.scenes.scene_records`)."""
+    (:func:`~tumble.measure.reduction.scene_records`)."""
     import xarray as xr
 
     data, coords, attrs = record_variables(record)
@@ -129,8 +129,8 @@ def scene_dataset(record):
 
 
 def assemble_scan(layout, records, body_coords=None):
-    """The scan's dataset from the records (:func:`~tumble.measure.scenes.scene_records`) of every scene of a
-    :func:`~tumble.measure.scenes.scan_layout`, in order.
+    """The scan's dataset from the records (:func:`~tumble.measure.reduction.scene_records`) of every scene of a
+    :func:`~tumble.measure.scans.scan_layout`, in order.
 
     Every variable and coordinate that differs between scenes (the swept parameters) gains the scan dimensions
     ``(body, *swept)`` in front of its own; a variable some scenes lack (a periodic scene has no growth fit window)

@@ -1,6 +1,6 @@
 """Pictures of one traced spin's attitude: the body flipping in space, and Poinsot's polhode and herpolhode.
 
-Reads the attitude of one spin, as :func:`tumble.measure.scenes.attitude_trace` stores it:
+Reads the attitude of one spin, as :func:`tumble.measure.traces.attitude_trace` stores it:
 
 ========================================================  ==============================================
 ``attitude_time`` (coordinate)                            time, s, increasing
@@ -150,7 +150,7 @@ def missing_attitude(ds):
         have = "has none" if len(absent) == len(ATTITUDE_VARIABLES) else f"lacks {', '.join(map(repr, absent))}"
         return ("the attitude of one traced spin: 'attitude_quaternion' (attitude_time, quaternion_component), "
                 "'attitude_omega' (attitude_time, component) and 'attitude_moments' (component), as "
-                f"tumble.measure.scenes.attitude_trace gives; this dataset {have}")
+                f"tumble.attitude_trace gives; this dataset {have}")
     for name, dims in (("attitude_quaternion", ("attitude_time", "quaternion_component")),
                        ("attitude_omega", ("attitude_time", "component")), ("attitude_moments", ("component",))):
         lacking = [d for d in dims if d not in ds[name].dims]

@@ -14,7 +14,7 @@ with data and names it in its title; a figure that draws several picks at most :
 atomically.
 
 The attitude figures (``flip_animation``, ``flip_strip``, ``polhode``, ``herpolhode``) draw one traced spin's
-orientation as :func:`tumble.measure.scenes.attitude_trace` stores it; their drawing lives in :mod:`tumble.output.attitude_figures`.
+orientation as :func:`tumble.measure.traces.attitude_trace` stores it; their drawing lives in :mod:`tumble.output.attitude_figures`.
 ``flip_animation`` gives a :class:`~tumble.output.attitude_figures.FlipAnimation`, which :func:`save_figures` writes as
 a GIF (an MP4 when matplotlib finds ffmpeg), whatever image formats are asked for.
 """

@@ -34,7 +34,7 @@ from ..engine.sampling import CHUNK
 from ..engine import cost
 from ..engine.progress import tqdm
 from ..measure import model_scenes
-from ..measure import scenes as study
+from ..measure import planning, reduction, running, scans, traces
 from ..physics import exact, theory
 from ..registry import STEPPING
 from . import checkpoint, config, results
@@ -48,7 +48,7 @@ __all__ = ["DEFAULT_CHUNK_SAMPLES", "Outputs", "PER_SAMPLE", "PreparedStudy", "T
 #: Per-sample variables a result may keep (``outputs.arrays``): :data:`tumble.pipeline.results.PER_SAMPLE`.
 PER_SAMPLE = results.PER_SAMPLE
 
-#: Figures that need curves :func:`tumble.measure.scenes.measure` keeps only on request.
+#: Figures that need curves :func:`tumble.measure.scene.measure` keeps only on request.
 _CURVES = {"norm_growth": "norm", "flip_components": "trace"}
 
 #: Samples of the per-method invariant record (``invariant_drift``).
@@ -63,7 +63,7 @@ def output_stem(source, resolved):
 
 
 class StudyPlan(NamedTuple):
-    """What a resolved study runs (:func:`plan`): the arguments of :func:`tumble.measure.scenes.scan` (or of one
+    """What a resolved study runs (:func:`plan`): the arguments of :func:`tumble.measure.scans.scan` (or of one
     ``measure``)."""
 
     moments: np.ndarray  # (B, 3) the scan's bodies, or (3,) the study's one body, kg m²
@@ -78,7 +78,7 @@ class StudyPlan(NamedTuple):
 class Job(NamedTuple):
     """The scenes of a study as plain data that pickles to a dask worker (:func:`scene_job`)."""
 
-    layout: dict  # tumble.measure.scenes.scan_layout; layout["scenes"] scenes
+    layout: dict  # tumble.measure.scans.scan_layout; layout["scenes"] scenes
     scanned: bool  # False: one measure
     samples: int
     seed: int
@@ -93,7 +93,7 @@ def _bodies(resolved):
     """``(moments (B, 3) or (3,), body coordinates or None)``: the scan's bodies, or the study's one body."""
     scan = resolved["scan"]
     if "triangle" in scan:
-        moments, coords = study.inertia_triangle(scan["triangle"])
+        moments, coords = scans.inertia_triangle(scan["triangle"])
         return moments, coords
     listed = config.scan_bodies(resolved)
     if listed is not None:
@@ -110,7 +110,7 @@ def _bodies(resolved):
 
 
 def plan(resolved, file="<mapping>"):
-    """What a resolved study will run: a :class:`StudyPlan` of :func:`tumble.measure.scenes.scan` / ``measure``
+    """What a resolved study will run: a :class:`StudyPlan` of :func:`tumble.measure.scans.scan` / ``measure``
     arguments.
 
     Raises :class:`~tumble.pipeline.config.StudyError` for combinations that are valid field by field but cannot
@@ -193,8 +193,8 @@ _BOUND_FIELDS = {"scenes": "scan", "steps": "integration", "memory": "perturbati
 def study_cost(resolved, *, flips=None):
     """:class:`tumble.engine.cost.Cost` of a resolved study, from its fields alone (no scene is planned, so
     this takes microseconds whatever the study's size; ``flips`` replaces ``integration.flips``). Its memory is
-    the model of :func:`tumble.measure.scenes.scene_estimate` (the worst kind the study may hold) plus the run's fixed
-    :data:`tumble.engine.cost.RUN_FOOTPRINT`: the peak resident memory above an idle ``import tumble``."""
+    the model of :func:`tumble.measure.planning.scene_estimate` (the worst kind the study may hold) plus the run's
+    fixed :data:`tumble.engine.cost.RUN_FOOTPRINT`: the peak resident memory above an idle ``import tumble``."""
     scan, integ = resolved["scan"], resolved["integration"]
     if "triangle" in scan:
         bodies = scan["triangle"] ** 2
@@ -210,19 +210,21 @@ def study_cost(resolved, *, flips=None):
         stepping = [registry.AUTO_STEPPING]  # a model always steps (rk4 for "auto")
     rate = abs(max(scan.get("rate", [resolved["spin"]["rate"]]), key=abs))
     # the planner's horizon: a few periods (or growth times and flips) of the scene, about PERIODS turns of the spin
-    horizon = integ["horizon"] or study.PERIODS * 2 * math.pi / rate
+    horizon = integ["horizon"] or planning.PERIODS * 2 * math.pi / rate
     steps = 0.0
     if stepping:
-        per_radian = max(study.STEPS_PER_RADIAN[registry.method(m).order] for m in stepping)
+        per_radian = max(planning.STEPS_PER_RADIAN[registry.method(m).order] for m in stepping)
         steps = horizon / integ["dt"] if integ["dt"] else horizon * rate * per_radian
-    times = study.PROBES + 1
+    times = planning.PROBES + 1
     if integ["horizon"]:  # a periodic scene stores SAVES_PER_PERIOD states per period (at most MAX_SAVES)
-        times = max(times, min(integ["horizon"] * rate / (2 * math.pi) * study.SAVES_PER_PERIOD, study.MAX_SAVES) + 1)
+        times = max(times, min(integ["horizon"] * rate / (2 * math.pi) * planning.SAVES_PER_PERIOD,
+                               planning.MAX_SAVES) + 1)
     arrays = resolved["outputs"]["arrays"]
     kept = 2 * (8 * len(arrays) + 8 * bool(arrays))  # the records and the assembled dataset, with the sample index
-    estimate = study.scene_estimate(bool(stepping), _only_exponential(resolved), resolved["perturbation"]["samples"],
-                                    times, steps=steps, flips=integ["flips"] if flips is None else flips, scenes=scenes,
-                                    kept_per_sample=kept)
+    estimate = planning.scene_estimate(bool(stepping), _only_exponential(resolved),
+                                       resolved["perturbation"]["samples"], times, steps=steps,
+                                       flips=integ["flips"] if flips is None else flips, scenes=scenes,
+                                       kept_per_sample=kept)
     return estimate._replace(peak_bytes=estimate.peak_bytes + cost.RUN_FOOTPRINT)
 
 
@@ -278,7 +280,7 @@ def scene_job(resolved, file="<mapping>"):
         swept = [key for key in values if key in p.scanned or (key == "spin" and "rate" in p.scanned)]
         layout = model_scenes.scan_layout(p.moments, values, swept)
     else:
-        layout = study.scan_layout(p.moments, values["axis"], values["spin"], values["amplitude"], values["method"])
+        layout = scans.scan_layout(p.moments, values["axis"], values["spin"], values["amplitude"], values["method"])
     return Job(layout, bool(p.scanned), p.samples, p.seed, p.options, p.body_coords, p, str(file),
                tuple(resolved["outputs"]["arrays"]))
 
@@ -300,16 +302,16 @@ class Task(NamedTuple):
 
 
 def _planner(job):
-    """A :class:`tumble.measure.scenes.ScenePlanner` of a :func:`scene_job`'s scenes (None for a model study)."""
+    """A :class:`tumble.measure.scans.ScenePlanner` of a :func:`scene_job`'s scenes (None for a model study)."""
     if "model" in job.options:
         return None
-    return study.ScenePlanner(job.layout, samples=job.samples, seed=job.seed, **job.options)
+    return scans.ScenePlanner(job.layout, samples=job.samples, seed=job.seed, **job.options)
 
 
 def _scene_plan(job, index, planner=None):
-    """:func:`tumble.measure.scenes.scene_plan` of scene ``index`` of a :func:`scene_job` (through ``planner``, a
+    """:func:`tumble.measure.planning.scene_plan` of scene ``index`` of a :func:`scene_job` (through ``planner``, a
     :func:`_planner` of the job, when several scenes are planned)."""
-    moments, params = study.scan_scene_parameters(job.layout, index)
+    moments, params = scans.scan_scene_parameters(job.layout, index)
     file = job.file
     try:
         if "model" in job.options:
@@ -351,30 +353,30 @@ def _kept(job, record):
 
 
 def _scene_record(job, scene, parts):
-    """The record (:func:`tumble.measure.scenes.scene_records`, :func:`_kept`) of a scene from its sample ranges."""
+    """The record (:func:`tumble.measure.reduction.scene_records`, :func:`_kept`) of a scene from its sample ranges."""
     if "model" in job.options:
         return _kept(job, model_scenes.scene_records([scene], [parts])[0])
-    return _kept(job, study.scene_records([scene], [parts])[0])
+    return _kept(job, reduction.scene_records([scene], [parts])[0])
 
 
 def compute_scenes(job, indices, *, progress=False):
     """``{index: record}`` of the whole scenes ``indices`` of a :func:`scene_job`: a scan's scenes, or the study's one
-    measurement; closed-form scenes run together (:func:`tumble.measure.scenes.scene_batch`)."""
+    measurement; closed-form scenes run together (:func:`tumble.measure.scans.scene_batch`)."""
     if not indices:  # an empty task (a worker's warm-up) needs no job
         return {}
     if "model" in job.options:
         records = model_scenes.scene_batch([_scene_plan(job, i) for i in indices])
     else:
         planner = _planner(job)
-        records = study.scene_batch([_scene_plan(job, i, planner) for i in indices], progress=progress)
+        records = scans.scene_batch([_scene_plan(job, i, planner) for i in indices], progress=progress)
     return {i: _kept(job, record) for i, record in zip(indices, records)}
 
 
 def compute_samples(job, index, start, stop, *, progress=False):
-    """Samples ``[start, stop)`` of scene ``index`` (:func:`tumble.measure.scenes.scene_samples`)."""
+    """Samples ``[start, stop)`` of scene ``index`` (:func:`tumble.measure.running.scene_samples`)."""
     if "model" in job.options:
         return model_scenes.scene_samples(_scene_plan(job, index), start, stop)
-    return study.scene_samples(_scene_plan(job, index), start, stop, progress=progress)
+    return running.scene_samples(_scene_plan(job, index), start, stop, progress=progress)
 
 
 def compute_task(job, task, digest="", *, threads=None, progress=False):
@@ -531,7 +533,7 @@ def plan_tasks(job, done, *, chunk_scenes=None, chunk_samples=None):
     n, samples = job.layout["scenes"], job.samples
     per_task = _count(chunk_scenes, "chunk_scenes", default_chunk_scenes(n))
     size = chunk_samples_size(chunk_samples)
-    first = min(study.SLICE, samples) if "norm" in job.options.get("curves", ()) else 0
+    first = min(planning.SLICE, samples) if "norm" in job.options.get("curves", ()) else 0
     whole, ranges = [], []
     for i in range(n):
         parts = done.parts.pop(i, {})
@@ -571,7 +573,7 @@ def run_scenes(job, *, store=None, client=None, chunk_scenes=None, chunk_samples
     Returns
     -------
     list of dict
-        The scene records (:func:`tumble.measure.scenes.scene_records`).
+        The scene records (:func:`tumble.measure.reduction.scene_records`).
     """
     n = job.layout["scenes"]
     digest = store.digest if store is not None else ""
@@ -654,8 +656,8 @@ def _extras(resolved, job, progress):
     extras = []
     if "invariant_drift" in figures:
         methods = [m for m in np.atleast_1d(values["method"]) if m in STEPPING] or list(STEPPING)
-        extras.append(study.invariant_drift(*scene, methods, samples=min(_DRIFT_SAMPLES, p.samples), seed=p.seed,
-                                            horizon=options["horizon"]))
+        extras.append(traces.invariant_drift(*scene, methods, samples=min(_DRIFT_SAMPLES, p.samples), seed=p.seed,
+                                             horizon=options["horizon"]))
     if "work_precision" in figures:
         from ..measure import precision  # scipy's solve_ivp runs: imported only when asked for
 
@@ -670,9 +672,9 @@ def _extras(resolved, job, progress):
     if any(name in config.ATTITUDE_FIGURES for name in figures):
         body = resolved["body"] if "body" not in resolved["scan"] else {}
         method = _first(values["method"])
-        extras.append(study.attitude_trace(*scene, method if method in STEPPING else "auto", seed=p.seed,
-                                           torque=options["torque"], horizon=options["horizon"],
-                                           shape=body.get("shape", ""), shape_parameters=body.get("dimensions")))
+        extras.append(traces.attitude_trace(*scene, method if method in STEPPING else "auto", seed=p.seed,
+                                            torque=options["torque"], horizon=options["horizon"],
+                                            shape=body.get("shape", ""), shape_parameters=body.get("dimensions")))
     return extras
 
 
