@@ -124,8 +124,8 @@ def test_the_new_models_follow_their_registry_rows():
 
 
 def test_the_model_kernels_and_the_studies_run_the_new_models():
-    """Issue 19's kernels step both models (tests/test_model_kernels_19.py) and studies run them
-    (tests/test_model_studies_19.py)."""
+    """Issue 19's kernels step both models (tests/test_model_kernels_gravity_gradient_damper.py) and studies run them
+    (tests/test_model_studies_gravity_gradient_damper.py)."""
     from tumble.kernels import MODEL_CODES
 
     assert {"gravity_gradient", "damper"} <= set(MODEL_CODES)
