@@ -7,7 +7,7 @@
 
 The scene: 2000 spins of 1 rad/s tilted ε = 0.05 rad from the intermediate axis of I = (1, 2, 3) kg m²
 (a cone of tilts, :func:`tumble.sampling.perturbed_spins`, seed 0), integrated to t = 20 s — several flips.
-Every fixed-step tumble method runs over a ladder of steps (:func:`tumble.precision.default_steps`), the
+Every fixed-step tumble method runs over a ladder of steps (:func:`tumble.measure.precision.default_steps`), the
 closed form once, SciPy's ``solve_ivp`` (RK45, DOP853) on the stacked ensemble over rtol = 1e-3 … 1e-13
 and, when heyoka is installed (``pip install 'tumble[bench]'``), heyoka's batch-mode Taylor integrator over
 tol = 1e-3 … 1e-15 on as many threads as numba's, all in the same process, one after the other. Error: max
@@ -19,7 +19,7 @@ load) is timed apart and reported, never counted.
 Writes ``work_precision.nc`` (the dataset, :func:`tumble.io.write_dataset`), ``work_precision.md`` (the
 speed-up tables at errors 1e-4, 1e-7, 1e-10, 1e-13 against DOP853 and heyoka, with the targets of issue 15
 marked met or missed, compile times, machine, load, date), ``work_precision.json`` (every number) and, when
-:mod:`tumble.plots` can draw it, ``work_precision_work_precision.png`` (the diagram).
+:mod:`tumble.output.figures` can draw it, ``work_precision_work_precision.png`` (the diagram).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Estimators of tumble.analysis: scaled coordinates, growth and phase fits, flip timing, scene statistics.
+"""Estimators of tumble.measure.estimators: scaled coordinates, growth and phase fits, flip timing, scene statistics.
 
 Layers (STYLE.md item 7): properties of the invariant weights → synthetic signals whose answer is known in
 closed form → the exact torque-free solution (tumble.exact) against linear theory and the exact period →

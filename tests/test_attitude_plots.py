@@ -66,7 +66,7 @@ def reference_trace(moments, w0, t_end, points):
 
 def attitude_dataset(moments, w0, t_end, points, *, shape="", params=None, method="scipy DOP853 (reference)",
                      spin_axis=2):
-    """A dataset in the attitude schema of tumble.study.attitude_trace, plus an unrelated scan variable."""
+    """A dataset in the attitude schema of tumble.attitude_trace, plus an unrelated scan variable."""
     t, w, q = reference_trace(moments, w0, t_end, points)
     attrs = {"method": method, "spin_axis": spin_axis, "body_shape": shape,
              "body_shape_json": json.dumps(params or {})}

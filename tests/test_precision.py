@@ -1,4 +1,4 @@
-"""Work-precision data (tumble.precision): schema, convergence orders, the closed form's accuracy, SciPy's
+"""Work-precision data (tumble.measure.precision): schema, convergence orders, the closed form's accuracy, SciPy's
 tolerances, and reading speed-ups off the curves."""
 
 import math

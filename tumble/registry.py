@@ -2,7 +2,7 @@
 
 This module imports nothing of tumble. The kernels (a stepping method's kernel id is its index in
 :data:`STEPPING`), the engine's choice of path, the study checks, the command line, the docs' tables, the
-tests and the benchmarks all read these tables instead of keeping lists of their own; ``tests/test_registry.py``
+tests and the benchmarks all read these tables instead of keeping lists of their own; ``tests/test_layers.py``
 checks that the kernels' coefficient tables agree with them.
 """
 
