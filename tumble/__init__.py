@@ -32,6 +32,7 @@ from ._version import __version__
 #: Public name -> (module, attribute); attribute None: the name is the module itself.
 _FACE = {
     "Body": ("tumble.physics.bodies", "Body"),
+    "System": ("tumble.physics.system", "System"),
     "run_ensemble": ("tumble.engine.ensemble", "run_ensemble"),
     "integrate": ("tumble.engine.integration", "integrate"),
     "propagate": ("tumble.engine.integration", "propagate"),
@@ -100,6 +101,6 @@ def __dir__():
     return sorted(set(globals()) | set(_FACE))
 
 
-__all__ = ["Body", "attitude_trace", "check", "exact", "flip_time_law", "inertia_triangle", "integrate", "io", "measure",
-           "models", "propagate", "regress_scan", "rotations", "run_ensemble", "run_study", "sampling", "scan", "shapes",
+__all__ = ["Body", "System", "attitude_trace", "check", "exact", "flip_time_law", "inertia_triangle", "integrate", "io",
+           "measure", "models", "propagate", "regress_scan", "rotations", "run_ensemble", "run_study", "sampling", "scan", "shapes",
            "theory", "__version__"]

@@ -18,6 +18,7 @@ from ..registry import STATUS_NAMES, STATUS_OK
 from . import cost
 from .device import resolve_device, stepper
 from .ensemble import run_ensemble, torque_spec
+from .systems import is_system, run_system
 
 __all__ = ["integrate", "propagate", "METHOD_NAMES"]
 
@@ -91,7 +92,28 @@ def _horizon_and_step(t_end, dt):
     return t_end, dt
 
 
-def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None, device="cpu"):
+def _no_torque_or_attitude(system, torque, attitude):
+    """A model or a System carries its torques in its own equations: refuse a ``torque`` or ``attitude`` for it."""
+    name = system.name if hasattr(system, "rate") else f"the {system.kind} model"
+    if attitude:
+        raise ValueError(f"attitude=True integrates a free body's orientation; {name!r} has its state's own "
+                         f"components (give the attitude as part of its state)")
+    if torque is not None and (callable(torque) or hasattr(torque, "items") or np.any(np.asarray(torque) != 0)):
+        raise ValueError(f"torque acts on a free body; {name!r} has its torques in its own equations (write them "
+                         f"into its rate)")
+
+
+def _system_run(system, y0, t_end, dt, method, torque, save_every, parameters, device, attitude=False):
+    # size: integrate's and propagate's arguments, passed on once for both
+    _no_torque_or_attitude(system, torque, attitude)
+    t_end, dt = _horizon_and_step(t_end, dt)
+    n_steps, step = _step_plan(t_end, dt)
+    return run_system(system, y0, t_end, n_steps, step, method, save_every=_save_every(save_every),
+                      parameters=parameters, device=device)
+
+
+def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None, parameters=None, device="cpu"):
+    # size: the contract's arguments (DESIGN.md): the free body's, a system's parameters, the device
     """Integrate Euler's equations and return the spins as an array: the lean path of :func:`integrate`.
 
     The same validation, step plan and kernels as :func:`integrate` (the results are the same bits), without
@@ -102,10 +124,11 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
 
     Parameters
     ----------
-    body : Body or array_like, shape (3,)
-        Principal moments of inertia, kg m².
+    body : Body, array_like (3,), model or System
+        Principal moments of inertia, kg m² (the free body); or a built-in model (:mod:`tumble.models`) or a user's
+        :class:`tumble.System`, whose states ``w0`` then are (as :func:`integrate`).
     w0 : array_like, shape (N, 3) or (3,)
-        Initial body-frame angular velocities, rad/s.
+        Initial body-frame angular velocities, rad/s; a system's states, shape (N, n) or (n,).
     t_end, dt : float
         Horizon (>= 0) and step (> 0), s; the step is shortened to ``t_end / ceil(t_end / dt)`` when
         ``t_end / dt`` is not a whole number, so that the run ends exactly at ``t_end``.
@@ -116,6 +139,8 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
         As :func:`integrate` (``None`` or zero: torque-free).
     save_every : int, optional
         None: only the final state. ``k``: the initial state, every k-th step and the final one.
+    parameters : mapping, optional
+        A model's or System's parameters, by name, in place of its own (as :func:`integrate`).
     device : str
         ``"cpu"`` or ``"cuda"`` (:func:`tumble.engine.device.resolve_device`; the closed form too, one thread per
         sample: :func:`tumble.physics.exact.omega_on_device`; not yet a torque function).
@@ -124,7 +149,7 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
     -------
     ndarray
         Shape ``(N, 3)`` (rad/s, final state) or ``(N, T, 3)`` with ``save_every``; a ``(3,)`` spin gives
-        ``(3,)`` or ``(T, 3)``. The states are stepped as they come: a sample that became non-finite is NaN
+        ``(3,)`` or ``(T, 3)``; a system's ``(N, n)`` or ``(N, T, n)``. The states are stepped as they come: a sample that became non-finite is NaN
         or inf (check with ``numpy.isfinite``).
 
     Raises
@@ -133,6 +158,12 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
         Invalid moments, spins, horizon, step, method, torque or save interval, or ``"exact"`` with a torque; a
         device that is unknown, missing, or cannot run this yet (``device 'cuda': ...``).
     """
+    if is_system(body):
+        result, single = _system_run(body, w0, t_end, dt, method, torque, save_every, parameters, device)
+        out = result.trajectory if save_every else result.final
+        return out[0] if single else out
+    if parameters is not None:
+        raise ValueError("parameters are a model's or a System's; a free body has none (its moments are the body)")
     device = resolve_device(device)
     moments = one_body(body)
     single = np.ndim(w0) == 1
@@ -159,19 +190,27 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
     return out[0] if single else out
 
 
-def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=None, attitude=False, *, device="cpu"):
-    # size: the contract's eight arguments (DESIGN.md) and the device keyword every engine call takes
+def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=None, attitude=False, *, parameters=None,
+              device="cpu"):
+    # size: the contract's eight arguments (DESIGN.md), a system's parameters and the device keyword every engine
+    # call takes
     """Integrate Euler's equations for an ensemble of initial spins.
 
     ``I1 w1' = (I2 - I3) w2 w3 + N1`` and cyclic, in the principal-axis (body) frame, with a fixed step, or
     evaluated in closed form (``method="exact"``, torque-free only).
 
+    A built-in model (:mod:`tumble.models`: ``HeavyTop``, ``GravityGradient``, ...) or a user's
+    :class:`tumble.System` in place of the body integrates that system's equations instead, on the same fixed steps
+    (rk4, rk8; the Lie–Poisson splittings for the models that have them): its states ``w0`` have shape (N, n), and
+    the Dataset holds ``state(sample, time, component)`` with the component names of the system (``spec.state``).
+
     Parameters
     ----------
-    body : Body or array_like, shape (3,)
-        Principal moments of inertia, kg m².
+    body : Body, array_like (3,), model or System
+        Principal moments of inertia, kg m² (the free body); or the system to integrate.
     w0 : array_like, shape (N, 3)
-        Initial body-frame angular velocities, rad/s (a single spin of shape (3,) is taken as N = 1).
+        Initial body-frame angular velocities, rad/s (a single spin of shape (3,) is taken as N = 1); a system's
+        initial states, shape (N, n) (or (n,)).
     t_end : float
         Horizon, s (>= 0).
     dt : float
@@ -191,6 +230,8 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
         first) of the body-to-space rotation, ``v_space = q v_body q*``, with the space frame equal to the body
         frame at ``t = 0``. Every method carries it in its own way (:mod:`tumble.kernels.attitude`); ``"exact"``
         gives it in closed form (:func:`tumble.physics.exact.attitude`). Without it no attitude code runs.
+    parameters : mapping, optional
+        A model's or a System's parameters, by name, in place of its own (a free body has none).
     device : str
         ``"cpu"`` or ``"cuda"`` (as :func:`propagate`; recorded in ``attrs["device"]``).
 
@@ -199,13 +240,20 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
     xarray.Dataset
         ``omega(sample, time, axis)``, rad/s, with coordinates ``sample``, ``time`` (s) and ``axis`` (1, 2, 3)
         and attributes recording the method, step, step count and torque; with ``attitude=True`` also
-        ``quaternion(sample, time, component)`` (component 0 the scalar part).
+        ``quaternion(sample, time, component)`` (component 0 the scalar part). For a system:
+        ``state(sample, time, component)``, ``component`` the names of its state, ``status(sample)``, and the
+        system's name and parameters in the attributes.
 
     Raises
     ------
     ValueError
         Invalid moments, spins, horizon, step, method, torque or save interval, or ``"exact"`` with a torque.
     """
+    if is_system(body):
+        return _system_dataset(*_system_run(body, w0, t_end, dt, method, torque, save_every, parameters, device,
+                                            attitude), t_end, device)
+    if parameters is not None:
+        raise ValueError("parameters are a model's or a System's; a free body has none (its moments are the body)")
     moments = one_body(body)
     w = _initial_spins(w0)
     t_end, dt = _horizon_and_step(t_end, dt)
@@ -256,6 +304,40 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
         "sample_steps_skipped": info["sample_steps_skipped"],
         "attitude": int(bool(attitude)),  # 0: no attitude code ran
         "device": info["device"],
+    }
+    return indexed_dataset(variables, attrs)
+
+
+def _system_dataset(result, single, t_end, device):
+    """:func:`integrate`'s Dataset of a model's or a System's run: ``state(sample, time, component)``."""
+    del single  # a Dataset always has the sample dimension
+    state = result.trajectory if result.trajectory is not None else result.final[:, None]
+    times = result.times if result.times is not None else np.array([t_end])
+    n_bad = int(np.count_nonzero(result.status != STATUS_OK))
+    if n_bad:
+        warnings.warn(f"{n_bad} of {len(state)} samples of {result.name!r} became non-finite (their state is the last "
+                      f"finite one; status says which)", RuntimeWarning, stacklevel=3)
+    variables = {
+        "state": (("sample", "time", "component"), state,
+                  {"units": result.units[0] if len(set(result.units)) == 1 else "see component_units",
+                   "long_name": f"state of {result.name}"}),
+        "status": ("sample", result.status, {"long_name": "sample status", "flag_values": _FLAG_VALUES.copy(),
+                                             "flag_meanings": _FLAG_MEANINGS}),
+        "sample": ("sample", np.arange(len(state)), {"long_name": "ensemble member"}),
+        "time": ("time", times, {"units": "s", "long_name": "time"}),
+        "component": ("component", np.array(result.components), {"long_name": "state component"}),
+        "component_units": ("component", np.array(result.units), {"long_name": "units of each state component"}),
+    }
+    attrs = {
+        "system": result.name,
+        "method": result.method,
+        "order": METHODS[result.method].order if result.method in METHODS else -1,
+        "dt": result.dt,
+        "n_steps": result.n_steps,
+        "t_end": t_end,
+        "n_nonfinite": n_bad,
+        "device": device,
+        **{f"parameter_{key}": value for key, value in result.parameters.items()},
     }
     return indexed_dataset(variables, attrs)
 

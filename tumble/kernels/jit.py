@@ -173,7 +173,7 @@ def _enable_cache(dispatcher):
     return dispatcher
 
 
-def jit(fn=None, *, parallel=False, inline=False, contract=True):
+def jit(fn=None, *, parallel=False, inline=False, contract=True, cache=True, boundscheck=False):
     """Compile ``fn`` with tumble's numba options.
 
     Parameters
@@ -187,15 +187,24 @@ def jit(fn=None, *, parallel=False, inline=False, contract=True):
         happened to fuse: numba optimises a ``parallel=True`` kernel differently when it compiles it than
         when it loads it from the cache (numba issue #10617), and with contraction allowed the two fuse
         different products, so a cold and a warm run would disagree in the last bits.
+    cache : bool
+        Keep the compiled code in the disk cache (:class:`CheckedCache`). ``False`` for a user's function and
+        the closures over it (:mod:`tumble.kernels.systems`): numba's cache cannot key a closure over another
+        function (issue #6264: a new entry every process, never a hit) nor a function typed in a notebook.
+    boundscheck : bool
+        Raise ``IndexError`` on an index out of bounds (slow: only for a first call that checks a user's function).
     """
     options = dict(_OPTIONS, parallel=parallel)
     if not contract:
         options["fastmath"] = set(FASTMATH - {"contract"})
     if inline and _NUMBA_IR_INLINE:
         options["inline"] = "always"
+    if boundscheck:
+        options["boundscheck"] = True
 
     def wrap(f):
-        return _enable_cache(numba.njit(**options)(f))
+        dispatcher = numba.njit(**options)(f)
+        return _enable_cache(dispatcher) if cache else dispatcher
 
     return wrap if fn is None else wrap(fn)
 

@@ -19,7 +19,7 @@ from typing import NamedTuple
 import numpy as np
 
 __all__ = [
-    "ALL_METHODS", "ButcherTableau", "IMPLICIT_MIDPOINT", "METHOD_ORDER", "RK4", "RK8", "SYMPLECTIC_EULER",
+    "ALL_METHODS", "ButcherTableau", "TABLEAUX", "IMPLICIT_MIDPOINT", "METHOD_ORDER", "RK4", "RK8", "SYMPLECTIC_EULER",
     "SPLITTING2", "SPLITTING4", "Splitting",
     "ROTATE_1", "ROTATE_2", "ROTATE_3", "TORQUE",
 ]
@@ -161,4 +161,7 @@ IMPLICIT_MIDPOINT = ImplicitMidpoint()
 
 # Every fixed-step method; a method's kernel id is its index here.
 ALL_METHODS = (RK4, RK8, SYMPLECTIC_EULER, SPLITTING2, SPLITTING4, IMPLICIT_MIDPOINT)
+
+#: The explicit Runge–Kutta methods by name: what a system given by its rate runs (:mod:`tumble.kernels.systems`).
+TABLEAUX = {m.name: m for m in ALL_METHODS if isinstance(m, ButcherTableau)}
 METHOD_ORDER = tuple(m.name for m in ALL_METHODS)

@@ -36,7 +36,8 @@ import numpy as np
 
 from .. import registry
 from .bodies import as_moments, finite_array, moment_unit
-from .models import Model
+from .models import FreeBody, Model
+from .system import System, with_parameters
 
 __all__ = [
     "DEGENERATE_RTOL",
@@ -48,6 +49,7 @@ __all__ = [
     "constant_torque_symmetric_top",
     "damper_nutation_rate",
     "eigenvalues",
+    "eigenvalues_at",
     "first_flip_time",
     "flip_spacing",
     "flip_time_asymptote",
@@ -300,6 +302,88 @@ def eigenvalues(model, axis, spin=1.0):
         spin.
     """
     return np.linalg.eigvals(_equilibrium_jacobian(model, axis, spin))
+
+
+def eigenvalues_at(system, state, parameters=None, *, t=0.0):
+    """Eigenvalues of any system's Jacobian ``∂f/∂y`` at a state the caller gives (not only a steady spin).
+
+    Parameters
+    ----------
+    system : Body, array_like (3,), model or System
+        Moments (the free body), a built-in model (:mod:`tumble.models`) or a user's :class:`tumble.System`.
+    state : array_like, shape (..., n)
+        The state(s) to linearise about, in the system's components (``spec.state``).
+    parameters : mapping, optional
+        A model's or System's parameters, by name, in place of its own.
+    t : float
+        Time, s, for a System whose rate depends on it.
+
+    Returns
+    -------
+    ndarray of complex, shape (..., n)
+        ``numpy.linalg.eigvals`` of the Jacobian (LAPACK's order): a model's analytic one
+        (:meth:`~tumble.physics.models.Model.jacobian`: for a gravity gradient in the quaternion's 4 components, so
+        one eigenvalue, along the norm, is 0); a System's ``jacobian`` when it has one, else ``rate`` (both called as
+        the Python functions they are) differentiated
+        by :func:`scipy.differentiate.jacobian` (adaptive central differences of order 8 with Richardson
+        extrapolation: about 1e-13 of the Jacobian's largest entry for a smooth rate, where one-sided differences
+        give 1e-8; a complex step would be exact but needs a rate written for complex numbers).
+
+    Raises
+    ------
+    ValueError
+        A state of the wrong size or not finite, an unknown parameter, a Jacobian or rate that fails or gives a
+        non-finite Jacobian (one line naming the system).
+    """
+    if isinstance(system, System):
+        return _system_eigenvalues(system, state, parameters, t)
+    model = system if isinstance(system, Model) else FreeBody(system)
+    model, _ = with_parameters(model, parameters)
+    y = finite_array(state, "state")
+    if y.ndim == 0 or y.shape[-1] != model.state_size:
+        raise ValueError(f"state must have shape (..., {model.state_size}) ({', '.join(model.spec.state)} of the "
+                         f"{model.kind} model), got shape {y.shape}")
+    return np.linalg.eigvals(model.jacobian(y))
+
+
+def _system_eigenvalues(system, state, parameters, t):
+    """:func:`eigenvalues_at` of a :class:`System`: its functions called as the Python they are (a few dozen calls:
+    nothing to compile)."""
+    n = system.state_size
+    y = finite_array(state, "state")
+    if y.ndim == 0 or y.shape[-1] != n:
+        raise ValueError(f"state must have shape (..., {n}) ({', '.join(system.state)} of system {system.name!r}), "
+                         f"got shape {y.shape}")
+    p = system.parameter_values(parameters)
+    t = float(finite_array(t, "t"))
+    flat = y.reshape(-1, n)
+    jacobians = np.full((len(flat), n, n), np.nan)
+
+    def call(fn, what, *args):
+        try:
+            fn(t, *args)
+        except Exception as err:  # noqa: BLE001 - a user's function: its failure is reported in one line
+            raise ValueError(f"system {system.name!r}: its {what} raised {type(err).__name__}: {err}") from None
+
+    if system.jacobian is not None:
+        for i, row in enumerate(flat):
+            call(system.jacobian, "jacobian", row.copy(), p, jacobians[i])
+    else:
+        from scipy.differentiate import jacobian as differentiate
+
+        def f(x):  # x (n, ...) -> the rate at every column, (n, ...)
+            columns = np.moveaxis(x, 0, -1).reshape(-1, n)
+            out = np.full_like(columns, np.nan)
+            for j, column in enumerate(columns):
+                call(system.rate, "rate", column.copy(), p, out[j])
+            return np.moveaxis(out.reshape(*x.shape[1:], n), -1, 0)
+
+        for i, row in enumerate(flat):
+            jacobians[i] = differentiate(f, row).df
+    if not np.all(np.isfinite(jacobians)):
+        raise ValueError(f"system {system.name!r}: its Jacobian at the state is not finite (NaN or inf: an entry left "
+                         f"unset, or a rate that is not differentiable there)")
+    return np.linalg.eigvals(jacobians).reshape(*y.shape[:-1], n)
 
 
 def _linear_model(model, axis, spin):

@@ -1,0 +1,218 @@
+"""A user's own system (``tumble.System``) and the built-in models run through ``tumble.integrate`` / ``propagate``.
+
+The systems are written here, in the test file, as a user writes them: a damped pendulum and the free rigid body
+by hand. They are checked against SciPy's DOP853 at rtol 1e-12, against tumble's own free body, on the CPU and on
+numba-cuda's simulator (tests/conftest.py sets ``NUMBA_ENABLE_CUDASIM=1``), with a Runge–Kutta tableau added at
+test time; and every mistake a user can make gets one line naming the system.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+import tumble
+from tumble.engine.device import resolve_device
+from tumble.kernels import TABLEAUX
+from tumble.kernels.tableaux import ButcherTableau
+
+
+def pendulum(t, y, p, dydt):
+    """A damped pendulum: x'' = -k sin x - c x'."""
+    dydt[0] = y[1]
+    dydt[1] = -p[0] * math.sin(y[0]) - p[1] * y[1]
+
+
+def pendulum_jacobian(t, y, p, J):
+    J[0, 0] = 0.0
+    J[0, 1] = 1.0
+    J[1, 0] = -p[0] * math.cos(y[0])
+    J[1, 1] = -p[1]
+
+
+def free_body(t, y, p, dydt):
+    """Euler's equations, I1 w1' = (I2 - I3) w2 w3 and cyclic; p = (I1, I2, I3)."""
+    dydt[0] = (p[1] - p[2]) * y[1] * y[2] / p[0]
+    dydt[1] = (p[2] - p[0]) * y[2] * y[0] / p[1]
+    dydt[2] = (p[0] - p[1]) * y[0] * y[1] / p[2]
+
+
+PENDULUM = tumble.System(pendulum, state=("x", "v"), parameters={"k": 2.0, "c": 0.1}, name="pendulum")
+FREE_BODY = tumble.System(free_body, state=("w1", "w2", "w3"), parameters={"I1": 1.0, "I2": 2.0, "I3": 3.0},
+                          name="free body by hand")
+MOMENTS = (1.0, 2.0, 3.0)
+SPINS = np.array([[0.01, 1.0, 0.02], [0.3, 0.1, 1.0], [1.0, 0.2, -0.1]])
+
+
+def _dop853(rate, y0, t_end, p):
+    def f(t, y):
+        out = np.empty_like(y)
+        rate(t, y, p, out)
+        return out
+
+    return np.array([solve_ivp(f, (0.0, t_end), y, method="DOP853", rtol=1e-12, atol=1e-14).y[:, -1] for y in y0])
+
+
+@pytest.fixture(scope="module")
+def cuda_device():
+    try:
+        return resolve_device("cuda")
+    except ValueError as err:
+        pytest.skip(str(err))
+
+
+def test_a_damped_pendulum_agrees_with_dop853_and_its_dataset_names_the_components():
+    y0 = np.array([[0.5, 0.0], [2.5, -0.3], [-1.0, 1.5]])
+    ds = tumble.integrate(PENDULUM, y0, 10.0, 0.01, method="rk8", save_every=100)
+    assert ds["state"].dims == ("sample", "time", "component")
+    assert list(ds["component"].values) == ["x", "v"]
+    assert ds.attrs["system"] == "pendulum" and ds.attrs["parameter_k"] == 2.0 and ds.attrs["method"] == "rk8"
+    np.testing.assert_allclose(ds["time"].values, np.linspace(0.0, 10.0, 11), rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(ds["state"].values[:, 0], y0)
+    reference = _dop853(pendulum, y0, 10.0, np.array([2.0, 0.1]))
+    np.testing.assert_allclose(ds["state"].values[:, -1], reference, rtol=0, atol=1e-11)
+    assert np.all(ds["status"].values == 0)
+
+
+def test_parameters_override_the_systems_defaults_and_unknown_ones_are_refused():
+    y0 = np.array([[1.0, 0.0]])
+    undamped = tumble.propagate(PENDULUM, y0, 5.0, 0.01, method="rk8", parameters={"c": 0.0})
+    np.testing.assert_allclose(undamped, _dop853(pendulum, y0, 5.0, np.array([2.0, 0.0])), rtol=0, atol=1e-11)
+    with pytest.raises(ValueError, match=r"'damping' is not a parameter of system 'pendulum' \(it has: k, c\)"):
+        tumble.propagate(PENDULUM, y0, 1.0, 0.01, parameters={"damping": 0.0})
+
+
+def test_the_free_body_by_hand_gives_tumbles_free_body_and_dop853():
+    mine = tumble.propagate(FREE_BODY, SPINS, 20.0, 0.01, method="rk4")
+    builtin = tumble.propagate(tumble.Body(*MOMENTS), SPINS, 20.0, 0.01, method="rk4")
+    np.testing.assert_allclose(mine, builtin, rtol=0, atol=1e-12)
+    reference = _dop853(free_body, SPINS, 20.0, np.array(MOMENTS))
+    np.testing.assert_allclose(mine, reference, rtol=0, atol=1e-6)  # rk4 at 10 ms over 20 s
+
+
+def test_a_system_on_the_device_gives_the_cpu_run(cuda_device):
+    y0 = np.array([[0.5, 0.0], [2.5, -0.3], [np.nan, 0.0]])
+    with pytest.warns(RuntimeWarning, match="1 of 3 samples of 'pendulum' became non-finite"):
+        cpu = tumble.integrate(PENDULUM, y0, 1.0, 0.05, method="rk8", save_every=4)
+    with pytest.warns(RuntimeWarning, match="1 of 3 samples"):
+        device = tumble.integrate(PENDULUM, y0, 1.0, 0.05, method="rk8", save_every=4, device=cuda_device)
+    np.testing.assert_allclose(device["state"].values, cpu["state"].values, rtol=1e-13, atol=1e-15)
+    np.testing.assert_array_equal(device["status"].values, cpu["status"].values)
+    assert list(cpu["status"].values) == [0, 0, 1]  # the sample that starts NaN says so, it is not refused
+    assert device.attrs["device"] == "cuda"
+
+
+def _ralston3():
+    """Ralston's third-order method (Ralston 1962): the tableau with minimum error bound."""
+    return ButcherTableau.build("ralston3", 3, [[], [0.5], [0.0, 0.75]], [2 / 9, 1 / 3, 4 / 9], [0.0, 0.5, 0.75])
+
+
+def _observed_order(device, method):
+    y0 = SPINS[:1]
+    reference = tumble.exact.omega(tumble.Body(*MOMENTS), y0, np.array([2.0]))[:, -1]
+    errors = [np.max(np.abs(tumble.propagate(FREE_BODY, y0, 2.0, dt, method=method, device=device) - reference))
+              for dt in (0.04, 0.02, 0.01)]
+    return np.polyfit(np.log([0.04, 0.02, 0.01]), np.log(errors), 1)[0]
+
+
+def test_a_tableau_registered_at_test_time_runs_at_its_order_on_the_cpu_and_the_device(monkeypatch, cuda_device):
+    monkeypatch.setitem(TABLEAUX, "ralston3", _ralston3())
+    assert abs(_observed_order("cpu", "ralston3") - 3.0) < 0.1
+    assert abs(_observed_order(cuda_device, "ralston3") - 3.0) < 0.1
+
+
+def test_a_built_in_model_integrates_by_name_with_its_state_components():
+    top = tumble.models.HeavyTop((2.0, 2.5, 3.0), 0.5)
+    y0 = np.array([[0.1, 0.0, 5.0, 0.05, 0.0, 1.0]])
+    y0[:, 3:] /= np.linalg.norm(y0[:, 3:], axis=1, keepdims=True)
+    ds = tumble.integrate(top, y0, 2.0, 0.01, method="rk8", save_every=50, parameters={"mgl": 0.6})
+    assert list(ds["component"].values) == ["w1", "w2", "w3", "g1", "g2", "g3"]
+    assert list(ds["component_units"].values) == ["rad/s"] * 3 + ["1"] * 3
+    assert ds.attrs["system"] == "heavy_top" and ds.attrs["parameter_mgl"] == 0.6
+    by_hand = tumble.System(_heavy_top, state=("w1", "w2", "w3", "g1", "g2", "g3"),
+                            parameters={"I1": 2.0, "I2": 2.5, "I3": 3.0, "mgl": 0.6}, name="heavy top by hand")
+    mine = tumble.propagate(by_hand, y0, 2.0, 0.01, method="rk8")
+    np.testing.assert_allclose(ds["state"].values[:, -1], mine, rtol=0, atol=1e-12)
+    splitting = tumble.propagate(top, y0, 2.0, 0.01, method="splitting4")
+    np.testing.assert_allclose(splitting, mine, rtol=0, atol=1e-2)  # mgl 0.5 against 0.6: the parameter acted
+    assert not np.allclose(splitting, mine, atol=1e-6)
+
+
+def _heavy_top(t, y, p, dydt):
+    """I w' = (I w) x w + mgl (g x e3), g' = g x w."""
+    i1, i2, i3, mgl = p[0], p[1], p[2], p[3]
+    dydt[0] = ((i2 - i3) * y[1] * y[2] + mgl * y[4]) / i1
+    dydt[1] = ((i3 - i1) * y[2] * y[0] - mgl * y[3]) / i2
+    dydt[2] = (i1 - i2) * y[0] * y[1] / i3
+    dydt[3] = y[4] * y[2] - y[5] * y[1]
+    dydt[4] = y[5] * y[0] - y[3] * y[2]
+    dydt[5] = y[3] * y[1] - y[4] * y[0]
+
+
+def test_eigenvalues_at_any_state_from_the_jacobian_or_differentiated_rate():
+    with_jacobian = tumble.System(pendulum, state=("x", "v"), parameters={"k": 2.0, "c": 0.1}, name="pendulum",
+                                  jacobian=pendulum_jacobian)
+    for state in ([0.0, 0.0], [math.pi, 0.0], [0.7, 0.3]):
+        k, c = 2.0, 0.1
+        exact = np.linalg.eigvals(np.array([[0.0, 1.0], [-k * math.cos(state[0]), -c]]))
+        for system in (PENDULUM, with_jacobian):
+            found = np.sort_complex(tumble.theory.eigenvalues_at(system, state))
+            np.testing.assert_allclose(found, np.sort_complex(exact), rtol=1e-10, atol=1e-12)
+    # the free body at a steady spin about its intermediate axis: +-sqrt(-q) w and 0, as linear theory says
+    rate = tumble.theory.linear(tumble.Body(*MOMENTS), 2, 1.0)[1]
+    for system in (tumble.Body(*MOMENTS), FREE_BODY):
+        found = np.sort(tumble.theory.eigenvalues_at(system, [0.0, 1.0, 0.0]).real)
+        np.testing.assert_allclose(found, [-rate, 0.0, rate], rtol=0, atol=1e-10)
+
+
+def _uncompilable(t, y, p, dydt):
+    dydt[0] = y[0] + {"a": 1}["a"] * undefined_name  # noqa: F821 - a user's mistake
+
+
+def _out_of_bounds(t, y, p, dydt):
+    dydt[0] = y[1]
+    dydt[1] = y[2]
+
+
+def _unset(t, y, p, dydt):
+    dydt[0] = y[1]
+
+
+def _nan(t, y, p, dydt):
+    dydt[0] = y[1]
+    dydt[1] = math.sqrt(y[0] - 10.0)
+
+
+@pytest.mark.parametrize("rate, message", [
+    (_uncompilable, r"^system 'bad': numba cannot compile rate\(t, y, p, dydt\) in nopython mode: .*undefined_name"),
+    (_out_of_bounds, r"^system 'bad': its rate indexes beyond the state or the parameters \(state has 2 components"),
+    (_unset, r"^system 'bad': its rate left dydt\[1\] \(v\) unset or NaN at sample 0's initial state"),
+    (_nan, r"^system 'bad': its rate left dydt\[1\] \(v\) unset or NaN"),
+])
+def test_a_rate_that_cannot_run_is_one_line_naming_the_system(rate, message):
+    bad = tumble.System(rate, state=("x", "v"), name="bad")
+    with pytest.raises(ValueError, match=message) as caught:
+        tumble.propagate(bad, [[1.0, 0.0]], 1.0, 0.1)
+    assert "\n" not in str(caught.value)
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda: tumble.propagate(PENDULUM, [[1.0, 0.0, 0.0]], 1.0, 0.1),
+     r"y0 must have shape \(N, 2\) with N >= 1 \(x, v of 'pendulum'\), got shape \(1, 3\)"),
+    (lambda: tumble.propagate(PENDULUM, [[1.0, 0.0]], 1.0, 0.1, method="splitting2"),
+     r"method must be one of rk4, rk8 for 'pendulum', got 'splitting2' \(a System runs the explicit Runge-Kutta"),
+    (lambda: tumble.integrate(PENDULUM, [[1.0, 0.0]], 1.0, 0.1, torque=(0.0, 0.0, 1.0)),
+     r"torque acts on a free body; 'pendulum' has its torques in its own equations"),
+    (lambda: tumble.integrate(PENDULUM, [[1.0, 0.0]], 1.0, 0.1, attitude=True), r"attitude=True integrates a free"),
+    (lambda: tumble.integrate(tumble.Body(*MOMENTS), SPINS, 1.0, 0.1, parameters={"k": 1.0}),
+     r"parameters are a model's or a System's; a free body has none"),
+    (lambda: tumble.System(pendulum, state=("x", "x"), name="p"), r"system 'p': state has a name twice: x, x"),
+    (lambda: tumble.System(pendulum, state=("x", "v"), parameters={"k": math.nan}, name="p"),
+     r"system 'p': parameter 'k' must be finite"),
+    (lambda: tumble.System("not a function", state=("x",), name="p"), r"system 'p': rate must be a function"),
+    (lambda: tumble.theory.eigenvalues_at(PENDULUM, [1.0]), r"state must have shape \(\.\.\., 2\) \(x, v of system"),
+])
+def test_a_users_mistake_is_one_clear_line(call, message):
+    with pytest.raises(ValueError, match=message):
+        call()

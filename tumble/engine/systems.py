@@ -1,0 +1,240 @@
+"""Run a system that is not a ``Body``: a built-in model (:mod:`tumble.models`) or a user's :class:`tumble.System`.
+
+:func:`run_system` is what :func:`tumble.integrate` and :func:`tumble.propagate` call for them: the arguments are
+checked once here, then
+
+* a built-in model steps with the models' SIMD kernels (:func:`tumble.kernels.run_model`, one compiled and cached
+  driver for every model: rk4, rk8 and, for the Lie–Poisson models, the splittings), ``parameters`` overriding the
+  model's own;
+* a :class:`~tumble.physics.system.System` steps with the per-sample loop of :mod:`tumble.kernels.systems` (any
+  Runge–Kutta tableau: rk4, rk8), compiled for that system and method on its first run in a process and kept with
+  the system. Before anything runs the rate is compiled alone and called once at the first initial state with
+  bounds checked, and at up to :data:`PROBED` initial states: a rate numba cannot compile, that reads or writes
+  beyond the state, or that leaves a component of ``dydt`` unset or NaN is one line naming the system (ValueError),
+  never a numba traceback or a silent NaN.
+
+Both run on ``device="cpu"`` or ``"cuda"`` (one thread per sample, the same per-sample code).
+"""
+
+from __future__ import annotations
+
+import weakref
+from typing import NamedTuple
+
+import numpy as np
+
+from .. import registry
+from ..kernels import TABLEAUX, device_models, device_systems, model_methods, parallel_block, run_model
+from ..kernels import MODEL_BLOCK, systems
+from ..physics.models import Model
+from ..physics.system import System, with_parameters
+from . import cost
+from .device import resolve_device
+
+__all__ = ["PROBED", "SystemRun", "is_system", "run_system", "system_methods"]
+
+#: Initial states at which a user's rate is called once before a run (the first with bounds checked): a NaN or an
+#: unset component there is refused with the sample named; later in the run a non-finite state is a sample status.
+PROBED = 256
+
+
+class SystemRun(NamedTuple):
+    """What :func:`run_system` returns (arrays per sample first)."""
+
+    final: np.ndarray  # (N, n): the final (or frozen) states
+    times: np.ndarray | None  # (T,), s, of the stored states
+    trajectory: np.ndarray | None  # (N, T, n) with save_every
+    status: np.ndarray  # (N,) int8, registry.STATUS_NAMES
+    steps_taken: np.ndarray  # (N,) int64
+    method: str
+    dt: float
+    n_steps: int
+    parameters: dict  # name -> value, as run
+    name: str  # the system's name (a model's kind)
+    components: tuple  # names of the state's components
+    units: tuple  # their units ("" where a System does not say)
+
+
+def is_system(value):
+    """Whether ``value`` is a built-in model or a user's :class:`System` (not a ``Body``: the free-body path)."""
+    return isinstance(value, (System, Model))
+
+
+def system_methods(system):
+    """The methods ``system`` runs: a model's (:func:`tumble.kernels.model_methods`), a System's tableaux."""
+    if isinstance(system, Model):
+        return model_methods(system.kind)
+    return tuple(TABLEAUX)
+
+
+def _name(system):
+    return system.name if isinstance(system, System) else system.kind
+
+
+def _initial_states(system, y0):
+    names = system.spec.state
+    try:
+        y = np.array(y0, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"y0 must be an array of numbers of shape (N, {len(names)}) ({', '.join(names)} of "
+                         f"{_name(system)!r}), got {y0!r}") from None
+    single = y.ndim == 1
+    if single:
+        y = y[None, :]
+    if y.ndim != 2 or y.shape[1] != len(names) or len(y) == 0:
+        raise ValueError(f"y0 must have shape (N, {len(names)}) with N >= 1 ({', '.join(names)} of "
+                         f"{_name(system)!r}), got shape {np.shape(y0)}")
+    return y, single
+
+
+class _Kernels(NamedTuple):
+    rate: object  # the compiled rate
+    drive: object  # the CPU driver
+    run_sample: object  # the per-sample loop
+    stages: int
+
+
+#: System -> {method: _Kernels}: a system's kernels, compiled once per process (they go with the system).
+_COMPILED = weakref.WeakKeyDictionary()
+
+
+def _kernels(system, method):
+    made = _COMPILED.setdefault(system, {})
+    if method not in made:
+        tableau = TABLEAUX[method]
+        rate = systems.compile_function(system.rate, systems.RATE_SIGNATURE, f"system {system.name!r}",
+                                        "rate(t, y, p, dydt)")
+        run_sample = systems.make_sample_loop(systems.make_step(rate, tableau))
+        made[method] = _Kernels(rate, systems.make_cpu_driver(run_sample, len(tableau.b)), run_sample,
+                                len(tableau.b))
+    return made[method]
+
+
+def _probe(system, kernels, y, p, t0):
+    """Call the rate at the first :data:`PROBED` initial states (the first with bounds checked): ValueError naming
+    the system when it reads or writes beyond the state, or leaves a component unset or not finite."""
+    n = y.shape[1]
+    checked = systems.compile_function(system.rate, systems.RATE_SIGNATURE, f"system {system.name!r}",
+                                       "rate(t, y, p, dydt)", boundscheck=True)  # one call: speed is no matter
+    dydt = np.empty(n)
+    for i in range(min(len(y), PROBED)):
+        state = np.ascontiguousarray(y[i])
+        if not np.all(np.isfinite(state)):
+            continue  # a sample that starts non-finite is flagged by the run (its status), not refused
+        dydt[:] = np.nan
+        try:
+            (checked if i == 0 else kernels.rate)(float(t0), state, p, dydt)
+        except IndexError:
+            raise ValueError(f"system {system.name!r}: its rate indexes beyond the state or the parameters (state has "
+                             f"{n} components: {', '.join(system.state)}; parameters {len(p)}: "
+                             f"{', '.join(system.parameters) or 'none'})") from None
+        bad = np.flatnonzero(~np.isfinite(dydt))
+        if len(bad):
+            j = int(bad[0])
+            raise ValueError(f"system {system.name!r}: its rate left dydt[{j}] ({system.state[j]}) "
+                             f"{'unset or NaN' if np.isnan(dydt[j]) else 'infinite'} at sample {i}'s initial state "
+                             f"{state.tolist()} (t = {t0:g} s)")
+
+
+def run_system(system, y0, t_end, n_steps, step, method="rk4", *, save_every=None, parameters=None, device="cpu"):
+    # size: the one run of a model or a System for integrate and propagate: checks, cost, plan, either driver
+    """Integrate an ensemble of ``system`` (a built-in model or a :class:`System`) with a fixed step.
+
+    Parameters
+    ----------
+    system : Model or System
+    y0 : array_like, shape (N, n) or (n,)
+        Initial states (the system's state components, in its order).
+    t_end : float
+        Horizon, s (>= 0).
+    n_steps, step : int, float
+        The step plan (:func:`tumble.engine.integration.step_plan`): ``n_steps`` steps of ``step`` s end at ``t_end``.
+    method : str
+        ``"auto"`` (rk4) or one of :func:`system_methods`.
+    save_every : int or None
+        None: only the final state; ``k``: the initial state, every k-th step and the final one.
+    parameters : mapping, optional
+        Values in place of the system's own parameters, by name.
+    device : str
+
+    Returns
+    -------
+    SystemRun, and whether ``y0`` was a single state.
+
+    Raises
+    ------
+    ValueError
+        A method the system does not run, states of the wrong shape, an unknown parameter, a rate numba cannot
+        compile or that misbehaves at the initial states (one line naming the system), a run too large
+        (:mod:`tumble.engine.cost`), a device that cannot run.
+    """
+    device = resolve_device(device)
+    system, values = with_parameters(system, parameters)
+    name = _name(system)
+    methods = system_methods(system)
+    if method == registry.AUTO:
+        method = registry.AUTO_STEPPING
+    if not isinstance(method, str) or method not in methods:
+        why = (" (a System runs the explicit Runge-Kutta methods: the splittings need a Lie-Poisson structure, the "
+               "closed form exists for the free body only)" if isinstance(system, System) else "")
+        raise ValueError(f"method must be one of {', '.join(methods)} for {name!r}, got {method!r}{why}")
+    y, single = _initial_states(system, y0)
+    n_state = y.shape[1]
+    stored = n_state * (n_steps / save_every + 2 if save_every else 2)
+    cost.refuse(cost.run_cost(len(y), n_steps, stored), f"y0 ({len(y):,} states) over {n_steps:,} steps", device)
+    every = int(save_every or 0)
+    if isinstance(system, System):
+        p = system.parameter_values(parameters)
+        kernels = _kernels(system, method)
+        _probe(system, kernels, y, p, 0.0)
+        n_saved = systems.saved_count(n_steps, every)
+        state = np.ascontiguousarray(y)
+        if device == "cpu":
+            saved = np.empty((len(y), n_saved, n_state))
+            status = np.zeros(len(y), dtype=np.int8)
+            steps_taken = np.zeros(len(y), dtype=np.int64)
+            kernels.drive(state, p, 0.0, step, n_steps, every, saved, status, steps_taken)
+        else:
+            cuda = device_systems()
+            kernel = _device_kernel(system, method, kernels, n_state)
+            saved, status, steps_taken = cuda.run(kernel, state, p, 0.0, step, n_steps, every, n_saved)
+        final, trajectory = state, (saved if every else None)
+    else:
+        state = np.array(y.T, order="C")
+        run = run_model if device == "cpu" else device_models().run_model
+        block = parallel_block(len(y), MODEL_BLOCK)
+        observed = run(system.kind, method, state, system.moments, step, n_steps, **system.parameters,
+                       save_every=every, block=block)
+        final = state.T
+        trajectory = observed.saved.transpose(2, 0, 1) if every else None
+        status, steps_taken = observed.status, observed.steps_taken
+    times = None
+    if every:
+        marks = np.arange(0, n_steps + 1, every)
+        marks = np.append(marks, n_steps) if marks[-1] != n_steps else marks
+        times = marks * step
+        times[-1] = t_end
+    return SystemRun(final, times, trajectory, status, steps_taken, method, step, n_steps, values, name,
+                     system.spec.state, _units(system)), single
+
+
+def _units(system):
+    """The units of each state component: a model's from ``registry.STATE_BLOCKS`` (by the component's letter); a
+    System's are not known ("")."""
+    if isinstance(system, System):
+        return ("",) * system.state_size
+    by_letter = {letter: units for letter, _, units in registry.STATE_BLOCKS}
+    return tuple(by_letter[component[0]] for component in system.spec.state)
+
+
+#: (System, method) -> its device kernel (made once per process).
+_DEVICE = weakref.WeakKeyDictionary()
+
+
+def _device_kernel(system, method, kernels, n_state):
+    made = _DEVICE.setdefault(system, {})
+    if method not in made:
+        made[method] = device_systems().make_kernel(kernels.run_sample, n_state, kernels.stages,
+                                                     len(system.parameters))
+    return made[method]
+
