@@ -102,6 +102,24 @@ def test_the_checker_sees_an_upward_import(tmp_path):
     assert any(LAYERS.index(layer) > LAYERS.index("engine") for layer in layers)
 
 
+
+@pytest.mark.parametrize("layer", ("kernels", "physics", "engine", "measure", "output", "pipeline"))
+def test_every_layer_states_its_public_names(layer):
+    """Each layer's ``__init__.py`` has an ``__all__``; each name in it is a module of the layer or a name its
+    ``__init__`` binds (parsed, not imported: ``tumble.measure``'s must stay empty of imports)."""
+    path = PACKAGE / layer / "__init__.py"
+    tree = ast.parse(path.read_text())
+    stated = [ast.literal_eval(node.value) for node in tree.body if isinstance(node, ast.Assign)
+              and any(isinstance(target, ast.Name) and target.id == "__all__" for target in node.targets)]
+    assert stated, f"tumble/{layer}/__init__.py has no __all__"
+    bound = {alias.asname or alias.name for node in ast.walk(tree) if isinstance(node, (ast.Import, ast.ImportFrom))
+             for alias in node.names}
+    bound |= {node.name for node in tree.body if isinstance(node, (ast.FunctionDef, ast.ClassDef))}
+    bound |= {target.id for node in tree.body if isinstance(node, ast.Assign) for target in node.targets
+              if isinstance(target, ast.Name)}
+    unknown = [name for name in stated[-1] if name not in bound and not (PACKAGE / layer / f"{name}.py").exists()]
+    assert not unknown, f"tumble/{layer}/__init__.py's __all__ names what it neither binds nor holds: {unknown}"
+
 # --- one owner per concept: the registry's tables and the kernels agree ---------------------------------------
 
 def test_the_kernels_coefficient_tables_are_the_registrys_stepping_methods():

@@ -1,2 +1,5 @@
 """The ensemble engine: deterministic sampling of perturbed spins, ensemble runs through the kernels (or the
 closed form) with on-the-fly observers, and :func:`tumble.integrate`."""
+
+#: The layer's modules, each imported by name (``from tumble.engine import ensemble``; this package imports nothing).
+__all__ = ["cost", "device", "ensemble", "integration", "models", "progress", "sampling"]
