@@ -2,4 +2,4 @@
 closed-form kernels; no ensembles, no files)."""
 
 #: The layer's modules, each imported by name (``from tumble.physics import exact``; this package imports nothing).
-__all__ = ["bodies", "exact", "models", "rotations", "shapes", "theory"]
+__all__ = ["bodies", "exact", "models", "rotations", "shapes", "system", "theory"]
