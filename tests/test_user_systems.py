@@ -6,7 +6,12 @@ numba-cuda's simulator (tests/conftest.py sets ``NUMBA_ENABLE_CUDASIM=1``), with
 test time; and every mistake a user can make gets one line naming the system.
 """
 
+import importlib.util
 import math
+import os
+import subprocess
+import sys
+import textwrap
 
 import numpy as np
 import pytest
@@ -216,3 +221,42 @@ def test_a_rate_that_cannot_run_is_one_line_naming_the_system(rate, message):
 def test_a_users_mistake_is_one_clear_line(call, message):
     with pytest.raises(ValueError, match=message):
         call()
+
+
+_PTX = textwrap.dedent("""
+    import math, types
+    import numba.cuda.dispatcher as dispatcher
+    from numba import cuda, types as nt
+    import tumble
+    from tumble.engine.systems import _kernels
+    from tumble.kernels import device_systems
+
+    # Device functions are compiled for the current GPU's compute capability; without a GPU, name one (H100).
+    dispatcher.get_current_device = lambda: types.SimpleNamespace(compute_capability=(9, 0))
+
+    def pendulum(t, y, p, dydt):
+        dydt[0] = y[1]
+        dydt[1] = -p[0] * math.sin(y[0]) - p[1] * y[1]
+
+    system = tumble.System(pendulum, state=("x", "v"), parameters={"k": 2.0, "c": 0.1}, name="pendulum")
+    f8, i8 = nt.float64, nt.int64
+    signature = (f8[:, ::1], f8[::1], f8, f8, i8, i8, f8[:, :, ::1], nt.int8[::1], i8[::1])
+    for method in ("rk4", "rk8"):
+        kernels = _kernels(system, method)
+        kernel = device_systems().make_kernel(kernels.run_sample, 2, kernels.stages, 2)
+        ptx, _ = cuda.compile_ptx(kernel.py_func, signature, cc=(9, 0))
+        assert "div.approx" not in ptx and "fma.rn.f64" in ptx, method
+        print(method, ptx.count("\\n"))
+""")
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(importlib.util.find_spec("nvidia") is None, reason="no NVVM wheel (pip install nvidia-nvvm "
+                    "nvidia-cuda-nvrtc-cu12, or the gpu extra)")
+def test_a_systems_device_kernel_compiles_to_ptx_for_a_gpu():
+    """The per-sample loop, the tableau's step and the user's rate compile for sm_90 (the simulator runs the loop as
+    Python: this is what a GPU would compile)."""
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="0")
+    result = subprocess.run([sys.executable, "-c", _PTX], capture_output=True, text=True, env=env)
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert len(result.stdout.splitlines()) == 2
