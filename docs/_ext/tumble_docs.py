@@ -204,23 +204,112 @@ def _public_modules():
     return {name: getattr(tumble, name) for name in tumble.__all__ if inspect.ismodule(getattr(tumble, name))}
 
 
-def api_reference():
-    """Markdown: autodoc directives for every name of ``tumble.__all__`` (reStructuredText in ``eval-rst`` blocks:
-    autodoc writes reStructuredText)."""
+#: Where the API's pages are generated, relative to the site's source folder (git-ignored): one page per public
+#: function and class, one per public module.
+API_FOLDER = "reference/api"
+
+_CONSTANT = re.compile(r"[A-Z][A-Z0-9_]*")
+
+
+def api_sections():
+    """``[(title, public module name or None, [public dotted names])]``: ``tumble.__all__``'s functions and classes,
+    then each public module (``tumble.exact``, ...) with the functions and classes of its ``__all__`` (its constants
+    are documented on the module's page)."""
     import tumble
 
     modules = _public_modules()
-    rst = []
-    for name in tumble.__all__:
-        if name.startswith("_") or name in modules:
-            continue
-        kind = "autoclass" if inspect.isclass(getattr(tumble, name)) else "autofunction"
-        rst += [f".. {kind}:: tumble.{name}", *(["   :members:"] if kind == "autoclass" else []), ""]
-    lines = ["## Functions and classes", "", "```{eval-rst}", *rst, "```", ""]
+    top = [f"tumble.{name}" for name in tumble.__all__ if not name.startswith("_") and name not in modules]
+    sections = [("Functions and classes", None, top)]
     for name, module in modules.items():
-        lines += [f"## `tumble.{name}`", "", "```{eval-rst}", f".. automodule:: {module.__name__}", "   :members:",
-                  "```", ""]
+        members = [f"tumble.{name}.{member}" for member in getattr(module, "__all__", ())
+                   if not _CONSTANT.fullmatch(member)]
+        sections.append((f"tumble.{name}", f"tumble.{name}", members))
+    return sections
+
+
+def _resolve(dotted):
+    """The object of a public dotted name (``tumble.exact.omega``)."""
+    import tumble
+
+    obj = tumble
+    for part in dotted.split(".")[1:]:
+        obj = getattr(obj, part)
+    return obj
+
+
+def _title(text):
+    return f"{text}\n{'=' * len(text)}\n"
+
+
+def api_pages():
+    """``{page name: reStructuredText}``: a page per public function and class, and per public module (its
+    docstring, a summary table of its members, its constants), each under the public name."""
+    pages = {}
+    for _, module, names in api_sections():
+        for name in names:
+            obj = _resolve(name)
+            if inspect.isclass(obj):
+                body = f".. autoclass:: {name}\n   :members:\n"
+            else:
+                body = f".. autofunction:: {name}\n"
+            # A function's or class's page is in no toctree (":orphan:"): the summary tables link it. In the sidebar's
+            # tree it would cost the theme's navigation, computed for every page, a second per ten pages.
+            pages[name] = f":orphan:\n\n{_title(name)}\n{body}"
+        if module is None:
+            continue
+        constants = [c for c in getattr(_resolve(module), "__all__", ()) if _CONSTANT.fullmatch(c)]
+        text = [_title(module), f".. automodule:: {module}\n   :no-members:\n", ".. autosummary::\n",
+                *(f"   {name.rsplit('.', 1)[1]}" for name in names), ""]
+        if constants:
+            text += ["Constants\n---------\n", *(f".. autodata:: {module}.{c}\n   :no-value:\n" for c in constants)]
+        pages[module] = "\n".join(text)
+    return pages
+
+
+def write_api_pages(app):
+    """Write the API's pages into ``API_FOLDER`` of the source folder (only those whose text changed, so that an
+    incremental build stays incremental; stale ones removed). Only for a site that has the API index page."""
+    source = Path(app.srcdir)
+    if not (source / "reference" / "api.md").is_file():
+        return
+    folder = source / API_FOLDER
+    folder.mkdir(parents=True, exist_ok=True)
+    pages = api_pages()
+    for stale in folder.glob("*.rst"):
+        if stale.stem not in pages:
+            stale.unlink()
+    for name, text in pages.items():
+        path = folder / f"{name}.rst"
+        if not path.is_file() or path.read_text(encoding="utf-8") != text:
+            path.write_text(text, encoding="utf-8")
+
+
+def api_reference():
+    """Markdown of the API's index page: per section a summary table (autosummary) of its public names, linked to
+    their pages (``write_api_pages``)."""
+    folder = API_FOLDER.rsplit("/", 1)[-1]
+    lines = []
+    for title, module, names in api_sections():
+        lines += [f"## {f'`{title}`' if module else title}", ""]
+        if module:
+            lines += [f"{{doc}}`The module's page <{folder}/{module}>`: what it holds, and its constants.", ""]
+        lines += ["```{eval-rst}", ".. autosummary::", "", *(f"   {name}" for name in names), "```", ""]
+    modules = [module for _, module, _ in api_sections() if module]
+    lines += ["```{toctree}", ":hidden:", "", *(f"{folder}/{module}" for module in modules), "```", ""]
     return "\n".join(lines)
+
+
+def _public_module_aliases():
+    """Make the public modules importable by their public names in the build (``import tumble.exact``), as autodoc,
+    autosummary and viewcode import a documented object's module: the pages name ``tumble.exact.omega``, and its
+    ``[source]`` link leads to where it lives (``tumble/physics/exact.py``)."""
+    import importlib
+    import sys
+
+    import tumble
+
+    for short, module in tumble._ALIASES.items():  # noqa: SLF001 - the face's own table of short module paths
+        sys.modules.setdefault(f"tumble.{short}", importlib.import_module(module))
 
 
 def missing_docstrings():
@@ -423,7 +512,9 @@ def _copy_mathjax(app, exception):
 
 
 def setup(app):
+    _public_module_aliases()
     app.connect("missing-reference", _public_alias)
+    app.connect("builder-inited", write_api_pages)
     app.add_directive("tumble-gallery", Gallery)
     app.add_post_transform(RepositoryLinks)
     app.add_transform(CommandLineLiterals)
