@@ -168,31 +168,80 @@ def netcdf_reference(path):
     return "\n".join(lines)
 
 
+def figure_caption(name):
+    """What the figure ``name`` shows: the first paragraph of the docstring of the function that draws it
+    (``tumble.output.figures.<name>``), in MyST (its reStructuredText roles and literals rewritten); "" if none."""
+    from tumble.output import figures
+
+    doc = inspect.getdoc(getattr(figures, name, None)) or ""
+    text = " ".join(doc.split("\n\n")[0].split())
+    text = re.sub(r":(\w+):`", r"{\1}`", text)  # :func:`x` -> {func}`x`
+    return text.replace("``", "`")
+
+
 def gallery(folder, page_dir):
-    """Markdown: every figure in ``folder`` (``studies/gallery/``), grouped by the bundled study whose name starts
-    its file name, with the study's title and the command that made it; paths relative to ``page_dir``."""
+    """Markdown: every figure in ``folder`` (``studies/gallery/``) as a thumbnail in one grid, opening the figure at
+    full size, captioned with what it shows (:func:`figure_caption`), the bundled study whose name starts its file
+    name (linked to the study file on the bundled-studies page) and the command that draws it again; paths relative
+    to ``page_dir``."""
     import os
 
+    from tumble import registry
     from tumble.pipeline.config import bundled_studies
 
     if not Path(folder).is_dir():
         logger.warning(f"tumble-gallery: no folder {folder}")
         return ""
     studies = bundled_studies()
-    lines = []
+    lines = ["::::{container} tumble-gallery", ""]
     for study, title in studies.items():
         figures = sorted(f for f in Path(folder).iterdir() if f.stem.startswith(study + "_")
                          and not any(f.stem.startswith(other + "_") and len(other) > len(study) for other in studies))
-        if not figures:
-            continue
-        lines += [f"## `{study}`", "", title, "", "```bash", f"tumble run {study}", "```", ""]
         for figure in figures:
             name = figure.stem.removeprefix(study + "_")
-            lines += [f"```{{figure}} {Path(os.path.relpath(figure, page_dir)).as_posix()}",
-                      f":alt: {study}: {name}", "", f"`{name}` (`{figure.name}`)", "```", ""]
+            if name not in registry.FIGURES:
+                logger.warning(f"gallery figure {figure.name} in {folder}: {name!r} is no figure of registry.FIGURES")
+            shows = figure_caption(name)
+            lines += [f":::{{figure}} {Path(os.path.relpath(figure, page_dir)).as_posix()}",
+                      f":alt: {title}: the {name} figure", ":width: 100%", "",
+                      f"**{title}** — `{name}`{': ' + shows if shows else ''}", "",
+                      f"Study: {{ref}}`studies/{study}.toml <study-{study}>`; drawn by `tumble run {study}`.", ":::", ""]
+    lines += ["::::", ""]
     unmatched = [f.name for f in Path(folder).iterdir() if not any(f.stem.startswith(s + "_") for s in studies)]
     for name in unmatched:
         logger.warning(f"gallery figure {name} in {folder} names no bundled study")
+    return "\n".join(lines)
+
+
+def bundled_studies_page(page_dir):
+    """Markdown: the documented defaults and every bundled study file, each under the label ``study-<name>`` that
+    links to ``studies/<name>.toml`` lead to (:func:`repository_page`), with the command that runs it."""
+    import os
+
+    from tumble.pipeline.config import DEFAULTS_PATH, bundled_studies
+
+    def source(path):
+        return Path(os.path.relpath(path, page_dir)).as_posix()
+
+    lines = ["(study-defaults)=", "## `defaults.toml`", "",
+             "Every key and its default, with the comment that documents it (the [study-file reference](study-file.md) "
+             "is generated from it).", "", f"```{{literalinclude}} {source(DEFAULTS_PATH)}", ":language: toml", "```", ""]
+    for name, title in bundled_studies().items():
+        path = DEFAULTS_PATH.parent / f"{name}.toml"
+        lines += [f"(study-{name})=", f"## `{name}`", "", f"{title}: `tumble run {name}`.", "",
+                  f"```{{literalinclude}} {source(path)}", ":language: toml", "```", ""]
+    return "\n".join(lines)
+
+
+def benchmark_results_page(results, page_dir):
+    """Markdown: every ``benchmarks/results/*.md`` (``results``), each under the label ``bench-<name>`` that links to
+    the file lead to (:func:`repository_page`), its headings one level down."""
+    import os
+
+    lines = []
+    for path in sorted(Path(results).glob("*.md")):
+        lines += [f"(bench-{path.stem})=", f"```{{include}} {Path(os.path.relpath(path, page_dir)).as_posix()}",
+                  ":heading-offset: 1", "```", ""]
     return "\n".join(lines)
 
 
@@ -391,11 +440,26 @@ class NetcdfReference(_Generated):
         return netcdf_reference(path)
 
 
+def repository_page(path):
+    """Where the site carries a file of the repository outside ``docs/`` (``path`` relative to the repository):
+    ``("ref", label)`` or ``("doc", page)``, or None. The README is the home page's; a study file is shown on the
+    bundled-studies page (:class:`BundledStudies`), a benchmark's results on the benchmark-results page
+    (:class:`BenchmarkResults`)."""
+    parts = Path(path).parts
+    if parts == ("README.md",):
+        return "doc", "/index"
+    if len(parts) == 2 and parts[0] == "studies" and parts[1].endswith(".toml"):
+        return "ref", f"study-{Path(parts[1]).stem}"
+    if len(parts) == 3 and parts[:2] == ("benchmarks", "results") and parts[2].endswith(".md"):
+        return "ref", f"bench-{Path(parts[2]).stem}"
+    return None
+
+
 class RepositoryLinks(SphinxPostTransform):
     """A Markdown link from a page to a file of the repository outside ``docs/`` (``../README.md``,
-    ``../benchmarks/results/attitude.md``): right where the pages are read as Markdown (GitHub, an editor), but
-    no page of the site. It becomes its link text; a link to a file that does not exist
-    is left to MyST, which fails the build on it."""
+    ``../benchmarks/results/attitude.md``, ``../studies/defaults.toml``): right where the pages are read as Markdown
+    (GitHub, an editor). On the site it leads to the page that carries the file (:func:`repository_page`), or else
+    becomes its link text; a link to a file that does not exist is left to MyST, which fails the build on it."""
 
     default_priority = 8  # before MyST resolves its references (9) and warns about the unresolved ones
 
@@ -412,7 +476,22 @@ class RepositoryLinks(SphinxPostTransform):
             found = next((c.resolve() for c in candidates if c.resolve().is_file()), None)
             if found is None or found.is_relative_to(source_dir) or not found.is_relative_to(repository):
                 continue
-            node.replace_self(nodes.inline(node.astext(), node.astext()))
+            where = repository_page(found.relative_to(repository))
+            if where is None:
+                node.replace_self(nodes.inline(node.astext(), node.astext()))
+                continue
+            reftype, reftarget = where
+            node["refdomain"], node["reftype"], node["reftarget"] = "std", reftype, reftarget
+            node["refexplicit"], node["refwarn"] = True, True
+        # MyST makes a link to a file that is no page (studies/defaults.toml) a download: the site shows it instead.
+        for node in list(self.document.findall(addnodes.download_reference)):
+            found = (Path(self.env.srcdir) / Path(self.env.docname).parent / node["reftarget"]).resolve()
+            where = repository_page(found.relative_to(repository)) if found.is_relative_to(repository) else None
+            if where is not None and not found.is_relative_to(source_dir):
+                xref = addnodes.pending_xref("", *node.children, refdomain="std", reftype=where[0],
+                                             reftarget=where[1], refexplicit=True, refwarn=True,
+                                             refdoc=self.env.docname)
+                node.replace_self(xref)
 
 
 #: In the command line's help strings (plain text, parsed as reStructuredText by sphinx-argparse): an option name, a
@@ -454,6 +533,27 @@ class Gallery(_Generated):
     def markdown(self):
         _, folder = self.env.relfn2path(self.arguments[0])
         return gallery(folder, Path(self.env.doc2path(self.env.docname)).parent)
+
+
+class BundledStudies(_Generated):
+    """``tumble-bundled-studies``: the defaults file and every bundled study file."""
+
+    def markdown(self):
+        from tumble.pipeline.config import DEFAULTS_PATH
+
+        for path in DEFAULTS_PATH.parent.glob("*.toml"):
+            self.env.note_dependency(str(path))
+        return bundled_studies_page(Path(self.env.doc2path(self.env.docname)).parent)
+
+
+class BenchmarkResults(_Generated):
+    """``tumble-benchmark-results FOLDER``: every results file of the benchmarks (relative to the page)."""
+
+    required_arguments = 1
+
+    def markdown(self):
+        _, folder = self.env.relfn2path(self.arguments[0])
+        return benchmark_results_page(folder, Path(self.env.doc2path(self.env.docname)).parent)
 
 
 def _public_alias(app, env, node, contnode):
@@ -516,6 +616,8 @@ def setup(app):
     app.connect("missing-reference", _public_alias)
     app.connect("builder-inited", write_api_pages)
     app.add_directive("tumble-gallery", Gallery)
+    app.add_directive("tumble-bundled-studies", BundledStudies)
+    app.add_directive("tumble-benchmark-results", BenchmarkResults)
     app.add_post_transform(RepositoryLinks)
     app.add_transform(CommandLineLiterals)
     app.add_directive("tumble-api", ApiReference)
