@@ -52,9 +52,9 @@ numpydoc_xref_aliases = {
     "Generator": "numpy.random.Generator",
     "Dataset": "xarray.Dataset",
     "DataArray": "xarray.DataArray",
-    "xarray.Dataset": "xarray.Dataset",
-    "xarray.DataArray": "xarray.DataArray",
-    "numpy.ndarray": "numpy.ndarray",
+    "xarray.Dataset": ":class:`xarray.Dataset`",  # a name that is its own target: as a role (numpydoc's rule)
+    "xarray.DataArray": ":class:`xarray.DataArray`",
+    "numpy.ndarray": ":class:`numpy.ndarray`",
     "np.ndarray": "numpy.ndarray",
     "Body": "tumble.Body",
     "System": "tumble.System",

@@ -62,6 +62,8 @@ def _cli_words(parser):
 
 
 def test_site_builds_without_warnings_and_lists_every_study_key_and_cli_option(tmp_path):
+    """The site built as CI builds it (warnings are errors), within its CPU budget; then what a reader must find on
+    it, each check a function below (one build for all: the suite's two workers would otherwise build it twice)."""
     start, cpu_start = time.perf_counter(), _children_cpu()
     done = subprocess.run([sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", "html",
                            "-d", str(tmp_path / "doctrees"), str(DOCS), str(tmp_path / "html")],
@@ -69,6 +71,14 @@ def test_site_builds_without_warnings_and_lists_every_study_key_and_cli_option(t
     wall, cpu = time.perf_counter() - start, _children_cpu() - cpu_start
     assert done.returncode == 0, f"sphinx-build failed:\n{done.stderr}"
     assert cpu < BUILD_BUDGET_S, f"the docs took {cpu:.0f} s of CPU to build ({wall:.0f} s wall; budget {BUILD_BUDGET_S:.0f} s)"
+    for check in (_equations_are_typeset_by_a_mathjax_the_site_carries,
+                  _every_public_name_has_its_page_with_its_source_and_numpy_and_xarray_linked,
+                  _the_check_criteria_table_keeps_every_default_tolerance,
+                  _no_table_cell_holds_a_stray_backtick,
+                  _the_command_line_page_and_help_read_as_written,
+                  _gallery_thumbnails_open_the_figure_and_name_study_and_command,
+                  _copy_buttons_install_cite_and_changelog_pages):
+        check(tmp_path / "html")
 
     study_page = _text(tmp_path / "html" / "reference" / "study-file.html")
     missing = [field for field in _study_fields() if field not in study_page]
@@ -84,6 +94,116 @@ def test_site_builds_without_warnings_and_lists_every_study_key_and_cli_option(t
     missing = [name for name in tumble.__all__ if not name.startswith("_") and f"tumble.{name}" not in api_page
                and f"tumble. {name}" not in api_page]
     assert not missing, f"public names missing from the API reference: {missing}"
+
+
+def _cells(page):
+    """``[(header texts, [row cell texts])]`` of every table of a built HTML page, cells as visible text."""
+    tables = []
+    for table in re.findall(r"<table.*?</table>", page.read_text(encoding="utf-8"), flags=re.S):
+        def text(cell):
+            return re.sub(r"\s+", " ", html.unescape(re.sub(r"<[^>]+>", " ", cell))).strip()
+
+        header = [text(c) for c in re.findall(r"<th.*?</th>", table, flags=re.S)]
+        rows = [[text(c) for c in re.findall(r"<td.*?</td>", row, flags=re.S)]
+                for row in re.findall(r"<tr.*?</tr>", table, flags=re.S)]
+        tables.append((header, [row for row in rows if row]))
+    return tables
+
+
+def _equations_are_typeset_by_a_mathjax_the_site_carries(html_dir):
+    """The physics and estimators pages hold math markup for MathJax, and every page with math loads MathJax from
+    the site itself (``_static/mathjax/``: the site reads offline), never from a CDN."""
+    for name, least in (("physics.html", 30), ("explanation/estimators.html", 10), ("check.html", 4)):
+        page = (html_dir / name).read_text(encoding="utf-8")
+        math = len(re.findall(r'class="math notranslate nohighlight"', page))
+        assert math >= least, f"{name}: {math} equations typeset, expected at least {least}"
+        assert "\\dot\\omega" in page or name != "physics.html"  # Euler's equations, as TeX for MathJax
+        scripts = re.findall(r'<script[^>]*src="([^"]*mathjax[^"]*)"', page)
+        assert scripts and all(not s.startswith(("http:", "https:", "//")) for s in scripts), scripts
+        assert all((html_dir / Path(name).parent / s).resolve().is_file() for s in scripts), scripts
+    fonts = html_dir / "_static" / "mathjax" / "output" / "chtml" / "fonts" / "woff-v2"
+    assert len(list(fonts.glob("*.woff"))) > 10, "MathJax's fonts are not in the site"
+    every = "".join(p.read_text(encoding="utf-8") for p in html_dir.rglob("*.html"))
+    assert not re.search(r'<script[^>]*src="(https?:)?//[^"]*(mathjax|katex)', every, flags=re.I)
+
+
+def _every_public_name_has_its_page_with_its_source_and_numpy_and_xarray_linked(html_dir):
+    api = (html_dir / "reference" / "api.html").read_text(encoding="utf-8")
+    sections = tumble_docs.api_sections()
+    names = [name for _, _, members in sections for name in members]
+    assert {"tumble.integrate", "tumble.exact.omega", "tumble.Body", "tumble.theory.linear"} <= set(names)
+    for name in names + [module for _, module, _ in sections if module]:
+        page = html_dir / "reference" / "api" / f"{name}.html"
+        assert page.is_file(), f"no page for {name}"
+        text = page.read_text(encoding="utf-8")
+        anchor = f'id="{name}"' if name in names else f'id="module-{name}"'
+        assert anchor in text, f"{name}'s page does not document it under its public name"
+        if name in names:
+            assert f'href="api/{name}.html#{name}"' in api, f"the API page does not link {name}"
+            assert 'class="viewcode-link"' in text, f"{name}'s page has no [source] link"
+    omega = (html_dir / "reference" / "api" / "tumble.exact.omega.html").read_text(encoding="utf-8")
+    assert 'href="https://numpy.org/doc/stable/reference/generated/numpy.ndarray.html#numpy.ndarray"' in omega
+    integrate = (html_dir / "reference" / "api" / "tumble.integrate.html").read_text(encoding="utf-8")
+    assert 'href="https://docs.xarray.dev/en/stable/generated/xarray.Dataset.html#xarray.Dataset"' in integrate
+
+
+def _the_check_criteria_table_keeps_every_default_tolerance(html_dir):
+    """The criteria table of docs/check.md, as the site shows it: one row per criterion of
+    ``registry.CHECK_TOLERANCES`` in its order, each with its default tolerance (a ``|`` inside a code span once
+    split the cells and lost five of them)."""
+    from tumble import registry
+
+    (header, rows), = [t for t in _cells(html_dir / "check.html") if t[0][:1] == ["criterion"]]
+    assert header == ["criterion", "value", "default"]
+    assert [row[0] for row in rows] == list(registry.CHECK_TOLERANCES)
+    for row in rows:
+        assert len(row) == 3 and row[1], row
+        assert float(row[2]) == registry.CHECK_TOLERANCES[row[0]], row
+
+
+def _no_table_cell_holds_a_stray_backtick(html_dir):
+    """Across the site, no table cell shows a backtick (a code span that a ``|`` split, or Markdown left unparsed)."""
+    found = [(str(page.relative_to(html_dir)), cell) for page in html_dir.rglob("*.html")
+             if "_modules" not in page.parts for _, rows in _cells(page) for row in rows for cell in row if "`" in cell]
+    assert not found, found[:5]
+
+
+def _the_command_line_page_and_help_read_as_written(html_dir):
+    page = (html_dir / "reference" / "cli.html").read_text(encoding="utf-8")
+    assert 'href="tcp://' not in page, "tcp://HOST:PORT is a link to nowhere"
+    assert "–scheduler" not in page and "<code" in page.split("worker processes of")[1][:80]
+    parser = _parser()
+    assert "``" not in parser.description and parser.description.endswith("solution.")
+    assert "``" not in parser.epilog and parser.epilog.startswith("Exit status:")
+    assert parser.description in _text(html_dir / "reference" / "cli.html").replace("\u2019", "'")  # smart quotes
+
+
+def _gallery_thumbnails_open_the_figure_and_name_study_and_command(html_dir):
+    page = (html_dir / "gallery.html").read_text(encoding="utf-8")
+    figures = sorted((ROOT / "studies" / "gallery").iterdir())
+    assert figures
+    for figure in figures:
+        assert f'class="reference internal image-reference" href="_images/{figure.name}"' in page, figure.name
+    captions = re.findall(r"<figcaption>.*?</figcaption>", page, flags=re.S)
+    assert len(captions) == len(figures)
+    for caption in captions:
+        assert "tumble run " in re.sub(r"<[^>]+>", "", caption) and 'href="reference/bundled-studies.html#study-' in caption, caption[:200]
+
+
+def _copy_buttons_install_cite_and_changelog_pages(html_dir):
+    assert (html_dir / "_static" / "copybutton.js").is_file()
+    install = _text(html_dir / "install.html")
+    assert "NUMBA_CACHE_DIR" in install and "42 s" in install and "gpu" in install
+    assert "Changelog" in _text(html_dir / "changelog.html")
+    assert re.search(rf"@software\s*{{\s*tumble.*version\s*=\s*{{\s*{re.escape(tumble.__version__)}\s*}}",
+                     _text(html_dir / "cite.html"))
+    for name in ("studies.html", "check.html", "physics.html"):  # links to repository files lead into the site
+        page = (html_dir / name).read_text(encoding="utf-8")
+        assert not re.search(r'<span>(README|benchmarks/results/\w+\.md)</span>', page)
+
+
+def test_citation_file_names_this_version():
+    assert tumble_docs.citation(ROOT / "CITATION.cff")["version"] == tumble.__version__
 
 
 def _build(source):

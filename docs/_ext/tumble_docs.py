@@ -245,6 +245,57 @@ def benchmark_results_page(results, page_dir):
     return "\n".join(lines)
 
 
+def citation(path):
+    """``{field: value}`` of the top-level scalar fields of a ``CITATION.cff`` (``title``, ``version``, ...) and
+    ``authors``: the list of its authors' names (a YAML reader for the few lines tumble's file has)."""
+    fields, authors = {}, []
+    for line in Path(path).read_text(encoding="utf-8").splitlines():
+        if match := re.fullmatch(r"  - name: (.+)", line):
+            authors.append(match.group(1).strip().strip('"'))
+        elif match := re.fullmatch(r"([a-z-]+): (.+)", line):
+            fields[match.group(1)] = match.group(2).strip().strip('"')
+    return {**fields, "authors": authors}
+
+
+def citation_page(path):
+    """Markdown: a BibTeX entry for tumble from its ``CITATION.cff`` at ``path``, then the file itself."""
+    import tumble
+
+    cff = citation(path)
+    if cff.get("version") != tumble.__version__:
+        logger.warning(f"{path}: version {cff.get('version')!r} is not tumble's {tumble.__version__!r}")
+    authors = " and ".join(f"{{{name}}}" for name in cff["authors"])
+    bibtex = ["@software{tumble,", f"  title   = {{{cff['title']}}},", f"  author  = {{{authors}}},",
+              f"  version = {{{cff['version']}}},", f"  license = {{{cff['license']}}},", "}"]
+    return "\n".join(["```bibtex", *bibtex, "```", "", "```{literalinclude} /../" + Path(path).name, ":language: yaml",
+                      "```"])  # "/": from the site's source folder, whose parent holds the file
+
+
+#: What each extra of ``pyproject.toml`` is for (its packages are read from the file); an extra missing here fails
+#: the build.
+EXTRAS = {
+    "test": "the test suite (`python -m pytest`): pytest and its two workers, hypothesis, mpmath as the exact "
+            "solution's reference, numba-cuda for its simulator, and the `docs` and `engines` extras",
+    "docs": "this site: `sphinx-build -W --keep-going -b html docs docs/_build/html`, with its MathJax carried locally",
+    "engines": "real physics engines' trajectories through `tumble check` (`benchmarks/engines.py`)",
+    "distributed": "`tumble run --scheduler local` or `tcp://HOST:PORT`: the scenes on dask.distributed",
+    "gpu": "`device=\"cuda\"` and `tumble run --device cuda` on an NVIDIA GPU",
+    "bench": "heyoka, the Taylor-integrator peer of the work-precision benchmark and study (optional there)",
+}
+
+
+def extras_table(pyproject):
+    """Markdown: a table of the optional dependencies of ``pyproject`` (``pyproject.toml``): extra, packages, use."""
+    extras = tomllib.loads(Path(pyproject).read_text(encoding="utf-8"))["project"]["optional-dependencies"]
+    lines = ["| extra | brings | for |", "|---|---|---|"]
+    for name, requirements in extras.items():
+        if name not in EXTRAS:
+            logger.warning(f"extra {name!r} of {pyproject} is not described: add it to EXTRAS in {__file__}")
+        packages = ", ".join(f"`{r}`" for r in requirements)
+        lines.append(f"| `{name}` | {_cell(packages)} | {_cell(EXTRAS.get(name, ''))} |")
+    return "\n".join(lines)
+
+
 def _public_modules():
     """``{public name: module}`` of the modules ``tumble.__all__`` exports (``tumble.exact`` is
     ``tumble.physics.exact``)."""
@@ -556,6 +607,24 @@ class BenchmarkResults(_Generated):
         return benchmark_results_page(folder, Path(self.env.doc2path(self.env.docname)).parent)
 
 
+class Citation(_Generated):
+    """``tumble-citation``: how to cite tumble, from the repository's ``CITATION.cff``."""
+
+    def markdown(self):
+        path = Path(self.env.srcdir).parent / "CITATION.cff"
+        self.env.note_dependency(str(path))
+        return citation_page(path)
+
+
+class Extras(_Generated):
+    """``tumble-extras``: the optional dependencies of ``pyproject.toml``."""
+
+    def markdown(self):
+        path = Path(self.env.srcdir).parent / "pyproject.toml"
+        self.env.note_dependency(str(path))
+        return extras_table(path)
+
+
 def _public_alias(app, env, node, contnode):
     """Resolve a Python reference by the other name of a public module: ``tumble.io.read_dataset`` (the name users
     write) is documented as ``tumble.output.io.read_dataset`` (where it lives), and a docstring may use either."""
@@ -617,6 +686,8 @@ def setup(app):
     app.connect("builder-inited", write_api_pages)
     app.add_directive("tumble-gallery", Gallery)
     app.add_directive("tumble-bundled-studies", BundledStudies)
+    app.add_directive("tumble-citation", Citation)
+    app.add_directive("tumble-extras", Extras)
     app.add_directive("tumble-benchmark-results", BenchmarkResults)
     app.add_post_transform(RepositoryLinks)
     app.add_transform(CommandLineLiterals)
