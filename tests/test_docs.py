@@ -6,11 +6,15 @@ import doctest
 import html
 import json
 import re
+import os
 import resource
+import shutil
 import subprocess
 import sys
+import tempfile
 import time
 import tomllib
+import warnings
 from pathlib import Path
 
 import pytest
@@ -79,6 +83,10 @@ def test_site_builds_without_warnings_and_lists_every_study_key_and_cli_option(t
                   _gallery_thumbnails_open_the_figure_and_name_study_and_command,
                   _copy_buttons_install_cite_and_changelog_pages):
         check(tmp_path / "html")
+    if _CHROMIUM is None:  # .ci/run's machine has it (Debian's chromium package)
+        warnings.warn("no Chromium: the built site was not checked in a browser", stacklevel=1)
+    else:
+        _in_a_browser(tmp_path / "html", Path(os.environ.get("TUMBLE_DOCS_SCREENSHOTS", tmp_path / "screenshots")))
 
     study_page = _text(tmp_path / "html" / "reference" / "study-file.html")
     missing = [field for field in _study_fields() if field not in study_page]
@@ -94,6 +102,84 @@ def test_site_builds_without_warnings_and_lists_every_study_key_and_cli_option(t
     missing = [name for name in tumble.__all__ if not name.startswith("_") and f"tumble.{name}" not in api_page
                and f"tumble. {name}" not in api_page]
     assert not missing, f"public names missing from the API reference: {missing}"
+
+
+#: The pages a new reader meets first, checked in a real browser at a desktop's and a phone's width.
+BROWSER_PAGES = ("index.html", "physics.html", "reference/api/tumble.exact.omega.html", "gallery.html",
+                 "reference/study-file.html")
+BROWSER_WIDTHS = (1280, 390)
+_CHROMIUM = next((shutil.which(name) for name in ("chromium", "chromium-browser", "google-chrome")
+                  if shutil.which(name)), None)
+
+_BROWSER_HARNESS = r"""<!doctype html><html><head><meta charset="utf-8"><title>running</title>
+<style>body{margin:0} iframe{display:block;border:0;margin:0 0 8px 0;height:900px;flex:none} .row{display:flex;gap:8px;align-items:flex-start}</style>
+</head><body><script>
+// tests/test_docs.py: each page in an iframe of each width; what a reader would see, measured.
+const PAGES = %PAGES%, WIDTHS = %WIDTHS%;
+const sleep = ms => new Promise(r => setTimeout(r, ms));
+async function check(src, width, row) {
+  const f = document.createElement("iframe");
+  f.style.width = width + "px"; f.src = src; row.appendChild(f);
+  await new Promise(r => { f.onload = r; });
+  const win = f.contentWindow, doc = f.contentDocument;
+  const wantsMath = doc.querySelectorAll(".math").length;
+  for (let i = 0; wantsMath && i < 100 && !(win.MathJax && win.MathJax.startup && win.MathJax.startup.promise); i++) await sleep(50);
+  if (wantsMath && win.MathJax && win.MathJax.startup) await win.MathJax.startup.promise;
+  const images = [...doc.images];
+  await Promise.all(images.map(im => im.complete ? 0 : new Promise(r => { im.onload = im.onerror = r; })));
+  await sleep(100);
+  return {page: src, width: width, math: wantsMath, typeset: doc.querySelectorAll("mjx-container").length,
+          mathErrors: doc.querySelectorAll("mjx-merror").length,
+          images: images.length, broken: images.filter(im => !(im.complete && im.naturalWidth > 0)).map(im => im.src),
+          scrollWidth: doc.documentElement.scrollWidth, clientWidth: doc.documentElement.clientWidth};
+}
+(async () => {
+  const out = [];
+  for (const page of PAGES) {
+    const row = document.createElement("div"); row.className = "row"; document.body.appendChild(row);
+    for (const width of WIDTHS) { try { out.push(await check(page, width, row)); } catch (e) { out.push({page: page, width: width, error: String(e)}); } }
+  }
+  document.body.setAttribute("data-result", JSON.stringify(out));
+  document.title = "done";
+})();
+</script></body></html>"""
+
+
+
+
+def _in_a_browser(html_dir, screenshots):
+    """Open :data:`BROWSER_PAGES` in headless Chromium, each in an iframe at each of :data:`BROWSER_WIDTHS` (one
+    browser start: the harness page measures them and writes the result into its DOM), and fail if an equation is
+    not typeset, an image does not load or a page is wider than its viewport. The screenshot of all of them side by
+    side is written to ``screenshots``."""
+    harness = html_dir / "_browser_check.html"
+    harness.write_text(_BROWSER_HARNESS.replace("%PAGES%", json.dumps(BROWSER_PAGES))
+                       .replace("%WIDTHS%", json.dumps(BROWSER_WIDTHS)), encoding="utf-8")
+    screenshots.mkdir(parents=True, exist_ok=True)
+    shot = screenshots / "site-1280-390.png"
+    with tempfile.TemporaryDirectory() as profile:
+        done = subprocess.run(
+            [_CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+             "--disable-background-networking", "--disable-component-update", "--disable-sync",
+             "--allow-file-access-from-files", f"--user-data-dir={profile}", "--virtual-time-budget=30000",
+             f"--window-size={sum(BROWSER_WIDTHS) + 8 * len(BROWSER_WIDTHS)},{908 * len(BROWSER_PAGES)}",
+             "--hide-scrollbars", f"--screenshot={shot}", "--dump-dom", harness.as_uri()],
+            capture_output=True, text=True, timeout=180)
+    found = re.search(r'data-result="([^"]*)"', done.stdout)
+    assert found, f"the browser gave no result:\n{done.stderr[-2000:]}"
+    results = json.loads(html.unescape(found.group(1)))
+    assert len(results) == len(BROWSER_PAGES) * len(BROWSER_WIDTHS), results
+    where = f"(screenshot: {shot})"
+    for r in results:
+        at = f"{r['page']} at {r['width']} px {where}"
+        assert "error" not in r, f"{at}: {r.get('error')}"
+        assert r["typeset"] >= r["math"] and r["mathErrors"] == 0, f"{at}: {r['math']} equations, {r['typeset']} typeset"
+        assert not r["broken"], f"{at}: images that did not load: {r['broken']}"
+        assert r["scrollWidth"] <= r["clientWidth"] + 1, f"{at}: the page is {r['scrollWidth']} px wide in {r['clientWidth']}"
+    physics = [r for r in results if r["page"] == "physics.html"]
+    assert all(r["typeset"] >= 30 for r in physics), physics
+    gallery = [r for r in results if r["page"] == "gallery.html"]
+    assert all(r["images"] == len(list((ROOT / "studies" / "gallery").iterdir())) for r in gallery), gallery
 
 
 def _cells(page):
