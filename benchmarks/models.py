@@ -27,7 +27,7 @@ from numba import prange
 
 from tumble.kernels import METHODS, model_methods, run, run_model, tableaux
 from tumble.kernels.jit import jit
-from tumble.kernels.model_rates import heavy_top_rate, model_constants
+from tumble.kernels.systems import heavy_top
 
 import timing  # benchmarks/timing.py (the script's folder is on sys.path)
 
@@ -108,9 +108,9 @@ def throughput():
 def _generic_heavy_top(y, A, b, constants, h, n_steps, block):
     """The alternative to generated steps: a stage loop over the tableau as data (stages in a (s, 6, m) buffer per
     block, each stage's combination and rate as loops over the block's samples)."""
-    c = (constants[0], constants[1], constants[2], constants[3], constants[4], constants[5], constants[6],
-         constants[7], constants[8], constants[9], constants[10], constants[11], constants[12], constants[13],
-         constants[14], constants[15], constants[16], constants[17])
+    c = heavy_top.Constants(constants[0], constants[1], constants[2], constants[3], constants[4], constants[5],
+                            constants[6], constants[7], constants[8], constants[9], constants[10], constants[11],
+                            constants[12])
     n, s = y.shape[1], b.shape[0]
     for ib in prange((n + block - 1) // block):
         lo, hi = ib * block, min(ib * block + block, n)
@@ -129,7 +129,7 @@ def _generic_heavy_top(y, A, b, constants, h, n_steps, block):
                             for i in range(m):
                                 z[q, i] += a * k[j, q, i]
                 for i in range(m):
-                    r = heavy_top_rate(z[0, i], z[1, i], z[2, i], z[3, i], z[4, i], z[5, i], c)
+                    r = heavy_top.rate(0.0, z[0, i], z[1, i], z[2, i], z[3, i], z[4, i], z[5, i], c)
                     for q in range(6):
                         k[stage, q, i] = r[q]
             for j in range(s):
@@ -146,7 +146,7 @@ def generic_stage_loop():
     (method, block, generated and generic sample-steps/s, generic compile seconds)."""
     rng = np.random.default_rng(1)
     y0 = _states(6, rng)
-    constants = model_constants(MOMENTS, (0.0, 0.0, 0.0), 1.5)
+    constants = np.array(heavy_top.constants(MOMENTS, 1.5))
     started = time.perf_counter()
     _generic_heavy_top(y0.copy(), tableaux.RK4.A, tableaux.RK4.b, constants, DT, 2, 64)
     compile_seconds = time.perf_counter() - started

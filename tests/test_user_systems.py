@@ -229,7 +229,7 @@ _PTX = textwrap.dedent("""
     from numba import cuda, types as nt
     import tumble
     from tumble.engine.systems import _kernels
-    from tumble.kernels import device_systems
+    from tumble.kernels import device_sample_loop
 
     # Device functions are compiled for the current GPU's compute capability; without a GPU, name one (H100).
     dispatcher.get_current_device = lambda: types.SimpleNamespace(compute_capability=(9, 0))
@@ -243,7 +243,7 @@ _PTX = textwrap.dedent("""
     signature = (f8[:, ::1], f8[::1], f8, f8, i8, i8, f8[:, :, ::1], nt.int8[::1], i8[::1])
     for method in ("rk4", "rk8"):
         kernels = _kernels(system, method)
-        kernel = device_systems().make_kernel(kernels.run_sample, 2, kernels.stages, 2)
+        kernel = device_sample_loop().make_kernel(kernels.run_sample, 2, kernels.stages, 2)
         ptx, _ = cuda.compile_ptx(kernel.py_func, signature, cc=(9, 0))
         assert "div.approx" not in ptx and "fma.rn.f64" in ptx, method
         print(method, ptx.count("\\n"))

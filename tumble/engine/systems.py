@@ -6,7 +6,7 @@ checked once here, then
 * a built-in model steps with the models' SIMD kernels (:func:`tumble.kernels.run_model`, one compiled and cached
   driver for every model: rk4, rk8 and, for the Lie–Poisson models, the splittings), ``parameters`` overriding the
   model's own;
-* a :class:`~tumble.physics.system.System` steps with the per-sample loop of :mod:`tumble.kernels.systems` (any
+* a :class:`~tumble.physics.system.System` steps with the per-sample loop of :mod:`tumble.kernels.sample_loop` (any
   Runge–Kutta tableau: rk4, rk8), compiled for that system and method on its first run in a process and kept with
   the system. Before anything runs the rate is compiled alone and called once at the first initial state with
   bounds checked, and at up to :data:`PROBED` initial states: a rate numba cannot compile, that reads or writes
@@ -24,8 +24,8 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import registry
-from ..kernels import TABLEAUX, device_models, device_systems, model_methods, parallel_block, run_model
-from ..kernels import MODEL_BLOCK, systems
+from ..kernels import (MODEL_BLOCK, TABLEAUX, device_models, device_sample_loop, model_methods, parallel_block,
+                       run_model, sample_loop)
 from ..physics.models import Model
 from ..physics.system import System, with_parameters
 from . import cost
@@ -102,10 +102,10 @@ def _kernels(system, method):
     made = _COMPILED.setdefault(system, {})
     if method not in made:
         tableau = TABLEAUX[method]
-        rate = systems.compile_function(system.rate, systems.RATE_SIGNATURE, f"system {system.name!r}",
+        rate = sample_loop.compile_function(system.rate, sample_loop.RATE_SIGNATURE, f"system {system.name!r}",
                                         "rate(t, y, p, dydt)")
-        run_sample = systems.make_sample_loop(systems.make_step(rate, tableau))
-        made[method] = _Kernels(rate, systems.make_cpu_driver(run_sample, len(tableau.b)), run_sample,
+        run_sample = sample_loop.make_sample_loop(sample_loop.make_step(rate, tableau))
+        made[method] = _Kernels(rate, sample_loop.make_cpu_driver(run_sample, len(tableau.b)), run_sample,
                                 len(tableau.b))
     return made[method]
 
@@ -114,7 +114,7 @@ def _probe(system, kernels, y, p, t0):
     """Call the rate at the first :data:`PROBED` initial states (the first with bounds checked): ValueError naming
     the system when it reads or writes beyond the state, or leaves a component unset or not finite."""
     n = y.shape[1]
-    checked = systems.compile_function(system.rate, systems.RATE_SIGNATURE, f"system {system.name!r}",
+    checked = sample_loop.compile_function(system.rate, sample_loop.RATE_SIGNATURE, f"system {system.name!r}",
                                        "rate(t, y, p, dydt)", boundscheck=True)  # one call: speed is no matter
     dydt = np.empty(n)
     for i in range(min(len(y), PROBED)):
@@ -187,7 +187,7 @@ def run_system(system, y0, t_end, n_steps, step, method="rk4", *, save_every=Non
         p = system.parameter_values(parameters)
         kernels = _kernels(system, method)
         _probe(system, kernels, y, p, 0.0)
-        n_saved = systems.saved_count(n_steps, every)
+        n_saved = sample_loop.saved_count(n_steps, every)
         state = np.ascontiguousarray(y)
         if device == "cpu":
             saved = np.empty((len(y), n_saved, n_state))
@@ -195,7 +195,7 @@ def run_system(system, y0, t_end, n_steps, step, method="rk4", *, save_every=Non
             steps_taken = np.zeros(len(y), dtype=np.int64)
             kernels.drive(state, p, 0.0, step, n_steps, every, saved, status, steps_taken)
         else:
-            cuda = device_systems()
+            cuda = device_sample_loop()
             kernel = _device_kernel(system, method, kernels, n_state)
             saved, status, steps_taken = cuda.run(kernel, state, p, 0.0, step, n_steps, every, n_saved)
         final, trajectory = state, (saved if every else None)
@@ -234,7 +234,7 @@ _DEVICE = weakref.WeakKeyDictionary()
 def _device_kernel(system, method, kernels, n_state):
     made = _DEVICE.setdefault(system, {})
     if method not in made:
-        made[method] = device_systems().make_kernel(kernels.run_sample, n_state, kernels.stages,
+        made[method] = device_sample_loop().make_kernel(kernels.run_sample, n_state, kernels.stages,
                                                      len(system.parameters))
     return made[method]
 

@@ -5,20 +5,20 @@ This package's face is the one door to the kernels: the engine (:mod:`tumble.eng
 checks it). Tests and benchmarks of the kernels themselves may reach the modules.
 """
 
-from . import elliptic, fits, side_by_side, systems
+from . import elliptic, fits, sample_loop, side_by_side
 from .drivers import TORQUE_SIGNATURE
 from .jit import parallel_block
 from .methods import BLOCK, METHODS, Method, Observed, run, run_attitude
 from .models import BLOCK as MODEL_BLOCK
-from .models import MODEL_CODES, MODEL_METHODS, ModelObserved, model_methods, model_rhs, run_model
+from .models import MODEL_CODES, MODEL_METHODS, ModelObserved, model_methods, model_rhs, model_tangent, run_model
 from .tableaux import TABLEAUX
 from .steppers import TORQUE_CONSTANT, TORQUE_PULSE, TORQUE_RAMP, TORQUE_SINE, TORQUE_USER
 
 __all__ = ["BLOCK", "METHODS", "MODEL_BLOCK", "MODEL_CODES", "MODEL_METHODS", "TORQUE_CONSTANT", "TORQUE_PULSE",
            "TORQUE_RAMP", "TORQUE_SIGNATURE", "TORQUE_SINE", "TORQUE_USER", "device_attitude", "device_closed_form",
-           "device_fits", "device_kernels", "device_models", "device_systems", "elliptic", "fits",
-           "Method", "TABLEAUX", "model_methods", "model_rhs", "ModelObserved", "Observed", "parallel_block", "run",
-           "run_attitude", "run_model", "side_by_side", "systems"]
+           "device_fits", "device_kernels", "device_models", "device_sample_loop", "elliptic", "fits",
+           "Method", "TABLEAUX", "model_methods", "model_rhs", "model_tangent", "ModelObserved", "Observed", "parallel_block", "run",
+           "run_attitude", "run_model", "sample_loop", "side_by_side"]
 
 
 def device_kernels():
@@ -62,9 +62,9 @@ def device_attitude():
     return cuda_attitude
 
 
-def device_systems():
-    """The CUDA launcher of a system given by its rate, :mod:`tumble.kernels.cuda_systems` (one thread per sample
-    running :func:`systems.make_sample_loop`'s loop), imported on the first call as :func:`device_kernels`."""
-    from . import cuda_systems
+def device_sample_loop():
+    """The CUDA launcher of a system given by its rate, :mod:`tumble.kernels.cuda_sample_loop` (one thread per
+    sample running :func:`sample_loop.make_sample_loop`'s loop), imported on the first call as :func:`device_kernels`."""
+    from . import cuda_sample_loop
 
-    return cuda_systems
+    return cuda_sample_loop

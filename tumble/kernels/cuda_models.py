@@ -1,10 +1,10 @@
 """The models of :mod:`tumble.physics.models` on a CUDA device: one thread per sample, float64 (issue 28).
 
 A model is written once. Each thread copies its sample's state into a local array of one column and steps it with
-the CPU driver's own step, :func:`tumble.kernels.models._step` (rk4 and rk8 generated from the tableaux into
+the CPU driver's own step, :func:`tumble.kernels.model_steps.step` (rk4 and rk8 generated from the tableaux into
 :mod:`tumble.kernels.model_steps`, the gravity gradient's quaternion put back on the unit sphere after each step, the
 Lie–Poisson splittings of :mod:`tumble.kernels.model_splittings` for the free body, the gyrostat and the heavy top),
-with the invariants of :mod:`tumble.kernels.model_rates` (:func:`tumble.kernels.models._invariants`). numba-cuda
+with the invariants of :mod:`tumble.kernels.systems` (:func:`tumble.kernels.model_steps.invariants`). numba-cuda
 compiles those ``@jit`` functions for the device; their block loop runs over the thread's one sample. A model or a
 method added to the tables runs here without a line added.
 
@@ -14,7 +14,7 @@ frozen) state, the state every ``save_every`` steps, the transverse norm at the 
 stopped), the running maximum of each invariant's drift, the status (non-finite: checked before the first step,
 every :data:`tumble.kernels.models.CHECK_EVERY` steps, at the end, and every step while drifts are tracked; invariant
 drift past ``drift_limit``) and the steps each sample took. A sample that stops keeps the state it had when it was
-caught. The CPU's screening pass (:func:`tumble.kernels.models._drift_suspects`) is a SIMD speed-up only: a thread
+caught. The CPU's screening pass (:func:`tumble.kernels.model_steps.drift_suspects`) is a SIMD speed-up only: a thread
 checks its own sample exactly every step, which is what the screen's "nothing to stop" stands for.
 
 This module imports ``numba.cuda``; it is imported only when a run asks for ``device="cuda"``
@@ -29,9 +29,9 @@ from numba import cuda, float64
 
 from ..registry import STATUS_DRIFT, STATUS_NONFINITE, STATUS_OK, model_kind
 from .jit import cuda_jit
-from .models import (CHECK_EVERY, MODEL_CODES, MODEL_METHODS, ModelObserved, _initial_invariants, _invariants, _step,
-                     model_arguments)
-from .model_rates import N_INVARIANTS
+from .model_steps import invariants, step
+from .models import CHECK_EVERY, MODEL_CODES, MODEL_METHODS, ModelObserved, _initial_invariants, model_arguments
+from .systems import N_CONSTANTS, N_INVARIANTS
 
 __all__ = ["THREADS", "kernel", "make_kernel", "run_model"]
 
@@ -63,7 +63,12 @@ def make_kernel(model, method, n_state):
         for j in range(n_state):
             ys[j, 0] = y[j, i]
             finite = finite and math.isfinite(ys[j, 0])
-        _initial_invariants(model, ys, c, x0, scale)
+        # the constants in a local array: the CPU driver's argument types, so that on the simulator the CPU's compiled
+        # (and cached) step and invariants serve as they are, not a second variant for a tuple
+        constants = cuda.local.array(N_CONSTANTS, float64)
+        for j in range(N_CONSTANTS):
+            constants[j] = c[j]
+        _initial_invariants(model, ys, constants, x0, scale)
         record = drift.shape[0] > 0
         track = record or drift_limit > 0.0
         if record:
@@ -82,14 +87,14 @@ def make_kernel(model, method, n_state):
             probe += 1
         for k in range(n_steps):
             if code == STATUS_OK:
-                _step(model, method, ys, h, c, x0)
+                step(model, method, ys, k * h, h, constants, x0)
                 ran = k + 1
                 if track or ran % CHECK_EVERY == 0 or ran == n_steps:
                     for j in range(n_state):
                         if not math.isfinite(ys[j, 0]):
                             code = STATUS_NONFINITE
                 if track and code == STATUS_OK:
-                    x1, x2, x3, _, _, _ = _invariants(model, ys, 0, c)
+                    x1, x2, x3, _, _, _ = invariants(model, ys, 0, constants)
                     d1 = abs(x1 - x0[0, 0]) / scale[0, 0]
                     d2 = abs(x2 - x0[1, 0]) / scale[1, 0]
                     d3 = abs(x3 - x0[2, 0]) / scale[2, 0]
@@ -144,18 +149,15 @@ def kernel(kind, method):
 
 
 
-def run_model(kind, method, y, moments, h, n_steps, *, rotor=(0.0, 0.0, 0.0), mgl=0.0, orbit_rate=0.0,
-              damper_inertia=0.0, damping=0.0, save_every=0, columns=None, weights=None, y_eq=None, probe_steps=None,
-              drift=False, drift_limit=0.0, block=None):
+def run_model(kind, method, y, moments, h, n_steps, *, save_every=0, columns=None, weights=None, y_eq=None,
+              probe_steps=None, drift=False, drift_limit=0.0, block=None, **parameters):
     # size: the keywords of tumble.kernels.run_model, so that the engine calls either the same way
     """:func:`tumble.kernels.run_model` on the device: the same arguments and the same
     :class:`~tumble.kernels.models.ModelObserved`; ``y`` (n_state, N) is overwritten with the final states.
     ``block`` is not used (a thread is a sample). Raises ``ValueError`` as the CPU's does (an unknown kind or
     method, a state of the wrong rows)."""
     _, n_state, constants, n_saved, columns, weights, y_eq, probe_steps = model_arguments(
-        kind, method, y, moments, n_steps, dict(rotor=rotor, mgl=mgl, orbit_rate=orbit_rate,
-                                                damper_inertia=damper_inertia, damping=damping),
-        save_every, columns, weights, y_eq, probe_steps)
+        kind, method, y, moments, n_steps, parameters, save_every, columns, weights, y_eq, probe_steps)
     n = y.shape[1]
     device_y = cuda.to_device(y)
     saved = cuda.device_array((n_saved, n_state, n) if n_saved else (0, n_state, 1))

@@ -189,7 +189,7 @@ def jit(fn=None, *, parallel=False, inline=False, contract=True, cache=True, bou
         different products, so a cold and a warm run would disagree in the last bits.
     cache : bool
         Keep the compiled code in the disk cache (:class:`CheckedCache`). ``False`` for a user's function and
-        the closures over it (:mod:`tumble.kernels.systems`): numba's cache cannot key a closure over another
+        the closures over it (:mod:`tumble.kernels.sample_loop`): numba's cache cannot key a closure over another
         function (issue #6264: a new entry every process, never a hit) nor a function typed in a notebook.
     boundscheck : bool
         Raise ``IndexError`` on an index out of bounds (slow: only for a first call that checks a user's function).

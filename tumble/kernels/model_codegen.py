@@ -1,53 +1,69 @@
-"""Generate :mod:`tumble.kernels.model_steps` (the models' rk4 and rk8 steps) from :mod:`tumble.kernels.tableaux`.
+"""Generate :mod:`tumble.kernels.model_steps` (the systems' rk4 and rk8 steps and the drivers' dispatch) from tables.
 
 As :mod:`tumble.kernels.codegen` does for the free body: a sample's whole step is spelled out with the tableau's
-coefficients as literals, so that the loop over the samples of a block keeps the state in registers and
-vectorises across samples; the tables stay the single source of truth and a test checks that the committed module
-is what this generator writes. One step per (right-hand side, method): the gyrostat's rate (which is also the
-free body's, ``h = 0``), the heavy top's, the gravity gradient's (whose block loop puts the quaternion back on the
-unit sphere after each step: :func:`tumble.kernels.model_rates.gravity_gradient_unit`) and the damper's. Regenerate
-with::
+coefficients as literals (:mod:`tumble.kernels.tableaux`), so that the loop over the samples of a block keeps the
+state in registers and vectorises across samples. What is generated, and from what:
 
-    python tumble/kernels/model_codegen.py
+* one step per (system module, method) and its block loop (then the module's ``project``, if it has one), from the
+  modules of :data:`tumble.kernels.systems.SYSTEMS`, their state names (``registry.MODELS``) and :data:`METHODS`;
+* the dispatch the one driver of :mod:`tumble.kernels.models` calls with runtime codes (a kind's index in
+  ``registry.MODEL_KINDS``, a method's in ``registry.STEPPING``): :func:`step`, :func:`invariants`,
+  :func:`drift_suspects`, :func:`rhs_columns`, :func:`tangent_columns`, each a chain over the systems with each
+  branch reading the constants array into the system's own ``Constants`` record; the Lie–Poisson splittings for
+  ``registry.LIE_POISSON_MODELS`` (``<module>_splitting_block`` of :mod:`tumble.kernels.model_splittings`).
+
+A test checks that the committed module is what this generator writes. Regenerate with::
+
+    python -m tumble.kernels.model_codegen
 """
 
 from pathlib import Path
 
-if __package__:
-    from . import tableaux
-    from .codegen import combination
-else:  # run as a script: import the tables and the free body's generator beside this file, not the tumble package
-    import tableaux
-    from codegen import combination
+from .. import registry
+from . import tableaux
+from .codegen import combination
+from .systems import SYSTEMS
 
 TARGET = Path(__file__).with_name("model_steps.py")
-
-#: (name, state components, rate function of :mod:`tumble.kernels.model_rates`, the function that projects a
-#: sample's state after each step or None)
-RATES = (("gyrostat", ("w1", "w2", "w3"), "gyrostat_rate", None),
-         ("heavy_top", ("w1", "w2", "w3", "g1", "g2", "g3"), "heavy_top_rate", None),
-         ("gravity_gradient", ("w1", "w2", "w3", "q0", "q1", "q2", "q3"), "gravity_gradient_rate",
-          "gravity_gradient_unit"),
-         ("damper", ("w1", "w2", "w3", "s1", "s2", "s3"), "damper_rate", None))
 
 #: The methods with generated steps (their kernel ids are their indices in ``registry.STEPPING``).
 METHODS = (tableaux.RK4, tableaux.RK8)
 
 
-def step_source(tableau, name, components, rate):
-    """Source of ``<name>_<method>_sample(*components, h, c)``: one step of an autonomous system for one sample."""
+def _modules():
+    """``[(module name, state components, kinds)]``, each module once, in the registry's order of kinds."""
+    found = {}
+    for kind, module in SYSTEMS.items():
+        name = module.__name__.rsplit(".", 1)[-1]
+        entry = found.setdefault(name, (name, registry.model_kind(kind).state, []))
+        entry[2].append(kind)
+    return list(found.values())
+
+
+def _has_project(name):
+    return hasattr(next(m for m in SYSTEMS.values() if m.__name__.endswith("." + name)), "project")
+
+
+def _fields(name):
+    return next(m for m in SYSTEMS.values() if m.__name__.endswith("." + name)).Constants._fields
+
+
+def step_source(tableau, name, components):
+    """Source of ``<name>_<method>_sample(t, *components, h, c)``: one step of a system for one sample."""
     args = ", ".join(components)
     n = len(components)
     lines = [
         "@jit(inline=True)",
-        f"def {name}_{tableau.name}_sample({args}, h, c):",
+        f"def {name}_{tableau.name}_sample(t, {args}, h, c):",
         "    # size: generated from the tableau, every stage spelled out (the state stays in registers)",
         f'    """One step of {tableau.name} (order {tableau.order}, {len(tableau.b)} stages) of the {name} for one '
         f'sample."""',
     ]
     for s in range(len(tableau.b)):
         ks = ", ".join(f"k{s + 1}_{i + 1}" for i in range(n))
-        lines.append(f"    {ks} = {rate}(")
+        time = "t" if tableau.c[s] == 0.0 else f"t + {float(tableau.c[s])!r} * h"
+        lines.append(f"    {ks} = {name}.rate(")
+        lines.append(f"        {time},")
         for i, y in enumerate(components):
             lines.append(f"        {combination(y, enumerate(tableau.A[s, :s]), i + 1)},")
         lines.append("        c)")
@@ -58,48 +74,151 @@ def step_source(tableau, name, components, rate):
     return "\n".join(lines)
 
 
-def block_source(tableau, name, components, project=None):
-    """Source of ``<name>_<method>_block(y1, ..., h, c)``: every sample of a block advanced by one step (then
-    projected by ``project(*components)`` when one is given)."""
+def block_source(tableau, name, components, project):
+    """Source of ``<name>_<method>_block(t, y1, ..., h, c)``: every sample of a block advanced by one step (then
+    projected by the module's ``project`` when it has one)."""
     arrays = ", ".join(f"y{i + 1}" for i in range(len(components)))
     items = ", ".join(f"y{i + 1}[i]" for i in range(len(components)))
-    if project is None:
-        return "\n".join([
-            "@jit",
-            f"def {name}_{tableau.name}_block({arrays}, h, c):",
-            f'    """Advance every sample of a block by one {tableau.name} step of the {name}."""',
-            "    for i in range(y1.shape[0]):",
-            f"        {items} = {name}_{tableau.name}_sample({items}, h, c)",
-        ])
-    values = ", ".join(components)
-    return "\n".join([
+    lines = [
         "@jit",
-        f"def {name}_{tableau.name}_block({arrays}, h, c):",
-        "    # size: generated: one array per state component (the block's rows), the step and the constants",
-        f'    """Advance every sample of a block by one {tableau.name} step of the {name}, then {project}."""',
+        f"def {name}_{tableau.name}_block(t, {arrays}, h, c):",
+        f'    """Advance every sample of a block by one {tableau.name} step of the {name}'
+        f'{", then project it" if project else ""}."""',
         "    for i in range(y1.shape[0]):",
-        f"        {values} = {name}_{tableau.name}_sample({items}, h, c)",
-        f"        {items} = {project}({values})",
-    ])
+    ]
+    if project:
+        values = ", ".join(components)
+        lines[2:2] = ["    # size: generated: one array per state component (the block's rows), the time, the step, the "
+                      "constants"]
+        lines += [f"        {values} = {name}_{tableau.name}_sample(t, {items}, h, c)",
+                  f"        {items} = {name}.project({values})"]
+    else:
+        lines += [f"        {items} = {name}_{tableau.name}_sample(t, {items}, h, c)"]
+    return "\n".join(lines)
+
+
+def _record(name):
+    """``<name>.Constants(a[0], ..., a[k])``: the constants array (or tuple) read into the system's record."""
+    return f"{name}.Constants({', '.join(f'a[{i}]' for i in range(len(_fields(name))))})"
+
+
+def _codes(kinds):
+    return " or ".join(f"model == {registry.MODEL_KINDS.index(kind)}" for kind in kinds)
+
+
+def _chain(modules, body, indent="    "):
+    """An if/elif/else chain over the modules (the last one the ``else``), ``body(name, components)`` each branch's
+    lines."""
+    lines = []
+    for position, (name, components, kinds) in enumerate(modules):
+        if position == len(modules) - 1:
+            lines.append(f"{indent}else:  # {', '.join(kinds)}")
+        else:
+            lines.append(f"{indent}{'if' if position == 0 else 'elif'} {_codes(kinds)}:  # {', '.join(kinds)}")
+        lines += [indent + "    " + line for line in body(name, components, kinds)]
+    return lines
+
+
+def dispatch_source(modules):
+    # size: five generated functions, each a chain over the systems, written out as the text they are
+    """Source of the dispatch functions (see the module docstring)."""
+    method_ids = {m.name: registry.STEPPING.index(m.name) for m in METHODS}
+
+    def step(name, components, kinds):
+        rows = ", ".join(f"ys[{i}]" for i in range(len(components)))
+        lines = [f"c_{name} = {_record(name)}"]
+        for position, tableau in enumerate(METHODS):
+            keyword = "if" if position == 0 else "elif"
+            lines += [f"{keyword} method == {method_ids[tableau.name]}:  # {tableau.name}",
+                      f"    {name}_{tableau.name}_block(t, {rows}, h, c_{name})"]
+        if any(kind in registry.LIE_POISSON_MODELS for kind in kinds):
+            lines += ["else:  # a Lie-Poisson splitting", f"    {name}_splitting_block(method, {rows}, h, c_{name}, x0)"]
+        return lines
+
+    def invariants(name, components, kinds):
+        items = ", ".join(f"ys[{i}, i]" for i in range(len(components)))
+        return [f"return {name}.invariants({items}, {_record(name)})"]
+
+    def suspects(name, components, kinds):
+        items = ", ".join(f"ys[{i}, i]" for i in range(len(components)))
+        return [f"c_{name} = {_record(name)}",
+                "for i in range(ys.shape[1]):",
+                f"    x1, x2, x3, _, _, _ = {name}.invariants({items}, c_{name})",
+                f"    total = {' + '.join(f'ys[{i}, i]' for i in range(len(components)))}",
+                "    suspects += suspect(i, active, x0, scale, screen, x1, x2, x3, total)"]
+
+    def columns(function):
+        def body(name, components, kinds):
+            items = ", ".join(f"y[{i}, i]" for i in range(len(components)))
+            along = "".join(f", v[{i}, i]" for i in range(len(components))) if function == "tangent" else ""
+            return [f"r_{name} = {name}.{function}(t, {items}{along}, c_{name})",
+                    f"for j in range({len(components)}):",
+                    f"    out[j, i] = r_{name}[j]"]
+        return body
+
+    lines = [
+        "@jit",
+        "def step(model, method, ys, t, h, a, x0):",
+        "    # size: generated: the dispatch of every system and method",
+        '    """Advance every sample of a block (``ys``, shape (n_state, m)) by one step at time ``t``; branches outside '
+        'the\n    sample loop. ``a``: the constants array (or tuple); ``x0``: the samples\' initial invariants (a '
+        'gyrostat\'s\n    splittings put ``|I w + h|²`` back on them)."""',
+        *_chain(modules, step),
+        "",
+        "",
+        "@jit(inline=True)",
+        "def invariants(model, ys, i, a):",
+        '    """``(x1, x2, x3, scale1, scale2, scale3)`` of sample ``i`` of a block."""',
+        *_chain(modules, invariants),
+        "",
+        "",
+        "@jit",
+        "def drift_suspects(model, ys, active, a, x0, scale, screen):",
+        '    """Whether any active sample of a block is non-finite or has an invariant\'s drift beyond ``screen``: one '
+        'pass\n    per system without stores, calls or inner loops, so that it vectorises across samples (see\n'
+        '    :func:`tumble.kernels.models.propagate_model`)."""',
+        "    suspects = 0",
+        *_chain(modules, suspects),
+        "    return suspects > 0",
+    ]
+    for function in ("rate", "tangent"):
+        arguments = "y, a, t, out" if function == "rate" else "y, v, a, t, out"
+        what = "``out = f(t, y)``" if function == "rate" else "``out = J(t, y) v``"
+        lines += [
+            "",
+            "",
+            "@jit",  # serial: numba's parallel lowering cannot name a record type of another module (NameError)
+            f"def {function}_columns(model, {arguments}):",
+            f'    """{what} for states as columns ``y`` (n_state, N){", along ``v`` (n_state, N)" if function == "tangent" else ""}."""',
+            *[f"    c_{name} = {_record(name)}" for name, _, _ in modules],
+            "    for i in range(y.shape[1]):",
+            *_chain(modules, columns(function), indent="        "),
+        ]
+    return "\n".join(lines)
 
 
 def module_source():
     """The whole text of :mod:`tumble.kernels.model_steps`."""
-    rates = ", ".join(sorted([rate for _, _, rate, _ in RATES] + [p for _, _, _, p in RATES if p]))
+    modules = _modules()
+    splittings = sorted(f"{name}_splitting_block" for name, _, kinds in modules
+                        if any(kind in registry.LIE_POISSON_MODELS for kind in kinds))
     blocks = [
-        '"""Per-sample rk4 and rk8 steps of the models, and the loop over a block for each.',
+        '"""GENERATED by ``python -m tumble.kernels.model_codegen``; do not edit.',
         "",
-        "GENERATED by ``python tumble/kernels/model_codegen.py`` from :mod:`tumble.kernels.tableaux`; do not edit.",
+        "The systems' rk4 and rk8 steps, the loop over a block for each, and the one driver's dispatch, from",
+        ":mod:`tumble.kernels.tableaux`, :mod:`tumble.kernels.systems` and the registry.",
         '"""',
         "",
         "from .jit import jit",
-        f"from .model_rates import {rates}",
+        f"from .model_splittings import {', '.join(splittings)}",
+        "from .drift_screen import suspect",
+        f"from .systems import {', '.join(sorted(name for name, _, _ in modules))}",
     ]
-    for name, components, rate, project in RATES:
+    for name, components, _ in modules:
         for tableau in METHODS:
-            blocks += ["", "", step_source(tableau, name, components, rate), "", "",
-                       block_source(tableau, name, components, project)]
-    blocks.append("")
+            blocks += ["", "", step_source(tableau, name, components), "", "",
+                       block_source(tableau, name, components, _has_project(name))]
+    blocks += ["", "", dispatch_source(modules), ""]
     return "\n".join(blocks)
 
 

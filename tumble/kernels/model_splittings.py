@@ -3,8 +3,8 @@
 The compositions are the free body's (:data:`tumble.kernels.tableaux.SYMPLECTIC_EULER`, ``SPLITTING2``,
 ``SPLITTING4``), read here as data; every sub-flow is an exact flow, and each is one loop over a block's samples
 (one copy of :func:`tumble.kernels.trig.sincos` per axis, as :func:`tumble.kernels.steppers.rotate_block`), so that
-the loops vectorise across samples and the compile stays small. ``c`` is the tuple of
-:func:`tumble.kernels.model_rates.model_constants`.
+the loops vectorise across samples and the compile stays small. ``c`` is the system's ``Constants`` record
+(:mod:`tumble.kernels.systems`).
 
 **Gyrostat** (``L = I w + h``, body frame; the free body is ``h = 0``): ``H = sum_a (L_a − h_a)² / (2 I_a)`` and
 ``L' = L × ∇H = L × w``, which is ``I w' = (I w + h) × w``. The flow of one term ``H_a`` has ``∇H_a = w_a e_a``:
@@ -14,11 +14,11 @@ the loops vectorise across samples and the compile stays small. ``c`` is the tup
 again. Every sub-flow turns ``L``, so ``|I w + h|`` is kept; to round-off, as the free body's, by a projection
 after each step onto its initial value (:func:`gyrostat_project_block`).
 
-**Heavy top** (Euler–Poisson, :mod:`tumble.physics.models`' sign convention): with ``H = T + V``, ``T = sum_a L_a² /
-(2 I_a)``, ``V = mgl g3``, the bracket ``L' = L × ∇_L H + g × ∇_g H``, ``g' = g × ∇_L H`` gives ``I w' = (I w) × w +
-mgl (g × e3)``, ``g' = g × w``. The flow of ``T_a`` turns ``L`` and ``g`` together about body axis ``a`` by ``w_a
-tau`` (``w_a`` constant); the flow of ``V`` keeps ``g`` and moves ``L`` linearly, ``L += tau mgl (g × e3) = tau mgl
-(g2, −g1, 0)``. ``V`` is the compositions' "torque" sub-flow (``tableaux.TORQUE``: half a step at either end of each
+**Heavy top** (Euler–Poisson, :mod:`tumble.kernels.systems.heavy_top`): with ``H = T + V``, ``T = sum_a L_a² /
+(2 I_a)``, ``V = mgl g·c`` (``c`` the centre of mass's direction), the bracket ``L' = L × ∇_L H + g × ∇_g H``, ``g' =
+g × ∇_L H`` gives ``I w' = (I w) × w + mgl (g × c)``, ``g' = g × w``. The flow of ``T_a`` turns ``L`` and ``g``
+together about body axis ``a`` by ``w_a tau`` (``w_a`` constant); the flow of ``V`` keeps ``g`` and moves ``L``
+linearly, ``L += tau mgl (g × c)`` (``c = e3``: ``tau mgl (g2, −g1, 0)``). ``V`` is the compositions' "torque" sub-flow (``tableaux.TORQUE``: half a step at either end of each
 Strang step, as the free body's torque), so the tables are used as they are. Every sub-flow keeps ``|g|`` and ``L·g``
 (the turns turn both by the same angle; ``V`` changes ``L`` across ``g``); the energy is not kept, only bounded.
 
@@ -37,8 +37,8 @@ from .tableaux import SPLITTING2, SPLITTING4, SYMPLECTIC_EULER, TORQUE
 from .trig import sincos
 from .steppers import rotate
 
-__all__ = ["SPLITTINGS", "gyrostat_project_block", "gyrostat_rotate_block", "gyrostat_splitting_block", "heavy_top_gravity_block",
-           "heavy_top_rotate_block", "heavy_top_splitting_block"]
+__all__ = ["SPLITTINGS", "gyrostat_project_block", "gyrostat_rotate_block", "gyrostat_splitting_block",
+           "heavy_top_gravity_block", "heavy_top_rotate_block", "heavy_top_splitting_block"]
 
 #: The splittings the model kernels run, by name: kernel id (index in ``registry.STEPPING``).
 SPLITTINGS = {s.name: STEPPING.index(s.name) for s in (SYMPLECTIC_EULER, SPLITTING2, SPLITTING4)}
@@ -68,20 +68,20 @@ def gyrostat_rotate_block(axis, tau, y1, y2, y3, c):
     """The exact flow of ``H_a = (L_a − h_a)² / (2 I_a)`` over ``tau`` for every sample: ``(L_b, L_c)`` turns by
     ``w_a tau``, ``a = axis`` (0-based), ``(a, b, c)`` cyclic; one loop per axis. In ``u = L / I = w + h / I``, with
     the free body's ratios (``h = 0``: the free body's bits)."""
-    u1, u2, u3 = c[12] / c[0], c[13] / c[1], c[14] / c[2]  # h / I
+    u1, u2, u3 = c.h1 / c.i1, c.h2 / c.i2, c.h3 / c.i3  # h / I
     n = y1.shape[0]
     if axis == 0:
-        r_cb, r_bc = c[2] / c[1], c[1] / c[2]
+        r_cb, r_bc = c.i3 / c.i2, c.i2 / c.i3
         for i in range(n):
             b, d = rotate(y1[i] * tau, y2[i] + u2, y3[i] + u3, r_cb, r_bc)
             y2[i], y3[i] = b - u2, d - u3
     elif axis == 1:
-        r_cb, r_bc = c[0] / c[2], c[2] / c[0]
+        r_cb, r_bc = c.i1 / c.i3, c.i3 / c.i1
         for i in range(n):
             b, d = rotate(y2[i] * tau, y3[i] + u3, y1[i] + u1, r_cb, r_bc)
             y3[i], y1[i] = b - u3, d - u1
     else:
-        r_cb, r_bc = c[1] / c[0], c[0] / c[1]
+        r_cb, r_bc = c.i2 / c.i1, c.i1 / c.i2
         for i in range(n):
             b, d = rotate(y3[i] * tau, y1[i] + u1, y2[i] + u2, r_cb, r_bc)
             y1[i], y2[i] = b - u1, d - u2
@@ -93,9 +93,9 @@ def gyrostat_project_block(y1, y2, y3, target, c):
     :func:`tumble.kernels.steppers.project_l_squared`, applied additively): the turns keep ``|L|`` only to the
     rounding of ``cos(theta)``, which is the same at every step of a steady or periodic motion and so would add up
     linearly (3e-11 of ``|L|²`` in 1e5 splitting4 steps) rather than random-walk."""
-    u1, u2, u3 = c[12] / c[0], c[13] / c[1], c[14] / c[2]
+    u1, u2, u3 = c.h1 / c.i1, c.h2 / c.i2, c.h3 / c.i3
     for i in range(y1.shape[0]):
-        l1, l2, l3 = c[0] * y1[i] + c[12], c[1] * y2[i] + c[13], c[2] * y3[i] + c[14]
+        l1, l2, l3 = c.i1 * y1[i] + c.h1, c.i2 * y2[i] + c.h2, c.i3 * y3[i] + c.h3
         now = l1 * l1 + l2 * l2 + l3 * l3
         d = (target[i] - now) / (now + math.sqrt(target[i] * now)) if now > 0.0 else 0.0
         y1[i] += (y1[i] + u1) * d
@@ -104,13 +104,13 @@ def gyrostat_project_block(y1, y2, y3, target, c):
 
 
 @jit
-def gyrostat_splitting_block(method, y1, y2, y3, h, c, target):
+def gyrostat_splitting_block(method, y1, y2, y3, h, c, x0):
     """One step of splitting ``method`` (kernel id) of the gyrostat for every sample of a block, then each sample's
-    ``|I w + h|²`` put back on its ``target`` (its value at the start)."""
+    ``|I w + h|²`` put back on its value at the start (``x0[1]``, the samples' initial invariants)."""
     p = _FREE_POSITION[method]
     for s in range(_FREE_START[p], _FREE_START[p + 1]):
         gyrostat_rotate_block(_FREE_FLOWS[s], _FREE_FRACTIONS[s] * h, y1, y2, y3, c)
-    gyrostat_project_block(y1, y2, y3, target, c)
+    gyrostat_project_block(y1, y2, y3, x0[1], c)
 
 
 @jit
@@ -119,11 +119,11 @@ def heavy_top_rotate_block(axis, tau, y1, y2, y3, y4, y5, y6, c):
     """The exact flow of ``T_a = L_a² / (2 I_a)`` over ``tau`` for every sample: ``(L_b, L_c)`` and ``(g_b, g_c)``
     turn by ``w_a tau``, ``a = axis`` (0-based), ``(a, b, c)`` cyclic; one loop (one sincos) per axis."""
     if axis == 0:
-        _turn_about_axis(tau, y1, y2, y3, y5, y6, c[2] / c[1], c[1] / c[2])
+        _turn_about_axis(tau, y1, y2, y3, y5, y6, c.i3 / c.i2, c.i2 / c.i3)
     elif axis == 1:
-        _turn_about_axis(tau, y2, y3, y1, y6, y4, c[0] / c[2], c[2] / c[0])
+        _turn_about_axis(tau, y2, y3, y1, y6, y4, c.i1 / c.i3, c.i3 / c.i1)
     else:
-        _turn_about_axis(tau, y3, y1, y2, y4, y5, c[1] / c[0], c[0] / c[1])
+        _turn_about_axis(tau, y3, y1, y2, y4, y5, c.i2 / c.i1, c.i1 / c.i2)
 
 
 @jit(inline=True)
@@ -138,23 +138,33 @@ def _turn_about_axis(tau, wa, wb, wc, gb, gc, r_cb, r_bc):
 
 
 @jit
-def heavy_top_gravity_block(tau, y1, y2, y4, y5, c):
-    """The exact flow of ``V = mgl g3`` over ``tau`` for every sample: ``g`` fixed, ``L += tau mgl (g2, −g1, 0)``."""
-    k1, k2 = tau * c[16], tau * c[17]  # tau mgl / I1, tau mgl / I2
+def heavy_top_gravity_block(tau, y1, y2, y3, y4, y5, y6, c):
+    # size: one array per state component (the block's rows), the time and the constants
+    """The exact flow of ``V = mgl g·c`` over ``tau`` for every sample: ``g`` fixed, ``L += tau mgl (g × c)``; with
+    ``c = e3`` only ``w1`` and ``w2`` move (the loop then skips ``w3``, whose increment is 0)."""
+    k1, k2, k3 = tau * c.m1, tau * c.m2, tau * c.m3  # tau mgl / I_i
+    if c.c1 == 0.0 and c.c2 == 0.0:  # the centre on axis 3: w1 += k1 c3 g2, w2 -= k2 c3 g1
+        for i in range(y1.shape[0]):
+            y1[i] += k1 * (y5[i] * c.c3)
+            y2[i] -= k2 * (y4[i] * c.c3)
+        return
     for i in range(y1.shape[0]):
-        y1[i] += k1 * y5[i]
-        y2[i] -= k2 * y4[i]
+        g1, g2, g3 = y4[i], y5[i], y6[i]
+        y1[i] += k1 * (g2 * c.c3 - g3 * c.c2)
+        y2[i] += k2 * (g3 * c.c1 - g1 * c.c3)
+        y3[i] += k3 * (g1 * c.c2 - g2 * c.c1)
 
 
 @jit
-def heavy_top_splitting_block(method, y1, y2, y3, y4, y5, y6, h, c):
-    # size: one array per state component (the block's rows), the method, the step and the constants
+def heavy_top_splitting_block(method, y1, y2, y3, y4, y5, y6, h, c, x0):
+    # size: one array per state component (the block's rows), the method, the step, the constants, the invariants
     """One step of splitting ``method`` (kernel id) of the heavy top for every sample of a block (gravity as the
-    composition's torque sub-flow)."""
+    composition's torque sub-flow); ``x0`` (the initial invariants) is not used: every sub-flow keeps ``|g|`` and
+    ``L·g`` exactly."""
     p = _TOP_POSITION[method]
     for s in range(_TOP_START[p], _TOP_START[p + 1]):
         tau = _TOP_FRACTIONS[s] * h
         if _TOP_FLOWS[s] == TORQUE:
-            heavy_top_gravity_block(tau, y1, y2, y4, y5, c)
+            heavy_top_gravity_block(tau, y1, y2, y3, y4, y5, y6, c)
         else:
             heavy_top_rotate_block(_TOP_FLOWS[s], tau, y1, y2, y3, y4, y5, y6, c)

@@ -10,16 +10,18 @@ over the block's samples that the compiler vectorises across samples (SIMD lanes
 
 **One compiled variant.** The model and the method are runtime codes, tested once per block and step, outside the
 loop over the samples; the observers are runtime switches on arrays that are empty when not asked for; a model's
-parameters are one float array of a single layout (:func:`tumble.kernels.model_rates.model_constants`). So one
+parameters are one float array (:func:`tumble.kernels.systems.constants`: each system's named record first). So one
 compiled (and cached) driver serves the free body, the gyrostat, the heavy top, the gravity gradient and the damper,
 rk4 and rk8 (and the Lie–Poisson splittings for the free body, the gyrostat and the heavy top:
-:mod:`tumble.kernels.model_splittings`), and every combination of outputs. The free body runs as the gyrostat with ``h = 0`` (the free body keeps its own, faster
-driver for everything else: :func:`tumble.kernels.run`).
+:mod:`tumble.kernels.model_splittings`), and every combination of outputs. The free body runs as the gyrostat with
+``h = 0`` (the free body keeps its own, faster driver for everything else: :func:`tumble.kernels.run`). A system's
+equations are its module of :mod:`tumble.kernels.systems`; the steps and the dispatch over systems and methods are
+generated from them (:mod:`tumble.kernels.model_steps`).
 
 **Observers.** The final state (in place); the state every ``save_every`` steps; the transverse norm
 ``sqrt(sum_j weights[j] (y[columns[j]] − y_eq[columns[j]])²)`` at given steps (the arrays of
 :class:`tumble.physics.models.Transverse`); the running maximum of each invariant's drift ``|x − x0| / scale0``
-(the ``*_invariants`` of :mod:`tumble.kernels.model_rates`: the scale is the invariant itself where it is
+(each system's ``invariants``, :mod:`tumble.kernels.systems`: the scale is the invariant itself where it is
 sign-definite, else the largest magnitude it can take, so that an invariant that starts at 0 does not divide by 0;
 the gravity gradient's Jacobi integral: the sum of its three terms' magnitudes; the damper tracks ``|L|²`` only, its
 energy decays).
@@ -34,10 +36,10 @@ q3)`` is the ``Transverse.centre`` of the physics layer.
 
 **Status.** ``STATUS_OK``, ``STATUS_NONFINITE`` (a component NaN or infinite, checked before the first step, every
 :data:`CHECK_EVERY` steps, at the end, and every step while drifts are tracked) or ``STATUS_DRIFT`` (a drift beyond
-``drift_limit``; each step a branch-free screening pass over the block, :func:`_drift_suspects`, finds whether any
-sample comes near either, and only then do the exact per-sample checks run: run every step, those scalar loops had
-cost as much as a gravity gradient's rk4 step, the screen costs a fifth of it); a sample with a bad status stops and keeps the state it had when it was caught; its later probes
-are NaN. Samples never interact: results do not depend on the number of threads or on the block size.
+``drift_limit``; each step a branch-free screening pass over the block,
+:func:`tumble.kernels.model_steps.drift_suspects` (:mod:`tumble.kernels.drift_screen`), finds whether any sample comes
+near either, and only then do the exact per-sample checks run); a sample with a bad status stops and keeps the state
+it had when it was caught; its later probes are NaN. Samples never interact: results do not depend on the number of threads or on the block size.
 """
 
 import math
@@ -46,49 +48,25 @@ from typing import NamedTuple
 import numpy as np
 from numba import prange
 
-from ..registry import LIE_POISSON_MODELS, MODEL_KINDS, STATUS_DRIFT, STATUS_NONFINITE, STATUS_OK, STEPPING, model_kind
+from ..registry import (LIE_POISSON_MODELS, MODEL_KINDS, MODEL_PARAMETERS, STATUS_DRIFT, STATUS_NONFINITE, STATUS_OK,
+                        STEPPING, model_kind)
+from .drift_screen import SCREEN_ATOL, SCREEN_RTOL
 from .jit import jit
-from .model_rates import (
-    N_CONSTANTS,
-    N_INVARIANTS,
-    damper_invariants,
-    damper_rate,
-    gravity_gradient_invariants,
-    gravity_gradient_rate,
-    gyrostat_invariants,
-    gyrostat_rate,
-    heavy_top_invariants,
-    heavy_top_rate,
-    model_constants,
-)
-from .model_splittings import SPLITTINGS, gyrostat_splitting_block, heavy_top_splitting_block
-from .model_steps import (
-    damper_rk4_block,
-    damper_rk8_block,
-    gravity_gradient_rk4_block,
-    gravity_gradient_rk8_block,
-    gyrostat_rk4_block,
-    gyrostat_rk8_block,
-    heavy_top_rk4_block,
-    heavy_top_rk8_block,
-)
+from .model_splittings import SPLITTINGS
+from .model_steps import drift_suspects, invariants, rate_columns, step, tangent_columns
+from .systems import N_INVARIANTS, constants
 
-__all__ = ["MODEL_CODES", "MODEL_METHODS", "ModelObserved", "SPLITTING_KINDS", "model_arguments", "model_constants",
-           "model_methods",
-           "model_rhs", "propagate_model", "run_model"]
+__all__ = ["MODEL_CODES", "MODEL_METHODS", "ModelObserved", "SPLITTING_KINDS", "model_arguments", "model_methods",
+           "model_rhs", "model_tangent", "propagate_model", "run_model"]
 
 #: Kernel codes of the models: their index in ``registry.MODEL_KINDS``. The kernels step every model of this table,
 #: whatever ``registry.MODELS``' ``implemented`` says (that flag is the studies'; the gravity gradient and the damper
 #: have kernels before they have studies).
-MODEL_FREE, MODEL_GYROSTAT, MODEL_HEAVY_TOP, MODEL_GRAVITY_GRADIENT, MODEL_DAMPER = (
-    MODEL_KINDS.index(k) for k in ("free", "gyrostat", "heavy_top", "gravity_gradient", "damper"))
-MODEL_CODES = {"free": MODEL_FREE, "gyrostat": MODEL_GYROSTAT, "heavy_top": MODEL_HEAVY_TOP,
-               "gravity_gradient": MODEL_GRAVITY_GRADIENT, "damper": MODEL_DAMPER}
+MODEL_CODES = {kind: code for code, kind in enumerate(MODEL_KINDS)}
 
 #: The methods the model kernels run, by name: kernel id (index in ``registry.STEPPING``, as the free body's): rk4 and
 #: rk8 for every model, the Lie–Poisson splittings (:mod:`tumble.kernels.model_splittings`) for ``SPLITTING_KINDS``.
 MODEL_METHODS = {**{name: STEPPING.index(name) for name in ("rk4", "rk8")}, **SPLITTINGS}
-_RK4, _RK8 = MODEL_METHODS["rk4"], MODEL_METHODS["rk8"]
 
 #: The models the splittings apply to (``registry.LIE_POISSON_MODELS``, which says why).
 SPLITTING_KINDS = LIE_POISSON_MODELS
@@ -107,59 +85,11 @@ BLOCK = 256
 _TINY = 2.2250738585072014e-308  # smallest normal float: a zero scale gives a zero drift, not 0/0
 
 
-@jit(inline=True)
-def _constants(a):
-    """The constants array as a tuple of scalars (kept in registers by the step loops)."""
-    return (a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14], a[15],
-            a[16], a[17], a[18], a[19], a[20], a[21], a[22], a[23], a[24], a[25])
-
-
-@jit
-def _step(model, method, ys, h, c, x0):
-    """Advance every sample of a block (``ys``, shape (n_state, m)) by one step; branches outside the sample loop.
-    ``x0``: the samples' initial invariants (a gyrostat's splittings put ``|I w + h|²``, ``x0[1]``, back on it)."""
-    if model == MODEL_HEAVY_TOP:
-        if method == _RK4:
-            heavy_top_rk4_block(ys[0], ys[1], ys[2], ys[3], ys[4], ys[5], h, c)
-        elif method == _RK8:
-            heavy_top_rk8_block(ys[0], ys[1], ys[2], ys[3], ys[4], ys[5], h, c)
-        else:
-            heavy_top_splitting_block(method, ys[0], ys[1], ys[2], ys[3], ys[4], ys[5], h, c)
-    elif model == MODEL_GRAVITY_GRADIENT:
-        if method == _RK4:
-            gravity_gradient_rk4_block(ys[0], ys[1], ys[2], ys[3], ys[4], ys[5], ys[6], h, c)
-        else:
-            gravity_gradient_rk8_block(ys[0], ys[1], ys[2], ys[3], ys[4], ys[5], ys[6], h, c)
-    elif model == MODEL_DAMPER:
-        if method == _RK4:
-            damper_rk4_block(ys[0], ys[1], ys[2], ys[3], ys[4], ys[5], h, c)
-        else:
-            damper_rk8_block(ys[0], ys[1], ys[2], ys[3], ys[4], ys[5], h, c)
-    elif method == _RK4:
-        gyrostat_rk4_block(ys[0], ys[1], ys[2], h, c)
-    elif method == _RK8:
-        gyrostat_rk8_block(ys[0], ys[1], ys[2], h, c)
-    else:
-        gyrostat_splitting_block(method, ys[0], ys[1], ys[2], h, c, x0[1])
-
-
-@jit(inline=True)
-def _invariants(model, ys, i, c):
-    """``(x1, x2, x3, scale1, scale2, scale3)`` of sample ``i`` of a block."""
-    if model == MODEL_HEAVY_TOP:
-        return heavy_top_invariants(ys[0, i], ys[1, i], ys[2, i], ys[3, i], ys[4, i], ys[5, i], c)
-    if model == MODEL_GRAVITY_GRADIENT:
-        return gravity_gradient_invariants(ys[0, i], ys[1, i], ys[2, i], ys[3, i], ys[4, i], ys[5, i], ys[6, i], c)
-    if model == MODEL_DAMPER:
-        return damper_invariants(ys[0, i], ys[1, i], ys[2, i], ys[3, i], ys[4, i], ys[5, i], c)
-    return gyrostat_invariants(ys[0, i], ys[1, i], ys[2, i], c)
-
-
 @jit
 def _initial_invariants(model, ys, c, x0, scale):
     """Each sample's invariants ``x0`` (3, m) and their drift scales (3, m) at the start."""
     for i in range(ys.shape[1]):
-        x1, x2, x3, s1, s2, s3 = _invariants(model, ys, i, c)
+        x1, x2, x3, s1, s2, s3 = invariants(model, ys, i, c)
         x0[0, i], x0[1, i], x0[2, i] = x1, x2, x3
         scale[0, i], scale[1, i], scale[2, i] = max(s1, _TINY), max(s2, _TINY), max(s3, _TINY)
 
@@ -206,7 +136,7 @@ def _observe_drift(model, ys, active, c, x0, scale, drift, lo, drift_limit, k, f
     for i in range(ys.shape[1]):
         if not active[i]:
             continue
-        x1, x2, x3, _, _, _ = _invariants(model, ys, i, c)
+        x1, x2, x3, _, _, _ = invariants(model, ys, i, c)
         d1 = abs(x1 - x0[0, i]) / scale[0, i]
         d2 = abs(x2 - x0[1, i]) / scale[1, i]
         d3 = abs(x3 - x0[2, i]) / scale[2, i]
@@ -218,54 +148,6 @@ def _observe_drift(model, ys, active, c, x0, scale, drift, lo, drift_limit, k, f
             _freeze(i, k, STATUS_DRIFT, ys, active, frozen, status, last)
             stopped += 1
     return stopped
-
-
-#: The screening pass (:func:`_drift_suspects`) flags drifts beyond ``limit (1 − SCREEN_RTOL) − SCREEN_ATOL``, so
-#: that its rounding (vectorised, perhaps fused differently from the exact observer's: a drift is a difference of
-#: invariants of the size of their scale, so a few eps of it) can never miss a sample the exact check stops.
-SCREEN_RTOL = 1e-6
-SCREEN_ATOL = 1e-13
-
-
-@jit(inline=True)
-def _suspect(i, active, x0, scale, screen, x1, x2, x3, total):
-    """1 if sample ``i`` of a block is active and drifting beyond ``screen`` or has a non-finite component (``total``,
-    the sum of its components, is then not finite; a finite sum that overflows is a false alarm, checked exactly),
-    else 0; no branch, no inner loop, so that the loop over samples vectorises."""
-    calm = ((abs(x1 - x0[0, i]) <= screen * scale[0, i]) & (abs(x2 - x0[1, i]) <= screen * scale[1, i])
-            & (abs(x3 - x0[2, i]) <= screen * scale[2, i]) & math.isfinite(total)) | (not active[i])
-    return 0 if calm else 1  # (written so: a branch on active[i] stops LLVM vectorising the loop)
-
-
-@jit
-def _drift_suspects(model, ys, active, c, x0, scale, screen):
-    """Whether any active sample of a block is non-finite or has an invariant's drift beyond ``screen``: one pass
-    per model without stores, calls or inner loops (it vectorises across samples, unlike the exact observers,
-    whose freezing of a sample makes their loops scalar), so that a step with nothing to stop costs a fraction of
-    the exact checks. The exact observers (:func:`_check_finite`, :func:`_observe_drift`) run only when it finds a
-    suspect."""
-    suspects = 0
-    m = ys.shape[1]
-    if model == MODEL_GRAVITY_GRADIENT:
-        for i in range(m):
-            w1, w2, w3, q0, q1, q2, q3 = ys[0, i], ys[1, i], ys[2, i], ys[3, i], ys[4, i], ys[5, i], ys[6, i]
-            x1, x2, x3, _, _, _ = gravity_gradient_invariants(w1, w2, w3, q0, q1, q2, q3, c)
-            total = w1 + w2 + w3 + q0 + q1 + q2 + q3
-            suspects += _suspect(i, active, x0, scale, screen, x1, x2, x3, total)
-    elif model == MODEL_HEAVY_TOP or model == MODEL_DAMPER:
-        for i in range(m):
-            a1, a2, a3, b1, b2, b3 = ys[0, i], ys[1, i], ys[2, i], ys[3, i], ys[4, i], ys[5, i]
-            if model == MODEL_HEAVY_TOP:
-                x1, x2, x3, _, _, _ = heavy_top_invariants(a1, a2, a3, b1, b2, b3, c)
-            else:
-                x1, x2, x3, _, _, _ = damper_invariants(a1, a2, a3, b1, b2, b3, c)
-            suspects += _suspect(i, active, x0, scale, screen, x1, x2, x3, a1 + a2 + a3 + b1 + b2 + b3)
-    else:
-        for i in range(m):
-            w1, w2, w3 = ys[0, i], ys[1, i], ys[2, i]
-            x1, x2, x3, _, _, _ = gyrostat_invariants(w1, w2, w3, c)
-            suspects += _suspect(i, active, x0, scale, screen, x1, x2, x3, w1 + w2 + w3)
-    return suspects > 0
 
 
 @jit
@@ -298,7 +180,7 @@ def propagate_model(model, method, y, constants, h, n_steps, block,
     y : ndarray, shape (n_state, N), float64
         The states (rad/s, then the model's own units); overwritten with the final (or frozen) states.
     constants : ndarray, shape (N_CONSTANTS,)
-        :func:`model_constants` of the model.
+        :func:`tumble.kernels.systems.constants` of the model.
     h : float
         Step, s.
     n_steps, block : int
@@ -317,7 +199,7 @@ def propagate_model(model, method, y, constants, h, n_steps, block,
         Outputs: per-sample status and the number of steps each sample took.
     """
     n_state, n = y.shape
-    c = _constants(constants)
+    c = constants
     n_blocks = (n + block - 1) // block
     n_probes = probe_steps.shape[0]
     store = saved.shape[0] > 0
@@ -351,13 +233,13 @@ def propagate_model(model, method, y, constants, h, n_steps, block,
         for k in range(n_steps):
             if n_frozen == m:
                 break
-            _step(model, method, ys, h, c, x0)
+            step(model, method, ys, k * h, h, c, x0)
             if n_frozen:
                 _restore_frozen(ys, active, frozen)
             ran = k + 1
             # with drifts tracked every step, the exact observers run only for a block with a suspect (or whose
             # drifts are recorded): the screen's "nothing to stop" is exact, its suspects are checked exactly
-            exact = track_drift and (record_drift or _drift_suspects(model, ys, active, c, x0, scale, screen))
+            exact = track_drift and (record_drift or drift_suspects(model, ys, active, c, x0, scale, screen))
             if exact or (not track_drift and (ran % CHECK_EVERY == 0 or ran == n_steps)):
                 n_frozen += _check_finite(ys, active, ran, frozen, block_status, last)
             if exact:
@@ -382,29 +264,6 @@ def propagate_model(model, method, y, constants, h, n_steps, block,
         steps_taken[lo:hi] = last
 
 
-@jit(parallel=True)
-def _rhs_columns(model, y, constants, out):
-    """``out = f(y)`` for states as columns ``y`` (n_state, N)."""
-    c = _constants(constants)
-    for i in prange(y.shape[1]):
-        if model == MODEL_HEAVY_TOP:
-            r = heavy_top_rate(y[0, i], y[1, i], y[2, i], y[3, i], y[4, i], y[5, i], c)
-            for j in range(6):
-                out[j, i] = r[j]
-        elif model == MODEL_GRAVITY_GRADIENT:
-            r7 = gravity_gradient_rate(y[0, i], y[1, i], y[2, i], y[3, i], y[4, i], y[5, i], y[6, i], c)
-            for j in range(7):
-                out[j, i] = r7[j]
-        elif model == MODEL_DAMPER:
-            r = damper_rate(y[0, i], y[1, i], y[2, i], y[3, i], y[4, i], y[5, i], c)
-            for j in range(6):
-                out[j, i] = r[j]
-        else:
-            r3 = gyrostat_rate(y[0, i], y[1, i], y[2, i], c)
-            for j in range(3):
-                out[j, i] = r3[j]
-
-
 class ModelObserved(NamedTuple):
     """What :func:`run_model` returns; an output that was not asked for is None."""
 
@@ -415,25 +274,35 @@ class ModelObserved(NamedTuple):
     steps_taken: np.ndarray  # (N,) int64
 
 
+#: The parameters that carry the moments' units (kg m², N m, N m s: the rotor, mgl, J, c): scaled with them.
+_SCALED = frozenset(p.key for p in MODEL_PARAMETERS if "kg" in p.units or "N" in p.units)
+
+
 def _kind_constants(kind, moments, parameters):
-    """``(model code, n_state, constants)``, the moments (and the parameters in their units: the rotor, mgl, J and
-    c with them; not the orbit rate) divided by the power of two nearest the largest moment: the equations do not
-    change, no bit of the rates or relative drifts does, and the invariants of moments of 1e-170 or 1e200 kg m² stay
-    in range (as :func:`tumble.kernels.methods.run`). ``parameters``: the model's keywords of :func:`run_model`."""
+    """``(model code, n_state, constants)``: :func:`tumble.kernels.systems.constants` of the moments (and of the
+    parameters in their units, :data:`_SCALED`; not the orbit rate, a direction or an eccentricity) divided by the
+    power of two nearest the largest moment: the equations do not change, no bit of the rates or relative drifts
+    does, and the invariants of moments of 1e-170 or 1e200 kg m² stay in range (as :func:`tumble.kernels.methods.run`).
+    ``parameters``: the model's keywords of :func:`run_model`."""
     if kind not in MODEL_CODES:
         raise ValueError(f"model kind must be one of {', '.join(MODEL_CODES)} for the kernels, got {kind!r}")
     moments = np.asarray(moments, dtype=float)
     unit = math.ldexp(1.0, -math.frexp(float(moments.max()))[1])
-    constants = model_constants(moments * unit, np.asarray(parameters["rotor"], dtype=float) * unit,
-                                float(parameters["mgl"]) * unit, float(parameters["orbit_rate"]),
-                                float(parameters["damper_inertia"]) * unit, float(parameters["damping"]) * unit)
-    assert constants.shape == (N_CONSTANTS,)
-    return MODEL_CODES[kind], len(model_kind(kind).state), constants
+    scaled = {key: np.asarray(value, dtype=float) * unit if key in _SCALED else value
+              for key, value in parameters.items()}
+    return MODEL_CODES[kind], len(model_kind(kind).state), constants(kind, moments * unit, scaled)
 
 
-def model_rhs(kind, y, moments, *, rotor=(0.0, 0.0, 0.0), mgl=0.0, orbit_rate=0.0, damper_inertia=0.0,
-              damping=0.0):
-    """The kernels' right-hand side ``f(y)`` of model ``kind`` at states given as columns (for tests).
+def _columns(kind, y, moments, parameters, name="y"):
+    code, n_state, values = _kind_constants(kind, moments, parameters)
+    y = np.ascontiguousarray(y, dtype=float)
+    if y.ndim != 2 or y.shape[0] != n_state:
+        raise ValueError(f"{name} must have shape ({n_state}, N) for a {kind} model, got shape {y.shape}")
+    return code, y, values
+
+
+def model_rhs(kind, y, moments, *, t=0.0, **parameters):
+    """The kernels' right-hand side ``f(t, y)`` of model ``kind`` at states given as columns (tests, linear theory).
 
     Parameters
     ----------
@@ -442,9 +311,12 @@ def model_rhs(kind, y, moments, *, rotor=(0.0, 0.0, 0.0), mgl=0.0, orbit_rate=0.
         States (rad/s, then the model's own units).
     moments : array_like, shape (3,)
         Principal moments, kg m².
-    rotor, mgl, orbit_rate, damper_inertia, damping
-        The gyrostat's ``h`` (N m s), the heavy top's ``M g l`` (N m), the gravity gradient's ``n`` (rad/s), the
-        damper's ``J`` (kg m²) and ``c`` (N m s); those the model does not have are ignored.
+    t : float
+        Time, s (the gravity gradient's eccentric orbit: from perigee).
+    **parameters
+        The model's own (:mod:`tumble.kernels.systems`: ``rotor`` N m s, ``mgl`` N m and ``centre``,
+        ``orbit_rate`` rad/s and ``eccentricity``, ``damper_inertia`` kg m² and ``damping`` N m s); missing ones
+        take the system's defaults, others are ignored.
 
     Returns
     -------
@@ -455,13 +327,21 @@ def model_rhs(kind, y, moments, *, rotor=(0.0, 0.0, 0.0), mgl=0.0, orbit_rate=0.
     ValueError
         An unknown kind or a state of the wrong number of rows.
     """
-    code, n_state, constants = _kind_constants(kind, moments, dict(
-        rotor=rotor, mgl=mgl, orbit_rate=orbit_rate, damper_inertia=damper_inertia, damping=damping))
-    y = np.ascontiguousarray(y, dtype=float)
-    if y.ndim != 2 or y.shape[0] != n_state:
-        raise ValueError(f"y must have shape ({n_state}, N) for a {kind} model, got shape {y.shape}")
+    code, y, values = _columns(kind, y, moments, parameters)
     out = np.empty_like(y)
-    _rhs_columns(code, y, constants, out)
+    rate_columns(code, y, values, float(t), out)
+    return out
+
+
+def model_tangent(kind, y, v, moments, *, t=0.0, **parameters):
+    """The kernels' tangent flow ``J(t, y) v`` of model ``kind``: states ``y`` and tangent vectors ``v`` as columns
+    (n_state, N); otherwise as :func:`model_rhs`."""
+    code, y, values = _columns(kind, y, moments, parameters)
+    _, v, _ = _columns(kind, v, moments, parameters, "v")
+    if v.shape != y.shape:
+        raise ValueError(f"v must have the shape of y {y.shape}, got shape {v.shape}")
+    out = np.empty_like(y)
+    tangent_columns(code, y, v, values, float(t), out)
     return out
 
 
@@ -495,10 +375,9 @@ def model_arguments(kind, method, y, moments, n_steps, parameters, save_every, c
             _NO_STEPS if probe_steps is None else np.ascontiguousarray(probe_steps, dtype=np.int64))
 
 
-def run_model(kind, method, y, moments, h, n_steps, *, rotor=(0.0, 0.0, 0.0), mgl=0.0, orbit_rate=0.0,
-              damper_inertia=0.0, damping=0.0, save_every=0, columns=None, weights=None, y_eq=None, probe_steps=None,
-              drift=False, drift_limit=0.0, block=BLOCK):
-    # size: the kernels' door for the models: keywords per model parameter and observer, packed here into the
+def run_model(kind, method, y, moments, h, n_steps, *, save_every=0, columns=None, weights=None, y_eq=None,
+              probe_steps=None, drift=False, drift_limit=0.0, block=BLOCK, **parameters):
+    # size: the kernels' door for the models: keywords per observer and the model's parameters, packed here into the
     # driver's flat arrays
     """Integrate an ensemble of a model with rk4, rk8 or a splitting, observing only what is asked
     (:func:`propagate_model`).
@@ -516,9 +395,6 @@ def run_model(kind, method, y, moments, h, n_steps, *, rotor=(0.0, 0.0, 0.0), mg
     h : float
         Step, s.
     n_steps : int
-    rotor, mgl, orbit_rate, damper_inertia, damping
-        The gyrostat's ``h`` (N m s, body frame), the heavy top's ``M g l`` (N m), the gravity gradient's orbit rate
-        ``n`` (rad/s), the damper's ``J`` (kg m²) and ``c`` (N m s); those the model does not have are ignored.
     save_every : int
         0 stores no trajectory; k > 0 stores the initial state, every k-th step and the final state.
     columns, weights, y_eq : array_like (k,) int, (k,), (n_state,)
@@ -531,6 +407,8 @@ def run_model(kind, method, y, moments, h, n_steps, *, rotor=(0.0, 0.0, 0.0), mg
         Drift that marks a sample ``STATUS_DRIFT`` (0: off).
     block : int
         Samples per SIMD block; results do not depend on it.
+    **parameters
+        The model's parameters by name (as :func:`model_rhs`).
 
     Returns
     -------
@@ -542,9 +420,7 @@ def run_model(kind, method, y, moments, h, n_steps, *, rotor=(0.0, 0.0, 0.0), mg
         An unknown kind or method (a splitting for a gravity gradient or damper), or a state of the wrong rows.
     """
     code, n_state, constants, n_saved, columns, weights, y_eq, probe_steps = model_arguments(
-        kind, method, y, moments, n_steps, dict(rotor=rotor, mgl=mgl, orbit_rate=orbit_rate,
-                                                damper_inertia=damper_inertia, damping=damping),
-        save_every, columns, weights, y_eq, probe_steps)
+        kind, method, y, moments, n_steps, parameters, save_every, columns, weights, y_eq, probe_steps)
     n = y.shape[1]
     saved = np.empty((n_saved, n_state, n))
     probes = np.empty((len(probe_steps), n))

@@ -162,6 +162,6 @@ IMPLICIT_MIDPOINT = ImplicitMidpoint()
 # Every fixed-step method; a method's kernel id is its index here.
 ALL_METHODS = (RK4, RK8, SYMPLECTIC_EULER, SPLITTING2, SPLITTING4, IMPLICIT_MIDPOINT)
 
-#: The explicit Runge–Kutta methods by name: what a system given by its rate runs (:mod:`tumble.kernels.systems`).
+#: The explicit Runge–Kutta methods by name: what a system given by its rate runs (:mod:`tumble.kernels.sample_loop`).
 TABLEAUX = {m.name: m for m in ALL_METHODS if isinstance(m, ButcherTableau)}
 METHOD_ORDER = tuple(m.name for m in ALL_METHODS)

@@ -119,6 +119,9 @@ class Model:
     moments: np.ndarray
     kind: ClassVar[str] = ""
     state_size: ClassVar[int] = 0
+    #: Parameters of the Python API beyond the study keys of ``registry.MODELS`` (the heavy top's ``centre``, the
+    #: gravity gradient's ``eccentricity``), in the constructor's order after them.
+    extras: ClassVar[tuple] = ()
 
     def __post_init__(self):
         moments = one_body(self.moments).copy()
@@ -133,8 +136,9 @@ class Model:
 
     @property
     def parameters(self):
-        """``{study key: value}`` of the model's numeric parameters (``registry.MODEL_PARAMETERS``)."""
-        return {key: getattr(self, key) for key in self.spec.parameters}
+        """``{name: value}`` of the model's parameters: its study keys (``registry.MODEL_PARAMETERS``), then
+        :attr:`extras`, in the constructor's order."""
+        return {key: getattr(self, key) for key in (*self.spec.parameters, *self.extras)}
 
     def __eq__(self, other):
         if type(other) is not type(self):
@@ -426,17 +430,18 @@ class Gyrostat(Model):
         return Transverse(pair, weights, pair.copy())
 
 
-_UP_CROSS = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])  # g × e3 = _UP_CROSS @ g
 
 
 @dataclass(frozen=True, eq=False)
 class HeavyTop(Model):
     """A heavy top on a fixed pivot (Euler-Poisson equations; Arnold §30, Goldstein §5.7).
 
-    ``I w' = (I w) × w + mgl (g × e3)``, ``g' = g × w``: moments about the pivot, centre of mass on body axis 3
-    at distance ``l`` above it, ``g`` the unit vector pointing up (against gravity) in the body frame. State
-    ``(w1, w2, w3, g1, g2, g3)``: rad/s, then dimensionless. Invariants: ``energy`` ``½ w·Iw + mgl g3`` (J),
-    ``vertical_momentum`` ``L·g`` (N m s), ``up_squared`` ``|g|²`` (1); ``|L|²`` is not conserved.
+    ``I w' = (I w) × w + mgl (g × c)``, ``g' = g × w``: moments about the pivot, centre of mass in the direction
+    ``c`` (body frame, a unit vector; body axis 3 by default) at distance ``l`` from it, ``g`` the unit vector
+    pointing up (against gravity) in the body frame. State ``(w1, w2, w3, g1, g2, g3)``: rad/s, then dimensionless.
+    Invariants: ``energy`` ``½ w·Iw + mgl g·c`` (J), ``vertical_momentum`` ``L·g`` (N m s), ``up_squared``
+    ``|g|²`` (1); ``|L|²`` is not conserved. A centre off the principal axes makes the top asymmetric in a way no
+    choice of axes undoes: in general not integrable (the chaos indicators' heavy top).
 
     Parameters
     ----------
@@ -444,39 +449,51 @@ class HeavyTop(Model):
         Principal moments about the pivot, kg m².
     mgl : float
         ``M g l``, N m; finite and > 0.
+    centre : array_like, shape (3,)
+        Direction of the centre of mass from the pivot, body axes (normalised here); default ``(0, 0, 1)``.
 
     Raises
     ------
     ValueError
-        Invalid moments, or ``mgl`` not a finite number > 0 (the message names ``mgl``).
+        Invalid moments, ``mgl`` not a finite number > 0, or ``centre`` not a finite non-zero 3-vector (the message
+        names the parameter).
     """
 
     mgl: float
+    centre: np.ndarray = (0.0, 0.0, 1.0)
     kind: ClassVar[str] = "heavy_top"
     state_size: ClassVar[int] = len(registry.model_kind("heavy_top").state)
+    extras: ClassVar[tuple] = ("centre",)
 
     def __post_init__(self):
         super().__post_init__()
         object.__setattr__(self, "mgl", float(_parameter("mgl", self.mgl)))
+        centre = finite_array(self.centre, "centre")
+        if centre.shape != (3,) or not np.any(centre):
+            raise ValueError(f"centre must be a non-zero 3-vector (the centre of mass's direction, body axes), got "
+                             f"{self.centre!r}")
+        centre = centre / np.linalg.norm(centre)
+        centre.setflags(write=False)
+        object.__setattr__(self, "centre", centre)
 
     def rhs(self, state):
         """``(w', g')`` for states of shape (..., 6): rad/s² then 1/s."""
         y = self._state(state)
         w, g = y[..., :3], y[..., 3:]
-        torque = self.mgl * np.stack([g[..., 1], -g[..., 0], np.zeros_like(g[..., 0])], axis=-1)  # mgl g × e3
+        torque = self.mgl * np.cross(g, self.centre)
         return np.concatenate([_euler_rhs(self.moments, w, 0.0) + torque / self.moments, np.cross(g, w)], axis=-1)
 
     def jacobian(self, state):
         """``∂(w', g')/∂(w, g)`` (1/s), shape (..., 6, 6).
 
-        Blocks: ``∂w'/∂w = I⁻¹ ([Iw]× − [w]× I)``, ``∂w'/∂g = mgl I⁻¹ (−[e3]×)``, ``∂g'/∂w = [g]×``,
+        Blocks: ``∂w'/∂w = I⁻¹ ([Iw]× − [w]× I)``, ``∂w'/∂g = mgl I⁻¹ (−[c]×)``, ``∂g'/∂w = [g]×``,
         ``∂g'/∂g = −[w]×``.
         """
         y = self._state(state)
         w, g = y[..., :3], y[..., 3:]
         jac = np.zeros(y.shape + (6,), dtype=y.dtype)
         jac[..., :3, :3] = _euler_jacobian(self.moments, w, 0.0)
-        jac[..., :3, 3:] = self.mgl * _UP_CROSS / self.moments[:, None]
+        jac[..., :3, 3:] = -self.mgl * _cross_matrix(self.centre) / self.moments[:, None]
         jac[..., 3:, :3] = _cross_matrix(g)
         jac[..., 3:, 3:] = -_cross_matrix(w)
         return jac
@@ -486,8 +503,14 @@ class HeavyTop(Model):
         y = self._state(state)
         w, g = y[..., :3], y[..., 3:]
         lw = self.moments * w
-        return {"energy": 0.5 * np.sum(lw * w, axis=-1) + self.mgl * g[..., 2],
+        return {"energy": 0.5 * np.sum(lw * w, axis=-1) + self.mgl * (g @ self.centre),
                 "vertical_momentum": np.sum(lw * g, axis=-1), "up_squared": np.sum(g * g, axis=-1)}
+
+    def _on_axis_3(self):
+        if self.centre[0] != 0.0 or self.centre[1] != 0.0:
+            raise ValueError(f"a steady spin about axis 3 (the sleeping top) needs the centre of mass on body axis 3; "
+                             f"this top's centre is {self.centre.tolist()} (integrate it, or use "
+                             f"tumble.theory.eigenvalues_at at a state of your choice)")
 
     def equilibrium(self, axis, spin=1.0):
         """The sleeping top: ``w = (0, 0, spin)``, ``g = (0, 0, 1)`` (upright), shape (..., 6).
@@ -495,8 +518,9 @@ class HeavyTop(Model):
         Raises
         ------
         ValueError
-            ``axis`` other than 3 (spin.axis: the centre of mass lies on body axis 3).
+            ``axis`` other than 3 (spin.axis: the centre of mass lies on body axis 3), or a centre off axis 3.
         """
+        self._on_axis_3()
         if _one_axis(axis) != 2:
             raise ValueError(f"axis (spin.axis) must be 3 for a heavy_top: the centre of mass lies on body axis 3, "
                              f"got {axis!r}")
@@ -511,6 +535,7 @@ class HeavyTop(Model):
         squared rate at which an upright top at rest falls, which makes the two halves comparable whatever the
         spin (also for a top at rest). The phase fit follows the tilt ``(g1, g2)``.
         """
+        self._on_axis_3()
         if _one_axis(axis) != 2:
             raise ValueError(f"axis (spin.axis) must be 3 for a heavy_top, got {axis!r}")
         weights = np.array([1.0, 1.0, self.mgl / self.moments[0], self.mgl / self.moments[1]])
@@ -578,67 +603,109 @@ class GravityGradient(Model):
     ``theory.gravity_gradient_roll_yaw``): pitch ``θ2'' + 3 n² (I1 − I3)/I2 θ2 = 0``; roll-yaw
     ``s⁴ + n² (1 + 3 k1 + k1 k3) s² + 4 n⁴ k1 k3 = 0``, ``k1 = (I2 − I3)/I1``, ``k3 = (I2 − I1)/I3``.
 
+    **An elliptic orbit** (``eccentricity`` ``e`` > 0; ``n`` the mean motion, perigee at ``t = 0``): the orbit frame
+    turns at the rate of the true anomaly ``ν' = n sqrt(1 − e²) (a/r)²`` and the gradient's strength is ``3 n²
+    (a/r)³`` (:meth:`orbit`), so ``n`` becomes ``ν'(t)`` in ``w_r`` and ``3 n²`` becomes ``3 n² (a/r)³`` in the
+    torque: the equations depend on time (:meth:`rhs` and :meth:`jacobian` take ``t``), no attitude is an
+    equilibrium and the Jacobi integral is not conserved (the spin-orbit problem of Hyperion: Wisdom, Peale &
+    Mignard 1984).
+
     Parameters
     ----------
     moments : Body or array_like, shape (3,)
         Principal moments ``(I1, I2, I3)`` about roll, pitch, yaw, kg m².
     orbit_rate : float
-        ``n``, rad/s; finite and > 0.
+        ``n``, rad/s; finite and > 0 (the mean motion of an elliptic orbit).
+    eccentricity : float
+        ``e`` in [0, 1); default 0, a circular orbit.
 
     Raises
     ------
     ValueError
-        Invalid moments, or ``orbit_rate`` not a finite number > 0 (the message names ``orbit_rate``).
+        Invalid moments, ``orbit_rate`` not a finite number > 0, or ``eccentricity`` outside [0, 1) (the message names
+        the parameter).
     """
 
     orbit_rate: float
+    eccentricity: float = 0.0
     kind: ClassVar[str] = "gravity_gradient"
     state_size: ClassVar[int] = len(registry.model_kind("gravity_gradient").state)
+    extras: ClassVar[tuple] = ("eccentricity",)
 
     def __post_init__(self):
         super().__post_init__()
         object.__setattr__(self, "orbit_rate", float(_parameter("orbit_rate", self.orbit_rate)))
+        e = finite_array(self.eccentricity, "eccentricity")
+        if e.ndim or not 0.0 <= float(e) < 1.0:
+            raise ValueError(f"eccentricity must be a number in [0, 1) (0: a circular orbit), got {self.eccentricity!r}")
+        object.__setattr__(self, "eccentricity", float(e))
+
+    def orbit(self, t=0.0):
+        """``(ν', 3 μ/r³)`` at time ``t`` (s from perigee), each of the shape of ``t``: the orbit frame's rate (rad/s)
+        and the gradient's strength (1/s²), from Kepler's equation ``E − e sin E = n t`` (Newton's method from
+        Danby's start, to round-off); ``(n, 3 n²)`` in a circular orbit."""
+        n, e = self.orbit_rate, self.eccentricity
+        t = np.asarray(t, dtype=float)
+        if e == 0.0:
+            return np.full(t.shape, n), np.full(t.shape, 3 * n * n)
+        mean = n * t
+        mean = mean - 2 * np.pi * np.floor(mean / (2 * np.pi) + 0.5)
+        big = mean + 0.85 * e * np.where(np.sin(mean) >= 0.0, 1.0, -1.0)
+        for _ in range(64):
+            step = (big - e * np.sin(big) - mean) / (1.0 - e * np.cos(big))
+            big = big - step
+            if np.all(np.abs(step) <= 1e-15 * (1.0 + np.abs(big))):
+                break
+        a_r = 1.0 / (1.0 - e * np.cos(big))
+        return n * np.sqrt(1.0 - e * e) * a_r ** 2, 3 * n * n * a_r ** 3
 
     @property
     def tangent_size(self):
         """6: ``w`` and the attitude error ``θ`` (rad) of :meth:`tangent_jacobian`."""
         return 6
 
-    def _parts(self, state):
+    def _parts(self, state, t=0.0):
         y = self._state(state)
         w, q = y[..., :3], y[..., 3:]
         c2, c3 = _rows_of_attitude(q)
-        return y, w, q, c2, c3, w + self.orbit_rate * c2
+        rate, strength = (self.orbit_rate, 3 * self.orbit_rate ** 2) if self.eccentricity == 0.0 else (
+            float(x) for x in self.orbit(t))
+        return y, w, q, c2, c3, w + rate * c2, rate, strength
 
-    def _torque_jacobian(self, c3):
-        """``∂/∂c3`` of ``3 n² I⁻¹ (c3 × I c3)``, (..., 3, 3): ``3 n² I⁻¹ ([c3]× I − [I c3]×)``."""
-        return (3 * self.orbit_rate ** 2 / self.moments[:, None]) * (
-            _cross_matrix(c3) * self.moments - _cross_matrix(self.moments * c3))
+    def _torque_jacobian(self, c3, strength):
+        """``∂/∂c3`` of ``3 μ/r³ I⁻¹ (c3 × I c3)``, (..., 3, 3): ``3 μ/r³ I⁻¹ ([c3]× I − [I c3]×)``."""
+        return (strength / self.moments[:, None]) * (_cross_matrix(c3) * self.moments - _cross_matrix(self.moments * c3))
 
-    def rhs(self, state):
-        """``(w', q')`` for states of shape (..., 7): rad/s², then 1/s."""
-        _, w, q, _, c3, w_r = self._parts(state)
-        torque = 3 * self.orbit_rate ** 2 * np.cross(c3, self.moments * c3)
+    def rhs(self, state, t=0.0):
+        """``(w', q')`` for states of shape (..., 7) at time ``t`` (s; only an eccentric orbit depends on it): rad/s²,
+        then 1/s."""
+        _, w, q, _, c3, w_r, _, strength = self._parts(state, t)
+        torque = strength * np.cross(c3, self.moments * c3)
         dq = 0.5 * np.einsum("...ij,...j->...i", _xi(q), w_r)
         return np.concatenate([_euler_rhs(self.moments, w, 0.0) + torque / self.moments, dq], axis=-1)
 
-    def jacobian(self, state):
-        """``∂(w', q')/∂(w, q)`` (1/s), shape (..., 7, 7), in the state's own components.
+    def jacobian(self, state, t=0.0):
+        """``∂(w', q')/∂(w, q)`` (1/s), shape (..., 7, 7), in the state's own components, at time ``t`` (s).
 
         Blocks: ``∂w'/∂w = I⁻¹ ([Iw]× − [w]× I)``; ``∂w'/∂q = 3 n² I⁻¹ ([c3]× I − [I c3]×) ∂c3/∂q``;
         ``∂q'/∂w = ½ Ξ(q)``; ``∂q'/∂q = ½ Ω(w_r) + ½ n Ξ(q) ∂c2/∂q`` (``q ⊗ (0, v) = Ξ(q) v = Ω(v) q``). At the
         equilibrium the row and the column of ``q0`` vanish: the quaternion's norm is a constraint, an eigenvalue
         0 that is no motion (linear theory uses :meth:`tangent_jacobian`).
         """
-        y, w, q, _, c3, w_r = self._parts(state)
+        y, w, q, _, c3, w_r, rate, strength = self._parts(state, t)
         d2, d3 = _rows_derivatives(q)
         xi = _xi(q)
         jac = np.zeros(y.shape + (7,), dtype=np.result_type(y, float))
         jac[..., :3, :3] = _euler_jacobian(self.moments, w, 0.0)
-        jac[..., :3, 3:] = self._torque_jacobian(c3) @ d3
+        jac[..., :3, 3:] = self._torque_jacobian(c3, strength) @ d3
         jac[..., 3:, :3] = 0.5 * xi
-        jac[..., 3:, 3:] = 0.5 * _omega_right(w_r) + 0.5 * self.orbit_rate * (xi @ d2)
+        jac[..., 3:, 3:] = 0.5 * _omega_right(w_r) + 0.5 * rate * (xi @ d2)
         return jac
+
+    def _circular(self, what):
+        if self.eccentricity != 0.0:
+            raise ValueError(f"{what} needs a circular orbit; this one's eccentricity is {self.eccentricity:g} (its "
+                             f"equations depend on time: integrate it, or use tumble.theory.eigenvalues_at)")
 
     def following_velocity(self, attitude):
         """The angular velocity ``w = −n c2`` (rad/s, body frame) of a body at ``attitude`` that does not turn
@@ -658,10 +725,11 @@ class GravityGradient(Model):
         ``θ = 2 (q1, q2, q3)``, and this is the lower-right 6×6 block of the 7×7 Jacobian in ``(w, q1, q2, q3)``
         with the ``q`` columns doubled and rows halved.
         """
-        y, w, _, c2, c3, w_r = self._parts(state)
+        self._circular("linear theory in the attitude error")
+        y, w, _, c2, c3, w_r, _, strength = self._parts(state)
         jac = np.zeros(y.shape[:-1] + (6, 6), dtype=np.result_type(y, float))
         jac[..., :3, :3] = _euler_jacobian(self.moments, w, 0.0)
-        jac[..., :3, 3:] = self._torque_jacobian(c3) @ _cross_matrix(c3)
+        jac[..., :3, 3:] = self._torque_jacobian(c3, strength) @ _cross_matrix(c3)
         jac[..., 3:, :3] = np.eye(3)
         jac[..., 3:, 3:] = self.orbit_rate * _cross_matrix(c2) - _cross_matrix(w_r)
         return jac
@@ -669,9 +737,12 @@ class GravityGradient(Model):
     def invariants(self, state):
         """``jacobi_integral`` (J) and ``quaternion_squared`` ``|q|²`` (1), each of shape (...).
 
-        ``jacobi_integral = ½ w_r·I w_r + (3/2) n² c3·I c3 − ½ n² c2·I c2`` with ``w_r = w + n c2``.
+        ``jacobi_integral = ½ w_r·I w_r + (3/2) n² c3·I c3 − ½ n² c2·I c2`` with ``w_r = w + n c2``. In an eccentric
+        orbit only ``quaternion_squared``: nothing else is conserved.
         """
-        _, _, q, c2, c3, w_r = self._parts(state)
+        _, _, q, c2, c3, w_r, _, _ = self._parts(state)
+        if self.eccentricity != 0.0:
+            return {"quaternion_squared": np.sum(q * q, axis=-1)}
         n2 = self.orbit_rate ** 2
         moments = self.moments
         jacobi = 0.5 * np.sum(moments * w_r * w_r, axis=-1) + 1.5 * n2 * np.sum(moments * c3 * c3, axis=-1) \
@@ -688,8 +759,9 @@ class GravityGradient(Model):
         Raises
         ------
         ValueError
-            ``axis`` not 1, 2 or 3; ``spin`` not finite.
+            ``axis`` not 1, 2 or 3; ``spin`` not finite; an eccentric orbit (no attitude is an equilibrium there).
         """
+        self._circular("an equilibrium")
         _one_axis(axis)
         state = _spin_state(7, 1, finite_array(spin, "spin") * 0.0 - self.orbit_rate)
         state[..., 3] = 1.0

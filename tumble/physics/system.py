@@ -178,8 +178,8 @@ def with_parameters(system, parameters=None):
         if not hasattr(parameters, "items"):
             raise ValueError(f"parameters must be a mapping of names to numbers, got {parameters!r}")
         for key in parameters:
-            if key not in system.spec.parameters:
-                known = ", ".join(system.spec.parameters) or "none"
+            if key not in system.parameters:
+                known = ", ".join(system.parameters) or "none"
                 raise ValueError(f"parameters: {key!r} is not a parameter of the {system.kind} model (it has: "
                                  f"{known})")
         system = dataclasses.replace(system, **dict(parameters))  # checked again by the model's constructor

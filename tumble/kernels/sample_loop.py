@@ -10,7 +10,7 @@ time derivative of the state ``y`` (float64, shape (n,)) at time ``t`` into ``dy
 * :func:`make_sample_loop`: the per-sample time loop — steps, the state stored every ``save_every`` steps, the
   non-finite check after every step, the early stop of a sample that became non-finite (it keeps the state it had
   when it was caught and its later stores repeat it), its status and the steps it took. Written once: the CPU's
-  driver (:func:`make_cpu_driver`, a share of the samples per thread) and the device's (:mod:`tumble.kernels.cuda_systems`, one
+  driver (:func:`make_cpu_driver`, a share of the samples per thread) and the device's (:mod:`tumble.kernels.cuda_sample_loop`, one
   thread per sample) both call it.
 
 The kernels are closures over the user's function, so numba compiles them in each new process (its disk cache

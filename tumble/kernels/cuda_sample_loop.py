@@ -1,13 +1,13 @@
 """A system given by its rate on a CUDA device: one thread per sample, running the CPU's own per-sample loop.
 
-The loop is :func:`tumble.kernels.systems.make_sample_loop`'s (steps, stores, non-finite check, early stop, status),
+The loop is :func:`tumble.kernels.sample_loop.make_sample_loop`'s (steps, stores, non-finite check, early stop, status),
 compiled for the device by numba-cuda; this module only launches it: each thread copies its sample into a local
 array, runs the loop on it with a local scratch array, and copies it back. On numba-cuda's simulator
 (``NUMBA_ENABLE_CUDASIM=1``) the loop runs as the Python it is written in (the simulator's device arrays are no
 numpy arrays a compiled CPU function could take), calling the compiled step on the thread's local arrays.
 
 This module imports ``numba.cuda``; it is imported only when a run asks for ``device="cuda"``
-(:func:`tumble.kernels.device_systems`).
+(:func:`tumble.kernels.device_sample_loop`).
 """
 
 import numpy as np
@@ -22,7 +22,7 @@ THREADS = 128
 
 
 def make_kernel(run_sample, n_state, stages, n_parameters):
-    """The device kernel that runs ``run_sample`` (:func:`tumble.kernels.systems.make_sample_loop`) for sample
+    """The device kernel that runs ``run_sample`` (:func:`tumble.kernels.sample_loop.make_sample_loop`) for sample
     ``cuda.grid(1)``; ``n_state``, ``stages`` and ``n_parameters`` fix the local arrays' sizes (the thread's state,
     its scratch, its copy of the parameters)."""
     sample = run_sample.py_func if config.ENABLE_CUDASIM else run_sample

@@ -1,0 +1,46 @@
+"""The built-in systems' per-sample code, one module each: constants, rate, tangent flow, invariants (numba).
+
+Each module holds, once, what the kernels compute for its system: a ``Constants`` record of named numbers built from
+the physical parameters by ``constants(moments, ...)`` (keywords: the model's parameters), the rate
+``rate(t, *y, c)``, the tangent flow ``tangent(t, *y, *v, c)`` (``J(y) v``, the derivative of the rate along ``v``:
+linear theory and the chaos indicators' variational equations), the invariants ``invariants(*y, c)`` and, where the
+state carries a constraint, a ``project(*y)`` applied after each step. The free body runs as the gyrostat with
+``h = 0``.
+
+:data:`SYSTEMS` maps each model kind (``registry.MODEL_KINDS``) to its module; the generated steps and the dispatch of
+:mod:`tumble.kernels.model_steps` (``python tumble/kernels/model_codegen.py``), the kernels' constants and
+:data:`N_CONSTANTS` derive from it, so adding a system is a module and its row here and in the registry.
+"""
+
+import inspect
+
+import numpy as np
+
+from ...registry import MODEL_KINDS
+from . import damper, gravity_gradient, gyrostat, heavy_top
+
+__all__ = ["N_CONSTANTS", "N_INVARIANTS", "SYSTEMS", "constants", "damper", "gravity_gradient", "gyrostat",
+           "heavy_top"]
+
+#: Model kind -> its module (the free body is the gyrostat with no rotor).
+SYSTEMS = {"free": gyrostat, "gyrostat": gyrostat, "heavy_top": heavy_top, "gravity_gradient": gravity_gradient,
+           "damper": damper}
+assert tuple(SYSTEMS) == MODEL_KINDS, "one module per model kind of the registry, in its order"
+
+#: Length of the constants array one compiled driver takes for every system (each reads its own first fields).
+N_CONSTANTS = max(len(module.Constants._fields) for module in SYSTEMS.values())
+
+#: Invariants the kernels track per sample (each system's own, then zeros).
+N_INVARIANTS = 3
+
+
+def constants(kind, moments, parameters):
+    """The constants of system ``kind`` as the one driver takes them: float64 array (:data:`N_CONSTANTS`,), the
+    module's ``Constants`` fields first, zeros after. ``parameters``: the model's keywords (its own, by name; a key
+    the system does not have is ignored)."""
+    module = SYSTEMS[kind]
+    names = list(inspect.signature(module.constants).parameters)[1:]
+    fields = module.constants(moments, **{key: parameters[key] for key in names if key in parameters})
+    out = np.zeros(N_CONSTANTS)
+    out[:len(fields)] = fields
+    return out

@@ -1,0 +1,94 @@
+"""The heavy top (Euler–Poisson): a rigid body on a fixed pivot in uniform gravity.
+
+Moments about the pivot; ``c`` the direction of the centre of mass from the pivot in body axes (a unit vector:
+the top's axis 3 by default), at distance ``l``, ``mgl = M g l`` (N m); ``g`` the unit vector pointing up, in body
+axes. The torque of the weight ``r × F = l c × (−M g g) = mgl (g × c)`` (Arnold, *Mathematical Methods of Classical
+Mechanics*, §30; Goldstein §5.7)::
+
+    I w' = (I w) × w + mgl (g × c),    g' = g × w
+
+State ``w1 w2 w3`` (rad/s), ``g1 g2 g3`` (1); parameters ``mgl`` and ``centre``. Kept: the energy ``½ w·I w + mgl
+g·c``, ``L·g`` and ``|g|²``. With ``c = e3`` these are today's equations to the last bit (the products with the
+zero components of ``c`` add exact zeros).
+
+Per-sample scalar code, as :mod:`tumble.kernels.systems.gyrostat`.
+"""
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from ..jit import jit
+
+__all__ = ["Constants", "constants", "invariants", "rate", "tangent"]
+
+
+class Constants(NamedTuple):
+    """The moments (kg m²), ``a_i = (I_j − I_k)/I_i``, ``mgl`` (N m), ``m_i = mgl/I_i`` (1/s²) and the centre's
+    direction ``c1 c2 c3``."""
+
+    i1: float
+    i2: float
+    i3: float
+    a1: float
+    a2: float
+    a3: float
+    mgl: float
+    m1: float
+    m2: float
+    m3: float
+    c1: float
+    c2: float
+    c3: float
+
+
+def constants(moments, mgl, centre=(0.0, 0.0, 1.0)):
+    """:class:`Constants` of moments ``(I1, I2, I3)`` (kg m², about the pivot), ``mgl`` (N m) and ``centre`` (the
+    centre of mass's direction, body axes; normalised here)."""
+    i1, i2, i3 = (float(x) for x in np.asarray(moments, dtype=float))
+    c = np.asarray(centre, dtype=float)
+    c1, c2, c3 = (float(x) for x in c / np.linalg.norm(c))
+    mgl = float(mgl)
+    return Constants(i1, i2, i3, (i2 - i3) / i1, (i3 - i1) / i2, (i1 - i2) / i3, mgl, mgl / i1, mgl / i2, mgl / i3,
+                     c1, c2, c3)
+
+
+@jit(inline=True)
+def rate(t, w1, w2, w3, g1, g2, g3, c):
+    """``(w', g')``: rad/s², then 1/s."""
+    return (c.a1 * w2 * w3 + c.m1 * (g2 * c.c3 - g3 * c.c2),
+            c.a2 * w3 * w1 + c.m2 * (g3 * c.c1 - g1 * c.c3),
+            c.a3 * w1 * w2 + c.m3 * (g1 * c.c2 - g2 * c.c1),
+            g2 * w3 - g3 * w2,
+            g3 * w1 - g1 * w3,
+            g1 * w2 - g2 * w1)
+
+
+@jit(inline=True)
+def tangent(t, w1, w2, w3, g1, g2, g3, v1, v2, v3, u1, u2, u3, c):
+    # size: the state's six components, the tangent's six (v along w, u along g), the constants
+    """The tangent flow ``J(y) δ`` along ``δ = (v, u)`` (``v`` along ``w``, ``u`` along ``g``)."""
+    return (c.a1 * (v2 * w3 + w2 * v3) + c.m1 * (u2 * c.c3 - u3 * c.c2),
+            c.a2 * (v3 * w1 + w3 * v1) + c.m2 * (u3 * c.c1 - u1 * c.c3),
+            c.a3 * (v1 * w2 + w1 * v2) + c.m3 * (u1 * c.c2 - u2 * c.c1),
+            (u2 * w3 - u3 * w2) + (g2 * v3 - g3 * v2),
+            (u3 * w1 - u1 * w3) + (g3 * v1 - g1 * v3),
+            (u1 * w2 - u2 * w1) + (g1 * v2 - g2 * v1))
+
+
+@jit(inline=True)
+def invariants(w1, w2, w3, g1, g2, g3, c):
+    """``(energy ½ w·Iw + mgl g·c (J), L·g (N m s), |g|²)`` and their scales ``(½ w·Iw + mgl |g|, |I w| |g|,
+    |g|²)``.
+
+    The energy and ``L·g`` may vanish (a top hanging or lying flat, a spin across the vertical), so their scales
+    are the largest magnitudes they can take for the given ``|I w|`` and ``|g|``; ``|g|²`` is its own scale.
+    """
+    l1, l2, l3 = c.i1 * w1, c.i2 * w2, c.i3 * w3
+    kinetic = 0.5 * (l1 * w1 + l2 * w2 + l3 * w3)
+    up = g1 * g1 + g2 * g2 + g3 * g3
+    g_norm = math.sqrt(up)
+    height = g1 * c.c1 + g2 * c.c2 + g3 * c.c3
+    return (kinetic + c.mgl * height, l1 * g1 + l2 * g2 + l3 * g3, up,
+            kinetic + c.mgl * g_norm, math.sqrt(l1 * l1 + l2 * l2 + l3 * l3) * g_norm, up)
