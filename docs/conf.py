@@ -20,7 +20,6 @@ release = version = __version__
 extensions = [
     "myst_parser",           # the Markdown pages (docs/*.md) as they are
     "sphinx.ext.autodoc",    # the Python API from the docstrings
-    "sphinx.ext.autosummary",  # its summary tables, one per module (the pages: _ext/tumble_docs.py)
     "sphinx.ext.viewcode",   # [source] links: the code of each function and class, highlighted, on the site
     "sphinx.ext.intersphinx",  # links to NumPy, SciPy and xarray names, from inventories in docs/inventories/
     "numpydoc",              # ... which are numpydoc style
@@ -40,7 +39,6 @@ myst_heading_anchors = 3  # the pages link to their sections by GitHub-style anc
 autodoc_member_order = "bysource"
 autodoc_typehints = "none"  # the numpydoc Parameters sections give types, shapes and units
 numpydoc_show_class_members = False
-autosummary_generate = False  # the pages are written by _ext/tumble_docs.py, under the public names
 # The types in numpydoc's Parameters and Returns sections link to NumPy and xarray (ndarray, xarray.Dataset, ...);
 # other words (shape, of, optional, tumble's own records) stay text.
 numpydoc_xref_param_type = True
