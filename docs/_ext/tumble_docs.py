@@ -720,10 +720,40 @@ def _copy_mathjax(app, exception):
             shutil.copy2(source / part, target / part)
 
 
+def _share_navigation_of_pages_outside_the_tree(app):
+    """Furo computes the whole sidebar tree for every page (``furo._compute_navigation_tree``), a second per ten
+    pages here. For a page in no toctree (an API page of a function or class, a ``[source]`` page, the index) the
+    tree marks nothing as current, so it is the same HTML for every such page of one folder: computed once per folder.
+    Pages in the tree are left to Furo. Where Furo has no such function (another version), nothing changes."""
+    import posixpath
+
+    import furo
+
+    compute = getattr(furo, "_compute_navigation_tree", None)
+    if compute is None or getattr(compute, "tumble_shared", False):
+        return
+    shared = {}
+
+    def navigation_tree(context):
+        env, page = app.env, context.get("pagename", "")
+        if "included" not in shared:
+            shared["included"] = {app.config.root_doc}.union(*env.toctree_includes.values())
+        if page in shared["included"]:
+            return compute(context)
+        folder = posixpath.dirname(page)
+        if folder not in shared:
+            shared[folder] = compute(context)
+        return shared[folder]
+
+    navigation_tree.tumble_shared = True
+    furo._compute_navigation_tree = navigation_tree
+
+
 def setup(app):
     _public_module_aliases()
     app.connect("missing-reference", _public_alias)
     app.connect("builder-inited", write_api_pages)
+    app.connect("builder-inited", _share_navigation_of_pages_outside_the_tree)
     app.add_directive("tumble-gallery", Gallery)
     app.add_directive("tumble-bundled-studies", BundledStudies)
     app.add_directive("tumble-citation", Citation)
