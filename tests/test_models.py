@@ -73,7 +73,7 @@ def test_every_implemented_model_agrees_with_its_registry_row():
     for model in _random_models(rng):
         spec = registry.model_kind(model.kind)
         assert model.state_size == len(spec.state)
-        assert tuple(model.parameters) == spec.parameters
+        assert tuple(model.parameters) == spec.parameters + model.extras  # the study keys, then the API's own
         state = rng.normal(size=(4, model.state_size))
         assert tuple(model.invariants(state)) == spec.invariants
         assert model.rhs(state).shape == state.shape

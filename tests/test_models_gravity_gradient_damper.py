@@ -113,7 +113,7 @@ def test_the_new_models_follow_their_registry_rows():
         spec = registry.model_kind(model.kind)
         assert spec.physics and spec.implemented
         assert model.state_size == len(spec.state)
-        assert tuple(model.parameters) == spec.parameters
+        assert tuple(model.parameters) == spec.parameters + model.extras  # the study keys, then the API's own
         state = rng.normal(size=(4, model.state_size))
         assert tuple(model.invariants(state)) == spec.invariants
         assert model.rhs(state).shape == state.shape

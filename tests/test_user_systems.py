@@ -260,3 +260,13 @@ def test_a_systems_device_kernel_compiles_to_ptx_for_a_gpu():
     result = subprocess.run([sys.executable, "-c", _PTX], capture_output=True, text=True, env=env)
     assert result.returncode == 0, result.stderr[-3000:]
     assert len(result.stdout.splitlines()) == 2
+
+
+def test_run_ensemble_runs_a_system_and_refuses_a_scenes_observers():
+    result = tumble.run_ensemble(PENDULUM, np.array([[1.0, 0.0]]), 5.0, 0.01, method="rk8", save_every=100,
+                                 parameters={"c": 0.0})
+    np.testing.assert_allclose(result.final, _dop853(pendulum, np.array([[1.0, 0.0]]), 5.0, np.array([2.0, 0.0])),
+                               rtol=0, atol=1e-11)
+    assert result.trajectory.shape == (1, 6, 2) and result.info["path"] == "system"
+    with pytest.raises(ValueError, match=r"observes its final state and trajectory; max_flips, drift observe"):
+        tumble.run_ensemble(PENDULUM, np.array([[1.0, 0.0]]), 5.0, 0.01, max_flips=2, drift=True)

@@ -40,6 +40,7 @@ from . import cost
 from .device import LAUNCH_SAMPLES, WARP, check_on_device, resolve_device, stepper
 from .progress import tqdm
 from .sampling import CHUNK
+from .systems import is_system, run_system
 
 __all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "Interrupted", "STATUS_NAMES", "run_ensemble", "run_scene_table",
            "torque_spec"]
@@ -271,16 +272,21 @@ def _stored_per_sample(steps, save_every, probe_times, max_flips, drift, attitud
 def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, final=True, save_every=None,
                  probe_times=None, norm_weights=None, max_flips=0, drift=False, stop_norm=0.0, stop_flips=0,
                  drift_limit=DEFAULT_DRIFT_LIMIT, chunk=CHUNK, progress=None, attitude=False, device="cpu",
-                 growth_window=None, keep_probes=True, phase_window=None, keep_trajectory=True):
-    # size: 23 keywords, the engine's public call (tumble.run_ensemble); each is one observer or stop request a caller
+                 growth_window=None, keep_probes=True, phase_window=None, keep_trajectory=True, parameters=None):
+    # size: 24 keywords, the engine's public call (tumble.run_ensemble); each is one observer or stop request a caller
     # may name, checked at once by _checked_arguments and packed into the _Observe record below.
     """Run an ensemble of spins and observe it on the fly.
 
+    A built-in model or a :class:`tumble.System` in place of the body runs that system (as :func:`tumble.integrate`
+    does: :func:`tumble.engine.systems.run_system`) and observes its final state and, with ``save_every``, its
+    trajectory (``final`` and ``trajectory`` hold its states, shape (N, n) and (N, T, n)); the other observers are a
+    rigid body's scene's and are refused for it.
+
     Parameters
     ----------
-    body : Body or array_like, shape (3,)
+    body : Body, array_like (3,), model or System
     w0 : ndarray, shape (N, 3)
-        Initial body-frame angular velocities, rad/s (validated by the caller).
+        Initial body-frame angular velocities, rad/s (validated by the caller); a system's states, (N, n).
     t_end, dt : float
         Horizon and step, s; ``dt`` must divide ``t_end`` into whole steps (the caller rounds).
     method : str
@@ -332,6 +338,8 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         after the run.
     keep_trajectory : bool
         With ``phase_window``: also return the trajectory (False: on the device it never leaves it).
+    parameters : mapping, optional
+        A model's or System's parameters, by name, in place of its own.
     device : str
         ``"cpu"`` or ``"cuda"`` (:func:`tumble.engine.device.resolve_device`). On ``"cuda"`` today: every fixed-step
         method, a constant torque or a named profile, every observer (final state, trajectory, probe norms, flips,
@@ -350,6 +358,26 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         An argument that is not finite, of the wrong shape or out of range (named in the message), an unknown
         method, a method that cannot serve the request, a torque profile shorter than its steps.
     """
+    if is_system(body):
+        asked = [name for name, value in (("probe_times", probe_times is not None), ("max_flips", max_flips),
+                                          ("drift", drift), ("stop_norm", stop_norm), ("stop_flips", stop_flips),
+                                          ("attitude", attitude), ("growth_window", growth_window is not None),
+                                          ("phase_window", phase_window is not None), ("torque", torque is not None))
+                 if value]
+        if asked:
+            raise ValueError(f"run_ensemble of a model or a System observes its final state and trajectory; "
+                             f"{', '.join(asked)} observe a rigid body's scene (remove them)")
+        t_end, dt = _number(t_end, "t_end", low=0.0), _number(dt, "dt", positive=True)
+        n_steps = int(np.rint(t_end / dt)) if t_end > 0.0 else 0
+        result, _ = run_system(body, w0, t_end, n_steps, t_end / n_steps if n_steps else dt, method,
+                               save_every=save_every, parameters=parameters, device=device)
+        info = {"path": "system", "method": result.method, "dt": result.dt, "n_steps": result.n_steps,
+                "system": result.name, "parameters": result.parameters, "samples": len(result.final),
+                "device": resolve_device(device)}
+        return EnsembleResult(result.final if final else None, result.times, result.trajectory, None, None, None,
+                              None, None, result.status, result.steps_taken, info)
+    if parameters is not None:
+        raise ValueError("parameters are a model's or a System's; a free body has none (its moments are the body)")
     device = resolve_device(device)
     moments = one_body(body)
     w0, t_end, dt, probe_times, norm_weights = _checked_arguments(

@@ -148,7 +148,8 @@ def run_system(system, y0, t_end, n_steps, step, method="rk4", *, save_every=Non
     t_end : float
         Horizon, s (>= 0).
     n_steps, step : int, float
-        The step plan (:func:`tumble.engine.integration.step_plan`): ``n_steps`` steps of ``step`` s end at ``t_end``.
+        The step plan (the free body's, ``tumble.engine.integration._step_plan``): ``n_steps`` steps of ``step`` s
+        end at ``t_end``.
     method : str
         ``"auto"`` (rk4) or one of :func:`system_methods`.
     save_every : int or None

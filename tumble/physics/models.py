@@ -944,10 +944,11 @@ def from_kind(kind, body, **parameters):
         keys = ", ".join(spec.parameters)
         raise ValueError(f"model kind {kind!r} is reserved but not implemented yet (parameters {keys}); "
                          f"implemented: {', '.join(CLASSES)}")
+    allowed = (*spec.parameters, *CLASSES[kind].extras)  # the study keys (required), then the API's own (optional)
     for key in parameters:
-        if key not in spec.parameters:
+        if key not in allowed:
             raise ValueError(f"{key}: not a parameter of model kind {kind!r} "
-                             f"(its parameters: {', '.join(spec.parameters) or 'none'})")
+                             f"(its parameters: {', '.join(allowed) or 'none'})")
     for key in spec.parameters:
         if key not in parameters:
             raise ValueError(f"{key}: model kind {kind!r} needs it")

@@ -8,38 +8,25 @@ Per-sample scalar code, as :mod:`tumble.kernels.systems.gyrostat`.
 """
 
 import math
-from typing import NamedTuple
-
-import numpy as np
+from collections import namedtuple
 
 from ..jit import jit
+from ._rigid import RIGID_BODY, rigid_body
 
 __all__ = ["Constants", "constants", "invariants", "rate", "tangent"]
 
 
-class Constants(NamedTuple):
-    """The moments (kg m²), ``a_i = (I_j − I_k)/I_i``, ``c/I_i`` and ``c/J`` (1/s), and ``J`` (kg m²)."""
-
-    i1: float
-    i2: float
-    i3: float
-    a1: float
-    a2: float
-    a3: float
-    c_i1: float
-    c_i2: float
-    c_i3: float
-    c_j: float
-    j: float
+#: The rigid body's fields (``I`` excludes the sphere), ``c/I_i`` and ``c/J`` (1/s), and ``J`` (kg m²).
+Constants = namedtuple("Constants", (*RIGID_BODY, "c_i1", "c_i2", "c_i3", "c_j", "j"))
 
 
 def constants(moments, damper_inertia, damping):
     """:class:`Constants` of moments ``(I1, I2, I3)`` (kg m²), ``J`` (kg m²) and ``c`` (N m s); ``J = 0`` (no
     damper) gives ``c/J = 0`` (no damping either)."""
-    i1, i2, i3 = (float(x) for x in np.asarray(moments, dtype=float))
+    rigid = rigid_body(moments)
+    i1, i2, i3 = rigid[:3]
     j, c = float(damper_inertia), float(damping)
-    return Constants(i1, i2, i3, (i2 - i3) / i1, (i3 - i1) / i2, (i1 - i2) / i3, c / i1, c / i2, c / i3,
-                     c / j if j > 0 else 0.0, j)
+    return Constants(*rigid, c / i1, c / i2, c / i3, c / j if j > 0 else 0.0, j)
 
 
 @jit(inline=True)

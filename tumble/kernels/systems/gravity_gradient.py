@@ -21,11 +21,10 @@ Per-sample scalar code, as :mod:`tumble.kernels.systems.gyrostat`.
 """
 
 import math
-from typing import NamedTuple
-
-import numpy as np
+from collections import namedtuple
 
 from ..jit import jit
+from ._rigid import RIGID_BODY, rigid_body
 
 __all__ = ["Constants", "KEPLER_ITERATIONS", "constants", "invariants", "orbit", "project", "rate", "tangent"]
 
@@ -36,29 +35,15 @@ KEPLER_ITERATIONS = 64
 _TWO_PI = 2.0 * math.pi
 
 
-class Constants(NamedTuple):
-    """The moments (kg m²), ``a_i = (I_j − I_k)/I_i``, the mean motion ``n`` (rad/s), ``n²``, ``3 n²`` (1/s²), the
-    eccentricity ``e`` and ``sqrt(1 − e²)``."""
-
-    i1: float
-    i2: float
-    i3: float
-    a1: float
-    a2: float
-    a3: float
-    n: float
-    n2: float
-    three_n2: float
-    e: float
-    root: float
+#: The rigid body's fields, the mean motion ``n`` (rad/s), ``n²``, ``3 n²`` (1/s²), the eccentricity ``e`` and
+#: ``sqrt(1 − e²)``.
+Constants = namedtuple("Constants", (*RIGID_BODY, "n", "n2", "three_n2", "e", "root"))
 
 
 def constants(moments, orbit_rate, eccentricity=0.0):
     """:class:`Constants` of moments ``(I1, I2, I3)`` (kg m²), the orbit's mean motion (rad/s) and eccentricity."""
-    i1, i2, i3 = (float(x) for x in np.asarray(moments, dtype=float))
     n, e = float(orbit_rate), float(eccentricity)
-    return Constants(i1, i2, i3, (i2 - i3) / i1, (i3 - i1) / i2, (i1 - i2) / i3, n, n * n, 3 * (n * n), e,
-                     math.sqrt(1.0 - e * e))
+    return Constants(*rigid_body(moments), n, n * n, 3 * (n * n), e, math.sqrt(1.0 - e * e))
 
 
 @jit(inline=True)

@@ -10,41 +10,28 @@ over a block's samples vectorises); :class:`Constants` is what the steps read, b
 """
 
 import math
-from typing import NamedTuple
+from collections import namedtuple
 
 import numpy as np
 
 from ..jit import jit
+from ._rigid import RIGID_BODY, rigid_body
 
 __all__ = ["Constants", "constants", "invariants", "rate", "tangent"]
 
 
-class Constants(NamedTuple):
-    """The moments ``i1 i2 i3`` (kg m²), ``a_i = (I_j − I_k)/I_i``, ``h_j/I_i`` (1/s) and the rotor ``h`` (N m s)."""
-
-    i1: float
-    i2: float
-    i3: float
-    a1: float
-    a2: float
-    a3: float
-    h2_i1: float
-    h3_i1: float
-    h3_i2: float
-    h1_i2: float
-    h1_i3: float
-    h2_i3: float
-    h1: float
-    h2: float
-    h3: float
+#: The rigid body's fields (:data:`~tumble.kernels.systems._rigid.RIGID_BODY`), ``h_j/I_i`` (1/s) and the rotor
+#: ``h`` (N m s).
+Constants = namedtuple("Constants", (*RIGID_BODY, "h2_i1", "h3_i1", "h3_i2", "h1_i2", "h1_i3", "h2_i3", "h1", "h2",
+                                     "h3"))
 
 
 def constants(moments, rotor=(0.0, 0.0, 0.0)):
     """:class:`Constants` of moments ``(I1, I2, I3)`` (kg m²) and ``rotor`` (N m s)."""
-    i1, i2, i3 = (float(x) for x in np.asarray(moments, dtype=float))
+    rigid = rigid_body(moments)
+    i1, i2, i3 = rigid[:3]
     h1, h2, h3 = (float(x) for x in np.asarray(rotor, dtype=float))
-    return Constants(i1, i2, i3, (i2 - i3) / i1, (i3 - i1) / i2, (i1 - i2) / i3,
-                     h2 / i1, h3 / i1, h3 / i2, h1 / i2, h1 / i3, h2 / i3, h1, h2, h3)
+    return Constants(*rigid, h2 / i1, h3 / i1, h3 / i2, h1 / i2, h1 / i3, h2 / i3, h1, h2, h3)
 
 
 @jit(inline=True)

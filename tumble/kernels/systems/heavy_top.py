@@ -15,43 +15,30 @@ Per-sample scalar code, as :mod:`tumble.kernels.systems.gyrostat`.
 """
 
 import math
-from typing import NamedTuple
+from collections import namedtuple
 
 import numpy as np
 
 from ..jit import jit
+from ._rigid import RIGID_BODY, rigid_body
 
 __all__ = ["Constants", "constants", "invariants", "rate", "tangent"]
 
 
-class Constants(NamedTuple):
-    """The moments (kg m²), ``a_i = (I_j − I_k)/I_i``, ``mgl`` (N m), ``m_i = mgl/I_i`` (1/s²) and the centre's
-    direction ``c1 c2 c3``."""
-
-    i1: float
-    i2: float
-    i3: float
-    a1: float
-    a2: float
-    a3: float
-    mgl: float
-    m1: float
-    m2: float
-    m3: float
-    c1: float
-    c2: float
-    c3: float
+#: The rigid body's fields (moments about the pivot), ``mgl`` (N m), ``m_i = mgl/I_i`` (1/s²) and the centre's
+#: direction ``c1 c2 c3``.
+Constants = namedtuple("Constants", (*RIGID_BODY, "mgl", "m1", "m2", "m3", "c1", "c2", "c3"))
 
 
 def constants(moments, mgl, centre=(0.0, 0.0, 1.0)):
     """:class:`Constants` of moments ``(I1, I2, I3)`` (kg m², about the pivot), ``mgl`` (N m) and ``centre`` (the
     centre of mass's direction, body axes; normalised here)."""
-    i1, i2, i3 = (float(x) for x in np.asarray(moments, dtype=float))
+    rigid = rigid_body(moments)
+    i1, i2, i3 = rigid[:3]
     c = np.asarray(centre, dtype=float)
     c1, c2, c3 = (float(x) for x in c / np.linalg.norm(c))
     mgl = float(mgl)
-    return Constants(i1, i2, i3, (i2 - i3) / i1, (i3 - i1) / i2, (i1 - i2) / i3, mgl, mgl / i1, mgl / i2, mgl / i3,
-                     c1, c2, c3)
+    return Constants(*rigid, mgl, mgl / i1, mgl / i2, mgl / i3, c1, c2, c3)
 
 
 @jit(inline=True)
