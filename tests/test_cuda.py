@@ -519,7 +519,7 @@ def test_tumble_run_device_cuda_exits_2_with_the_device_line_and_writes_nothing(
                           capture_output=True, text=True, env=env, timeout=120)
     assert done.returncode == 2
     lines = done.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("device 'cuda':"), done.stderr
+    assert len(lines) == 1 and lines[0].startswith("tumble: error: device 'cuda':"), done.stderr
     assert not (tmp_path / "out").exists()
 
 

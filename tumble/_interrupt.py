@@ -40,6 +40,18 @@ def launched_as_command():
     return any(arg == "-m" and argv[i + 1:i + 2] == ["tumble"] or arg == "-mtumble" for i, arg in enumerate(argv))
 
 
+def started_for_the_command():
+    """Whether this process is one the ``tumble`` command started through :mod:`multiprocessing`'s spawn (the worker
+    processes of ``--scheduler local``): such a child gets the command's ``sys.argv``, and imports tumble while it
+    prepares, as the command's ``__main__``."""
+    if "--multiprocessing-fork" not in getattr(sys, "orig_argv", ()) or not sys.argv:
+        return False
+    first = sys.argv[0]
+    own_main = os.path.join(os.path.dirname(os.path.abspath(__file__)), "__main__.py")
+    return (os.path.basename(first).removesuffix(".exe").removesuffix("-script.py") == "tumble"
+            or os.path.abspath(first) == own_main)
+
+
 def _startup_handler(signum, frame):
     terminated = signum == signal.SIGTERM
     os.write(2, _TERMINATED_MESSAGE if terminated else _MESSAGE)  # a raw write: safe whatever the interpreter did
@@ -52,8 +64,18 @@ def _terminate(signum, frame):
 
 def install():
     """Replace Python's SIGINT handler, and SIGTERM's default (die without a word), with :func:`_startup_handler`
-    when this process is the command."""
-    if threading.current_thread() is not threading.main_thread() or not launched_as_command():
+    when this process is the command. A process the command started (:func:`started_for_the_command`) is not the
+    command, though it has its ``sys.argv``: it ignores SIGINT (Ctrl-C reaches every process of the terminal's
+    foreground group; the command alone reports it, once, and stops its cluster) and keeps SIGTERM's default (its
+    nanny stops it so); each worker printed the command's line (issue 44). The command's LocalCluster also starts
+    them with SIGINT blocked (:func:`tumble.pipeline.distributed.connect`), which covers their start-up too."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+    if started_for_the_command():
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+        return
+    if not launched_as_command():
         return
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         signal.signal(signal.SIGINT, _startup_handler)

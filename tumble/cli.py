@@ -545,10 +545,8 @@ def main(argv=None):
             if args.samples < 1:
                 raise InputError(f"--samples must be >= 1, got {args.samples}")
             demo(samples=args.samples, seed=args.seed, dt=args.dt)
-    except _raised_by("engine.device", "DeviceError") as err:  # one line that starts "device 'cuda':", as every call gives it
-        print(err, file=sys.stderr)
-        return 2
-    except (InputError, *_raised_by("pipeline.config", "StudyError")) as err:
+    except (InputError, *_raised_by("pipeline.config", "StudyError"),
+            *_raised_by("engine.device", "DeviceError")) as err:  # its message starts "device 'cuda':", as in Python
         print(f"tumble: error: {err}", file=sys.stderr)
         return 2
     except _raised_by("pipeline.checkpoint", "OutputError") as err:

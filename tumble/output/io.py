@@ -40,8 +40,10 @@ import errno
 import json
 import numbers
 import os
+import signal
 import sys
 import tempfile
+import threading
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -371,7 +373,8 @@ def write_dataset(ds, path, *, compression=4, stored=False, **provenance_kwargs)
     path.parent.mkdir(parents=True, exist_ok=True)
     with replaced_atomically(path, durable=True) as tmp:
         try:
-            _to_netcdf4(ds, tmp, encoding)
+            with signals_held():  # Ctrl-C inside xarray's locked netCDF calls hung the command (issue 44)
+                _to_netcdf4(ds, tmp, encoding)
         except (OSError, RuntimeError) as err:  # netCDF4: a full disk is "Permission denied" or "NetCDF: HDF error"
             # asked while the half-written file still takes its room
             problem = _disk.disk_problem(err, path.parent, needed=ds.nbytes)
@@ -381,6 +384,38 @@ def write_dataset(ds, path, *, compression=4, stored=False, **provenance_kwargs)
                 raise OSError(errno.EIO, f"{err} (writing {path})") from err
             raise
     return ds
+
+
+@contextlib.contextmanager
+def signals_held():
+    """Ctrl-C and SIGTERM held while the block runs, then delivered as they would have been (``KeyboardInterrupt``,
+    :class:`tumble._interrupt.Terminated`), after the block or its error.
+
+    For the calls into netCDF4 and HDF5 through xarray's file manager and locks: a ``KeyboardInterrupt`` raised at
+    the wrong bytecode inside them (between the two locks of ``NETCDF4_PYTHON_LOCK``, between opening the file and
+    registering it) left a lock held, and closing the file then waited for it for ever (Ctrl-C while a study's file
+    was written hung ``tumble run``: issue 44), or left a file manager whose collection printed "Exception ignored in:
+    CachingFileManager.__del__" and a traceback after the command's own line. A file takes well under a second to
+    write or read here; Ctrl-C then acts at its end, and ``replaced_atomically`` removes the half-written file. Only
+    in the main thread, and only for Python-level handlers (an ignored signal stays ignored).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held, previous = [], {}
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        handler = signal.getsignal(signum)
+        if callable(handler):
+            previous[signum] = handler
+            signal.signal(signum, lambda number, frame: held.append((number, frame)))
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        if held:
+            number, frame = held[0]
+            previous[number](number, frame)
 
 
 def _to_netcdf4(ds, path, encoding):
@@ -522,7 +557,7 @@ def read_dataset(path, *, require_tumble=False):
     if problem is not None:
         raise ValueError(f"{path} is not a netCDF file: {problem}")
     try:
-        with xr.open_dataset(
+        with signals_held(), xr.open_dataset(
             path, engine="netcdf4", decode_times=False, decode_timedelta=False, cache=False
         ) as opened:
             ds = opened.load()

@@ -178,19 +178,36 @@ def _numba_one_thread():
     return numba.get_num_threads()
 
 
-def _plugin():
+def _quiet_worker_logs():
+    """Silence dask's loggers in this process, a worker of the command's own LocalCluster, whose lines go to the user's
+    terminal: when the command stopped the cluster (Ctrl-C) they logged its cancelled tasks ("Async instruction ...
+    ended with CancelledError") and their lost scheduler ("Failed to communicate with scheduler during heartbeat", with
+    a traceback) below the command's one line (issue 44). What matters comes back to the command, which says it: a
+    task's error (raised again there), a worker that dies (its nanny, in the command's process, logs it)."""
+    import logging
+
+    logging.getLogger("distributed").setLevel(logging.CRITICAL)
+
+
+def _plugin(local=False):
     from distributed.diagnostics.plugin import WorkerPlugin
 
     class NumbaWorkerPlugin(WorkerPlugin):
         """Import tumble and set numba to one thread when a worker starts (tasks set it again: numba's
-        thread count is per thread, and tasks run in the worker's executor threads)."""
+        thread count is per thread, and tasks run in the worker's executor threads); in a worker of the command's
+        own LocalCluster (``local``), dask's warnings are not shown (:func:`_quiet_worker_logs`)."""
 
         name = "tumble-numba"
 
+        def __init__(self, local):
+            self.local = local
+
         def setup(self, worker):
+            if self.local:
+                _quiet_worker_logs()
             _numba_one_thread()
 
-    return NumbaWorkerPlugin()
+    return NumbaWorkerPlugin(local)
 
 
 @contextlib.contextmanager
@@ -212,12 +229,18 @@ def connect(address, *, workers=None):
         import dask
 
         n = workers or os.cpu_count() or 1
-        with dask.config.set(QUIET_LOCAL_CLUSTER), \
-                LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                             dashboard_address=None, env={"NUMBA_NUM_THREADS": "1"}) as cluster, \
-                Client(cluster) as client:
-            client.register_plugin(_plugin())
-            yield client
+        with dask.config.set(QUIET_LOCAL_CLUSTER), contextlib.ExitStack() as stack:
+            with _ctrl_c_held():
+                cluster = stack.enter_context(LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                                           host="127.0.0.1", dashboard_address=None,
+                                                           env={"NUMBA_NUM_THREADS": "1"}))
+            client = stack.enter_context(Client(cluster))
+            client.register_plugin(_plugin(local=True))
+            try:
+                yield client
+            except KeyboardInterrupt:  # Ctrl-C or SIGTERM (tumble._interrupt.Terminated)
+                _stop_at_once(cluster)
+                raise
         return
     probe(address)
     try:
@@ -227,6 +250,49 @@ def connect(address, *, workers=None):
     with client:
         client.register_plugin(_plugin())
         yield client
+
+
+@contextlib.contextmanager
+def _ctrl_c_held():
+    """SIGINT blocked in this (main) thread while a LocalCluster starts: the event-loop thread it starts, and the
+    worker processes that thread starts, inherit the block (Python's own way to shield the processes it starts,
+    bpo-33613), so the terminal's Ctrl-C, sent to every process of its foreground group, never reaches a worker, not
+    even half-way through its start-up (issue 44: each printed the command's line, a "Fatal Python error", or dask's
+    warnings about its cancelled task). A Ctrl-C meanwhile waits here until the cluster is up, then stops it and the
+    command. multiprocessing's resource tracker is started first: starting it unblocks SIGINT in the thread that
+    starts it. Only in the main thread, where the system has signal masks."""
+    import signal
+
+    if not hasattr(signal, "pthread_sigmask") or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    from multiprocessing import resource_tracker
+
+    resource_tracker.ensure_running()
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, before)
+
+
+def _stop_at_once(cluster):
+    """Stop the worker processes of the command's own LocalCluster after Ctrl-C, without dask's words: a worker still in
+    a kernel is killed after 0.4 s (its nanny waited 4 s, then logged that it killed it), and the lines dask logs as the
+    cluster goes (lost tasks and scattered data, restarts) are not shown: the command says it was interrupted, once."""
+    import asyncio
+    import logging
+
+    for name in ["distributed", *logging.root.manager.loggerDict]:
+        if name == "distributed" or name.startswith("distributed."):
+            logging.getLogger(name).setLevel(logging.CRITICAL)
+
+    async def close(nannies):
+        await asyncio.gather(*(nanny.close(timeout=0.5, reason="tumble-interrupted") for nanny in nannies),
+                             return_exceptions=True)
+
+    with contextlib.suppress(Exception):
+        cluster.sync(close, list(cluster.workers.values()))
 
 
 def gpu_for_worker(name, gpu_count, visible_devices=None):
@@ -338,8 +404,8 @@ def run_chunks(client, compute_task, job, tasks, digest=""):
     try:
         for future, data in as_completed(futures, with_results=True, loop=client.loop):
             if future.status == "cancelled" or not isinstance(data, bytes):  # dask's CancelledError, not a chunk
-                raise SchedulerLost(f"the dask scheduler at {client.scheduler.address} was lost: its tasks were "
-                                    f"cancelled ({data})")
+                raise SchedulerLost(f"the dask scheduler at {client.scheduler.address} was lost"
+                                    f"{_lost_because(data)}")
             yield futures[future], data
     except SchedulerLost:
         _quiet_client(client)
@@ -347,6 +413,17 @@ def run_chunks(client, compute_task, job, tasks, digest=""):
     finally:
         if client.status == "running":
             client.cancel(list(futures))
+
+
+def _lost_because(cancelled):
+    """`` (REASON)``: the reason dask gave for cancelling a task (``scheduler-connection-lost``), or nothing. dask's own
+    words run over several lines ("compute_task-... cancelled for reason: scheduler-connection-lost." then "Client lost the
+    connection to the scheduler. Please check your connection and re-run your work."), and a failure is one line
+    (issue 44): the rest of them is what :class:`SchedulerLost`'s message says anyway."""
+    import re
+
+    found = re.search(r"reason:\s*([\w.-]+?)\.?(?:\s|$)", str(cancelled))
+    return f" ({found.group(1)})" if found else ""
 
 
 def _quiet_client(client):

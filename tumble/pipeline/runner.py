@@ -616,9 +616,11 @@ def run_scenes(job, *, store=None, client=None, chunk_scenes=None, chunk_samples
                     finish(task, checkpoint.unpack(data, digest, n), data)
             except distributed.SchedulerLost as err:
                 unwritten.save_before_stopping()
+                # one line (issue 44): what was lost and where (err), what is kept, how to resume
                 kept = (f"{sum(1 for _ in store.folder.glob('*' + checkpoint.CHUNK_SUFFIX))} finished chunk(s) are "
-                        f"kept in {store.folder}: rerun to resume" if store is not None and store.folder.is_dir()
-                        else "no finished chunk is kept")
+                        f"kept in {store.folder}: start a scheduler again (or run without one) and rerun to resume "
+                        f"from them" if store is not None and store.folder.is_dir()
+                        else "no finished chunk is kept: rerun to start again")
                 raise distributed.SchedulerLost(f"{err}; {kept}") from None
         else:
             show = sys.stderr.isatty() if progress is None else progress
