@@ -347,6 +347,10 @@ def test_measure_refuses_a_zero_amplitude_instead_of_returning_nan():
 HUGE_SAMPLES = "[perturbation]\nsamples = 1_000_000_000_000\n"
 HUGE_SCAN = "[scan]\ntriangle = 200\naxis = [1, 2, 3]\namplitude = [" + ", ".join(f"{1e-4 * (k + 1):.6g}" for k in range(300)) + "]\n"
 HUGE_STEPS = ("[integration]\nmethod = 'rk4'\ndt = 1e-9\nhorizon = 1e5\n[perturbation]\nsamples = 1024\n")
+# Issue 44, cause 1: 40,000 closed-form scenes of a million samples keeping no per-sample array: no steps and little
+# memory, so no bound held it; it ran for hours (the same study keeping its arrays was refused for its memory).
+HUGE_CLOSED_FORM = ("[perturbation]\nsamples = 1_000_000\n[scan]\ntriangle = 200\n"
+                    "[outputs]\narrays = []\nfigures = []\n")
 
 
 @pytest.mark.parametrize("text, args, field", [
@@ -354,7 +358,8 @@ HUGE_STEPS = ("[integration]\nmethod = 'rk4'\ndt = 1e-9\nhorizon = 1e5\n[perturb
     (HUGE_SAMPLES, ["--dry-run"], "perturbation.samples"),
     (HUGE_SCAN, ["--dry-run"], "scan"),
     (HUGE_STEPS, [], "integration"),
-], ids=["1e12-samples", "1e12-samples-dry-run", "36-million-scenes", "1e14-steps"])
+    (HUGE_CLOSED_FORM, ["--dry-run"], "perturbation.samples"),
+], ids=["1e12-samples", "1e12-samples-dry-run", "36-million-scenes", "1e14-steps", "days-of-closed-form-dry-run"])
 def test_absurd_sizes_are_refused_within_a_second_with_the_estimate(tmp_path, capsys, text, args, field):
     study = tmp_path / "huge.toml"
     study.write_text(text)
@@ -383,6 +388,15 @@ BOUND_CALLS = {
                                    "samples = 100000 over a horizon"),
     "scan-triangle-of-1e6-samples": ("tumble.scan(tumble.inertia_triangle(60)[0], samples=10**6)",
                                      "10,800 scenes of samples = 1000000"),
+    # issue 44: the time bound counts the attitude (30x the steps) and the closed form's evaluations
+    "integrate-attitude-of-1e11-sample-steps": ("tumble.integrate(body, w * 1000, 1e7, 0.1, attitude=True)",
+                                                "w0 (1,000 spins)"),
+    "run_ensemble-attitude-of-1e11-sample-steps": (
+        "tumble.run_ensemble(body, w * 1000, 1e7, 0.1, method='rk4', save_every=10**8, attitude=True)",
+        "w0 (1,000 spins)"),
+    "run_study-days-of-closed-form": (
+        "tumble.run_study({'perturbation': {'samples': 10**6}, 'scan': {'triangle': 200}, "
+        "'outputs': {'arrays': [], 'figures': []}})", "perturbation.samples: needs roughly"),
 }
 
 _BOUND_CHILD = """
@@ -421,6 +435,23 @@ def test_every_public_door_refuses_an_absurd_size_at_once_with_the_estimate(boun
     assert answer["value_error"], answer
     assert BOUND_CALLS[name][1] in answer["message"] and "peak memory" in answer["message"], answer["message"]
     assert answer["seconds"] < 1.0, f"refused after {answer['seconds']:.2f} s"
+
+
+def test_the_time_bound_counts_closed_form_evaluations_fits_and_attitude_whatever_the_memory():
+    """A closed-form run has no steps: its time is its evaluations and fits (issue 44, cause 1). Each case fits in
+    memory and under the sample-steps bound, and is refused for its time alone."""
+    from tumble.engine import cost
+
+    closed_form = cost.scene_cost(10**6, 0, scenes=40_000, times=257, fits=True, working=0)
+    with_attitude = cost.run_cost(1000, 10**8, attitude=True)
+    for estimate in (closed_form, with_attitude):
+        assert estimate.sample_steps <= cost.MAX_SAMPLE_STEPS and estimate.peak_bytes < 1e9
+        with pytest.raises(cost.TooLarge, match="of work on 2 cores") as refused:
+            cost.check(estimate)
+        assert refused.value.bound == "time"
+    assert "1.03e+13 closed-form evaluations" in cost.describe(closed_form)
+    assert cost.check(cost.run_cost(1000, 10**8)) is not None  # the same steps without the attitude: 6 min
+    assert cost.check(with_attitude, "cuda") is not None  # the device's bound is its own
 
 
 FLIPS = "[spin]\naxis = 2\n[integration]\nflips = 1_000_000_000\n"

@@ -396,7 +396,8 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
     chosen, reason = choose_method(method, torque_free=torque.free, axis_is_intermediate=axis_is_intermediate,
                                    flips=max_flips)
     stored = _stored_per_sample(steps, save_every, probe_times, max_flips, drift, attitude)
-    cost.refuse(cost.run_cost(n, 0 if chosen == "exact" else steps, stored),
+    times = (steps // save_every + 2 if save_every else 1) + (0 if probe_times is None else len(probe_times))
+    cost.refuse(cost.run_cost(n, 0 if chosen == "exact" else steps, stored, times=times, attitude=bool(attitude)),
                 f"w0 ({n:,} spins) over t_end / dt = {steps:.3g} steps", device)
     n_steps = int(steps)
     if attitude and (not save_every or probe_times is not None or max_flips or drift or stop_norm or stop_flips):

@@ -54,12 +54,13 @@ def _initial_spins(w0):
     return w
 
 
-def _bounded_step_plan(t_end, dt, w, save_every, *, exact_path, per_state=3, device="cpu"):
+def _bounded_step_plan(t_end, dt, w, save_every, *, exact_path, per_state=3, device="cpu", attitude=False):
     """:func:`_step_plan` after the cost bound (:func:`tumble.engine.cost.refuse`) of the spins ``w`` keeping
-    ``per_state`` values per stored state (a trajectory with ``save_every``, else the final state)."""
+    ``per_state`` values per stored state (a trajectory with ``save_every``, else the final state); the closed form is
+    evaluated at each stored state, and ``attitude`` is carried by the steps or the closed form."""
     steps = t_end / dt
-    stored = per_state * (steps / save_every + 2 if save_every else 2)
-    cost.refuse(cost.run_cost(len(w), 0 if exact_path else steps, stored),
+    states = steps / save_every + 2 if save_every else 2
+    cost.refuse(cost.run_cost(len(w), 0 if exact_path else steps, per_state * states, times=states, attitude=attitude),
                 f"w0 ({len(w):,} spins) over t_end / dt = {steps:.3g} steps", device)
     return _step_plan(t_end, dt)
 
@@ -261,7 +262,7 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
         raise ValueError(f"method must be one of {', '.join(METHOD_NAMES)}; got {method!r}")
     save_every = _save_every(save_every)
     n_steps, step = _bounded_step_plan(t_end, dt, w, save_every, exact_path=method == "exact",
-                                       per_state=7 if attitude else 3, device=device)
+                                       per_state=7 if attitude else 3, device=device, attitude=bool(attitude))
     # A plain integration returns what the method computes: no early stop, no drift flagging. The final state
     # alone is the driver's final-state path, as tumble.propagate's (the same bits, and no trajectory to store: 0.1 ms
     # less for 2000 spins and 200 rk4 steps); with the attitude it is read off a trajectory of two states (start, end).

@@ -108,12 +108,13 @@ def scene_estimate(stepping, exponential, samples, times, *, steps=0, flips=0, s
     over ``steps`` fixed steps (``stepping``; else the closed form) with ``flips`` flips timed, keeping
     ``kept_per_sample`` bytes per sample and scene: the working set of one slice of samples (:data:`SLICE`;
     closed-form scenes run together in batches of :data:`BATCH`) from :data:`_BYTES_PER_TIME`, the scene's
-    reduction and what is kept. ``exponential`` False: a periodic (or possibly periodic) scene."""
+    reduction and what is kept; its time counts each sample's steps or closed-form evaluations at the ``times`` and its
+    fit over them. ``exponential`` False: a periodic (or possibly periodic) scene."""
     in_flight = min(samples if stepping else max(samples, min(BATCH, scenes * samples)), SLICE)
     working = (float(in_flight) * (float(times) * _BYTES_PER_TIME[(bool(stepping), bool(exponential))]
                                    + 32.0 * flips) + float(samples) * _BYTES_PER_REDUCED_SAMPLE)
     return cost.scene_cost(samples, steps if stepping else 0, scenes=scenes, kept_per_sample=kept_per_sample,
-                           working=working)
+                           working=working, times=times, fits=True)  # its time: every sample evaluated and fitted
 
 
 def refuse_plan(samples, plan, stepping, exponential, flips, device="cpu"):

@@ -199,7 +199,7 @@ def scan(bodies, axis=(1, 2, 3), spin=1.0, amplitude=1e-3, method="auto", *, sam
     planner = ScenePlanner(layout, samples=samples, seed=seed, **options)
     plans = [planner(index) for index in range(n)]
     steps = sum(plan.plan.n_steps for plan in plans if plan.chosen != "exact")
-    cost.refuse(cost.scene_cost(samples, steps / n, scenes=n, working=0),
+    cost.refuse(cost.scene_cost(samples, steps / n, scenes=n, working=0, times=PROBES + 1, fits=True),
                 f"{n:,} scenes of samples = {samples} ({steps:,} steps in all)", options.get("device", "cpu"))
     records = []
     step = max(1, math.ceil(len(plans) / 32))

@@ -417,8 +417,8 @@ def run_chunks(client, compute_task, job, tasks, digest=""):
 
 def _lost_because(cancelled):
     """`` (REASON)``: the reason dask gave for cancelling a task (``scheduler-connection-lost``), or nothing. dask's own
-    words run over several lines ("compute_task-... cancelled for reason: scheduler-connection-lost." then "Client lost the
-    connection to the scheduler. Please check your connection and re-run your work."), and a failure is one line
+    words run over several lines ("compute_task-... cancelled for reason: scheduler-connection-lost.", then "Client
+    lost the connection to the scheduler. ..."), and a failure is one line
     (issue 44): the rest of them is what :class:`SchedulerLost`'s message says anyway."""
     import re
 

@@ -187,7 +187,7 @@ def _model_plan(resolved, file):
 
 #: The study field a refusal names, by the bound it broke (:class:`tumble.engine.cost.TooLarge`).
 _BOUND_FIELDS = {"scenes": "scan", "steps": "integration", "memory": "perturbation.samples",
-                 "size": "perturbation.samples"}
+                 "time": "perturbation.samples", "size": "perturbation.samples"}
 
 
 def study_cost(resolved, *, flips=None):
