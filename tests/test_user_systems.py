@@ -270,3 +270,15 @@ def test_run_ensemble_runs_a_system_and_refuses_a_scenes_observers():
     assert result.trajectory.shape == (1, 6, 2) and result.info["path"] == "system"
     with pytest.raises(ValueError, match=r"observes its final state and trajectory; max_flips, drift observe"):
         tumble.run_ensemble(PENDULUM, np.array([[1.0, 0.0]]), 5.0, 0.01, max_flips=2, drift=True)
+
+
+def test_a_system_is_compiled_once_per_process_not_per_call(monkeypatch):
+    from tumble.kernels import sample_loop
+
+    tumble.propagate(PENDULUM, np.array([[1.0, 0.0]]), 0.1, 0.01, method="rk8")
+    calls = []
+    monkeypatch.setattr(sample_loop, "compile_function", lambda *args, **kwargs: calls.append(args))
+    monkeypatch.setattr(sample_loop, "make_sample_loop", lambda *args: calls.append(args))
+    tumble.propagate(PENDULUM, np.array([[1.0, 0.0]]), 0.1, 0.01, method="rk8")
+    tumble.integrate(PENDULUM, np.array([[0.5, 0.0]]), 0.2, 0.01, method="rk8", save_every=5)
+    assert calls == []

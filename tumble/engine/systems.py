@@ -88,46 +88,59 @@ def _initial_states(system, y0):
 
 
 class _Kernels(NamedTuple):
-    rate: object  # the compiled rate
     drive: object  # the CPU driver
-    run_sample: object  # the per-sample loop
+    run_sample: object  # the per-sample loop (the device kernel's too)
     stages: int
 
 
-#: System -> {method: _Kernels}: a system's kernels, compiled once per process (they go with the system).
+class _Compiled(NamedTuple):
+    rate: object  # the rate, compiled
+    checked: object  # the rate compiled with bounds checked (for the first call at the initial states)
+    methods: dict  # method -> _Kernels
+
+
+#: System -> its compiled rate and kernels: made once per process (they go with the system).
 _COMPILED = weakref.WeakKeyDictionary()
 
 
+def _compiled(system):
+    if system not in _COMPILED:
+        owner, what = f"system {system.name!r}", "rate(t, y, p, dydt)"
+        _COMPILED[system] = _Compiled(
+            sample_loop.compile_function(system.rate, sample_loop.RATE_SIGNATURE, owner, what),
+            sample_loop.compile_function(system.rate, sample_loop.RATE_SIGNATURE, owner, what, boundscheck=True), {})
+    return _COMPILED[system]
+
+
 def _kernels(system, method):
-    made = _COMPILED.setdefault(system, {})
-    if method not in made:
+    compiled = _compiled(system)
+    if method not in compiled.methods:
         tableau = TABLEAUX[method]
-        rate = sample_loop.compile_function(system.rate, sample_loop.RATE_SIGNATURE, f"system {system.name!r}",
-                                        "rate(t, y, p, dydt)")
-        run_sample = sample_loop.make_sample_loop(sample_loop.make_step(rate, tableau))
-        made[method] = _Kernels(rate, sample_loop.make_cpu_driver(run_sample, len(tableau.b)), run_sample,
-                                len(tableau.b))
-    return made[method]
+        run_sample = sample_loop.make_sample_loop(sample_loop.make_step(compiled.rate, tableau))
+        compiled.methods[method] = _Kernels(sample_loop.make_cpu_driver(run_sample, len(tableau.b)), run_sample,
+                                            len(tableau.b))
+    return compiled.methods[method]
 
 
-def _probe(system, kernels, y, p, t0):
-    """Call the rate at the first :data:`PROBED` initial states (the first with bounds checked): ValueError naming
-    the system when it reads or writes beyond the state, or leaves a component unset or not finite."""
+def _probe(system, y, p, t0):
+    """Call the rate at the first :data:`PROBED` finite initial states (the first with bounds checked): ValueError
+    naming the system when it reads or writes beyond the state, or leaves a component unset or not finite."""
+    compiled = _compiled(system)
     n = y.shape[1]
-    checked = sample_loop.compile_function(system.rate, sample_loop.RATE_SIGNATURE, f"system {system.name!r}",
-                                       "rate(t, y, p, dydt)", boundscheck=True)  # one call: speed is no matter
     dydt = np.empty(n)
+    rate = compiled.checked
     for i in range(min(len(y), PROBED)):
         state = np.ascontiguousarray(y[i])
         if not np.all(np.isfinite(state)):
             continue  # a sample that starts non-finite is flagged by the run (its status), not refused
         dydt[:] = np.nan
         try:
-            (checked if i == 0 else kernels.rate)(float(t0), state, p, dydt)
+            rate(float(t0), state, p, dydt)
         except IndexError:
             raise ValueError(f"system {system.name!r}: its rate indexes beyond the state or the parameters (state has "
                              f"{n} components: {', '.join(system.state)}; parameters {len(p)}: "
                              f"{', '.join(system.parameters) or 'none'})") from None
+        rate = compiled.rate
         bad = np.flatnonzero(~np.isfinite(dydt))
         if len(bad):
             j = int(bad[0])
@@ -186,8 +199,8 @@ def run_system(system, y0, t_end, n_steps, step, method="rk4", *, save_every=Non
     every = int(save_every or 0)
     if isinstance(system, System):
         p = system.parameter_values(parameters)
+        _probe(system, y, p, 0.0)
         kernels = _kernels(system, method)
-        _probe(system, kernels, y, p, 0.0)
         n_saved = sample_loop.saved_count(n_steps, every)
         state = np.ascontiguousarray(y)
         if device == "cpu":
