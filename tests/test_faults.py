@@ -508,3 +508,32 @@ def test_the_device_refusal_has_the_prefix_of_every_refusal(tmp_path, monkeypatc
     err = capsys.readouterr().err
     assert err.startswith("tumble: error: device 'cuda': numba-cuda is not installed") and err.count("\n") == 1, err
     assert not (tmp_path / "out").exists()
+
+
+def test_ctrl_c_inside_an_llvm_callback_is_sent_again_not_dropped(monkeypatch):
+    """While numba compiles (tens of seconds cold) the Python that runs is mostly llvmlite's object-cache callbacks
+    from LLVM; a KeyboardInterrupt or Terminated raised in one was printed by ctypes as "Exception ignored on calling
+    ctypes callback function" and dropped: `timeout 20 tumble run` went on for ten minutes. Found while trying issue 44's
+    cases; the command's handler now sends the signal again once the callback has returned."""
+    import threading
+
+    from tumble import _interrupt
+
+    resent = []
+    monkeypatch.setattr(threading, "Timer", lambda delay, function, args: type(
+        "Timer", (), {"start": lambda self: resent.append((delay, function, args))})())
+    callback = {}
+    exec(compile("def _raw_object_cache_notify(handler, signum):\n    import sys\n    handler(signum, sys._getframe())\n",
+                 os.path.join("site-packages", "llvmlite", "binding", "executionengine.py"), "exec"), callback)
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        callback["_raw_object_cache_notify"](_interrupt._interrupt, signum)  # inside the callback: nothing raised...
+        assert resent[-1] == (_interrupt._RESEND_AFTER, os.kill, (os.getpid(), signum))  # ...the signal comes again
+    with pytest.raises(KeyboardInterrupt):
+        _interrupt._interrupt(signal.SIGINT, sys._getframe())
+    with pytest.raises(_interrupt.Terminated):
+        _interrupt._interrupt(signal.SIGTERM, sys._getframe())
+    code = ("import signal, sys; sys.argv = ['tumble']; from tumble import _interrupt; _interrupt.release(); "
+            "print(signal.getsignal(signal.SIGINT) is signal.getsignal(signal.SIGTERM) is _interrupt._interrupt)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60,
+                          preexec_fn=_from_a_shell)
+    assert done.stdout.strip() == "True", done.stderr

@@ -58,8 +58,33 @@ def _startup_handler(signum, frame):
     os._exit(EXIT_TERMINATED if terminated else EXIT_INTERRUPTED)  # nothing was written yet: no cleanup to run
 
 
-def _terminate(signum, frame):
-    raise Terminated
+#: The functions through which LLVM calls back into Python while numba compiles a kernel (llvmlite's object cache): an
+#: exception raised in one is printed by ctypes ("Exception ignored on calling ctypes callback function", with a
+#: traceback) and dropped.
+_LLVM_CALLBACKS = frozenset({"_raw_object_cache_notify", "_raw_object_cache_getbuffer"})
+
+#: Seconds after which a signal that arrived inside such a callback is sent again.
+_RESEND_AFTER = 0.05
+
+
+def _in_an_llvm_callback(frame):
+    while frame is not None:
+        if frame.f_code.co_name in _LLVM_CALLBACKS and "llvmlite" in frame.f_code.co_filename:
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _interrupt(signum, frame):
+    """Once the command runs: SIGINT raises ``KeyboardInterrupt``, SIGTERM :class:`Terminated` — except inside a
+    callback from LLVM (numba compiling a kernel, tens of seconds cold, during which those callbacks are nearly the
+    only Python that runs), where the exception was dropped with a traceback and the command went on: a SIGTERM from
+    ``timeout 20 tumble run`` left it running for ten minutes. There the same signal is sent again a moment later,
+    when the callback has returned."""
+    if _in_an_llvm_callback(frame):
+        threading.Timer(_RESEND_AFTER, os.kill, (os.getpid(), signum)).start()
+        return
+    raise Terminated if signum == signal.SIGTERM else KeyboardInterrupt
 
 
 def install():
@@ -84,14 +109,14 @@ def install():
 
 
 def release():
-    """Once the command can report an interrupt itself: Python's default SIGINT handler (KeyboardInterrupt) back,
-    and SIGTERM raising :class:`Terminated`, where :func:`install` replaced them."""
+    """Once the command can report an interrupt itself: SIGINT raising ``KeyboardInterrupt`` and SIGTERM raising
+    :class:`Terminated` (:func:`_interrupt`), where :func:`install` replaced their handlers."""
     if threading.current_thread() is not threading.main_thread():
         return
     if signal.getsignal(signal.SIGINT) is _startup_handler:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGINT, _interrupt)
     if signal.getsignal(signal.SIGTERM) is _startup_handler:
-        signal.signal(signal.SIGTERM, _terminate)
+        signal.signal(signal.SIGTERM, _interrupt)
 
 
 install()
