@@ -144,3 +144,18 @@ def test_an_eccentric_satellite_integrates_on_the_unit_sphere_and_a_circular_one
 def test_the_new_parameters_are_checked(make, message):
     with pytest.raises(ValueError, match=message):
         make()
+
+
+def test_a_cache_entry_is_stamped_with_every_kernel_module_so_an_edited_callee_recompiles(tmp_path, monkeypatch):
+    """numba stamps a cache entry with its own function's file; a driver holds a system's rate inlined, so an edit of
+    tumble/kernels/systems/*.py must invalidate it too (it used to run the old equations from the cache)."""
+    from tumble.kernels import jit
+
+    (tmp_path / "systems").mkdir()
+    (tmp_path / "systems" / "rate.py").write_text("x = 1\n")
+    monkeypatch.setattr(jit, "_KERNELS", str(tmp_path))
+    monkeypatch.setattr(jit, "_STAMP", None)
+    before = jit._kernels_stamp()
+    (tmp_path / "systems" / "rate.py").write_text("x = 2 \n")
+    monkeypatch.setattr(jit, "_STAMP", None)
+    assert jit._kernels_stamp() != before

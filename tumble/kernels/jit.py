@@ -119,6 +119,30 @@ def _warn_once(kind, folder, message):
         warnings.warn(message, CacheWarning, stacklevel=4)
 
 
+_KERNELS = os.path.dirname(os.path.abspath(__file__))
+
+
+def _kernels_stamp():
+    """The modification times and sizes of every module of this package: part of each cache entry's stamp. numba
+    stamps an entry with its own function's file only, but a driver's machine code holds the functions it calls
+    inlined (a system's rate in :mod:`tumble.kernels.systems`, the generated steps): an edit there would otherwise
+    leave a stale driver in the cache, running the old equations. Read once per process (a few dozen ``stat``)."""
+    global _STAMP
+    if _STAMP is None:
+        found = []
+        for folder, _, names in sorted(os.walk(_KERNELS)):
+            for name in sorted(names):
+                if name.endswith(".py"):
+                    info = os.stat(os.path.join(folder, name))
+                    found.append((os.path.relpath(os.path.join(folder, name), _KERNELS), info.st_mtime_ns,
+                                  info.st_size))
+        _STAMP = hashlib.sha256(repr(found).encode()).hexdigest()
+    return _STAMP
+
+
+_STAMP = None
+
+
 class CheckedCache(caching.FunctionCache):
     """numba's cache of one function, made safe to lose.
 
@@ -132,7 +156,7 @@ class CheckedCache(caching.FunctionCache):
     def __init__(self, py_func):
         super().__init__(py_func)
         self._cache_file = _CheckedCacheFile(self._cache_path, self._impl.filename_base,
-                                             self._impl.locator.get_source_stamp())
+                                             (self._impl.locator.get_source_stamp(), _kernels_stamp()))
 
     def load_overload(self, sig, target_context):
         try:

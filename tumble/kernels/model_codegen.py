@@ -40,21 +40,33 @@ def _modules():
     return list(found.values())
 
 
+def _module(name):
+    return next(m for m in SYSTEMS.values() if m.__name__.endswith("." + name))
+
+
 def _has_project(name):
-    return hasattr(next(m for m in SYSTEMS.values() if m.__name__.endswith("." + name)), "project")
+    return hasattr(_module(name), "project")
+
+
+def _has_forcing(name):
+    """Whether the system's rate depends on time through a ``forcing(t, c)`` (the same for every sample): its steps
+    then take it per stage, evaluated once per block (``rate_forced(f, *y, c)``)."""
+    return hasattr(_module(name), "forcing")
 
 
 def _fields(name):
-    return next(m for m in SYSTEMS.values() if m.__name__.endswith("." + name)).Constants._fields
+    return _module(name).Constants._fields
 
 
 def step_source(tableau, name, components):
     """Source of ``<name>_<method>_sample(t, *components, h, c)``: one step of a system for one sample."""
     args = ", ".join(components)
     n = len(components)
+    forced = _has_forcing(name)
+    stages = "".join(f", f{s + 1}" for s in range(len(tableau.b))) if forced else ""
     lines = [
         "@jit(inline=True)",
-        f"def {name}_{tableau.name}_sample(t, {args}, h, c):",
+        f"def {name}_{tableau.name}_sample(t, {args}, h, c{stages}):",
         "    # size: generated from the tableau, every stage spelled out (the state stays in registers)",
         f'    """One step of {tableau.name} (order {tableau.order}, {len(tableau.b)} stages) of the {name} for one '
         f'sample."""',
@@ -62,8 +74,8 @@ def step_source(tableau, name, components):
     for s in range(len(tableau.b)):
         ks = ", ".join(f"k{s + 1}_{i + 1}" for i in range(n))
         time = "t" if tableau.c[s] == 0.0 else f"t + {float(tableau.c[s])!r} * h"
-        lines.append(f"    {ks} = {name}.rate(")
-        lines.append(f"        {time},")
+        lines.append(f"    {ks} = {name}.rate_forced(" if forced else f"    {ks} = {name}.rate(")
+        lines.append(f"        f{s + 1}," if forced else f"        {time},")
         for i, y in enumerate(components):
             lines.append(f"        {combination(y, enumerate(tableau.A[s, :s]), i + 1)},")
         lines.append("        c)")
@@ -84,16 +96,22 @@ def block_source(tableau, name, components, project):
         f"def {name}_{tableau.name}_block(t, {arrays}, h, c):",
         f'    """Advance every sample of a block by one {tableau.name} step of the {name}'
         f'{", then project it" if project else ""}."""',
-        "    for i in range(y1.shape[0]):",
     ]
+    forcing = ""
+    if _has_forcing(name):
+        for s in range(len(tableau.b)):
+            time = "t" if tableau.c[s] == 0.0 else f"t + {float(tableau.c[s])!r} * h"
+            lines.append(f"    f{s + 1} = {name}.forcing({time}, c)")
+        forcing = "".join(f", f{s + 1}" for s in range(len(tableau.b)))
+    lines.append("    for i in range(y1.shape[0]):")
     if project:
         values = ", ".join(components)
         lines[2:2] = ["    # size: generated: one array per state component (the block's rows), the time, the step, the "
                       "constants"]
-        lines += [f"        {values} = {name}_{tableau.name}_sample(t, {items}, h, c)",
+        lines += [f"        {values} = {name}_{tableau.name}_sample(t, {items}, h, c{forcing})",
                   f"        {items} = {name}.project({values})"]
     else:
-        lines += [f"        {items} = {name}_{tableau.name}_sample(t, {items}, h, c)"]
+        lines += [f"        {items} = {name}_{tableau.name}_sample(t, {items}, h, c{forcing})"]
     return "\n".join(lines)
 
 

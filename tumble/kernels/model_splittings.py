@@ -140,19 +140,20 @@ def _turn_about_axis(tau, wa, wb, wc, gb, gc, r_cb, r_bc):
 @jit
 def heavy_top_gravity_block(tau, y1, y2, y3, y4, y5, y6, c):
     # size: one array per state component (the block's rows), the time and the constants
-    """The exact flow of ``V = mgl g·c`` over ``tau`` for every sample: ``g`` fixed, ``L += tau mgl (g × c)``; with
-    ``c = e3`` only ``w1`` and ``w2`` move (the loop then skips ``w3``, whose increment is 0)."""
-    k1, k2, k3 = tau * c.m1, tau * c.m2, tau * c.m3  # tau mgl / I_i
-    if c.c1 == 0.0 and c.c2 == 0.0:  # the centre on axis 3: w1 += k1 c3 g2, w2 -= k2 c3 g1
+    """The exact flow of ``V = mgl g·c`` over ``tau`` for every sample: ``g`` fixed, ``w += tau I⁻¹ mgl (g × c)``;
+    with ``c = e3`` only ``w1`` and ``w2`` move (the loop then skips ``w3``, whose increment is 0)."""
+    k13, k23 = tau * c.m13, tau * c.m23  # tau (mgl / I_i) c3
+    if c.c1 == 0.0 and c.c2 == 0.0:  # the centre on axis 3: w1 += tau m1 c3 g2, w2 -= tau m2 c3 g1
         for i in range(y1.shape[0]):
-            y1[i] += k1 * (y5[i] * c.c3)
-            y2[i] -= k2 * (y4[i] * c.c3)
+            y1[i] += k13 * y5[i]
+            y2[i] -= k23 * y4[i]
         return
+    k12, k21, k31, k32 = tau * c.m12, tau * c.m21, tau * c.m31, tau * c.m32
     for i in range(y1.shape[0]):
         g1, g2, g3 = y4[i], y5[i], y6[i]
-        y1[i] += k1 * (g2 * c.c3 - g3 * c.c2)
-        y2[i] += k2 * (g3 * c.c1 - g1 * c.c3)
-        y3[i] += k3 * (g1 * c.c2 - g2 * c.c1)
+        y1[i] += k13 * g2 - k12 * g3
+        y2[i] += k21 * g3 - k23 * g1
+        y3[i] += k32 * g1 - k31 * g2
 
 
 @jit

@@ -329,11 +329,11 @@ def heavy_top_rk8_block(t, y1, y2, y3, y4, y5, y6, h, c):
 
 
 @jit(inline=True)
-def gravity_gradient_rk4_sample(t, w1, w2, w3, q0, q1, q2, q3, h, c):
+def gravity_gradient_rk4_sample(t, w1, w2, w3, q0, q1, q2, q3, h, c, f1, f2, f3, f4):
     # size: generated from the tableau, every stage spelled out (the state stays in registers)
     """One step of rk4 (order 4, 4 stages) of the gravity_gradient for one sample."""
-    k1_1, k1_2, k1_3, k1_4, k1_5, k1_6, k1_7 = gravity_gradient.rate(
-        t,
+    k1_1, k1_2, k1_3, k1_4, k1_5, k1_6, k1_7 = gravity_gradient.rate_forced(
+        f1,
         w1,
         w2,
         w3,
@@ -342,8 +342,8 @@ def gravity_gradient_rk4_sample(t, w1, w2, w3, q0, q1, q2, q3, h, c):
         q2,
         q3,
         c)
-    k2_1, k2_2, k2_3, k2_4, k2_5, k2_6, k2_7 = gravity_gradient.rate(
-        t + 0.5 * h,
+    k2_1, k2_2, k2_3, k2_4, k2_5, k2_6, k2_7 = gravity_gradient.rate_forced(
+        f2,
         w1 + ((0.5 * h) * k1_1),
         w2 + ((0.5 * h) * k1_2),
         w3 + ((0.5 * h) * k1_3),
@@ -352,8 +352,8 @@ def gravity_gradient_rk4_sample(t, w1, w2, w3, q0, q1, q2, q3, h, c):
         q2 + ((0.5 * h) * k1_6),
         q3 + ((0.5 * h) * k1_7),
         c)
-    k3_1, k3_2, k3_3, k3_4, k3_5, k3_6, k3_7 = gravity_gradient.rate(
-        t + 0.5 * h,
+    k3_1, k3_2, k3_3, k3_4, k3_5, k3_6, k3_7 = gravity_gradient.rate_forced(
+        f3,
         w1 + ((0.5 * h) * k2_1),
         w2 + ((0.5 * h) * k2_2),
         w3 + ((0.5 * h) * k2_3),
@@ -362,8 +362,8 @@ def gravity_gradient_rk4_sample(t, w1, w2, w3, q0, q1, q2, q3, h, c):
         q2 + ((0.5 * h) * k2_6),
         q3 + ((0.5 * h) * k2_7),
         c)
-    k4_1, k4_2, k4_3, k4_4, k4_5, k4_6, k4_7 = gravity_gradient.rate(
-        t + 1.0 * h,
+    k4_1, k4_2, k4_3, k4_4, k4_5, k4_6, k4_7 = gravity_gradient.rate_forced(
+        f4,
         w1 + ((1.0 * h) * k3_1),
         w2 + ((1.0 * h) * k3_2),
         w3 + ((1.0 * h) * k3_3),
@@ -387,17 +387,21 @@ def gravity_gradient_rk4_sample(t, w1, w2, w3, q0, q1, q2, q3, h, c):
 def gravity_gradient_rk4_block(t, y1, y2, y3, y4, y5, y6, y7, h, c):
     # size: generated: one array per state component (the block's rows), the time, the step, the constants
     """Advance every sample of a block by one rk4 step of the gravity_gradient, then project it."""
+    f1 = gravity_gradient.forcing(t, c)
+    f2 = gravity_gradient.forcing(t + 0.5 * h, c)
+    f3 = gravity_gradient.forcing(t + 0.5 * h, c)
+    f4 = gravity_gradient.forcing(t + 1.0 * h, c)
     for i in range(y1.shape[0]):
-        w1, w2, w3, q0, q1, q2, q3 = gravity_gradient_rk4_sample(t, y1[i], y2[i], y3[i], y4[i], y5[i], y6[i], y7[i], h, c)
+        w1, w2, w3, q0, q1, q2, q3 = gravity_gradient_rk4_sample(t, y1[i], y2[i], y3[i], y4[i], y5[i], y6[i], y7[i], h, c, f1, f2, f3, f4)
         y1[i], y2[i], y3[i], y4[i], y5[i], y6[i], y7[i] = gravity_gradient.project(w1, w2, w3, q0, q1, q2, q3)
 
 
 @jit(inline=True)
-def gravity_gradient_rk8_sample(t, w1, w2, w3, q0, q1, q2, q3, h, c):
+def gravity_gradient_rk8_sample(t, w1, w2, w3, q0, q1, q2, q3, h, c, f1, f2, f3, f4, f5, f6, f7, f8, f9, f10, f11, f12):
     # size: generated from the tableau, every stage spelled out (the state stays in registers)
     """One step of rk8 (order 8, 12 stages) of the gravity_gradient for one sample."""
-    k1_1, k1_2, k1_3, k1_4, k1_5, k1_6, k1_7 = gravity_gradient.rate(
-        t,
+    k1_1, k1_2, k1_3, k1_4, k1_5, k1_6, k1_7 = gravity_gradient.rate_forced(
+        f1,
         w1,
         w2,
         w3,
@@ -406,8 +410,8 @@ def gravity_gradient_rk8_sample(t, w1, w2, w3, q0, q1, q2, q3, h, c):
         q2,
         q3,
         c)
-    k2_1, k2_2, k2_3, k2_4, k2_5, k2_6, k2_7 = gravity_gradient.rate(
-        t + 0.05260015195876773 * h,
+    k2_1, k2_2, k2_3, k2_4, k2_5, k2_6, k2_7 = gravity_gradient.rate_forced(
+        f2,
         w1 + ((0.05260015195876773 * h) * k1_1),
         w2 + ((0.05260015195876773 * h) * k1_2),
         w3 + ((0.05260015195876773 * h) * k1_3),
@@ -416,8 +420,8 @@ def gravity_gradient_rk8_sample(t, w1, w2, w3, q0, q1, q2, q3, h, c):
         q2 + ((0.05260015195876773 * h) * k1_6),
         q3 + ((0.05260015195876773 * h) * k1_7),
         c)
-    k3_1, k3_2, k3_3, k3_4, k3_5, k3_6, k3_7 = gravity_gradient.rate(
-        t + 0.0789002279381516 * h,
+    k3_1, k3_2, k3_3, k3_4, k3_5, k3_6, k3_7 = gravity_gradient.rate_forced(
+        f3,
         w1 + ((0.0197250569845379 * h) * k1_1 + (0.0591751709536137 * h) * k2_1),
         w2 + ((0.0197250569845379 * h) * k1_2 + (0.0591751709536137 * h) * k2_2),
         w3 + ((0.0197250569845379 * h) * k1_3 + (0.0591751709536137 * h) * k2_3),
@@ -426,8 +430,8 @@ def gravity_gradient_rk8_sample(t, w1, w2, w3, q0, q1, q2, q3, h, c):
         q2 + ((0.0197250569845379 * h) * k1_6 + (0.0591751709536137 * h) * k2_6),
         q3 + ((0.0197250569845379 * h) * k1_7 + (0.0591751709536137 * h) * k2_7),
         c)
-    k4_1, k4_2, k4_3, k4_4, k4_5, k4_6, k4_7 = gravity_gradient.rate(
-        t + 0.1183503419072274 * h,
+    k4_1, k4_2, k4_3, k4_4, k4_5, k4_6, k4_7 = gravity_gradient.rate_forced(
+        f4,
         w1 + ((0.02958758547680685 * h) * k1_1 + (0.08876275643042054 * h) * k3_1),
         w2 + ((0.02958758547680685 * h) * k1_2 + (0.08876275643042054 * h) * k3_2),
         w3 + ((0.02958758547680685 * h) * k1_3 + (0.08876275643042054 * h) * k3_3),
@@ -436,8 +440,8 @@ def gravity_gradient_rk8_sample(t, w1, w2, w3, q0, q1, q2, q3, h, c):
         q2 + ((0.02958758547680685 * h) * k1_6 + (0.08876275643042054 * h) * k3_6),
         q3 + ((0.02958758547680685 * h) * k1_7 + (0.08876275643042054 * h) * k3_7),
         c)
-    k5_1, k5_2, k5_3, k5_4, k5_5, k5_6, k5_7 = gravity_gradient.rate(
-        t + 0.2816496580927726 * h,
+    k5_1, k5_2, k5_3, k5_4, k5_5, k5_6, k5_7 = gravity_gradient.rate_forced(
+        f5,
         w1 + ((0.2413651341592667 * h) * k1_1 + (-0.8845494793282861 * h) * k3_1 + (0.924834003261792 * h) * k4_1),
         w2 + ((0.2413651341592667 * h) * k1_2 + (-0.8845494793282861 * h) * k3_2 + (0.924834003261792 * h) * k4_2),
         w3 + ((0.2413651341592667 * h) * k1_3 + (-0.8845494793282861 * h) * k3_3 + (0.924834003261792 * h) * k4_3),
@@ -446,8 +450,8 @@ def gravity_gradient_rk8_sample(t, w1, w2, w3, q0, q1, q2, q3, h, c):
         q2 + ((0.2413651341592667 * h) * k1_6 + (-0.8845494793282861 * h) * k3_6 + (0.924834003261792 * h) * k4_6),
         q3 + ((0.2413651341592667 * h) * k1_7 + (-0.8845494793282861 * h) * k3_7 + (0.924834003261792 * h) * k4_7),
         c)
-    k6_1, k6_2, k6_3, k6_4, k6_5, k6_6, k6_7 = gravity_gradient.rate(
-        t + 0.3333333333333333 * h,
+    k6_1, k6_2, k6_3, k6_4, k6_5, k6_6, k6_7 = gravity_gradient.rate_forced(
+        f6,
         w1 + ((0.037037037037037035 * h) * k1_1 + (0.17082860872947386 * h) * k4_1 + (0.12546768756682242 * h) * k5_1),
         w2 + ((0.037037037037037035 * h) * k1_2 + (0.17082860872947386 * h) * k4_2 + (0.12546768756682242 * h) * k5_2),
         w3 + ((0.037037037037037035 * h) * k1_3 + (0.17082860872947386 * h) * k4_3 + (0.12546768756682242 * h) * k5_3),
@@ -456,8 +460,8 @@ def gravity_gradient_rk8_sample(t, w1, w2, w3, q0, q1, q2, q3, h, c):
         q2 + ((0.037037037037037035 * h) * k1_6 + (0.17082860872947386 * h) * k4_6 + (0.12546768756682242 * h) * k5_6),
         q3 + ((0.037037037037037035 * h) * k1_7 + (0.17082860872947386 * h) * k4_7 + (0.12546768756682242 * h) * k5_7),
         c)
-    k7_1, k7_2, k7_3, k7_4, k7_5, k7_6, k7_7 = gravity_gradient.rate(
-        t + 0.25 * h,
+    k7_1, k7_2, k7_3, k7_4, k7_5, k7_6, k7_7 = gravity_gradient.rate_forced(
+        f7,
         w1 + ((0.037109375 * h) * k1_1 + (0.17025221101954405 * h) * k4_1 + (0.06021653898045596 * h) * k5_1 + (-0.017578125 * h) * k6_1),
         w2 + ((0.037109375 * h) * k1_2 + (0.17025221101954405 * h) * k4_2 + (0.06021653898045596 * h) * k5_2 + (-0.017578125 * h) * k6_2),
         w3 + ((0.037109375 * h) * k1_3 + (0.17025221101954405 * h) * k4_3 + (0.06021653898045596 * h) * k5_3 + (-0.017578125 * h) * k6_3),
@@ -466,8 +470,8 @@ def gravity_gradient_rk8_sample(t, w1, w2, w3, q0, q1, q2, q3, h, c):
         q2 + ((0.037109375 * h) * k1_6 + (0.17025221101954405 * h) * k4_6 + (0.06021653898045596 * h) * k5_6 + (-0.017578125 * h) * k6_6),
         q3 + ((0.037109375 * h) * k1_7 + (0.17025221101954405 * h) * k4_7 + (0.06021653898045596 * h) * k5_7 + (-0.017578125 * h) * k6_7),
         c)
-    k8_1, k8_2, k8_3, k8_4, k8_5, k8_6, k8_7 = gravity_gradient.rate(
-        t + 0.3076923076923077 * h,
+    k8_1, k8_2, k8_3, k8_4, k8_5, k8_6, k8_7 = gravity_gradient.rate_forced(
+        f8,
         w1 + ((0.03709200011850479 * h) * k1_1 + (0.17038392571223998 * h) * k4_1 + (0.10726203044637328 * h) * k5_1 + (-0.015319437748624402 * h) * k6_1 + (0.008273789163814023 * h) * k7_1),
         w2 + ((0.03709200011850479 * h) * k1_2 + (0.17038392571223998 * h) * k4_2 + (0.10726203044637328 * h) * k5_2 + (-0.015319437748624402 * h) * k6_2 + (0.008273789163814023 * h) * k7_2),
         w3 + ((0.03709200011850479 * h) * k1_3 + (0.17038392571223998 * h) * k4_3 + (0.10726203044637328 * h) * k5_3 + (-0.015319437748624402 * h) * k6_3 + (0.008273789163814023 * h) * k7_3),
@@ -476,8 +480,8 @@ def gravity_gradient_rk8_sample(t, w1, w2, w3, q0, q1, q2, q3, h, c):
         q2 + ((0.03709200011850479 * h) * k1_6 + (0.17038392571223998 * h) * k4_6 + (0.10726203044637328 * h) * k5_6 + (-0.015319437748624402 * h) * k6_6 + (0.008273789163814023 * h) * k7_6),
         q3 + ((0.03709200011850479 * h) * k1_7 + (0.17038392571223998 * h) * k4_7 + (0.10726203044637328 * h) * k5_7 + (-0.015319437748624402 * h) * k6_7 + (0.008273789163814023 * h) * k7_7),
         c)
-    k9_1, k9_2, k9_3, k9_4, k9_5, k9_6, k9_7 = gravity_gradient.rate(
-        t + 0.6512820512820513 * h,
+    k9_1, k9_2, k9_3, k9_4, k9_5, k9_6, k9_7 = gravity_gradient.rate_forced(
+        f9,
         w1 + ((0.6241109587160757 * h) * k1_1 + (-3.3608926294469414 * h) * k4_1 + (-0.868219346841726 * h) * k5_1 + (27.59209969944671 * h) * k6_1 + (20.154067550477894 * h) * k7_1 + (-43.48988418106996 * h) * k8_1),
         w2 + ((0.6241109587160757 * h) * k1_2 + (-3.3608926294469414 * h) * k4_2 + (-0.868219346841726 * h) * k5_2 + (27.59209969944671 * h) * k6_2 + (20.154067550477894 * h) * k7_2 + (-43.48988418106996 * h) * k8_2),
         w3 + ((0.6241109587160757 * h) * k1_3 + (-3.3608926294469414 * h) * k4_3 + (-0.868219346841726 * h) * k5_3 + (27.59209969944671 * h) * k6_3 + (20.154067550477894 * h) * k7_3 + (-43.48988418106996 * h) * k8_3),
@@ -486,8 +490,8 @@ def gravity_gradient_rk8_sample(t, w1, w2, w3, q0, q1, q2, q3, h, c):
         q2 + ((0.6241109587160757 * h) * k1_6 + (-3.3608926294469414 * h) * k4_6 + (-0.868219346841726 * h) * k5_6 + (27.59209969944671 * h) * k6_6 + (20.154067550477894 * h) * k7_6 + (-43.48988418106996 * h) * k8_6),
         q3 + ((0.6241109587160757 * h) * k1_7 + (-3.3608926294469414 * h) * k4_7 + (-0.868219346841726 * h) * k5_7 + (27.59209969944671 * h) * k6_7 + (20.154067550477894 * h) * k7_7 + (-43.48988418106996 * h) * k8_7),
         c)
-    k10_1, k10_2, k10_3, k10_4, k10_5, k10_6, k10_7 = gravity_gradient.rate(
-        t + 0.6 * h,
+    k10_1, k10_2, k10_3, k10_4, k10_5, k10_6, k10_7 = gravity_gradient.rate_forced(
+        f10,
         w1 + ((0.47766253643826434 * h) * k1_1 + (-2.4881146199716677 * h) * k4_1 + (-0.590290826836843 * h) * k5_1 + (21.230051448181193 * h) * k6_1 + (15.279233632882423 * h) * k7_1 + (-33.28821096898486 * h) * k8_1 + (-0.020331201708508627 * h) * k9_1),
         w2 + ((0.47766253643826434 * h) * k1_2 + (-2.4881146199716677 * h) * k4_2 + (-0.590290826836843 * h) * k5_2 + (21.230051448181193 * h) * k6_2 + (15.279233632882423 * h) * k7_2 + (-33.28821096898486 * h) * k8_2 + (-0.020331201708508627 * h) * k9_2),
         w3 + ((0.47766253643826434 * h) * k1_3 + (-2.4881146199716677 * h) * k4_3 + (-0.590290826836843 * h) * k5_3 + (21.230051448181193 * h) * k6_3 + (15.279233632882423 * h) * k7_3 + (-33.28821096898486 * h) * k8_3 + (-0.020331201708508627 * h) * k9_3),
@@ -496,8 +500,8 @@ def gravity_gradient_rk8_sample(t, w1, w2, w3, q0, q1, q2, q3, h, c):
         q2 + ((0.47766253643826434 * h) * k1_6 + (-2.4881146199716677 * h) * k4_6 + (-0.590290826836843 * h) * k5_6 + (21.230051448181193 * h) * k6_6 + (15.279233632882423 * h) * k7_6 + (-33.28821096898486 * h) * k8_6 + (-0.020331201708508627 * h) * k9_6),
         q3 + ((0.47766253643826434 * h) * k1_7 + (-2.4881146199716677 * h) * k4_7 + (-0.590290826836843 * h) * k5_7 + (21.230051448181193 * h) * k6_7 + (15.279233632882423 * h) * k7_7 + (-33.28821096898486 * h) * k8_7 + (-0.020331201708508627 * h) * k9_7),
         c)
-    k11_1, k11_2, k11_3, k11_4, k11_5, k11_6, k11_7 = gravity_gradient.rate(
-        t + 0.8571428571428571 * h,
+    k11_1, k11_2, k11_3, k11_4, k11_5, k11_6, k11_7 = gravity_gradient.rate_forced(
+        f11,
         w1 + ((-0.9371424300859873 * h) * k1_1 + (5.186372428844064 * h) * k4_1 + (1.0914373489967295 * h) * k5_1 + (-8.149787010746927 * h) * k6_1 + (-18.52006565999696 * h) * k7_1 + (22.739487099350505 * h) * k8_1 + (2.4936055526796523 * h) * k9_1 + (-3.0467644718982196 * h) * k10_1),
         w2 + ((-0.9371424300859873 * h) * k1_2 + (5.186372428844064 * h) * k4_2 + (1.0914373489967295 * h) * k5_2 + (-8.149787010746927 * h) * k6_2 + (-18.52006565999696 * h) * k7_2 + (22.739487099350505 * h) * k8_2 + (2.4936055526796523 * h) * k9_2 + (-3.0467644718982196 * h) * k10_2),
         w3 + ((-0.9371424300859873 * h) * k1_3 + (5.186372428844064 * h) * k4_3 + (1.0914373489967295 * h) * k5_3 + (-8.149787010746927 * h) * k6_3 + (-18.52006565999696 * h) * k7_3 + (22.739487099350505 * h) * k8_3 + (2.4936055526796523 * h) * k9_3 + (-3.0467644718982196 * h) * k10_3),
@@ -506,8 +510,8 @@ def gravity_gradient_rk8_sample(t, w1, w2, w3, q0, q1, q2, q3, h, c):
         q2 + ((-0.9371424300859873 * h) * k1_6 + (5.186372428844064 * h) * k4_6 + (1.0914373489967295 * h) * k5_6 + (-8.149787010746927 * h) * k6_6 + (-18.52006565999696 * h) * k7_6 + (22.739487099350505 * h) * k8_6 + (2.4936055526796523 * h) * k9_6 + (-3.0467644718982196 * h) * k10_6),
         q3 + ((-0.9371424300859873 * h) * k1_7 + (5.186372428844064 * h) * k4_7 + (1.0914373489967295 * h) * k5_7 + (-8.149787010746927 * h) * k6_7 + (-18.52006565999696 * h) * k7_7 + (22.739487099350505 * h) * k8_7 + (2.4936055526796523 * h) * k9_7 + (-3.0467644718982196 * h) * k10_7),
         c)
-    k12_1, k12_2, k12_3, k12_4, k12_5, k12_6, k12_7 = gravity_gradient.rate(
-        t + 1.0 * h,
+    k12_1, k12_2, k12_3, k12_4, k12_5, k12_6, k12_7 = gravity_gradient.rate_forced(
+        f12,
         w1 + ((2.273310147516538 * h) * k1_1 + (-10.53449546673725 * h) * k4_1 + (-2.0008720582248625 * h) * k5_1 + (-17.9589318631188 * h) * k6_1 + (27.94888452941996 * h) * k7_1 + (-2.8589982771350235 * h) * k8_1 + (-8.87285693353063 * h) * k9_1 + (12.360567175794303 * h) * k10_1 + (0.6433927460157636 * h) * k11_1),
         w2 + ((2.273310147516538 * h) * k1_2 + (-10.53449546673725 * h) * k4_2 + (-2.0008720582248625 * h) * k5_2 + (-17.9589318631188 * h) * k6_2 + (27.94888452941996 * h) * k7_2 + (-2.8589982771350235 * h) * k8_2 + (-8.87285693353063 * h) * k9_2 + (12.360567175794303 * h) * k10_2 + (0.6433927460157636 * h) * k11_2),
         w3 + ((2.273310147516538 * h) * k1_3 + (-10.53449546673725 * h) * k4_3 + (-2.0008720582248625 * h) * k5_3 + (-17.9589318631188 * h) * k6_3 + (27.94888452941996 * h) * k7_3 + (-2.8589982771350235 * h) * k8_3 + (-8.87285693353063 * h) * k9_3 + (12.360567175794303 * h) * k10_3 + (0.6433927460157636 * h) * k11_3),
@@ -531,8 +535,20 @@ def gravity_gradient_rk8_sample(t, w1, w2, w3, q0, q1, q2, q3, h, c):
 def gravity_gradient_rk8_block(t, y1, y2, y3, y4, y5, y6, y7, h, c):
     # size: generated: one array per state component (the block's rows), the time, the step, the constants
     """Advance every sample of a block by one rk8 step of the gravity_gradient, then project it."""
+    f1 = gravity_gradient.forcing(t, c)
+    f2 = gravity_gradient.forcing(t + 0.05260015195876773 * h, c)
+    f3 = gravity_gradient.forcing(t + 0.0789002279381516 * h, c)
+    f4 = gravity_gradient.forcing(t + 0.1183503419072274 * h, c)
+    f5 = gravity_gradient.forcing(t + 0.2816496580927726 * h, c)
+    f6 = gravity_gradient.forcing(t + 0.3333333333333333 * h, c)
+    f7 = gravity_gradient.forcing(t + 0.25 * h, c)
+    f8 = gravity_gradient.forcing(t + 0.3076923076923077 * h, c)
+    f9 = gravity_gradient.forcing(t + 0.6512820512820513 * h, c)
+    f10 = gravity_gradient.forcing(t + 0.6 * h, c)
+    f11 = gravity_gradient.forcing(t + 0.8571428571428571 * h, c)
+    f12 = gravity_gradient.forcing(t + 1.0 * h, c)
     for i in range(y1.shape[0]):
-        w1, w2, w3, q0, q1, q2, q3 = gravity_gradient_rk8_sample(t, y1[i], y2[i], y3[i], y4[i], y5[i], y6[i], y7[i], h, c)
+        w1, w2, w3, q0, q1, q2, q3 = gravity_gradient_rk8_sample(t, y1[i], y2[i], y3[i], y4[i], y5[i], y6[i], y7[i], h, c, f1, f2, f3, f4, f5, f6, f7, f8, f9, f10, f11, f12)
         y1[i], y2[i], y3[i], y4[i], y5[i], y6[i], y7[i] = gravity_gradient.project(w1, w2, w3, q0, q1, q2, q3)
 
 
@@ -737,7 +753,7 @@ def step(model, method, ys, t, h, a, x0):
         else:  # a Lie-Poisson splitting
             gyrostat_splitting_block(method, ys[0], ys[1], ys[2], h, c_gyrostat, x0)
     elif model == 2:  # heavy_top
-        c_heavy_top = heavy_top.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12])
+        c_heavy_top = heavy_top.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14], a[15])
         if method == 0:  # rk4
             heavy_top_rk4_block(t, ys[0], ys[1], ys[2], ys[3], ys[4], ys[5], h, c_heavy_top)
         elif method == 1:  # rk8
@@ -764,7 +780,7 @@ def invariants(model, ys, i, a):
     if model == 0 or model == 1:  # free, gyrostat
         return gyrostat.invariants(ys[0, i], ys[1, i], ys[2, i], gyrostat.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14]))
     elif model == 2:  # heavy_top
-        return heavy_top.invariants(ys[0, i], ys[1, i], ys[2, i], ys[3, i], ys[4, i], ys[5, i], heavy_top.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12]))
+        return heavy_top.invariants(ys[0, i], ys[1, i], ys[2, i], ys[3, i], ys[4, i], ys[5, i], heavy_top.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14], a[15]))
     elif model == 3:  # gravity_gradient
         return gravity_gradient.invariants(ys[0, i], ys[1, i], ys[2, i], ys[3, i], ys[4, i], ys[5, i], ys[6, i], gravity_gradient.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10]))
     else:  # damper
@@ -784,7 +800,7 @@ def drift_suspects(model, ys, active, a, x0, scale, screen):
             total = ys[0, i] + ys[1, i] + ys[2, i]
             suspects += suspect(i, active, x0, scale, screen, x1, x2, x3, total)
     elif model == 2:  # heavy_top
-        c_heavy_top = heavy_top.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12])
+        c_heavy_top = heavy_top.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14], a[15])
         for i in range(ys.shape[1]):
             x1, x2, x3, _, _, _ = heavy_top.invariants(ys[0, i], ys[1, i], ys[2, i], ys[3, i], ys[4, i], ys[5, i], c_heavy_top)
             total = ys[0, i] + ys[1, i] + ys[2, i] + ys[3, i] + ys[4, i] + ys[5, i]
@@ -808,7 +824,7 @@ def drift_suspects(model, ys, active, a, x0, scale, screen):
 def rate_columns(model, y, a, t, out):
     """``out = f(t, y)`` for states as columns ``y`` (n_state, N)."""
     c_gyrostat = gyrostat.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14])
-    c_heavy_top = heavy_top.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12])
+    c_heavy_top = heavy_top.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14], a[15])
     c_gravity_gradient = gravity_gradient.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10])
     c_damper = damper.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10])
     for i in range(y.shape[1]):
@@ -834,7 +850,7 @@ def rate_columns(model, y, a, t, out):
 def tangent_columns(model, y, v, a, t, out):
     """``out = J(t, y) v`` for states as columns ``y`` (n_state, N), along ``v`` (n_state, N)."""
     c_gyrostat = gyrostat.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14])
-    c_heavy_top = heavy_top.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12])
+    c_heavy_top = heavy_top.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14], a[15])
     c_gravity_gradient = gravity_gradient.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10])
     c_damper = damper.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10])
     for i in range(y.shape[1]):

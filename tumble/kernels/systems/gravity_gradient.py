@@ -26,7 +26,8 @@ from collections import namedtuple
 from ..jit import jit
 from ._rigid import RIGID_BODY, rigid_body
 
-__all__ = ["Constants", "KEPLER_ITERATIONS", "constants", "invariants", "orbit", "project", "rate", "tangent"]
+__all__ = ["Constants", "KEPLER_ITERATIONS", "constants", "forcing", "invariants", "orbit", "project", "rate",
+           "rate_forced", "tangent"]
 
 #: Newton iterations at most for Kepler's equation (from Danby's start ``E = M + 0.85 e sign(sin M)``): 8 reach
 #: round-off for every mean anomaly up to e = 0.99 (4e-16 of ``M``; 6 suffice to e = 0.9), more near e = 1.
@@ -73,10 +74,25 @@ def _orbit_rows(q0, q1, q2, q3):
 
 
 @jit(inline=True)
+def forcing(t, c):
+    """What the rate takes from time: :func:`orbit`. The generated steps evaluate it once per stage for a whole block
+    of samples (it is the same for every sample), outside the loop over them, so that the loop keeps no branch and
+    vectorises."""
+    return orbit(t, c)
+
+
+@jit(inline=True)
 def rate(t, w1, w2, w3, q0, q1, q2, q3, c):
     # size: the time, the state's seven components (scalars: the generated steps keep them in registers), the constants
-    """``(w', q')``: rad/s², then 1/s."""
-    nu_dot, strength = orbit(t, c)
+    """``(w', q')`` at time ``t``: rad/s², then 1/s."""
+    return rate_forced(forcing(t, c), w1, w2, w3, q0, q1, q2, q3, c)
+
+
+@jit(inline=True)
+def rate_forced(f, w1, w2, w3, q0, q1, q2, q3, c):
+    # size: the forcing, the state's seven components, the constants
+    """:func:`rate` with the orbit's ``f = (ν', 3 μ/r³)`` given (:func:`forcing`)."""
+    nu_dot, strength = f
     c21, c22, c23, c31, c32, c33 = _orbit_rows(q0, q1, q2, q3)
     v1, v2, v3 = w1 + nu_dot * c21, w2 + nu_dot * c22, w3 + nu_dot * c23  # w_r, relative to the orbit frame
     return (c.a1 * (w2 * w3 - strength * (c32 * c33)),
@@ -93,7 +109,7 @@ def tangent(t, w1, w2, w3, q0, q1, q2, q3, v1, v2, v3, u0, u1, u2, u3, c):
     # size: the state's seven components, the tangent's seven (v along w, u along q), the constants
     """The tangent flow ``J(y) δ`` along ``δ = (v, u)`` (``v`` along ``w``, ``u`` along ``q``): the exact derivative
     of :func:`rate` (the attitude rows are quadratic in ``q``)."""
-    nu_dot, strength = orbit(t, c)
+    nu_dot, strength = forcing(t, c)
     c21, c22, c23, c31, c32, c33 = _orbit_rows(q0, q1, q2, q3)
     # derivatives of the rows along u
     d21 = 2.0 * (u1 * q2 + q1 * u2 + u0 * q3 + q0 * u3)
