@@ -6,9 +6,9 @@ flushed, renamed) into the hidden folder ``<out>/.<stem>.chunks/`` as ``scenes-<
 ``samples-<scene>-<start>-<stop>.chunk``. A chunk file is a NumPy ``.npz`` archive of two members, read with
 ``allow_pickle=False``: a JSON manifest (the study's hash, :func:`study_hash`; what the chunk holds; the dtype,
 shape and offset of every array) and one byte blob holding the arrays — the scenes' records (every value of their
-datasets, :func:`tumble.measure.scenes.scene_records`) with their exact dtypes, stacked over the scenes that share
+datasets, :func:`tumble.measure.reduction.scene_records`) with their exact dtypes, stacked over the scenes that share
 their layout (:func:`tumble.measure.records.stack_records`; strings in the manifest), or the per-sample arrays of a
-range (:func:`tumble.measure.scenes.scene_samples`). (netCDF, one group per scene, cost 35 ms a scene to write; one
+range (:func:`tumble.measure.running.scene_samples`). (netCDF, one group per scene, cost 35 ms a scene to write; one
 archive member per array cost 10 ms a scene; one blob of every array 0.06 ms; stacked 0.03 ms.) The bytes are made
 where the chunk ran (:func:`pack_scenes`, :func:`pack_samples`: in a dask worker, that is the task's result) and
 written by the process that runs the study.
@@ -196,7 +196,7 @@ def pack_scenes(scenes, digest):
     Parameters
     ----------
     scenes : Mapping[int, dict]
-        Scene records (:func:`tumble.measure.scenes.scene_records`: flat dicts of NumPy values) by scene index
+        Scene records (:func:`tumble.measure.reduction.scene_records`: flat dicts of NumPy values) by scene index
         (at least one).
     digest : str
         :func:`study_hash` of the study.
@@ -220,7 +220,7 @@ def pack_samples(scene, stop, part, digest):
     stop : int
         End of the range (the part holds ``stop - start`` samples).
     part : Mapping[str, ndarray]
-        What :func:`tumble.measure.scenes.scene_samples` returned for the range.
+        What :func:`tumble.measure.running.scene_samples` returned for the range.
     digest : str
         :func:`study_hash` of the study.
     """
@@ -231,8 +231,8 @@ def pack_samples(scene, stop, part, digest):
 class Finished(NamedTuple):
     """What a chunk (or a whole checkpoint) holds: whole scenes and sample ranges of scenes.
 
-    ``scenes``: ``{index: scene record}`` (:func:`tumble.measure.scenes.scene_records`); ``parts``: ``{index: {(start, stop): part}}`` with each
-    part as :func:`tumble.measure.scenes.scene_samples` returns it.
+    ``scenes``: ``{index: scene record}`` (:func:`tumble.measure.reduction.scene_records`); ``parts``:
+    ``{index: {(start, stop): part}}`` with each part as :func:`tumble.measure.running.scene_samples` returns it.
     """
 
     scenes: dict

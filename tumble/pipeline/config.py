@@ -16,7 +16,8 @@ column).
 Studies are data, never code: nothing here evaluates, executes or unpickles anything; a time-dependent
 torque is one of the named :data:`PROFILES` with numeric parameters.
 
-This module validates and resolves; it does not run anything (:mod:`tumble.measure.scenes` does).
+This module validates and resolves; it does not run anything (:mod:`tumble.measure.scans` and
+:mod:`tumble.measure.scene` do).
 """
 
 from __future__ import annotations
@@ -97,7 +98,7 @@ _PROFILE_TIMES = {p.name: p.time for p in registry.TORQUE_PROFILES if p.time}
 
 #: ``outputs.figures``, ``outputs.format`` and ``outputs.arrays`` (from :mod:`tumble.registry`).
 FIGURES = registry.FIGURES
-#: Figures drawn from the traced attitude of the study's first scene (:func:`tumble.measure.scenes.attitude_trace`).
+#: Figures drawn from the traced attitude of the study's first scene (:func:`tumble.measure.traces.attitude_trace`).
 ATTITUDE_FIGURES = registry.ATTITUDE_FIGURES
 FORMATS = registry.FORMATS
 ARRAYS = registry.PER_SAMPLE_ARRAYS
