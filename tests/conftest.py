@@ -45,3 +45,14 @@ def warm_kernels():
 @pytest.fixture
 def rng():
     return np.random.default_rng(20261121)
+
+
+@pytest.fixture(scope="module")
+def cuda_device():
+    """The device is usable (the simulator, or a GPU), else the test is skipped with the reason."""
+    from tumble.engine.device import resolve_device
+
+    try:
+        return resolve_device("cuda")
+    except ValueError as err:
+        pytest.skip(str(err))

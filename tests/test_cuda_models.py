@@ -17,21 +17,11 @@ import numpy as np
 import pytest
 
 import tumble
-from tumble.engine.device import resolve_device
 from tumble.engine.models import run_model_ensemble
 from tumble.engine.sampling import perturbed_states
 from tumble.physics import models
 
 RELATIVE = 1e-12  # device against CPU, relative to the largest value compared
-
-
-@pytest.fixture(scope="module")
-def cuda_device():
-    """The device is usable (the simulator, or a GPU), else the test is skipped with the reason."""
-    try:
-        return resolve_device("cuda")
-    except ValueError as err:
-        pytest.skip(str(err))
 
 
 def _agree(device, cpu, relative=RELATIVE):

@@ -18,7 +18,6 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import tumble
-from tumble.engine.device import resolve_device
 from tumble.kernels import TABLEAUX
 from tumble.kernels.tableaux import ButcherTableau
 
@@ -57,14 +56,6 @@ def _dop853(rate, y0, t_end, p):
         return out
 
     return np.array([solve_ivp(f, (0.0, t_end), y, method="DOP853", rtol=1e-12, atol=1e-14).y[:, -1] for y in y0])
-
-
-@pytest.fixture(scope="module")
-def cuda_device():
-    try:
-        return resolve_device("cuda")
-    except ValueError as err:
-        pytest.skip(str(err))
 
 
 def test_a_damped_pendulum_agrees_with_dop853_and_its_dataset_names_the_components():
