@@ -221,3 +221,13 @@ def test_long_functions_and_long_argument_lists_say_why():
 def test_the_size_check_sees_a_long_argument_list():
     source = "def f(a, b, c, d, e, f, g, h, i):\n    return a\n\n\ndef g(a, b, c, d, e, f, g, h, i):\n    # size: ok\n    return a\n"
     assert [name for name, _, _ in _oversized(source)] == ["f"]
+
+
+def test_every_subpackage_is_installed():
+    """pyproject.toml lists the packages by hand (studies/ is installed as tumble/studies/): a folder of the package
+    missing from the list installs without its modules (tumble.kernels.systems once did: `tumble run` failed)."""
+    import tomllib
+
+    listed = set(tomllib.loads((PACKAGE.parent / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    found = {".".join(("tumble", *path.relative_to(PACKAGE).parent.parts)) for path in PACKAGE.rglob("__init__.py")}
+    assert found - listed == set(), "add them to [tool.setuptools] packages in pyproject.toml"
