@@ -57,7 +57,7 @@ from .model_steps import drift_suspects, invariants, rate_columns, step, tangent
 from .systems import N_INVARIANTS, constants
 
 __all__ = ["MODEL_CODES", "MODEL_METHODS", "ModelObserved", "SPLITTING_KINDS", "model_arguments", "model_methods",
-           "model_rhs", "model_tangent", "propagate_model", "run_model"]
+           "model_rhs", "model_tangent", "propagate_model", "run_block", "run_model"]
 
 #: Kernel codes of the models: their index in ``registry.MODEL_KINDS``. The kernels step every model of this table,
 #: whatever ``registry.MODELS``' ``implemented`` says (that flag is the studies'; the gravity gradient and the damper
@@ -98,7 +98,8 @@ def _initial_invariants(model, ys, c, x0, scale):
 def _freeze(i, k, code, ys, active, frozen, status, last):
     """Stop sample ``i`` of a block after step ``k``: keep its state, record why and when."""
     active[i] = False
-    frozen[:, i] = ys[:, i]
+    for j in range(ys.shape[0]):
+        frozen[j, i] = ys[j, i]
     if code != STATUS_OK:
         status[i] = code
     last[i] = k
@@ -109,7 +110,8 @@ def _restore_frozen(ys, active, frozen):
     """The step moved every sample of the block; put the stopped ones back."""
     for i in range(ys.shape[1]):
         if not active[i]:
-            ys[:, i] = frozen[:, i]
+            for j in range(ys.shape[0]):
+                ys[j, i] = frozen[j, i]
 
 
 @jit
@@ -161,16 +163,98 @@ def _observe_norm(ys, active, columns, weights, y_eq, probes, lo, row):
         probes[row, lo + i] = math.sqrt(total) if active[i] else np.nan
 
 
+@jit
+def _store(saved, slot, ys, lo):
+    """The block's states into ``saved[slot]`` (its columns ``lo``, ...)."""
+    for j in range(ys.shape[0]):
+        for i in range(ys.shape[1]):
+            saved[slot, j, lo + i] = ys[j, i]
+
+
+@jit
+def run_block(model, method, y, lo, ys, active, frozen, last, x0, scale, c, h, n_steps, save_every, saved, columns,
+              weights, y_eq, probe_steps, probes, drift, drift_limit, status, steps_taken):
+    # size: the one time loop of every model, method and observer, on either device: flat arrays and scalars (DESIGN.md:
+    # arrays and scalars below the kernels' door), the block's scratch owned by the caller, the observers the helpers above
+    """Samples ``lo, ..., lo + m - 1`` of ``y`` through the whole run: the models' one time loop, for the CPU and the
+    device.
+
+    The CPU's driver (:func:`propagate_model`) calls it for each block of samples in parallel, where the block's
+    samples move together in SIMD lanes; the device's kernel (:mod:`tumble.kernels.cuda_models`) for one sample per
+    thread (``m = 1``, the scratch in the thread's local memory). The scratch, owned by the caller: ``ys`` and
+    ``frozen`` (n_state, m), ``active`` (m,) bool, ``last`` (m,) int64, ``x0`` and ``scale`` (N_INVARIANTS, m). The
+    other arguments are :func:`propagate_model`'s; the loop writes the block's columns of ``y``, ``saved``,
+    ``probes``, ``drift``, ``status`` and ``steps_taken``.
+    """
+    n_state, m = ys.shape
+    n_probes = probe_steps.shape[0]
+    store = saved.shape[0] > 0
+    record_drift = drift.shape[0] > 0
+    track_drift = record_drift or drift_limit > 0.0
+    screen = drift_limit * (1.0 - SCREEN_RTOL) - SCREEN_ATOL if drift_limit > 0.0 else math.inf
+    block_status = status[lo:lo + m]
+    for i in range(m):
+        for j in range(n_state):
+            ys[j, i] = y[j, lo + i]
+        active[i] = True
+        last[i] = n_steps
+        block_status[i] = STATUS_OK
+    _initial_invariants(model, ys, c, x0, scale)
+    n_frozen = _check_finite(ys, active, 0, frozen, block_status, last)
+    slot = 0
+    if store:
+        _store(saved, 0, ys, lo)
+        slot = 1
+    probe = 0
+    while probe < n_probes and probe_steps[probe] == 0:
+        _observe_norm(ys, active, columns, weights, y_eq, probes, lo, probe)
+        probe += 1
+    ran = 0
+    for k in range(n_steps):
+        if n_frozen == m:
+            break
+        step(model, method, ys, k * h, h, c, x0)
+        if n_frozen:
+            _restore_frozen(ys, active, frozen)
+        ran = k + 1
+        # with drifts tracked every step, the exact observers run only for a block with a suspect (or whose
+        # drifts are recorded): the screen's "nothing to stop" is exact, its suspects are checked exactly
+        exact = track_drift and (record_drift or drift_suspects(model, ys, active, c, x0, scale, screen))
+        if exact or (not track_drift and (ran % CHECK_EVERY == 0 or ran == n_steps)):
+            n_frozen += _check_finite(ys, active, ran, frozen, block_status, last)
+        if exact:
+            n_frozen += _observe_drift(model, ys, active, c, x0, scale, drift, lo, drift_limit, ran, frozen,
+                                       block_status, last)
+        if store and (ran % save_every == 0 or ran == n_steps):
+            _store(saved, slot, ys, lo)
+            slot += 1
+        while probe < n_probes and probe_steps[probe] == ran:
+            _observe_norm(ys, active, columns, weights, y_eq, probes, lo, probe)
+            probe += 1
+    # A block whose samples all stopped fills the rest of its outputs: the frozen states, NaN probes.
+    if store:
+        for k in range(ran, n_steps):
+            if (k + 1) % save_every == 0 or k + 1 == n_steps:
+                _store(saved, slot, ys, lo)
+                slot += 1
+    while probe < n_probes:
+        for i in range(m):
+            probes[probe, lo + i] = np.nan
+        probe += 1
+    for i in range(m):
+        for j in range(n_state):
+            y[j, lo + i] = ys[j, i]
+        steps_taken[lo + i] = last[i]
+
+
 @jit(parallel=True)
 def propagate_model(model, method, y, constants, h, n_steps, block,
                     save_every, saved,
                     columns, weights, y_eq, probe_steps, probes,
                     drift, drift_limit,
                     status, steps_taken):
-    # size: the one driver of every model, method and observer: numba takes flat arrays and scalars (run_model packs
-    # them), and the step loop with its observer calls stays one prange body so that a block's samples move together
-    # in SIMD lanes (the observers are the helpers above)
-    """Advance every sample ``n_steps`` steps of size ``h`` of ``method`` on ``model``, observing as asked.
+    """Advance every sample ``n_steps`` steps of size ``h`` of ``method`` on ``model``, observing as asked: the CPU's
+    wrapper of the one time loop (:func:`run_block`), blocks of ``block`` samples in parallel (``prange``).
 
     Parameters
     ----------
@@ -199,69 +283,13 @@ def propagate_model(model, method, y, constants, h, n_steps, block,
         Outputs: per-sample status and the number of steps each sample took.
     """
     n_state, n = y.shape
-    c = constants
-    n_blocks = (n + block - 1) // block
-    n_probes = probe_steps.shape[0]
-    store = saved.shape[0] > 0
-    record_drift = drift.shape[0] > 0
-    track_drift = record_drift or drift_limit > 0.0
-    screen = drift_limit * (1.0 - SCREEN_RTOL) - SCREEN_ATOL if drift_limit > 0.0 else math.inf
-    for ib in prange(n_blocks):
+    for ib in prange((n + block - 1) // block):
         lo = ib * block
-        hi = min(lo + block, n)
-        m = hi - lo
-        ys = np.empty((n_state, m))
-        ys[:, :] = y[:, lo:hi]
-        active = np.ones(m, dtype=np.bool_)
-        frozen = np.empty((n_state, m))
-        last = np.full(m, n_steps, dtype=np.int64)
-        block_status = status[lo:hi]
-        block_status[:] = STATUS_OK
-        x0 = np.empty((N_INVARIANTS, m))
-        scale = np.empty((N_INVARIANTS, m))
-        _initial_invariants(model, ys, c, x0, scale)
-        n_frozen = _check_finite(ys, active, 0, frozen, block_status, last)
-        slot = 0
-        if store:
-            saved[0, :, lo:hi] = ys
-            slot = 1
-        probe = 0
-        while probe < n_probes and probe_steps[probe] == 0:
-            _observe_norm(ys, active, columns, weights, y_eq, probes, lo, probe)
-            probe += 1
-        ran = 0
-        for k in range(n_steps):
-            if n_frozen == m:
-                break
-            step(model, method, ys, k * h, h, c, x0)
-            if n_frozen:
-                _restore_frozen(ys, active, frozen)
-            ran = k + 1
-            # with drifts tracked every step, the exact observers run only for a block with a suspect (or whose
-            # drifts are recorded): the screen's "nothing to stop" is exact, its suspects are checked exactly
-            exact = track_drift and (record_drift or drift_suspects(model, ys, active, c, x0, scale, screen))
-            if exact or (not track_drift and (ran % CHECK_EVERY == 0 or ran == n_steps)):
-                n_frozen += _check_finite(ys, active, ran, frozen, block_status, last)
-            if exact:
-                n_frozen += _observe_drift(model, ys, active, c, x0, scale, drift, lo, drift_limit, ran, frozen,
-                                           block_status, last)
-            if store and (ran % save_every == 0 or ran == n_steps):
-                saved[slot, :, lo:hi] = ys
-                slot += 1
-            while probe < n_probes and probe_steps[probe] == ran:
-                _observe_norm(ys, active, columns, weights, y_eq, probes, lo, probe)
-                probe += 1
-        # A block whose samples all stopped fills the rest of its outputs: the frozen states, NaN probes.
-        if store:
-            for k in range(ran, n_steps):
-                if (k + 1) % save_every == 0 or k + 1 == n_steps:
-                    saved[slot, :, lo:hi] = ys
-                    slot += 1
-        while probe < n_probes:
-            probes[probe, lo:hi] = np.nan
-            probe += 1
-        y[:, lo:hi] = ys
-        steps_taken[lo:hi] = last
+        m = min(block, n - lo)
+        run_block(model, method, y, lo, np.empty((n_state, m)), np.empty(m, dtype=np.bool_),
+                  np.empty((n_state, m)), np.empty(m, dtype=np.int64), np.empty((N_INVARIANTS, m)),
+                  np.empty((N_INVARIANTS, m)), constants, h, n_steps, save_every, saved, columns, weights, y_eq,
+                  probe_steps, probes, drift, drift_limit, status, steps_taken)
 
 
 class ModelObserved(NamedTuple):
