@@ -18,7 +18,7 @@ from test_resume import _toml, assert_same_result, finished_chunks
 
 from tumble import cli
 from tumble.measure.records import stack_records
-from tumble.pipeline import checkpoint, config, runner
+from tumble.pipeline import checkpoint, config, runner, schema
 
 # 48 closed-form scenes of 256 samples: about 3 s, cut into 24 chunks.
 # Big enough that the run (150 chunks of 2 scenes of 1024 samples, several seconds) outlasts the random delay.
@@ -157,17 +157,10 @@ _VALUES = st.recursive(_SCALARS, lambda inner: st.one_of(st.lists(inner, max_siz
                        max_leaves=8)
 
 # Known tables and keys, so that the generated studies get past the first check often enough to reach the
-# deeper ones; plus a stray key now and then.
-_FIELDS = {
-    "body": ["moments", "shape", "dimensions", "tensor"],
-    "spin": ["axis", "rate"],
-    "perturbation": ["amplitude", "samples", "seed", "distribution"],
-    "integration": ["method", "dt", "horizon", "flips"],
-    "torque": ["profile", "vector", "duration", "period"],
-    "scan": ["axis", "amplitude", "rate", "method", "triangle", "moments", "body"],
-    "outputs": ["figures", "arrays", "format", "directory"],
-    "mystery": ["x"],
-}
+# deeper ones: every field of the one description of a study (tumble.pipeline.schema, so this list cannot drift
+# from what config accepts); plus keys no study has (body.tensor, a [mystery] table), which must be refused.
+_FIELDS = {**{table: list(keys) for table, keys in schema.TABLES.items()}, "mystery": ["x"]}
+_FIELDS["body"].append("tensor")
 
 
 @st.composite

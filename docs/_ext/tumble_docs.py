@@ -6,9 +6,9 @@ Directives (used from the Markdown pages under ``docs/reference/``), each writin
     The Python API: every name of ``tumble.__all__``, a function or class by autodoc, a module (``tumble.exact``,
     ...) with the members of its ``__all__``.
 ``tumble-study-keys``
-    Every key of ``studies/defaults.toml`` with its default, units, allowed values and the comment above it; the
-    ``[scan]`` keys from :data:`tumble.pipeline.config.SCAN_KEYS`. Allowed values come from
-    :mod:`tumble.registry` and :mod:`tumble.pipeline.config`, never from a copy.
+    Every field of a study with its default, units, allowed values and doc, and every ``[scan]`` key with the field it
+    replaces: all from the one description of a study, :data:`tumble.pipeline.schema.FIELDS` (which also writes
+    ``studies/defaults.toml``), never from a copy.
 ``tumble-netcdf``
     The variables (dimensions, units, long name) and global attributes of a result file written by ``tumble run``
     (the argument: a netCDF file, relative to the page).
@@ -41,51 +41,6 @@ from docutils.transforms import Transform
 
 logger = logging.getLogger(__name__)
 
-#: Units of the numeric study keys the registry does not describe (the models' keys come from
-#: ``registry.MODEL_PARAMETERS``); a numeric key found in neither fails the build.
-_UNITS = {
-    "body.moments": "kg m²",
-    "spin.axis": "1 (1-based axis)",
-    "spin.rate": "rad/s",
-    "spin.momentum": "N m s",
-    "perturbation.amplitude": "rad",
-    "perturbation.samples": "1 (count)",
-    "perturbation.seed": "1",
-    "integration.dt": "s",
-    "integration.horizon": "s",
-    "integration.flips": "1 (count)",
-    "torque.vector": "N m",
-    "torque.period": "s",
-    "torque.duration": "s",
-}
-
-
-def _allowed():
-    """Field path -> the values a study may give there, read from the code that checks them."""
-    from tumble import registry
-    from tumble.engine.sampling import DISTRIBUTIONS
-    from tumble.pipeline import config
-
-    return {
-        "body.shape": ("", *config.SHAPES),
-        "spin.axis": (1, 2, 3),
-        "model.kind": config.MODEL_KINDS,
-        "perturbation.distribution": DISTRIBUTIONS,
-        "integration.method": config.METHOD_NAMES,
-        "integration.device": registry.DEVICES,
-        "torque.profile": config.PROFILES,
-        "outputs.figures": config.FIGURES,
-        "outputs.format": config.FORMATS,
-        "outputs.arrays": config.ARRAYS,
-    }
-
-
-def _units():
-    from tumble import registry
-
-    return {**_UNITS, **{f"model.{p.key}": p.units for p in registry.MODEL_PARAMETERS}}
-
-
 def study_keys(path):
     """``{(table, key): comment lines}`` for every ``key = value`` line of the defaults file at ``path``
     (``table`` "" for the top level): the comment block right above the key. A table's first comment block that
@@ -114,36 +69,29 @@ def _code(value):
     return f"`{value!r}`" if isinstance(value, str) else f"`{value}`".replace("True", "true").replace("False", "false")
 
 
-def study_reference(path):
-    """Markdown: one table per study table of the defaults file at ``path``."""
-    from tumble.pipeline import config
+def study_reference(path=None):
+    """Markdown: one table per study table, from the description of a study (:data:`tumble.pipeline.schema.FIELDS`).
+    ``path``: the defaults file, which must be that description's rendering (a warning says when it is not)."""
+    from tumble.pipeline import schema
 
-    defaults = tomllib.loads(Path(path).read_text(encoding="utf-8"))
-    allowed, units = _allowed(), _units()
-    comments, lines = study_keys(path), []
-    tables = ["", *(t for t in defaults if isinstance(defaults[t], dict))]
-    for table in tables:
-        values = defaults.get(table, {}) if table else {k: v for k, v in defaults.items() if not isinstance(v, dict)}
+    if path is not None and Path(path).read_text(encoding="utf-8") != schema.defaults_toml():
+        logger.warning(f"{path} is not the rendering of tumble/pipeline/schema.py: run python -m tumble.pipeline.schema")
+    lines = []
+    for table in ("", *schema.TABLES):
         lines += [f"## `[{table}]`" if table else "## Top level", ""]
         if table == "scan":
-            lines += ["```text", *comments.get((table, ""), []), "```", ""]
-            lines += ["| key | replaces |", "|---|---|"]
-            lines += [f"| `scan.{key}` | `{field}` |" for key, field in config.SCAN_KEYS.items()]
+            lines += ["```text", *schema.SCAN_DOC.splitlines(), "```", ""]
+            lines += ["| key | replaces | units |", "|---|---|---|"]
+            lines += [f"| `scan.{f.key}` | `{f.replaces}` | {_cell(f.units)} |"
+                      for f in schema.table_fields("scan")]
             lines.append("")
             continue
         lines += ["| key | default | units | allowed values | meaning |", "|---|---|---|---|---|"]
-        for key, value in values.items():
-            field = f"{table}.{key}" if table else key
-            numeric = isinstance(value, (int, float)) and not isinstance(value, bool) or (
-                isinstance(value, list) and value and all(isinstance(v, (int, float)) for v in value))
-            unit = units.get(field, "")
-            if numeric and not unit:
-                logger.warning(f"study key {field!r} ({path}) is numeric but has no units: add it to _UNITS in "
-                               f"{__file__} (or to registry.MODEL_PARAMETERS)")
-            choice = allowed.get(field)
-            shown = ", ".join(_code(v) for v in choice) if choice else ""
-            text = " ".join(comments.get((table, key), []))
-            lines.append(f"| `{field}` | {_cell(_code(value))} | {_cell(unit)} | {_cell(shown)} | {_cell(text)} |")
+        for f in schema.table_fields(table):
+            shown = ", ".join(_code(v) for v in f.choices) if f.choices else ""
+            text = " ".join(f.doc.splitlines())
+            lines.append(f"| `{f.path}` | {_cell(_code(f.default))} | {_cell(f.units)} | {_cell(shown)} | "
+                         f"{_cell(text)} |")
         lines.append("")
     return "\n".join(lines)
 
@@ -514,9 +462,11 @@ class StudyKeys(_Generated):
     """``tumble-study-keys``: every key of ``studies/defaults.toml``."""
 
     def markdown(self):
+        from tumble.pipeline import schema
         from tumble.pipeline.config import DEFAULTS_PATH
 
         self.env.note_dependency(str(DEFAULTS_PATH))
+        self.env.note_dependency(schema.__file__)
         return study_reference(DEFAULTS_PATH)
 
 

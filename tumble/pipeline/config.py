@@ -36,9 +36,9 @@ from pathlib import Path
 import numpy as np
 
 from .. import registry
-from ..engine.sampling import DISTRIBUTIONS
 from ..physics import models, shapes
 from ..physics.bodies import Body, validate_moments
+from . import schema
 
 __all__ = [
     "ARRAYS",
@@ -84,14 +84,13 @@ STUDIES_DIR = _studies_dir()
 DEFAULTS_PATH = STUDIES_DIR / "defaults.toml"
 
 #: Shape functions of :mod:`tumble.physics.shapes` a study may name in ``body.shape``.
-SHAPES = ("rod", "disc", "cylinder", "cone", "sphere", "ellipsoid", "cuboid", "cube_about_edge", "loaded_die",
-          "t_handle")
+SHAPES = schema.SHAPES
 
 #: ``integration.method``: the planner's choice, the closed form, or a fixed-step method.
 METHOD_NAMES = registry.CHOICES
 
 #: ``torque.profile``: named time dependences of the body-frame torque (see ``defaults.toml``).
-PROFILES = ("none", *(p.name for p in registry.TORQUE_PROFILES))
+PROFILES = schema.PROFILES
 
 #: Which profile needs which time parameter (> 0); the other one must stay 0.
 _PROFILE_TIMES = {p.name: p.time for p in registry.TORQUE_PROFILES if p.time}
@@ -104,23 +103,8 @@ FORMATS = registry.FORMATS
 ARRAYS = registry.PER_SAMPLE_ARRAYS
 
 #: Keys of the ``[scan]`` table, and the field each one replaces (``scan.body`` replaces the whole ``[body]``
-#: table: moments, shape and dimensions).
-SCAN_KEYS = {
-    "body": "body",
-    "moments": "body.moments",
-    "triangle": "body.moments",
-    "axis": "spin.axis",
-    "rate": "spin.rate",
-    "amplitude": "perturbation.amplitude",
-    "method": "integration.method",
-    "rotor": "model.rotor",
-    "mgl": "model.mgl",
-    "orbit_rate": "model.orbit_rate",
-    "damper_inertia": "model.damper_inertia",
-    "damping": "model.damping",
-    "k1": "body.moments",
-    "k3": "body.moments",
-}
+#: table: moments, shape and dimensions): :func:`tumble.pipeline.schema.scan_replaces`.
+SCAN_KEYS = schema.scan_replaces()
 
 #: ``model.kind``: every model of the registry (the reserved ones are refused with a message naming them).
 MODEL_KINDS = registry.MODEL_KINDS
@@ -143,18 +127,10 @@ _ROTOR_RTOL = 1e-12
 #: ``scan.triangle``: the n x n inertia-triangle grid, n in this range.
 TRIANGLE_RANGE = (2, 200)
 
-#: Tables and their keys, in the order of the resolved study. ``body.dimensions`` is a table whose keys
-#: are the shape function's arguments; ``scan`` holds only the keys a study gives.
-_TABLES = {
-    "body": ("moments", "shape", "dimensions"),
-    "spin": ("axis", "rate", "momentum"),
-    "model": ("kind", *(p.key for p in registry.MODEL_PARAMETERS)),
-    "perturbation": ("amplitude", "samples", "seed", "distribution"),
-    "integration": ("method", "dt", "horizon", "flips", "device"),
-    "torque": ("profile", "vector", "period", "duration"),
-    "scan": tuple(SCAN_KEYS),
-    "outputs": ("figures", "format", "arrays", "directory"),
-}
+#: Tables and their keys, in the order of the resolved study (:data:`tumble.pipeline.schema.TABLES`).
+#: ``body.dimensions`` is a table whose keys are the shape function's arguments; ``scan`` holds only the keys a
+#: study gives.
+_TABLES = schema.TABLES
 _TOP = ("title", *_TABLES)
 _SUBTABLES = {("body", "dimensions")}
 _TABLE_ARRAYS = {("scan", "body")}
@@ -837,37 +813,50 @@ def _check_model_scenes(resolved, given):
                                                     f"study draws {', '.join(MODEL_FIGURES)}")
 
 
+def _described(study, field):
+    """The value of ``field`` (a :class:`tumble.pipeline.schema.Field` checked by its description alone: a string, a
+    choice, a list of names, an integer or a number with a lower bound) in the merged ``study``, checked."""
+    value, path = study[field.table][field.key] if field.table else study[field.key], field.path
+    if field.check == "string":
+        return _string(value, path)
+    if field.check == "choice":
+        return _choice(value, path, field.choices)
+    if field.check == "names":
+        return _names(value, path, field.choices, empty=not field.nonempty)
+    if field.check == "integer":
+        n = _integer(value, path)
+        if field.minimum is not None and n < field.minimum:
+            raise _Invalid(path, f"must be >= {field.minimum}, got {n}")
+        return n
+    if field.check == "number":
+        return _at_least(value, path, field.minimum, f" {field.units}")
+    raise AssertionError(f"{path}: check {field.check!r} is a rule of its own, not a description")
+
+
+def _table(study, table, rules=None):
+    """Table ``table`` of the merged ``study`` resolved in the order of its description: each field by its own rule
+    (``rules[key](value, path)``, for the values that depend on others) or else by its description
+    (:func:`_described`)."""
+    rules = rules or {}
+    return {f.key: rules[f.key](study[table][f.key], f.path) if f.key in rules else _described(study, f)
+            for f in schema.table_fields(table)}
+
+
 def _resolve(study, given, title):
     """The resolved study from the merged mapping ``study`` (``given``: the study before merging)."""
-    resolved = {"title": _string(study["title"], "title") or title}
+    resolved = {"title": _described(study, schema.field("title")) or title}
     resolved["body"] = _body(study["body"], given.get("body", {}))
     scan_given = study["scan"]
     resolved["model"] = _model(study["model"], given.get("model", {}), scan_given)
     resolved["spin"] = _spin(study["spin"], given.get("spin", {}), resolved["body"]["moments"], resolved["model"],
                              scan_given)
-    pert = study["perturbation"]
-    distribution = _choice(pert["distribution"], "perturbation.distribution", DISTRIBUTIONS)
-    resolved["perturbation"] = {
-        "amplitude": _amplitude(pert["amplitude"], "perturbation.amplitude", distribution),
-        "samples": _integer(pert["samples"], "perturbation.samples"),
-        "seed": _integer(pert["seed"], "perturbation.seed"),
-        "distribution": distribution,
-    }
-    if resolved["perturbation"]["samples"] < 1:
-        raise _Invalid("perturbation.samples", f"must be >= 1, got {resolved['perturbation']['samples']}")
-    if resolved["perturbation"]["seed"] < 0:
-        raise _Invalid("perturbation.seed", f"must be >= 0, got {resolved['perturbation']['seed']}")
+    distribution = _described(study, schema.field("perturbation.distribution"))
+    resolved["perturbation"] = _table(study, "perturbation", {
+        "amplitude": lambda value, field: _amplitude(value, field, distribution)})
     resolved["torque"] = _torque(study["torque"], resolved["spin"]["axis"])
-    integ = study["integration"]
-    resolved["integration"] = {
-        "method": _method(integ["method"], "integration.method", resolved["torque"]["profile"]),
-        "dt": _at_least(integ["dt"], "integration.dt", 0, " s"),
-        "horizon": _at_least(integ["horizon"], "integration.horizon", 0, " s"),
-        "flips": _integer(integ["flips"], "integration.flips"),
-        "device": _choice(integ["device"], "integration.device", registry.DEVICES),
-    }
-    if resolved["integration"]["flips"] < 0:
-        raise _Invalid("integration.flips", f"must be >= 0, got {resolved['integration']['flips']}")
+    profile = resolved["torque"]["profile"]
+    resolved["integration"] = _table(study, "integration", {
+        "method": lambda value, field: _method(value, field, profile)})
     torque = resolved["torque"]
     if torque["profile"] in registry.RESOLVED_PROFILES:  # a given step must resolve a sine or a pulse
         key = _PROFILE_TIMES[torque["profile"]]
@@ -877,13 +866,7 @@ def _resolve(study, given, title):
             raise _Invalid(f"torque.{key}", problem)
     resolved["scan"] = _scan(study["scan"], resolved)
     resolved["scan"].update(_model_scan(study["scan"]))
-    out = study["outputs"]
-    resolved["outputs"] = {
-        "figures": _names(out["figures"], "outputs.figures", FIGURES),
-        "format": _names(out["format"], "outputs.format", FORMATS, empty=False),
-        "arrays": _names(out["arrays"], "outputs.arrays", ARRAYS),
-        "directory": _string(out["directory"], "outputs.directory"),
-    }
+    resolved["outputs"] = _table(study, "outputs")
     if resolved["model"] is not None:
         _check_model_scenes(resolved, given)
     return {key: resolved[key] for key in _TOP if resolved[key] is not None}
@@ -891,21 +874,6 @@ def _resolve(study, given, title):
 
 # --------------------------------------------------------------------------------------------------------
 # Public
-
-
-def _defaults():
-    shown = str(DEFAULTS_PATH)
-    defaults = _read_toml(DEFAULTS_PATH, shown)
-    try:
-        _check_structure(defaults)
-    except _Invalid as err:
-        raise StudyError(shown, err.field, err.problem) from None
-    missing = [p for p in _leaf_paths() if not p.startswith("scan.")
-               and (p.split(".")[0] not in defaults
-                    or ("." in p and p.split(".")[1] not in defaults[p.split(".")[0]]))]
-    if missing:
-        raise StudyError(shown, missing[0], "missing from the defaults file (every key must have a default)")
-    return defaults
 
 
 def _apply_overrides(study, overrides):
@@ -966,7 +934,7 @@ def load_study(source, *, overrides=None):
         given = _read_toml(path, shown)
     else:
         raise TypeError(f"a study is a path, a bundled study name or a mapping, got {type(source).__name__}")
-    defaults = _defaults()
+    defaults = schema.defaults()
     try:
         if overrides:
             given = _apply_overrides(given, overrides)
