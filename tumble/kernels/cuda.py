@@ -1,53 +1,35 @@
-"""The ensemble on a CUDA device: one thread per sample, its state in registers, float64.
+"""The ensemble on a CUDA device: one thread per sample, float64.
 
-A method is written once. numba-cuda compiles the ``@jit`` functions a kernel calls for the device, so a thread
-steps its sample with the CPU's own per-sample functions: a Runge–Kutta method's ``<name>_sample``, generated from
-its tableau into :mod:`tumble.kernels.fused`; a splitting's table from :mod:`tumble.kernels.tableaux`, run by
-:func:`tumble.kernels.steppers.splitting_free_sample` (the sub-flows of :func:`tumble.kernels.steppers.rotate_about`
-and the projection onto the sample's own ``|L|**2``, as the CPU's block loop) or, with a torque,
-:func:`tumble.kernels.steppers.splitting_with_torque`. A new method in the tables runs here without a line added.
-The frame (moments in units, a splitting's axes relabelled) is prepared by the CPU path's own
-:func:`tumble.kernels.methods.kernel_frame`.
+The time loop is written once: each thread runs the CPU's own loop (:func:`tumble.kernels.drivers.make_run_block`:
+steps, flips, drift, status, stores, probes, early stop, the growth fit) on a block of one sample held in the thread's
+local memory; numba-cuda compiles it and the ``@jit`` functions it calls (the generated steps of
+:mod:`tumble.kernels.fused`, the splittings' sub-flows of :mod:`tumble.kernels.steppers`) for the device. A method, an
+observer or a stop rule added to the CPU's loop runs here without a line added, and a sample stops at the same step
+with the same status as on the CPU. The frame (moments in units, a splitting's axes relabelled) is prepared by the CPU
+path's own :func:`tumble.kernels.methods.kernel_frame`.
 
-What the device computes: the final state, the stored trajectory (``save_every``), the status (non-finite, checked
-every :data:`tumble.kernels.drivers.CHECK_EVERY` steps, every step while flips are observed, and at the end, as on
-the CPU; invariant drift past ``drift_limit``, torque-free), the steps each sample took, and the observers of the CPU
-driver: the transverse norm at probe steps, the times of the spin-axis component's sign changes, the running maxima
-of the invariants' drift and the early stop once a sample's measurement is complete (``stop_norm``, ``stop_flips``).
-The observers are the CPU's per-sample ``@jit`` functions (:func:`tumble.kernels.drivers.transverse_norm`,
-:func:`~tumble.kernels.drivers.flip_in_step`, :func:`~tumble.kernels.drivers.invariant_errors`,
-:func:`~tumble.kernels.drivers.measurement_complete`), called in the CPU driver's order, so a sample stops at the
-same step with the same status as on the CPU; the flip count and the drift maxima stay in registers, and only the
-outputs asked for are copied back. A growth scene's fit runs in registers too: each probe norm is fed to the CPU fit's
-own window step (:func:`tumble.kernels.fits.growth_window_add`) as it comes, and only four numbers per sample come
-back instead of its probes. A sample that stops keeps its state, as on the CPU. The implicit midpoint rule runs
-as the CPU's, at most the same fixed number of fixed-point sweeps per step
-(:func:`tumble.kernels.steppers.implicit_midpoint_sample`). Torque functions are refused with a ``ValueError`` that
-starts ``device 'cuda':``.
+What the device adds: many scenes in one launch (a row per scene of the bodies, steps, probes, torques) and the
+growth fit in the loop (the loop's ``fit_saturation``): each probe norm is fed to the CPU fit's own window step
+(:func:`tumble.kernels.fits.growth_window_add`) as it comes, and only four numbers per sample come back instead of its
+probes. Only the outputs asked for are copied back. Torque functions are refused with a ``ValueError`` that starts
+``device 'cuda':``.
 
 This module imports ``numba.cuda``; it is imported only when a run asks for ``device="cuda"``
 (:func:`tumble.kernels.device_kernels`). With ``NUMBA_ENABLE_CUDASIM=1`` (set before numba is imported) the
-kernels run on numba-cuda's simulator, which executes the kernel body in Python and the ``@jit`` functions it
-calls as compiled CPU code.
+kernels run on numba-cuda's simulator, which executes the kernel body in Python and the loop it calls as compiled CPU
+code (:func:`tumble.kernels.cuda_launch.loop_array`).
 """
 
-import math
-
 import numpy as np
-from numba import cuda
+from numba import boolean, cuda, float64, int64
 
-from ..registry import STATUS_DRIFT, STATUS_NONFINITE, STATUS_OK
-from . import fused, steppers, tableaux
-from .drivers import CHECK_EVERY, drifted, flip_in_step, invariant_errors, measurement_complete, transverse_norm
-from .fits import GROWTH_WINDOW_START, growth_window_add, growth_window_rate
+from .cuda_launch import THREADS, launch_shape, loop_array
+from .drivers import RUN_BLOCK_FREE, RUN_BLOCK_TORQUE, VALUE_ROWS
 from .jit import cuda_jit
 from .methods import Observed, from_kernel_frame, kernel_frame, kernel_observed_axis
-from .steppers import TORQUE_CONSTANT, energy, l_squared, splitting_free_sample, splitting_with_torque
+from .steppers import TORQUE_CONSTANT
 
 __all__ = ["THREADS", "kernel", "make_kernel", "refusal", "run", "run_scenes"]
-
-#: Threads per block of a launch (one sample each).
-THREADS = 128
 
 
 def refusal(method, *, torque_fn=None):
@@ -59,148 +41,42 @@ def refusal(method, *, torque_fn=None):
 
 
 def make_kernel(method, torque_free):
-    # size: the closure holds the one kernel below (see there)
-    """The device kernel of ``method``, torque-free or with a built-in torque profile: one thread per sample.
-
-    The step is the CPU's: a Runge–Kutta method's generated ``<name>_sample``; a splitting's table (its sub-flows
-    without the torque ones when torque-free) run by :func:`tumble.kernels.steppers.splitting_free_sample` or
-    :func:`tumble.kernels.steppers.splitting_with_torque`. ``splitting`` and ``torque_free`` are constants of the
-    closure, so numba compiles only the branch the kernel takes.
-    """
-    coefficients = method.coefficients
-    splitting = isinstance(coefficients, tableaux.Splitting)
-    sample = flows = fractions = None
-    if splitting:
-        table = coefficients.without_torque() if torque_free else coefficients
-        flows, fractions = table.flows, table.fractions
-    else:
-        # generated from the tableau (kernels/codegen.py); the implicit midpoint rule's is written by hand
-        sample = getattr(fused, f"{method.name}_sample", None) or steppers.implicit_midpoint_sample
+    """The device kernel of ``method``, torque-free or with a built-in torque profile: one thread per sample, running
+    the CPU's time loop (:func:`tumble.kernels.drivers.make_run_block`) on a block of one sample in the thread's local
+    memory. The method is an argument of the loop, as on the CPU; ``torque_free`` a constant of the closure, so that
+    numba compiles only the loop's torque-free or its torque branch."""
+    kernel_id = method.kernel_id
 
     @cuda_jit
     def propagate(w, scene, bodies, t0, hs, step_counts, saves, saved, axes, weight_rows, probe_step_rows, probes,
                   flips, flip_count, drift, status, steps_taken, stop_norms, stop_flips, drift_limit, torque_kind,
                   torque_rows, fit_saturations, fit_min_points, fit_hs, fit, fit_points):
         # size: a kernel's flat arguments (DESIGN.md: arrays and scalars below the kernels' door), packed by
-        # run_scenes(), and one time loop with its observers, status checks and stores in the CPU driver's order
+        # run_scenes(), each scene's row read here and handed to the one time loop
         """Advance sample ``i = cuda.grid(1)`` of scene ``s = scene[i]`` (0 when ``scene`` is empty: one scene) by
         ``step_counts[s]`` steps of ``hs[s]`` from ``t0``, observing as asked. Each scene's quantities are a row of a
-        per-scene table, read once into registers: ``bodies`` (S, 12) the body constants, ``axes``, ``saves``
-        (steps between stored states), ``weight_rows`` (S, 3), ``probe_step_rows`` (S, P), ``stop_norms``,
-        ``torque_rows`` (S, 4), ``fit_saturations`` and ``fit_hs``; for one scene they are the arguments of
-        :func:`tumble.kernels.drivers.make_propagate`'s driver that the device serves (``probes`` may be empty
-        while the probe steps are not: the norms then only feed the growth fit). The observers are the CPU's
-        per-sample ones (:func:`flip_in_step`, :func:`invariant_errors`, :func:`transverse_norm`,
-        :func:`measurement_complete`), called in the CPU driver's order, so that a sample stops at the same step with
-        the same status; the flip count and the drift maxima stay in registers.
-
-        ``fit_saturations[s] > 0`` fits the growth rate of the norms at the probes (``fit_hs[s]`` apart) in registers
-        as they come (:func:`tumble.kernels.fits.growth_window_add`, the CPU fit's own step): ``fit`` (3, N) receives
-        the rate (1/s, NaN unless the window has ``fit_min_points``), the first and the last norm of the window,
-        ``fit_points`` its length (0 unless the fit is good).
-        """
+        per-scene table: ``bodies`` (S, 12) the body constants, ``axes``, ``saves`` (steps between stored states),
+        ``weight_rows`` (S, 3), ``probe_step_rows`` (S, P), ``stop_norms``, ``torque_rows`` (S, 4),
+        ``fit_saturations`` and ``fit_hs``; for one scene they are the arguments of
+        :func:`tumble.kernels.drivers.make_propagate`'s driver that the device serves (``probes`` may be empty while
+        the probe steps are not: the norms then only feed the growth fit)."""
         i = cuda.grid(1)
         if i >= w.shape[1]:
             return
         s = scene[i] if scene.shape[0] > 0 else 0
         body = (bodies[s, 0], bodies[s, 1], bodies[s, 2], bodies[s, 3], bodies[s, 4], bodies[s, 5], bodies[s, 6],
                 bodies[s, 7], bodies[s, 8], bodies[s, 9], bodies[s, 10], bodies[s, 11])  # registers, as a tuple
-        h, n_steps, save_every, axis = hs[s], step_counts[s], saves[s], axes[s]
-        weights = (weight_rows[s, 0], weight_rows[s, 1], weight_rows[s, 2])
-        probe_steps = probe_step_rows[s]
-        stop_norm, fit_saturation, fit_h = stop_norms[s], fit_saturations[s], fit_hs[s]
-        torque_params = (torque_rows[s, 0], torque_rows[s, 1], torque_rows[s, 2], torque_rows[s, 3])
-        w1, w2, w3 = w[0, i], w[1, i], w[2, i]
-        target = l_squared(w1, w2, w3, body)
-        e0 = energy(w1, w2, w3, body)
-        store = saved.shape[0] > 0
-        n_probes = probe_steps.shape[0]
-        keep_probes = probes.shape[0] > 0
-        fitting = fit_saturation > 0.0
-        n_flips = flips.shape[1]
-        track_drift = drift.shape[0] > 0
-        early_stop = stop_norm > 0.0 or stop_flips > 0
-        slot = 0
-        if store:
-            saved[0, 0, i], saved[0, 1, i], saved[0, 2, i] = w1, w2, w3
-            slot = 1
-        for j in range(n_flips):
-            flips[i, j] = math.nan
-        reached = False
-        window = GROWTH_WINDOW_START
-        probe = 0
-        count = 0
-        max_de = max_dl = 0.0
-        code = STATUS_OK
-        ran = 0
-        while True:  # observe the state after `ran` steps (probes, early stop), then take the next step
-            while probe < n_probes and probe_steps[probe] == ran:
-                norm = transverse_norm(w1, w2, w3, axis, weights)
-                if keep_probes:
-                    probes[probe, i] = norm
-                if fitting:
-                    window = growth_window_add(probe, norm, fit_saturation, window)
-                reached = reached or (stop_norm > 0.0 and norm >= stop_norm)
-                probe += 1
-            if ran == n_steps or (ran > 0 and early_stop and measurement_complete(reached, stop_norm, stop_flips,
-                                                                                   count)):
-                break
-            t = t0 + ran * h
-            p1, p2, p3 = w1, w2, w3
-            if splitting and torque_free:
-                w1, w2, w3 = splitting_free_sample(w1, w2, w3, h, body, target, flows, fractions)
-            elif splitting:
-                w1, w2, w3 = splitting_with_torque(w1, w2, w3, t, h, body, flows, fractions, torque_kind,
-                                                   torque_params, None)
-            elif torque_free:
-                w1, w2, w3 = sample(w1, w2, w3, t, h, body, torque_kind, None, None)
-            else:
-                w1, w2, w3 = sample(w1, w2, w3, t, h, body, torque_kind, torque_params, None)
-            ran += 1
-            if n_flips > 0:
-                if torque_free:
-                    flipped, time = flip_in_step(axis, t, h, p1, p2, p3, w1, w2, w3, body, torque_kind, None, None)
-                else:
-                    flipped, time = flip_in_step(axis, t, h, p1, p2, p3, w1, w2, w3, body, torque_kind,
-                                                 torque_params, None)
-                if flipped:
-                    if count < n_flips:
-                        flips[i, count] = time
-                    count += 1
-            if track_drift or drift_limit > 0.0:
-                de, dl = invariant_errors(w1, w2, w3, body, e0, target)
-                max_de, max_dl = max(max_de, de), max(max_dl, dl)
-                if drifted(de, dl, drift_limit):
-                    code = STATUS_DRIFT
-            if code == STATUS_OK and (n_flips > 0 or ran % CHECK_EVERY == 0 or ran == n_steps):
-                if not (math.isfinite(w1) and math.isfinite(w2) and math.isfinite(w3)):
-                    code = STATUS_NONFINITE
-            if store and (ran % save_every == 0 or ran == n_steps):
-                saved[slot, 0, i], saved[slot, 1, i], saved[slot, 2, i] = w1, w2, w3
-                slot += 1
-            if code != STATUS_OK:
-                break
-        # A sample that stopped keeps its state for the rest of its trajectory and has no norm after it, as on the CPU
-        if store:
-            for k in range(ran, n_steps):
-                if (k + 1) % save_every == 0 or k + 1 == n_steps:
-                    saved[slot, 0, i], saved[slot, 1, i], saved[slot, 2, i] = w1, w2, w3
-                    slot += 1
-        if fitting:
-            if probe < n_probes:  # the first probe after the sample stopped (NaN) closes the window
-                window = growth_window_add(probe, math.nan, fit_saturation, window)
-            fit[0, i], fit_points[i], fit[1, i], fit[2, i] = growth_window_rate(window, n_probes, fit_h,
-                                                                                fit_min_points)
-        while keep_probes and probe < n_probes:
-            probes[probe, i] = math.nan
-            probe += 1
-        if n_flips > 0:
-            flip_count[i] = count
-        if track_drift:
-            drift[0, i], drift[1, i] = max_de, max_dl
-        w[0, i], w[1, i], w[2, i] = w1, w2, w3
-        status[i] = code
-        steps_taken[i] = ran
+        run = (kernel_id, loop_array(w), i, cuda.local.array((3, 1), float64), cuda.local.array((3, 1), float64),
+               cuda.local.array((3, 1), float64), cuda.local.array((VALUE_ROWS, 1), float64),
+               cuda.local.array((2, 1), boolean), cuda.local.array(1, int64), body, t0, hs[s], step_counts[s], saves[s],
+               loop_array(saved), axes[s], loop_array(weight_rows)[s], loop_array(probe_step_rows)[s],
+               loop_array(probes), loop_array(flips), loop_array(flip_count), loop_array(drift), loop_array(status),
+               loop_array(steps_taken), stop_norms[s], stop_flips, drift_limit, torque_kind)
+        fit = (fit_saturations[s], fit_min_points, fit_hs[s], loop_array(fit), loop_array(fit_points))
+        if torque_free:  # a constant: numba compiles one of the two
+            RUN_BLOCK_FREE(*run, None, None, *fit)
+        else:
+            RUN_BLOCK_TORQUE(*run, loop_array(torque_rows)[s], None, *fit)
 
     return propagate
 
@@ -319,18 +195,17 @@ def run_scenes(method, w, sizes, moments, t0, h, n_steps, *, save_every, axis, n
     device_w = cuda.to_device(kernel_w)
     saved = cuda.device_array((n_saved, 3, n)) if n_saved else cuda.device_array((0, 3, 1))
     flips = cuda.device_array((n, max_flips)) if max_flips > 0 else cuda.device_array((1, 0))
-    flip_count = cuda.device_array(n if max_flips > 0 else 0, dtype=np.int64)
+    flip_count = cuda.device_array(n, dtype=np.int64)
     drifts = cuda.device_array((2, n)) if drift else cuda.device_array((0, 1))
     keep_probes = n_probes > 0 and (keep_probes or growth_window is None)
     probes = cuda.device_array((n_probes, n)) if keep_probes else cuda.device_array((0, 1))
     saturation, min_points, fit_h = growth_window or (np.zeros(count), 0, np.zeros(count))
-    fit = cuda.device_array((3, n)) if growth_window else cuda.device_array((0, 1))
+    fit = cuda.device_array((3 if growth_window else 0, n))
     fit_points = cuda.device_array(n if growth_window else 0, dtype=np.int64)
     status = cuda.device_array(n, dtype=np.int8)
     steps_taken = cuda.device_array(n, dtype=np.int64)
     scene = np.repeat(np.arange(count, dtype=np.int64), sizes) if count > 1 else np.zeros(0, dtype=np.int64)
-    threads = THREADS if n >= THREADS else 32 * -(-n // 32)
-    kernel(method, torque_free)[-(-n // threads), threads](
+    kernel(method, torque_free)[launch_shape(n)](
         device_w, cuda.to_device(scene), cuda.to_device(bodies), float(t0), cuda.to_device(np.asarray(h, float)),
         cuda.to_device(n_steps), cuda.to_device(save_every), saved, cuda.to_device(axes),
         cuda.to_device(weight_rows), cuda.to_device(probe_steps), probes, flips, flip_count, drifts, status,

@@ -1,6 +1,9 @@
-"""The generic ensemble driver: every fixed-step method, every sample, the time loop inside, observers on the fly.
+"""The free body's time loop, written once for the CPU and the device: every fixed-step method, every sample,
+observers on the fly.
 
-Samples are cut into blocks of ``block`` samples; blocks run in parallel (``prange``) and each block is
+The loop (:func:`make_run_block`) runs a block of samples through the whole run. The CPU's driver
+(:func:`make_propagate`) runs blocks in parallel; the device's kernel (:mod:`tumble.kernels.cuda`) runs a block of one
+sample per thread. Samples are cut into blocks of ``block`` samples; blocks run in parallel (``prange``) and each block is
 copied into three contiguous component arrays (structure of arrays) so that the per-sample step
 (:mod:`tumble.kernels.fused`) vectorises across samples. Samples never interact, so the results do not
 depend on the number of threads or on the block size.
@@ -26,6 +29,7 @@ from numba import prange, types
 
 from ..registry import STATUS_DRIFT, STATUS_NAMES, STATUS_NONFINITE, STATUS_OK, STEPPING  # noqa: F401
 from .fused import rk4_block, rk8_block, splitting2_block, splitting4_block, symplectic_euler_block
+from .fits import GROWTH_WINDOW_START, growth_window_add, growth_window_rate
 from .jit import jit
 from .steppers import (
     energy,
@@ -183,15 +187,33 @@ def _check_finite(ys, active, k, frozen, status, last):
 
 
 @jit
-def _observe_norm(ys, active, axis, weights, probes, lo, row, stop_norm, reached):
+def _observe_norm(ys, active, axis, weights, probes, lo, row, stop_norm, reached, window, fit_saturation):
     """Weighted transverse norm (:func:`transverse_norm`) about ``axis`` into ``probes[row]`` (NaN for stopped
-    samples); marks samples whose norm reached ``stop_norm``."""
+    samples; not kept when ``probes`` is empty) and into each sample's growth window (``window`` (6, m), with
+    ``fit_saturation > 0``: :func:`tumble.kernels.fits.growth_window_add`); marks samples whose norm reached
+    ``stop_norm``."""
     for i in range(ys.shape[1]):
-        norm = transverse_norm(ys[0, i], ys[1, i], ys[2, i], axis, weights)
+        norm = transverse_norm(ys[0, i], ys[1, i], ys[2, i], axis, weights) if active[i] else np.nan
         if probes.shape[0] > 0:
-            probes[row, lo + i] = norm if active[i] else np.nan
+            probes[row, lo + i] = norm
+        if fit_saturation > 0.0:
+            _feed_window(window, i, row, norm, fit_saturation)
         if active[i] and stop_norm > 0.0 and norm >= stop_norm:
             reached[i] = True
+
+
+@jit(inline=True)
+def _feed_window(window, i, row, norm, fit_saturation):
+    """Probe ``row``'s norm into sample ``i``'s growth window, kept as column ``i`` of ``window`` (6, m); ``row < 0``
+    opens the window (:data:`tumble.kernels.fits.GROWTH_WINDOW_START`)."""
+    if row < 0:
+        stop, older, old, total, count, first = GROWTH_WINDOW_START
+    else:
+        stop, older, old, total, count, first = growth_window_add(
+            row, norm, fit_saturation, (int(window[0, i]), window[1, i], window[2, i], window[3, i],
+                                        int(window[4, i]), window[5, i]))
+    window[0, i], window[1, i], window[2, i], window[3, i], window[4, i], window[5, i] = (
+        stop, older, old, total, count, first)
 
 
 @jit
@@ -207,18 +229,179 @@ def _stop_complete(ys, active, reached, stop_norm, stop_flips, flip_count, lo, k
     return remaining
 
 
-def make_propagate(torque_free):
-    # size: the closure holds the one driver below (see there)
-    """The driver of every fixed-step method, for a torque-free run or for a run with a torque.
+@jit
+def _store(saved, slot, ys, lo):
+    """The block's states into ``saved[slot]`` (its columns ``lo``, ...)."""
+    for j in range(3):
+        for i in range(ys.shape[1]):
+            saved[slot, j, lo + i] = ys[j, i]
+
+
+#: Rows of a block's float scratch ``values`` (m columns) besides its states: each sample's initial ``|L|**2``
+#: (the splittings project onto it), its initial energy, and its growth window (6 rows, :func:`_feed_window`).
+TARGET, ENERGY, WINDOW = 0, 1, 2
+VALUE_ROWS = 8
+
+
+def make_run_block(torque_free):
+    # size: the closure holds the one time loop below (see there)
+    """The one time loop of the free body (documented inside), torque-free or with a torque.
 
     ``torque_free`` is a constant of the returned closure, so numba prunes the other case before compiling: the
-    torque-free driver calls the generated steps of :mod:`tumble.kernels.fused` (the splittings spelled out,
-    ending on each sample's own ``|L|**2``), the driver with a torque calls the splittings through
-    :func:`tumble.kernels.steppers.make_splitting_torque_block`, the loop over their sub-flows with torque
-    sub-flows, and never compiles the spelled-out torque-free splittings (splitting4's alone costs about 40 s). The method
-    is a runtime argument, tested once per block and step outside the loop over the samples; the observers
-    are block functions compiled once and shared by both drivers.
-    """
+    torque-free loop calls the generated steps of :mod:`tumble.kernels.fused` (the splittings spelled out, ending on
+    each sample's own ``|L|**2``), the loop with a torque calls the splittings through
+    :func:`tumble.kernels.steppers.make_splitting_torque_block`, the loop over their sub-flows with torque sub-flows,
+    and never compiles the spelled-out torque-free splittings (splitting4's alone costs about 40 s). (A test of
+    ``torque_params is None`` would not do: numba prunes on it only when it is None.) The method is a runtime
+    argument, tested once per block and step outside the loop over the samples."""
+
+    @jit
+    def run_block(kernel, w, lo, ys, frozen, previous, values, flags, last,
+                  body, t0, h, n_steps, save_every, saved,
+                  axis, norm_weights, probe_steps, probes,
+                  flips, flip_count, drift,
+                  status, steps_taken,
+                  stop_norm, stop_flips, drift_limit,
+                  torque_kind, torque_params, torque_fn,
+                  fit_saturation, fit_min_points, fit_h, fit, fit_points):
+        # size: the one time loop of every method and observer, on either device: flat arrays and scalars
+        # (DESIGN.md: arrays and scalars below the kernels' door), the block's scratch owned by the caller, the
+        # observers the helpers above, in one order of step, flips, drift, status, store, probes and early stop
+        """Samples ``lo, ..., lo + m - 1`` of ``w`` through the whole run: the free body's one time loop, for the CPU
+        and the device.
+
+        The CPU's driver (:func:`make_propagate`) calls it for each block of samples in parallel, where the block's
+        samples move together in SIMD lanes (the steps of :mod:`tumble.kernels.fused` loop over them); the device's
+        kernel (:mod:`tumble.kernels.cuda`) for one sample per thread (``m = 1``, the scratch in the thread's local
+        memory).
+
+        The scratch, owned by the caller: ``ys``, ``frozen`` and ``previous`` (3, m): the states, the state each
+        stopped sample keeps, the states before the step (flips); ``values`` (:data:`VALUE_ROWS`, m) float;
+        ``flags`` (2, m) bool: running, its norm reached ``stop_norm``; ``last`` (m,) int64: the steps each sample
+        took. The other arguments are the CPU driver's, and the growth fit's: ``fit_saturation > 0`` feeds each
+        sample's norms at the probes (``fit_h`` apart) to its growth window as they come
+        (:func:`tumble.kernels.fits.growth_window_add`, the CPU fit's own step): ``fit`` (3, N) receives the rate (1/s,
+        NaN unless the window has ``fit_min_points``), the first and the last norm of the window, ``fit_points`` its
+        length (0 unless the fit is good). The loop writes the block's columns of every output, and sets them all (an
+        output's initial content does not matter).
+        """
+        m = ys.shape[1]
+        y1, y2, y3 = ys[0], ys[1], ys[2]
+        active, reached = flags[0], flags[1]
+        target, e0, window = values[TARGET], values[ENERGY], values[WINDOW:WINDOW + 6]
+        work = values[VALUE_ROWS:]  # the steps' scratch rows: none needs any
+        early_stop = stop_norm > 0.0 or stop_flips > 0
+        limit = drift_limit if torque_params is None else 0.0
+        n_probes = probe_steps.shape[0]
+        store = saved.shape[0] > 0
+        track_flips = flips.shape[1] > 0
+        track_drift = drift.shape[0] > 0
+        block_status = status[lo:lo + m]
+        for i in range(m):
+            y1[i], y2[i], y3[i] = w[0, lo + i], w[1, lo + i], w[2, lo + i]
+            active[i], reached[i] = True, False
+            last[i] = n_steps
+            block_status[i] = STATUS_OK
+            target[i] = l_squared(y1[i], y2[i], y3[i], body)
+            e0[i] = energy(y1[i], y2[i], y3[i], body)
+            _feed_window(window, i, -1, 0.0, 0.0)
+            flip_count[lo + i] = 0
+            for j in range(flips.shape[1]):
+                flips[lo + i, j] = np.nan
+            if track_drift:
+                drift[0, lo + i] = drift[1, lo + i] = 0.0
+        n_frozen = 0
+        slot = 0
+        if store:
+            _store(saved, 0, ys, lo)
+            slot = 1
+        probe = 0
+        while probe < n_probes and probe_steps[probe] == 0:
+            _observe_norm(ys, active, axis, norm_weights, probes, lo, probe, stop_norm, reached, window, fit_saturation)
+            probe += 1
+        ran = 0
+        for k in range(n_steps):
+            t = t0 + k * h
+            if track_flips:
+                for i in range(m):
+                    previous[0, i], previous[1, i], previous[2, i] = y1[i], y2[i], y3[i]
+            if kernel == RK4:
+                rk4_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
+            elif kernel == RK8:
+                rk8_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
+            elif kernel == IMPLICIT_MIDPOINT:
+                implicit_midpoint_block(y1, y2, y3, active, t, h, body, work, torque_kind, torque_params, torque_fn)
+            elif not torque_free:
+                if kernel == SYMPLECTIC_EULER:
+                    symplectic_euler_torque_block(y1, y2, y3, t, h, body, torque_kind, torque_params, torque_fn)
+                elif kernel == SPLITTING2:
+                    splitting2_torque_block(y1, y2, y3, t, h, body, torque_kind, torque_params, torque_fn)
+                else:
+                    splitting4_torque_block(y1, y2, y3, t, h, body, torque_kind, torque_params, torque_fn)
+            elif kernel == SYMPLECTIC_EULER:
+                symplectic_euler_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params,
+                                       torque_fn)
+            elif kernel == SPLITTING2:
+                splitting2_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
+            else:
+                splitting4_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
+            if n_frozen:
+                _restore_frozen(y1, y2, y3, active, frozen)
+            ran = k + 1
+            if track_flips:
+                _observe_flips(ys, previous, active, axis, t, h, body, flips, flip_count, lo, torque_kind,
+                               torque_params, torque_fn)
+            if track_drift or limit > 0.0:
+                n_frozen += _observe_drift(ys, active, body, e0, target, drift, lo, limit, ran, frozen, block_status,
+                                           last)
+            if track_flips or ran % CHECK_EVERY == 0 or ran == n_steps:
+                n_frozen += _check_finite(ys, active, ran, frozen, block_status, last)
+            if store and (ran % save_every == 0 or ran == n_steps):
+                _store(saved, slot, ys, lo)
+                slot += 1
+            while probe < n_probes and probe_steps[probe] == ran:
+                _observe_norm(ys, active, axis, norm_weights, probes, lo, probe, stop_norm, reached, window,
+                              fit_saturation)
+                probe += 1
+            if early_stop:
+                remaining = _stop_complete(ys, active, reached, stop_norm, stop_flips, flip_count, lo, ran, frozen,
+                                           block_status, last)
+                n_frozen = m - remaining
+                if remaining == 0:
+                    break
+        # A block that stopped early fills the rest of its requested outputs: trajectories hold the frozen state, probes
+        # are NaN (no measurement after a sample stopped; the first closes its growth window).
+        if store:
+            for k in range(ran, n_steps):
+                if (k + 1) % save_every == 0 or k + 1 == n_steps:
+                    _store(saved, slot, ys, lo)
+                    slot += 1
+        for i in range(m):
+            active[i] = False
+        while probe < n_probes:
+            _observe_norm(ys, active, axis, norm_weights, probes, lo, probe, 0.0, reached, window, fit_saturation)
+            probe += 1
+        for i in range(m):
+            w[0, lo + i], w[1, lo + i], w[2, lo + i] = y1[i], y2[i], y3[i]
+            steps_taken[lo + i] = last[i]
+            if fit_saturation > 0.0:
+                stop, older, old, total, count, first = (int(window[0, i]), window[1, i], window[2, i], window[3, i],
+                                                         int(window[4, i]), window[5, i])
+                fit[0, lo + i], fit_points[lo + i], fit[1, lo + i], fit[2, lo + i] = growth_window_rate(
+                    (stop, older, old, total, count, first), n_probes, fit_h, fit_min_points)
+
+    return run_block
+
+
+#: The one time loop, torque-free and with a torque (:func:`make_run_block`), each compiled on first use.
+RUN_BLOCK_FREE = make_run_block(True)
+RUN_BLOCK_TORQUE = make_run_block(False)
+
+
+def make_propagate(torque_free):
+    # size: the closure holds the CPU's driver below (see there)
+    """The CPU's driver of the one time loop, torque-free (:data:`RUN_BLOCK_FREE`) or with a torque
+    (:data:`RUN_BLOCK_TORQUE`): a constant of the closure, as the loop's."""
 
     @jit(parallel=True)
     def propagate(kernel, w, body, t0, h, n_steps, block,
@@ -229,10 +412,9 @@ def make_propagate(torque_free):
                   status, steps_taken,
                   stop_norm, stop_flips, drift_limit,
                   torque_kind, torque_params, torque_fn):
-        # size: the one driver of every method and observer: numba takes flat arrays and scalars (kernels.methods.run
-        # packs them), and the step loop with its observer calls stays one prange body so that each block's samples
-        # move together in SIMD lanes (the observers are the helpers above)
-        """Advance every sample ``n_steps`` fixed steps of size ``h`` of method ``kernel``, observing as asked.
+        # size: the driver's flat arguments (kernels.methods.run packs them), documented once here
+        """Advance every sample ``n_steps`` fixed steps of size ``h`` of method ``kernel``, observing as asked: the
+        CPU's wrapper of the one time loop (:func:`make_run_block`), blocks of ``block`` samples in parallel.
 
         Parameters
         ----------
@@ -258,7 +440,8 @@ def make_propagate(torque_free):
             NaN once a sample has stopped.
         flips, flip_count : ndarray (N, F), ndarray (N,) int64
             Times (s) of the first ``F`` sign changes of the ``axis`` component, located inside the step by cubic
-            Hermite interpolation; ``flip_count`` counts all of them. ``F = 0``: flips are not observed.
+            Hermite interpolation (NaN beyond the last); ``flip_count`` counts all of them. ``F = 0``: flips are not
+            observed.
         drift : ndarray (2, N) or (0, N)
             Running maximum of ``|E/E0 - 1|`` and ``||L|²/|L0|² - 1|`` (not recorded when empty).
         status, steps_taken : ndarray (N,) int8, ndarray (N,) int64
@@ -272,106 +455,19 @@ def make_propagate(torque_free):
             See :func:`tumble.kernels.steppers.body_torque`; ``torque_params=None`` compiles the torque out.
         """
         n = w.shape[1]
-        n_blocks = (n + block - 1) // block
-        early_stop = stop_norm > 0.0 or stop_flips > 0
-        limit = drift_limit if torque_params is None else 0.0
-        n_probes = probe_steps.shape[0]
-        store = saved.shape[0] > 0
-        track_flips = flips.shape[1] > 0
-        track_drift = drift.shape[0] > 0
-        for ib in prange(n_blocks):
+        no_fit, no_fit_points = np.empty((0, 1)), np.empty(0, dtype=np.int64)  # the growth fit is the caller's
+        for ib in prange((n + block - 1) // block):
             lo = ib * block
-            hi = min(lo + block, n)
-            m = hi - lo
-            ys = np.empty((3, m))
-            ys[:, :] = w[:, lo:hi]
-            y1, y2, y3 = ys[0], ys[1], ys[2]
-            active = np.ones(m, dtype=np.bool_)
-            reached = np.zeros(m, dtype=np.bool_)
-            frozen = np.empty((3, m))  # the state of each sample at the step it stopped
-            last = np.full(m, n_steps, dtype=np.int64)
-            block_status = status[lo:hi]
-            block_status[:] = STATUS_OK
-            target = np.empty(m)  # initial |L|^2 (the splittings project onto it)
-            e0 = np.empty(m)
-            for i in range(m):
-                target[i] = l_squared(y1[i], y2[i], y3[i], body)
-                e0[i] = energy(y1[i], y2[i], y3[i], body)
-            work = np.empty((0, m))  # the blocks' scratch rows: none needs any
-            previous = np.empty((3, m))
-            n_frozen = 0
-            slot = 0
-            if store:
-                saved[0, :, lo:hi] = ys
-                slot = 1
-            probe = 0
-            while probe < n_probes and probe_steps[probe] == 0:
-                _observe_norm(ys, active, axis, norm_weights, probes, lo, probe, stop_norm, reached)
-                probe += 1
-            ran = 0
-            for k in range(n_steps):
-                t = t0 + k * h
-                if track_flips:
-                    previous[:, :] = ys
-                if kernel == RK4:
-                    rk4_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
-                elif kernel == RK8:
-                    rk8_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
-                elif kernel == IMPLICIT_MIDPOINT:
-                    implicit_midpoint_block(y1, y2, y3, active, t, h, body, work, torque_kind, torque_params,
-                                            torque_fn)
-                elif not torque_free:
-                    if kernel == SYMPLECTIC_EULER:
-                        symplectic_euler_torque_block(y1, y2, y3, t, h, body, torque_kind, torque_params, torque_fn)
-                    elif kernel == SPLITTING2:
-                        splitting2_torque_block(y1, y2, y3, t, h, body, torque_kind, torque_params, torque_fn)
-                    else:
-                        splitting4_torque_block(y1, y2, y3, t, h, body, torque_kind, torque_params, torque_fn)
-                elif kernel == SYMPLECTIC_EULER:
-                    symplectic_euler_block(y1, y2, y3, active, t, h, body, target, work, torque_kind,
-                                           torque_params, torque_fn)
-                elif kernel == SPLITTING2:
-                    splitting2_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params,
-                                     torque_fn)
-                else:
-                    splitting4_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params,
-                                     torque_fn)
-                if n_frozen:
-                    _restore_frozen(y1, y2, y3, active, frozen)
-                ran = k + 1
-                if track_flips:
-                    _observe_flips(ys, previous, active, axis, t, h, body, flips, flip_count, lo, torque_kind,
-                                   torque_params, torque_fn)
-                if track_drift or limit > 0.0:
-                    n_frozen += _observe_drift(ys, active, body, e0, target, drift, lo, limit, ran, frozen,
-                                               block_status, last)
-                if track_flips or ran % CHECK_EVERY == 0 or ran == n_steps:
-                    n_frozen += _check_finite(ys, active, ran, frozen, block_status, last)
-                if store and (ran % save_every == 0 or ran == n_steps):
-                    saved[slot, :, lo:hi] = ys
-                    slot += 1
-                while probe < n_probes and probe_steps[probe] == ran:
-                    _observe_norm(ys, active, axis, norm_weights, probes, lo, probe, stop_norm, reached)
-                    probe += 1
-                if early_stop:
-                    remaining = _stop_complete(ys, active, reached, stop_norm, stop_flips, flip_count, lo, ran,
-                                               frozen, block_status, last)
-                    n_frozen = m - remaining
-                    if remaining == 0:
-                        break
-            # A block that stopped early fills the rest of its requested outputs: trajectories hold the frozen
-            # state, probes are NaN (no measurement after a sample stopped).
-            if store:
-                for k in range(ran, n_steps):
-                    if (k + 1) % save_every == 0 or k + 1 == n_steps:
-                        saved[slot, :, lo:hi] = ys
-                        slot += 1
-            while probe < n_probes:
-                if probes.shape[0] > 0:
-                    probes[probe, lo:hi] = np.nan
-                probe += 1
-            w[:, lo:hi] = ys
-            steps_taken[lo:hi] = last
+            m = min(block, n - lo)
+            run = (kernel, w, lo, np.empty((3, m)), np.empty((3, m)), np.empty((3, m)), np.empty((VALUE_ROWS, m)),
+                   np.empty((2, m), dtype=np.bool_), np.empty(m, dtype=np.int64), body, t0, h, n_steps, save_every,
+                   saved, axis, norm_weights, probe_steps, probes, flips, flip_count, drift, status, steps_taken,
+                   stop_norm, stop_flips, drift_limit, torque_kind, torque_params, torque_fn, 0.0, 0, 0.0, no_fit,
+                   no_fit_points)
+            if torque_free:
+                RUN_BLOCK_FREE(*run)
+            else:
+                RUN_BLOCK_TORQUE(*run)
 
     return propagate
 
@@ -394,8 +490,7 @@ def driver(torque_free, torque_fn=None):
     Without a torque function this is :data:`PROPAGATE_FREE` or :data:`PROPAGATE_TORQUE`. With one, the
     function is compiled for :data:`TORQUE_SIGNATURE` and a second dispatcher of the driver with a torque,
     compiled only for the first-class function type and then closed to further compilation, takes it: numba
-    converts any jitted function of that signature to the first-class type instead of compiling a variant for
-    it.
+    converts any jitted function of that signature to the first-class type instead of compiling a variant for it.
     """
     if torque_fn is None:
         return PROPAGATE_FREE if torque_free else PROPAGATE_TORQUE
@@ -409,7 +504,7 @@ def driver(torque_free, torque_fn=None):
 
 
 def _user_torque_types():
-    """Argument types of the driver for a user torque function (see :func:`make_propagate`)."""
+    """Argument types of the driver for a user torque function (see :func:`driver`)."""
     f8, i8 = types.float64, types.int64
     return (i8, f8[:, ::1], types.UniTuple(f8, 12), f8, f8, i8, i8, i8, f8[:, :, ::1], i8, f8[::1], i8[::1],
             f8[:, ::1], f8[:, ::1], i8[::1], f8[:, ::1], types.int8[::1], i8[::1], f8, i8, f8, i8, f8[::1],
