@@ -13,7 +13,7 @@ from tumble.pipeline import config, runner, schema
 from tumble.pipeline.config import StudyError, load_study
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "docs" / "_ext"))
-import tumble_docs  # noqa: E402 - the docs' Sphinx extension, importable without Sphinx running
+import tumble_docs  # the docs' Sphinx extension, importable without Sphinx running
 
 DESCRIBED = [f for f in schema.FIELDS if f.in_defaults]
 

@@ -373,7 +373,7 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
                                save_every=save_every, parameters=parameters, device=device)
         info = {"path": "system", "method": result.method, "dt": result.dt, "n_steps": result.n_steps,
                 "system": result.name, "parameters": result.parameters, "samples": len(result.final),
-                "device": resolve_device(device)}
+                "device": device}  # resolved by run_system
         return EnsembleResult(result.final if final else None, result.times, result.trajectory, None, None, None,
                               None, None, result.status, result.steps_taken, info)
     if parameters is not None:

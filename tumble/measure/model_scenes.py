@@ -62,7 +62,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import registry
-from ..engine.device import LAUNCH_SAMPLES, resolve_device
+from ..engine.device import LAUNCH_SAMPLES
 from ..engine.models import run_model_ensemble
 from ..engine.sampling import CHUNK, perturbed_states, seed_entropy
 from ..physics import models, theory
@@ -287,7 +287,9 @@ def scene_plan(model, axis, spin=1.0, amplitude=1e-3, samples=256, seed=0, metho
     dt, horizon : float, optional
         Step and horizon, s (default: planned from the linear theory).
     device : {"cpu", "cuda"}
-        Where the samples step (:func:`tumble.engine.models.run_model_ensemble`); the fits run on the host.
+        Where the samples step (:func:`tumble.engine.models.run_model_ensemble`); the fits run on the host. Trusted:
+        checked where a study enters (its config, and :func:`tumble.pipeline.runner.scene_job` for a device that
+        cannot run), the one caller.
 
     Returns
     -------
@@ -299,7 +301,6 @@ def scene_plan(model, axis, spin=1.0, amplitude=1e-3, samples=256, seed=0, metho
         An invalid argument; an axis the model has no steady spin about; a neutral spin (no rate to measure).
     """
     chosen = _checked(model, axis, amplitude, samples, method)
-    device = resolve_device(device)
     spin, amplitude = float(spin), float(amplitude)
     linearised = theory.linearisation(model, int(axis), spin)  # one Jacobian for the kind, the step and the mode
     kind, value = linearised.kind, linearised.value

@@ -568,7 +568,8 @@ def _torque(table, axis):
     """The torque table; a torque (profile other than 'none') must act about the spin axis ``axis``."""
     profile = _choice(table["profile"], "torque.profile", PROFILES)
     vector = _vector(table["vector"], "torque.vector")
-    times = {key: _at_least(table[key], f"torque.{key}", 0, " s") for key in ("period", "duration")}
+    times = {f.key: _at_least(table[f.key], f.path, f.minimum, f" {f.units}")
+             for f in map(schema.field, ("torque.period", "torque.duration"))}
     if profile == "none" and any(vector):
         raise _Invalid("torque.vector", f"is {vector} but torque.profile is 'none' (torque-free); set "
                                         f"torque.profile (e.g. 'constant') or remove the vector")

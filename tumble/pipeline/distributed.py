@@ -395,7 +395,7 @@ def run_chunks(client, compute_task, job, tasks, digest=""):
     if not tasks:
         return
     job_future = client.scatter(job, broadcast=True)
-    if getattr(job, "options", {}).get("device") == "cuda":
+    if job.options["device"] == "cuda":
         futures = {client.submit(_on_worker_gpu, compute_task, job_future, task, digest, 1, pure=False): task
                    for task in tasks}
     else:

@@ -14,6 +14,7 @@ never leaves a file behind.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import math
 import os
 import shutil
@@ -22,6 +23,7 @@ import sys
 import time
 import warnings
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
 
@@ -37,10 +39,11 @@ from ..measure import model_scenes
 from ..measure import planning, reduction, running, scans, traces
 from ..physics import exact, theory
 from ..registry import STEPPING
-from . import checkpoint, config, results
+from . import checkpoint, config, results, schema
 from .config import StudyError
 
-__all__ = ["DEFAULT_CHUNK_SAMPLES", "Outputs", "PER_SAMPLE", "PreparedStudy", "TRACE_FIGURES", "Task",
+__all__ = ["DEFAULT_CHUNK_SAMPLES", "PER_SAMPLE", "TRACE_FIGURES", "FreeScenes", "ModelSceneOptions", "ModelScenes",
+           "Outputs", "PreparedStudy", "SceneOptions", "Task",
            "chunk_samples_size", "compute_samples", "compute_scenes", "compute_task", "default_chunk_scenes",
            "execute_study", "needs_traces", "open_checkpoint", "output_stem", "plan", "plan_tasks", "prepare_study",
            "run_scenes", "run_study", "sample_ranges", "scene_job", "write_outputs", "write_records"]
@@ -62,6 +65,56 @@ def output_stem(source, resolved):
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", resolved["title"]).strip("_.") or "study"
 
 
+class _Options(Mapping):
+    """Typed scene options that read as the keyword arguments of the scene function they go to (``**options``)."""
+
+    def __getitem__(self, key):
+        if key not in self._names():
+            raise KeyError(key)
+        return getattr(self, key)
+
+    def __iter__(self):
+        return iter(self._names())
+
+    def __len__(self):
+        return len(self._names())
+
+    @classmethod
+    def _names(cls):
+        return tuple(f.name for f in dataclasses.fields(cls))
+
+    @classmethod
+    def of(cls, resolved, **others):
+        """The record of a resolved study: the fields the study's description marks as scene options
+        (:func:`tumble.pipeline.schema.scene_options`), and ``others``."""
+        described = schema.scene_options(resolved)
+        return cls(**{name: described[name] for name in cls._names() if name not in others}, **others)
+
+
+@dataclass(frozen=True, eq=False)
+class SceneOptions(_Options):
+    """What every scene of a free-body study shares, checked by the study's config: the keywords of
+    :func:`tumble.measure` and :func:`tumble.scan` (``dt`` and ``horizon`` None: the planner's)."""
+
+    dt: float | None
+    flips: int
+    horizon: float | None
+    distribution: str
+    torque: dict | None  # the study's [torque] table; None when torque-free
+    curves: tuple  # the curves the figures draw (norm, trace)
+    device: str
+
+
+@dataclass(frozen=True, eq=False)
+class ModelSceneOptions(_Options):
+    """What every scene of a model study shares: the keywords of :func:`tumble.measure.model_scenes.scene_plan`."""
+
+    dt: float | None
+    horizon: float | None
+    distribution: str
+    device: str
+
+
 class StudyPlan(NamedTuple):
     """What a resolved study runs (:func:`plan`): the arguments of :func:`tumble.measure.scans.scan` (or of one
     ``measure``)."""
@@ -69,10 +122,11 @@ class StudyPlan(NamedTuple):
     moments: np.ndarray  # (B, 3) the scan's bodies, or (3,) the study's one body, kg m²
     body_coords: dict | None  # coordinates of the body dimension (triangle fractions, labels)
     values: dict  # axis, spin, amplitude, method: one value or a list (the scanned keys)
-    options: dict  # keyword arguments of measure: dt, flips, horizon, distribution, torque, curves
+    options: SceneOptions | ModelSceneOptions  # the scenes' shared options (keyword arguments of measure)
     scanned: list  # the scan keys the study sets
     samples: int
     seed: int
+    scenes: FreeScenes | ModelScenes  # what plans, runs and reduces the study's scenes
 
 
 class Job(NamedTuple):
@@ -82,9 +136,10 @@ class Job(NamedTuple):
     scanned: bool  # False: one measure
     samples: int
     seed: int
-    options: dict
+    options: SceneOptions | ModelSceneOptions
     body_coords: dict | None
     plan: StudyPlan
+    scenes: FreeScenes | ModelScenes  # the plan's: chosen once per study (:func:`_scene_kind`)
     file: str = "<mapping>"
     arrays: tuple = tuple(PER_SAMPLE)  # the per-sample arrays the result keeps (outputs.arrays)
 
@@ -116,73 +171,169 @@ def plan(resolved, file="<mapping>"):
     Raises :class:`~tumble.pipeline.config.StudyError` for combinations that are valid field by field but cannot
     give what the study asks (a figure the scan cannot draw, a torque about an unstable axis).
     """
-    if "model" in resolved:
-        return _model_plan(resolved, file)
+    return _scene_kind(resolved).plan(resolved, file)
+
+
+def _scene_kind(resolved):
+    """What plans, runs and reduces the scenes of a resolved study: the one switch between free-body scenes and
+    model scenes (a study with a ``[model]`` table)."""
+    return ModelScenes(resolved["model"]["kind"]) if "model" in resolved else FreeScenes()
+
+
+def _values(resolved):
+    """The scene values a study scans or fixes: axis, spin, amplitude, method (one value or the scan's list)."""
     scan = resolved["scan"]
-    figures = resolved["outputs"]["figures"]
-    moments, body_coords = _bodies(resolved)
-    values = {"axis": scan.get("axis", resolved["spin"]["axis"]), "spin": scan.get("rate", resolved["spin"]["rate"]),
-              "amplitude": scan.get("amplitude", resolved["perturbation"]["amplitude"]),
-              "method": scan.get("method", resolved["integration"]["method"])}
-    torque = resolved["torque"] if resolved["torque"]["profile"] != "none" else None
-    integ = resolved["integration"]
-    options = {"dt": integ["dt"] or None, "flips": integ["flips"], "horizon": integ["horizon"] or None,
-               "distribution": resolved["perturbation"]["distribution"], "torque": torque,
-               "curves": tuple(sorted({_CURVES[f] for f in figures if f in _CURVES})), "device": integ["device"]}
-    bodies = np.atleast_2d(moments)
-    axes = values["axis"] if isinstance(values["axis"], list) else [values["axis"]]
-    kinds = set(np.atleast_1d(theory.linear(bodies[:, None, :], np.asarray(axes)[None, :], 1.0)[0]).ravel().tolist())
-
-    def refuse(field, problem):
-        raise StudyError(file, field, problem)
-
-    if torque is not None and kinds != {"periodic"}:
-        refuse("spin.axis", f"a torque scene is compared with linear theory about a stable (largest or smallest) "
-                            f"axis only; axis {axes[0]} of this body is {', '.join(sorted(kinds - {'periodic'}))}")
-    for i, name in enumerate(figures):
-        field = f"outputs.figures[{i}]"
-        if name == "stability_map" and not ("triangle" in scan and isinstance(values["axis"], list)):
-            refuse(field, "stability_map needs scan.triangle (the inertia triangle) and scan.axis (e.g. [1, 2, 3])")
-        if name == "flip_law" and not (isinstance(values["amplitude"], list) and len(values["amplitude"]) >= 2
-                                       and integ["flips"] >= 1 and "exponential" in kinds):
-            refuse(field, "flip_law needs scan.amplitude with at least 2 values, integration.flips >= 1 and a spin "
-                          "about the intermediate axis")
-        if name == "norm_growth" and "exponential" not in kinds:
-            refuse(field, "norm_growth needs a spin about the intermediate axis (no scene grows exponentially)")
-        if name in ("invariant_drift", "work_precision") and torque is not None:
-            refuse(field, f"{name} measures torque-free invariants; set torque.profile = 'none'")
-    scanned = [key for key in ("moments", "triangle", "body", "axis", "rate", "amplitude", "method") if key in scan]
-    return StudyPlan(moments, body_coords, values, options, scanned, resolved["perturbation"]["samples"],
-                     resolved["perturbation"]["seed"])
+    return {"axis": scan.get("axis", resolved["spin"]["axis"]), "spin": scan.get("rate", resolved["spin"]["rate"]),
+            "amplitude": scan.get("amplitude", resolved["perturbation"]["amplitude"]),
+            "method": scan.get("method", resolved["integration"]["method"])}
 
 
-def _model_plan(resolved, file):
-    """:func:`plan` of a model study: its values include the model's parameters (``rotor``, ``mgl``), its options
-    name the model kind (``options["model"]``, which sends its scenes to :mod:`tumble.measure.model_scenes`)."""
-    scan, model = resolved["scan"], resolved["model"]
-    moments, body_coords = _bodies(resolved)
-    values = {"axis": scan.get("axis", resolved["spin"]["axis"]), "spin": scan.get("rate", resolved["spin"]["rate"]),
-              "amplitude": scan.get("amplitude", resolved["perturbation"]["amplitude"]),
-              "method": scan.get("method", resolved["integration"]["method"])}
-    for key in registry.model_kind(model["kind"]).parameters:
-        values[key] = scan.get(key, model[key])
-    integ = resolved["integration"]
-    options = {"dt": integ["dt"] or None, "horizon": integ["horizon"] or None,
-               "distribution": resolved["perturbation"]["distribution"], "model": model["kind"],
-               "device": integ["device"]}
-    needs = {"gyrostat_map": ("gyrostat", "rotor", "scan.rotor (rotor momentum along the spin axis)"),
-             "sleeping_top": ("heavy_top", "rate", "scan.rate (the spin w3 through the threshold)"),
-             "debra_delp_map": ("gravity_gradient", "k1", "scan.k1 and scan.k3 (the grid of inertia ratios)"),
-             "pitch_libration": ("gravity_gradient", "orbit_rate", "scan.orbit_rate (the orbital rates)"),
-             "flat_spin": ("damper", None, "")}
-    for i, name in enumerate(resolved["outputs"]["figures"]):
-        kind, key, what = needs.get(name, (model["kind"], None, ""))
-        if kind != model["kind"] or (key and key not in scan):
-            raise StudyError(file, f"outputs.figures[{i}]", f"{name} needs model.kind = {kind!r} and {what}")
-    scanned = [key for key in ("moments", "triangle", "body", "k1", "k3", "axis", "rate", "amplitude", "method",
-                               *values) if key in scan]
-    return StudyPlan(moments, body_coords, values, options, list(dict.fromkeys(scanned)),
-                     resolved["perturbation"]["samples"], resolved["perturbation"]["seed"])
+def _refuse(file, field, problem):
+    raise StudyError(file, field, problem)
+
+
+@dataclass(frozen=True)
+class FreeScenes:
+    """The scenes of a free-body study: planned by :mod:`tumble.measure.scans` and :mod:`tumble.measure.planning`, run
+    by :mod:`tumble.measure.running`, reduced by :mod:`tumble.measure.reduction`.
+
+    A scene kind (this and :class:`ModelScenes`) is chosen once per study (:func:`_scene_kind`) and answers
+    ``plan``, ``layout``, ``planner``, ``scene``, ``batch``, ``samples``, ``records`` and ``first_samples``."""
+
+    def plan(self, resolved, file):
+        """:func:`plan` of a free-body study."""
+        scan = resolved["scan"]
+        figures = resolved["outputs"]["figures"]
+        moments, body_coords = _bodies(resolved)
+        values = _values(resolved)
+        torque = resolved["torque"] if resolved["torque"]["profile"] != "none" else None
+        integ = resolved["integration"]
+        options = SceneOptions.of(resolved, torque=torque,
+                                  curves=tuple(sorted({_CURVES[f] for f in figures if f in _CURVES})))
+        bodies = np.atleast_2d(moments)
+        axes = values["axis"] if isinstance(values["axis"], list) else [values["axis"]]
+        kinds = set(np.atleast_1d(theory.linear(bodies[:, None, :], np.asarray(axes)[None, :], 1.0)[0]).ravel()
+                    .tolist())
+        if torque is not None and kinds != {"periodic"}:
+            _refuse(file, "spin.axis", f"a torque scene is compared with linear theory about a stable (largest or "
+                                       f"smallest) axis only; axis {axes[0]} of this body is "
+                                       f"{', '.join(sorted(kinds - {'periodic'}))}")
+        for i, name in enumerate(figures):
+            field = f"outputs.figures[{i}]"
+            if name == "stability_map" and not ("triangle" in scan and isinstance(values["axis"], list)):
+                _refuse(file, field, "stability_map needs scan.triangle (the inertia triangle) and scan.axis (e.g. "
+                                     "[1, 2, 3])")
+            if name == "flip_law" and not (isinstance(values["amplitude"], list) and len(values["amplitude"]) >= 2
+                                           and integ["flips"] >= 1 and "exponential" in kinds):
+                _refuse(file, field, "flip_law needs scan.amplitude with at least 2 values, integration.flips >= 1 "
+                                     "and a spin about the intermediate axis")
+            if name == "norm_growth" and "exponential" not in kinds:
+                _refuse(file, field, "norm_growth needs a spin about the intermediate axis (no scene grows "
+                                     "exponentially)")
+            if name in ("invariant_drift", "work_precision") and torque is not None:
+                _refuse(file, field, f"{name} measures torque-free invariants; set torque.profile = 'none'")
+        scanned = [key for key in ("moments", "triangle", "body", "axis", "rate", "amplitude", "method") if key in scan]
+        return StudyPlan(moments, body_coords, values, options, scanned, resolved["perturbation"]["samples"],
+                         resolved["perturbation"]["seed"], self)
+
+    def layout(self, p):
+        """:func:`tumble.measure.scans.scan_layout` of a :class:`StudyPlan`."""
+        values = p.values
+        return scans.scan_layout(p.moments, values["axis"], values["spin"], values["amplitude"], values["method"])
+
+    def planner(self, job):
+        """A :class:`tumble.measure.scans.ScenePlanner` of the job's scenes (its options checked once)."""
+        return scans.ScenePlanner(job.layout, samples=job.samples, seed=job.seed, **job.options)
+
+    def scene(self, job, index, moments, params, planner=None):
+        """The :class:`tumble.measure.planning.Scene` of scene ``index``; a planned step that cannot resolve the
+        study's sine or pulse is the study's fault (issue 17, cause 8), named at ``torque.<period|duration>``."""
+        scene = (planner or self.planner(job))(index)
+        torque = scene.torque
+        if torque is not None:
+            key = registry.torque_profile(torque["profile"]).time
+            problem = registry.profile_step_problem(torque["profile"], torque.get(key, 0.0), scene.plan.dt,
+                                                    "integration.dt")
+            if problem:
+                raise StudyError(job.file, f"torque.{key}", f"{problem} (the step planned for scene {index})")
+        return scene
+
+    def batch(self, job, indices, *, progress=False):
+        """The records of whole scenes (:func:`tumble.measure.scans.scene_batch`: closed-form ones together)."""
+        planner = self.planner(job)
+        return scans.scene_batch([_scene_plan(job, i, planner) for i in indices], progress=progress)
+
+    def samples(self, scene, start, stop, *, progress=False):
+        """Samples ``[start, stop)`` of a scene (:func:`tumble.measure.running.scene_samples`)."""
+        return running.scene_samples(scene, start, stop, progress=progress)
+
+    def records(self, scenes, parts):
+        """:func:`tumble.measure.reduction.scene_records`."""
+        return reduction.scene_records(scenes, parts)
+
+    def first_samples(self, job):
+        """Samples the first range of a split scene holds at least: the norm curve's (:data:`planning.SLICE`)."""
+        return min(planning.SLICE, job.samples) if "norm" in job.options.curves else 0
+
+
+@dataclass(frozen=True)
+class ModelScenes:
+    """The scenes of a model study (``[model]`` of kind ``kind``): planned, run and reduced by
+    :mod:`tumble.measure.model_scenes`. The same methods as :class:`FreeScenes`."""
+
+    kind: str
+
+    def plan(self, resolved, file):
+        """:func:`plan` of a model study: its values include the model's parameters (``rotor``, ``mgl``)."""
+        scan, model = resolved["scan"], resolved["model"]
+        moments, body_coords = _bodies(resolved)
+        values = _values(resolved)
+        for key in registry.model_kind(self.kind).parameters:
+            values[key] = scan.get(key, model[key])
+        needs = {"gyrostat_map": ("gyrostat", "rotor", "scan.rotor (rotor momentum along the spin axis)"),
+                 "sleeping_top": ("heavy_top", "rate", "scan.rate (the spin w3 through the threshold)"),
+                 "debra_delp_map": ("gravity_gradient", "k1", "scan.k1 and scan.k3 (the grid of inertia ratios)"),
+                 "pitch_libration": ("gravity_gradient", "orbit_rate", "scan.orbit_rate (the orbital rates)"),
+                 "flat_spin": ("damper", None, "")}
+        for i, name in enumerate(resolved["outputs"]["figures"]):
+            kind, key, what = needs.get(name, (self.kind, None, ""))
+            if kind != self.kind or (key and key not in scan):
+                _refuse(file, f"outputs.figures[{i}]", f"{name} needs model.kind = {kind!r} and {what}")
+        scanned = [key for key in ("moments", "triangle", "body", "k1", "k3", "axis", "rate", "amplitude", "method",
+                                   *values) if key in scan]
+        return StudyPlan(moments, body_coords, values, ModelSceneOptions.of(resolved), list(dict.fromkeys(scanned)),
+                         resolved["perturbation"]["samples"], resolved["perturbation"]["seed"], self)
+
+    def layout(self, p):
+        """:func:`tumble.measure.model_scenes.scan_layout` of a :class:`StudyPlan` (``spin`` swept with scan.rate)."""
+        swept = [key for key in p.values if key in p.scanned or (key == "spin" and "rate" in p.scanned)]
+        return model_scenes.scan_layout(p.moments, p.values, swept)
+
+    def planner(self, job):
+        """None: a model scene is planned on its own (:meth:`scene`)."""
+
+    def scene(self, job, index, moments, params, planner=None):
+        """:func:`tumble.measure.model_scenes.scene_plan` of one scene (``params``: its values)."""
+        parameters = {key: params[key] for key in registry.model_kind(self.kind).parameters}
+        model = model_scenes.model_of(self.kind, moments, params["axis"], parameters)
+        return model_scenes.scene_plan(model, params["axis"], params["spin"], params["amplitude"], job.samples,
+                                       job.seed, params["method"], **job.options)
+
+    def batch(self, job, indices, *, progress=False):
+        """The records of whole scenes (:func:`tumble.measure.model_scenes.scene_batch`)."""
+        return model_scenes.scene_batch([_scene_plan(job, i) for i in indices])
+
+    def samples(self, scene, start, stop, *, progress=False):
+        """Samples ``[start, stop)`` of a scene (:func:`tumble.measure.model_scenes.scene_samples`)."""
+        return model_scenes.scene_samples(scene, start, stop)
+
+    def records(self, scenes, parts):
+        """:func:`tumble.measure.model_scenes.scene_records`."""
+        return model_scenes.scene_records(scenes, parts)
+
+    def first_samples(self, job):
+        """0: a model scene keeps no norm curve."""
+        return 0
 
 
 #: The study field a refusal names, by the bound it broke (:class:`tumble.engine.cost.TooLarge`).
@@ -247,7 +398,7 @@ def check_cost(resolved, file="<mapping>"):
     size: ``integration.flips`` when the flip times alone overflow the memory)."""
     estimate = study_cost(resolved)
     try:
-        return cost.check(estimate, resolved["integration"].get("device", "cpu"))
+        return cost.check(estimate, resolved["integration"]["device"])
     except cost.TooLarge as err:
         field = _BOUND_FIELDS[err.bound]
         without_flips = study_cost(resolved, flips=0).peak_bytes
@@ -274,15 +425,9 @@ def scene_job(resolved, file="<mapping>"):
     """
     check_cost(resolved, file)
     p = plan(resolved, file)
-    values = p.values
     resolve_device(resolved["integration"]["device"])  # a device that cannot run: refused before anything runs
-    if "model" in p.options:
-        swept = [key for key in values if key in p.scanned or (key == "spin" and "rate" in p.scanned)]
-        layout = model_scenes.scan_layout(p.moments, values, swept)
-    else:
-        layout = scans.scan_layout(p.moments, values["axis"], values["spin"], values["amplitude"], values["method"])
-    return Job(layout, bool(p.scanned), p.samples, p.seed, p.options, p.body_coords, p, str(file),
-               tuple(resolved["outputs"]["arrays"]))
+    return Job(p.scenes.layout(p), bool(p.scanned), p.samples, p.seed, p.options, p.body_coords, p, p.scenes,
+               str(file), tuple(resolved["outputs"]["arrays"]))
 
 
 class Task(NamedTuple):
@@ -301,45 +446,17 @@ class Task(NamedTuple):
         return checkpoint.samples_name(self.scenes[0], self.start, self.stop)
 
 
-def _planner(job):
-    """A :class:`tumble.measure.scans.ScenePlanner` of a :func:`scene_job`'s scenes (None for a model study)."""
-    if "model" in job.options:
-        return None
-    return scans.ScenePlanner(job.layout, samples=job.samples, seed=job.seed, **job.options)
-
-
 def _scene_plan(job, index, planner=None):
-    """:func:`tumble.measure.planning.scene_plan` of scene ``index`` of a :func:`scene_job` (through ``planner``, a
-    :func:`_planner` of the job, when several scenes are planned)."""
+    """The planned scene ``index`` of a :func:`scene_job` (through ``planner``, the job's scenes' planner, when several
+    scenes are planned); a value this scene cannot take is the study's fault, named as such (exit 2)."""
     moments, params = scans.scan_scene_parameters(job.layout, index)
-    file = job.file
     try:
-        if "model" in job.options:
-            return _model_scene_plan(job, moments, params)
-        scene = (planner or _planner(job))(index)
-    except DeviceError:  # the device's own one line (device 'cuda': ...), as every call gives it
+        return job.scenes.scene(job, index, moments, params, planner)
+    except (DeviceError, StudyError):  # the device's own one line (device 'cuda': ...), as every call gives it
         raise
-    except ValueError as err:  # a value this scene cannot take: the study's fault, named as such (exit 2)
+    except ValueError as err:
         label = " ".join(f"{key}={value}" for key, value in params.items())
-        raise StudyError(file, f"scene {index} ({label})", str(err)) from None
-    torque = scene.torque
-    if torque is not None:  # the planned step must resolve a sine or a pulse (issue 17, cause 8)
-        key = registry.torque_profile(torque["profile"]).time
-        problem = registry.profile_step_problem(torque["profile"], torque.get(key, 0.0), scene.plan.dt,
-                                                "integration.dt")
-        if problem:
-            raise StudyError(file, f"torque.{key}", f"{problem} (the step planned for scene {index})")
-    return scene
-
-
-def _model_scene_plan(job, moments, params):
-    """:func:`tumble.measure.model_scenes.scene_plan` of one scene of a model study (``params``: its values)."""
-    kind = job.options["model"]
-    parameters = {key: params[key] for key in registry.model_kind(kind).parameters}
-    model = model_scenes.model_of(kind, moments, params["axis"], parameters)
-    options = {key: value for key, value in job.options.items() if key != "model"}
-    return model_scenes.scene_plan(model, params["axis"], params["spin"], params["amplitude"], job.samples, job.seed,
-                                   params["method"], **options)
+        raise StudyError(job.file, f"scene {index} ({label})", str(err)) from None
 
 
 def _kept(job, record):
@@ -354,9 +471,7 @@ def _kept(job, record):
 
 def _scene_record(job, scene, parts):
     """The record (:func:`tumble.measure.reduction.scene_records`, :func:`_kept`) of a scene from its sample ranges."""
-    if "model" in job.options:
-        return _kept(job, model_scenes.scene_records([scene], [parts])[0])
-    return _kept(job, reduction.scene_records([scene], [parts])[0])
+    return _kept(job, job.scenes.records([scene], [parts])[0])
 
 
 def compute_scenes(job, indices, *, progress=False):
@@ -364,19 +479,13 @@ def compute_scenes(job, indices, *, progress=False):
     measurement; closed-form scenes run together (:func:`tumble.measure.scans.scene_batch`)."""
     if not indices:  # an empty task (a worker's warm-up) needs no job
         return {}
-    if "model" in job.options:
-        records = model_scenes.scene_batch([_scene_plan(job, i) for i in indices])
-    else:
-        planner = _planner(job)
-        records = scans.scene_batch([_scene_plan(job, i, planner) for i in indices], progress=progress)
+    records = job.scenes.batch(job, indices, progress=progress)
     return {i: _kept(job, record) for i, record in zip(indices, records)}
 
 
 def compute_samples(job, index, start, stop, *, progress=False):
     """Samples ``[start, stop)`` of scene ``index`` (:func:`tumble.measure.running.scene_samples`)."""
-    if "model" in job.options:
-        return model_scenes.scene_samples(_scene_plan(job, index), start, stop)
-    return running.scene_samples(_scene_plan(job, index), start, stop, progress=progress)
+    return job.scenes.samples(_scene_plan(job, index), start, stop, progress=progress)
 
 
 def compute_task(job, task, digest="", *, threads=None, progress=False):
@@ -533,7 +642,7 @@ def plan_tasks(job, done, *, chunk_scenes=None, chunk_samples=None):
     n, samples = job.layout["scenes"], job.samples
     per_task = _count(chunk_scenes, "chunk_scenes", default_chunk_scenes(n))
     size = chunk_samples_size(chunk_samples)
-    first = min(planning.SLICE, samples) if "norm" in job.options.get("curves", ()) else 0
+    first = job.scenes.first_samples(job)
     whole, ranges = [], []
     for i in range(n):
         parts = done.parts.pop(i, {})
@@ -688,7 +797,7 @@ def _compile_the_attitude_with_the_scenes(resolved, job):
     compilation, never a result."""
     p = job.plan
     method = _first(p.values["method"])
-    if (not any(name in config.ATTITUDE_FIGURES for name in resolved["outputs"]["figures"]) or "model" in job.options
+    if (not any(name in config.ATTITUDE_FIGURES for name in resolved["outputs"]["figures"])  # never a model's
             or method not in ("auto", "exact")):
         return
     _, params, fn, _ = torque_spec(p.options["torque"])

@@ -27,8 +27,8 @@ from pathlib import Path
 from .. import registry
 from ..engine.sampling import DISTRIBUTIONS
 
-__all__ = ["FIELDS", "Field", "HEADER", "PROFILES", "SCAN_DOC", "SHAPES", "TABLES", "defaults", "defaults_toml",
-           "field", "scan_replaces", "scene_options", "table_fields"]
+__all__ = ["FIELDS", "HEADER", "PROFILES", "SCAN_DOC", "SHAPES", "TABLES", "Field", "defaults", "defaults_toml",
+           "field", "main", "scan_replaces", "scene_options", "table_fields"]
 
 #: Shape functions of :mod:`tumble.physics.shapes` a study may name in ``body.shape``.
 SHAPES = ("rod", "disc", "cylinder", "cone", "sphere", "ellipsoid", "cuboid", "cube_about_edge", "loaded_die",
