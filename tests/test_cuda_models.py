@@ -216,8 +216,9 @@ _PTX = textwrap.dedent("""
         frame = attitude_frame(METHODS[name], np.ones((1, 3)), np.array([1.0, 2.0, 3.0]),
                                None if torque_free else np.zeros(4), None, 1, 1)
         kernels.append((device_attitude().make_kernel(frame, torque_free),
-                        (f8[:, ::1], f8[:, ::1], nt.UniTuple(f8, 12), f8, f8, i8, i8, f8[:, :, ::1], f8[:, :, ::1],
-                         nt.int8[::1], nt.UniTuple(i8, 3), f8, i8, nt.UniTuple(f8, 4))))
+                        (i8, f8[:, ::1], f8[::1], f8[::1], i8[::1], f8[::1], i8[::1], f8, f8[:, ::1], f8[:, ::1],
+                         nt.UniTuple(f8, 12), f8, f8, i8, i8, f8[:, :, ::1], f8[:, :, ::1], nt.int8[::1], i8,
+                         f8[::1])))
     exact = device_closed_form()
     kernels.append((exact._omega_at_kernel, (f8, f8, f8, f8[:, ::1], f8, f8[:, ::1], nt.int8[::1])))
     kernels.append((exact._omega_grid_kernel, (f8[:, ::1], f8[:, ::1], f8[:, ::1], nt.int64[::1], f8[:, :, ::1],

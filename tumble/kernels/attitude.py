@@ -172,11 +172,60 @@ def midpoint_step(y, t, h, body, torque_kind, torque_params, torque_fn):
     _normalised(y)
 
 
+@jit
+def run_sample(i, family, A, b, c, flows, fractions, axes, sign, w, q, body, t0, h, n_steps, save_every, saved_w,
+               saved_q, status, torque_kind, torque_params, torque_fn, y, k, stage):
+    # size: the attitude's one time loop, on either device: flat arrays and scalars, the sample's scratch owned by the
+    # caller
+    """Sample ``i`` through the whole run: the attitude's one time loop, for the CPU (:func:`propagate_attitude`, a
+    ``prange`` over samples) and the device (:mod:`tumble.kernels.cuda_attitude`, one thread per sample). The scratch,
+    owned by the caller: ``y`` (7,) the state ``(w, q)``, ``k`` (stages, 7) and ``stage`` (7,) the Runge–Kutta
+    stages; the other arguments are :func:`propagate_attitude`'s."""
+    y[0], y[1], y[2] = w[i, 0], w[i, 1], w[i, 2]
+    y[3], y[4], y[5], y[6] = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
+    target = l_squared(y[0], y[1], y[2], body)
+    code = STATUS_OK
+    _store(saved_w, saved_q, 0, i, y)
+    slot = 1
+    for step in range(n_steps):
+        if code == STATUS_OK:
+            t = t0 + step * h
+            if family == FAMILY_RUNGE_KUTTA:
+                runge_kutta_step(y, t, h, A, b, c, k, stage, body, torque_kind, torque_params, torque_fn)
+            elif family == FAMILY_SPLITTING:
+                splitting_step(y, t, h, flows, fractions, axes, sign, body, target, torque_kind, torque_params,
+                               torque_fn)
+            else:
+                midpoint_step(y, t, h, body, torque_kind, torque_params, torque_fn)
+            for j in range(7):
+                if not math.isfinite(y[j]):
+                    code = STATUS_NONFINITE
+        ran = step + 1
+        if ran % save_every == 0 or ran == n_steps:
+            _store(saved_w, saved_q, slot, i, y)
+            slot += 1
+    for j in range(3):
+        w[i, j] = y[j]
+    for j in range(4):
+        q[i, j] = y[3 + j]
+    status[i] = code
+
+
+@jit
+def _store(saved_w, saved_q, slot, i, y):
+    """Sample ``i``'s state ``y`` into ``saved_w[slot, i]`` and ``saved_q[slot, i]``."""
+    for j in range(3):
+        saved_w[slot, i, j] = y[j]
+    for j in range(4):
+        saved_q[slot, i, j] = y[3 + j]
+
+
 @jit(parallel=True)
 def propagate_attitude(family, A, b, c, flows, fractions, axes, sign, w, q, body, t0, h, n_steps, save_every, saved_w,
                        saved_q, status, torque_kind, torque_params, torque_fn):
     # size: flat arrays and scalars (numba): the method's tableau, the state, the torque
-    """Advance every sample's angular velocity and attitude ``n_steps`` fixed steps of size ``h``.
+    """Advance every sample's angular velocity and attitude ``n_steps`` fixed steps of size ``h``: the CPU's wrapper of
+    the one time loop (:func:`run_sample`), samples in parallel.
 
     Parameters
     ----------
@@ -197,35 +246,8 @@ def propagate_attitude(family, A, b, c, flows, fractions, axes, sign, w, q, body
     status : ndarray (N,) int8
         Output: ``STATUS_NONFINITE`` where a sample became NaN or inf; such a sample stops stepping.
     """
-    n = w.shape[0]
-    n_stages = b.shape[0]
-    for i in prange(n):
-        y = np.empty(7)
-        y[0], y[1], y[2] = w[i, 0], w[i, 1], w[i, 2]
-        y[3], y[4], y[5], y[6] = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
-        k = np.empty((n_stages, 7))
-        stage = np.empty(7)
-        target = l_squared(y[0], y[1], y[2], body)
-        status[i] = STATUS_OK
-        saved_w[0, i, :] = y[:3]
-        saved_q[0, i, :] = y[3:]
-        slot = 1
-        for step in range(n_steps):
-            if status[i] == STATUS_OK:
-                t = t0 + step * h
-                if family == FAMILY_RUNGE_KUTTA:
-                    runge_kutta_step(y, t, h, A, b, c, k, stage, body, torque_kind, torque_params, torque_fn)
-                elif family == FAMILY_SPLITTING:
-                    splitting_step(y, t, h, flows, fractions, axes, sign, body, target, torque_kind, torque_params, torque_fn)
-                else:
-                    midpoint_step(y, t, h, body, torque_kind, torque_params, torque_fn)
-                for j in range(7):
-                    if not math.isfinite(y[j]):
-                        status[i] = STATUS_NONFINITE
-            ran = step + 1
-            if ran % save_every == 0 or ran == n_steps:
-                saved_w[slot, i, :] = y[:3]
-                saved_q[slot, i, :] = y[3:]
-                slot += 1
-        w[i, :] = y[:3]
-        q[i, :] = y[3:]
+    n_stages = max(1, b.shape[0])
+    for i in prange(w.shape[0]):
+        run_sample(i, family, A, b, c, flows, fractions, axes, sign, w, q, body, t0, h, n_steps, save_every, saved_w,
+                   saved_q, status, torque_kind, torque_params, torque_fn, np.empty(7), np.empty((n_stages, 7)),
+                   np.empty(7))
