@@ -21,6 +21,12 @@ import tumble
 from tumble.kernels import TABLEAUX
 from tumble.kernels.tableaux import ButcherTableau
 
+import hand_written_systems
+
+# Every test here runs on one worker (pyproject's --dist loadgroup): PENDULUM, FREE_BODY and the hand-written heavy
+# top are compiled once per process, so on one worker they are compiled once, not once on each.
+pytestmark = pytest.mark.xdist_group(hand_written_systems.GROUP)
+
 
 def pendulum(t, y, p, dydt):
     """A damped pendulum: x'' = -k sin x - c x'."""
@@ -126,24 +132,13 @@ def test_a_built_in_model_integrates_by_name_with_its_state_components():
     assert list(ds["component"].values) == ["w1", "w2", "w3", "g1", "g2", "g3"]
     assert list(ds["component_units"].values) == ["rad/s"] * 3 + ["1"] * 3
     assert ds.attrs["system"] == "heavy_top" and ds.attrs["parameter_mgl"] == 0.6
-    by_hand = tumble.System(_heavy_top, state=("w1", "w2", "w3", "g1", "g2", "g3"),
-                            parameters={"I1": 2.0, "I2": 2.5, "I3": 3.0, "mgl": 0.6}, name="heavy top by hand")
-    mine = tumble.propagate(by_hand, y0, 2.0, 0.01, method="rk8")
+    by_hand = hand_written_systems.HEAVY_TOP  # the centre of mass on axis 3: (0, 0, 1), the defaults
+    assert list(by_hand.state) == list(ds["component"].values)
+    mine = tumble.propagate(by_hand, y0, 2.0, 0.01, method="rk8", parameters={"mgl": 0.6})
     np.testing.assert_allclose(ds["state"].values[:, -1], mine, rtol=0, atol=1e-12)
     splitting = tumble.propagate(top, y0, 2.0, 0.01, method="splitting4")
     np.testing.assert_allclose(splitting, mine, rtol=0, atol=1e-2)  # mgl 0.5 against 0.6: the parameter acted
     assert not np.allclose(splitting, mine, atol=1e-6)
-
-
-def _heavy_top(t, y, p, dydt):
-    """I w' = (I w) x w + mgl (g x e3), g' = g x w."""
-    i1, i2, i3, mgl = p[0], p[1], p[2], p[3]
-    dydt[0] = ((i2 - i3) * y[1] * y[2] + mgl * y[4]) / i1
-    dydt[1] = ((i3 - i1) * y[2] * y[0] - mgl * y[3]) / i2
-    dydt[2] = (i1 - i2) * y[0] * y[1] / i3
-    dydt[3] = y[4] * y[2] - y[5] * y[1]
-    dydt[4] = y[5] * y[0] - y[3] * y[2]
-    dydt[5] = y[3] * y[1] - y[4] * y[0]
 
 
 def test_eigenvalues_at_any_state_from_the_jacobian_or_differentiated_rate():

@@ -1,0 +1,28 @@
+"""Systems written by hand, as a user writes a ``tumble.System``, shared by the test modules that check a built-in
+model against them. A System's rate is compiled once per process and System object (tumble/engine/systems.py), so
+one object here, with its parameters given per call, is one compile for every test that uses it on a worker (the
+tests that use it are in one xdist group, ``user_systems``: one worker runs them all)."""
+
+import tumble
+
+#: The xdist group (pyproject's ``--dist loadgroup``) of the tests that compile the Systems of this module.
+GROUP = "user_systems"
+
+
+def heavy_top(t, y, p, dydt):
+    """The heavy top, centre of mass anywhere: I w' = (I w) x w + mgl (g x c), g' = g x w; p = (I1, I2, I3, mgl,
+    c1, c2, c3), c the unit direction of the centre of mass from the pivot in body axes."""
+    gc1 = y[4] * p[6] - y[5] * p[5]
+    gc2 = y[5] * p[4] - y[3] * p[6]
+    gc3 = y[3] * p[5] - y[4] * p[4]
+    dydt[0] = ((p[1] - p[2]) * y[1] * y[2] + p[3] * gc1) / p[0]
+    dydt[1] = ((p[2] - p[0]) * y[2] * y[0] + p[3] * gc2) / p[1]
+    dydt[2] = ((p[0] - p[1]) * y[0] * y[1] + p[3] * gc3) / p[2]
+    dydt[3] = y[4] * y[2] - y[5] * y[1]
+    dydt[4] = y[5] * y[0] - y[3] * y[2]
+    dydt[5] = y[3] * y[1] - y[4] * y[0]
+
+
+HEAVY_TOP = tumble.System(heavy_top, state=("w1", "w2", "w3", "g1", "g2", "g3"),
+                          parameters={"I1": 2.0, "I2": 2.5, "I3": 3.0, "mgl": 0.5, "c1": 0.0, "c2": 0.0, "c3": 1.0},
+                          name="heavy top by hand")
