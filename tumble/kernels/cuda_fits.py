@@ -1,11 +1,9 @@
 """The phase fit on a CUDA device: a periodic scene's frequencies fitted where its stored states are (issue 28).
 
-Written once: a thread fits its sample with the CPU's own per-sample fit,
-:func:`tumble.kernels.fits.phase_fit_sample` (the radius and phase at each time, the unwrapping, the least-squares
-slope, the median radius), which numba-cuda compiles for the device. The thread gathers its sample's scaled
-transverse components and times into local arrays of the grid's length first (a kernel is made per length,
-:func:`kernel`; on a GPU local memory is laid out so that the threads of a warp read it together), as the CPU's
-``prange`` body gathers them into its scratch. Only three numbers per sample come back: the frequency, the median
+Written once: a thread runs the CPU's own per-sample gather and fit, :func:`tumble.kernels.fits.fit_sample` (its
+scaled transverse components gathered into local arrays of the grid's length, a kernel per length, :func:`kernel`;
+then the radius and phase at each time, the unwrapping, the least-squares slope, the median radius), which
+numba-cuda compiles for the device. Only three numbers per sample come back: the frequency, the median
 radius and the fit's code; the stored states never leave the device.
 
 The states are read in either layout the device kernels store: ``(n, T, k)`` (the closed form's grid,
@@ -21,51 +19,31 @@ This module imports ``numba.cuda``; it is imported only when a run asks for ``de
 (:func:`tumble.kernels.device_fits`).
 """
 
-import math
-
 import numpy as np
 from numba import cuda, float64
 
-from .fits import phase_fit_sample
+from .cuda_launch import THREADS, launch_shape, loop_array
+from .fits import fit_sample
 from .jit import cuda_jit
 
 __all__ = ["THREADS", "kernel", "make_kernel", "phase_fit"]
 
-#: Threads per block of a launch (one sample each).
-THREADS = 128
-
 
 def make_kernel(t_count, time_major):
-    # size: the closure holds the one kernel below (see there)
     """The device kernel of the phase fit over ``t_count`` stored times, reading states ``(T, k, n)`` when
     ``time_major`` else ``(n, T, k)``; both are constants of the closure (the local arrays' length)."""
 
     @cuda_jit
     def fit(times, row, states, columns, weights, signs, floor, max_step, frequency, radius, code):
-        """Fit sample ``cuda.grid(1)``: its times ``times[row[i]]`` (``row`` of one element: row 0 for every sample),
-        its components ``columns[i]`` times ``signs[i]`` (``signs`` of one element: the same for every sample)
-        weighted by ``sqrt(weights[i])``; the arguments are :func:`tumble.kernels.fits.phase_fit`'s."""
+        """Fit sample ``cuda.grid(1)`` by the CPU's :func:`tumble.kernels.fits.fit_sample`, its scratch local; the
+        arguments are :func:`tumble.kernels.fits.phase_fit`'s and ``signs`` (one per sample, or one for all)."""
         i = cuda.grid(1)
-        n = frequency.shape[0]
-        if i >= n:
+        if i >= frequency.shape[0]:
             return
-        r = row[i] if row.shape[0] == n else 0
-        sign = signs[i] if signs.shape[0] == n else signs[0]
-        t = cuda.local.array(t_count, float64)
-        x = cuda.local.array(t_count, float64)
-        y = cuda.local.array(t_count, float64)
-        gb = math.sqrt(weights[i, 0])
-        gc = math.sqrt(weights[i, 1])
-        b, c = columns[i, 0], columns[i, 1]
-        for j in range(t_count):
-            t[j] = times[r, j]
-            if time_major:
-                x[j] = gb * (sign * states[j, b, i])
-                y[j] = gc * (sign * states[j, c, i])
-            else:
-                x[j] = gb * (sign * states[i, j, b])
-                y[j] = gc * (sign * states[i, j, c])
-        frequency[i], radius[i], code[i] = phase_fit_sample(t, x, y, floor[i], max_step)
+        frequency[i], radius[i], code[i] = fit_sample(
+            i, loop_array(times), loop_array(row), loop_array(states), loop_array(columns), loop_array(weights),
+            loop_array(signs), loop_array(floor), max_step, time_major, cuda.local.array(t_count, float64),
+            cuda.local.array(t_count, float64))
 
     return fit
 
@@ -114,8 +92,7 @@ def phase_fit(times, row, states, columns, weights, floor, max_step, *, time_maj
     frequency, radius = cuda.device_array(n), cuda.device_array(n)
     code = cuda.device_array(n, dtype=np.int8)
     if n:
-        threads = THREADS if n >= THREADS else 32 * -(-n // 32)
-        kernel(times.shape[1], time_major)[-(-n // threads), threads](
+        kernel(times.shape[1], time_major)[launch_shape(n)](
             cuda.to_device(times), cuda.to_device(np.ascontiguousarray(row, dtype=np.int64)), states,
             cuda.to_device(np.ascontiguousarray(columns, dtype=np.int64)),
             cuda.to_device(np.ascontiguousarray(weights, dtype=float)), cuda.to_device(np.atleast_1d(np.asarray(

@@ -23,7 +23,7 @@ from .jit import jit
 from .trig import atan2
 
 __all__ = ["FIT_NO_SIGNAL", "FIT_OK", "FIT_SHORT_WINDOW", "FIT_UNDERSAMPLED", "GROWTH_WINDOW_START", "growth_fit",
-           "growth_window_add", "growth_window_rate", "modal_rows", "phase_fit", "phase_fit_sample",
+           "fit_sample", "growth_window_add", "growth_window_rate", "modal_rows", "phase_fit", "phase_fit_sample",
            "transverse_norms"]
 
 # Outcomes, as tumble.measure.estimators numbers them (checked there).
@@ -241,21 +241,40 @@ def phase_fit(times, row, states, columns, weights, floor, max_step, frequency, 
 
     Notes
     -----
-    The fit of a sample is :func:`phase_fit_sample`, which the device runs too
-    (:func:`tumble.kernels.cuda_fits.phase_fit`); here the two components are gathered first (a strided read,
-    which AVX2 cannot pack cheaply) into the scratch it works in.
+    A sample's gather and fit is :func:`fit_sample`, which the device runs too
+    (:func:`tumble.kernels.cuda_fits.phase_fit`): the two components are gathered first (a strided read, which AVX2
+    cannot pack cheaply) into the scratch the fit works in.
     """
     n, t_count = states.shape[0], states.shape[1]
+    unsigned = np.ones(1)
     for i in numba.prange(n):
-        gb = math.sqrt(weights[i, 0])
-        gc = math.sqrt(weights[i, 1])
-        b, c = columns[i, 0], columns[i, 1]
-        x = np.empty(t_count)
-        y = np.empty(t_count)
-        for j in range(t_count):
-            x[j] = gb * states[i, j, b]
-            y[j] = gc * states[i, j, c]
-        frequency[i], radius[i], code[i] = phase_fit_sample(times[row[i]], x, y, floor[i], max_step)
+        frequency[i], radius[i], code[i] = fit_sample(i, times, row, states, columns, weights, unsigned, floor,
+                                                      max_step, False, np.empty(t_count), np.empty(t_count))
+
+
+@jit(contract=False)
+def fit_sample(i, times, row, states, columns, weights, signs, floor, max_step, time_major, x, y):
+    # size: one sample's gather and fit, the CPU's and the device's (flat arrays, the scratch owned by the caller)
+    """Sample ``i``'s phase fit, for the CPU (:func:`phase_fit`'s ``prange`` body) and the device
+    (:mod:`tumble.kernels.cuda_fits`, one thread per sample): its transverse components gathered into ``x`` and ``y``
+    (the scratch, (T,) each, owned by the caller), scaled by ``sqrt(g)`` and by the sign ``signs[i]`` (``signs`` of
+    one element: the same for every sample), then :func:`phase_fit_sample` at its times ``times[row[i]]`` (``row`` of
+    one element: row 0 for every sample). ``states`` is ``(n, T, k)``, or ``(T, k, n)`` with ``time_major``; the
+    other arguments are :func:`phase_fit`'s. Returns ``(frequency, radius, code)``."""
+    n = weights.shape[0]
+    r = row[i] if row.shape[0] == n else 0
+    sign = signs[i] if signs.shape[0] == n else signs[0]
+    gb = math.sqrt(weights[i, 0])
+    gc = math.sqrt(weights[i, 1])
+    b, c = columns[i, 0], columns[i, 1]
+    for j in range(x.shape[0]):
+        if time_major:
+            x[j] = gb * (sign * states[j, b, i])
+            y[j] = gc * (sign * states[j, c, i])
+        else:
+            x[j] = gb * (sign * states[i, j, b])
+            y[j] = gc * (sign * states[i, j, c])
+    return phase_fit_sample(times[r], x, y, floor[i], max_step)
 
 
 @jit(parallel=True, contract=False)
