@@ -174,8 +174,9 @@ def _store(saved, slot, ys, lo):
 @jit
 def run_block(model, method, y, lo, ys, active, frozen, last, x0, scale, c, h, n_steps, save_every, saved, columns,
               weights, y_eq, probe_steps, probes, drift, drift_limit, status, steps_taken):
-    # size: the one time loop of every model, method and observer, on either device: flat arrays and scalars (DESIGN.md:
-    # arrays and scalars below the kernels' door), the block's scratch owned by the caller, the observers the helpers above
+    # size: the one time loop of every model, method and observer, on either device: flat arrays and scalars
+    # (DESIGN.md: arrays and scalars below the kernels' door), the block's scratch owned by the caller, the observers
+    # the helpers above
     """Samples ``lo, ..., lo + m - 1`` of ``y`` through the whole run: the models' one time loop, for the CPU and the
     device.
 
