@@ -321,6 +321,8 @@ def make_run_block(torque_free):
             probe += 1
         ran = 0
         for k in range(n_steps):
+            if n_frozen == m:
+                break  # every sample stopped (a device thread's one sample, or a whole block)
             t = t0 + k * h
             if track_flips:
                 for i in range(m):
