@@ -44,13 +44,12 @@ from .elliptic import (
     _solve_sample,
     _store,
 )
+from .cuda_launch import THREADS, launch_shape
 from .elliptic_attitude import CONSTANTS, LANDEN, attitude_at, attitude_constants
 from .jit import cuda_jit, jit
 
 __all__ = ["THREADS", "attitude_rows", "omega_at", "omega_grid", "omega_rows", "omega_rows_phase_fit"]
 
-#: Threads per block of a launch (one sample each).
-THREADS = 128
 
 _TINY, _NON_FINITE = 1, 2  # bits of a sample's flag
 
@@ -157,8 +156,7 @@ def _attitude_grid_kernel(bodies, w, times, row, out, flags):
 def _launch(kernel, n, *args):
     """Launch ``kernel`` over ``n`` samples; returns the flags' counts ``(tiny, non_finite)``."""
     flags = cuda.device_array(n, dtype=np.int8)
-    threads = THREADS if n >= THREADS else 32 * -(-n // 32)
-    kernel[-(-n // threads), threads](*args, flags)
+    kernel[launch_shape(n)](*args, flags)
     flags = flags.copy_to_host()
     return int(np.count_nonzero(flags & _TINY)), int(np.count_nonzero(flags & _NON_FINITE))
 

@@ -3,29 +3,27 @@
 The loop is :func:`tumble.kernels.sample_loop.make_sample_loop`'s (steps, stores, non-finite check, early stop, status),
 compiled for the device by numba-cuda; this module only launches it: each thread copies its sample into a local
 array, runs the loop on it with a local scratch array, and copies it back. On numba-cuda's simulator
-(``NUMBA_ENABLE_CUDASIM=1``) the loop runs as the Python it is written in (the simulator's device arrays are no
-numpy arrays a compiled CPU function could take), calling the compiled step on the thread's local arrays.
+(``NUMBA_ENABLE_CUDASIM=1``) the kernel body runs as Python and calls the loop as the CPU's compiled function
+(:func:`tumble.kernels.cuda_launch.loop_array`).
 
 This module imports ``numba.cuda``; it is imported only when a run asks for ``device="cuda"``
 (:func:`tumble.kernels.device_sample_loop`).
 """
 
 import numpy as np
-from numba import config, cuda, float64
+from numba import cuda, float64
 
+from .cuda_launch import THREADS, launch_shape, loop_array
 from .jit import cuda_jit
 
 __all__ = ["THREADS", "make_kernel", "run"]
 
-#: Threads per block of a launch (one sample each).
-THREADS = 128
 
 
 def make_kernel(run_sample, n_state, stages, n_parameters):
     """The device kernel that runs ``run_sample`` (:func:`tumble.kernels.sample_loop.make_sample_loop`) for sample
     ``cuda.grid(1)``; ``n_state``, ``stages`` and ``n_parameters`` fix the local arrays' sizes (the thread's state,
     its scratch, its copy of the parameters)."""
-    sample = run_sample.py_func if config.ENABLE_CUDASIM else run_sample
     rows = stages + 2
     n_p = max(n_parameters, 1)
 
@@ -41,7 +39,8 @@ def make_kernel(run_sample, n_state, stages, n_parameters):
             state[j] = y[i, j]
         for j in range(p.shape[0]):
             parameters[j] = p[j]
-        code, ran = sample(i, state, parameters[:p.shape[0]], t0, h, n_steps, save_every, saved, scratch)
+        code, ran = run_sample(i, state, parameters[:p.shape[0]], t0, h, n_steps, save_every, loop_array(saved),
+                               scratch)
         for j in range(n_state):
             y[i, j] = state[j]
         status[i] = code
@@ -58,8 +57,7 @@ def run(kernel, y, p, t0, h, n_steps, save_every, n_saved):
     saved = cuda.device_array((n, n_saved, n_state))
     status = cuda.device_array(n, dtype=np.int8)
     steps_taken = cuda.device_array(n, dtype=np.int64)
-    threads = THREADS if n >= THREADS else 32 * -(-n // 32)
-    kernel[-(-n // threads), threads](device_y, cuda.to_device(p), float(t0), float(h), int(n_steps), int(save_every),
+    kernel[launch_shape(n)](device_y, cuda.to_device(p), float(t0), float(h), int(n_steps), int(save_every),
                                       saved, status, steps_taken)
     y[:] = device_y.copy_to_host()
     return saved.copy_to_host(), status.copy_to_host(), steps_taken.copy_to_host()
