@@ -209,7 +209,7 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
     drift : bool
         Record the running maximum of the relative energy and ``|L|**2`` errors.
     stop_norm, stop_flips, drift_limit
-        Early stop and blow-up detection, see :func:`tumble.kernels.drivers.propagate`.
+        Early stop and blow-up detection, see :func:`tumble.kernels.drivers.make_propagate`.
     torque_kind, torque_params, torque_fn
         ``torque_params=None`` and ``torque_fn=None``: torque-free (compiled out).
     block : int
