@@ -234,9 +234,9 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
     probes = np.empty((len(probe_steps), n)) if len(probe_steps) else _NO_ROWS
     flips = _NO_ROWS
     if max_flips > 0:
-        flips = np.full((n, int(max_flips)), np.nan)
+        flips = np.empty((n, int(max_flips)))  # the loop sets every output it is given
     flip_count = np.zeros(n, dtype=np.int64)
-    drifts = np.zeros((2, n)) if drift else _NO_ROWS
+    drifts = np.empty((2, n)) if drift else _NO_ROWS
     status = np.zeros(n, dtype=np.int8)
     steps_taken = np.zeros(n, dtype=np.int64)
     torque_free = torque_params is None and torque_fn is None
