@@ -36,6 +36,18 @@ def _envelope(t, values):
     return t[::step][:peaks.size], np.maximum(peaks, _FLOOR)
 
 
+def _log_panel(ax, t, ds, title, curves):
+    """One panel of small positive series over time, log scale: the envelope (:func:`_envelope`) of each of
+    ``curves`` ((name, label) pairs) that ``ds`` holds."""
+    for name, label in curves:
+        if name in ds:
+            ax.plot(*_envelope(t, ds[name].values), lw=1.0, label=label)
+    if ax.lines:
+        layout.log_scale(ax, "y")
+    ax.set(xlabel="time (s)", title=title)
+    ax.legend(fontsize=7)
+
+
 def draw_check(ds):
     """The four-panel :class:`matplotlib.figure.Figure` of a check result ``ds``."""
     fig = Figure(figsize=(DOUBLE, 5.2))
@@ -47,22 +59,12 @@ def draw_check(ds):
         ax_w.plot(t[::every], ds.omega_exact.values[::every, i], color=color, lw=0.8, ls="--")
     ax_w.set(xlabel="time (s)", ylabel="angular velocity (rad/s)", title="recorded (solid), exact (dashed)")
     ax_w.legend(fontsize=7, loc="upper right")
-    for name, label in (("omega_error", r"$|\omega - \omega_{exact}| / |\omega_{exact}|$"),
-                        ("attitude_error", "attitude error (rad)")):
-        if name in ds:
-            ax_err.plot(*_envelope(t, ds[name].values), lw=1.0, label=label)
-    if ax_err.lines:
-        layout.log_scale(ax_err, "y")
-    ax_err.set(xlabel="time (s)", title="error against the exact solution")
-    ax_err.legend(fontsize=7)
-    for name, label in (("energy_drift", "$|E/E_0 - 1|$"), ("momentum_drift", "$||L|/|L_0| - 1|$"),
-                        ("momentum_direction", "direction of $L$ in space (rad)")):
-        if name in ds:
-            ax_drift.plot(*_envelope(t, ds[name].values), lw=1.0, label=label)
-    if ax_drift.lines:
-        layout.log_scale(ax_drift, "y")
-    ax_drift.set(xlabel="time (s)", title="drift of the invariants")
-    ax_drift.legend(fontsize=7)
+    _log_panel(ax_err, t, ds, "error against the exact solution",
+               (("omega_error", r"$|\omega - \omega_{exact}| / |\omega_{exact}|$"),
+                ("attitude_error", "attitude error (rad)")))
+    _log_panel(ax_drift, t, ds, "drift of the invariants",
+               (("energy_drift", "$|E/E_0 - 1|$"), ("momentum_drift", "$||L|/|L_0| - 1|$"),
+                ("momentum_direction", "direction of $L$ in space (rad)")))
     shared = min(ds.sizes.get("flip", 0), ds.sizes.get("flip_exact", 0))
     if shared:
         lag = ds.flip_time.values[:shared] - ds.flip_time_exact.values[:shared]
