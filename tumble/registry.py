@@ -8,12 +8,12 @@ checks that the kernels' coefficient tables agree with them.
 
 from typing import NamedTuple
 
-__all__ = ["ATTITUDE_FIGURES", "AUTO", "AUTO_STEPPING", "CHOICES", "DEFAULT_MODEL", "FIGURES", "FIT_NAMES", "FORMATS",
-           "METHODS", "MIN_AMPLITUDE", "MODELS", "MODEL_KINDS", "MODEL_PARAMETERS", "Method", "Model", "ModelParameter",
-           "PER_SAMPLE_ARRAYS", "SAMPLE_STATUS_NAMES", "STATE_BLOCKS", "STATUSES", "STATUS_DRIFT", "STATUS_NAMES",
-           "STATUS_NONFINITE", "STATUS_OK", "STEPPING", "Status", "TORQUE_PROFILES", "TORQUE_USER", "TorqueProfile",
-           "amplitude_problem", "choose_method", "method", "model_kind", "model_parameter", "state_blocks",
-           "torque_profile"]
+__all__ = ["ATTITUDE_FIGURES", "AUTO", "AUTO_STEPPING", "CHOICES", "DEFAULT_MODEL", "FIGURES", "FIGURE_MODELS",
+           "FIT_NAMES", "FORMATS", "FigureModel", "METHODS", "MIN_AMPLITUDE", "MODELS", "MODEL_KINDS",
+           "MODEL_PARAMETERS", "Method", "Model", "ModelParameter", "PER_SAMPLE_ARRAYS", "SAMPLE_STATUS_NAMES",
+           "STATE_BLOCKS", "STATUSES", "STATUS_DRIFT", "STATUS_NAMES", "STATUS_NONFINITE", "STATUS_OK", "STEPPING",
+           "Status", "TORQUE_PROFILES", "TORQUE_USER", "TorqueProfile", "amplitude_problem", "choose_method", "method",
+           "model_kind", "model_parameter", "state_blocks", "torque_profile"]
 
 
 class Method(NamedTuple):
@@ -190,6 +190,26 @@ FIGURES = ("stability_map", "norm_growth", "flip_law", "flip_components", "invar
            "summary", "flip_strip", "flip_animation", "polhode", "herpolhode", "gyrostat_map", "sleeping_top",
            "debra_delp_map", "pitch_libration", "flat_spin")
 
+
+
+class FigureModel(NamedTuple):
+    """What a figure only a model study draws needs of its study: the model kind, the scan key its axis is (None:
+    none) and that scan in words (for the message that refuses a study without it)."""
+
+    kind: str
+    scan: str | None
+    text: str
+
+
+#: The figures of a model study, each with the model and the scan it needs (``outputs.figures``).
+FIGURE_MODELS = {
+    "gyrostat_map": FigureModel("gyrostat", "rotor", "scan.rotor (rotor momentum along the spin axis)"),
+    "sleeping_top": FigureModel("heavy_top", "rate", "scan.rate (the spin w3 through the threshold)"),
+    "debra_delp_map": FigureModel("gravity_gradient", "k1", "scan.k1 and scan.k3 (the grid of inertia ratios)"),
+    "pitch_libration": FigureModel("gravity_gradient", "orbit_rate", "scan.orbit_rate (the orbital rates)"),
+    "flat_spin": FigureModel("damper", None, ""),
+}
+
 #: Figures drawn from the traced attitude of a study's first scene.
 ATTITUDE_FIGURES = ("flip_animation", "flip_strip", "polhode", "herpolhode")
 
@@ -238,6 +258,7 @@ class Model(NamedTuple):
     # says which models the kernels step, these included)
     physics: bool  # True: a class in physics/models.py (rhs, analytic Jacobian, invariants, linear theory)
     text: str
+    scan_keys: tuple = ()  # scan keys of its own beyond its parameters (a grid of bodies in its own terms)
 
 
 #: The blocks a model's state is made of, by the letter its component names start with: (letter, meaning, units).
@@ -261,7 +282,8 @@ MODELS = (
     Model("gravity_gradient", ("orbit_rate",), ("w1", "w2", "w3", "q0", "q1", "q2", "q3"),
           ("jacobi_integral", "quaternion_squared"), True, True,
           "satellite in a circular orbit under the gravity-gradient torque (axes: 1 roll, 2 pitch, 3 yaw): "
-          "I w' = (I w) x w + 3 n^2 (c3 x I c3), q' = q (0, w + n c2) / 2, c2, c3 the orbit's pitch and nadir axes"),
+          "I w' = (I w) x w + 3 n^2 (c3 x I c3), q' = q (0, w + n c2) / 2, c2, c3 the orbit's pitch and nadir axes",
+          ("k1", "k3")),
     Model("damper", ("damper_inertia", "damping"), ("w1", "w2", "w3", "s1", "s2", "s3"),
           ("momentum_squared",), True, True,
           "rigid body with a viscously coupled spherical damper (energy dissipates, |L| is kept): "

@@ -66,9 +66,7 @@ def _checked(model, y0, t_end, dt, method, axis, spin, save_every, probe_times, 
     if not isinstance(model, Model) or model.kind not in MODEL_CODES:
         raise ValueError(f"model must be a tumble.physics.models model ({', '.join(MODEL_CODES)}), got {model!r}")
     if not isinstance(method, str) or method not in model_methods(model.kind):
-        why = ("" if model.kind not in ("gravity_gradient", "damper") else
-               " (the Lie–Poisson splittings do not apply: a damper is dissipative, a gravity gradient's state is no "
-               "Lie–Poisson system in these variables)")
+        why = f" (the Lie–Poisson splittings do not apply: {model.not_lie_poisson})" if model.not_lie_poisson else ""
         raise ValueError(f"method must be one of {', '.join(model_methods(model.kind))} for a {model.kind} model, got "
                          f"{method!r}{why}")
     y0 = _states(model, y0)

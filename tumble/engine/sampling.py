@@ -28,6 +28,7 @@ from __future__ import annotations
 import functools
 import math
 import operator
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -112,17 +113,8 @@ def transverse_axes(axis):
 
 
 def chunk_count(samples):
-    """Number of :data:`CHUNK`-row chunks that hold ``samples`` samples, ``ceil(samples / CHUNK)``.
-
-    Parameters
-    ----------
-    samples : int
-        Ensemble size, >= 1.
-
-    Returns
-    -------
-    int
-    """
+    """The number of :data:`CHUNK`-row chunks that hold an ensemble of ``samples`` (an int >= 1) spins, as an int:
+    ``ceil(samples / CHUNK)``, the length of :func:`chunk_ranges`."""
     n = _samples(samples)
     return -(-n // CHUNK)
 
@@ -403,19 +395,62 @@ def _chunk_attitudes(entropy, j, distribution, amplitude):
     return attitudes
 
 
-def _tilted_attitudes(model, amplitude, samples, entropy, distribution, start, stop):
-    """Rows ``[start, stop)`` of a gravity-gradient ensemble: the attitude tilted, ``w`` following the orbit."""
+def _tilted_attitudes(amplitude, samples, entropy, distribution, start, stop):
+    """Rows ``[start, stop)`` of an ensemble's tilted attitudes (unit quaternions, scalar first), shape (N, 4)."""
     if stop is None:
         stop = samples
-    out = np.empty((stop - start, 7))
+    out = np.empty((stop - start, 4))
     chunks = range(start // CHUNK, -(-stop // CHUNK)) if stop > start else range(0)
     for j in chunks:
         lo = j * CHUNK
         keep_lo, keep_hi = max(lo, start), min(lo + CHUNK, stop)
-        q = _chunk_attitudes(entropy, j, distribution, amplitude)[keep_lo - lo:keep_hi - lo]
-        out[keep_lo - start:keep_hi - start, 3:] = q
-        out[keep_lo - start:keep_hi - start, :3] = model.following_velocity(q)
+        out[keep_lo - start:keep_hi - start] = _chunk_attitudes(entropy, j, distribution, amplitude)[keep_lo - lo:
+                                                                                                     keep_hi - lo]
     return out
+
+
+@dataclass
+class _Draws:
+    """The random parts of rows ``[start, stop)`` of a model's ensemble, each drawn when the model asks for it
+    (:meth:`tumble.physics.models.Model.perturbed`), from the arguments of :func:`perturbed_states`."""
+
+    moments: np.ndarray
+    axis: int
+    spin: float
+    amplitude: float
+    samples: int
+    up_amplitude: float | None
+    seed: int | None
+    distribution: str
+    start: int
+    stop: int | None
+    entropy: int | None = None  # the ensemble's, once the spins are drawn
+
+    def _spins(self, axis, spin):
+        w, self.entropy = perturbed_spins(self.moments, axis, spin, self.amplitude, self.samples, seed=self.seed,
+                                          distribution=self.distribution, start=self.start, stop=self.stop,
+                                          return_entropy=True)
+        return w
+
+    def spins(self):
+        """The steady spin tilted by ``amplitude`` (:func:`perturbed_spins`), shape (N, 3), rad/s."""
+        return self._spins(self.axis, self.spin)
+
+    def up(self):
+        """A heavy top's up vector: ``e3`` tilted by ``up_amplitude`` (default ``amplitude``), the same distribution,
+        a random stream derived from the ensemble's entropy (independent of the spins' tilts), shape (N, 3)."""
+        if self.entropy is None:
+            self.spins()
+        tilt = self.amplitude if self.up_amplitude is None else _scalar(self.up_amplitude, "up_amplitude")
+        return perturbed_spins(self.moments, 3, 1.0, tilt, self.samples, seed=_up_entropy(self.entropy),
+                               distribution=self.distribution, start=self.start, stop=self.stop)
+
+    def attitudes(self):
+        """Attitudes tilted by ``amplitude`` (the distribution's angle ``θ``: exactly ``amplitude`` for ``"cone"``)
+        about a uniformly random axis ``u``, ``q = (cos(θ/2), sin(θ/2) u)``, shape (N, 4): their own stream of the
+        seed. The sampling arguments are checked (and the seed's entropy drawn) as for the spins, which are not used."""
+        self._spins(3, 1.0)
+        return _tilted_attitudes(self.amplitude, self.samples, self.entropy, self.distribution, self.start, self.stop)
 
 
 def perturbed_states(model, axis, spin=1.0, amplitude=1e-3, samples=1024, *, up_amplitude=None, seed=0,
@@ -472,22 +507,6 @@ def perturbed_states(model, axis, spin=1.0, amplitude=1e-3, samples=1024, *, up_
     if not isinstance(model, Model):
         raise ValueError(f"model must be a tumble.physics.models model (FreeBody, Gyrostat, HeavyTop, "
                          f"GravityGradient, Damper), got {type(model).__name__}")
-    if model.kind == "gravity_gradient":
-        model.equilibrium(axis, spin)
-        # the sampling arguments checked (and the seed's entropy drawn) as for every model; the spins are not used
-        _, entropy = perturbed_spins(model.moments, 3, 1.0, amplitude, samples, seed=seed, distribution=distribution,
-                                     start=start, stop=stop, return_entropy=True)
-        return _tilted_attitudes(model, amplitude, samples, entropy, distribution, start, stop)
-    equilibrium = model.equilibrium(axis, 1.0)
-    w, entropy = perturbed_spins(model.moments, axis, spin, amplitude, samples, seed=seed, distribution=distribution,
-                                 start=start, stop=stop, return_entropy=True)
-    states = np.empty((len(w), model.state_size))
-    states[:] = equilibrium
-    states[:, :3] = w
-    if model.kind == "damper":  # the sphere moves with the body
-        states[:, 3:6] = w
-    elif model.state_size > 3:  # the heavy top's up vector: e3 tilted
-        tilt = amplitude if up_amplitude is None else _scalar(up_amplitude, "up_amplitude")
-        states[:, 3:6] = perturbed_spins(model.moments, 3, 1.0, tilt, samples, seed=_up_entropy(entropy),
-                                         distribution=distribution, start=start, stop=stop)
-    return states
+    # the model says which draws its state takes (Model.perturbed); each is drawn here
+    draws = _Draws(model.moments, axis, spin, amplitude, samples, up_amplitude, seed, distribution, start, stop)
+    return model.perturbed(draws, axis, spin)

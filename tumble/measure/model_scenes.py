@@ -82,8 +82,9 @@ METHODS = ("rk4", "rk8", "symplectic_euler", "splitting2", "splitting4")
 #: error is the nonlinear correction, O(amplitude²), whatever the horizon.
 PERIODS = 4
 
-#: A heavy top's spin tilt, as a fraction of its up direction's tilt (``perturbation.amplitude``).
-HEAVY_TOP_SPIN_TILT = 1e-3
+#: A heavy top's spin tilt, as a fraction of its up direction's tilt (``perturbation.amplitude``): the model's own
+#: :attr:`~tumble.physics.models.Model.spin_tilt`.
+HEAVY_TOP_SPIN_TILT = models.HeavyTop.spin_tilt
 
 #: Most samples per engine call (bounds the memory of stored states).
 SLICE = 2 * CHUNK
@@ -126,28 +127,9 @@ class Mode(NamedTuple):
     centre: np.ndarray | float = 0.0  # (k,): the equilibrium's values of the columns
 
 
-#: Models measured in the modal coordinate of their measured eigenvalue (:func:`mode`).
-MODAL = ("heavy_top", "gravity_gradient", "damper")
-
-
-def _mode_space(model, axis, spin):
-    """``(columns, rows of the tangent Jacobian, factor, weights)`` of a modal model's transverse motion: the
-    state's columns, the tangent coordinates they are (``factor`` times the column less the equilibrium's value),
-    and the transverse norm's weights on the columns.
-
-    A heavy top: ``(w1, w2, g1, g2)``. A gravity gradient: ``w`` and the attitude error ``θ = 2 (q1, q2, q3)`` (its
-    whole 6 x 6 tangent Jacobian). A damper: the body's and the sphere's components across the spin axis
-    (``w_b, w_c, s_b, s_c``: invariant under the linearised motion, the axis' ``w_a, s_a`` decouple), the norm on the
-    body's only."""
-    transverse = model.transverse(axis, spin)
-    columns = np.asarray(transverse.columns)
-    weights = np.asarray(transverse.weights, dtype=float)
-    if model.kind == "gravity_gradient":
-        return columns, np.arange(6), np.array([1.0, 1.0, 1.0, 2.0, 2.0, 2.0]), weights
-    if model.kind == "damper":
-        both = np.concatenate([columns, columns + 3])
-        return both, both, np.ones(4), np.concatenate([weights, np.zeros(2)])
-    return columns, columns, np.ones(len(columns)), weights
+#: Models measured in the modal coordinate of their measured eigenvalue (:func:`mode`): those whose class says so
+#: (:attr:`tumble.physics.models.Model.modal`).
+MODAL = tuple(kind for kind, cls in models.CLASSES.items() if cls.modal)
 
 
 def mode(model, axis, spin, kind, *, jacobian=None):
@@ -156,10 +138,11 @@ def mode(model, axis, spin, kind, *, jacobian=None):
     oscillation, the fastest of those (``"periodic"``, as :func:`tumble.physics.theory.linear` reports it; without
     damping the largest imaginary part), and its left eigenvector (:class:`Mode`).
 
-    The transverse columns (:func:`_mode_space`) must be invariant under the linearised motion (a heavy top's
+    The transverse columns (:meth:`~tumble.physics.models.Model.mode_space`: a heavy top's ``(w1, w2, g1, g2)``; a
+    gravity gradient's ``w`` and attitude error; a damper's body and sphere across the axis) must be invariant under the linearised motion (a heavy top's
     ``(w1, w2, g1, g2)``: ``w3`` and ``g3`` are constant to first order). ``jacobian``: the model's tangent Jacobian at
     this equilibrium when the caller has it (:func:`tumble.physics.theory.linearisation`)."""
-    columns, rows, factor, weights = _mode_space(model, axis, spin)
+    columns, rows, factor, weights = model.mode_space(axis, spin)
     equilibrium = model.equilibrium(axis, spin)
     jac = model.tangent_jacobian(equilibrium) if jacobian is None else jacobian
     lam, vectors = np.linalg.eig(jac[np.ix_(rows, rows)])
@@ -201,7 +184,7 @@ def model_of(kind, moments, axis, parameters):
 
 def _initial_states(scene, start, stop):
     """States ``[start, stop)`` of the scene's ensemble (see the module docstring for the heavy top's tilts)."""
-    spin_tilt = scene.amplitude * (HEAVY_TOP_SPIN_TILT if scene.model.kind == "heavy_top" else 1.0)
+    spin_tilt = scene.amplitude * scene.model.spin_tilt
     return perturbed_states(scene.model, scene.axis, scene.spin, spin_tilt, scene.samples,
                             up_amplitude=scene.amplitude, seed=scene.entropy, distribution=scene.distribution,
                             start=start, stop=stop)
@@ -221,14 +204,14 @@ def _plan(scene_args, kind, value, y0_norms, dt, horizon, eigenvalues=None):
     model, axis, spin, amplitude, order = scene_args
     lam = np.abs(theory.eigenvalues(model, axis, spin) if eigenvalues is None else eigenvalues).max()
     if dt is None:
-        fastest = max(lam, abs(spin)) if model.kind == "heavy_top" else lam  # see the module docstring
+        fastest = max(lam, abs(spin)) if model.resolves_spin else lam  # see the module docstring
         dt = 1.0 / fastest / planning.STEPS_PER_RADIAN[order]
     if kind == "exponential":
         tilt = math.sin(min(amplitude, 0.5 * np.pi))
         start = float(np.median(y0_norms))
         per_radian = start / tilt  # the norm of a perturbation one radian large
         saturation = max(planning.SATURATION, planning.SATURATION_TILTS * tilt) * per_radian
-        if model.kind in ("gyrostat", "gravity_gradient", "free"):  # near a threshold the linear regime ends
+        if model.saturates_near_threshold:  # near a threshold the linear regime ends
             saturation *= min(1.0, value / abs(spin))  # sooner (module docstring); a gravity gradient's spin: n
         t_growth = (math.log(max(saturation / start, math.e)) + 2.0) / value
         if horizon:
@@ -237,7 +220,7 @@ def _plan(scene_args, kind, value, y0_norms, dt, horizon, eigenvalues=None):
         probes = (first + np.arange(planning.PROBES + 1) * every) * dt
         n_steps = first + planning.PROBES * every
         return planning.StepPlan(t_end=n_steps * dt, dt=dt, n_steps=n_steps, probe_times=probes, saturation=saturation,
-                               save_every=every if model.kind in MODAL else None)
+                               save_every=every if model.modal else None)
     period = 2 * np.pi / value
     t_end = horizon or PERIODS * period
     spacing = period / planning.SAVES_PER_PERIOD
@@ -308,12 +291,11 @@ def scene_plan(model, axis, spin=1.0, amplitude=1e-3, samples=256, seed=0, metho
         raise ValueError(f"the steady spin about axis {axis} of this {model.kind} is neutral in linear theory (no "
                          f"growth rate or frequency to measure)")
     entropy = seed_entropy(seed)
-    if model.kind == "gravity_gradient":  # its equilibrium turns at the orbit rate, whatever spin.rate says
-        spin = model.orbit_rate
+    spin = model.steady_spin(spin)  # a gravity gradient's equilibrium turns at the orbit rate, whatever spin.rate says
     probe = ModelScene(model, model.moments, int(axis), spin, amplitude, int(samples), method, chosen, kind, value,
                        None, entropy, distribution)
     y0 = _initial_states(probe, 0, min(int(samples), 256))
-    scene_mode = mode(model, int(axis), spin, kind, jacobian=linearised.jacobian) if model.kind in MODAL else None
+    scene_mode = mode(model, int(axis), spin, kind, jacobian=linearised.jacobian) if model.modal else None
     if scene_mode is not None:
         norms = np.abs(_modal(scene_mode, y0))
     else:
@@ -353,7 +335,7 @@ def _fit_group(pieces):
     ``pieces`` are ``(scene, call)`` (:class:`_Call`) of the same kind, model family and number of observed times (a
     chunk's scenes, whose bodies differ, are measured together, as :func:`tumble.measure.scans.scene_batch` does)."""
     first = pieces[0][0]
-    heavy, counts = first.model.kind in MODAL, [len(call.result.status) for _, call in pieces]
+    heavy, counts = first.model.modal, [len(call.result.status) for _, call in pieces]
     row = np.repeat(np.arange(len(pieces), dtype=np.int64), counts)
     if first.kind == "exponential":
         times = np.stack([call.result.times if heavy else call.result.probe_times for _, call in pieces])
@@ -393,7 +375,7 @@ def _fit_all(pieces):
     for i, (scene, call) in enumerate(pieces):
         stored = call.signal is not None or call.result.trajectory is not None
         observed = call.result.times if stored else call.result.probe_times
-        groups.setdefault((scene.kind, scene.model.kind in MODAL, len(observed)), []).append(i)
+        groups.setdefault((scene.kind, scene.model.modal, len(observed)), []).append(i)
     fits = [None] * len(pieces)
     for members in groups.values():
         for i, fit in zip(members, _fit_group([pieces[i] for i in members])):
@@ -403,7 +385,7 @@ def _fit_all(pieces):
 
 def _run(scene, start, stop):
     """The engine calls of samples ``[start, stop)`` of a scene (:class:`_Call`)."""
-    plan, growth, modal = scene.plan, scene.kind == "exponential", scene.model.kind in MODAL
+    plan, growth, modal = scene.plan, scene.kind == "exponential", scene.model.modal
     if not (0 <= start < stop <= scene.samples and start % CHUNK == 0):
         raise ValueError(f"a sample range must lie in [0, {scene.samples}) and start at a multiple of {CHUNK}, "
                          f"got [{start}, {stop})")
@@ -454,11 +436,7 @@ def _model_coordinates(scene):
     """The model's coordinates of a scene record: its kind and parameters (the rotor as h along the spin axis)."""
     model = scene.model
     coords = {"model": np.asarray(model.kind), "@model": model.kind}
-    if model.kind == "gyrostat":
-        coords["rotor"] = np.float64(model.rotor[scene.axis - 1])
-    for key in (p.key for p in registry.MODEL_PARAMETERS if p.size == 1):  # mgl, orbit_rate, damper_inertia, ...
-        if hasattr(model, key):
-            coords[key] = np.float64(getattr(model, key))
+    coords.update((key, np.float64(value)) for key, value in model.coordinates(scene.axis).items())
     return coords
 
 
@@ -543,8 +521,8 @@ def flat_spin_trace(model, axis, spin=1.0, amplitude=1e-3, *, seed=0, method="rk
     """
     import xarray as xr
 
-    if model.kind != "damper":
-        raise ValueError(f"a flat-spin trace is a damper's (model kind 'damper'), got {model.kind!r}")
+    if not isinstance(model, models.Damper):
+        raise ValueError(f"a flat-spin trace is a damper's (model kind {models.Damper.kind!r}), got {model.kind!r}")
     method = METHODS[0] if method == "auto" else method
     t_end = float(horizon) if horizon else _settle_time(model, axis, spin, amplitude)
     fastest = max(np.abs(theory.eigenvalues(model, axis, spin)).max(), abs(spin), model.damping / model.damper_inertia)

@@ -118,15 +118,49 @@ class Model:
 
     moments: np.ndarray
     kind: ClassVar[str] = ""
+    #: Components of the state: the length of the kind's ``registry.MODELS`` row's ``state`` (set for each class).
     state_size: ClassVar[int] = 0
     #: Parameters of the Python API beyond the study keys of ``registry.MODELS`` (the heavy top's ``centre``, the
     #: gravity gradient's ``eccentricity``), in the constructor's order after them.
     extras: ClassVar[tuple] = ()
 
+    # --- what the model says about its scenes (read by the engine's sampler, the scene planner and the study checks,
+    # so that none of them switches on a kind's name) ------------------------------------------------------------
+    #: The principal axes (1-based) it has a steady spin about, and why when not all three (a study's message).
+    spin_axes: ClassVar[tuple] = (1, 2, 3)
+    spin_axes_reason: ClassVar[str] = ""
+    #: The parameter that fixes its steady state in place of a study's spin (axis and rate), and why ("": the spin
+    #: sets it). See :meth:`steady_spin`.
+    equilibrium_parameter: ClassVar[str] = ""
+    equilibrium_reason: ClassVar[str] = ""
+    #: Why the Lie–Poisson splittings do not step it ("": they do; ``registry.LIE_POISSON_MODELS``).
+    not_lie_poisson: ClassVar[str] = ""
+    #: Measured in the modal coordinate of its measured eigenvalue (:meth:`mode_space`,
+    #: :func:`tumble.measure.model_scenes.mode`): no fixed weights of its transverse components make its linear
+    #: motion one circle or one exponential. False: the weighted :meth:`transverse_norm` and its phase pair.
+    modal: ClassVar[bool] = False
+    #: A scene's tilt of the spin as a fraction of its amplitude (``perturbation.amplitude``), which tilts the
+    #: model's own block where :meth:`perturbed` draws one (the heavy top's up vector).
+    spin_tilt: ClassVar[float] = 1.0
+    #: Its step must resolve the spin itself, not only the linearisation's eigenvalues (the heavy top's up vector
+    #: turns at ``w3`` in the body frame; a gyrostat's spin is no time scale of its body-frame motion).
+    resolves_spin: ClassVar[bool] = False
+    #: Near a stability threshold its linear regime of growth ends sooner (the second-order change of the spin shifts
+    #: the rate): a growth scene's saturation is scaled by ``rate_theory / |spin|`` (:mod:`tumble.measure.model_scenes`).
+    saturates_near_threshold: ClassVar[bool] = True
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if cls.kind:
+            cls.state_size = len(registry.model_kind(cls.kind).state)
+
     def __post_init__(self):
         moments = one_body(self.moments).copy()
         moments.setflags(write=False)
         object.__setattr__(self, "moments", moments)
+        for key in self.spec.parameters:  # each study key checked against its registry row: a number or a vector
+            value = _parameter(key, getattr(self, key))
+            object.__setattr__(self, key, float(value) if value.ndim == 0 else value)
 
     # --- what the registry says -------------------------------------------------------------------------------
     @property
@@ -231,6 +265,50 @@ class Model:
         """
         return self.jacobian(state)
 
+    # --- its scenes ------------------------------------------------------------------------------------------------
+    def steady_spin(self, spin):
+        """The spin rate (rad/s) of the steady state a scene of spin ``spin`` measures: ``spin`` itself, unless a
+        parameter fixes the equilibrium (:attr:`equilibrium_parameter`)."""
+        return spin
+
+    def mode_space(self, axis, spin=1.0):
+        """``(columns, rows, factor, weights)`` of the transverse motion a :attr:`modal` model is measured in: the
+        state's columns (:meth:`transverse`), the rows of :meth:`tangent_jacobian` they are (``factor`` times the
+        column less the equilibrium's value), and the transverse norm's weights on the columns. The columns must be
+        invariant under the linearised motion. By default the transverse columns are their own tangent coordinates.
+        """
+        transverse = self.transverse(axis, spin)
+        columns = np.asarray(transverse.columns)
+        return columns, columns, np.ones(len(columns)), np.asarray(transverse.weights, dtype=float)
+
+    def perturbed(self, draws, axis, spin):
+        """States of shape (N, n) near the steady spin about ``axis``, from a sampler's random draws
+        (:func:`tumble.engine.sampling.perturbed_states`): ``w`` is ``draws.spins()`` (the steady spin tilted, N x 3,
+        rad/s), the model's own components the equilibrium's; a model whose own block is perturbed too takes it from
+        ``draws.up()`` (a unit vector near ``e3``, N x 3) or ``draws.attitudes()`` (unit quaternions near ``(1, 0, 0,
+        0)``, N x 4), or sets it from ``w``.
+
+        Raises
+        ------
+        ValueError
+            An axis the model has no steady spin about; any argument the draws refuse.
+        """
+        equilibrium = self.equilibrium(axis, 1.0)
+        w = draws.spins()
+        states = np.empty((len(w), self.state_size))
+        states[:] = equilibrium
+        states[:, :3] = w
+        return states
+
+    def coordinates(self, axis):
+        """``{key: value}`` of the model's numeric study parameters as a scene record's scalar coordinates (a
+        vector parameter as its component along ``axis``, 1-based; the others as they are)."""
+        out = {}
+        for key in self.spec.parameters:
+            value = getattr(self, key)
+            out[key] = float(value) if np.ndim(value) == 0 else float(value[axis - 1])
+        return out
+
     # Each model defines: rhs, jacobian, invariants, equilibrium, transverse.
     def rhs(self, state):  # pragma: no cover - abstract
         """The time derivative of ``state`` (shape (..., n), n = :attr:`state_size`), same shape; each model
@@ -328,7 +406,6 @@ class FreeBody(Model):
     """
 
     kind: ClassVar[str] = "free"
-    state_size: ClassVar[int] = len(registry.model_kind("free").state)
 
     def rhs(self, state):
         """``w'`` (rad/s²) for states ``w`` of shape (..., 3), rad/s."""
@@ -380,11 +457,6 @@ class Gyrostat(Model):
 
     rotor: np.ndarray
     kind: ClassVar[str] = "gyrostat"
-    state_size: ClassVar[int] = len(registry.model_kind("gyrostat").state)
-
-    def __post_init__(self):
-        super().__post_init__()
-        object.__setattr__(self, "rotor", _parameter("rotor", self.rotor))
 
     def _rotor(self):
         return self.rotor
@@ -462,12 +534,16 @@ class HeavyTop(Model):
     mgl: float
     centre: np.ndarray = (0.0, 0.0, 1.0)
     kind: ClassVar[str] = "heavy_top"
-    state_size: ClassVar[int] = len(registry.model_kind("heavy_top").state)
     extras: ClassVar[tuple] = ("centre",)
+    spin_axes: ClassVar[tuple] = (3,)
+    spin_axes_reason: ClassVar[str] = "the centre of mass lies on body axis 3: the sleeping top spins about it"
+    modal: ClassVar[bool] = True  # an asymmetric top's modes are elliptical in any fixed weights
+    spin_tilt: ClassVar[float] = 1e-3  # a scene's amplitude tilts the up vector; the spin by a thousandth of it
+    resolves_spin: ClassVar[bool] = True
+    saturates_near_threshold: ClassVar[bool] = False
 
     def __post_init__(self):
         super().__post_init__()
-        object.__setattr__(self, "mgl", float(_parameter("mgl", self.mgl)))
         centre = finite_array(self.centre, "centre")
         if centre.shape != (3,) or not np.any(centre):
             raise ValueError(f"centre must be a non-zero 3-vector (the centre of mass's direction, body axes), got "
@@ -540,6 +616,12 @@ class HeavyTop(Model):
             raise ValueError(f"axis (spin.axis) must be 3 for a heavy_top, got {axis!r}")
         weights = np.array([1.0, 1.0, self.mgl / self.moments[0], self.mgl / self.moments[1]])
         return Transverse(np.array([0, 1, 3, 4], dtype=np.intp), weights, np.array([3, 4], dtype=np.intp))
+
+    def perturbed(self, draws, axis, spin):
+        """:meth:`Model.perturbed`, with the up vector ``g`` from ``draws.up()``: ``e3`` tilted by its own angle."""
+        states = super().perturbed(draws, axis, spin)
+        states[:, 3:6] = draws.up()
+        return states
 
 
 def _rows_of_attitude(q):
@@ -629,12 +711,15 @@ class GravityGradient(Model):
     orbit_rate: float
     eccentricity: float = 0.0
     kind: ClassVar[str] = "gravity_gradient"
-    state_size: ClassVar[int] = len(registry.model_kind("gravity_gradient").state)
     extras: ClassVar[tuple] = ("eccentricity",)
+    equilibrium_parameter: ClassVar[str] = "orbit_rate"
+    equilibrium_reason: ClassVar[str] = "its equilibrium follows the orbit, w = (0, -n, 0)"
+    not_lie_poisson: ClassVar[str] = ("a gravity gradient's state is no Lie–Poisson system in these variables (w and "
+                                      "a quaternion relative to the turning orbit frame)")
+    modal: ClassVar[bool] = True  # w and the attitude error together, the 6 x 6 tangent Jacobian
 
     def __post_init__(self):
         super().__post_init__()
-        object.__setattr__(self, "orbit_rate", float(_parameter("orbit_rate", self.orbit_rate)))
         e = finite_array(self.eccentricity, "eccentricity")
         if e.ndim or not 0.0 <= float(e) < 1.0:
             raise ValueError(f"eccentricity must be a number in [0, 1) (0: a circular orbit), got {self.eccentricity!r}")
@@ -781,6 +866,23 @@ class GravityGradient(Model):
                           np.array([1.0, 1.0, 1.0, 4 * n2, 4 * n2, 4 * n2]), np.array([4, 6], dtype=np.intp),
                           np.array([0.0, -self.orbit_rate, 0.0, 0.0, 0.0, 0.0]))
 
+    def steady_spin(self, spin):
+        """The orbit rate ``n`` (rad/s): the equilibrium turns with the orbit frame whatever ``spin`` says."""
+        return self.orbit_rate
+
+    def mode_space(self, axis=2, spin=1.0):
+        """``w`` and the attitude error ``θ = 2 (q1, q2, q3)``: the whole 6 x 6 tangent Jacobian (:meth:`Model.mode_space`)."""
+        columns, _, _, weights = super().mode_space(axis, spin)
+        return columns, np.arange(6), np.array([1.0, 1.0, 1.0, 2.0, 2.0, 2.0]), weights
+
+    def perturbed(self, draws, axis, spin):
+        """States near the orbit-following equilibrium: the attitude ``draws.attitudes()`` (tilted about a random axis),
+        ``w`` the orbit frame's rate there (:meth:`following_velocity`: the body does not turn relative to the orbit
+        frame at first). ``axis`` and ``spin`` are not used (checked as by :meth:`equilibrium`)."""
+        self.equilibrium(axis, spin)
+        q = draws.attitudes()
+        return np.concatenate([self.following_velocity(q), q], axis=-1)
+
 
 @dataclass(frozen=True, eq=False)
 class Damper(Model):
@@ -819,12 +921,9 @@ class Damper(Model):
     damper_inertia: float
     damping: float
     kind: ClassVar[str] = "damper"
-    state_size: ClassVar[int] = len(registry.model_kind("damper").state)
-
-    def __post_init__(self):
-        super().__post_init__()
-        object.__setattr__(self, "damper_inertia", float(_parameter("damper_inertia", self.damper_inertia)))
-        object.__setattr__(self, "damping", float(_parameter("damping", self.damping)))
+    not_lie_poisson: ClassVar[str] = "a damper is dissipative"
+    modal: ClassVar[bool] = True  # the sphere's components couple to the body's nutation
+    saturates_near_threshold: ClassVar[bool] = False
 
     def rhs(self, state):
         """``(w', s')`` (rad/s²) for states of shape (..., 6), rad/s."""
@@ -899,6 +998,19 @@ class Damper(Model):
         k = _one_axis(axis)
         pair = np.array([(k + 1) % 3, (k + 2) % 3], dtype=np.intp)
         return Transverse(pair, _circular_weights(self.moments, k, 1.0, 0.0), pair.copy())
+
+    def mode_space(self, axis, spin=1.0):
+        """The body's and the sphere's components across the spin axis, ``(w_b, w_c, s_b, s_c)`` (invariant under the
+        linearised motion: the axis' ``w_a, s_a`` decouple), the norm on the body's only (:meth:`Model.mode_space`)."""
+        columns, _, _, weights = super().mode_space(axis, spin)
+        both = np.concatenate([columns, columns + 3])
+        return both, both, np.ones(4), np.concatenate([weights, np.zeros(2)])
+
+    def perturbed(self, draws, axis, spin):
+        """:meth:`Model.perturbed`, with the sphere moving with the body: ``s = w``."""
+        states = super().perturbed(draws, axis, spin)
+        states[:, 3:6] = states[:, :3]
+        return states
 
 
 #: Every model with a class here, by kind (``registry.MODELS``' ``physics`` flag).

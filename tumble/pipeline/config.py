@@ -115,10 +115,12 @@ MODEL_SCAN_KEYS = tuple(p.key for p in registry.MODEL_PARAMETERS)
 #: Stepping methods of a model study (the model kernels'); ``"auto"`` means the first.
 MODEL_METHODS = ("rk4", "rk8", "symplectic_euler", "splitting2", "splitting4")
 
-#: Figures of a model study (the free body's others read what only free-body scenes record).
-MODEL_FIGURES = ("gyrostat_map", "sleeping_top", "debra_delp_map", "pitch_libration", "flat_spin", "summary")
+#: Figures of a model study (the free body's others read what only free-body scenes record): the registry's model
+#: figures (``registry.FIGURE_MODELS``: each with the model kind it needs) and the summary.
+MODEL_FIGURES = (*registry.FIGURE_MODELS, "summary")
 
-#: ``scan.k1`` and ``scan.k3``: the gravity-gradient inertia ratios of the scan's bodies (a grid, I2 = 1 kg m²).
+#: ``scan.k1`` and ``scan.k3``: the gravity-gradient inertia ratios of the scan's bodies (a grid, I2 = 1 kg m²); the
+#: kind they belong to says so in its registry row (``scan_keys``).
 K_SCAN_KEYS = ("k1", "k3")
 
 #: A rotor component across the spin axis above this fraction of ``|rotor|`` breaks the steady spin.
@@ -661,9 +663,10 @@ def _model(table, given, scan):
             raise _Invalid(f"scan.{key}", f"not a parameter of model kind {kind!r} (its parameters: "
                                           f"{', '.join(spec.parameters) or 'none'}){reserved}")
     for key in K_SCAN_KEYS:
-        if key in scan and kind != "gravity_gradient":
+        if key in scan and key not in spec.scan_keys:
+            owner = next(m.name for m in registry.MODELS if key in m.scan_keys)
             raise _Invalid(f"scan.{key}", f"scans the gravity-gradient inertia ratios; not with model kind {kind!r} "
-                                          f"(set model.kind = 'gravity_gradient', or scan bodies with scan.moments)")
+                                          f"(set model.kind = {owner!r}, or scan bodies with scan.moments)")
     if kind == registry.DEFAULT_MODEL:
         return None
     out = {"kind": kind}
@@ -765,14 +768,14 @@ def _check_model_scenes(resolved, given):
     model kernel's method, no torque, the models' figures (default ``["summary"]``)."""
     model, scan, spin = resolved["model"], resolved["scan"], resolved["spin"]
     kind = model["kind"]
+    cls = models.CLASSES[kind]  # what the model says about its steady spins
     axes = [(f"scan.axis[{i}]", a) for i, a in enumerate(scan["axis"])] if "axis" in scan else [
         ("spin.axis", spin["axis"])]
-    if kind == "heavy_top":
-        for field, a in axes:
-            if a != 3:
-                raise _Invalid(field, f"must be 3 for a heavy_top (the centre of mass lies on body axis 3: the "
-                                      f"sleeping top spins about it), got {a}")
-    if kind == "gyrostat":
+    for field, a in axes:
+        if a not in cls.spin_axes:
+            raise _Invalid(field, f"must be {' or '.join(map(str, cls.spin_axes))} for a {kind} "
+                                  f"({cls.spin_axes_reason}), got {a}")
+    if "rotor" in registry.model_kind(kind).parameters:  # a rotor across the spin axis breaks the steady spin
         rotors = ([(f"scan.rotor[{i}]", h) for i, h in enumerate(scan["rotor"])] if "rotor" in scan
                   else [("model.rotor", model["rotor"])])
         for field, h in rotors:
@@ -787,14 +790,14 @@ def _check_model_scenes(resolved, given):
     if "k1" in scan and resolved["body"]["shape"]:
         raise _Invalid("scan.k1", f"scans bodies, but body.shape = {resolved['body']['shape']!r} fixes the body; use "
                                   f"one of them")
-    if kind == "gravity_gradient":  # the orbit fixes the equilibrium: spin.axis and spin.rate are not used
+    fixed_by = cls.equilibrium_parameter  # a parameter fixes the equilibrium: spin.axis and spin.rate are not used
+    if fixed_by:
         for key in ("axis", "rate"):
             if key in scan:
-                raise _Invalid(f"scan.{key}", f"not used by a gravity_gradient (its equilibrium follows the orbit, "
-                                              f"w = (0, -n, 0)); scan model.orbit_rate with scan.orbit_rate")
+                raise _Invalid(f"scan.{key}", f"not used by a {kind} ({cls.equilibrium_reason}); scan "
+                                              f"model.{fixed_by} with scan.{fixed_by}")
         if "momentum" in spin:
-            raise _Invalid("spin.momentum", "not used by a gravity_gradient (its equilibrium follows the orbit, "
-                                            "w = (0, -n, 0)); give model.orbit_rate")
+            raise _Invalid("spin.momentum", f"not used by a {kind} ({cls.equilibrium_reason}); give model.{fixed_by}")
     if resolved["torque"]["profile"] != "none":
         raise _Invalid("torque.profile", f"must be 'none' for model kind {kind!r}: model studies are torque-free "
                                          f"(the model's own forces act)")
@@ -967,19 +970,9 @@ def bundled_studies():
 
 
 def resolve_body(study):
-    """The :class:`~tumble.physics.bodies.Body` of a resolved study (not of its scan).
-
-    Parameters
-    ----------
-    study : Mapping
-        A resolved study (:func:`load_study`).
-
-    Returns
-    -------
-    Body
-        ``tumble.physics.shapes.<body.shape>(**body.dimensions)`` when a shape is named, else
-        ``Body(*body.moments)``.
-    """
+    """The :class:`~tumble.physics.bodies.Body` of ``study``, a resolved study (:func:`load_study`), not of its
+    scan: ``tumble.physics.shapes.<body.shape>(**body.dimensions)`` when a shape is named, else
+    ``Body(*body.moments)``."""
     body = study["body"]
     if body.get("shape"):
         return getattr(shapes, body["shape"])(**body.get("dimensions", {}))

@@ -290,15 +290,11 @@ class ModelScenes:
         values = _values(resolved)
         for key in registry.model_kind(self.kind).parameters:
             values[key] = scan.get(key, model[key])
-        needs = {"gyrostat_map": ("gyrostat", "rotor", "scan.rotor (rotor momentum along the spin axis)"),
-                 "sleeping_top": ("heavy_top", "rate", "scan.rate (the spin w3 through the threshold)"),
-                 "debra_delp_map": ("gravity_gradient", "k1", "scan.k1 and scan.k3 (the grid of inertia ratios)"),
-                 "pitch_libration": ("gravity_gradient", "orbit_rate", "scan.orbit_rate (the orbital rates)"),
-                 "flat_spin": ("damper", None, "")}
         for i, name in enumerate(resolved["outputs"]["figures"]):
-            kind, key, what = needs.get(name, (self.kind, None, ""))
-            if kind != self.kind or (key and key not in scan):
-                _refuse(file, f"outputs.figures[{i}]", f"{name} needs model.kind = {kind!r} and {what}")
+            need = registry.FIGURE_MODELS.get(name)  # the model and the scan the figure needs
+            if need and (need.kind != self.kind or (need.scan and need.scan not in scan)):
+                _refuse(file, f"outputs.figures[{i}]", f"{name} needs model.kind = {need.kind!r}"
+                                                       + (f" and {need.text}" if need.text else ""))
         scanned = [key for key in ("moments", "triangle", "body", "k1", "k3", "axis", "rate", "amplitude", "method",
                                    *values) if key in scan]
         return StudyPlan(moments, body_coords, values, ModelSceneOptions.of(resolved), list(dict.fromkeys(scanned)),
@@ -775,8 +771,9 @@ def _extras(resolved, job, progress):
         extras.append(precision.work_precision(*scene, samples=p.samples, t_end=options["horizon"] or 20.0,
                                                seed=p.seed, progress=progress))
     if "flat_spin" in figures:  # a damper's turn-over to the flat spin, from the first scene
-        parameters = {key: _first(values[key]) for key in registry.model_kind("damper").parameters}
-        damper = model_scenes.model_of("damper", first_body, _first(values["axis"]), parameters)
+        kind = registry.FIGURE_MODELS["flat_spin"].kind  # the study's own: ModelScenes.plan refuses another
+        parameters = {key: _first(values[key]) for key in registry.model_kind(kind).parameters}
+        damper = model_scenes.model_of(kind, first_body, _first(values["axis"]), parameters)
         method = _first(values["method"])
         extras.append(model_scenes.flat_spin_trace(damper, *scene[1:], seed=p.seed,
                                                    method="rk8" if method == "auto" else method))

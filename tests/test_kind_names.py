@@ -1,0 +1,77 @@
+"""Each built-in model's kind name stands in at most its own module, the registry and the study schema (issue 40).
+
+Code elsewhere asks the model what it is (its class's attributes and methods, :mod:`tumble.physics.models`) or reads
+a registry row (``registry.MODELS``, ``registry.FIGURE_MODELS``); it never switches on a kind's name. Every module of
+the package is parsed (never imported), and a string literal that *is* a kind name (``"damper"``) or quotes one
+(``"model kind 'damper'"``, the way a message or a docstring would write it) fails, wherever it stands: code,
+f-string parts and docstrings alike (a docstring that spells out the kinds goes stale when one is added; it can name
+the registry or the classes instead). Prose that uses a kind's word unquoted ("a heavy top", "the damper") is not a
+kind name and passes.
+
+Exempt: ``registry.py`` and ``pipeline/schema.py`` (the data and the study's documented fields), the generated
+``kernels/model_steps.py``, the kernels' systems (``kernels/systems/``) and ``kernels/models.py`` (the kernels' own
+tables, in the lead's hands), and each model class's own module for its own kind (today ``physics/models.py``).
+"""
+
+import ast
+from pathlib import Path
+
+from tumble import registry
+from tumble.physics import models
+
+PACKAGE = Path(__file__).resolve().parents[1] / "tumble"
+
+EXEMPT = {"registry.py", "pipeline/schema.py", "kernels/model_steps.py", "kernels/models.py"}
+EXEMPT_FOLDERS = ("kernels/systems/",)
+
+
+def _own_module(kind):
+    """The file (relative to the package, posix) that defines the class of model ``kind``."""
+    module = models.CLASSES[kind].__module__
+    return Path(*module.split(".")[1:]).with_suffix(".py").as_posix()
+
+
+def _kind_literals(path):
+    """``(line, kind, literal)`` for every string literal of ``path`` that is a kind name or quotes one."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    found = []
+    for node in ast.walk(tree):
+        if not (isinstance(node, ast.Constant) and isinstance(node.value, str)):
+            continue
+        for kind in registry.MODEL_KINDS:
+            if node.value == kind or f"'{kind}'" in node.value or f'"{kind}"' in node.value:
+                found.append((node.lineno, kind, node.value if len(node.value) < 80 else node.value[:77] + "..."))
+    return found
+
+
+def _offences():
+    own = {kind: _own_module(kind) for kind in registry.MODEL_KINDS}
+    offences = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        rel = path.relative_to(PACKAGE).as_posix()
+        if rel in EXEMPT or rel.startswith(EXEMPT_FOLDERS):
+            continue
+        for line, kind, literal in _kind_literals(path):
+            if own[kind] != rel:
+                offences.append(f"{rel}:{line}: {kind!r} in {literal!r}")
+    return offences
+
+
+def test_every_kind_has_a_class_whose_module_is_a_file_of_the_package():
+    for kind in registry.MODEL_KINDS:
+        assert models.CLASSES[kind].kind == kind
+        assert (PACKAGE / _own_module(kind)).is_file()
+
+
+def test_the_detector_finds_a_kind_name_as_a_literal_and_quoted_in_a_message(tmp_path):
+    source = tmp_path / "example.py"
+    source.write_text('"""A heavy top, unquoted: fine."""\n'
+                      'if model.kind == "damper":\n'
+                      '    raise ValueError(f"needs model kind \'gyrostat\', got {kind!r}")\n')
+    assert [(line, kind) for line, kind, _ in _kind_literals(source)] == [(2, "damper"), (3, "gyrostat")]
+
+
+def test_no_module_switches_on_a_model_kind_name():
+    offences = _offences()
+    assert offences == [], ("kind names outside their model's module, the registry and the schema (ask the model "
+                            "class or read a registry row instead):\n" + "\n".join(offences))
