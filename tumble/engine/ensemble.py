@@ -42,8 +42,8 @@ from .progress import tqdm
 from .sampling import CHUNK
 from .systems import is_system, run_system
 
-__all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "Interrupted", "STATUS_NAMES", "run_ensemble", "run_scene_table",
-           "torque_spec"]
+__all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "Interrupted", "STATUS_NAMES", "checked_torque", "run_ensemble",
+           "run_planned", "run_scene_table", "torque_spec"]
 
 # Torque-free samples whose energy or |L|^2 drift by more than this (relative) are flagged, not trusted.
 DEFAULT_DRIFT_LIMIT = 1e-2
@@ -274,7 +274,7 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
                  drift_limit=DEFAULT_DRIFT_LIMIT, chunk=CHUNK, progress=None, attitude=False, device="cpu",
                  growth_window=None, keep_probes=True, phase_window=None, keep_trajectory=True, parameters=None):
     # size: 24 keywords, the engine's public call (tumble.run_ensemble); each is one observer or stop request a caller
-    # may name, checked at once by _checked_arguments and packed into the _Observe record below.
+    # may name, checked at once by _checked_arguments and passed on to run_planned (which packs them into _Observe).
     """Run an ensemble of spins and observe it on the fly.
 
     A built-in model or a :class:`tumble.System` in place of the body runs that system (as :func:`tumble.integrate`
@@ -385,26 +385,60 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         chunk)
     n = len(w0)
     steps = float(np.rint(t_end / dt))  # a float (inf at worst): an absurd t_end / dt is refused by the cost bound
-    a = int(axis) - 1
-    torque = _Torque(*torque_spec(torque))
-    if torque.params is not None:
-        profile = registry.TORQUE_PROFILES[torque.kind]
-        problem = registry.profile_step_problem(profile.name, float(torque.params[3]), dt)
-        if problem:
-            raise ValueError(f"torque {profile.time}: {problem}")
-    axis_is_intermediate = a == int(np.argsort(moments, kind="stable")[1])
+    torque = checked_torque(torque, dt)
+    axis_is_intermediate = int(axis) - 1 == int(np.argsort(moments, kind="stable")[1])
     chosen, reason = choose_method(method, torque_free=torque.free, axis_is_intermediate=axis_is_intermediate,
                                    flips=max_flips)
     stored = _stored_per_sample(steps, save_every, probe_times, max_flips, drift, attitude)
     times = (steps // save_every + 2 if save_every else 1) + (0 if probe_times is None else len(probe_times))
     cost.refuse(cost.run_cost(n, 0 if chosen == "exact" else steps, stored, times=times, attitude=bool(attitude)),
                 f"w0 ({n:,} spins) over t_end / dt = {steps:.3g} steps", device)
-    n_steps = int(steps)
     if attitude and (not save_every or probe_times is not None or max_flips or drift or stop_norm or stop_flips):
         raise ValueError("attitude=True is stored with the trajectory: it needs save_every and no other observer")
     if growth_window is not None and (probe_times is None or len(probe_times) < 3):
         raise ValueError("growth_window fits the norms at probe_times: it needs at least 3 probe_times")
     phase_window = _checked_phase_window(phase_window, save_every, attitude)
+    if device == "cuda":
+        check_on_device(chosen, torque_fn=torque.fn)
+    return run_planned(moments, w0, t_end, dt, method=chosen, reason=reason, torque=torque, axis=axis, final=final,
+                       save_every=save_every, probe_times=probe_times, norm_weights=norm_weights,
+                       max_flips=max_flips, drift=drift, stop_norm=stop_norm, stop_flips=stop_flips,
+                       drift_limit=drift_limit, chunk=chunk, progress=progress, attitude=attitude, device=device,
+                       growth_window=growth_window, keep_probes=keep_probes, phase_window=phase_window,
+                       keep_trajectory=keep_trajectory)
+
+
+def checked_torque(torque, dt):
+    """The torque argument of a run with step ``dt`` s, checked (:func:`torque_spec`) as the kernels take it: a
+    ``ValueError`` also where the step cannot resolve its sine or pulse (``registry.profile_step_problem``, issue 17,
+    cause 8). The check of every public call that steps a free body with a torque (:func:`run_ensemble`,
+    :func:`tumble.integrate`, :func:`tumble.propagate`); a planned scene's torque is checked by its planner."""
+    torque = _Torque(*torque_spec(torque))
+    if torque.params is not None:
+        profile = registry.TORQUE_PROFILES[torque.kind]
+        problem = registry.profile_step_problem(profile.name, float(torque.params[3]), dt)
+        if problem:
+            raise ValueError(f"torque {profile.time}: {problem}")
+    return torque
+
+
+def run_planned(moments, w0, t_end, dt, *, method, torque, axis=1, final=True, save_every=None, probe_times=None,
+                norm_weights=None, max_flips=0, drift=False, stop_norm=0.0, stop_flips=0,
+                drift_limit=DEFAULT_DRIFT_LIMIT, chunk=CHUNK, progress=None, attitude=False, device="cpu",
+                growth_window=None, keep_probes=True, phase_window=None, keep_trajectory=True, reason=""):
+    # size: run_ensemble's observers, passed on as its callers name them (one keyword each, as run_ensemble takes)
+    """:func:`run_ensemble` of arguments already checked, trusted as they come: what the public call runs after its
+    checks, and what a planned scene runs (:func:`tumble.measure.running.scene_samples`: its method, device, torque
+    and cost were checked when it was planned, :func:`tumble.measure.planning.scene_plan`).
+
+    ``moments`` (3,) and ``w0`` (N, 3) float arrays; ``method`` the method that runs (``"auto"`` resolved:
+    ``"exact"`` or a fixed-step method, with ``reason`` why, for ``info``); ``torque`` as :func:`checked_torque` returns
+    it (or the tuple of :func:`torque_spec`); ``device`` resolved; ``phase_window`` as :func:`run_ensemble` checks it;
+    the rest as :func:`run_ensemble` takes them. Nothing here raises for an argument.
+    """
+    torque = torque if isinstance(torque, _Torque) else _Torque(*torque)
+    n = len(w0)
+    n_steps = int(np.rint(t_end / dt))
     save = int(save_every or 0)
     times, probe_steps, probe_times = observation_times(t_end, dt, save, probe_times)
     if growth_window is not None:
@@ -413,21 +447,20 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
                          float((probe_times[-1] - probe_times[0]) / (len(probe_times) - 1)))
     early = (stop_norm > 0 or stop_flips > 0) and not final and not save
     observe = _Observe(
-        final=final, save=save, times=times, probe_steps=probe_steps, probe_times=probe_times, axis=a,
+        final=final, save=save, times=times, probe_steps=probe_steps, probe_times=probe_times, axis=int(axis) - 1,
         weights=np.ones(3) if norm_weights is None else np.asarray(norm_weights, dtype=float), max_flips=max_flips,
         drift=drift, attitude=attitude, stop_norm=stop_norm if early else 0.0, stop_flips=stop_flips if early else 0,
         drift_limit=drift_limit if torque.free else 0.0, growth=growth_window,
         keep_probes=keep_probes or growth_window is None, phase=phase_window,
         keep_trajectory=keep_trajectory or phase_window is None)
     if device == "cuda":
-        check_on_device(chosen, torque_fn=torque.fn)
         chunk = max(chunk, LAUNCH_SAMPLES)
-    info = {"path": "closed form" if chosen == "exact" else "fixed-step kernel", "method": chosen,
+    info = {"path": "closed form" if method == "exact" else "fixed-step kernel", "method": method,
             "reason": reason, "dt": dt, "n_steps": n_steps, "torque": torque.text, "early_stop": early,
             "samples": n, "device": device}
     show = sys.stderr.isatty() if progress is None else progress
     started = time.perf_counter()
-    bar = tqdm(total=n, unit="spins", desc=f"{chosen}") if show else contextlib.nullcontext(_NO_BAR)
+    bar = tqdm(total=n, unit="spins", desc=f"{method}") if show else contextlib.nullcontext(_NO_BAR)
     with bar as bar, _stop_between_chunks() as interrupted:
 
         def chunks():  # sample ranges, the bar advanced and Ctrl-C honoured between them
@@ -440,18 +473,18 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
             if interrupted():  # pressed during the last chunk: the run stops all the same
                 raise Interrupted(n, n)
 
-        if chosen == "exact":
+        if method == "exact":
             result = _run_exact(moments, w0, t_end, observe, chunks(), device)
             info.update(sample_steps_computed=0, sample_steps_skipped=n * n_steps, jit_seconds=0.0)
             return _fit_phase(_fit_growth(result._replace(info=info), observe), observe)
         if attitude:
-            result = _run_attitude(METHODS[chosen], moments, w0, dt, n_steps, observe, torque, chunks(), device)
+            result = _run_attitude(METHODS[method], moments, w0, dt, n_steps, observe, torque, chunks(), device)
             info.update(run_seconds=time.perf_counter() - started, sample_steps_computed=n * n_steps,
                         sample_steps_skipped=0)
             return result._replace(info=info)
-        info["jit_seconds"] = _warm(chosen, torque, observe) if device == "cpu" else 0.0  # device: in run_seconds
+        info["jit_seconds"] = _warm(method, torque, observe) if device == "cpu" else 0.0  # device: in run_seconds
         started = time.perf_counter()
-        result = _run_kernel(METHODS[chosen], moments, w0, dt, n_steps, observe, torque, chunks(), device)
+        result = _run_kernel(METHODS[method], moments, w0, dt, n_steps, observe, torque, chunks(), device)
     steps_taken = result.steps_taken
     info.update(run_seconds=time.perf_counter() - started,
                 sample_steps_computed=_block_steps(steps_taken, BLOCK if device == "cpu" else WARP),
@@ -628,7 +661,7 @@ class _Torque(NamedTuple):
 
 
 class _Observe(NamedTuple):
-    """What a run records and when a sample may stop, resolved once by :func:`run_ensemble` (stops already
+    """What a run records and when a sample may stop, resolved once by :func:`run_planned` (stops already
     zeroed where they may not apply)."""
 
     final: bool

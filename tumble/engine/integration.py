@@ -11,13 +11,13 @@ import warnings
 import numpy as np
 
 from .. import registry
-from ..kernels import METHODS, run
+from ..kernels import METHODS
 from ..physics import exact
 from ..physics.bodies import finite_array, one_body, spin_vectors
 from ..registry import STATUS_NAMES, STATUS_OK
 from . import cost
-from .device import resolve_device, stepper
-from .ensemble import run_ensemble, torque_spec
+from .device import check_on_device, resolve_device, stepper
+from .ensemble import checked_torque, run_planned
 from .systems import is_system, run_system
 
 __all__ = ["integrate", "propagate", "METHOD_NAMES"]
@@ -171,7 +171,7 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
     w = _initial_spins(w0)
     t_end, dt = _horizon_and_step(t_end, dt)
     save_every = _save_every(save_every)
-    kind, params, fn, _ = torque_spec(torque)
+    kind, params, fn, _ = checked_torque(torque, _step_plan(t_end, dt)[1])  # integrate's check: the same step
     chosen, _ = registry.choose_method(method, torque_free=params is None and fn is None)
     n_steps, step = _bounded_step_plan(t_end, dt, w, save_every, exact_path=chosen == "exact", device=device)
     if chosen == "exact" and not save_every:
@@ -263,13 +263,19 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
     save_every = _save_every(save_every)
     n_steps, step = _bounded_step_plan(t_end, dt, w, save_every, exact_path=method == "exact",
                                        per_state=7 if attitude else 3, device=device, attitude=bool(attitude))
-    # A plain integration returns what the method computes: no early stop, no drift flagging. The final state
+    device = resolve_device(device)
+    torque = checked_torque(torque, step)
+    _, reason = registry.choose_method(method, torque_free=torque.free)  # "exact" with a torque is refused
+    if device == "cuda":
+        check_on_device(method, torque_fn=torque.fn)
+    # Every argument is checked above (the engine's run trusts them: tumble.engine.ensemble.run_planned). A plain
+    # integration returns what the method computes: no early stop, no drift flagging. The final state
     # alone is the driver's final-state path, as tumble.propagate's (the same bits, and no trajectory to store: 0.1 ms
     # less for 2000 spins and 200 rk4 steps); with the attitude it is read off a trajectory of two states (start, end).
     trajectory = bool(save_every or attitude)
-    result = run_ensemble(moments, w, t_end, step, method=method, torque=torque, final=not trajectory,
-                          save_every=(save_every or max(n_steps, 1)) if trajectory else None, drift_limit=0.0,
-                          progress=False, attitude=bool(attitude), device=device)
+    result = run_planned(moments, w, t_end, step, method=method, reason=reason, torque=torque, final=not trajectory,
+                         save_every=(save_every or max(n_steps, 1)) if trajectory else None, drift_limit=0.0,
+                         progress=False, attitude=bool(attitude), device=device)
     omega = (result.trajectory if save_every else result.trajectory[:, -1:, :]) if trajectory else result.final[:, None]
     times = result.times if save_every else np.array([t_end])
     info = result.info

@@ -27,7 +27,9 @@ Planning a scene (what is computed and why):
   cuts large scenes this way.
 
 The cost of a scene (:func:`scene_estimate`) is checked against :mod:`tumble.engine.cost`'s bound before any kernel
-loads (:func:`refuse_plan`); a torque about the spin axis is planned as a spin-up (:func:`spin_up_rate`).
+loads (:func:`refuse_plan`); a torque about the spin axis is planned as a spin-up (:func:`spin_up_rate`), its sine or
+pulse resolved by the planned step (:func:`check_torque_step`). A planned scene's method, device, torque and cost are
+checked here once: its samples run unchecked (:func:`tumble.engine.ensemble.run_planned`).
 """
 
 from __future__ import annotations
@@ -48,9 +50,9 @@ from . import estimators as analysis
 from .records import KIND_UNITS
 
 __all__ = ["BATCH", "CURVES", "MAX_SAVES", "MIN_FIT_SPAN", "PERIODS", "PROBES", "SATURATION", "SATURATION_TILTS",
-           "SAVES_PER_PERIOD", "SLICE", "STEPS_PER_RADIAN", "Scene", "StepPlan", "check_amplitude", "check_fit_span",
-           "check_method", "planned_scene", "refuse_plan", "scene_estimate", "scene_options", "scene_plan",
-           "spin_up_rate", "step_plan", "validate_scene"]
+           "SAVES_PER_PERIOD", "SLICE", "STEPS_PER_RADIAN", "Scene", "StepPlan", "TorqueStepError", "check_amplitude",
+           "check_fit_span", "check_method", "check_torque_step", "planned_scene", "refuse_plan", "scene_estimate",
+           "scene_options", "scene_plan", "spin_up_rate", "step_plan", "validate_scene"]
 
 
 #: Fixed steps per radian of the scene's fastest phase (1/rate, 1/ω or 1/|spin|), by order of the method:
@@ -269,6 +271,27 @@ def check_fit_span(kind, value, span, horizon):
                      f"round-off; give a horizon of at least {MIN_FIT_SPAN / value:.3g} s, or none (the planner's)")
 
 
+class TorqueStepError(ValueError):
+    """A planned step that cannot resolve the scene's torque profile (:func:`check_torque_step`): its ``profile``,
+    time scale ``tau`` (s, the profile's ``key``: ``"period"`` or ``"duration"``) and the planned step ``dt`` (s), so
+    that a study can name its own fields (``torque.<key>``, ``integration.dt``)."""
+
+    def __init__(self, profile, tau, dt, dt_name="dt"):
+        self.profile, self.tau, self.dt = profile, tau, dt
+        self.key = registry.torque_profile(profile).time
+        super().__init__(f"torque.{self.key}: {registry.profile_step_problem(profile, tau, dt, dt_name)} (the step "
+                         f"planned for this scene)")
+
+
+def check_torque_step(spin_up, dt):
+    """Refuse a scene whose planned step ``dt`` (s) cannot resolve its torque's sine or pulse
+    (:func:`tumble.registry.profile_step_problem`; issue 17, cause 8): a :class:`TorqueStepError`. The one check of it
+    for a planned scene (:func:`tumble.measure`, :func:`tumble.scan` and a study's scenes), which then runs unchecked
+    (:func:`tumble.engine.ensemble.run_planned`). ``spin_up`` as :class:`Scene` holds it (None: torque-free)."""
+    if spin_up is not None and registry.profile_step_problem(spin_up["profile"], spin_up["tau"], dt):
+        raise TorqueStepError(spin_up["profile"], spin_up["tau"], dt)
+
+
 def validate_scene(body, axis, spin, amplitude, samples, method, flips, distribution):
     moments = one_body(body)
     if isinstance(axis, (bool, np.bool_)) or axis not in (1, 2, 3):
@@ -353,6 +376,7 @@ def planned_scene(moments, axis, spin, amplitude, samples, method, flips, option
                  spin_max)
     check_fit_span(kind, value, plan.probe_times[-1] if kind == "exponential" else plan.t_end, horizon)
     refuse_plan(samples, plan, chosen != "exact", kind == "exponential", flips, options["device"])
+    check_torque_step(spin_up, plan.dt)
     return Scene(moments=moments, axis=axis, spin=spin, amplitude=amplitude, samples=samples, method=method,
                  chosen=chosen, kind=kind, value=value, spin_up=spin_up,
                  torque=torque if spin_up is not None else None, plan=plan, flips=flips, entropy=entropy,

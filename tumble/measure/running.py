@@ -2,7 +2,8 @@
 
 :func:`scene_samples` runs any range of a scene's samples (:func:`tumble.measure.planning.scene_plan`) that starts
 at a multiple of :data:`tumble.engine.sampling.CHUNK`, in slices of :data:`tumble.measure.planning.SLICE`:
-stepped through :func:`tumble.engine.ensemble.run_ensemble`, or in closed form. :func:`closed_form_samples` runs the
+stepped through :func:`tumble.engine.ensemble.run_planned` (the engine's run of checked arguments: the scene's method,
+torque, device and cost were checked when it was planned), or in closed form. :func:`closed_form_samples` runs the
 samples of many torque-free scenes together (one set-up, one kernel call, one call of each estimator) and
 :func:`stepping_samples_on_device` those of many fixed-step scenes in one device launch; each sample's arithmetic
 is the one it gets alone. :mod:`tumble.measure.reduction` reduces the parts to records.
@@ -19,7 +20,7 @@ import numpy as np
 
 from .. import registry
 from ..engine.device import LAUNCH_SAMPLES
-from ..engine.ensemble import flip_times, observation_times, run_ensemble, run_scene_table, torque_spec
+from ..engine.ensemble import flip_times, observation_times, run_planned, run_scene_table, torque_spec
 from ..engine.sampling import CHUNK, drawn_spins
 from ..physics import exact, theory
 from ..registry import STATUS_NAMES, STATUS_OK
@@ -71,6 +72,7 @@ def scene_samples(scene, start, stop, *, progress=False):
     growth, n_flips = kind == "exponential", scene.flips
     out = _empty_part(scene, start, stop)
     value = scene.value
+    torque = torque_spec(scene.torque)  # as the kernels take it; checked when the scene was planned
     computed = skipped = 0
     # a device launch needs many samples
     step = planning.SLICE if scene.device == "cpu" else max(planning.SLICE, LAUNCH_SAMPLES)
@@ -78,14 +80,16 @@ def scene_samples(scene, start, stop, *, progress=False):
         hi = min(lo + step, stop)
         w0 = drawn_spins(moments, axis, spin, scene.amplitude, scene.entropy, scene.distribution, lo, hi)
         phase = analysis.phase_window(moments, axis, kind, plan.plane, spin) if scene.device == "cuda" else None
-        result = run_ensemble(moments, w0, plan.t_end, plan.dt, method=scene.chosen, axis=axis, final=False,
-                              save_every=None if growth else plan.save_every,
-                              probe_times=plan.probe_times if growth else None,
-                              norm_weights=plan.weights if growth else None, max_flips=n_flips,
-                              stop_norm=plan.saturation if growth else 0.0, stop_flips=n_flips,
-                              torque=scene.torque, progress=progress, device=scene.device,
-                              growth_window=(plan.saturation, analysis.MIN_POINTS) if growth else None,
-                              keep_probes=keep_norm and lo == 0, phase_window=phase, keep_trajectory=phase is None)
+        # the planned scene's method, torque, device and cost were checked when it was planned: trusted here
+        result = run_planned(moments, w0, plan.t_end, plan.dt, method=scene.chosen, axis=axis, final=False,
+                             save_every=None if growth else plan.save_every,
+                             probe_times=plan.probe_times if growth else None,
+                             norm_weights=plan.weights if growth else None, max_flips=n_flips,
+                             stop_norm=plan.saturation if growth else 0.0, stop_flips=n_flips,
+                             torque=torque, progress=progress, device=scene.device,
+                             growth_window=(plan.saturation, analysis.MIN_POINTS) if growth else None,
+                             keep_probes=keep_norm and lo == 0, phase_window=phase, keep_trajectory=phase is None,
+                             reason="chosen by the scene's plan")
         value = _observed(scene, result, w0, out, slice(lo - start, hi - start))
         info = result.info
         computed, skipped = computed + info["sample_steps_computed"], skipped + info["sample_steps_skipped"]

@@ -1,0 +1,65 @@
+"""Device, torque step, cost and method are checked where a run enters (a public call, a scene's planner) and
+trusted below it (issue 40, item 5): a planned scene's samples run through the engine's unchecked door
+(tumble.engine.ensemble.run_planned), and every public call still refuses a bad argument with the same message."""
+
+import numpy as np
+import pytest
+
+import tumble
+from tumble import registry
+from tumble.engine import cost, ensemble, integration
+from tumble.measure import planning, running
+
+BODY = (1.0, 2.0, 3.0)
+SHORT_PULSE = {"profile": "pulse", "vector": (0.0, 0.0, 1e-3), "duration": 1e-4}
+
+
+def _refused(*args, **kwargs):
+    raise AssertionError("checked again below the boundary")
+
+
+@pytest.mark.parametrize("axis, method, torque", [(2, "rk4", None), (1, "rk4", None),
+                                                  (3, "rk4", {"profile": "sine", "vector": (0, 0, 1e-3),
+                                                              "period": 50.0})],
+                         ids=["exponential", "periodic", "torqued"])
+def test_a_planned_scene_runs_without_checking_its_device_torque_cost_or_method_again(monkeypatch, axis, method,
+                                                                                       torque):
+    scene = planning.scene_plan(BODY, axis, samples=16, method=method, torque=torque)
+    reference = running.scene_samples(scene, 0, 16)
+    monkeypatch.setattr(ensemble, "resolve_device", _refused)
+    monkeypatch.setattr(ensemble, "choose_method", _refused)
+    monkeypatch.setattr(ensemble, "check_on_device", _refused)
+    monkeypatch.setattr(registry, "profile_step_problem", _refused)
+    monkeypatch.setattr(cost, "check", _refused)
+    part = running.scene_samples(scene, 0, 16)
+    assert np.array_equal(part["rate"], reference["rate"]) and np.array_equal(part["code"], reference["code"])
+
+
+def test_measure_refuses_a_pulse_its_planned_step_cannot_resolve_before_any_kernel_runs(monkeypatch):
+    monkeypatch.setattr(running, "run_planned", _refused)
+    with pytest.raises(planning.TorqueStepError) as info:
+        tumble.measure(BODY, 3, samples=8, torque=SHORT_PULSE)
+    assert str(info.value).startswith("torque.duration: 0.0001 s spans") and info.value.key == "duration"
+    with pytest.raises(ValueError, match="torque.duration: 0.0001 s spans"):
+        tumble.scan(BODY, 3, samples=8, torque=SHORT_PULSE)
+
+
+def test_propagate_refuses_a_pulse_shorter_than_its_step_as_integrate_does():
+    w = np.array([[0.0, 0.0, 1.0]])
+    for call in (tumble.propagate, tumble.integrate):
+        with pytest.raises(ValueError, match=r"torque duration: 0.05 s spans 0.5 step\(s\) of 0.1 s"):
+            call(BODY, w, 1.0, 0.1, torque={"profile": "pulse", "vector": (0, 0, 1), "duration": 0.05})
+
+
+def test_integrate_checks_its_run_once_and_the_engine_trusts_it(monkeypatch):
+    w = np.array([[0.1, 1.0, 0.0]])
+    reference = tumble.integrate(BODY, w, 1.0, 0.01, method="rk4", save_every=10)
+    checks = []
+    real_refuse = cost.refuse
+    monkeypatch.setattr(cost, "refuse", lambda *a, **k: checks.append(a[1]) or real_refuse(*a, **k))
+    monkeypatch.setattr(ensemble, "resolve_device", _refused)
+    monkeypatch.setattr(ensemble, "choose_method", _refused)
+    again = tumble.integrate(BODY, w, 1.0, 0.01, method="rk4", save_every=10)
+    assert np.array_equal(again.omega.values, reference.omega.values)
+    assert len(checks) == 1, checks  # integrate's own bound, not the engine's again
+    assert integration.run_planned is ensemble.run_planned
