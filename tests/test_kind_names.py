@@ -10,7 +10,8 @@ kind name and passes.
 
 Exempt: ``registry.py`` and ``pipeline/schema.py`` (the data and the study's documented fields), the generated
 ``kernels/model_steps.py``, the kernels' systems (``kernels/systems/``) and ``kernels/models.py`` (the kernels' own
-tables, in the lead's hands), and each model class's own module for its own kind (today ``physics/models.py``).
+tables, in the lead's hands), and each model class's own module for its own kind (``physics/models/heavy_top.py`` for
+``"heavy_top"``, ...).
 """
 
 import ast

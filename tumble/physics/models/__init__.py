@@ -1,0 +1,108 @@
+"""Models: the systems tumble studies, as right-hand sides with analytic Jacobians (numpy).
+
+A model is a frozen record of a body's principal moments (kg m², body frame = principal axes) and the model's
+parameters, validated once when it is built. Its state is a flat vector ``y`` of :attr:`Model.state_size`
+components; every function here is vectorised over leading axes, ``y`` of shape ``(..., n)``:
+
+* :meth:`Model.rhs` ``y' = f(y)``, :meth:`Model.jacobian` ``∂f/∂y`` (analytic, ``(..., n, n)``);
+* :meth:`Model.invariants`: the quantities the motion conserves, by name (``registry.MODELS``);
+* :meth:`Model.equilibrium`: the steady spin about a principal axis, the point linear theory expands about
+  (:func:`tumble.physics.theory.linear` of a model: eigenvalues of the Jacobian there);
+* :meth:`Model.transverse`: which components of a state measure a perturbation of that spin, and their
+  weights, as plain arrays (a kernel or an estimator takes them as columns and numbers).
+
+State layout (``registry.MODELS``, ``registry.STATE_BLOCKS``): the first three components are always the
+body-frame angular velocity ``w`` (rad/s); the model's own blocks follow, each named by the first letter of its
+components: ``g`` the unit vector pointing up in the body frame (heavy top), ``q`` an attitude quaternion,
+scalar first (gravity gradient), ``s`` an internal body's angular velocity (damper). A kernel finds a block by
+the offsets of ``registry.state_blocks(kind)``.
+
+One module a model: the base (:mod:`.base`: :class:`Model`, :class:`Transverse` and the helpers the models share,
+Euler's equations among them), then :mod:`.free_body`, :mod:`.gyrostat`, :mod:`.heavy_top`, :mod:`.gravity_gradient`
+and :mod:`.damper`, each the one place its kind is named; this package re-exports them, :data:`CLASSES` and
+:func:`from_kind`.
+
+Models (Landau & Lifshitz, *Mechanics*, §35-§37; Wittenburg, *Dynamics of Multibody Systems*, §3.6 for the
+gyrostat; Arnold, *Mathematical Methods of Classical Mechanics*, §30 and Goldstein §5.7 for the heavy top):
+
+* :class:`FreeBody`: ``I w' = (I w) × w``.
+* :class:`Gyrostat`: a rotor of constant angular momentum ``h`` relative to the body (N m s, body frame),
+  ``L = I w + h``, ``I w' = (I w + h) × w``.
+* :class:`HeavyTop` (Euler-Poisson): moments about the fixed pivot, centre of mass on body axis 3 at distance
+  ``l`` above the pivot, ``mgl = M g l`` (N m); ``g`` the unit up vector in the body frame:
+  ``I w' = (I w) × w + mgl (g × e3)``, ``g' = g × w``. The torque ``r × F = l e3 × (−M g g) = mgl (g × e3)``
+  tips the top away from upright: a top at rest upright falls at the rate ``sqrt(mgl / I1)`` (``I1 <= I2``).
+* :class:`GravityGradient`: a satellite in a circular orbit of rate ``n``; ``w`` and the attitude ``q`` relative
+  to the orbit frame (roll, pitch, yaw): ``I w' = (I w) × w + 3 n² (c3 × I c3)``, ``q' = ½ q ⊗ (0, w + n c2)``.
+  Linear theory in a 3-angle attitude error (:meth:`Model.tangent_jacobian`), not the quaternion's 4 components.
+* :class:`Damper` (Kane's spherical damper): ``I w' = (I w) × w + c (s − w)``, ``J (s' + w × s) = −c (s − w)``;
+  ``|I w + J s|`` is kept, the energy decays.
+"""
+
+from __future__ import annotations
+
+from ... import registry
+from .base import Model, Transverse
+from .damper import Damper
+from .free_body import FreeBody
+from .gravity_gradient import GravityGradient
+from .gyrostat import Gyrostat
+from .heavy_top import HeavyTop
+
+__all__ = ["CLASSES", "IMPLEMENTED", "Damper", "FreeBody", "GravityGradient", "Gyrostat", "HeavyTop", "Model",
+           "Transverse", "from_kind"]
+
+
+#: Every model with a class here, by kind (``registry.MODELS``' ``physics`` flag).
+CLASSES = {cls.kind: cls for cls in (FreeBody, Gyrostat, HeavyTop, GravityGradient, Damper)}
+
+#: The models studies run (``registry.MODELS``' ``implemented`` flag); the others have no studies yet (:func:`from_kind`
+#: builds them, ``theory.linear`` linearises them, the kernels step them: ``tumble.kernels.MODEL_CODES``).
+IMPLEMENTED = {kind: cls for kind, cls in CLASSES.items() if registry.model_kind(kind).implemented}
+
+
+def from_kind(kind, body, **parameters):
+    """The model ``kind`` of ``body`` with its parameters, as a study's ``[model]`` table names them.
+
+    Parameters
+    ----------
+    kind : str
+        One of ``registry.MODEL_KINDS``: the ``kind`` of a class of :data:`CLASSES` (:class:`FreeBody`,
+        :class:`Gyrostat`, :class:`HeavyTop`, :class:`GravityGradient`, :class:`Damper`).
+    body : Body or array_like, shape (3,)
+        Principal moments, kg m².
+    **parameters
+        The kind's numeric parameters by study key (``rotor`` N m s, ``mgl`` N m, ``orbit_rate`` rad/s,
+        ``damper_inertia`` kg m², ``damping`` N m s), all of them, no others.
+
+    Returns
+    -------
+    Model
+
+    Raises
+    ------
+    ValueError
+        An unknown kind; a kind with no class yet (``registry.MODELS``' ``physics``); a parameter the kind does
+        not have, or lacks;
+        an invalid parameter or body. The message names the kind or the key.
+
+    Examples
+    --------
+    >>> top = from_kind(HeavyTop.kind, (1.0, 1.0, 0.5), mgl=2.0)
+    >>> top == HeavyTop((1.0, 1.0, 0.5), 2.0), top.state_size
+    (True, 6)
+    """
+    spec = registry.model_kind(kind)
+    if not spec.physics or kind not in CLASSES:
+        keys = ", ".join(spec.parameters)
+        raise ValueError(f"model kind {kind!r} is reserved but not implemented yet (parameters {keys}); "
+                         f"implemented: {', '.join(CLASSES)}")
+    allowed = (*spec.parameters, *CLASSES[kind].extras)  # the study keys (required), then the API's own (optional)
+    for key in parameters:
+        if key not in allowed:
+            raise ValueError(f"{key}: not a parameter of model kind {kind!r} "
+                             f"(its parameters: {', '.join(allowed) or 'none'})")
+    for key in spec.parameters:
+        if key not in parameters:
+            raise ValueError(f"{key}: model kind {kind!r} needs it")
+    return CLASSES[kind](body, **parameters)
