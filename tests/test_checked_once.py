@@ -63,3 +63,9 @@ def test_integrate_checks_its_run_once_and_the_engine_trusts_it(monkeypatch):
     assert np.array_equal(again.omega.values, reference.omega.values)
     assert len(checks) == 1, checks  # integrate's own bound, not the engine's again
     assert integration.run_planned is ensemble.run_planned
+
+
+@pytest.mark.parametrize("call", [tumble.propagate, tumble.integrate], ids=["propagate", "integrate"])
+def test_an_absurd_step_count_is_refused_by_the_cost_bound_before_the_torque_step_is_checked(call):
+    with pytest.raises(cost.TooLarge, match="t_end / dt = inf steps"):
+        call(BODY, np.array([[0.0, 1.0, 0.0]]), 1e10, 1e-300, torque=SHORT_PULSE)

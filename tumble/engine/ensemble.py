@@ -42,8 +42,8 @@ from .progress import tqdm
 from .sampling import CHUNK
 from .systems import is_system, run_system
 
-__all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "Interrupted", "STATUS_NAMES", "checked_torque", "run_ensemble",
-           "run_planned", "run_scene_table", "torque_spec"]
+__all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "Interrupted", "STATUS_NAMES", "check_torque_step", "checked_torque",
+           "run_ensemble", "run_planned", "run_scene_table", "torque_spec"]
 
 # Torque-free samples whose energy or |L|^2 drift by more than this (relative) are flagged, not trusted.
 DEFAULT_DRIFT_LIMIT = 1e-2
@@ -408,18 +408,26 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
                        keep_trajectory=keep_trajectory)
 
 
-def checked_torque(torque, dt):
-    """The torque argument of a run with step ``dt`` s, checked (:func:`torque_spec`) as the kernels take it: a
-    ``ValueError`` also where the step cannot resolve its sine or pulse (``registry.profile_step_problem``, issue 17,
-    cause 8). The check of every public call that steps a free body with a torque (:func:`run_ensemble`,
-    :func:`tumble.integrate`, :func:`tumble.propagate`); a planned scene's torque is checked by its planner."""
+def checked_torque(torque, dt=None):
+    """The torque argument of a run (:func:`torque_spec`, which checks it) as the kernels take it, refused also where a
+    step of ``dt`` s cannot resolve its sine or pulse (:func:`check_torque_step`; ``dt`` None: checked later, once
+    the step is known). The check of every public call that steps a free body (:func:`run_ensemble`,
+    :func:`tumble.integrate`, :func:`tumble.propagate`); a planned scene's torque is checked by its planner
+    (:func:`tumble.measure.planning.check_torque_step`)."""
     torque = _Torque(*torque_spec(torque))
+    if dt is not None:
+        check_torque_step(torque, dt)
+    return torque
+
+
+def check_torque_step(torque, dt):
+    """Refuse a torque (as :func:`checked_torque` returns it) whose sine or pulse a step of ``dt`` s cannot resolve
+    (``registry.profile_step_problem``; issue 17, cause 8): a ``ValueError`` naming the profile's time scale."""
     if torque.params is not None:
         profile = registry.TORQUE_PROFILES[torque.kind]
         problem = registry.profile_step_problem(profile.name, float(torque.params[3]), dt)
         if problem:
             raise ValueError(f"torque {profile.time}: {problem}")
-    return torque
 
 
 def run_planned(moments, w0, t_end, dt, *, method, torque, axis=1, final=True, save_every=None, probe_times=None,

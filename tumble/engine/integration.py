@@ -17,7 +17,7 @@ from ..physics.bodies import finite_array, one_body, spin_vectors
 from ..registry import STATUS_NAMES, STATUS_OK
 from . import cost
 from .device import check_on_device, resolve_device, stepper
-from .ensemble import checked_torque, run_planned
+from .ensemble import check_torque_step, checked_torque, run_planned
 from .systems import is_system, run_system
 
 __all__ = ["integrate", "propagate", "METHOD_NAMES"]
@@ -63,6 +63,25 @@ def _bounded_step_plan(t_end, dt, w, save_every, *, exact_path, per_state=3, dev
     cost.refuse(cost.run_cost(len(w), 0 if exact_path else steps, per_state * states, times=states, attitude=attitude),
                 f"w0 ({len(w):,} spins) over t_end / dt = {steps:.3g} steps", device)
     return _step_plan(t_end, dt)
+
+
+def _checked_run(w, t_end, dt, method, torque, save_every, device, *, per_state=3, attitude=False):
+    # size: integrate's and propagate's arguments that the run's checks need, each checked once here
+    """What :func:`integrate` and :func:`propagate` check of a free body's run, each once, before anything runs: the
+    device (:func:`tumble.engine.device.resolve_device`), the torque (:func:`tumble.engine.ensemble.checked_torque`),
+    the method it allows (``registry.choose_method``: ``"exact"`` is torque-free), the cost bound
+    (:func:`_bounded_step_plan`) and the torque profile's step rule at the step that runs. Returns ``(device,
+    torque, chosen method, reason, n_steps, step)``, which the engine's run trusts
+    (:func:`tumble.engine.ensemble.run_planned`)."""
+    device = resolve_device(device)
+    torque = checked_torque(torque)
+    chosen, reason = registry.choose_method(method, torque_free=torque.free)
+    n_steps, step = _bounded_step_plan(t_end, dt, w, save_every, exact_path=chosen == "exact", per_state=per_state,
+                                       device=device, attitude=attitude)
+    check_torque_step(torque, step)
+    if device == "cuda":
+        check_on_device(chosen, torque_fn=torque.fn)
+    return device, torque, chosen, reason, n_steps, step
 
 
 def _step_plan(t_end, dt):
@@ -165,15 +184,13 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
         return out[0] if single else out
     if parameters is not None:
         raise ValueError("parameters are a model's or a System's; a free body has none (its moments are the body)")
-    device = resolve_device(device)
     moments = one_body(body)
     single = np.ndim(w0) == 1
     w = _initial_spins(w0)
     t_end, dt = _horizon_and_step(t_end, dt)
     save_every = _save_every(save_every)
-    kind, params, fn, _ = checked_torque(torque, _step_plan(t_end, dt)[1])  # integrate's check: the same step
-    chosen, _ = registry.choose_method(method, torque_free=params is None and fn is None)
-    n_steps, step = _bounded_step_plan(t_end, dt, w, save_every, exact_path=chosen == "exact", device=device)
+    device, (kind, params, fn, _), chosen, _, n_steps, step = _checked_run(w, t_end, dt, method, torque, save_every,
+                                                                            device)
     if chosen == "exact" and not save_every:
         out = exact.omega_at(moments, w, t_end) if device == "cpu" else exact.omega_on_device(
             moments, w, np.array([t_end]))[:, 0]
@@ -261,13 +278,8 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
     if method not in METHOD_NAMES:
         raise ValueError(f"method must be one of {', '.join(METHOD_NAMES)}; got {method!r}")
     save_every = _save_every(save_every)
-    n_steps, step = _bounded_step_plan(t_end, dt, w, save_every, exact_path=method == "exact",
-                                       per_state=7 if attitude else 3, device=device, attitude=bool(attitude))
-    device = resolve_device(device)
-    torque = checked_torque(torque, step)
-    _, reason = registry.choose_method(method, torque_free=torque.free)  # "exact" with a torque is refused
-    if device == "cuda":
-        check_on_device(method, torque_fn=torque.fn)
+    device, torque, _, reason, n_steps, step = _checked_run(w, t_end, dt, method, torque, save_every, device,
+                                                            per_state=7 if attitude else 3, attitude=bool(attitude))
     # Every argument is checked above (the engine's run trusts them: tumble.engine.ensemble.run_planned). A plain
     # integration returns what the method computes: no early stop, no drift flagging. The final state
     # alone is the driver's final-state path, as tumble.propagate's (the same bits, and no trajectory to store: 0.1 ms
