@@ -12,7 +12,8 @@ import numpy as np
 from ... import registry
 from ..bodies import finite_array, one_body
 
-__all__ = ["Model", "Transverse"]
+__all__ = ["Model", "Transverse", "circular_weights", "cross_matrix", "euler_jacobian", "euler_rhs", "one_axis",
+           "parameter", "spin_state"]
 
 
 class Transverse(NamedTuple):
@@ -33,7 +34,7 @@ class Transverse(NamedTuple):
     centre: np.ndarray | None = None  # float64, shape (k,): the equilibrium's value of each column (None: all 0)
 
 
-def _cross_matrix(v):
+def cross_matrix(v):
     """``[v]×`` of shape (..., 3, 3) for ``v`` of shape (..., 3): ``[v]× @ u = v × u`` (entries filled in place: a
     scene's linear theory builds a dozen of these, and nested ``np.stack`` calls cost several times the arithmetic)."""
     v = np.asarray(v)
@@ -45,14 +46,14 @@ def _cross_matrix(v):
     return out
 
 
-def _one_axis(axis):
+def one_axis(axis):
     """A 1-based principal axis (one integer) as a 0-based int; ValueError naming ``axis`` otherwise."""
     if isinstance(axis, bool) or not isinstance(axis, (int, np.integer)) or axis not in (1, 2, 3):
         raise ValueError(f"axis must be 1, 2 or 3 (one integer), got {axis!r}")
     return int(axis) - 1
 
 
-def _parameter(key, value):
+def parameter(key, value):
     """A model parameter checked against its row of ``registry.MODEL_PARAMETERS`` (size, finite, > 0)."""
     spec = registry.model_parameter(key)
     arr = finite_array(value, key)
@@ -121,7 +122,7 @@ class Model:
         moments.setflags(write=False)
         object.__setattr__(self, "moments", moments)
         for key in self.spec.parameters:  # each study key checked against its registry row: a number or a vector
-            value = _parameter(key, getattr(self, key))
+            value = parameter(key, getattr(self, key))
             object.__setattr__(self, key, float(value) if value.ndim == 0 else value)
 
     # --- what the registry says -------------------------------------------------------------------------------
@@ -299,7 +300,7 @@ class Model:
 _CYCLIC = ((0, 1, 2), (1, 2, 0), (2, 0, 1))
 
 
-def _euler_rhs(moments, w, h):
+def euler_rhs(moments, w, h):
     """``I⁻¹ ((I w + h) × w)`` for ``w`` (..., 3), ``h`` (3,): ``w_i' = ((I_j − I_k) w_j w_k + h_j w_k − h_k w_j) / I_i``.
 
     Written with the differences of the moments, as Euler's equations are: ``I_j − I_k`` is exact for close moments
@@ -313,9 +314,9 @@ def _euler_rhs(moments, w, h):
     return out
 
 
-def _euler_jacobian(moments, w, h):
-    """``∂/∂w`` of :func:`_euler_rhs`, shape (..., 3, 3): ``I⁻¹ ([I w + h]× − [w]× I)``, entry by entry from the
-    differences of the moments (as :func:`_euler_rhs`, so that linear theory of a nearly symmetric body keeps its
+def euler_jacobian(moments, w, h):
+    """``∂/∂w`` of :func:`euler_rhs`, shape (..., 3, 3): ``I⁻¹ ([I w + h]× − [w]× I)``, entry by entry from the
+    differences of the moments (as :func:`euler_rhs`, so that linear theory of a nearly symmetric body keeps its
     digits): ``J_ij = ((I_j − I_k) w_k − h_k) / I_i``, ``J_ik = ((I_j − I_k) w_j + h_j) / I_i`` for ``(i, j, k)``
     cyclic, ``J_ii = 0``."""
     h = np.broadcast_to(np.asarray(h, dtype=float), (3,))
@@ -327,7 +328,7 @@ def _euler_jacobian(moments, w, h):
     return jac
 
 
-def _spin_state(size, k, spin):
+def spin_state(size, k, spin):
     """States of shape (..., size), zero but for the spin (..., rad/s) in component ``k``."""
     spin = finite_array(spin, "spin")
     state = np.zeros(spin.shape + (size,))
@@ -335,7 +336,7 @@ def _spin_state(size, k, spin):
     return state
 
 
-def _circular_weights(moments, k, spin, h):
+def circular_weights(moments, k, spin, h):
     """Weights ``(g_b, g_c)`` that make the linearised transverse motion about axis ``k`` (0-based) circular.
 
     Linearised about ``w = W e_a`` with the rotor along ``a``, ``k_b w_b² + k_c w_c²`` is conserved with

@@ -7,22 +7,13 @@ from typing import ClassVar
 
 import numpy as np
 
-from .base import (
-    Model,
-    Transverse,
-    _circular_weights,
-    _cross_matrix,
-    _euler_jacobian,
-    _euler_rhs,
-    _one_axis,
-    _spin_state,
-)
+from . import base
 
 __all__ = ["Damper"]
 
 
 @dataclass(frozen=True, eq=False)
-class Damper(Model):
+class Damper(base.Model):
     """A rigid body with a viscously coupled spherical damper (Kane's damper: Kane & Levinson, *Spacecraft
     Dynamics*, §4.4 and §5.6; Hughes, *Spacecraft Attitude Dynamics*, §7.5).
 
@@ -67,7 +58,7 @@ class Damper(Model):
         y = self._state(state)
         w, s = y[..., :3], y[..., 3:]
         slip = self.damping * (s - w)
-        return np.concatenate([_euler_rhs(self.moments, w, 0.0) + slip / self.moments,
+        return np.concatenate([base.euler_rhs(self.moments, w, 0.0) + slip / self.moments,
                                np.cross(s, w) - slip / self.damper_inertia], axis=-1)
 
     def jacobian(self, state):
@@ -82,10 +73,10 @@ class Damper(Model):
         eye = np.eye(3)
         k = self.damping / self.damper_inertia
         jac = np.zeros(y.shape + (6,), dtype=np.result_type(y, float))
-        jac[..., :3, :3] = _euler_jacobian(self.moments, w, 0.0) - np.diag(self.damping / self.moments)
+        jac[..., :3, :3] = base.euler_jacobian(self.moments, w, 0.0) - np.diag(self.damping / self.moments)
         jac[..., :3, 3:] = np.diag(self.damping / self.moments)
-        jac[..., 3:, :3] = _cross_matrix(s) + k * eye
-        jac[..., 3:, 3:] = -_cross_matrix(w) - k * eye
+        jac[..., 3:, :3] = base.cross_matrix(s) + k * eye
+        jac[..., 3:, 3:] = -base.cross_matrix(w) - k * eye
         return jac
 
     def _momentum(self, y):
@@ -123,8 +114,8 @@ class Damper(Model):
 
     def equilibrium(self, axis, spin=1.0):
         """The steady spin ``w = s = spin e_axis``: shape (..., 6) for ``spin`` (...) rad/s; ``axis`` 1, 2 or 3."""
-        k = _one_axis(axis)
-        state = _spin_state(6, k, spin)
+        k = base.one_axis(axis)
+        state = base.spin_state(6, k, spin)
         state[..., k + 3] = state[..., k]
         return state
 
@@ -132,9 +123,9 @@ class Damper(Model):
         """The body's two components ``w_b, w_c`` across ``axis``, weighted as the free body's of moments ``I``
         (a weakly damped nutation is then circular); the sphere's components are not part of the norm (they follow
         the body's nutation, and their relative motion decays at about ``c / J``)."""
-        k = _one_axis(axis)
+        k = base.one_axis(axis)
         pair = np.array([(k + 1) % 3, (k + 2) % 3], dtype=np.intp)
-        return Transverse(pair, _circular_weights(self.moments, k, 1.0, 0.0), pair.copy())
+        return base.Transverse(pair, base.circular_weights(self.moments, k, 1.0, 0.0), pair.copy())
 
     def mode_space(self, axis, spin=1.0):
         """The body's and the sphere's components across the spin axis, ``(w_b, w_c, s_b, s_c)`` (invariant under the

@@ -7,21 +7,13 @@ from typing import ClassVar
 
 import numpy as np
 
-from .base import (
-    Model,
-    Transverse,
-    _circular_weights,
-    _euler_jacobian,
-    _euler_rhs,
-    _one_axis,
-    _spin_state,
-)
+from . import base
 
 __all__ = ["FreeBody"]
 
 
 @dataclass(frozen=True, eq=False)
-class FreeBody(Model):
+class FreeBody(base.Model):
     """The torque-free rigid body: ``I w' = (I w) × w`` (Landau & Lifshitz §36). State ``w`` (3), rad/s.
 
     Invariants: ``energy`` ``½ w·Iw`` (J) and ``momentum_squared`` ``|I w|²`` ((N m s)²).
@@ -36,11 +28,11 @@ class FreeBody(Model):
 
     def rhs(self, state):
         """``w'`` (rad/s²) for states ``w`` of shape (..., 3), rad/s."""
-        return _euler_rhs(self.moments, self._state(state), 0.0)
+        return base.euler_rhs(self.moments, self._state(state), 0.0)
 
     def jacobian(self, state):
         """``∂w'/∂w`` (1/s), shape (..., 3, 3), for states of shape (..., 3)."""
-        return _euler_jacobian(self.moments, self._state(state), 0.0)
+        return base.euler_jacobian(self.moments, self._state(state), 0.0)
 
     def invariants(self, state):
         """``{"energy": ½ w·Iw (J), "momentum_squared": |Iw|² ((N m s)²)}``, each of shape (...)."""
@@ -50,11 +42,11 @@ class FreeBody(Model):
 
     def equilibrium(self, axis, spin=1.0):
         """The steady spin ``w = spin e_axis``: shape (..., 3) for ``spin`` (...) rad/s; ``axis`` 1, 2 or 3."""
-        return _spin_state(3, _one_axis(axis), spin)
+        return base.spin_state(3, base.one_axis(axis), spin)
 
     def transverse(self, axis, spin=1.0):
         """The two components across ``axis`` (cyclic order), weighted so that a linear oscillation is circular."""
-        k = _one_axis(axis)
-        weights = _circular_weights(self.moments, k, 1.0, 0.0)
-        return Transverse(np.array([(k + 1) % 3, (k + 2) % 3], dtype=np.intp), weights,
+        k = base.one_axis(axis)
+        weights = base.circular_weights(self.moments, k, 1.0, 0.0)
+        return base.Transverse(np.array([(k + 1) % 3, (k + 2) % 3], dtype=np.intp), weights,
                           np.array([(k + 1) % 3, (k + 2) % 3], dtype=np.intp))

@@ -9,15 +9,7 @@ from typing import ClassVar
 import numpy as np
 
 from ..bodies import finite_array
-from .base import (
-    Model,
-    Transverse,
-    _cross_matrix,
-    _euler_jacobian,
-    _euler_rhs,
-    _one_axis,
-    _spin_state,
-)
+from . import base
 
 __all__ = ["GravityGradient"]
 
@@ -59,7 +51,7 @@ def _omega_right(v):
 
 
 @dataclass(frozen=True, eq=False)
-class GravityGradient(Model):
+class GravityGradient(base.Model):
     """A rigid satellite in a circular orbit under the gravity-gradient torque (Hughes, *Spacecraft Attitude
     Dynamics*, §8.1-8.3; Kane, Likins & Levinson, *Spacecraft Dynamics*, §2.7).
 
@@ -157,7 +149,7 @@ class GravityGradient(Model):
 
     def _torque_jacobian(self, c3, strength):
         """``∂/∂c3`` of ``3 μ/r³ I⁻¹ (c3 × I c3)``, (..., 3, 3): ``3 μ/r³ I⁻¹ ([c3]× I − [I c3]×)``."""
-        return (strength / self.moments[:, None]) * (_cross_matrix(c3) * self.moments - _cross_matrix(self.moments * c3))
+        return (strength / self.moments[:, None]) * (base.cross_matrix(c3) * self.moments - base.cross_matrix(self.moments * c3))
 
     def rhs(self, state, t=0.0):
         """``(w', q')`` for states of shape (..., 7) at time ``t`` (s; only an eccentric orbit depends on it): rad/s²,
@@ -165,7 +157,7 @@ class GravityGradient(Model):
         _, w, q, _, c3, w_r, _, strength = self._parts(state, t)
         torque = strength * np.cross(c3, self.moments * c3)
         dq = 0.5 * np.einsum("...ij,...j->...i", _xi(q), w_r)
-        return np.concatenate([_euler_rhs(self.moments, w, 0.0) + torque / self.moments, dq], axis=-1)
+        return np.concatenate([base.euler_rhs(self.moments, w, 0.0) + torque / self.moments, dq], axis=-1)
 
     def jacobian(self, state, t=0.0):
         """``∂(w', q')/∂(w, q)`` (1/s), shape (..., 7, 7), in the state's own components, at time ``t`` (s).
@@ -179,7 +171,7 @@ class GravityGradient(Model):
         d2, d3 = _rows_derivatives(q)
         xi = _xi(q)
         jac = np.zeros(y.shape + (7,), dtype=np.result_type(y, float))
-        jac[..., :3, :3] = _euler_jacobian(self.moments, w, 0.0)
+        jac[..., :3, :3] = base.euler_jacobian(self.moments, w, 0.0)
         jac[..., :3, 3:] = self._torque_jacobian(c3, strength) @ d3
         jac[..., 3:, :3] = 0.5 * xi
         jac[..., 3:, 3:] = 0.5 * _omega_right(w_r) + 0.5 * rate * (xi @ d2)
@@ -211,10 +203,10 @@ class GravityGradient(Model):
         self._circular("linear theory in the attitude error")
         y, w, _, c2, c3, w_r, _, strength = self._parts(state)
         jac = np.zeros(y.shape[:-1] + (6, 6), dtype=np.result_type(y, float))
-        jac[..., :3, :3] = _euler_jacobian(self.moments, w, 0.0)
-        jac[..., :3, 3:] = self._torque_jacobian(c3, strength) @ _cross_matrix(c3)
+        jac[..., :3, :3] = base.euler_jacobian(self.moments, w, 0.0)
+        jac[..., :3, 3:] = self._torque_jacobian(c3, strength) @ base.cross_matrix(c3)
         jac[..., 3:, :3] = np.eye(3)
-        jac[..., 3:, 3:] = self.orbit_rate * _cross_matrix(c2) - _cross_matrix(w_r)
+        jac[..., 3:, 3:] = self.orbit_rate * base.cross_matrix(c2) - base.cross_matrix(w_r)
         return jac
 
     def invariants(self, state):
@@ -245,8 +237,8 @@ class GravityGradient(Model):
             ``axis`` not 1, 2 or 3; ``spin`` not finite; an eccentric orbit (no attitude is an equilibrium there).
         """
         self._circular("an equilibrium")
-        _one_axis(axis)
-        state = _spin_state(7, 1, finite_array(spin, "spin") * 0.0 - self.orbit_rate)
+        base.one_axis(axis)
+        state = base.spin_state(7, 1, finite_array(spin, "spin") * 0.0 - self.orbit_rate)
         state[..., 3] = 1.0
         return state
 
@@ -260,7 +252,7 @@ class GravityGradient(Model):
         """
         self.equilibrium(axis, spin)
         n2 = self.orbit_rate ** 2
-        return Transverse(np.array([0, 1, 2, 4, 5, 6], dtype=np.intp),
+        return base.Transverse(np.array([0, 1, 2, 4, 5, 6], dtype=np.intp),
                           np.array([1.0, 1.0, 1.0, 4 * n2, 4 * n2, 4 * n2]), np.array([4, 6], dtype=np.intp),
                           np.array([0.0, -self.orbit_rate, 0.0, 0.0, 0.0, 0.0]))
 

@@ -9,15 +9,7 @@ from typing import ClassVar
 import numpy as np
 
 from ..bodies import finite_array
-from .base import (
-    Model,
-    Transverse,
-    _circular_weights,
-    _euler_jacobian,
-    _euler_rhs,
-    _one_axis,
-    _spin_state,
-)
+from . import base
 
 __all__ = ["Gyrostat"]
 
@@ -25,7 +17,7 @@ __all__ = ["Gyrostat"]
 ROTOR_RTOL = 1e-12
 
 @dataclass(frozen=True, eq=False)
-class Gyrostat(Model):
+class Gyrostat(base.Model):
     """A rigid body carrying a rotor of constant relative angular momentum ``h``: ``I w' = (I w + h) × w``.
 
     ``L = I w + h`` (Wittenburg §3.6; Hughes, *Spacecraft Attitude Dynamics*, ch. 7). State ``w`` (3), rad/s.
@@ -54,11 +46,11 @@ class Gyrostat(Model):
 
     def rhs(self, state):
         """``w'`` (rad/s²) for states ``w`` of shape (..., 3), rad/s."""
-        return _euler_rhs(self.moments, self._state(state), self.rotor)
+        return base.euler_rhs(self.moments, self._state(state), self.rotor)
 
     def jacobian(self, state):
         """``∂w'/∂w`` (1/s), shape (..., 3, 3): ``I⁻¹ ([I w + h]× − [w]× I)``."""
-        return _euler_jacobian(self.moments, self._state(state), self.rotor)
+        return base.euler_jacobian(self.moments, self._state(state), self.rotor)
 
     def invariants(self, state):
         """``{"energy": ½ w·Iw (J), "momentum_squared": |Iw + h|² ((N m s)²)}``, each of shape (...)."""
@@ -75,19 +67,19 @@ class Gyrostat(Model):
         ValueError
             The rotor has a component across ``axis`` (beyond ``ROTOR_RTOL |h|``): ``(I w + h) × w ≠ 0``.
         """
-        k = _one_axis(axis)
+        k = base.one_axis(axis)
         across = np.delete(self.rotor, k)
         if np.abs(across).max() > ROTOR_RTOL * np.linalg.norm(self.rotor):
             raise ValueError(f"rotor must lie along the spin axis {k + 1} for a steady spin about it, got rotor = "
                              f"{self.rotor.tolist()} N m s")
-        return _spin_state(3, k, spin)
+        return base.spin_state(3, k, spin)
 
     def transverse(self, axis, spin=1.0):
         """The two components across ``axis``, weighted so that the linear motion is circular for that spin.
 
         ``weights`` has shape ``spin.shape + (2,)``: ``k_i = I_i ((I_a − I_i) W + h_a)`` depend on the spin.
         """
-        k = _one_axis(axis)
-        weights = _circular_weights(self.moments, k, finite_array(spin, "spin"), float(self.rotor[k]))
+        k = base.one_axis(axis)
+        weights = base.circular_weights(self.moments, k, finite_array(spin, "spin"), float(self.rotor[k]))
         pair = np.array([(k + 1) % 3, (k + 2) % 3], dtype=np.intp)
-        return Transverse(pair, weights, pair.copy())
+        return base.Transverse(pair, weights, pair.copy())

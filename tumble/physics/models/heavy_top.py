@@ -9,21 +9,13 @@ from typing import ClassVar
 import numpy as np
 
 from ..bodies import finite_array
-from .base import (
-    Model,
-    Transverse,
-    _cross_matrix,
-    _euler_jacobian,
-    _euler_rhs,
-    _one_axis,
-    _spin_state,
-)
+from . import base
 
 __all__ = ["HeavyTop"]
 
 
 @dataclass(frozen=True, eq=False)
-class HeavyTop(Model):
+class HeavyTop(base.Model):
     """A heavy top on a fixed pivot (Euler-Poisson equations; Arnold §30, Goldstein §5.7).
 
     ``I w' = (I w) × w + mgl (g × c)``, ``g' = g × w``: moments about the pivot, centre of mass in the direction
@@ -75,7 +67,7 @@ class HeavyTop(Model):
         y = self._state(state)
         w, g = y[..., :3], y[..., 3:]
         torque = self.mgl * np.cross(g, self.centre)
-        return np.concatenate([_euler_rhs(self.moments, w, 0.0) + torque / self.moments, np.cross(g, w)], axis=-1)
+        return np.concatenate([base.euler_rhs(self.moments, w, 0.0) + torque / self.moments, np.cross(g, w)], axis=-1)
 
     def jacobian(self, state):
         """``∂(w', g')/∂(w, g)`` (1/s), shape (..., 6, 6).
@@ -86,10 +78,10 @@ class HeavyTop(Model):
         y = self._state(state)
         w, g = y[..., :3], y[..., 3:]
         jac = np.zeros(y.shape + (6,), dtype=y.dtype)
-        jac[..., :3, :3] = _euler_jacobian(self.moments, w, 0.0)
-        jac[..., :3, 3:] = -self.mgl * _cross_matrix(self.centre) / self.moments[:, None]
-        jac[..., 3:, :3] = _cross_matrix(g)
-        jac[..., 3:, 3:] = -_cross_matrix(w)
+        jac[..., :3, :3] = base.euler_jacobian(self.moments, w, 0.0)
+        jac[..., :3, 3:] = -self.mgl * base.cross_matrix(self.centre) / self.moments[:, None]
+        jac[..., 3:, :3] = base.cross_matrix(g)
+        jac[..., 3:, 3:] = -base.cross_matrix(w)
         return jac
 
     def invariants(self, state):
@@ -115,10 +107,10 @@ class HeavyTop(Model):
             ``axis`` other than 3 (spin.axis: the centre of mass lies on body axis 3), or a centre off axis 3.
         """
         self._on_axis_3()
-        if _one_axis(axis) != 2:
+        if base.one_axis(axis) != 2:
             raise ValueError(f"axis (spin.axis) must be 3 for a heavy_top: the centre of mass lies on body axis 3, "
                              f"got {axis!r}")
-        state = _spin_state(6, 2, spin)
+        state = base.spin_state(6, 2, spin)
         state[..., 5] = 1.0
         return state
 
@@ -130,10 +122,10 @@ class HeavyTop(Model):
         spin (also for a top at rest). The phase fit follows the tilt ``(g1, g2)``.
         """
         self._on_axis_3()
-        if _one_axis(axis) != 2:
+        if base.one_axis(axis) != 2:
             raise ValueError(f"axis (spin.axis) must be 3 for a heavy_top, got {axis!r}")
         weights = np.array([1.0, 1.0, self.mgl / self.moments[0], self.mgl / self.moments[1]])
-        return Transverse(np.array([0, 1, 3, 4], dtype=np.intp), weights, np.array([3, 4], dtype=np.intp))
+        return base.Transverse(np.array([0, 1, 3, 4], dtype=np.intp), weights, np.array([3, 4], dtype=np.intp))
 
     def perturbed(self, draws, axis, spin):
         """:meth:`Model.perturbed`, with the up vector ``g`` from ``draws.up()``: ``e3`` tilted by its own angle."""
