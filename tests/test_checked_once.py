@@ -9,6 +9,7 @@ import tumble
 from tumble import registry
 from tumble.engine import cost, ensemble, integration
 from tumble.measure import planning, running
+from tumble.pipeline.config import StudyError
 
 BODY = (1.0, 2.0, 3.0)
 SHORT_PULSE = {"profile": "pulse", "vector": (0.0, 0.0, 1e-3), "duration": 1e-4}
@@ -69,3 +70,17 @@ def test_integrate_checks_its_run_once_and_the_engine_trusts_it(monkeypatch):
 def test_an_absurd_step_count_is_refused_by_the_cost_bound_before_the_torque_step_is_checked(call):
     with pytest.raises(cost.TooLarge, match="t_end / dt = inf steps"):
         call(BODY, np.array([[0.0, 1.0, 0.0]]), 1e10, 1e-300, torque=SHORT_PULSE)
+
+
+def test_a_study_names_its_torque_field_and_the_step_planned_for_the_scene_when_the_step_cannot_resolve_a_pulse():
+    """The planner refuses the pulse (planning.TorqueStepError); the study says it in its own fields: the torque's
+    ``torque.duration`` and the step's ``integration.dt``, not the planner's ``dt``."""
+    study = {"outputs": {"figures": []}, "spin": {"axis": 3}, "perturbation": {"samples": 8},
+             "torque": {"profile": "pulse", "vector": [0.0, 0.0, 1e-3], "duration": 1e-4}}
+    with pytest.raises(StudyError) as info:
+        tumble.run_study(study)
+    err = info.value
+    assert err.field == "torque.duration", str(err)
+    assert err.problem.startswith("0.0001 s spans") and "set integration.dt <= " in err.problem, str(err)
+    assert err.problem.endswith("(the step planned for scene 0)"), str(err)
+    assert str(err).startswith("<mapping>: torque.duration: 0.0001 s spans"), str(err)

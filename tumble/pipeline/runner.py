@@ -247,16 +247,14 @@ class FreeScenes:
 
     def scene(self, job, index, moments, params, planner=None):
         """The :class:`tumble.measure.planning.Scene` of scene ``index``; a planned step that cannot resolve the
-        study's sine or pulse is the study's fault (issue 17, cause 8), named at ``torque.<period|duration>``."""
-        scene = (planner or self.planner(job))(index)
-        torque = scene.torque
-        if torque is not None:
-            key = registry.torque_profile(torque["profile"]).time
-            problem = registry.profile_step_problem(torque["profile"], torque.get(key, 0.0), scene.plan.dt,
-                                                    "integration.dt")
-            if problem:
-                raise StudyError(job.file, f"torque.{key}", f"{problem} (the step planned for scene {index})")
-        return scene
+        study's sine or pulse (the planner's :class:`tumble.measure.planning.TorqueStepError`) is the study's fault
+        (issue 17, cause 8), named at ``torque.<period|duration>`` with the study's name of the step."""
+        planner = planner or self.planner(job)
+        try:
+            return planner(index)
+        except planning.TorqueStepError as err:
+            problem = registry.profile_step_problem(err.profile, err.tau, err.dt, "integration.dt")
+            raise StudyError(job.file, f"torque.{err.key}", f"{problem} (the step planned for scene {index})") from None
 
     def batch(self, job, indices, *, progress=False):
         """The records of whole scenes (:func:`tumble.measure.scans.scene_batch`: closed-form ones together)."""
