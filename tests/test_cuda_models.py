@@ -221,7 +221,7 @@ _PTX = textwrap.dedent("""
                          f8[::1])))
     exact = device_closed_form()
     kernels.append((exact._omega_at_kernel, (f8, f8, f8, f8[:, ::1], f8, f8[:, ::1], nt.int8[::1])))
-    kernels.append((exact._omega_grid_kernel, (f8[:, ::1], f8[:, ::1], f8[:, ::1], nt.int64[::1], f8[:, :, ::1],
+    kernels.append((exact._omega_grid_kernel, (f8[:, ::1], f8[:, ::1], f8[:, ::1], nt.int64[::1], f8[:, ::1],
                                                nt.int8[::1])))
     kernels.append((exact._attitude_grid_kernel, (f8[:, ::1], f8[:, ::1], f8[:, ::1], nt.int64[::1], f8[:, :, ::1],
                                                   nt.int8[::1])))

@@ -138,16 +138,36 @@ def test_the_new_parameters_are_checked(make, message):
         make()
 
 
-def test_a_cache_entry_is_stamped_with_every_kernel_module_so_an_edited_callee_recompiles(tmp_path, monkeypatch):
+def test_a_cache_entry_is_stamped_with_the_modules_its_kernel_imports_so_an_edited_callee_recompiles(tmp_path,
+                                                                                                     monkeypatch):
     """numba stamps a cache entry with its own function's file; a driver holds a system's rate inlined, so an edit of
-    tumble/kernels/systems/*.py must invalidate it too (it used to run the old equations from the cache)."""
+    a module the driver's module imports, directly or not (``from .systems import x``, ``from ..registry import (...)``
+    over lines), must invalidate it too (it used to run the old equations from the cache). A module it does not import
+    leaves it alone: an edit of one kernel recompiles the kernels that depend on it, not all of them."""
     from tumble.kernels import jit
 
-    (tmp_path / "systems").mkdir()
-    (tmp_path / "systems" / "rate.py").write_text("x = 1\n")
-    monkeypatch.setattr(jit, "_KERNELS", str(tmp_path))
-    monkeypatch.setattr(jit, "_STAMP", None)
-    before = jit._kernels_stamp()
-    (tmp_path / "systems" / "rate.py").write_text("x = 2 \n")
-    monkeypatch.setattr(jit, "_STAMP", None)
-    assert jit._kernels_stamp() != before
+    package = tmp_path / "tumble"
+    (package / "kernels" / "systems").mkdir(parents=True)
+    (package / "__init__.py").write_text("")
+    (package / "registry.py").write_text("A = 1\n")
+    (package / "kernels" / "__init__.py").write_text("")
+    (package / "kernels" / "driver.py").write_text("from .systems import rate\nfrom ..registry import (\n    A,\n)\n")
+    (package / "kernels" / "other.py").write_text("x = 1\n")
+    (package / "kernels" / "systems" / "__init__.py").write_text("")
+    (package / "kernels" / "systems" / "rate.py").write_text("from .._rigid import B\n")
+    (package / "kernels" / "_rigid.py").write_text("B = 1\n")
+    monkeypatch.setattr(jit, "_PACKAGE", str(package))
+    driver = str(package / "kernels" / "driver.py")
+
+    def stamp():
+        monkeypatch.setattr(jit, "_STAMPS", {})
+        return jit._source_stamp(driver)
+
+    before = stamp()
+    (package / "kernels" / "other.py").write_text("x = 22\n")
+    assert stamp() == before
+    for edited in ("kernels/systems/rate.py", "kernels/_rigid.py", "registry.py", "kernels/systems/__init__.py"):
+        (package / edited).write_text((package / edited).read_text() + "# edited\n")
+        after = stamp()
+        assert after != before, edited
+        before = after

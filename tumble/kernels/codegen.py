@@ -138,10 +138,12 @@ def module_source():
     return "\n".join(blocks)
 
 
-def main():
-    TARGET.write_text(module_source())
-    print(f"wrote {TARGET}")
+def regenerate(target, source):
+    """Write a generated module's ``source`` to ``target`` and say so (this generator's and
+    :mod:`tumble.kernels.model_codegen`'s)."""
+    target.write_text(source)
+    print(f"wrote {target}")
 
 
 if __name__ == "__main__":
-    main()
+    regenerate(TARGET, module_source())

@@ -7,15 +7,14 @@ Written once: a thread runs the CPU's own per-sample functions of :mod:`tumble.k
   one-time kernel (the invariants, the set-up and ``sn, cn, dn`` of ``nu t`` moved to the spin by Jacobi's addition
   theorem; no initial argument). The CPU's :func:`~tumble.kernels.elliptic.torque_free_omega_at` runs the same
   formulas in SIMD lanes; the two agree to a few ulps of ``|w|``.
-* :func:`omega_grid`, a time grid: the set-up of :func:`~tumble.kernels.elliptic.torque_free_solve` for the thread's
-  sample (:func:`~tumble.kernels.elliptic._solve_sample`, into local arrays of one sample), then at each time ``sn,
-  cn, dn`` of ``u = K + phase0 + nu t`` by the grid kernel's own cores (:func:`~tumble.kernels.elliptic._sncndn_once`:
-  the descending Landen transformations, or the hyperbolic series near the separatrix; ``sech, tanh`` on it) stored
-  by :func:`~tumble.kernels.elliptic._store`. The per-modulus constants of those cores are recomputed at each time
-  (a few square roots and divisions): a speed-up left for a session with a GPU to measure.
+* :func:`omega_grid`, a time grid: the CPU grid kernel's per-sample code
+  (:func:`~tumble.kernels.elliptic.torque_free_omega_grid`): the set-up of the thread's sample
+  (:func:`~tumble.kernels.elliptic._solve_sample`, into local arrays of one sample), then its row of values at every
+  time (:func:`~tumble.kernels.elliptic._omega_row`: the descending Landen transformations, or the hyperbolic series
+  near the separatrix, with the per-modulus constants computed once per sample; ``sech, tanh`` on it).
 * :func:`attitude_rows`, the attitude on a time grid: the set-up as :func:`omega_grid`'s, the angular velocity at
-  ``t = 0`` and at each time by the same cores, and from them the CPU's per-sample attitude code
-  (:func:`tumble.kernels.elliptic_attitude.attitude_constants` once,
+  ``t = 0`` and at each time by the row's cores, one time at a time (:func:`~tumble.kernels.elliptic._sncndn_once`),
+  and from them the CPU's per-sample attitude code (:func:`tumble.kernels.elliptic_attitude.attitude_constants` once,
   :func:`~tumble.kernels.elliptic_attitude.attitude_at` at each time: Carlson's ``R_F`` and ``R_J``, the Landen tables in local arrays).
 * :func:`omega_rows_phase_fit`: :func:`omega_rows` whose states stay on the device, where the CPU's per-sample phase
   fit runs on them (:mod:`tumble.kernels.cuda_fits`); only the fits come back.
@@ -38,13 +37,15 @@ from .elliptic import (
     KIND_ELLIPTIC,
     KIND_SEPARATRIX,
     _column_weights,
+    _count_non_finite,
     _omega_at_sample,
+    _omega_row,
     _sech_tanh,
     _sncndn_once,
     _solve_sample,
     _store,
 )
-from .cuda_launch import THREADS, launch_shape
+from .cuda_launch import THREADS, launch_shape, loop_array
 from .elliptic_attitude import CONSTANTS, LANDEN, attitude_at, attitude_constants
 from .jit import cuda_jit, jit
 
@@ -93,21 +94,17 @@ def _grid_setup(bodies, w, row, i):
 
 @cuda_jit
 def _omega_grid_kernel(bodies, w, times, row, out, flags):
-    """Sample ``cuda.grid(1)`` set up, then evaluated at every time of its grid into ``out[i]`` (T, 3): its body's
-    moments are ``bodies[r]`` and its times ``times[r]``, ``r = row[i]`` (``row`` of one element: every sample
-    ``r = 0``), so that the samples of many scenes go in one launch."""
+    """Sample ``cuda.grid(1)`` set up, then evaluated at every time of its grid into ``out[i]`` (3T,: the (T, 3)
+    values flat) by the CPU grid kernel's own per-sample row (:func:`tumble.kernels.elliptic._omega_row`, after the
+    same set-up): its body's moments are ``bodies[r]`` and its times ``times[r]``, ``r = row[i]`` (``row`` of one
+    element: every sample ``r = 0``), so that the samples of many scenes go in one launch."""
     i = cuda.grid(1)
     if i >= w.shape[0]:
         return
     r, small, kind, weights, k_c, K, phase0, nu, h, q, _, _ = _grid_setup(bodies, w, row, i)
-    value = cuda.local.array(3, float64)
-    finite = True
-    for j in range(times.shape[1]):
-        _grid_value(kind, phase0 + nu * times[r, j], k_c, K, h, q, weights, value)
-        for c in range(3):
-            out[i, j, c] = value[c]
-            finite = finite and math.isfinite(value[c])
-    flags[i] = (_TINY if small else 0) | (0 if finite else _NON_FINITE)
+    o = loop_array(out)[i]
+    _omega_row(kind, k_c, K, h, q, phase0, nu, loop_array(times)[r], o, weights)
+    flags[i] = (_TINY if small else 0) | (_NON_FINITE if _count_non_finite(o) else 0)
 
 
 @jit
@@ -204,21 +201,22 @@ def attitude_rows(bodies, w, times, row):
     samples of many scenes in one launch (``bodies``, ``w``, ``times``, ``row`` as :func:`omega_rows`): ``(out, tiny,
     non_finite)``, ``out`` (n, T, 4) the body-to-space quaternions (scalar first, ``q(0) = 1``) and the counts as
     :func:`omega_rows` returns them."""
-    out, tiny, non_finite = _grid_launch(_attitude_grid_kernel, 4, bodies, w, times, row)
+    out, tiny, non_finite = _grid_launch(_attitude_grid_kernel, lambda t: (t, 4), bodies, w, times, row)
     return out.copy_to_host(), tiny, non_finite
 
 
 def _omega_rows(bodies, w, times, row):
-    """:func:`omega_rows` with ``out`` left on the device."""
-    return _grid_launch(_omega_grid_kernel, 3, bodies, w, times, row)
+    """:func:`omega_rows` with ``out`` (n, T, 3) left on the device (the kernel writes each sample's values flat)."""
+    out, tiny, non_finite = _grid_launch(_omega_grid_kernel, lambda t: (3 * t,), bodies, w, times, row)
+    return out.reshape(w.shape[0], -1, 3), tiny, non_finite
 
 
-def _grid_launch(kernel, components, bodies, w, times, row):
-    """Launch a grid kernel over the samples ``w`` (n, 3): ``(out, tiny, non_finite)``, ``out`` (n, T, components) left
-    on the device."""
+def _grid_launch(kernel, sample_shape, bodies, w, times, row):
+    """Launch a grid kernel over the samples ``w`` (n, 3): ``(out, tiny, non_finite)``, ``out`` (n, *sample_shape(T))
+    left on the device."""
     n = w.shape[0]
     times = np.ascontiguousarray(times, dtype=float)
-    out = cuda.device_array((n, times.shape[1], components))
+    out = cuda.device_array((n, *sample_shape(times.shape[1])))
     tiny, non_finite = _launch(kernel, n, cuda.to_device(np.ascontiguousarray(bodies, dtype=float)),
                                cuda.to_device(np.ascontiguousarray(w, dtype=float)), cuda.to_device(times),
                                cuda.to_device(np.ascontiguousarray(row, dtype=np.int64)), out)

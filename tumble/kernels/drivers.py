@@ -29,6 +29,7 @@ from numba import prange, types
 
 from ..registry import STATUS_DRIFT, STATUS_NAMES, STATUS_NONFINITE, STATUS_OK, STEPPING  # noqa: F401
 from .fused import rk4_block, rk8_block, splitting2_block, splitting4_block, symplectic_euler_block
+from .block_parts import check_finite, freeze, restore_frozen, store, store_initial, store_rest
 from .fits import GROWTH_WINDOW_START, growth_window_add, growth_window_rate
 from .jit import jit
 from .steppers import (
@@ -69,24 +70,6 @@ def _hermite_root(y0, d0, y1, d1, h):
             s = s - p / dp
         s = min(1.0, max(0.0, s))
     return s
-
-
-@jit
-def _freeze(i, k, code, y1, y2, y3, active, frozen, status, last):
-    """Stop sample ``i`` of a block after step ``k``: keep its state, record why and when."""
-    active[i] = False
-    frozen[0, i], frozen[1, i], frozen[2, i] = y1[i], y2[i], y3[i]
-    if code != STATUS_OK:
-        status[i] = code
-    last[i] = k
-
-
-@jit
-def _restore_frozen(y1, y2, y3, active, frozen):
-    """The step moved every sample of the block; put the stopped ones back."""
-    for i in range(y1.shape[0]):
-        if not active[i]:
-            y1[i], y2[i], y3[i] = frozen[0, i], frozen[1, i], frozen[2, i]
 
 
 # --- per-sample observers: one sample's state in scalars, shared by the block loops below and the device kernels
@@ -170,18 +153,7 @@ def _observe_drift(ys, active, body, e0, l0, drift, lo, drift_limit, k, frozen, 
             drift[0, lo + i] = max(drift[0, lo + i], de)
             drift[1, lo + i] = max(drift[1, lo + i], dl)
         if drifted(de, dl, drift_limit):
-            _freeze(i, k, STATUS_DRIFT, ys[0], ys[1], ys[2], active, frozen, status, last)
-            stopped += 1
-    return stopped
-
-
-@jit
-def _check_finite(ys, active, k, frozen, status, last):
-    """Stop samples with a non-finite component; returns how many."""
-    stopped = 0
-    for i in range(ys.shape[1]):
-        if active[i] and not (math.isfinite(ys[0, i]) and math.isfinite(ys[1, i]) and math.isfinite(ys[2, i])):
-            _freeze(i, k, STATUS_NONFINITE, ys[0], ys[1], ys[2], active, frozen, status, last)
+            freeze(i, k, STATUS_DRIFT, ys, active, frozen, status, last)
             stopped += 1
     return stopped
 
@@ -223,18 +195,10 @@ def _stop_complete(ys, active, reached, stop_norm, stop_flips, flip_count, lo, k
     for i in range(ys.shape[1]):
         if active[i]:
             if measurement_complete(reached[i], stop_norm, stop_flips, flip_count[lo + i]):
-                _freeze(i, k, STATUS_OK, ys[0], ys[1], ys[2], active, frozen, status, last)
+                freeze(i, k, STATUS_OK, ys, active, frozen, status, last)
             else:
                 remaining += 1
     return remaining
-
-
-@jit
-def _store(saved, slot, ys, lo):
-    """The block's states into ``saved[slot]`` (its columns ``lo``, ...)."""
-    for j in range(3):
-        for i in range(ys.shape[1]):
-            saved[slot, j, lo + i] = ys[j, i]
 
 
 #: Rows of a block's float scratch ``values`` (m columns) besides its states: each sample's initial ``|L|**2``
@@ -293,7 +257,7 @@ def make_run_block(torque_free):
         early_stop = stop_norm > 0.0 or stop_flips > 0
         limit = drift_limit if torque_params is None else 0.0
         n_probes = probe_steps.shape[0]
-        store = saved.shape[0] > 0
+        storing = saved.shape[0] > 0
         track_flips = flips.shape[1] > 0
         track_drift = drift.shape[0] > 0
         block_status = status[lo:lo + m]
@@ -311,10 +275,7 @@ def make_run_block(torque_free):
             if track_drift:
                 drift[0, lo + i] = drift[1, lo + i] = 0.0
         n_frozen = 0
-        slot = 0
-        if store:
-            _store(saved, 0, ys, lo)
-            slot = 1
+        slot = store_initial(saved, ys, lo)
         probe = 0
         while probe < n_probes and probe_steps[probe] == 0:
             _observe_norm(ys, active, axis, norm_weights, probes, lo, probe, stop_norm, reached, window, fit_saturation)
@@ -348,7 +309,7 @@ def make_run_block(torque_free):
             else:
                 splitting4_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
             if n_frozen:
-                _restore_frozen(y1, y2, y3, active, frozen)
+                restore_frozen(ys, active, frozen)
             ran = k + 1
             if track_flips:
                 _observe_flips(ys, previous, active, axis, t, h, body, flips, flip_count, lo, torque_kind,
@@ -357,9 +318,9 @@ def make_run_block(torque_free):
                 n_frozen += _observe_drift(ys, active, body, e0, target, drift, lo, limit, ran, frozen, block_status,
                                            last)
             if track_flips or ran % CHECK_EVERY == 0 or ran == n_steps:
-                n_frozen += _check_finite(ys, active, ran, frozen, block_status, last)
-            if store and (ran % save_every == 0 or ran == n_steps):
-                _store(saved, slot, ys, lo)
+                n_frozen += check_finite(ys, active, ran, frozen, block_status, last)
+            if storing and (ran % save_every == 0 or ran == n_steps):
+                store(saved, slot, ys, lo)
                 slot += 1
             while probe < n_probes and probe_steps[probe] == ran:
                 _observe_norm(ys, active, axis, norm_weights, probes, lo, probe, stop_norm, reached, window,
@@ -373,11 +334,7 @@ def make_run_block(torque_free):
                     break
         # A block that stopped early fills the rest of its requested outputs: trajectories hold the frozen state, probes
         # are NaN (no measurement after a sample stopped; the first closes its growth window).
-        if store:
-            for k in range(ran, n_steps):
-                if (k + 1) % save_every == 0 or k + 1 == n_steps:
-                    _store(saved, slot, ys, lo)
-                    slot += 1
+        store_rest(saved, slot, ys, lo, ran, n_steps, save_every)
         for i in range(m):
             active[i] = False
         while probe < n_probes:

@@ -28,6 +28,7 @@ import hashlib
 import io
 import os
 import pickle
+import re
 import warnings
 
 import numba
@@ -119,28 +120,56 @@ def _warn_once(kind, folder, message):
         warnings.warn(message, CacheWarning, stacklevel=4)
 
 
-_KERNELS = os.path.dirname(os.path.abspath(__file__))
+_PACKAGE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # tumble/
+
+# ``from .x import a, b`` / ``from ..registry import (a,\n b)``: the relative imports of a module's text.
+_RELATIVE_IMPORT = re.compile(r"^\s*from\s+(\.+)([\w.]*)\s+import\s+(\([^)]*\)|[^\n]+)", re.MULTILINE)
 
 
-def _kernels_stamp():
-    """The modification times and sizes of every module of this package: part of each cache entry's stamp. numba
-    stamps an entry with its own function's file only, but a driver's machine code holds the functions it calls
-    inlined (a system's rate in :mod:`tumble.kernels.systems`, the generated steps): an edit there would otherwise
-    leave a stale driver in the cache, running the old equations. Read once per process (a few dozen ``stat``)."""
-    global _STAMP
-    if _STAMP is None:
+def _imported_files(path):
+    """The files of tumble that the module at ``path`` imports (relative imports, at the top or in a function): a
+    module, a package's ``__init__.py``, and each name that is a submodule (``from . import fused``)."""
+    with open(path, encoding="utf-8") as f:
+        text = f.read()
+    found = []
+    for dots, module, names in _RELATIVE_IMPORT.findall(text):
+        base = os.path.dirname(path)
+        for _ in range(len(dots) - 1):
+            base = os.path.dirname(base)
+        target = os.path.join(base, *module.split(".")) if module else base
+        # ``from .. import _disk`` imports a module, not its package's code
+        candidates = [target + ".py", os.path.join(target, "__init__.py")] if module else []
+        for name in re.findall(r"\w+", names):
+            candidates.append(os.path.join(target, name + ".py"))
+        found += [c for c in candidates if os.path.isfile(c) and c.startswith(_PACKAGE)]
+    return found
+
+
+def _source_stamp(path):
+    """The modification times and sizes of the module at ``path`` and of every module of tumble it imports,
+    directly or not: part of the cache stamp of each kernel defined there. numba stamps an entry with its own
+    function's file only, but a driver's machine code holds the functions it calls inlined (a system's rate in
+    :mod:`tumble.kernels.systems`, the generated steps) and the registry's constants: an edit there would otherwise
+    leave a stale driver in the cache, running the old equations. Only what a kernel's module imports counts, so an
+    edit to one kernel recompiles the kernels that depend on it, not all of them. Read once per module and process
+    (a regular expression over a few files' text and their ``stat``)."""
+    path = os.path.abspath(path)
+    if path not in _STAMPS:
+        seen, todo = set(), [path]
+        while todo:
+            current = todo.pop()
+            if current not in seen:
+                seen.add(current)
+                todo += _imported_files(current)
         found = []
-        for folder, _, names in sorted(os.walk(_KERNELS)):
-            for name in sorted(names):
-                if name.endswith(".py"):
-                    info = os.stat(os.path.join(folder, name))
-                    found.append((os.path.relpath(os.path.join(folder, name), _KERNELS), info.st_mtime_ns,
-                                  info.st_size))
-        _STAMP = hashlib.sha256(repr(found).encode()).hexdigest()
-    return _STAMP
+        for name in sorted(seen):
+            info = os.stat(name)
+            found.append((os.path.relpath(name, _PACKAGE), info.st_mtime_ns, info.st_size))
+        _STAMPS[path] = hashlib.sha256(repr(found).encode()).hexdigest()
+    return _STAMPS[path]
 
 
-_STAMP = None
+_STAMPS = {}
 
 
 class CheckedCache(caching.FunctionCache):
@@ -156,7 +185,8 @@ class CheckedCache(caching.FunctionCache):
     def __init__(self, py_func):
         super().__init__(py_func)
         self._cache_file = _CheckedCacheFile(self._cache_path, self._impl.filename_base,
-                                             (self._impl.locator.get_source_stamp(), _kernels_stamp()))
+                                             (self._impl.locator.get_source_stamp(),
+                                              _source_stamp(py_func.__code__.co_filename)))
 
     def load_overload(self, sig, target_context):
         try:

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from .. import registry
 from . import tableaux
-from .codegen import combination
+from .codegen import combination, regenerate
 from .systems import SYSTEMS
 
 TARGET = Path(__file__).with_name("model_steps.py")
@@ -240,10 +240,5 @@ def module_source():
     return "\n".join(blocks)
 
 
-def main():
-    TARGET.write_text(module_source())
-    print(f"wrote {TARGET}")
-
-
 if __name__ == "__main__":
-    main()
+    regenerate(TARGET, module_source())

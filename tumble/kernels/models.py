@@ -48,8 +48,9 @@ from typing import NamedTuple
 import numpy as np
 from numba import prange
 
-from ..registry import (LIE_POISSON_MODELS, MODEL_KINDS, MODEL_PARAMETERS, STATUS_DRIFT, STATUS_NONFINITE, STATUS_OK,
-                        STEPPING, model_kind)
+from ..registry import (LIE_POISSON_MODELS, MODEL_KINDS, MODEL_PARAMETERS, STATUS_DRIFT, STATUS_OK, STEPPING,
+                        model_kind)
+from .block_parts import check_finite, freeze, nan_rest, restore_frozen, store, store_initial, store_rest
 from .drift_screen import SCREEN_ATOL, SCREEN_RTOL
 from .jit import jit
 from .model_splittings import SPLITTINGS
@@ -95,41 +96,6 @@ def _initial_invariants(model, ys, c, x0, scale):
 
 
 @jit
-def _freeze(i, k, code, ys, active, frozen, status, last):
-    """Stop sample ``i`` of a block after step ``k``: keep its state, record why and when."""
-    active[i] = False
-    for j in range(ys.shape[0]):
-        frozen[j, i] = ys[j, i]
-    if code != STATUS_OK:
-        status[i] = code
-    last[i] = k
-
-
-@jit
-def _restore_frozen(ys, active, frozen):
-    """The step moved every sample of the block; put the stopped ones back."""
-    for i in range(ys.shape[1]):
-        if not active[i]:
-            for j in range(ys.shape[0]):
-                ys[j, i] = frozen[j, i]
-
-
-@jit
-def _check_finite(ys, active, k, frozen, status, last):
-    """Stop samples with a non-finite component; returns how many."""
-    stopped = 0
-    for i in range(ys.shape[1]):
-        if active[i]:
-            finite = True
-            for j in range(ys.shape[0]):
-                finite = finite and math.isfinite(ys[j, i])
-            if not finite:
-                _freeze(i, k, STATUS_NONFINITE, ys, active, frozen, status, last)
-                stopped += 1
-    return stopped
-
-
-@jit
 def _observe_drift(model, ys, active, c, x0, scale, drift, lo, drift_limit, k, frozen, status, last):
     """Running maximum of each invariant's drift ``|x − x0| / scale``; samples past ``drift_limit`` stop.
 
@@ -147,7 +113,7 @@ def _observe_drift(model, ys, active, c, x0, scale, drift, lo, drift_limit, k, f
             drift[1, lo + i] = max(drift[1, lo + i], d2)
             drift[2, lo + i] = max(drift[2, lo + i], d3)
         if drift_limit > 0.0 and not (d1 <= drift_limit and d2 <= drift_limit and d3 <= drift_limit):
-            _freeze(i, k, STATUS_DRIFT, ys, active, frozen, status, last)
+            freeze(i, k, STATUS_DRIFT, ys, active, frozen, status, last)
             stopped += 1
     return stopped
 
@@ -161,14 +127,6 @@ def _observe_norm(ys, active, columns, weights, y_eq, probes, lo, row):
             d = ys[columns[j], i] - y_eq[columns[j]]
             total += weights[j] * d * d
         probes[row, lo + i] = math.sqrt(total) if active[i] else np.nan
-
-
-@jit
-def _store(saved, slot, ys, lo):
-    """The block's states into ``saved[slot]`` (its columns ``lo``, ...)."""
-    for j in range(ys.shape[0]):
-        for i in range(ys.shape[1]):
-            saved[slot, j, lo + i] = ys[j, i]
 
 
 @jit
@@ -189,7 +147,7 @@ def run_block(model, method, y, lo, ys, active, frozen, last, x0, scale, c, h, n
     """
     n_state, m = ys.shape
     n_probes = probe_steps.shape[0]
-    store = saved.shape[0] > 0
+    storing = saved.shape[0] > 0
     record_drift = drift.shape[0] > 0
     track_drift = record_drift or drift_limit > 0.0
     screen = drift_limit * (1.0 - SCREEN_RTOL) - SCREEN_ATOL if drift_limit > 0.0 else math.inf
@@ -201,11 +159,8 @@ def run_block(model, method, y, lo, ys, active, frozen, last, x0, scale, c, h, n
         last[i] = n_steps
         block_status[i] = STATUS_OK
     _initial_invariants(model, ys, c, x0, scale)
-    n_frozen = _check_finite(ys, active, 0, frozen, block_status, last)
-    slot = 0
-    if store:
-        _store(saved, 0, ys, lo)
-        slot = 1
+    n_frozen = check_finite(ys, active, 0, frozen, block_status, last)
+    slot = store_initial(saved, ys, lo)
     probe = 0
     while probe < n_probes and probe_steps[probe] == 0:
         _observe_norm(ys, active, columns, weights, y_eq, probes, lo, probe)
@@ -216,32 +171,25 @@ def run_block(model, method, y, lo, ys, active, frozen, last, x0, scale, c, h, n
             break
         step(model, method, ys, k * h, h, c, x0)
         if n_frozen:
-            _restore_frozen(ys, active, frozen)
+            restore_frozen(ys, active, frozen)
         ran = k + 1
         # with drifts tracked every step, the exact observers run only for a block with a suspect (or whose
         # drifts are recorded): the screen's "nothing to stop" is exact, its suspects are checked exactly
         exact = track_drift and (record_drift or drift_suspects(model, ys, active, c, x0, scale, screen))
         if exact or (not track_drift and (ran % CHECK_EVERY == 0 or ran == n_steps)):
-            n_frozen += _check_finite(ys, active, ran, frozen, block_status, last)
+            n_frozen += check_finite(ys, active, ran, frozen, block_status, last)
         if exact:
             n_frozen += _observe_drift(model, ys, active, c, x0, scale, drift, lo, drift_limit, ran, frozen,
                                        block_status, last)
-        if store and (ran % save_every == 0 or ran == n_steps):
-            _store(saved, slot, ys, lo)
+        if storing and (ran % save_every == 0 or ran == n_steps):
+            store(saved, slot, ys, lo)
             slot += 1
         while probe < n_probes and probe_steps[probe] == ran:
             _observe_norm(ys, active, columns, weights, y_eq, probes, lo, probe)
             probe += 1
     # A block whose samples all stopped fills the rest of its outputs: the frozen states, NaN probes.
-    if store:
-        for k in range(ran, n_steps):
-            if (k + 1) % save_every == 0 or k + 1 == n_steps:
-                _store(saved, slot, ys, lo)
-                slot += 1
-    while probe < n_probes:
-        for i in range(m):
-            probes[probe, lo + i] = np.nan
-        probe += 1
+    store_rest(saved, slot, ys, lo, ran, n_steps, save_every)
+    nan_rest(probes, probe, lo, m)
     for i in range(m):
         for j in range(n_state):
             y[j, lo + i] = ys[j, i]
@@ -335,7 +283,8 @@ def model_rhs(kind, y, moments, *, t=0.0, **parameters):
 
     Parameters
     ----------
-    kind : {"free", "gyrostat", "heavy_top", "gravity_gradient", "damper"}
+    kind : str
+        A model kind of ``registry.MODEL_KINDS``.
     y : ndarray, shape (n_state, N)
         States (rad/s, then the model's own units).
     moments : array_like, shape (3,)
@@ -413,7 +362,8 @@ def run_model(kind, method, y, moments, h, n_steps, *, save_every=0, columns=Non
 
     Parameters
     ----------
-    kind : {"free", "gyrostat", "heavy_top", "gravity_gradient", "damper"}
+    kind : str
+        A model kind of ``registry.MODEL_KINDS``.
     method : {"rk4", "rk8", "symplectic_euler", "splitting2", "splitting4"}
         The splittings for a free body, gyrostat or heavy top only (:func:`model_methods`).
     y : ndarray, shape (n_state, N), float64, C-contiguous

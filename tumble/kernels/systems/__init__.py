@@ -22,10 +22,10 @@ from . import damper, gravity_gradient, gyrostat, heavy_top
 __all__ = ["N_CONSTANTS", "N_INVARIANTS", "SYSTEMS", "constants", "damper", "gravity_gradient", "gyrostat",
            "heavy_top"]
 
-#: Model kind -> its module (the free body is the gyrostat with no rotor).
-SYSTEMS = {"free": gyrostat, "gyrostat": gyrostat, "heavy_top": heavy_top, "gravity_gradient": gravity_gradient,
-           "damper": damper}
-assert tuple(SYSTEMS) == MODEL_KINDS, "one module per model kind of the registry, in its order"
+#: Model kind -> its module, in the registry's order (each module names its kinds: ``KINDS``).
+SYSTEMS = {kind: module for kind in MODEL_KINDS for module in (gyrostat, heavy_top, gravity_gradient, damper)
+           if kind in module.KINDS}
+assert tuple(SYSTEMS) == MODEL_KINDS, "one module per model kind of the registry"
 
 #: Length of the constants array one compiled driver takes for every system (each reads its own first fields).
 N_CONSTANTS = max(len(module.Constants._fields) for module in SYSTEMS.values())

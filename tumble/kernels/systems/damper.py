@@ -13,7 +13,10 @@ from collections import namedtuple
 from ..jit import jit
 from ._rigid import RIGID_BODY, rigid_body
 
-__all__ = ["Constants", "constants", "invariants", "rate", "tangent"]
+__all__ = ["KINDS", "Constants", "constants", "invariants", "rate", "tangent"]
+
+#: The model kinds of ``registry.MODELS`` this module is the system of (its row).
+KINDS = ("damper",)
 
 
 #: The rigid body's fields (``I`` excludes the sphere), ``c/I_i`` and ``c/J`` (1/s), and ``J`` (kg m²).

@@ -26,8 +26,11 @@ from collections import namedtuple
 from ..jit import jit
 from ._rigid import RIGID_BODY, rigid_body
 
-__all__ = ["Constants", "KEPLER_ITERATIONS", "constants", "forcing", "invariants", "orbit", "project", "rate",
+__all__ = ["KEPLER_ITERATIONS", "KINDS", "Constants", "constants", "forcing", "invariants", "orbit", "project", "rate",
            "rate_forced", "tangent"]
+
+#: The model kinds of ``registry.MODELS`` this module is the system of (its row).
+KINDS = ("gravity_gradient",)
 
 #: Newton iterations at most for Kepler's equation (from Danby's start ``E = M + 0.85 e sign(sin M)``): 8 reach
 #: round-off for every mean anomaly up to e = 0.99 (4e-16 of ``M``; 6 suffice to e = 0.9), more near e = 1.

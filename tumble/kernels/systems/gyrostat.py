@@ -17,7 +17,10 @@ import numpy as np
 from ..jit import jit
 from ._rigid import RIGID_BODY, rigid_body
 
-__all__ = ["Constants", "constants", "invariants", "rate", "tangent"]
+__all__ = ["KINDS", "Constants", "constants", "invariants", "rate", "tangent"]
+
+#: The model kinds of ``registry.MODELS`` this module is the system of (the free body is the gyrostat with no rotor).
+KINDS = ("free", "gyrostat")
 
 
 #: The rigid body's fields (:data:`~tumble.kernels.systems._rigid.RIGID_BODY`), ``h_j/I_i`` (1/s) and the rotor

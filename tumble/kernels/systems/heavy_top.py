@@ -22,7 +22,10 @@ import numpy as np
 from ..jit import jit
 from ._rigid import RIGID_BODY, rigid_body
 
-__all__ = ["Constants", "constants", "invariants", "rate", "tangent"]
+__all__ = ["KINDS", "Constants", "constants", "invariants", "rate", "tangent"]
+
+#: The model kinds of ``registry.MODELS`` this module is the system of (its row).
+KINDS = ("heavy_top",)
 
 
 #: The rigid body's fields (moments about the pivot), ``mgl`` (N m), the centre's direction ``c1 c2 c3`` and the
