@@ -190,7 +190,7 @@ _PTX = textwrap.dedent("""
     import numba.cuda.dispatcher as dispatcher
     from numba import cuda, types as nt
     from tumble.kernels import METHODS, device_closed_form, device_kernels, device_models
-    from tumble.kernels.models import MODEL_CODES, MODEL_METHODS
+    from tumble.kernels.model_loop import MODEL_CODES, MODEL_METHODS
     from tumble.registry import model_kind
 
     # Device functions are compiled for the current GPU's compute capability; without a GPU, name one (H100).

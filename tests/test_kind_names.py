@@ -9,27 +9,36 @@ the registry or the classes instead). Prose that uses a kind's word unquoted ("a
 kind name and passes.
 
 Exempt: ``registry.py`` and ``pipeline/schema.py`` (the data and the study's documented fields), the generated
-``kernels/model_steps.py``, the kernels' systems (``kernels/systems/``) and ``kernels/models.py`` (the kernels' own
-tables, in the lead's hands), and each model class's own module for its own kind (``physics/models/heavy_top.py`` for
-``"heavy_top"``, ...).
+``kernels/model_steps.py``, and a kind's own modules for its own kind: its model class's (``physics/models/heavy_top.py``
+for ``"heavy_top"``, ...) and its equations' for the kernels (``kernels/systems/heavy_top.py``, whose ``KINDS`` names
+it; the free body's are the gyrostat's).
 """
 
 import ast
 from pathlib import Path
 
 from tumble import registry
+from tumble.kernels.systems import SYSTEMS
 from tumble.physics import models
 
 PACKAGE = Path(__file__).resolve().parents[1] / "tumble"
 
-EXEMPT = {"registry.py", "pipeline/schema.py", "kernels/model_steps.py", "kernels/models.py"}
-EXEMPT_FOLDERS = ("kernels/systems/",)
+EXEMPT = {"registry.py", "pipeline/schema.py", "kernels/model_steps.py"}
+
+
+def _file(module):
+    """The file (relative to the package, posix) of the dotted ``module``."""
+    return Path(*module.split(".")[1:]).with_suffix(".py").as_posix()
 
 
 def _own_module(kind):
-    """The file (relative to the package, posix) that defines the class of model ``kind``."""
-    module = models.CLASSES[kind].__module__
-    return Path(*module.split(".")[1:]).with_suffix(".py").as_posix()
+    """The file that defines the class of model ``kind``."""
+    return _file(models.CLASSES[kind].__module__)
+
+
+def _own_modules(kind):
+    """The files that may name ``kind``: its class's module and its kernel equations' (``kernels/systems``)."""
+    return {_own_module(kind), _file(SYSTEMS[kind].__name__)}
 
 
 def _kind_literals(path):
@@ -46,14 +55,14 @@ def _kind_literals(path):
 
 
 def _offences():
-    own = {kind: _own_module(kind) for kind in registry.MODEL_KINDS}
+    own = {kind: _own_modules(kind) for kind in registry.MODEL_KINDS}
     offences = []
     for path in sorted(PACKAGE.rglob("*.py")):
         rel = path.relative_to(PACKAGE).as_posix()
-        if rel in EXEMPT or rel.startswith(EXEMPT_FOLDERS):
+        if rel in EXEMPT:
             continue
         for line, kind, literal in _kind_literals(path):
-            if own[kind] != rel:
+            if rel not in own[kind]:
                 offences.append(f"{rel}:{line}: {kind!r} in {literal!r}")
     return offences
 

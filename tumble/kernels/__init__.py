@@ -9,16 +9,18 @@ from . import elliptic, fits, sample_loop, side_by_side
 from .drivers import TORQUE_SIGNATURE
 from .jit import parallel_block
 from .methods import BLOCK, METHODS, Method, Observed, run, run_attitude
-from .models import BLOCK as MODEL_BLOCK
-from .models import MODEL_CODES, MODEL_METHODS, ModelObserved, model_methods, model_rhs, model_tangent, run_model
+from .model_loop import BLOCK as MODEL_BLOCK
+from .model_loop import (MODEL_CODES, MODEL_METHODS, ModelObserved, model_methods, model_rhs, model_tangent,
+                         rate_sample, rate_sample_parameters, run_model, tangent_sample)
 from .tableaux import TABLEAUX
 from .steppers import TORQUE_CONSTANT, TORQUE_PULSE, TORQUE_RAMP, TORQUE_SINE, TORQUE_USER
 
 __all__ = ["BLOCK", "METHODS", "MODEL_BLOCK", "MODEL_CODES", "MODEL_METHODS", "TORQUE_CONSTANT", "TORQUE_PULSE",
            "TORQUE_RAMP", "TORQUE_SIGNATURE", "TORQUE_SINE", "TORQUE_USER", "device_attitude", "device_closed_form",
            "device_fits", "device_kernels", "device_models", "device_sample_loop", "elliptic", "fits",
-           "Method", "TABLEAUX", "model_methods", "model_rhs", "model_tangent", "ModelObserved", "Observed", "parallel_block", "run",
-           "run_attitude", "run_model", "sample_loop", "side_by_side"]
+           "Method", "TABLEAUX", "model_methods", "model_rhs", "model_tangent", "ModelObserved", "Observed", "parallel_block",
+           "rate_sample", "rate_sample_parameters", "run", "run_attitude", "run_model", "sample_loop", "side_by_side",
+           "tangent_sample"]
 
 
 def device_kernels():

@@ -1,5 +1,5 @@
 """What a block time loop does to its block of samples, written once for the free body's loop
-(:func:`tumble.kernels.drivers.make_run_block`) and the models' (:func:`tumble.kernels.models.run_block`).
+(:func:`tumble.kernels.drivers.make_run_block`) and the models' (:func:`tumble.kernels.model_loop.run_block`).
 
 A block's states are a structure of arrays ``ys`` (n_state, m): one row per component, one column per sample. A
 sample that stops (a bad status, or its measurement complete) keeps the state it had then in ``frozen`` (n_state, m),

@@ -1,7 +1,7 @@
 """What every CUDA launcher of :mod:`tumble.kernels` shares: the launch shape, one thread per sample, and the door
 through which a kernel hands its arrays to a time loop written once for both devices.
 
-The time loops (:func:`tumble.kernels.models.run_block`, ...) are ``@jit`` functions: on a device numba-cuda
+The time loops (:func:`tumble.kernels.model_loop.run_block`, ...) are ``@jit`` functions: on a device numba-cuda
 compiles them into the kernel that calls them; on numba-cuda's simulator (``NUMBA_ENABLE_CUDASIM=1``) the kernel's
 body runs as Python and calls them as the CPU's compiled functions, which take numpy arrays, not the simulator's
 wrapped device arrays. :func:`loop_array` is the identity on a device and unwraps the numpy array on the simulator

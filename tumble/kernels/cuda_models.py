@@ -1,6 +1,6 @@
 """The models of :mod:`tumble.physics.models` on a CUDA device: one thread per sample, float64 (issue 28).
 
-The time loop is written once: each thread runs the CPU's own loop, :func:`tumble.kernels.models.run_block` (steps,
+The time loop is written once: each thread runs the CPU's own loop, :func:`tumble.kernels.model_loop.run_block` (steps,
 stores, probes, drift screening and checks, early stop, status), on a block of one sample held in the thread's local
 memory; numba-cuda compiles it and the ``@jit`` functions it calls (the steps of :mod:`tumble.kernels.model_steps`,
 the splittings of :mod:`tumble.kernels.model_splittings`, the invariants of :mod:`tumble.kernels.systems`) for the
@@ -8,7 +8,7 @@ device. A model, a method or an observer added to the CPU's loop runs here witho
 same step with the same status as on the CPU.
 
 :func:`run_model` takes :func:`tumble.kernels.run_model`'s arguments and returns the same
-:class:`~tumble.kernels.models.ModelObserved`.
+:class:`~tumble.kernels.model_loop.ModelObserved`.
 
 This module imports ``numba.cuda``; it is imported only when a run asks for ``device="cuda"``
 (:func:`tumble.kernels.device_models`). On numba-cuda's simulator (``NUMBA_ENABLE_CUDASIM=1``) the kernel body runs
@@ -21,23 +21,23 @@ from numba import boolean, cuda, float64, int64
 from ..registry import model_kind
 from .cuda_launch import THREADS, launch_shape, loop_array
 from .jit import cuda_jit
-from .models import MODEL_CODES, MODEL_METHODS, ModelObserved, model_arguments, run_block
+from .model_loop import MODEL_CODES, MODEL_METHODS, ModelObserved, model_arguments, run_block
 from .systems import N_CONSTANTS, N_INVARIANTS
 
 __all__ = ["THREADS", "kernel", "make_kernel", "run_model"]
 
 
 def make_kernel(model, method, n_state):
-    """The device kernel of ``model`` (a :data:`~tumble.kernels.models.MODEL_CODES` value) stepped by ``method``
-    (a :data:`~tumble.kernels.models.MODEL_METHODS` value), ``n_state`` components: one thread per sample, running
-    the CPU's time loop (:func:`tumble.kernels.models.run_block`) on a block of one sample in the thread's local
+    """The device kernel of ``model`` (a :data:`~tumble.kernels.model_loop.MODEL_CODES` value) stepped by ``method``
+    (a :data:`~tumble.kernels.model_loop.MODEL_METHODS` value), ``n_state`` components: one thread per sample, running
+    the CPU's time loop (:func:`tumble.kernels.model_loop.run_block`) on a block of one sample in the thread's local
     memory."""
 
     @cuda_jit
     def propagate(y, c, h, n_steps, save_every, saved, columns, weights, y_eq, probe_steps, probes, drift,
                   drift_limit, status, steps_taken):
         """Advance sample ``cuda.grid(1)`` by ``n_steps`` steps of ``h``; the arguments are those of
-        :func:`tumble.kernels.models.propagate_model` (``c``: the constants as a tuple), :func:`run_model` packs
+        :func:`tumble.kernels.model_loop.propagate_model` (``c``: the constants as a tuple), :func:`run_model` packs
         them."""
         i = cuda.grid(1)
         if i >= y.shape[1]:
@@ -73,7 +73,7 @@ def run_model(kind, method, y, moments, h, n_steps, *, save_every=0, columns=Non
               probe_steps=None, drift=False, drift_limit=0.0, block=None, **parameters):
     # size: the keywords of tumble.kernels.run_model, so that the engine calls either the same way
     """:func:`tumble.kernels.run_model` on the device: the same arguments and the same
-    :class:`~tumble.kernels.models.ModelObserved`; ``y`` (n_state, N) is overwritten with the final states.
+    :class:`~tumble.kernels.model_loop.ModelObserved`; ``y`` (n_state, N) is overwritten with the final states.
     ``block`` is not used (a thread is a sample). Raises ``ValueError`` as the CPU's does (an unknown kind or
     method, a state of the wrong rows)."""
     _, n_state, constants, n_saved, columns, weights, y_eq, probe_steps = model_arguments(

@@ -1,6 +1,6 @@
 """The screen of the models' drift observer: a branch-free test per sample that vectorises across a block.
 
-Each step, while invariants' drifts are tracked, the driver (:func:`tumble.kernels.models.propagate_model`) first asks
+Each step, while invariants' drifts are tracked, the driver (:func:`tumble.kernels.model_loop.propagate_model`) first asks
 the generated :func:`tumble.kernels.model_steps.drift_suspects` whether any sample of a block comes near the drift
 limit or is non-finite; only then do the exact per-sample observers run (run every step, those scalar loops had cost as
 much as a gravity gradient's rk4 step, the screen costs a fifth of it).

@@ -6,7 +6,7 @@ state in registers and vectorises across samples. What is generated, and from wh
 
 * one step per (system module, method) and its block loop (then the module's ``project``, if it has one), from the
   modules of :data:`tumble.kernels.systems.SYSTEMS`, their state names (``registry.MODELS``) and :data:`METHODS`;
-* the dispatch the one driver of :mod:`tumble.kernels.models` calls with runtime codes (a kind's index in
+* the dispatch the one driver of :mod:`tumble.kernels.model_loop` calls with runtime codes (a kind's index in
   ``registry.MODEL_KINDS``, a method's in ``registry.STEPPING``): :func:`step`, :func:`invariants`,
   :func:`drift_suspects`, :func:`rhs_columns`, :func:`tangent_columns`, each a chain over the systems with each
   branch reading the constants array into the system's own ``Constants`` record; the Lie–Poisson splittings for
@@ -138,7 +138,7 @@ def _chain(modules, body, indent="    "):
 
 
 def dispatch_source(modules):
-    # size: five generated functions, each a chain over the systems, written out as the text they are
+    # size: seven generated functions, each a chain over the systems, written out as the text they are
     """Source of the dispatch functions (see the module docstring)."""
     method_ids = {m.name: registry.STEPPING.index(m.name) for m in METHODS}
 
@@ -194,11 +194,35 @@ def dispatch_source(modules):
         "def drift_suspects(model, ys, active, a, x0, scale, screen):",
         '    """Whether any active sample of a block is non-finite or has an invariant\'s drift beyond ``screen``: one '
         'pass\n    per system without stores, calls or inner loops, so that it vectorises across samples (see\n'
-        '    :func:`tumble.kernels.models.propagate_model`)."""',
+        '    :func:`tumble.kernels.model_loop.propagate_model`)."""',
         "    suspects = 0",
         *_chain(modules, suspects),
         "    return suspects > 0",
     ]
+    def sample(function):
+        def body(name, components, kinds):
+            items = ", ".join(f"y[{i}]" for i in range(len(components)))
+            along = "".join(f", v[{i}]" for i in range(len(components))) if function == "tangent" else ""
+            return [f"r_{name} = {name}.{function}(t, {items}{along}, {_record(name)})",
+                    f"for j in range({len(components)}):",
+                    f"    out[j] = r_{name}[j]"]
+        return body
+
+    for function in ("rate", "tangent"):
+        arguments = "t, y, p, out" if function == "rate" else "t, y, v, p, out"
+        what = ("A built-in system's rate as a user's ``System`` writes it (``rate(t, y, p, dydt)``): ``out = f(t, y)``"
+                if function == "rate" else "A built-in system's tangent flow ``out = J(t, y) v``")
+        lines += [
+            "",
+            "",
+            "@jit",
+            f"def {function}_sample({arguments}):",
+            f'    """{what} of one sample\'s state\n    ``y`` (n,): ``p`` holds the model\'s code, then its constants '
+            '(:func:`tumble.kernels.model_loop.rate_sample_parameters`)."""',
+            "    model = int(p[0])",
+            "    a = p[1:]",
+            *_chain(modules, sample(function)),
+        ]
     for function in ("rate", "tangent"):
         arguments = "y, a, t, out" if function == "rate" else "y, v, a, t, out"
         what = "``out = f(t, y)``" if function == "rate" else "``out = J(t, y) v``"

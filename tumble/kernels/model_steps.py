@@ -791,7 +791,7 @@ def invariants(model, ys, i, a):
 def drift_suspects(model, ys, active, a, x0, scale, screen):
     """Whether any active sample of a block is non-finite or has an invariant's drift beyond ``screen``: one pass
     per system without stores, calls or inner loops, so that it vectorises across samples (see
-    :func:`tumble.kernels.models.propagate_model`)."""
+    :func:`tumble.kernels.model_loop.propagate_model`)."""
     suspects = 0
     if model == 0 or model == 1:  # free, gyrostat
         c_gyrostat = gyrostat.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14])
@@ -818,6 +818,54 @@ def drift_suspects(model, ys, active, a, x0, scale, screen):
             total = ys[0, i] + ys[1, i] + ys[2, i] + ys[3, i] + ys[4, i] + ys[5, i]
             suspects += suspect(i, active, x0, scale, screen, x1, x2, x3, total)
     return suspects > 0
+
+
+@jit
+def rate_sample(t, y, p, out):
+    """A built-in system's rate as a user's ``System`` writes it (``rate(t, y, p, dydt)``): ``out = f(t, y)`` of one sample's state
+    ``y`` (n,): ``p`` holds the model's code, then its constants (:func:`tumble.kernels.model_loop.rate_sample_parameters`)."""
+    model = int(p[0])
+    a = p[1:]
+    if model == 0 or model == 1:  # free, gyrostat
+        r_gyrostat = gyrostat.rate(t, y[0], y[1], y[2], gyrostat.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14]))
+        for j in range(3):
+            out[j] = r_gyrostat[j]
+    elif model == 2:  # heavy_top
+        r_heavy_top = heavy_top.rate(t, y[0], y[1], y[2], y[3], y[4], y[5], heavy_top.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14], a[15]))
+        for j in range(6):
+            out[j] = r_heavy_top[j]
+    elif model == 3:  # gravity_gradient
+        r_gravity_gradient = gravity_gradient.rate(t, y[0], y[1], y[2], y[3], y[4], y[5], y[6], gravity_gradient.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10]))
+        for j in range(7):
+            out[j] = r_gravity_gradient[j]
+    else:  # damper
+        r_damper = damper.rate(t, y[0], y[1], y[2], y[3], y[4], y[5], damper.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10]))
+        for j in range(6):
+            out[j] = r_damper[j]
+
+
+@jit
+def tangent_sample(t, y, v, p, out):
+    """A built-in system's tangent flow ``out = J(t, y) v`` of one sample's state
+    ``y`` (n,): ``p`` holds the model's code, then its constants (:func:`tumble.kernels.model_loop.rate_sample_parameters`)."""
+    model = int(p[0])
+    a = p[1:]
+    if model == 0 or model == 1:  # free, gyrostat
+        r_gyrostat = gyrostat.tangent(t, y[0], y[1], y[2], v[0], v[1], v[2], gyrostat.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14]))
+        for j in range(3):
+            out[j] = r_gyrostat[j]
+    elif model == 2:  # heavy_top
+        r_heavy_top = heavy_top.tangent(t, y[0], y[1], y[2], y[3], y[4], y[5], v[0], v[1], v[2], v[3], v[4], v[5], heavy_top.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14], a[15]))
+        for j in range(6):
+            out[j] = r_heavy_top[j]
+    elif model == 3:  # gravity_gradient
+        r_gravity_gradient = gravity_gradient.tangent(t, y[0], y[1], y[2], y[3], y[4], y[5], y[6], v[0], v[1], v[2], v[3], v[4], v[5], v[6], gravity_gradient.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10]))
+        for j in range(7):
+            out[j] = r_gravity_gradient[j]
+    else:  # damper
+        r_damper = damper.tangent(t, y[0], y[1], y[2], y[3], y[4], y[5], v[0], v[1], v[2], v[3], v[4], v[5], damper.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10]))
+        for j in range(6):
+            out[j] = r_damper[j]
 
 
 @jit

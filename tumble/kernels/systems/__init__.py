@@ -19,8 +19,7 @@ import numpy as np
 from ...registry import MODEL_KINDS
 from . import damper, gravity_gradient, gyrostat, heavy_top
 
-__all__ = ["N_CONSTANTS", "N_INVARIANTS", "SYSTEMS", "constants", "damper", "gravity_gradient", "gyrostat",
-           "heavy_top"]
+__all__ = ["N_CONSTANTS", "N_INVARIANTS", "SYSTEMS", "constants"]  # and a module per system
 
 #: Model kind -> its module, in the registry's order (each module names its kinds: ``KINDS``).
 SYSTEMS = {kind: module for kind in MODEL_KINDS for module in (gyrostat, heavy_top, gravity_gradient, damper)

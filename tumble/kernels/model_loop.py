@@ -54,11 +54,13 @@ from .block_parts import check_finite, freeze, nan_rest, restore_frozen, store, 
 from .drift_screen import SCREEN_ATOL, SCREEN_RTOL
 from .jit import jit
 from .model_splittings import SPLITTINGS
-from .model_steps import drift_suspects, invariants, rate_columns, step, tangent_columns
+from .model_steps import (drift_suspects, invariants, rate_columns, rate_sample, step, tangent_columns,
+                          tangent_sample)
 from .systems import N_INVARIANTS, constants
 
 __all__ = ["MODEL_CODES", "MODEL_METHODS", "ModelObserved", "SPLITTING_KINDS", "model_arguments", "model_methods",
-           "model_rhs", "model_tangent", "propagate_model", "run_block", "run_model"]
+           "model_rhs", "model_tangent", "propagate_model", "rate_sample", "rate_sample_parameters", "run_block",
+           "run_model", "tangent_sample"]
 
 #: Kernel codes of the models: their index in ``registry.MODEL_KINDS``. The kernels step every model of this table,
 #: whatever ``registry.MODELS``' ``implemented`` says (that flag is the studies'; the gravity gradient and the damper
@@ -268,6 +270,18 @@ def _kind_constants(kind, moments, parameters):
     scaled = {key: np.asarray(value, dtype=float) * unit if key in _SCALED else value
               for key, value in parameters.items()}
     return MODEL_CODES[kind], len(model_kind(kind).state), constants(kind, moments * unit, scaled)
+
+
+def rate_sample_parameters(kind, moments, parameters):
+    """The parameters ``p`` of :func:`tumble.kernels.model_steps.rate_sample` (and ``tangent_sample``) for model
+    ``kind``: its code, then its constants (:func:`_kind_constants`), float64 (1 + N_CONSTANTS,).
+
+    With them a built-in system runs as a user's ``System`` does, through the per-sample loop of
+    :mod:`tumble.kernels.sample_loop`: on either device, with any tableau of :data:`tumble.kernels.tableaux.TABLEAUX`,
+    a method added at run time included (the generated steps cover :data:`MODEL_METHODS` only). The gravity
+    gradient's quaternion is then not projected after each step: its rate keeps ``|q|``, the method's order holds."""
+    code, _, values = _kind_constants(kind, moments, parameters)
+    return np.concatenate([[float(code)], values])
 
 
 def _columns(kind, y, moments, parameters, name="y"):
