@@ -8,7 +8,8 @@ import pytest
 import tumble
 from tumble import registry
 from tumble.engine import cost, ensemble, integration
-from tumble.measure import planning, running
+from tumble.measure import planning, running, scans
+from tumble.pipeline import config, runner
 from tumble.pipeline.config import StudyError
 
 BODY = (1.0, 2.0, 3.0)
@@ -84,3 +85,42 @@ def test_a_study_names_its_torque_field_and_the_step_planned_for_the_scene_when_
     assert err.problem.startswith("0.0001 s spans") and "set integration.dt <= " in err.problem, str(err)
     assert err.problem.endswith("(the step planned for scene 0)"), str(err)
     assert str(err).startswith("<mapping>: torque.duration: 0.0001 s spans"), str(err)
+
+
+def _counted(monkeypatch, module):
+    """Count the calls of ``module.resolve_device`` (a list of the devices asked)."""
+    calls, real = [], module.resolve_device
+    monkeypatch.setattr(module, "resolve_device", lambda device: calls.append(device) or real(device))
+    return calls
+
+
+def test_a_study_resolves_its_device_once_where_it_enters_and_its_scenes_trust_it(monkeypatch):
+    calls = _counted(monkeypatch, runner)
+    for module in (planning, scans, ensemble):
+        monkeypatch.setattr(module, "resolve_device", _refused)
+    ds = tumble.run_study({"outputs": {"figures": []}, "perturbation": {"samples": 8},
+                           "scan": {"axis": [1, 2], "method": ["rk4", "auto"]}})
+    assert calls == ["cpu"] and ds.rate.sizes["axis"] == ds.rate.sizes["method"] == 2
+
+
+def test_scan_resolves_its_device_once_for_all_its_scenes(monkeypatch):
+    calls = _counted(monkeypatch, scans)
+    monkeypatch.setattr(planning, "resolve_device", _refused)
+    monkeypatch.setattr(ensemble, "resolve_device", _refused)
+    ds = tumble.scan(BODY, [1, 2], samples=8, method=["rk4", "auto"])
+    assert calls == ["cpu"] and ds.rate.sizes["axis"] == ds.rate.sizes["method"] == 2
+    with pytest.raises(ValueError, match="device must be one of"):
+        tumble.scan(BODY, [1, 2], samples=8, device="gpu")
+    with pytest.raises(ValueError, match="device must be one of"):
+        scans.scan_scene(scans.scan_layout(BODY, [1, 2]), 0, samples=8, device="gpu")
+
+
+def test_a_studys_estimate_asks_its_scene_kind_whether_every_scene_steps_and_grows():
+    free = config.load_study({"spin": {"axis": 2}, "integration": {"method": "auto"}})
+    top = config.load_study("sleeping_top")
+    assert runner._scene_kind(free).always_steps is False and runner._scene_kind(top).always_steps is True
+    assert runner._scene_kind(free).only_exponential(free) is True
+    assert runner._scene_kind(top).only_exponential(top) is False
+    assert runner.study_cost(free).sample_steps == 0.0  # torque-free "auto": the closed form
+    top["integration"]["method"] = "auto"
+    assert runner.study_cost(top).sample_steps > 0.0  # a model steps (rk4 for "auto")

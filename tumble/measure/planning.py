@@ -333,13 +333,16 @@ def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, metho
     moments, axis, spin, amplitude, samples, flips = validate_scene(body, axis, spin, amplitude, samples,
                                                                      method, flips, distribution)
     options = scene_options(seed, dt=dt, distribution=distribution, torque=torque, horizon=horizon, curves=curves,
-                             device=device)
+                             device=resolve_device(device))
     return planned_scene(moments, axis, spin, amplitude, samples, method, flips, options)
 
 
 def scene_options(seed, *, dt=None, distribution="cone", torque=None, horizon=None, curves=(), device="cpu"):
-    """The options a scene shares with the other scenes of a scan, checked once: ``seed`` as its entropy."""
-    device = resolve_device(device)
+    """The options a scene shares with the other scenes of a scan, checked once: ``seed`` as its entropy.
+
+    ``device`` is trusted, resolved where the run entered (:func:`tumble.engine.device.resolve_device`:
+    :func:`scene_plan`, :func:`tumble.measure.scans.scan` and ``scan_scene``, a study's
+    :func:`tumble.pipeline.runner.scene_job`): ``"cpu"`` or ``"cuda"``."""
     if dt is not None and (not np.isfinite(dt) or dt <= 0):
         raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
     if horizon is not None and (not np.isfinite(horizon) or horizon <= 0):

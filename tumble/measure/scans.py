@@ -16,6 +16,7 @@ import sys
 import numpy as np
 
 from ..engine import cost
+from ..engine.device import resolve_device
 from ..engine.progress import tqdm
 from ..physics.bodies import Body, one_body
 from .planning import PROBES, planned_scene, scene_estimate, scene_options, validate_scene
@@ -103,6 +104,7 @@ def scan_scene(layout, index, *, samples=256, seed=0, **options):
     scenes run, where or in which order (common random numbers from ``seed``), so a scan cut into chunks of
     scenes and run on any number of processes assembles to the same bits (:func:`assemble_scan`).
     """
+    options["device"] = resolve_device(options.get("device", "cpu"))
     return ScenePlanner(layout, samples=samples, seed=seed, **options)(index)
 
 
@@ -110,7 +112,10 @@ class ScenePlanner:
     """:func:`scan_scene` of any scene of a layout, the scan's shared options and each combination of its swept
     values checked once rather than once per scene (half the time of planning a 30 000-scene map went to checking
     the same options again); the same :class:`Scene` records as :func:`scene_plan`, and the same errors, raised when
-    the first scene that needs the value is planned."""
+    the first scene that needs the value is planned.
+
+    Its ``device`` is trusted: resolved (``"cpu"`` or ``"cuda"``, :func:`tumble.engine.device.resolve_device`) where
+    the run entered: :func:`scan`, :func:`scan_scene`, a study's :func:`tumble.pipeline.runner.scene_job`."""
 
     def __init__(self, layout, *, samples=256, seed=0, **options):
         options.pop("progress", None)
@@ -196,11 +201,12 @@ def scan(bodies, axis=(1, 2, 3), spin=1.0, amplitude=1e-3, method="auto", *, sam
                     f"{n:,} scenes of samples = {samples}")
     progress = options.pop("progress", None)
     show = sys.stderr.isatty() if progress is None else progress
+    options["device"] = resolve_device(options.get("device", "cpu"))  # once: the planner and the scenes trust it
     planner = ScenePlanner(layout, samples=samples, seed=seed, **options)
     plans = [planner(index) for index in range(n)]
     steps = sum(plan.plan.n_steps for plan in plans if plan.chosen != "exact")
     cost.refuse(cost.scene_cost(samples, steps / n, scenes=n, working=0, times=PROBES + 1, fits=True),
-                f"{n:,} scenes of samples = {samples} ({steps:,} steps in all)", options.get("device", "cpu"))
+                f"{n:,} scenes of samples = {samples} ({steps:,} steps in all)", options["device"])
     records = []
     step = max(1, math.ceil(len(plans) / 32))
     with tqdm(total=len(plans), unit="scenes", disable=not show, desc="scan") as bar:

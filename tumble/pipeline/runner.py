@@ -198,7 +198,23 @@ class FreeScenes:
     by :mod:`tumble.measure.running`, reduced by :mod:`tumble.measure.reduction`.
 
     A scene kind (this and :class:`ModelScenes`) is chosen once per study (:func:`_scene_kind`) and answers
-    ``plan``, ``layout``, ``planner``, ``scene``, ``batch``, ``samples``, ``records`` and ``first_samples``."""
+    ``plan``, ``layout``, ``planner``, ``scene``, ``batch``, ``samples``, ``records`` and ``first_samples``, and for the
+    study's cost estimate (:func:`study_cost`) ``always_steps`` and ``only_exponential``."""
+
+    #: Whether every scene steps whatever its method: a free body's torque-free scenes may take the closed form.
+    always_steps = False
+
+    def only_exponential(self, resolved):
+        """Whether every scene of the study spins about its body's intermediate axis (known from the fields for a
+        study of one body; a scan of bodies may hold periodic scenes)."""
+        scan = resolved["scan"]
+        if any(key in scan for key in ("triangle", "k1", "moments", "body")):
+            return False
+        moments = list(resolved["body"]["moments"])
+        if len(set(moments)) < 3:  # a symmetric body: neutral or periodic scenes
+            return False
+        middle = moments.index(sorted(moments)[1]) + 1
+        return all(axis == middle for axis in scan.get("axis", [resolved["spin"]["axis"]]))
 
     def plan(self, resolved, file):
         """:func:`plan` of a free-body study."""
@@ -281,6 +297,13 @@ class ModelScenes:
 
     kind: str
 
+    #: A model always steps (rk4 for ``"auto"``): no closed form.
+    always_steps = True
+
+    def only_exponential(self, resolved):
+        """False: the study's estimate does not tell a model's kinds from its fields (its linearisation does)."""
+        return False
+
     def plan(self, resolved, file):
         """:func:`plan` of a model study: its values include the model's parameters (``rotor``, ``mgl``)."""
         scan, model = resolved["scan"], resolved["model"]
@@ -351,8 +374,9 @@ def study_cost(resolved, *, flips=None):
     scenes *= math.prod(len(scan[key]) for key in config.MODEL_SCAN_KEYS if key in scan)
     methods = scan.get("method", [integ["method"]])
     stepping = [m for m in methods if m in STEPPING]
-    if (resolved["torque"]["profile"] != "none" or "model" in resolved) and not stepping:
-        stepping = [registry.AUTO_STEPPING]  # a model always steps (rk4 for "auto")
+    scenes_kind = _scene_kind(resolved)
+    if (resolved["torque"]["profile"] != "none" or scenes_kind.always_steps) and not stepping:
+        stepping = [registry.AUTO_STEPPING]  # a torque or a model steps (rk4 for "auto")
     rate = abs(max(scan.get("rate", [resolved["spin"]["rate"]]), key=abs))
     # the planner's horizon: a few periods (or growth times and flips) of the scene, about PERIODS turns of the spin
     horizon = integ["horizon"] or planning.PERIODS * 2 * math.pi / rate
@@ -366,24 +390,11 @@ def study_cost(resolved, *, flips=None):
                                planning.MAX_SAVES) + 1)
     arrays = resolved["outputs"]["arrays"]
     kept = 2 * (8 * len(arrays) + 8 * bool(arrays))  # the records and the assembled dataset, with the sample index
-    estimate = planning.scene_estimate(bool(stepping), _only_exponential(resolved),
+    estimate = planning.scene_estimate(bool(stepping), scenes_kind.only_exponential(resolved),
                                        resolved["perturbation"]["samples"], times, steps=steps,
                                        flips=integ["flips"] if flips is None else flips, scenes=scenes,
                                        kept_per_sample=kept)
     return estimate._replace(peak_bytes=estimate.peak_bytes + cost.RUN_FOOTPRINT)
-
-
-def _only_exponential(resolved):
-    """Whether every scene of a study spins about its body's intermediate axis (known from the fields for a study
-    of one free body; a scan of bodies or a model may hold periodic scenes)."""
-    scan = resolved["scan"]
-    if "model" in resolved or any(key in scan for key in ("triangle", "k1", "moments", "body")):
-        return False
-    moments = list(resolved["body"]["moments"])
-    if len(set(moments)) < 3:  # a symmetric body: neutral or periodic scenes
-        return False
-    middle = moments.index(sorted(moments)[1]) + 1
-    return all(axis == middle for axis in scan.get("axis", [resolved["spin"]["axis"]]))
 
 
 def check_cost(resolved, file="<mapping>"):
