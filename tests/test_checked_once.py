@@ -2,13 +2,16 @@
 trusted below it (issue 40, item 5): a planned scene's samples run through the engine's unchecked door
 (tumble.engine.ensemble.run_planned), and every public call still refuses a bad argument with the same message."""
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
 import tumble
 from tumble import registry
-from tumble.engine import cost, ensemble, integration
-from tumble.measure import planning, running, scans
+from tumble.physics import models as physics_models
+from tumble.engine import cost, ensemble, integration, models
+from tumble.measure import model_scenes, planning, running, scans
 from tumble.pipeline import config, runner
 from tumble.pipeline.config import StudyError
 
@@ -124,3 +127,34 @@ def test_a_studys_estimate_asks_its_scene_kind_whether_every_scene_steps_and_gro
     assert runner.study_cost(free).sample_steps == 0.0  # torque-free "auto": the closed form
     top["integration"]["method"] = "auto"
     assert runner.study_cost(top).sample_steps > 0.0  # a model steps (rk4 for "auto")
+
+
+def test_a_model_ensemble_past_the_cost_bound_is_refused_before_anything_runs(monkeypatch):
+    monkeypatch.setattr(models, "run_model", _refused)
+    top = physics_models.FreeBody(BODY)
+    with pytest.raises(cost.TooLarge, match=r"^y0 \(1,000 states\) over t_end / dt = 1e\+13 steps: 1e\+16 "
+                                            r"sample-steps is more than"):
+        models.run_model_ensemble(top, np.ones((1000, 3)), 1e10, 1e-3, axis=3)
+    with pytest.raises(cost.TooLarge, match=r"^y0 \(1,000 states\) over t_end / dt = 1e\+08 steps: needs ~") as info:
+        models.run_model_ensemble(top, np.ones((1000, 3)), 1e5, 1e-3, axis=3, save_every=1)  # 2.4 TB of states
+    assert info.value.bound == "memory"
+
+
+@pytest.mark.parametrize("kind, axis, parameters", [("gyrostat", 1, {"rotor": 0.5}), ("heavy_top", 3, {"mgl": 0.1})],
+                         ids=["gyrostat", "heavy_top"])
+def test_a_planned_model_scene_runs_without_checking_its_device_method_or_cost_again(monkeypatch, kind, axis,
+                                                                                     parameters):
+    model = model_scenes.model_of(kind, BODY, axis, parameters)
+    scene = model_scenes.scene_plan(model, axis, 2.0, samples=16)
+    reference = model_scenes.scene_samples(scene, 0, 16)
+    monkeypatch.setattr(models, "resolve_device", _refused)
+    monkeypatch.setattr(models, "check_model_method", _refused)
+    monkeypatch.setattr(models, "cost", SimpleNamespace(refuse=_refused, run_cost=_refused))  # the engine's bound
+    part = model_scenes.scene_samples(scene, 0, 16)
+    assert np.array_equal(part["rate"], reference["rate"]) and np.array_equal(part["code"], reference["code"])
+
+
+def test_a_model_scene_refuses_a_method_its_model_cannot_step_when_planned():
+    damper = model_scenes.model_of("damper", BODY, 1, {"damper_inertia": 0.1, "damping": 0.05})
+    with pytest.raises(ValueError, match="method must be one of rk4, rk8 for a damper model, got 'splitting2'"):
+        model_scenes.scene_plan(damper, 1, 1.0, samples=16, method="splitting2")

@@ -1,4 +1,5 @@
-"""Ensembles of the models beyond the free body (issue 18): arguments checked, samples in chunks, the model kernels.
+"""Ensembles of the models beyond the free body (issue 18): arguments and cost checked, samples in chunks, the model
+kernels.
 
 :func:`run_model_ensemble` is :func:`tumble.engine.ensemble.run_ensemble` for a model of
 :mod:`tumble.physics.models` (a free body, a gyrostat, a heavy top, a gravity-gradient satellite, a body with a
@@ -21,11 +22,12 @@ import numpy as np
 
 from ..kernels import MODEL_BLOCK, MODEL_CODES, device_models, model_methods, parallel_block, run_model
 from ..physics.models import Model
+from . import cost
 from .device import resolve_device
 from .ensemble import DEFAULT_DRIFT_LIMIT, _count, _number, observation_times
 from .sampling import CHUNK
 
-__all__ = ["ModelEnsembleResult", "run_model_ensemble"]
+__all__ = ["ModelEnsembleResult", "check_model_method", "run_model_ensemble", "run_planned_model"]
 
 
 class ModelEnsembleResult(NamedTuple):
@@ -60,15 +62,23 @@ def _states(model, y0):
     return y0
 
 
-def _checked(model, y0, t_end, dt, method, axis, spin, save_every, probe_times, drift_limit, chunk):
-    # size: one check for each argument of run_model_ensemble's public call, all before any kernel runs
-    """The arguments of :func:`run_model_ensemble`, checked before anything runs; ValueError naming the argument."""
+def check_model_method(model, method):
+    """Refuse a model the kernels do not step or a method they do not step it with (the splittings only for a
+    Lie–Poisson model): a ValueError naming ``model`` or ``method``. :func:`run_model_ensemble` checks it, and a model
+    scene's planner (:func:`tumble.measure.model_scenes.scene_plan`), whose samples then run unchecked
+    (:func:`run_planned_model`)."""
     if not isinstance(model, Model) or model.kind not in MODEL_CODES:
         raise ValueError(f"model must be a tumble.physics.models model ({', '.join(MODEL_CODES)}), got {model!r}")
     if not isinstance(method, str) or method not in model_methods(model.kind):
         why = f" (the Lie–Poisson splittings do not apply: {model.not_lie_poisson})" if model.not_lie_poisson else ""
         raise ValueError(f"method must be one of {', '.join(model_methods(model.kind))} for a {model.kind} model, got "
                          f"{method!r}{why}")
+
+
+def _checked(model, y0, t_end, dt, method, axis, spin, save_every, probe_times, drift_limit, chunk):
+    # size: one check for each argument of run_model_ensemble's public call, all before any kernel runs
+    """The arguments of :func:`run_model_ensemble`, checked before anything runs; ValueError naming the argument."""
+    check_model_method(model, method)
     y0 = _states(model, y0)
     t_end = _number(t_end, "t_end", low=0.0)
     dt = _number(dt, "dt", positive=True)
@@ -156,12 +166,43 @@ def run_model_ensemble(model, y0, t_end, dt, *, method="rk4", axis, spin=None, s
     ValueError
         An argument of the wrong type, shape or range (named in the message); an axis the model has no steady
         spin about (a heavy top: not 3; a gyrostat with probes: its rotor across the axis).
+    tumble.engine.cost.TooLarge
+        A run past the cost bound (:func:`tumble.engine.cost.refuse`: its steps, memory or time), before anything is
+        allocated; the message starts ``y0 (N states) over t_end / dt = ... steps``.
     """
     device = resolve_device(device)
-    step = run_model if device == "cpu" else device_models().run_model
     y0, t_end, dt, spin, save_every, probe_times, drift_limit, chunk = _checked(
         model, y0, t_end, dt, method, axis, spin, save_every, probe_times, drift_limit, chunk)
     drift, final, time_major = _flag(drift, "drift"), _flag(final, "final"), _flag(time_major, "time_major")
+    n, n_state = y0.shape
+    steps = float(np.rint(t_end / dt)) if t_end > 0 else 0.0
+    cost.refuse(cost.run_cost(n, steps, _stored_per_sample(model, steps, save_every, probe_times, drift, final)),
+                f"y0 ({n:,} states) over t_end / dt = {steps:.3g} steps", device)
+    return run_planned_model(model, y0, t_end, dt, method=method, axis=axis, spin=spin, save_every=save_every,
+                             probe_times=probe_times, drift=drift, drift_limit=drift_limit, final=final, chunk=chunk,
+                             time_major=time_major, device=device)
+
+
+def _stored_per_sample(model, steps, save_every, probe_times, drift, final):
+    """Float64 values a run keeps per sample besides its state: the final state, the trajectory's saved states, the
+    probes and the invariants' drifts."""
+    saved = steps // save_every + 2 if save_every else 0
+    return (model.state_size * ((1 if final else 0) + saved) + (0 if probe_times is None else len(probe_times))
+            + (len(model.spec.invariants) if drift else 0))
+
+
+def run_planned_model(model, y0, t_end, dt, *, method, axis, spin, save_every=None, probe_times=None, drift=False,
+                      drift_limit=DEFAULT_DRIFT_LIMIT, final=True, chunk=CHUNK, time_major=False, device="cpu"):
+    # size: run_model_ensemble's observers and options, passed on as its callers name them (one keyword each)
+    """:func:`run_model_ensemble` of arguments already checked, trusted as they come: what the public call runs after
+    its checks, and what a planned model scene runs (:func:`tumble.measure.model_scenes.scene_samples`: its method,
+    device and cost were checked when it was planned, :func:`tumble.measure.model_scenes.scene_plan`).
+
+    ``y0`` a float array (N, n_state); ``t_end``, ``dt``, ``spin`` and ``drift_limit`` floats; ``method`` one of the
+    model's kernel methods; ``save_every`` an int or None; ``probe_times`` a float array (P,) or None; ``device``
+    resolved (``"cpu"`` or ``"cuda"``); the flags bools. Nothing here raises for an argument.
+    """
+    step = run_model if device == "cpu" else device_models().run_model
     transverse = model.transverse(axis, spin)
     y_eq = model.equilibrium(axis, spin) if probe_times is not None else None
     if y_eq is not None and transverse.centre is not None:  # the kernels subtract y_eq: it must be the norm's centre

@@ -2,7 +2,8 @@
 
 A model scene is a free-body scene (:mod:`tumble.measure.scene`) for a model of :mod:`tumble.physics.models`: an
 ensemble of states near the model's steady spin (:func:`tumble.engine.sampling.perturbed_states`), stepped by the
-model kernels (:func:`tumble.engine.models.run_model_ensemble`, rk4 or rk8), measured with the free body's
+model kernels (:func:`tumble.engine.models.run_planned_model`: the scene's method, device and cost checked when it was
+planned, not again per engine call), measured with the free body's
 estimators, and reduced by the free body's :func:`tumble.measure.reduction.scene_records`, so that its record holds
 the same variables (``kind``, ``rate``, ``rate_theory``, ``rel_error``, the interval, ``sample_rate``, ...) plus the
 model's coordinates (``model``; ``rotor``, the rotor's angular momentum along the spin axis, N m s; ``mgl``, N m).
@@ -63,7 +64,7 @@ import numpy as np
 
 from .. import registry
 from ..engine.device import LAUNCH_SAMPLES
-from ..engine.models import run_model_ensemble
+from ..engine.models import check_model_method, run_model_ensemble, run_planned_model
 from ..engine.sampling import CHUNK, perturbed_states, seed_entropy
 from ..physics import models, theory
 from ..physics.models import Model
@@ -247,7 +248,9 @@ def _checked(model, axis, amplitude, samples, method):
     planning.check_amplitude(amplitude)
     if isinstance(samples, (bool, np.bool_)) or not isinstance(samples, (int, np.integer)) or samples < 1:
         raise ValueError(f"samples must be an integer >= 1, got {samples!r}")
-    return METHODS[0] if method == "auto" else method
+    chosen = METHODS[0] if method == "auto" else method
+    check_model_method(model, chosen)  # the samples run unchecked (run_planned_model)
+    return chosen
 
 
 def scene_plan(model, axis, spin=1.0, amplitude=1e-3, samples=256, seed=0, method="auto", *, dt=None,
@@ -270,9 +273,9 @@ def scene_plan(model, axis, spin=1.0, amplitude=1e-3, samples=256, seed=0, metho
     dt, horizon : float, optional
         Step and horizon, s (default: planned from the linear theory).
     device : {"cpu", "cuda"}
-        Where the samples step (:func:`tumble.engine.models.run_model_ensemble`); the fits run on the host. Trusted:
+        Where the samples step (:func:`tumble.engine.models.run_planned_model`); the fits run on the host. Trusted:
         checked where a study enters (its config, and :func:`tumble.pipeline.runner.scene_job` for a device that
-        cannot run), the one caller.
+        cannot run), the one caller. The scene's method and cost are checked here, so its samples run unchecked.
 
     Returns
     -------
@@ -393,11 +396,11 @@ def _run(scene, start, stop):
     step = SLICE if scene.device == "cpu" else max(SLICE, LAUNCH_SAMPLES)  # a device launch needs many samples
     for lo in range(start, stop, step):
         hi = min(lo + step, stop)
-        result = run_model_ensemble(scene.model, _initial_states(scene, lo, hi), plan.t_end, plan.dt,
-                                    method=scene.chosen, axis=scene.axis, spin=scene.spin, final=False,
-                                    save_every=plan.save_every, time_major=modal,
-                                    probe_times=plan.probe_times if growth and not plan.save_every else None,
-                                    device=scene.device)
+        result = run_planned_model(scene.model, _initial_states(scene, lo, hi), plan.t_end, plan.dt,
+                                   method=scene.chosen, axis=scene.axis, spin=scene.spin, final=False,
+                                   save_every=plan.save_every, time_major=modal,
+                                   probe_times=plan.probe_times if growth and not plan.save_every else None,
+                                   device=scene.device)
         if modal:
             calls.append(_Call(lo, hi, result._replace(trajectory=None), _modal_signal(scene, result)))
         else:
