@@ -531,7 +531,7 @@ def _models():
 def part_models(ctx):
     """The models on the device (run_model_ensemble, final state, with its host transfers) against the CPU's model
     kernels on this machine's cores, and their agreement on the first N_CHECK samples."""
-    from tumble.engine.models import run_model_ensemble
+    from tumble.engine.model_ensemble import run_model_ensemble
     from tumble.engine.sampling import perturbed_states
 
     p = ctx["problem"]

@@ -1,5 +1,5 @@
 """Systems written by hand, as a user writes a ``tumble.System``, shared by the test modules that check a built-in
-model against them. A System's rate is compiled once per process and System object (tumble/engine/systems.py), so
+model against them. A System's rate is compiled once per process and System object (tumble/engine/system_runs.py), so
 one object here, with its parameters given per call, is one compile for every test that uses it on a worker (the
 tests that use it are in one xdist group, ``user_systems``: one worker runs them all)."""
 

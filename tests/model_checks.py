@@ -5,7 +5,7 @@ import numba
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from tumble.engine.models import run_model_ensemble
+from tumble.engine.model_ensemble import run_model_ensemble
 
 
 def model_errors(model, y0, t_end, method, steps):

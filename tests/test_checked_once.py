@@ -10,7 +10,7 @@ import pytest
 import tumble
 from tumble import registry
 from tumble.physics import models as physics_models
-from tumble.engine import cost, ensemble, integration, models
+from tumble.engine import cost, ensemble, integration, model_ensemble
 from tumble.measure import model_scenes, planning, running, scans
 from tumble.pipeline import config, runner
 from tumble.pipeline.config import StudyError
@@ -130,13 +130,13 @@ def test_a_studys_estimate_asks_its_scene_kind_whether_every_scene_steps_and_gro
 
 
 def test_a_model_ensemble_past_the_cost_bound_is_refused_before_anything_runs(monkeypatch):
-    monkeypatch.setattr(models, "run_model", _refused)
+    monkeypatch.setattr(model_ensemble, "run_model", _refused)
     top = physics_models.FreeBody(BODY)
     with pytest.raises(cost.TooLarge, match=r"^y0 \(1,000 states\) over t_end / dt = 1e\+13 steps: 1e\+16 "
                                             r"sample-steps is more than"):
-        models.run_model_ensemble(top, np.ones((1000, 3)), 1e10, 1e-3, axis=3)
+        model_ensemble.run_model_ensemble(top, np.ones((1000, 3)), 1e10, 1e-3, axis=3)
     with pytest.raises(cost.TooLarge, match=r"^y0 \(1,000 states\) over t_end / dt = 1e\+08 steps: needs ~") as info:
-        models.run_model_ensemble(top, np.ones((1000, 3)), 1e5, 1e-3, axis=3, save_every=1)  # 2.4 TB of states
+        model_ensemble.run_model_ensemble(top, np.ones((1000, 3)), 1e5, 1e-3, axis=3, save_every=1)  # 2.4 TB of states
     assert info.value.bound == "memory"
 
 
@@ -147,9 +147,9 @@ def test_a_planned_model_scene_runs_without_checking_its_device_method_or_cost_a
     model = model_scenes.model_of(kind, BODY, axis, parameters)
     scene = model_scenes.scene_plan(model, axis, 2.0, samples=16)
     reference = model_scenes.scene_samples(scene, 0, 16)
-    monkeypatch.setattr(models, "resolve_device", _refused)
-    monkeypatch.setattr(models, "check_model_method", _refused)
-    monkeypatch.setattr(models, "cost", SimpleNamespace(refuse=_refused, run_cost=_refused))  # the engine's bound
+    monkeypatch.setattr(model_ensemble, "resolve_device", _refused)
+    monkeypatch.setattr(model_ensemble, "check_model_method", _refused)
+    monkeypatch.setattr(model_ensemble, "cost", SimpleNamespace(refuse=_refused, run_cost=_refused))  # its bound
     part = model_scenes.scene_samples(scene, 0, 16)
     assert np.array_equal(part["rate"], reference["rate"]) and np.array_equal(part["code"], reference["code"])
 

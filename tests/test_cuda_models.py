@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import tumble
-from tumble.engine.models import run_model_ensemble
+from tumble.engine.model_ensemble import run_model_ensemble
 from tumble.engine.sampling import perturbed_states
 from tumble.physics import models
 

@@ -8,7 +8,7 @@ import numba
 import numpy as np
 import pytest
 
-from tumble.engine.models import run_model_ensemble
+from tumble.engine.model_ensemble import run_model_ensemble
 from tumble.kernels import MODEL_BLOCK, parallel_block
 from tumble.measure import estimators
 from tumble.measure.model_scenes import mode

@@ -15,7 +15,7 @@ from model_checks import assert_same_bits_on_any_threads_and_chunks, fitted_rate
 from tumble.theory import linear
 
 from tumble import registry
-from tumble.engine.models import run_model_ensemble
+from tumble.engine.model_ensemble import run_model_ensemble
 from tumble.engine.sampling import perturbed_spins, perturbed_states
 from tumble.kernels import MODEL_CODES, model_rhs
 from tumble.physics.models import Damper, GravityGradient

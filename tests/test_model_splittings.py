@@ -11,7 +11,7 @@ from model_checks import fitted_rate, model_errors, observed_order
 from tumble.theory import linear
 
 from tumble import registry
-from tumble.engine.models import run_model_ensemble
+from tumble.engine.model_ensemble import run_model_ensemble
 from tumble.engine.sampling import perturbed_states
 from tumble.kernels import model_methods, model_splittings, tableaux
 from tumble.physics.models import Damper, FreeBody, GravityGradient, Gyrostat, HeavyTop

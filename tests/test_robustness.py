@@ -388,8 +388,8 @@ BOUND_CALLS = {
         "tumble.run_ensemble(body, w * 1000, 1e7, 0.1, method='rk4', save_every=10**8, attitude=True)",
         "w0 (1,000 spins)"),
     "run_model_ensemble-of-1e16-sample-steps": (
-        "__import__('tumble.engine.models').engine.models.run_model_ensemble(tumble.models.FreeBody(body), "
-        "[w[0]] * 1000, 1e10, 1e-3, axis=3)", "y0 (1,000 states)"),
+        "__import__('tumble.engine.model_ensemble').engine.model_ensemble.run_model_ensemble("
+        "tumble.models.FreeBody(body), [w[0]] * 1000, 1e10, 1e-3, axis=3)", "y0 (1,000 states)"),
     "run_study-days-of-closed-form": (
         "tumble.run_study({'perturbation': {'samples': 10**6}, 'scan': {'triangle': 200}, "
         "'outputs': {'arrays': [], 'figures': []}})", "perturbation.samples: needs roughly"),

@@ -214,7 +214,7 @@ _PTX = textwrap.dedent("""
     import numba.cuda.dispatcher as dispatcher
     from numba import cuda, types as nt
     import tumble
-    from tumble.engine.systems import _kernels
+    from tumble.engine.system_runs import _kernels
     from tumble.kernels import device_sample_loop
 
     # Device functions are compiled for the current GPU's compute capability; without a GPU, name one (H100).

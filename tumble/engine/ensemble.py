@@ -40,7 +40,7 @@ from . import cost
 from .device import LAUNCH_SAMPLES, WARP, check_on_device, resolve_device, stepper
 from .progress import tqdm
 from .sampling import CHUNK
-from .systems import is_system, run_system
+from .system_runs import is_system, run_system
 
 __all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "Interrupted", "STATUS_NAMES", "check_torque_step", "checked_torque",
            "run_ensemble", "run_planned", "run_scene_table", "torque_spec"]
@@ -278,7 +278,7 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
     """Run an ensemble of spins and observe it on the fly.
 
     A built-in model or a :class:`tumble.System` in place of the body runs that system (as :func:`tumble.integrate`
-    does: :func:`tumble.engine.systems.run_system`) and observes its final state and, with ``save_every``, its
+    does: :func:`tumble.engine.system_runs.run_system`) and observes its final state and, with ``save_every``, its
     trajectory (``final`` and ``trajectory`` hold its states, shape (N, n) and (N, T, n)); the other observers are a
     rigid body's scene's and are refused for it.
 

@@ -18,7 +18,7 @@ from ..registry import STATUS_NAMES, STATUS_OK
 from . import cost
 from .device import check_on_device, resolve_device, stepper
 from .ensemble import check_torque_step, checked_torque, run_planned
-from .systems import is_system, run_system
+from .system_runs import is_system, run_system
 
 __all__ = ["integrate", "propagate", "METHOD_NAMES"]
 

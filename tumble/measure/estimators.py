@@ -206,7 +206,7 @@ def modal_amplitudes(trajectory, columns, centre, left):
     Parameters
     ----------
     trajectory : ndarray, shape (T, n_state, N)
-        States of N samples at T times, time-major (:func:`tumble.engine.models.run_model_ensemble`'s
+        States of N samples at T times, time-major (:func:`tumble.engine.model_ensemble.run_model_ensemble`'s
         ``time_major``).
     columns : array_like of int, shape (k,)
     centre : float or array_like, shape (k,)

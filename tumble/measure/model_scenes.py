@@ -2,8 +2,8 @@
 
 A model scene is a free-body scene (:mod:`tumble.measure.scene`) for a model of :mod:`tumble.physics.models`: an
 ensemble of states near the model's steady spin (:func:`tumble.engine.sampling.perturbed_states`), stepped by the
-model kernels (:func:`tumble.engine.models.run_planned_model`: the scene's method, device and cost checked when it was
-planned, not again per engine call), measured with the free body's
+model kernels (:func:`tumble.engine.model_ensemble.run_planned_model`: the scene's method, device and cost checked
+when it was planned, not again per engine call), measured with the free body's
 estimators, and reduced by the free body's :func:`tumble.measure.reduction.scene_records`, so that its record holds
 the same variables (``kind``, ``rate``, ``rate_theory``, ``rel_error``, the interval, ``sample_rate``, ...) plus the
 model's coordinates (``model``; ``rotor``, the rotor's angular momentum along the spin axis, N m s; ``mgl``, N m).
@@ -64,7 +64,7 @@ import numpy as np
 
 from .. import registry
 from ..engine.device import LAUNCH_SAMPLES
-from ..engine.models import check_model_method, run_model_ensemble, run_planned_model
+from ..engine.model_ensemble import check_model_method, run_model_ensemble, run_planned_model
 from ..engine.sampling import CHUNK, perturbed_states, seed_entropy
 from ..physics import models, theory
 from ..physics.models import Model
@@ -273,9 +273,9 @@ def scene_plan(model, axis, spin=1.0, amplitude=1e-3, samples=256, seed=0, metho
     dt, horizon : float, optional
         Step and horizon, s (default: planned from the linear theory).
     device : {"cpu", "cuda"}
-        Where the samples step (:func:`tumble.engine.models.run_planned_model`); the fits run on the host. Trusted:
-        checked where a study enters (its config, and :func:`tumble.pipeline.runner.scene_job` for a device that
-        cannot run), the one caller. The scene's method and cost are checked here, so its samples run unchecked.
+        Where the samples step (:func:`tumble.engine.model_ensemble.run_planned_model`); the fits run on the host.
+        Trusted: checked where a study enters (its config, and :func:`tumble.pipeline.runner.scene_job` for a device
+        that cannot run), the one caller. The scene's method and cost are checked here, so its samples run unchecked.
 
     Returns
     -------
@@ -317,7 +317,7 @@ class _Call(NamedTuple):
 
     lo: int
     hi: int
-    result: object  # tumble.engine.models.ModelEnsembleResult
+    result: object  # tumble.engine.model_ensemble.ModelEnsembleResult
     signal: np.ndarray | None  # exponential: |z| (N, T); periodic: (Re z, Im z) (N, T, 2); None: not modal
 
 

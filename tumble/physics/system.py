@@ -10,7 +10,7 @@ Any system of ordinary differential equations ``y' = f(t, y; p)`` that the engin
 * ``jacobian(t, y, p, J)`` (optional), the same convention: writes ``∂f/∂y`` into ``J`` (n, n).
 
 The record holds the description only, checked once here (names, numbers); the engine compiles the functions on
-first use (:mod:`tumble.engine.systems`) and says in one line, naming the system, what numba or a first call of the
+first use (:mod:`tumble.engine.system_runs`) and says in one line, naming the system, what numba or a first call of the
 rate found wrong.
 """
 

@@ -139,8 +139,8 @@ def run_model_ensemble(model, y0, t_end, dt, *, method="rk4", axis, spin=None, s
         Times (s) at which to record the transverse norm (rad/s); rounded to whole steps.
     drift : bool
         Record the running maximum drift of each of the model's invariants (``model.spec.invariants``), relative to
-        its scale (:mod:`tumble.kernels.models`: the invariant itself, or the largest magnitude an invariant that may
-        vanish can take).
+        its scale (:mod:`tumble.kernels.model_loop`: the invariant itself, or the largest magnitude an invariant that
+        may vanish can take).
     drift_limit : float
         A drift beyond it flags a sample ``invariant drift`` and stops it (0: no flagging).
     final : bool
