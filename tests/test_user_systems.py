@@ -110,18 +110,35 @@ def _ralston3():
     return ButcherTableau.build("ralston3", 3, [[], [0.5], [0.0, 0.75]], [2 / 9, 1 / 3, 4 / 9], [0.0, 0.5, 0.75])
 
 
-def _observed_order(device, method):
-    y0 = SPINS[:1]
-    reference = tumble.exact.omega(tumble.Body(*MOMENTS), y0, np.array([2.0]))[:, -1]
-    errors = [np.max(np.abs(tumble.propagate(FREE_BODY, y0, 2.0, dt, method=method, device=device) - reference))
+#: An asymmetric heavy top, its centre off axis 3: the generated steps do not know ralston3, the per-sample loop does.
+HEAVY_TOP = tumble.models.HeavyTop((2.0, 2.5, 3.0), 0.7, centre=(0.3, 0.0, 1.0))
+HEAVY_TOP_STATE = np.array([[0.4, -0.3, 2.0, 0.1, 0.2, math.sqrt(1.0 - 0.05)]])
+
+
+def _observed_order(system, y0, reference, device, method):
+    errors = [np.max(np.abs(tumble.propagate(system, y0, 2.0, dt, method=method, device=device) - reference))
               for dt in (0.04, 0.02, 0.01)]
     return np.polyfit(np.log([0.04, 0.02, 0.01]), np.log(errors), 1)[0]
 
 
 def test_a_tableau_registered_at_test_time_runs_at_its_order_on_the_cpu_and_the_device(monkeypatch, cuda_device):
+    """A method is its coefficients: Ralston's third-order tableau, added at test time, runs on a user's System, on
+    the built-in free body and on a built-in heavy top (whose generated SIMD steps know rk4 and rk8 only: they run it
+    through the per-sample loop, their rate from the generated dispatch) at order 3, on the CPU and the device."""
     monkeypatch.setitem(TABLEAUX, "ralston3", _ralston3())
-    assert abs(_observed_order("cpu", "ralston3") - 3.0) < 0.1
-    assert abs(_observed_order(cuda_device, "ralston3") - 3.0) < 0.1
+    y0 = SPINS[:1]
+    exact = tumble.exact.omega(tumble.Body(*MOMENTS), y0, np.array([2.0]))[:, -1]
+    top = tumble.propagate(HEAVY_TOP, HEAVY_TOP_STATE, 2.0, 0.002, method="rk8")
+    cases = [(FREE_BODY, y0, exact), (tumble.models.FreeBody(MOMENTS), y0, exact),
+             (HEAVY_TOP, HEAVY_TOP_STATE, top)]
+    for system, state, reference in cases:
+        for device in ("cpu", cuda_device):
+            order = _observed_order(system, state, reference, device, "ralston3")
+            assert abs(order - 3.0) < 0.1, (system, device, order)
+    assert tumble.integrate(HEAVY_TOP, HEAVY_TOP_STATE, 0.1, 0.05, method="ralston3").attrs["order"] == 3
+    np.testing.assert_allclose(  # the same per-sample code on both devices
+        tumble.propagate(HEAVY_TOP, HEAVY_TOP_STATE, 1.0, 0.05, method="ralston3", device=cuda_device),
+        tumble.propagate(HEAVY_TOP, HEAVY_TOP_STATE, 1.0, 0.05, method="ralston3"), rtol=1e-13, atol=1e-15)
 
 
 def test_a_built_in_model_integrates_by_name_with_its_state_components():

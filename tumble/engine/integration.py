@@ -11,7 +11,7 @@ import warnings
 import numpy as np
 
 from .. import registry
-from ..kernels import METHODS
+from ..kernels import METHODS, TABLEAUX
 from ..physics import exact
 from ..physics.bodies import finite_array, one_body, spin_vectors
 from ..registry import STATUS_NAMES, STATUS_OK
@@ -311,7 +311,7 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
         variables["component"] = ("component", np.arange(4), {"long_name": "quaternion component (0: scalar part)"})
     attrs = {
         "method": method,
-        "order": METHODS[method].order if method in METHODS else -1,
+        "order": _order(method),
         "path": info["path"],
         "dt": step,
         "n_steps": n_steps if method != "exact" else 0,
@@ -350,7 +350,7 @@ def _system_dataset(result, single, t_end, device):
     attrs = {
         "system": result.name,
         "method": result.method,
-        "order": METHODS[result.method].order if result.method in METHODS else -1,
+        "order": _order(result.method),
         "dt": result.dt,
         "n_steps": result.n_steps,
         "t_end": t_end,
@@ -363,6 +363,12 @@ def _system_dataset(result, single, t_end, device):
 
 _FLAG_VALUES = np.arange(len(STATUS_NAMES), dtype=np.int8)
 _FLAG_MEANINGS = " ".join(name.replace(" ", "_") for name in STATUS_NAMES)
+
+
+def _order(method):
+    """The nominal order of ``method``: a kernel method's, a tableau's added at run time, or -1 (the closed form)."""
+    found = METHODS.get(method) or TABLEAUX.get(method)
+    return found.order if found is not None else -1
 
 
 def indexed_dataset(variables, attrs):

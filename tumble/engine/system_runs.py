@@ -5,10 +5,11 @@ checked once here, then
 
 * a built-in model steps with the models' SIMD kernels (:func:`tumble.kernels.run_model`, one compiled and cached
   driver for every model: rk4, rk8 and, for the Lie–Poisson models, the splittings), ``parameters`` overriding the
-  model's own;
+  model's own; with any other tableau of :data:`tumble.kernels.TABLEAUX` (a method added at run time) it runs as a
+  System does, its rate the kernels' own (:func:`tumble.kernels.rate_sample`);
 * a :class:`~tumble.physics.system.System` steps with the per-sample loop of :mod:`tumble.kernels.sample_loop` (any
-  Runge–Kutta tableau: rk4, rk8), compiled for that system and method on its first run in a process and kept with
-  the system. Before anything runs the rate is compiled alone and called once at the first initial state with
+  Runge–Kutta tableau: rk4, rk8, or one added to ``TABLEAUX``), compiled for that system and method on its first run
+  in a process and kept with the system. Before anything runs the rate is compiled alone and called once at the first initial state with
   bounds checked, and at up to :data:`PROBED` initial states: a rate numba cannot compile, that reads or writes
   beyond the state, or that leaves a component of ``dydt`` unset or NaN is one line naming the system (ValueError),
   never a numba traceback or a silent NaN.
@@ -25,7 +26,7 @@ import numpy as np
 
 from .. import registry
 from ..kernels import (MODEL_BLOCK, TABLEAUX, device_models, device_sample_loop, model_methods, parallel_block,
-                       run_model, sample_loop)
+                       rate_sample, rate_sample_parameters, run_model, sample_loop)
 from ..physics.models import Model
 from ..physics.system import System, with_parameters
 from . import cost
@@ -61,10 +62,26 @@ def is_system(value):
 
 
 def system_methods(system):
-    """The methods ``system`` runs: a model's (:func:`tumble.kernels.model_methods`), a System's tableaux."""
+    """The methods ``system`` runs: every tableau of :data:`tumble.kernels.TABLEAUX` (a method added at run time
+    included) and, for a built-in model, its kernels' own (:func:`tumble.kernels.model_methods`: the splittings)."""
     if isinstance(system, Model):
-        return model_methods(system.kind)
+        own = model_methods(system.kind)
+        return (*own, *(name for name in TABLEAUX if name not in own))
     return tuple(TABLEAUX)
+
+
+#: Model kind -> the System that runs a built-in model's rate through the per-sample loop, for a tableau its
+#: generated SIMD steps do not have; its parameters are :func:`tumble.kernels.rate_sample_parameters`.
+_SAMPLE_LOOP_SYSTEMS = {}
+
+
+def _sample_loop_system(model):
+    """``(System, p)``: ``model`` as the per-sample loop runs it (the kernels' rate of its kind, its parameters)."""
+    p = rate_sample_parameters(model.kind, model.moments, model.parameters)
+    if model.kind not in _SAMPLE_LOOP_SYSTEMS:
+        _SAMPLE_LOOP_SYSTEMS[model.kind] = System(rate_sample, state=model.spec.state, name=model.kind,
+                                                  parameters={f"p{i}": 0.0 for i in range(len(p))})
+    return _SAMPLE_LOOP_SYSTEMS[model.kind], p
 
 
 def _name(system):
@@ -197,10 +214,13 @@ def run_system(system, y0, t_end, n_steps, step, method="rk4", *, save_every=Non
     stored = n_state * (n_steps / save_every + 2 if save_every else 2)
     cost.refuse(cost.run_cost(len(y), n_steps, stored), f"y0 ({len(y):,} states) over {n_steps:,} steps", device)
     every = int(save_every or 0)
-    if isinstance(system, System):
-        p = system.parameter_values(parameters)
-        _probe(system, y, p, 0.0)
-        kernels = _kernels(system, method)
+    if isinstance(system, System) or method not in model_methods(system.kind):
+        if isinstance(system, System):
+            loop_system, p = system, system.parameter_values(parameters)
+            _probe(system, y, p, 0.0)
+        else:  # a tableau the model's generated steps do not have
+            loop_system, p = _sample_loop_system(system)
+        kernels = _kernels(loop_system, method)
         n_saved = sample_loop.saved_count(n_steps, every)
         state = np.ascontiguousarray(y)
         if device == "cpu":
@@ -210,7 +230,7 @@ def run_system(system, y0, t_end, n_steps, step, method="rk4", *, save_every=Non
             kernels.drive(state, p, 0.0, step, n_steps, every, saved, status, steps_taken)
         else:
             cuda = device_sample_loop()
-            kernel = _device_kernel(system, method, kernels, n_state)
+            kernel = _device_kernel(loop_system, method, kernels, n_state)
             saved, status, steps_taken = cuda.run(kernel, state, p, 0.0, step, n_steps, every, n_saved)
         final, trajectory = state, (saved if every else None)
     else:
