@@ -36,6 +36,8 @@ _FACE = {
     "run_ensemble": ("tumble.engine.ensemble", "run_ensemble"),
     "integrate": ("tumble.engine.integration", "integrate"),
     "propagate": ("tumble.engine.integration", "propagate"),
+    "lyapunov": ("tumble.engine.chaos", "lyapunov"),
+    "megno": ("tumble.engine.chaos", "megno"),
     "run_study": ("tumble.pipeline.runner", "run_study"),
     "check": ("tumble.measure.check", "check"),
     "measure": ("tumble.measure.scene", "measure"),
@@ -102,5 +104,5 @@ def __dir__():
 
 
 __all__ = ["Body", "System", "attitude_trace", "check", "exact", "flip_time_law", "inertia_triangle", "integrate", "io",
-           "measure", "models", "propagate", "regress_scan", "rotations", "run_ensemble", "run_study", "sampling", "scan", "shapes",
+           "lyapunov", "measure", "megno", "models", "propagate", "regress_scan", "rotations", "run_ensemble", "run_study", "sampling", "scan", "shapes",
            "theory", "__version__"]

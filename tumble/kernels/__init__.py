@@ -5,7 +5,7 @@ This package's face is the one door to the kernels: the engine (:mod:`tumble.eng
 checks it). Tests and benchmarks of the kernels themselves may reach the modules.
 """
 
-from . import elliptic, fits, sample_loop, side_by_side
+from . import elliptic, fits, sample_loop, side_by_side, tangent_loop
 from .drivers import TORQUE_SIGNATURE
 from .jit import parallel_block
 from .methods import BLOCK, METHODS, Method, Observed, run, run_attitude
@@ -20,7 +20,7 @@ __all__ = ["BLOCK", "METHODS", "MODEL_BLOCK", "MODEL_CODES", "MODEL_METHODS", "T
            "device_fits", "device_kernels", "device_models", "device_sample_loop", "elliptic", "fits",
            "Method", "TABLEAUX", "model_methods", "model_rhs", "model_tangent", "ModelObserved", "Observed", "parallel_block",
            "rate_sample", "rate_sample_parameters", "run", "run_attitude", "run_model", "sample_loop", "side_by_side",
-           "tangent_sample"]
+           "device_tangent_loop", "tangent_loop", "tangent_sample"]
 
 
 def device_kernels():
@@ -70,3 +70,11 @@ def device_sample_loop():
     from . import cuda_sample_loop
 
     return cuda_sample_loop
+
+
+def device_tangent_loop():
+    """The CUDA launcher of the tangent flow, :mod:`tumble.kernels.cuda_tangent_loop` (one thread per sample running
+    :func:`tangent_loop.make_tangent_loop`'s loop), imported on the first call as :func:`device_kernels`."""
+    from . import cuda_tangent_loop
+
+    return cuda_tangent_loop

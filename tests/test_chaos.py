@@ -1,0 +1,275 @@
+"""Chaos indicators: ``tumble.lyapunov`` and ``tumble.megno`` (issue 41), in layers.
+
+Exact cases first (a linear system ``y' = A y``: the real parts of eig(A); the sum of the exponents is trace A at any
+horizon), then the rigid bodies' properties (a conservative system's exponents sum to zero and pair up; an integrable
+one's largest decays like ln T / T; at a steady spin about the intermediate axis the finite-time exponent is the linear
+growth rate), independence of the renormalisation interval, an independent reference (SciPy's DOP853 at rtol 1e-12 on
+the state and the variational equations, QR every second) for a chaotic heavy top, MEGNO (2 on a quasi-periodic orbit,
+growing on a chaotic one, the early stop), the device (numba-cuda's simulator: the CPU's numbers), and every bad input
+of issue 41 item 6 as one line.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+import tumble
+from tumble.engine.chaos import STATUS_ABOVE_NAME, initial_tangents
+from tumble.kernels.tangent_loop import STATUS_ABOVE
+from tumble.registry import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK
+
+# One worker compiles each system's tangent loop once (pyproject's --dist loadgroup).
+pytestmark = pytest.mark.xdist_group("chaos")
+
+
+def linear(t, y, p, dydt):
+    """``y' = A y`` with ``A`` (3, 3) row by row in ``p``."""
+    for i in range(3):
+        total = 0.0
+        for j in range(3):
+            total += p[3 * i + j] * y[j]
+        dydt[i] = total
+
+
+def linear_jacobian(t, y, p, J):
+    for i in range(3):
+        for j in range(3):
+            J[i, j] = p[3 * i + j]
+
+
+LINEAR = tumble.System(linear, state=("x1", "x2", "x3"), jacobian=linear_jacobian, name="linear",
+                       parameters={f"a{i}{j}": float(i == j) for i in range(1, 4) for j in range(1, 4)})
+
+
+def _matrix(A):
+    return {f"a{i + 1}{j + 1}": float(A[i, j]) for i in range(3) for j in range(3)}
+
+
+BODY = tumble.Body(1.0, 2.0, 3.0)
+#: An asymmetric heavy top, its centre of mass off the principal axes: not integrable.
+TOP = tumble.models.HeavyTop((1.0, 1.6, 2.2), 1.0, centre=(0.6, 0.3, 1.0))
+#: A chaotic release of TOP (<Y> ~ 16 at T = 200, lambda_1 ~ 0.1 1/s) and a regular one (<Y> ~ 1.6).
+CHAOTIC = np.array([0.04071382, 0.0164995, -0.85749567, 0.35671917, -0.78540276, 0.5058596])
+REGULAR = np.array([0.5, 0.3, 2.0, 0.3, 0.1, 1.0])
+CHAOTIC[3:] /= np.linalg.norm(CHAOTIC[3:])
+REGULAR[3:] /= np.linalg.norm(REGULAR[3:])
+#: The Lagrange top: symmetric, the centre of mass on the symmetry axis (integrable).
+LAGRANGE = tumble.models.HeavyTop((1.0, 1.0, 2.0), 1.0)
+
+
+# --- exact cases ----------------------------------------------------------------------------------------------------
+
+def test_a_symmetric_linear_system_gives_the_eigenvalues_of_its_matrix():
+    rng = np.random.default_rng(7)
+    Q, _ = np.linalg.qr(rng.standard_normal((3, 3)))
+    eigenvalues = np.array([0.5, -0.2, -1.0])
+    A = Q @ np.diag(eigenvalues) @ Q.T
+    ds = tumble.lyapunov(LINEAR, np.zeros(3), 60.0, 0.01, transient=30.0, parameters=_matrix(A))
+    np.testing.assert_allclose(ds["exponent"].values[0], eigenvalues, rtol=0, atol=1e-6)
+    assert list(ds["index"].values) == [1, 2, 3] and ds["exponent"].attrs["units"] == "1/s"
+    assert ds.attrs["method"] == "rk4" and ds.attrs["dt"] == 0.01 and ds.attrs["transient"] == 30.0
+    assert ds.attrs["renormalise"] == 1.0 and ds["status"].values[0] == STATUS_OK
+
+
+@pytest.mark.parametrize("t_end", [0.5, 7.0])
+def test_the_exponents_of_a_non_normal_linear_system_sum_to_its_trace_at_any_horizon(t_end):
+    A = np.array([[0.3, 5.0, -2.0], [0.0, -0.1, 4.0], [0.2, 0.0, -0.7]])
+    ds = tumble.lyapunov(LINEAR, [[0.1, 0.2, 0.3]], t_end, 0.01, renormalise=0.5, parameters=_matrix(A))
+    assert abs(ds["exponent"].values.sum() - np.trace(A)) < 1e-6
+
+
+# --- the rigid bodies -----------------------------------------------------------------------------------------------
+
+def test_a_steady_spin_about_the_intermediate_axis_grows_at_the_linear_rate():
+    kind, rate = tumble.theory.linear(BODY, 2, 1.5)
+    assert kind == "exponential"
+    ds = tumble.lyapunov(BODY, [0.0, 1.5, 0.0], 12.0, 0.01, transient=4.0, save_every=100)
+    assert abs(ds["exponent"].values[0, 0] / rate - 1) < 0.03
+    assert abs(ds["exponent"].values[0, 2] / rate + 1) < 0.03  # and the stable direction at minus it
+    finite_time = ds["finite_time"].values[0, :, 0]  # every second past the transient, converging
+    assert ds["time"].values[0] == 5.0 and ds["time"].values[-1] == 12.0
+    assert abs(finite_time[-1] / rate - 1) < abs(finite_time[0] / rate - 1) + 1e-12
+
+
+def test_the_free_bodys_exponents_sum_to_zero_pair_up_and_decay_like_log_t_over_t():
+    spins = [[0.3, 1.0, 0.1], [1.0, 0.2, 0.4]]
+    largest = []
+    for t_end in (100.0, 1000.0):
+        exponents = tumble.lyapunov(BODY, spins, t_end, 0.01)["exponent"].values
+        np.testing.assert_allclose(exponents.sum(axis=1), 0.0, atol=1e-8)
+        assert np.all(np.abs(exponents[:, 0] + exponents[:, 2]) <= np.abs(exponents[:, 1]) + 1e-8)  # (l, ~0, -l)
+        assert np.all(exponents[:, 0] < 2 * math.log(t_end) / t_end)
+        largest.append(exponents[:, 0])
+    assert np.all(largest[1] < largest[0] / 4)
+
+
+def test_the_lagrange_tops_exponents_sum_to_zero_and_decay_like_log_t_over_t():
+    largest = []
+    for t_end in (100.0, 1000.0):
+        exponents = tumble.lyapunov(LAGRANGE, REGULAR, t_end, 0.01)["exponent"].values[0]
+        assert abs(exponents.sum()) < 1e-8
+        assert np.all(np.abs(exponents + exponents[::-1]) < 0.5 * exponents[0])  # pairs, within their O(1/T)
+        assert exponents[0] < 2 * math.log(t_end) / t_end
+        largest.append(exponents[0])
+    assert largest[1] < largest[0] / 4
+
+
+def test_a_chaotic_tops_exponents_sum_to_zero_and_come_in_plus_minus_pairs():
+    exponents = tumble.lyapunov(TOP, CHAOTIC, 400.0, 0.01)["exponent"].values[0]
+    assert abs(exponents.sum()) < 1e-8
+    assert exponents[0] > 0.05  # chaotic: well above ln T / T = 0.015
+    assert abs(exponents[0] + exponents[5]) < 0.02 * exponents[0]
+    assert np.all(np.abs(exponents[1:5]) < 0.2 * exponents[0])  # the integrals' and the flow's directions: ~0
+
+
+def test_the_exponents_do_not_depend_on_how_often_the_tangents_are_renormalised():
+    a = tumble.lyapunov(TOP, [CHAOTIC, REGULAR], 60.0, 0.01, renormalise=0.25)["exponent"].values
+    b = tumble.lyapunov(TOP, [CHAOTIC, REGULAR], 60.0, 0.01, renormalise=4.0)["exponent"].values
+    np.testing.assert_allclose(a, b, rtol=1e-8, atol=1e-8 * np.abs(a).max())
+
+
+def test_the_first_exponents_alone_are_those_of_the_whole_spectrum():
+    whole = tumble.lyapunov(TOP, CHAOTIC, 30.0, 0.01)
+    two = tumble.lyapunov(TOP, CHAOTIC, 30.0, 0.01, exponents=2)
+    assert two["exponent"].shape == (1, 2) and list(two["index"].values) == [1, 2]
+    # the first k Gram-Schmidt vectors start and evolve as in the whole set: the same sums, to round-off
+    for value in two["exponent"].values[0]:
+        assert np.min(np.abs(whole["exponent"].values[0] - value)) < 1e-12
+
+
+def _reference(model, y0, t_end, every=1.0):
+    """Benettin's method on SciPy: DOP853 at rtol 1e-12 on the state and the variational equations (the physics
+    layer's numpy Jacobian), QR every ``every`` s, from tumble's initial tangent vectors."""
+    n = len(y0)
+
+    def f(t, z):
+        y, V = z[:n], z[n:].reshape(n, n)
+        return np.concatenate([model.rhs(y), (model.jacobian(y) @ V).ravel()])
+
+    y, V, logs = np.array(y0, float), initial_tangents(n, n).T, np.zeros(n)
+    for _ in range(round(t_end / every)):
+        z = solve_ivp(f, (0.0, every), np.concatenate([y, V.ravel()]), method="DOP853", rtol=1e-12, atol=1e-12).y[:, -1]
+        y = z[:n]
+        q, r = np.linalg.qr(z[n:].reshape(n, n))
+        logs += np.log(np.abs(np.diag(r)))
+        V = q * np.sign(np.diag(r))
+    return np.sort(logs / t_end)[::-1]
+
+
+def test_the_spectrum_of_a_chaotic_top_agrees_with_scipys_dop853_and_the_variational_equations():
+    reference = _reference(TOP, CHAOTIC, 30.0)
+    got = tumble.lyapunov(TOP, CHAOTIC, 30.0, 0.005)["exponent"].values[0]
+    np.testing.assert_allclose(got, reference, rtol=0, atol=1e-8 * reference[0] + 1e-10)
+
+
+# --- MEGNO ----------------------------------------------------------------------------------------------------------
+
+def test_megno_tends_to_two_on_a_quasi_periodic_orbit_of_the_free_body():
+    ds = tumble.megno(BODY, [[0.3, 1.0, 0.1], [1.0, 0.2, 0.4]], 2000.0, 0.01)
+    np.testing.assert_allclose(ds["megno"].values, 2.0, atol=0.1)
+    assert np.all(np.abs(ds["lyapunov"].values) < 2e-3)
+    assert list(ds["status"].values) == [STATUS_OK] * 2 and np.all(ds["time_run"].values == 2000.0)
+
+
+def test_megno_grows_on_a_chaotic_orbit_and_its_slope_gives_the_exponent():
+    short = tumble.megno(TOP, [CHAOTIC, REGULAR], 100.0, 0.01)
+    long = tumble.megno(TOP, [CHAOTIC, REGULAR], 200.0, 0.01)
+    assert long["megno"].values[0] > 1.5 * short["megno"].values[0] > 8
+    assert long["megno"].values[1] < 2.5
+    largest = tumble.lyapunov(TOP, CHAOTIC, 200.0, 0.01, exponents=1)["exponent"].values[0, 0]
+    assert abs(long["lyapunov"].values[0] / largest - 1) < 0.5  # <Y> ~ lambda t / 2
+
+
+def test_megno_stops_a_sample_above_the_threshold_and_says_so():
+    ds = tumble.megno(TOP, [CHAOTIC, REGULAR], 200.0, 0.01, stop_above=5.0)
+    assert list(ds["status"].values) == [STATUS_ABOVE, STATUS_OK]
+    assert 5.0 < ds["megno"].values[0] < 5.5 and ds["time_run"].values[0] < 200.0
+    assert ds["time_run"].values[1] == 200.0
+    meanings = ds["status"].attrs["flag_meanings"].split()
+    assert meanings[STATUS_ABOVE] == STATUS_ABOVE_NAME.replace(" ", "_") and len(meanings) == len(STATUS_NAMES) + 1
+
+
+def test_a_sample_that_becomes_non_finite_stops_with_a_status_not_a_silent_nan():
+    A = np.diag([800.0, 0.0, -1.0])  # rk4 steps the state by R(8) = 297 a step: it overflows at 1.25 s
+    with pytest.warns(RuntimeWarning, match="1 of 2 samples of linear became non-finite"):
+        ds = tumble.lyapunov(LINEAR, [[1.0, 0.0, 0.0], [0.0, 0.0, 0.0]], 3.0, 0.01, renormalise=0.5,
+                             parameters=_matrix(A))
+    assert list(ds["status"].values) == [STATUS_NONFINITE, STATUS_OK]
+    first_second = tumble.lyapunov(LINEAR, [1.0, 0.0, 0.0], 1.0, 0.01, renormalise=0.5, parameters=_matrix(A))
+    # the stopped sample keeps the exponents of the time up to its last renormalisation (1 s)
+    np.testing.assert_allclose(ds["exponent"].values[0], first_second["exponent"].values[0], rtol=1e-12)
+    assert ds["exponent"].values[0, 0] > 500  # the discrete map's: log R(8) / h of rk4's stability function R
+    with pytest.warns(RuntimeWarning, match="1 of 1 samples of linear"):  # exp(800) overflows before a renormalisation
+        overflow = tumble.lyapunov(LINEAR, [0.0, 0.0, 0.0], 3.0, 0.01, renormalise=1.0, parameters=_matrix(A))
+    assert overflow["status"].values[0] == STATUS_NONFINITE and np.all(np.isnan(overflow["exponent"].values))
+    with pytest.warns(RuntimeWarning, match="1 of 1 samples of linear"):
+        nan_start = tumble.lyapunov(LINEAR, [np.nan, 0.0, 0.0], 1.0, 0.01, parameters=_matrix(A))
+    assert nan_start["status"].values[0] == STATUS_NONFINITE and np.all(np.isnan(nan_start["exponent"].values))
+
+
+# --- the device -----------------------------------------------------------------------------------------------------
+
+def test_the_device_gives_the_cpus_exponents_and_megno(cuda_device):
+    states = [CHAOTIC, REGULAR]
+    cpu = tumble.lyapunov(TOP, states, 5.0, 0.01, save_every=100, transient=1.0)
+    device = tumble.lyapunov(TOP, states, 5.0, 0.01, save_every=100, transient=1.0, device=cuda_device)
+    np.testing.assert_allclose(device["exponent"].values, cpu["exponent"].values, rtol=1e-10, atol=1e-14)
+    np.testing.assert_allclose(device["finite_time"].values, cpu["finite_time"].values, rtol=1e-10, atol=1e-14)
+    cpu = tumble.megno(TOP, states, 20.0, 0.01, stop_above=3.0)
+    device = tumble.megno(TOP, states, 20.0, 0.01, stop_above=3.0, device=cuda_device)
+    for name in ("megno", "lyapunov", "time_run"):
+        np.testing.assert_allclose(device[name].values, cpu[name].values, rtol=1e-10, atol=1e-14)
+    np.testing.assert_array_equal(device["status"].values, cpu["status"].values)
+    A = _matrix(np.array([[0.3, 5.0, -2.0], [0.0, -0.1, 4.0], [0.2, 0.0, -0.7]]))
+    cpu = tumble.lyapunov(LINEAR, [[0.1, 0.2, 0.3]], 2.0, 0.01, parameters=A, exponents=2)
+    device = tumble.lyapunov(LINEAR, [[0.1, 0.2, 0.3]], 2.0, 0.01, parameters=A, exponents=2, device=cuda_device)
+    np.testing.assert_allclose(device["exponent"].values, cpu["exponent"].values, rtol=1e-10)
+    assert device.attrs["device"] == "cuda"
+
+
+# --- bad input: one line each (issue 41 item 6) ---------------------------------------------------------------------
+
+def _no_jacobian(t, y, p, dydt):
+    dydt[0] = y[0]
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda: tumble.lyapunov(BODY, [[0, 1, 0]], 1.0, 0.01, exponents=4),
+     r"exponents must be None or an integer from 1 to 3 \(the state of the free model has 3 components: w1, w2, w3\)"),
+    (lambda: tumble.lyapunov(BODY, [[0, 1, 0]], 1.0, 0.01, exponents=0), "exponents must be None or an integer"),
+    (lambda: tumble.lyapunov(BODY, [[0, 1, 0]], 1.0, 0.01, renormalise=0.015),
+     r"renormalise must be a positive multiple of dt = 0.01 s .* got 0.015 s \(1.5 steps\)"),
+    (lambda: tumble.lyapunov(BODY, [[0, 1, 0]], 1.0, 0.01, renormalise=-1.0), "renormalise must be a positive"),
+    (lambda: tumble.lyapunov(BODY, [[0, 1, 0]], 1.0, 0.01, transient=1.0),
+     r"transient must be >= 0 s and less than t_end = 1 s"),
+    (lambda: tumble.lyapunov(BODY, [[0, 1, 0]], 0.0, 0.01), r"t_end must be > 0 s"),
+    (lambda: tumble.lyapunov(BODY, [[0, 1, 0]], 1.0, -0.01), r"dt must be > 0 s"),
+    (lambda: tumble.lyapunov(BODY, [[0, 1, 0]], math.nan, 0.01), r"t_end must be finite"),
+    (lambda: tumble.lyapunov(TOP, [[0, 1, 0]], 1.0, 0.01),
+     r"y0 must have shape \(N, 6\) \(w1, w2, w3, g1, g2, g3 of the heavy_top model\) with N >= 1, got shape \(1, 3\)"),
+    (lambda: tumble.lyapunov(BODY, [[0, 1, 0]], 1.0, 0.01, save_every=0), "save_every must be None or an integer"),
+    (lambda: tumble.lyapunov(BODY, [[0, 1, 0]], 1.0, 0.01, method="splitting4"), "method must be one of rk4"),
+    (lambda: tumble.lyapunov("body", [[0, 1, 0]], 1.0, 0.01), "system must be a tumble.Body"),
+    (lambda: tumble.lyapunov(tumble.System(_no_jacobian, state=("x",), name="bare"), [[1.0]], 1.0, 0.01),
+     r"system 'bare' needs a jacobian\(t, y, p, J\) for the tangent flow"),
+    (lambda: tumble.lyapunov(LINEAR, [[0, 0, 0]], 1.0, 0.01, parameters={"b": 1.0}),
+     r"parameters: 'b' is not a parameter of system 'linear'"),
+    (lambda: tumble.megno(BODY, [[0, 1, 0]], 1.0, 0.01, stop_above=0.0), "stop_above must be None or a number > 0"),
+    (lambda: tumble.megno(BODY, [[0, 1, 0]], 1.0, 0.01, device="tpu"), "device"),
+])
+def test_each_bad_input_is_refused_in_one_line(call, message):
+    with pytest.raises(ValueError, match=message) as err:
+        call()
+    assert "\n" not in str(err.value)
+
+
+def test_a_jacobian_numba_cannot_compile_is_one_line_naming_the_system():
+    def bad_jacobian(t, y, p, J):
+        J[0, 0] = {"a": 1}
+
+    system = tumble.System(_no_jacobian, state=("x",), jacobian=bad_jacobian, name="uncompilable")
+    with pytest.raises(ValueError, match=r"system 'uncompilable': numba cannot compile jacobian\(t, y, p, J\)") as err:
+        tumble.lyapunov(system, [[1.0]], 1.0, 0.01)
+    assert "\n" not in str(err.value)

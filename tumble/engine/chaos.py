@@ -1,0 +1,476 @@
+"""Chaos indicators of any system: :func:`lyapunov` (the Lyapunov spectrum) and :func:`megno` (MEGNO).
+
+Regular or chaotic, and how fast do nearby motions separate? Each sample carries, beside its state, ``k`` tangent
+vectors advanced by the variational equations ``δ' = J(t, y) δ`` with the same method and step as the state (the
+derivative of the method's own map), orthonormalised by modified Gram–Schmidt every ``renormalise`` seconds
+(Benettin, Galgani, Giorgilli & Strelcyn 1980); the exponents are the sums of ``log |R_rr|`` over the time after the
+transient. MEGNO's two scalars are integrated alongside (Cincotta & Simó 2000): ``<Y> → 2`` on a quasi-periodic orbit,
+``→ 0`` near a stable periodic one, ``≈ λ t / 2`` on a chaotic one. The loop is :mod:`tumble.kernels.tangent_loop`'s,
+on the CPU or one CUDA thread per sample.
+
+``system`` is anything the engine accepts: a :class:`~tumble.physics.bodies.Body` (the free body, as
+:class:`tumble.models.FreeBody`), a built-in model (its generated rate and tangent, with any Runge–Kutta tableau of
+:data:`tumble.kernels.TABLEAUX`), or a user's :class:`~tumble.physics.system.System` with a ``jacobian(t, y, p, J)``.
+Every argument is checked once here, each refusal one line (ValueError).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+import weakref
+from typing import NamedTuple
+
+import numpy as np
+
+from .. import registry
+from ..kernels import TABLEAUX, device_tangent_loop, rate_sample, rate_sample_parameters, sample_loop, tangent_loop
+from ..physics.bodies import Body
+from ..physics.models import FreeBody, Model
+from ..physics.system import System, with_parameters
+from . import cost
+from .device import resolve_device
+
+__all__ = ["STATUS_ABOVE_NAME", "TANGENT_SEED", "TangentRun", "lyapunov", "megno", "run_tangents"]
+
+#: The name of :data:`tumble.kernels.tangent_loop.STATUS_ABOVE` in a Dataset's ``status`` flags.
+STATUS_ABOVE_NAME = "megno above threshold"
+
+#: The seed of the initial tangent vectors: one fixed orthonormal set (the Q of a Gaussian matrix), the same for every
+#: sample and run, in no special direction of any system (a coordinate axis can lie in an invariant subspace).
+TANGENT_SEED = 41
+
+# A ratio within this relative distance of an integer counts as that integer (renormalise / dt, t_end / dt).
+_SLACK = 1e-9
+
+_STATUS_NAMES = (*registry.STATUS_NAMES, STATUS_ABOVE_NAME)
+_FLAG_VALUES = np.arange(len(_STATUS_NAMES), dtype=np.int8)
+_FLAG_MEANINGS = " ".join(name.replace(" ", "_") for name in _STATUS_NAMES)
+
+
+class TangentRun(NamedTuple):
+    """What :func:`run_tangents` returns (arrays per sample first)."""
+
+    logs: np.ndarray  # (N, k): sums of log |R_rr| after the transient, in the Gram-Schmidt order
+    saved: np.ndarray  # (N, n_saved, k): finite-time exponents, 1/s, NaN after a stop
+    scalars: np.ndarray  # (N, 4): <Y>, 2 x slope of <Y> (1/s), time run (s), time the logs cover (s)
+    status: np.ndarray  # (N,) int8
+    steps_taken: np.ndarray  # (N,) int64
+
+
+def _as_system(system):
+    """``system`` as the engine runs it: a Body becomes the free body; a model or a System as it is."""
+    if isinstance(system, Body):
+        return FreeBody(system.moments)
+    if isinstance(system, (Model, System)):
+        return system
+    raise ValueError(f"system must be a tumble.Body, a built-in model (tumble.models) or a tumble.System, got "
+                     f"{type(system).__name__}")
+
+
+def _name(system):
+    return system.name if isinstance(system, System) else f"the {system.kind} model"
+
+
+def _number(value, name):
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    x = float(value)
+    if not math.isfinite(x):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return x
+
+
+def _plan(t_end, dt):
+    """``(t_end, n_steps, step)``: the horizon and the fixed step that lands on it (the step shortened to
+    ``t_end / ceil(t_end / dt)`` when ``t_end / dt`` is not a whole number, as :func:`tumble.integrate`)."""
+    t_end, dt = _number(t_end, "t_end"), _number(dt, "dt")
+    if dt <= 0:
+        raise ValueError(f"dt must be > 0 s, got {dt:g}")
+    if t_end <= 0:
+        raise ValueError(f"t_end must be > 0 s (the exponents are averages over time), got {t_end:g}")
+    ratio = t_end / dt
+    n_steps = round(ratio)
+    if n_steps == 0 or abs(ratio - n_steps) > _SLACK * ratio:
+        n_steps = math.ceil(ratio)
+    return t_end, n_steps, t_end / n_steps
+
+
+def _initial_states(system, y0):
+    names = system.spec.state
+    shape = f"(N, {len(names)}) ({', '.join(names)} of {_name(system)})"
+    try:
+        y = np.array(y0, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"y0 must be an array of numbers of shape {shape}, got {y0!r}") from None
+    if y.ndim == 1:
+        y = y[None, :]
+    if y.ndim != 2 or y.shape[1] != len(names) or len(y) == 0:
+        raise ValueError(f"y0 must have shape {shape} with N >= 1, got shape {np.shape(y0)}")
+    return np.ascontiguousarray(y)
+
+
+def _method(method):
+    if method == registry.AUTO:
+        method = registry.AUTO_STEPPING
+    if not isinstance(method, str) or method not in TABLEAUX:
+        raise ValueError(f"method must be one of {', '.join(TABLEAUX)} (an explicit Runge-Kutta method: the tangent "
+                         f"is its own derivative), got {method!r}")
+    return method
+
+
+def _exponents(exponents, system, n):
+    if exponents is None:
+        return n
+    if isinstance(exponents, (bool, np.bool_)) or not isinstance(exponents, (int, np.integer)) or not (
+            1 <= exponents <= n):
+        raise ValueError(f"exponents must be None or an integer from 1 to {n} (the state of {_name(system)} has {n} "
+                         f"components: {', '.join(system.spec.state)}), got {exponents!r}")
+    return int(exponents)
+
+
+def _renormalise_steps(renormalise, dt):
+    """The steps between two factorisations: ``renormalise / dt``, a positive whole number (within round-off)."""
+    value = _number(renormalise, "renormalise")
+    ratio = value / dt
+    steps = round(ratio)
+    if value <= 0 or steps < 1 or abs(ratio - steps) > _SLACK * max(ratio, 1.0):
+        raise ValueError(f"renormalise must be a positive multiple of dt = {dt:g} s (the tangent vectors are "
+                         f"orthonormalised between steps), got {renormalise!r} s ({ratio:.6g} steps)")
+    return steps
+
+
+def _transient_steps(transient, t_end, step):
+    """The steps of the transient (rounded up to whole steps), before which nothing is summed: fewer than the run's."""
+    value = _number(transient, "transient")
+    if value < 0 or value >= t_end:
+        raise ValueError(f"transient must be >= 0 s and less than t_end = {t_end:g} s (the exponents average over the "
+                         f"time after it), got {transient!r} s")
+    steps = max(0, math.ceil(value / step - _SLACK))
+    if steps >= round(t_end / step):
+        raise ValueError(f"transient = {value:g} s leaves no step of {step:g} s before t_end = {t_end:g} s")
+    return steps
+
+
+def _save_every(save_every):
+    if save_every is not None and (isinstance(save_every, (bool, np.bool_))
+                                   or not isinstance(save_every, (int, np.integer)) or save_every < 1):
+        raise ValueError(f"save_every must be None or an integer >= 1 (steps), got {save_every!r}")
+    return int(save_every or 0)
+
+
+def initial_tangents(n, k):
+    """The initial tangent vectors, (k, n) orthonormal rows: the first k columns of the Q of a Gaussian (n, n) matrix
+    drawn from :data:`TANGENT_SEED` (so the first k of any run are those of the whole spectrum's run, and evolve alike:
+    Gram-Schmidt never lets a later vector change an earlier one)."""
+    q, _ = np.linalg.qr(np.random.default_rng(TANGENT_SEED).standard_normal((n, n)))
+    return np.ascontiguousarray(q[:, :k].T)
+
+
+class _Kernels(NamedTuple):
+    drive: object  # the CPU driver
+    run_sample: object  # the per-sample loop (the device kernel's too)
+    stages: int
+
+
+#: Kernels of the built-in models (one rate and tangent for all: the generated dispatch): method -> (tableau, kernels).
+_MODEL_KERNELS = {}
+#: System -> {method: _Kernels}, and the System's compiled rate and Jacobian under the key None.
+_SYSTEM_KERNELS = weakref.WeakKeyDictionary()
+#: (kernels' loop, k) -> its device kernel.
+_DEVICE = {}
+
+
+def _system_functions(system):
+    """A System's rate and Jacobian, compiled (one line naming the system when numba cannot, or when it has none)."""
+    made = _SYSTEM_KERNELS.setdefault(system, {})
+    if None not in made:
+        if system.jacobian is None:
+            raise ValueError(f"system {system.name!r} needs a jacobian(t, y, p, J) for the tangent flow of the chaos "
+                             f"indicators (J: the (n, n) matrix of d rate / d y); give it as tumble.System(..., "
+                             f"jacobian=...)")
+        owner = f"system {system.name!r}"
+        made[None] = (sample_loop.compile_function(system.rate, sample_loop.RATE_SIGNATURE, owner, "rate(t, y, p, dydt)"),
+                      sample_loop.compile_function(system.jacobian, sample_loop.JACOBIAN_SIGNATURE, owner,
+                                                   "jacobian(t, y, p, J)"))
+    return made[None]
+
+
+def _kernels(system, method):
+    tableau = TABLEAUX[method]
+    if isinstance(system, System):
+        made = _SYSTEM_KERNELS.setdefault(system, {})
+        if method not in made:
+            rate, jacobian = _system_functions(system)
+            made[method] = _make(rate, tangent_loop.jacobian_tangents(jacobian), tableau)
+        return made[method]
+    made = _MODEL_KERNELS.get(method)
+    if made is None or made[0] is not tableau:  # a tableau replaced at run time under the same name is a new method
+        made = _MODEL_KERNELS[method] = (tableau, _make(rate_sample, tangent_loop.model_tangents(), tableau))
+    return made[1]
+
+
+def _make(rate, tangents, tableau):
+    run_sample = tangent_loop.make_tangent_loop(tangent_loop.make_tangent_step(rate, tangents, tableau))
+    return _Kernels(tangent_loop.make_cpu_driver(run_sample, len(tableau.b)), run_sample, len(tableau.b))
+
+
+def _parameters(system, parameters):
+    """``(system with parameters, p for the kernels, {name: value})``."""
+    system, values = with_parameters(system, parameters)
+    if isinstance(system, System):
+        return system, system.parameter_values(parameters), values
+    return system, rate_sample_parameters(system.kind, system.moments, system.parameters), values
+
+
+def _probe(system, y, p):
+    """A System's rate and Jacobian at the first finite initial state: one line naming the system when either writes
+    something not finite there (a later non-finite value is a sample's status)."""
+    rate, jacobian = _system_functions(system)
+    finite = np.flatnonzero(np.all(np.isfinite(y), axis=1))
+    if not len(finite):
+        return
+    i = int(finite[0])
+    n = y.shape[1]
+    dydt, J = np.full(n, np.nan), np.full((n, n), np.nan)
+    rate(0.0, y[i].copy(), p, dydt)
+    jacobian(0.0, y[i].copy(), p, J)
+    for what, values in (("rate", dydt), ("jacobian", J)):
+        if not np.all(np.isfinite(values)):
+            raise ValueError(f"system {system.name!r}: its {what} left a value unset, NaN or infinite at sample {i}'s "
+                             f"initial state {y[i].tolist()} (t = 0 s)")
+
+
+def run_tangents(system, y, p, method, k, step, n_steps, every, transient, save_every, stop_above, device):
+    # size: the checked plan of one tangent run, handed down as the kernels take it (flat numbers, arrays)
+    """Run the tangent loop over the samples ``y`` (N, n) of a checked ``system`` (``p``: its kernels' parameters);
+    ``k`` tangent vectors, ``n_steps`` steps of ``step`` s, a factorisation every ``every`` steps, sums from step
+    ``transient``, finite-time exponents every ``save_every`` steps (0: none), the MEGNO stop ``stop_above`` (inf:
+    none). Returns :class:`TangentRun`. The arguments are trusted (:func:`lyapunov` and :func:`megno` check them)."""
+    kernels = _kernels(system, method)
+    n_samples, n = y.shape
+    state = np.array(y, order="C")
+    tangents = np.array(np.broadcast_to(initial_tangents(n, k), (n_samples, k, n)), order="C")
+    n_saved = 0
+    if save_every:
+        n_saved = len(_saved_marks(n_steps, transient, save_every))
+    saved = np.full((n_samples, n_saved, k), np.nan)
+    if device == "cpu":
+        logs = np.zeros((n_samples, k))
+        scalars = np.zeros((n_samples, tangent_loop.SCALARS))
+        status = np.zeros(n_samples, dtype=np.int8)
+        steps_taken = np.zeros(n_samples, dtype=np.int64)
+        kernels.drive(state, tangents, p, 0.0, step, n_steps, every, transient, save_every, stop_above, logs, saved,
+                      scalars, status, steps_taken)
+    else:
+        cuda = device_tangent_loop()
+        key = (kernels.run_sample, n, k, len(p))
+        if key not in _DEVICE:
+            _DEVICE[key] = cuda.make_kernel(kernels.run_sample, n, k, kernels.stages, len(p))
+        logs, saved, scalars, status, steps_taken = cuda.run(_DEVICE[key], state, tangents, p, 0.0, step, n_steps,
+                                                               every, transient, save_every, stop_above, saved)
+    return TangentRun(logs, saved, scalars, status, steps_taken)
+
+
+def _saved_marks(n_steps, transient, save_every):
+    """The steps after which finite-time exponents are stored: each multiple of ``save_every`` past the transient,
+    and the last."""
+    marks = np.arange(save_every, n_steps + 1, save_every)
+    marks = marks[marks > transient]
+    return np.append(marks, n_steps) if not len(marks) or marks[-1] != n_steps else marks
+
+
+def _checked(system, y0, t_end, dt, method, parameters, device):
+    """What both indicators check first: ``(device, system, y, p, parameter values, method, t_end, n_steps, step)``."""
+    device = resolve_device(device)
+    system = _as_system(system)
+    system, p, values = _parameters(system, parameters)
+    method = _method(method)
+    t_end, n_steps, step = _plan(t_end, dt)
+    y = _initial_states(system, y0)
+    return device, system, y, p, values, method, t_end, n_steps, step
+
+
+def _refuse_cost(y, n_steps, k, n_saved, device):
+    n = y.shape[1]
+    cost.refuse(cost.run_cost(len(y), n_steps * (k + 1), n + k * n + k * (n_saved + 1)),
+                f"y0 ({len(y):,} states) with {k} tangent vector{'s' * (k > 1)} over {n_steps:,} steps", device)
+
+
+def _warn_stopped(status, name):
+    bad = int(np.count_nonzero(status == registry.STATUS_NONFINITE))
+    if bad:
+        warnings.warn(f"{bad} of {len(status)} samples of {name} became non-finite or lost a tangent direction (their "
+                      f"values cover the time before; status says which)", RuntimeWarning, stacklevel=3)
+
+
+def _status_variable(status):
+    return ("sample", status, {"long_name": "sample status", "flag_values": _FLAG_VALUES.copy(),
+                               "flag_meanings": _FLAG_MEANINGS})
+
+
+def _system_attrs(system, values, method, step, n_steps, t_end, device):
+    return {"system": system.name if isinstance(system, System) else system.kind, "method": method, "dt": step,
+            "n_steps": n_steps, "t_end": t_end, "device": device,
+            **{f"parameter_{key}": value for key, value in values.items()}}
+
+
+def lyapunov(system, y0, t_end, dt, *, method="rk4", exponents=None, renormalise=1.0, transient=0.0, parameters=None,
+             save_every=None, device="cpu"):
+    # size: the contract's arguments (DESIGN.md, "Chaos indicators"); each checked once, then one run, one Dataset
+    """The Lyapunov spectrum of an ensemble of initial states: the ``k`` largest exponents per sample.
+
+    Each sample's state and ``k`` tangent vectors are stepped together by ``method`` (the tangent is the derivative of
+    the method's map); every ``renormalise`` seconds the vectors are orthonormalised by modified Gram–Schmidt and, after
+    ``transient``, ``log |R_rr|`` summed (Benettin et al. 1980). Exponent ``r`` is its sum over ``t_end - transient``.
+
+    Parameters
+    ----------
+    system : Body, model or System
+        A ``tumble.Body`` (the free body), a built-in model (:mod:`tumble.models`) or a :class:`tumble.System` with a
+        ``jacobian``.
+    y0 : array_like, shape (N, n) or (n,)
+        Initial states, the system's components in its order (a Body: ``w`` rad/s).
+    t_end, dt : float
+        Horizon (> 0) and step (> 0), s; the step is shortened to ``t_end / ceil(t_end / dt)`` when ``t_end / dt`` is
+        not a whole number (``attrs["dt"]``).
+    method : str
+        An explicit Runge–Kutta method of :data:`tumble.kernels.TABLEAUX` (``"rk4"``, ``"rk8"``, or one added at run
+        time), or ``"auto"`` (rk4).
+    exponents : int, optional
+        ``k``, how many (1 to n; default n, the whole spectrum).
+    renormalise : float
+        Seconds between two orthonormalisations, a positive multiple of ``dt`` (within round-off). The result does not
+        depend on it beyond round-off, as long as ``exp(λ renormalise)`` stays within the floating-point range.
+    transient : float
+        Seconds before the sums start (0 <= transient < t_end; rounded up to whole steps).
+    parameters : mapping, optional
+        A model's or System's parameters, by name, in place of its own.
+    save_every : int, optional
+        Also the finite-time exponents ``finite_time(sample, time, index)`` after every ``save_every``-th step past the
+        transient and at the end (the sums so far over the time since the transient).
+    device : str
+        ``"cpu"`` or ``"cuda"`` (one thread per sample).
+
+    Returns
+    -------
+    xarray.Dataset
+        ``exponent(sample, index)`` 1/s, sorted descending per sample, ``index`` 1..k; ``status(sample)`` (a sample
+        that became non-finite, or whose tangent vectors collapsed, keeps the exponents of the time up to its last
+        orthonormalisation and says so; NaN when there was none past the transient); with ``save_every`` ``finite_time(sample, time, index)``, 1/s,
+        each row sorted descending (NaN after a stop). Attributes ``method``, ``dt``, ``renormalise``, ``transient``
+        (as run: whole steps), ``exponents``, ``system``, ``t_end``, ``n_steps``, ``device`` and the parameters.
+
+    Raises
+    ------
+    ValueError
+        One line each: an unknown system or method, ``y0`` of the wrong shape (the message names the state's
+        components), ``t_end`` or ``dt`` not positive, ``exponents`` not in 1..n, ``renormalise`` not a positive
+        multiple of ``dt``, a transient past the horizon, ``save_every`` not a positive integer, an unknown parameter,
+        a System without a ``jacobian`` or that numba cannot compile, a run too large, a device that cannot run.
+
+    Examples
+    --------
+    >>> import tumble
+    >>> ds = tumble.lyapunov(tumble.Body(1.0, 2.0, 3.0), [[0.0, 1.0, 0.0]], 15.0, 0.01, transient=5.0)
+    >>> round(float(ds["exponent"][0, 0]), 2)  # a steady spin about the intermediate axis: its linear growth rate
+    0.58
+    """
+    device, system, y, p, values, method, t_end, n_steps, step = _checked(system, y0, t_end, dt, method, parameters,
+                                                                          device)
+    n = y.shape[1]
+    k = _exponents(exponents, system, n)
+    every = _renormalise_steps(renormalise, dt)
+    first = _transient_steps(transient, t_end, step)
+    save = _save_every(save_every)
+    marks = _saved_marks(n_steps, first, save) if save else np.zeros(0, dtype=int)
+    _refuse_cost(y, n_steps, k, len(marks), device)
+    if isinstance(system, System):
+        _probe(system, y, p)
+    run = run_tangents(system, y, p, method, k, step, n_steps, every, first, save, math.inf, device)
+    covered = run.scalars[:, 3]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        exponent = np.where(covered[:, None] > 0, run.logs / covered[:, None], np.nan)
+    exponent = -np.sort(-exponent, axis=1)
+    _warn_stopped(run.status, _name(system))
+    variables = {
+        "exponent": (("sample", "index"), exponent,
+                     {"units": "1/s", "long_name": "Lyapunov exponent, sorted descending"}),
+        "status": _status_variable(run.status),
+        "sample": ("sample", np.arange(len(y)), {"long_name": "ensemble member"}),
+        "index": ("index", np.arange(1, k + 1), {"long_name": "exponent index (1: the largest)"}),
+    }
+    if save:
+        times = marks * step
+        times[-1] = t_end
+        variables["finite_time"] = (("sample", "time", "index"), -np.sort(-run.saved, axis=2),
+                                    {"units": "1/s", "long_name": "finite-time Lyapunov exponent since the transient, "
+                                                                  "sorted descending"})
+        variables["time"] = ("time", times, {"units": "s", "long_name": "time"})
+    attrs = {**_system_attrs(system, values, method, step, n_steps, t_end, device),
+             "renormalise": every * step, "transient": first * step, "exponents": k}
+    return _dataset(variables, attrs)
+
+
+def megno(system, y0, t_end, dt, *, method="rk4", stop_above=None, parameters=None, device="cpu"):
+    # size: the contract's arguments (DESIGN.md, "Chaos indicators")
+    """MEGNO, the mean exponential growth factor of nearby orbits (Cincotta & Simó 2000), of an ensemble of states.
+
+    One tangent vector ``δ`` rides with each sample (stepped by ``method``, the derivative of its map); with
+    ``ρ = δ·δ'/|δ|²``, ``Y(t) = (2/t) ∫ s ρ(s) ds`` and its mean ``<Y>(t) = (1/t) ∫ Y``, integrated as two extra
+    variables of the same steps. ``<Y> → 2`` on a quasi-periodic orbit, ``→ 0`` near a stable periodic one, and grows
+    like ``λ t / 2`` on a chaotic one: ``lyapunov`` is twice the least-squares slope of ``<Y>`` against ``t`` over the
+    run (REBOUND's ``lyapunov()`` returns the slope itself).
+
+    Parameters
+    ----------
+    system, y0, t_end, dt, method, parameters, device
+        As :func:`lyapunov`.
+    stop_above : float, optional
+        A sample stops once ``<Y>`` exceeds it (> 0): chaotic enough; its status then says so
+        (``"megno above threshold"``) and its values are those at the stop.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``megno(sample)`` (``<Y>`` at the end or at the stop), ``lyapunov(sample)`` 1/s, ``time_run(sample)`` s and
+        ``status(sample)``; attributes ``method``, ``dt``, ``stop_above`` (inf: none), ``system``, ``t_end``,
+        ``n_steps``, ``device`` and the parameters.
+
+    Raises
+    ------
+    ValueError
+        As :func:`lyapunov`, and a ``stop_above`` that is not a number > 0.
+    """
+    device, system, y, p, values, method, t_end, n_steps, step = _checked(system, y0, t_end, dt, method, parameters,
+                                                                          device)
+    limit = math.inf
+    if stop_above is not None:
+        limit = _number(stop_above, "stop_above")
+        if limit <= 0:
+            raise ValueError(f"stop_above must be None or a number > 0 (a threshold of <Y>, 2 on a regular orbit), "
+                             f"got {stop_above!r}")
+    _refuse_cost(y, n_steps, 1, 0, device)
+    if isinstance(system, System):
+        _probe(system, y, p)
+    run = run_tangents(system, y, p, method, 1, step, n_steps, 1, 0, 0, limit, device)
+    _warn_stopped(run.status, _name(system))
+    variables = {
+        "megno": ("sample", run.scalars[:, 0], {"units": "1", "long_name": "mean MEGNO <Y>"}),
+        "lyapunov": ("sample", run.scalars[:, 1], {"units": "1/s", "long_name": "maximal Lyapunov exponent from the "
+                                                                              "slope of <Y> (2 x slope)"}),
+        "time_run": ("sample", run.scalars[:, 2], {"units": "s", "long_name": "time the sample ran"}),
+        "status": _status_variable(run.status),
+        "sample": ("sample", np.arange(len(y)), {"long_name": "ensemble member"}),
+    }
+    attrs = {**_system_attrs(system, values, method, step, n_steps, t_end, device), "stop_above": limit}
+    return _dataset(variables, attrs)
+
+
+def _dataset(variables, attrs):
+    """The indicators' Dataset (xarray imported here: the engine's other paths run without it)."""
+    import xarray as xr
+
+    coords = {name: spec for name, spec in variables.items() if spec[0] in (name, (name,))}
+    data = {name: spec for name, spec in variables.items() if name not in coords}
+    return xr.Dataset(data, coords=coords, attrs=attrs)

@@ -1,0 +1,324 @@
+"""The tangent flow of a system: one per-sample time loop (state, k tangent vectors, MEGNO) for the CPU and the device.
+
+The chaos indicators (:func:`tumble.lyapunov`, :func:`tumble.megno`) follow, with each sample's state ``y`` (n,), ``k``
+tangent vectors ``V`` (k, n) advanced by the variational equations ``δ' = J(t, y) δ``. Its kernels are made here, once
+per (system, method):
+
+* :func:`make_tangent_step`: one explicit Runge–Kutta step of the augmented system ``(y, V, Ys, Yss)`` from a Butcher
+  tableau of :mod:`tumble.kernels.tableaux`. The tableau applied to ``(y, δ)`` with ``δ' = J(y) δ`` gives for ``δ`` the
+  derivative of the method's own map ``y_n -> y_{n+1}``: the tangent is the exact linearisation of the discrete flow
+  (Hairer, Nørsett & Wanner I, sect. II.4 "the derivative of the numerical solution"), so the exponents are those of the
+  map the method computes, and ``V`` never drifts from the state it belongs to. MEGNO's two scalars ride along
+  (Cincotta & Simó 2000, A&AS 147, 205, eqs. 9-11, as REBOUND integrates them: ``Ys' = 2 t ρ``, ``Yss' = Ys / t`` with
+  ``ρ = δ·δ' / |δ|²`` of the first tangent vector; ``Y = Ys / t``, ``<Y> = Yss / t``); ``ρ`` does not depend on ``|δ|``,
+  so renormalising ``δ`` leaves them alone.
+* :func:`make_tangent_loop`: the per-sample time loop. Every ``every`` steps (and where the transient ends, where a
+  finite-time value is saved, and at the end) the tangent vectors are orthonormalised by modified Gram–Schmidt (Benettin
+  et al. 1980; Golub & Van Loan sect. 5.2.8), ``V = Q R``; after the transient ``log |R_rr|`` is added to the sample's
+  sums (the exponents are the sums over the time they cover). The product of the ``R`` of successive factorisations is
+  the ``R`` of one factorisation of the whole tangent map, so the sums do not depend on ``every`` beyond round-off.
+  A least-squares slope of ``<Y>`` against ``t`` is kept as REBOUND keeps it (Welford updates after every step); in the
+  chaotic regime ``<Y> ≈ λ t / 2``, so the loop writes ``λ = 2 × slope`` (REBOUND's ``lyapunov()`` returns the slope).
+  A state, tangent or MEGNO scalar that is not finite, or a tangent vector that collapses to zero, stops the sample with
+  ``STATUS_NONFINITE`` (state and tangents kept from before the step); ``<Y>`` above ``stop_above`` stops it with
+  :data:`STATUS_ABOVE`. Written once: the CPU's driver (:func:`make_cpu_driver`, a share of the samples per thread) and
+  the device's (:mod:`tumble.kernels.cuda_tangent_loop`, one thread per sample) both call it.
+
+The tangent of a system is given as ``tangents(t, y, V, p, out, work)``: ``out[r] = J(t, y) V[r]`` for each row of ``V``
+(``work``: an (n, n) scratch). :func:`model_tangents` makes it for the built-in models
+(:func:`tumble.kernels.model_steps.tangent_sample`), :func:`jacobian_tangents` for a user's ``jacobian(t, y, p, J)``
+(the matrix once per stage, then ``k`` products).
+
+The kernels are closures over the system's functions (as :mod:`tumble.kernels.sample_loop`'s), compiled in each new
+process on first use.
+"""
+
+import math
+
+from concurrent.futures import ThreadPoolExecutor
+
+import numba
+import numpy as np
+
+from ..registry import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK
+from .jit import jit
+from .model_steps import tangent_sample
+
+__all__ = ["SCALARS", "STATUS_ABOVE", "jacobian_tangents", "make_cpu_driver", "make_tangent_loop", "make_tangent_step",
+           "model_tangents", "scratch_shapes"]
+
+#: The status of a sample :func:`tumble.megno` stopped because its ``<Y>`` passed ``stop_above`` (the code after the
+#: registry's statuses; its name is :data:`tumble.engine.chaos.STATUS_ABOVE_NAME`).
+STATUS_ABOVE = len(STATUS_NAMES)
+
+#: Scalars per sample a run writes: ``<Y>`` at the end (or at the stop), ``λ`` from its slope (1/s), the time the sample
+#: ran (s), the time its sums of ``log |R_rr|`` cover (s: from the transient to its last orthonormalisation).
+SCALARS = 4
+
+
+def scratch_shapes(n, k, stages):
+    """The shapes of a sample's scratch arrays, ``(scratch, tangent_scratch, work, megno_scratch)``: the state's stage
+    rates, stage state and copy before the step; the same for the ``k`` tangent vectors; an (n, n) matrix for the
+    Jacobian; MEGNO's stage rates and its two scalars (and their copy before the step)."""
+    return (stages + 2, n), (stages + 2, k, n), (n, n), (stages + 2, 2)
+
+
+def model_tangents():
+    """``tangents(t, y, V, p, out, work)`` of the built-in models: ``out[r] = J(t, y) V[r]`` by the generated
+    :func:`tumble.kernels.model_steps.tangent_sample` (``p`` from :func:`tumble.kernels.rate_sample_parameters`)."""
+
+    @jit(cache=False)
+    def tangents(t, y, V, p, out, work):
+        for r in range(V.shape[0]):
+            tangent_sample(t, y, V[r], p, out[r])
+
+    return tangents
+
+
+def jacobian_tangents(jacobian):
+    """``tangents(t, y, V, p, out, work)`` of a user's ``jacobian(t, y, p, J)`` (compiled): ``J`` written into ``work``
+    once, then ``out[r] = J V[r]`` for each tangent vector."""
+
+    @jit(cache=False)
+    def tangents(t, y, V, p, out, work):
+        n = y.shape[0]
+        jacobian(t, y, p, work)
+        for r in range(V.shape[0]):
+            for a in range(n):
+                total = 0.0
+                for b in range(n):
+                    total += work[a, b] * V[r, b]
+                out[r, a] = total
+
+    return tangents
+
+
+def make_tangent_step(rate, tangents, tableau):
+    """``step(t, t0, y, V, m, p, h, scratch, tangent_scratch, work, megno_scratch)``: advance one sample's state ``y``
+    (n,), tangent vectors ``V`` (k, n) and MEGNO scalars ``m`` (2,) (``Ys``, ``Yss``; ``t0`` the time they start from)
+    in place by one step ``h`` of the explicit Runge–Kutta method ``tableau`` applied to the augmented system.
+
+    Scratch arrays of :func:`scratch_shapes`; the step allocates nothing. A zero coefficient is skipped."""
+    a, b, c = tableau.A.copy(), tableau.b.copy(), tableau.c.copy()
+    stages = len(b)
+
+    @jit(cache=False)
+    def step(t, t0, y, V, m, p, h, scratch, tangent_scratch, work, megno_scratch):
+        n = y.shape[0]
+        k = V.shape[0]
+        stage = scratch[stages]
+        tangent_stage = tangent_scratch[stages]
+        for s in range(stages):
+            for j in range(n):
+                stage[j] = y[j]
+            for r in range(k):
+                for j in range(n):
+                    tangent_stage[r, j] = V[r, j]
+            ys = m[0]
+            for q in range(s):
+                if a[s, q] != 0.0:
+                    weight = h * a[s, q]
+                    for j in range(n):
+                        stage[j] += weight * scratch[q, j]
+                    for r in range(k):
+                        for j in range(n):
+                            tangent_stage[r, j] += weight * tangent_scratch[q, r, j]
+                    ys += weight * megno_scratch[q, 0]
+            time = t + c[s] * h
+            rate(time, stage, p, scratch[s])
+            tangents(time, stage, tangent_stage, p, tangent_scratch[s], work)
+            # MEGNO (Cincotta & Simó 2000): rho = d.d' / |d|^2 of the first tangent vector at the stage
+            dot = 0.0
+            norm2 = 0.0
+            for j in range(n):
+                dot += tangent_stage[0, j] * tangent_scratch[s, 0, j]
+                norm2 += tangent_stage[0, j] * tangent_stage[0, j]
+            elapsed = time - t0
+            megno_scratch[s, 0] = 2.0 * elapsed * dot / norm2
+            megno_scratch[s, 1] = ys / elapsed if elapsed > 0.0 else 0.0  # Ys ~ t^2: Ys / t -> 0 at t0
+        for j in range(n):
+            total = 0.0
+            for s in range(stages):
+                if b[s] != 0.0:
+                    total += b[s] * scratch[s, j]
+            y[j] += h * total
+        for r in range(k):
+            for j in range(n):
+                total = 0.0
+                for s in range(stages):
+                    if b[s] != 0.0:
+                        total += b[s] * tangent_scratch[s, r, j]
+                V[r, j] += h * total
+        for i in range(2):
+            total = 0.0
+            for s in range(stages):
+                if b[s] != 0.0:
+                    total += b[s] * megno_scratch[s, i]
+            m[i] += h * total
+
+    return step
+
+
+def make_tangent_loop(step):
+    # size: the one time loop of the tangent flow, written once for both devices: steps, checks, Gram-Schmidt, sums,
+    # MEGNO's slope, stores
+    """``run_sample(i, y, V, p, t0, h, n_steps, every, transient, save_every, stop_above, logs, saved, megno, scratch,
+    tangent_scratch, work, megno_scratch) -> (status, steps taken)``: sample ``i``'s whole run (``megno``: its scalars).
+
+    ``y`` (n,) and ``V`` (k, n, orthonormal rows) are the sample's state and tangent vectors, advanced in place (its own
+    copies: the caller copies them in and out). Every ``every`` steps, at step ``transient`` (where the sums start: the
+    factorisation there only orthonormalises), at each saved step and at the last, ``V`` is orthonormalised by modified
+    Gram–Schmidt and, after the transient, ``log |R_rr|`` added to ``logs[i, r]`` (``logs`` (N, k)). With ``saved`` (N,
+    n_saved, k) of ``n_saved > 0``, the finite-time exponents ``logs / (t - t_transient)`` are written to row ``i`` after
+    every ``save_every``-th step past the transient and at the last (rows after a stop are left as they are).
+    ``megno`` (N, :data:`SCALARS`): row ``i`` gets ``<Y>``, ``2 × slope`` of ``<Y>`` against ``t`` (1/s), the time
+    run and the time the sums cover. ``stop_above`` > 0 stops the sample once ``<Y>`` exceeds it (:data:`STATUS_ABOVE`; ``inf``: never)."""
+
+    @jit(cache=False)
+    def run_sample(i, y, V, p, t0, h, n_steps, every, transient, save_every, stop_above, logs, saved, megno, scratch,
+                   tangent_scratch, work, megno_scratch):
+        # size: the loop itself (see make_tangent_loop)
+        n = y.shape[0]
+        k = V.shape[0]
+        rows = scratch.shape[0]
+        before = scratch[rows - 1]
+        tangent_before = tangent_scratch[rows - 1]
+        m = megno_scratch[rows - 2]
+        m_before = megno_scratch[rows - 1]
+        store = saved.shape[1] > 0
+        slot = 0
+        m[0] = 0.0
+        m[1] = 0.0
+        code = STATUS_OK
+        for j in range(n):
+            if not math.isfinite(y[j]):
+                code = STATUS_NONFINITE
+        count = 0
+        mean_t = 0.0
+        mean_y = 0.0
+        cov = 0.0
+        var = 0.0
+        average = 0.0
+        ran = 0
+        summed = 0
+        for s in range(n_steps):
+            if code != STATUS_OK:
+                break
+            for j in range(n):
+                before[j] = y[j]
+            for r in range(k):
+                for j in range(n):
+                    tangent_before[r, j] = V[r, j]
+            m_before[0] = m[0]
+            m_before[1] = m[1]
+            step(t0 + s * h, t0, y, V, m, p, h, scratch, tangent_scratch, work, megno_scratch)
+            finite = math.isfinite(m[0]) and math.isfinite(m[1])
+            for j in range(n):
+                finite = finite and math.isfinite(y[j])
+            for r in range(k):
+                for j in range(n):
+                    finite = finite and math.isfinite(V[r, j])
+            done = s + 1
+            if finite and (done == transient or done % every == 0 or done == n_steps
+                           or (store and done > transient and done % save_every == 0)):
+                for r in range(k):  # modified Gram-Schmidt: V = Q R, rows of V the vectors
+                    for q in range(r):
+                        proj = 0.0
+                        for j in range(n):
+                            proj += V[q, j] * V[r, j]
+                        for j in range(n):
+                            V[r, j] -= proj * V[q, j]
+                    norm = 0.0
+                    for j in range(n):
+                        norm += V[r, j] * V[r, j]
+                    norm = math.sqrt(norm)
+                    if not (norm > 0.0 and math.isfinite(norm)):
+                        finite = False  # a tangent vector collapsed (or overflowed): no direction left to follow
+                        break
+                    for j in range(n):
+                        V[r, j] /= norm
+                    work[0, r] = norm  # the Jacobian's scratch is free between steps (k <= n)
+                if finite and done > transient:
+                    for r in range(k):  # added only once all k are factorised
+                        logs[i, r] += math.log(work[0, r])
+                    summed = done
+            if not finite:
+                code = STATUS_NONFINITE
+                for j in range(n):
+                    y[j] = before[j]
+                for r in range(k):
+                    for j in range(n):
+                        V[r, j] = tangent_before[r, j]
+                m[0] = m_before[0]
+                m[1] = m_before[1]
+                break
+            ran = done
+            elapsed = done * h
+            average = m[1] / elapsed
+            count += 1  # the running least-squares slope of <Y> against t (Welford's updates, as REBOUND's)
+            d_t = elapsed - mean_t
+            mean_t += d_t / count
+            mean_y += (average - mean_y) / count
+            cov += d_t * (average - mean_y)
+            var += d_t * (elapsed - mean_t)
+            if store and done > transient and (done % save_every == 0 or done == n_steps):
+                for r in range(k):
+                    saved[i, slot, r] = logs[i, r] / ((done - transient) * h)
+                slot += 1
+            if average > stop_above:
+                code = STATUS_ABOVE
+                break
+        megno[i, 0] = average
+        megno[i, 1] = 2.0 * cov / var if var > 0.0 else 0.0
+        megno[i, 2] = ran * h
+        megno[i, 3] = (summed - transient) * h if summed > 0 else 0.0
+        return code, ran
+
+    return run_sample
+
+
+def make_cpu_driver(run_sample, stages):
+    """``drive(y, V, p, t0, h, n_steps, every, transient, save_every, stop_above, logs, saved, megno, status,
+    steps_taken)``: every sample of ``y`` (N, n) with its tangent vectors ``V`` (N, k, n) run by ``run_sample``
+    (:func:`make_tangent_loop`), ``y`` and ``V`` overwritten with the final (or frozen) values, ``logs`` (N, k) (zeros
+    in), ``saved``, ``megno``, ``status`` (N,) int8 and ``steps_taken`` (N,) int64 written. ``stages``: the method's.
+
+    One contiguous share of the samples per numba thread, each a serial loop that releases the GIL, as
+    :func:`tumble.kernels.sample_loop.make_cpu_driver`."""
+
+    @jit(cache=False)
+    def run_share(y, V, p, t0, h, n_steps, every, transient, save_every, stop_above, logs, saved, megno, status,
+                  steps_taken):
+        n_samples, n = y.shape
+        k = V.shape[1]
+        state = np.empty(n)
+        tangent = np.empty((k, n))
+        scratch = np.empty((stages + 2, n))
+        tangent_scratch = np.empty((stages + 2, k, n))
+        work = np.empty((n, n))
+        megno_scratch = np.empty((stages + 2, 2))
+        for i in range(n_samples):
+            state[:] = y[i]
+            tangent[:, :] = V[i]
+            code, ran = run_sample(i, state, tangent, p, t0, h, n_steps, every, transient, save_every, stop_above,
+                                   logs, saved, megno, scratch, tangent_scratch, work, megno_scratch)
+            y[i] = state
+            V[i] = tangent
+            status[i] = code
+            steps_taken[i] = ran
+
+    def drive(y, V, p, t0, h, n_steps, every, transient, save_every, stop_above, logs, saved, megno, status,
+              steps_taken):
+        threads = max(1, min(numba.get_num_threads(), len(y)))
+        bounds = np.linspace(0, len(y), threads + 1).astype(int)
+        shares = [(y[lo:hi], V[lo:hi], p, t0, h, n_steps, every, transient, save_every, stop_above, logs[lo:hi],
+                   saved[lo:hi], megno[lo:hi], status[lo:hi], steps_taken[lo:hi])
+                  for lo, hi in zip(bounds[:-1], bounds[1:])]
+        if threads == 1:
+            run_share(*shares[0])
+            return
+        with ThreadPoolExecutor(threads) as pool:
+            for done in [pool.submit(run_share, *share) for share in shares]:
+                done.result()
+
+    return drive
