@@ -9,11 +9,11 @@ checks that the kernels' coefficient tables agree with them.
 from typing import NamedTuple
 
 __all__ = ["ATTITUDE_FIGURES", "AUTO", "AUTO_STEPPING", "CHOICES", "DEFAULT_MODEL", "FIGURES", "FIGURE_MODELS",
-           "FIT_NAMES", "FORMATS", "FigureModel", "METHODS", "MIN_AMPLITUDE", "MODELS", "MODEL_KINDS",
-           "MODEL_PARAMETERS", "Method", "Model", "ModelParameter", "PER_SAMPLE_ARRAYS", "SAMPLE_STATUS_NAMES",
+           "FIT_NAMES", "FORMATS", "FigureModel", "LIE_POISSON_MODELS", "METHODS", "MIN_AMPLITUDE", "MODELS",
+           "MODEL_KINDS", "MODEL_PARAMETERS", "MODEL_STEPPING", "Method", "Model", "ModelParameter", "PER_SAMPLE_ARRAYS", "SAMPLE_STATUS_NAMES",
            "STATE_BLOCKS", "STATUSES", "STATUS_DRIFT", "STATUS_NAMES", "STATUS_NONFINITE", "STATUS_OK", "STEPPING",
            "Status", "TORQUE_PROFILES", "TORQUE_USER", "TorqueProfile", "amplitude_problem", "choose_method", "method",
-           "model_kind", "model_parameter", "state_blocks", "torque_profile"]
+           "model_kind", "model_methods", "model_parameter", "state_blocks", "torque_profile"]
 
 
 class Method(NamedTuple):
@@ -301,6 +301,16 @@ DEFAULT_MODEL = "free"
 #: model kernels' variables (the free body as the gyrostat with h = 0). Not the damper (dissipative) nor the gravity
 #: gradient (w and a quaternion relative to the turning orbit frame). The others step with rk4 and rk8.
 LIE_POISSON_MODELS = ("free", "gyrostat", "heavy_top")
+
+#: The fixed-step methods the models' kernels run: the explicit Runge–Kutta ones for every model, the splittings for
+#: :data:`LIE_POISSON_MODELS` (:func:`model_methods`); the implicit midpoint is the free body's own.
+MODEL_STEPPING = tuple(m.name for m in METHODS if m.family in ("runge_kutta", "splitting"))
+
+
+def model_methods(kind):
+    """The names of the methods the models' kernels run for model ``kind``, the Runge–Kutta ones first."""
+    return tuple(m.name for m in METHODS if m.family == "runge_kutta" or
+                 (m.family == "splitting" and kind in LIE_POISSON_MODELS))
 
 
 def model_kind(name):

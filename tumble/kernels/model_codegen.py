@@ -27,7 +27,7 @@ from .systems import SYSTEMS
 TARGET = Path(__file__).with_name("model_steps.py")
 
 #: The methods with generated steps (their kernel ids are their indices in ``registry.STEPPING``).
-METHODS = (tableaux.RK4, tableaux.RK8)
+METHODS = tuple(tableaux.TABLEAUX[m.name] for m in registry.METHODS if m.family == "runge_kutta")
 
 
 def _modules():
@@ -165,13 +165,15 @@ def dispatch_source(modules):
                 f"    total = {' + '.join(f'ys[{i}, i]' for i in range(len(components)))}",
                 "    suspects += suspect(i, active, x0, scale, screen, x1, x2, x3, total)"]
 
-    def columns(function):
+    def call(function, at, constants):
+        """A branch that calls the system's ``function`` (rate or tangent) on the components ``y[j{at}]`` (and ``v``)
+        and writes ``out[j{at}]``: ``at`` is ``", i"`` for states as columns, ``""`` for one sample's state."""
         def body(name, components, kinds):
-            items = ", ".join(f"y[{i}, i]" for i in range(len(components)))
-            along = "".join(f", v[{i}, i]" for i in range(len(components))) if function == "tangent" else ""
-            return [f"r_{name} = {name}.{function}(t, {items}{along}, c_{name})",
+            items = ", ".join(f"y[{i}{at}]" for i in range(len(components)))
+            along = "".join(f", v[{i}{at}]" for i in range(len(components))) if function == "tangent" else ""
+            return [f"r_{name} = {name}.{function}(t, {items}{along}, {constants(name)})",
                     f"for j in range({len(components)}):",
-                    f"    out[j, i] = r_{name}[j]"]
+                    f"    out[j{at}] = r_{name}[j]"]
         return body
 
     lines = [
@@ -199,15 +201,6 @@ def dispatch_source(modules):
         *_chain(modules, suspects),
         "    return suspects > 0",
     ]
-    def sample(function):
-        def body(name, components, kinds):
-            items = ", ".join(f"y[{i}]" for i in range(len(components)))
-            along = "".join(f", v[{i}]" for i in range(len(components))) if function == "tangent" else ""
-            return [f"r_{name} = {name}.{function}(t, {items}{along}, {_record(name)})",
-                    f"for j in range({len(components)}):",
-                    f"    out[j] = r_{name}[j]"]
-        return body
-
     for function in ("rate", "tangent"):
         arguments = "t, y, p, out" if function == "rate" else "t, y, v, p, out"
         what = ("A built-in system's rate as a user's ``System`` writes it (``rate(t, y, p, dydt)``): ``out = f(t, y)``"
@@ -221,7 +214,7 @@ def dispatch_source(modules):
             '(:func:`tumble.kernels.model_loop.rate_sample_parameters`)."""',
             "    model = int(p[0])",
             "    a = p[1:]",
-            *_chain(modules, sample(function)),
+            *_chain(modules, call(function, "", _record)),
         ]
     for function in ("rate", "tangent"):
         arguments = "y, a, t, out" if function == "rate" else "y, v, a, t, out"
@@ -234,7 +227,7 @@ def dispatch_source(modules):
             f'    """{what} for states as columns ``y`` (n_state, N){", along ``v`` (n_state, N)" if function == "tangent" else ""}."""',
             *[f"    c_{name} = {_record(name)}" for name, _, _ in modules],
             "    for i in range(y.shape[1]):",
-            *_chain(modules, columns(function), indent="        "),
+            *_chain(modules, call(function, ", i", lambda name: f"c_{name}"), indent="        "),
         ]
     return "\n".join(lines)
 

@@ -48,8 +48,9 @@ from typing import NamedTuple
 import numpy as np
 from numba import prange
 
-from ..registry import (LIE_POISSON_MODELS, MODEL_KINDS, MODEL_PARAMETERS, STATUS_DRIFT, STATUS_OK, STEPPING,
-                        model_kind)
+from ..registry import (LIE_POISSON_MODELS, MODEL_KINDS, MODEL_PARAMETERS, MODEL_STEPPING, STATUS_DRIFT, STATUS_OK,
+                        STEPPING, model_kind)
+from ..registry import model_methods as registry_model_methods
 from .block_parts import check_finite, freeze, nan_rest, restore_frozen, store, store_initial, store_rest
 from .drift_screen import SCREEN_ATOL, SCREEN_RTOL
 from .jit import jit
@@ -69,15 +70,16 @@ MODEL_CODES = {kind: code for code, kind in enumerate(MODEL_KINDS)}
 
 #: The methods the model kernels run, by name: kernel id (index in ``registry.STEPPING``, as the free body's): rk4 and
 #: rk8 for every model, the Lie–Poisson splittings (:mod:`tumble.kernels.model_splittings`) for ``SPLITTING_KINDS``.
-MODEL_METHODS = {**{name: STEPPING.index(name) for name in ("rk4", "rk8")}, **SPLITTINGS}
+MODEL_METHODS = {name: STEPPING.index(name) for name in MODEL_STEPPING}
 
 #: The models the splittings apply to (``registry.LIE_POISSON_MODELS``, which says why).
 SPLITTING_KINDS = LIE_POISSON_MODELS
 
 
 def model_methods(kind):
-    """The names of the methods the model kernels run for model ``kind`` (rk4 and rk8 first)."""
-    return tuple(name for name in MODEL_METHODS if name not in SPLITTINGS or kind in SPLITTING_KINDS)
+    """The names of the methods the model kernels run for model ``kind`` (``registry.model_methods``: the Runge–Kutta
+    ones first)."""
+    return registry_model_methods(kind)
 
 #: Steps between two checks for non-finite states when no drift is tracked.
 CHECK_EVERY = 32

@@ -76,7 +76,7 @@ __all__ = ["HEAVY_TOP_SPIN_TILT", "METHODS", "MODAL", "Mode", "ModelScene", "PER
            "flat_spin_trace", "scene_batch", "scene_plan", "scene_records", "scene_samples"]
 
 #: The model kernels' methods; ``"auto"`` is the first.
-METHODS = ("rk4", "rk8", "symplectic_euler", "splitting2", "splitting4")
+METHODS = registry.MODEL_STEPPING
 
 #: Periods of ``rate_theory`` a periodic model scene observes. The phase the fit follows turns uniformly in linear
 #: theory (a gyrostat's circular weights, a heavy top's modal coordinate), so its slope needs no long average: the

@@ -113,7 +113,7 @@ MODEL_KINDS = registry.MODEL_KINDS
 MODEL_SCAN_KEYS = tuple(p.key for p in registry.MODEL_PARAMETERS)
 
 #: Stepping methods of a model study (the model kernels'); ``"auto"`` means the first.
-MODEL_METHODS = ("rk4", "rk8", "symplectic_euler", "splitting2", "splitting4")
+MODEL_METHODS = registry.MODEL_STEPPING
 
 #: Figures of a model study (the free body's others read what only free-body scenes record): the registry's model
 #: figures (``registry.FIGURE_MODELS``: each with the model kind it needs) and the summary.
@@ -803,7 +803,7 @@ def _check_model_scenes(resolved, given):
                                          f"(the model's own forces act)")
     methods = ([(f"scan.method[{i}]", m) for i, m in enumerate(scan["method"])] if "method" in scan
                else [("integration.method", resolved["integration"]["method"])])
-    allowed = MODEL_METHODS if kind in registry.LIE_POISSON_MODELS else MODEL_METHODS[:2]  # splittings: see registry
+    allowed = registry.model_methods(kind)
     for field, m in methods:
         if m not in ("auto", *allowed):
             raise _Invalid(field, f"model kind {kind!r} steps with {', '.join(allowed)} ('auto': "
