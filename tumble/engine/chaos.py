@@ -10,7 +10,9 @@ on the CPU or one CUDA thread per sample.
 
 ``system`` is anything the engine accepts: a :class:`~tumble.physics.bodies.Body` (the free body, as
 :class:`tumble.models.FreeBody`), a built-in model (its generated rate and tangent, with any Runge–Kutta tableau of
-:data:`tumble.kernels.TABLEAUX`), or a user's :class:`~tumble.physics.system.System` with a ``jacobian(t, y, p, J)``.
+:data:`tumble.kernels.TABLEAUX`), or a user's :class:`~tumble.physics.system.System` (its ``jacobian(t, y, p, J)`` times each tangent vector; without one,
+the rate's derivative along each vector by extrapolated central differences, about 1e-12 relative:
+:func:`tumble.kernels.tangent_loop.difference_tangents` says why that method).
 Every argument is checked once here, each refusal one line (ValueError).
 """
 
@@ -31,7 +33,8 @@ from ..physics.system import System, with_parameters
 from . import cost
 from .device import resolve_device
 
-__all__ = ["STATUS_ABOVE_NAME", "TANGENT_SEED", "TangentRun", "lyapunov", "megno", "run_tangents"]
+__all__ = ["STATUS_ABOVE_NAME", "TANGENT_SEED", "TangentRun", "initial_tangents", "lyapunov", "megno", "run_tangents",
+           "tangent_kind"]
 
 #: The name of :data:`tumble.kernels.tangent_loop.STATUS_ABOVE` in a Dataset's ``status`` flags.
 STATUS_ABOVE_NAME = "megno above threshold"
@@ -182,18 +185,23 @@ _DEVICE = {}
 
 
 def _system_functions(system):
-    """A System's rate and Jacobian, compiled (one line naming the system when numba cannot, or when it has none)."""
+    """A System's rate and Jacobian (None when it has none), compiled (one line naming the system when numba cannot)."""
     made = _SYSTEM_KERNELS.setdefault(system, {})
     if None not in made:
-        if system.jacobian is None:
-            raise ValueError(f"system {system.name!r} needs a jacobian(t, y, p, J) for the tangent flow of the chaos "
-                             f"indicators (J: the (n, n) matrix of d rate / d y); give it as tumble.System(..., "
-                             f"jacobian=...)")
         owner = f"system {system.name!r}"
         made[None] = (sample_loop.compile_function(system.rate, sample_loop.RATE_SIGNATURE, owner, "rate(t, y, p, dydt)"),
-                      sample_loop.compile_function(system.jacobian, sample_loop.JACOBIAN_SIGNATURE, owner,
-                                                   "jacobian(t, y, p, J)"))
+                      None if system.jacobian is None else sample_loop.compile_function(
+                          system.jacobian, sample_loop.JACOBIAN_SIGNATURE, owner, "jacobian(t, y, p, J)"))
     return made[None]
+
+
+def tangent_kind(system):
+    """How the tangent flow of ``system`` (as :func:`_as_system` gives it) is computed: ``"generated"`` (a built-in
+    model's ``tangent`` in :mod:`tumble.kernels.systems`), ``"jacobian"`` (a System's), or ``"differences"`` (a System
+    without one: :func:`tumble.kernels.tangent_loop.difference_tangents`)."""
+    if not isinstance(system, System):
+        return "generated"
+    return "differences" if system.jacobian is None else "jacobian"
 
 
 def _kernels(system, method):
@@ -202,7 +210,9 @@ def _kernels(system, method):
         made = _SYSTEM_KERNELS.setdefault(system, {})
         if method not in made:
             rate, jacobian = _system_functions(system)
-            made[method] = _make(rate, tangent_loop.jacobian_tangents(jacobian), tableau)
+            tangents = (tangent_loop.difference_tangents(rate) if jacobian is None
+                        else tangent_loop.jacobian_tangents(jacobian))
+            made[method] = _make(rate, tangents, tableau)
         return made[method]
     made = _MODEL_KERNELS.get(method)
     if made is None or made[0] is not tableau:  # a tableau replaced at run time under the same name is a new method
@@ -224,7 +234,7 @@ def _parameters(system, parameters):
 
 
 def _probe(system, y, p):
-    """A System's rate and Jacobian at the first finite initial state: one line naming the system when either writes
+    """A System's rate (and Jacobian) at the first finite initial state: one line naming the system when either writes
     something not finite there (a later non-finite value is a sample's status)."""
     rate, jacobian = _system_functions(system)
     finite = np.flatnonzero(np.all(np.isfinite(y), axis=1))
@@ -234,8 +244,9 @@ def _probe(system, y, p):
     n = y.shape[1]
     dydt, J = np.full(n, np.nan), np.full((n, n), np.nan)
     rate(0.0, y[i].copy(), p, dydt)
-    jacobian(0.0, y[i].copy(), p, J)
-    for what, values in (("rate", dydt), ("jacobian", J)):
+    if jacobian is not None:
+        jacobian(0.0, y[i].copy(), p, J)
+    for what, values in (("rate", dydt), ("jacobian", J if jacobian is not None else np.zeros(0))):
         if not np.all(np.isfinite(values)):
             raise ValueError(f"system {system.name!r}: its {what} left a value unset, NaN or infinite at sample {i}'s "
                              f"initial state {y[i].tolist()} (t = 0 s)")
@@ -310,7 +321,8 @@ def _status_variable(status):
 
 
 def _system_attrs(system, values, method, step, n_steps, t_end, device):
-    return {"system": system.name if isinstance(system, System) else system.kind, "method": method, "dt": step,
+    return {"system": system.name if isinstance(system, System) else system.kind, "tangent": tangent_kind(system),
+            "method": method, "dt": step,
             "n_steps": n_steps, "t_end": t_end, "device": device,
             **{f"parameter_{key}": value for key, value in values.items()}}
 
@@ -327,8 +339,8 @@ def lyapunov(system, y0, t_end, dt, *, method="rk4", exponents=None, renormalise
     Parameters
     ----------
     system : Body, model or System
-        A ``tumble.Body`` (the free body), a built-in model (:mod:`tumble.models`) or a :class:`tumble.System` with a
-        ``jacobian``.
+        A ``tumble.Body`` (the free body), a built-in model (:mod:`tumble.models`) or a :class:`tumble.System` (with
+        its ``jacobian``, else central differences of its rate: ``attrs["tangent"]`` says which).
     y0 : array_like, shape (N, n) or (n,)
         Initial states, the system's components in its order (a Body: ``w`` rad/s).
     t_end, dt : float
@@ -359,7 +371,8 @@ def lyapunov(system, y0, t_end, dt, *, method="rk4", exponents=None, renormalise
         that became non-finite, or whose tangent vectors collapsed, keeps the exponents of the time up to its last
         orthonormalisation and says so; NaN when there was none past the transient); with ``save_every`` ``finite_time(sample, time, index)``, 1/s,
         each row sorted descending (NaN after a stop). Attributes ``method``, ``dt``, ``renormalise``, ``transient``
-        (as run: whole steps), ``exponents``, ``system``, ``t_end``, ``n_steps``, ``device`` and the parameters.
+        (as run: whole steps), ``exponents``, ``system``, ``tangent`` (:func:`tangent_kind`), ``t_end``,
+        ``n_steps``, ``device`` and the parameters.
 
     Raises
     ------
@@ -367,7 +380,8 @@ def lyapunov(system, y0, t_end, dt, *, method="rk4", exponents=None, renormalise
         One line each: an unknown system or method, ``y0`` of the wrong shape (the message names the state's
         components), ``t_end`` or ``dt`` not positive, ``exponents`` not in 1..n, ``renormalise`` not a positive
         multiple of ``dt``, a transient past the horizon, ``save_every`` not a positive integer, an unknown parameter,
-        a System without a ``jacobian`` or that numba cannot compile, a run too large, a device that cannot run.
+        a System numba cannot compile or whose rate or Jacobian is not finite at the first initial state, a run too
+        large, a device that cannot run.
 
     Examples
     --------

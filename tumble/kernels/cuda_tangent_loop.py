@@ -15,6 +15,7 @@ from numba import cuda, float64
 
 from .cuda_launch import THREADS, launch_shape, loop_array
 from .jit import cuda_jit
+from .tangent_loop import SCALARS, WORK_EXTRA
 
 __all__ = ["THREADS", "make_kernel", "run"]
 
@@ -36,7 +37,7 @@ def make_kernel(run_sample, n_state, k, stages, n_parameters):
         tangent = cuda.local.array((k, n_state), float64)
         scratch = cuda.local.array((rows, n_state), float64)
         tangent_scratch = cuda.local.array((rows, k, n_state), float64)
-        work = cuda.local.array((n_state, n_state), float64)
+        work = cuda.local.array((n_state + WORK_EXTRA, n_state), float64)
         megno_scratch = cuda.local.array((rows, 2), float64)
         parameters = cuda.local.array(n_p, float64)
         for j in range(n_state):
@@ -65,8 +66,6 @@ def run(kernel, y, V, p, t0, h, n_steps, every, transient, save_every, stop_abov
     n), both overwritten with the final values; ``saved`` (N, n_saved, k) is copied in (its rows after a stop stay as
     given) and back. Returns ``(logs (N, k), saved, megno (N, SCALARS), status (N,) int8, steps_taken (N,) int64)``,
     as :func:`tumble.kernels.tangent_loop.make_cpu_driver` writes them."""
-    from .tangent_loop import SCALARS
-
     n = len(y)
     device_y = cuda.to_device(y)
     device_v = cuda.to_device(V)
