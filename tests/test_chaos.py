@@ -96,6 +96,16 @@ def test_a_steady_spin_about_the_intermediate_axis_grows_at_the_linear_rate():
     assert abs(finite_time[-1] / rate - 1) < abs(finite_time[0] / rate - 1) + 1e-12
 
 
+def test_a_body_and_its_three_moments_are_the_free_body():
+    spins = [[0.3, 1.0, 0.1]]
+    by_body = tumble.lyapunov(BODY, spins, 5.0, 0.01)
+    by_moments = tumble.lyapunov((1.0, 2.0, 3.0), spins, 5.0, 0.01)
+    by_model = tumble.lyapunov(tumble.models.FreeBody((1.0, 2.0, 3.0)), spins, 5.0, 0.01)
+    np.testing.assert_array_equal(by_body["exponent"].values, by_moments["exponent"].values)
+    np.testing.assert_array_equal(by_body["exponent"].values, by_model["exponent"].values)
+    assert by_body.attrs["system"] == "free"
+
+
 def test_the_free_bodys_exponents_sum_to_zero_pair_up_and_decay_like_log_t_over_t():
     spins = [[0.3, 1.0, 0.1], [1.0, 0.2, 0.4]]
     largest = []
@@ -125,6 +135,28 @@ def test_a_chaotic_tops_exponents_sum_to_zero_and_come_in_plus_minus_pairs():
     assert exponents[0] > 0.05  # chaotic: well above ln T / T = 0.015
     assert abs(exponents[0] + exponents[5]) < 0.02 * exponents[0]
     assert np.all(np.abs(exponents[1:5]) < 0.2 * exponents[0])  # the integrals' and the flow's directions: ~0
+
+
+def _unit_quaternion(y):
+    y = np.array(y, float)
+    y[3:] /= np.linalg.norm(y[3:])
+    return y
+
+
+@pytest.mark.parametrize("model, y0", [
+    (tumble.models.Gyrostat((1.0, 2.0, 3.0), (0.1, -0.2, 0.4)), [0.3, 1.0, 0.2]),
+    (tumble.models.GravityGradient((1.0, 2.0, 3.0), 1.0, eccentricity=0.3), _unit_quaternion([0.2, -1.1, 0.1, 1.0,
+                                                                                               0.1, 0.2, 0.05])),
+    (tumble.models.Damper((1.0, 2.0, 3.0), 0.5, 0.3), [0.3, 1.0, 0.2, 0.1, 0.0, -0.1]),
+    (TOP, CHAOTIC),
+], ids=["gyrostat", "gravity_gradient_eccentric", "damper", "heavy_top"])
+def test_every_built_in_models_exponents_sum_to_the_time_average_of_trace_j(model, y0):
+    """Liouville: the whole spectrum sums to the mean divergence of the flow, which is constant for these models (0
+    but for the damper's dissipation), at any horizon."""
+    trace = np.trace(model.jacobian(np.array(y0)))
+    exponents = tumble.lyapunov(model, y0, 20.0, 0.01)["exponent"].values[0]
+    assert abs(exponents.sum() - trace) < 1e-8 * max(1.0, abs(trace))
+    assert np.all(np.isfinite(exponents)) and np.all(np.diff(exponents) <= 0)
 
 
 def test_the_exponents_do_not_depend_on_how_often_the_tangents_are_renormalised():
@@ -288,6 +320,7 @@ def _no_jacobian(t, y, p, dydt):
     (lambda: tumble.lyapunov(BODY, [[0, 1, 0]], 1.0, 0.01, save_every=0), "save_every must be None or an integer"),
     (lambda: tumble.lyapunov(BODY, [[0, 1, 0]], 1.0, 0.01, method="splitting4"), "method must be one of rk4"),
     (lambda: tumble.lyapunov("body", [[0, 1, 0]], 1.0, 0.01), "system must be a tumble.Body"),
+    (lambda: tumble.lyapunov((1.0, 2.0, 5.0), [[0, 1, 0]], 1.0, 0.01), "triangle"),
     (lambda: tumble.lyapunov(LINEAR, [[0, 0, 0]], 1.0, 0.01, parameters={"b": 1.0}),
      r"parameters: 'b' is not a parameter of system 'linear'"),
     (lambda: tumble.megno(BODY, [[0, 1, 0]], 1.0, 0.01, stop_above=0.0), "stop_above must be None or a number > 0"),

@@ -27,7 +27,7 @@ import numpy as np
 
 from .. import registry
 from ..kernels import TABLEAUX, device_tangent_loop, rate_sample, rate_sample_parameters, sample_loop, tangent_loop
-from ..physics.bodies import Body
+from ..physics.bodies import Body, one_body
 from ..physics.models import FreeBody, Model
 from ..physics.system import System, with_parameters
 from . import cost
@@ -62,13 +62,16 @@ class TangentRun(NamedTuple):
 
 
 def _as_system(system):
-    """``system`` as the engine runs it: a Body becomes the free body; a model or a System as it is."""
+    """``system`` as the engine runs it: a Body (or its three moments, as :func:`tumble.integrate` takes them) becomes
+    the free body; a model or a System as it is."""
     if isinstance(system, Body):
         return FreeBody(system.moments)
     if isinstance(system, (Model, System)):
         return system
-    raise ValueError(f"system must be a tumble.Body, a built-in model (tumble.models) or a tumble.System, got "
-                     f"{type(system).__name__}")
+    if not isinstance(system, str) and np.shape(system) == (3,):
+        return FreeBody(one_body(system))  # the moments checked there (positive, the triangle inequality)
+    raise ValueError(f"system must be a tumble.Body (or three principal moments), a built-in model (tumble.models) or "
+                     f"a tumble.System, got {type(system).__name__}")
 
 
 def _name(system):
