@@ -600,7 +600,7 @@ LANDEN_LEVELS = 4  # unrolled by hand in _landen_constants and _omega_row_landen
 # The hyperbolic series keep 7 terms for dn, cn (powers z^1 .. z^13) and 6 for sn (j = 1 .. 6): enough
 # down to beta = pi K/K' = 4.02 (k' = 0.5), where the first omitted term is below e^-42 of the leading one.
 #: From this ``beta = pi K/K'`` on (``k' <~ 1.3e-3``, a spin near the intermediate axis) two terms of each
-#: hyperbolic series suffice (:func:`_omega_row_hyperbolic_short`).
+#: hyperbolic series suffice (:func:`_omega_row_hyperbolic`'s ``short``).
 BETA_SHORT_SERIES = 16.0
 # Beyond this beta (k' < ~1e-17) every series correction is below e^-40 of the leading term: q is set to
 # 0, which also keeps the products of tiny powers of q out of the (slow) subnormal range.
@@ -883,7 +883,7 @@ def _hyperbolic_unreduce(em, om, den, zp, zm, dser, cser, hsum, h, hk, kc, near,
 
 
 @jit
-def _omega_row_hyperbolic(ph, nu, t, K, kc, h, hk, q, dcoef, ccoef, scoef, out, W):
+def _omega_row_hyperbolic(ph, nu, t, K, kc, h, hk, q, dcoef, ccoef, scoef, out, W, short):
     """One elliptic sample with ``k' < KC_HYPERBOLIC`` at the times ``t`` into ``out`` (3T,).
 
     The sech/tanh series of the module docstring with each term expanded geometrically in
@@ -899,12 +899,21 @@ def _omega_row_hyperbolic(ph, nu, t, K, kc, h, hk, q, dcoef, ccoef, scoef, out, 
     ``y``). Every correction is below ``e^(-beta/2) <= 0.14`` of the leading term, so no sum cancels.
     Kept: ``i <= 6`` and ``j <= 6``, enough for ``beta >= 4.02`` (``k' <= 0.5``: the first omitted term is
     below ``e^-42`` of the leading one). One ``exp`` pair (:func:`_exp_both`) and one reciprocal per time.
+
+    ``short`` (for ``beta >= BETA_SHORT_SERIES``, ``k' <~ 1.3e-3``) keeps ``i <= 1`` and ``j <= 2``
+    (:func:`_hyperbolic_short_at`): the first omitted terms are below ``e^-56`` and ``e^-72`` of the leading one.
+    The choice is made once per sample, outside the loop over the times, each loop vectorised on its own.
     """
     two_k = 2.0 * K
     inv_two_k = 1.0 / two_k
-    for j in range(t.shape[0]):
-        sn, cn, dn = _hyperbolic_at(ph + nu * t[j], K, two_k, inv_two_k, kc, h, hk, q, dcoef, ccoef, scoef)
-        _store(out, j, W, cn, sn, dn)
+    if short:
+        for j in range(t.shape[0]):
+            sn, cn, dn = _hyperbolic_short_at(ph + nu * t[j], K, two_k, inv_two_k, kc, h, hk, q, dcoef, ccoef, scoef)
+            _store(out, j, W, cn, sn, dn)
+    else:
+        for j in range(t.shape[0]):
+            sn, cn, dn = _hyperbolic_at(ph + nu * t[j], K, two_k, inv_two_k, kc, h, hk, q, dcoef, ccoef, scoef)
+            _store(out, j, W, cn, sn, dn)
 
 
 @jit(inline=True)
@@ -926,20 +935,9 @@ def _hyperbolic_at(s, K, two_k, inv_two_k, kc, h, hk, q, dcoef, ccoef, scoef):
     return _hyperbolic_unreduce(em, om, den, zp, zm, dser, cser, hsum, h, hk, kc, near, par, sg)
 
 
-@jit
-def _omega_row_hyperbolic_short(ph, nu, t, K, kc, h, hk, q, dcoef, ccoef, scoef, out, W):
-    """:func:`_omega_row_hyperbolic` for ``beta >= BETA_SHORT_SERIES`` (``k' <~ 1.3e-3``), keeping
-    ``i <= 1`` and ``j <= 2``: the first omitted terms are below ``e^-56`` and ``e^-72`` of the leading one."""
-    two_k = 2.0 * K
-    inv_two_k = 1.0 / two_k
-    for j in range(t.shape[0]):
-        sn, cn, dn = _hyperbolic_short_at(ph + nu * t[j], K, two_k, inv_two_k, kc, h, hk, q, dcoef, ccoef, scoef)
-        _store(out, j, W, cn, sn, dn)
-
-
 @jit(inline=True)
 def _hyperbolic_short_at(s, K, two_k, inv_two_k, kc, h, hk, q, dcoef, ccoef, scoef):
-    """``sn, cn, dn`` of ``u = K + s`` by :func:`_omega_row_hyperbolic_short`'s series."""
+    """``sn, cn, dn`` of ``u = K + s`` by the short series of :func:`_omega_row_hyperbolic` (``short``)."""
     d0, d1 = dcoef[0], dcoef[1]
     c0, c1 = ccoef[0], ccoef[1]
     g1, g2 = scoef[0], scoef[1]
@@ -983,10 +981,8 @@ def _omega_row(kind, k_c, K, h, q, phase0, nu, t, o, W):
             k = math.sqrt((1.0 - k_c) * (1.0 + k_c))
             beta = 2.0 * K * h  # = pi K / K'
             dcoef, ccoef, scoef = _series_constants(q)
-            if beta >= BETA_SHORT_SERIES:
-                _omega_row_hyperbolic_short(phase0, nu, t, K, k_c, h, h / k, q, dcoef, ccoef, scoef, o, W)
-            else:
-                _omega_row_hyperbolic(phase0, nu, t, K, k_c, h, h / k, q, dcoef, ccoef, scoef, o, W)
+            _omega_row_hyperbolic(phase0, nu, t, K, k_c, h, h / k, q, dcoef, ccoef, scoef, o, W,
+                                  beta >= BETA_SHORT_SERIES)
     elif kind == KIND_SEPARATRIX:
         _omega_row_separatrix(phase0, nu, t, o, W)
     else:
