@@ -1,11 +1,11 @@
-"""Chaos indicators: ``tumble.lyapunov`` and ``tumble.megno`` (issue 41), in layers.
+"""Chaos indicators: ``tumble.lyapunov``, ``tumble.megno`` and ``tumble.gali`` (issue 41), in layers.
 
 Exact cases first (a linear system ``y' = A y``: the real parts of eig(A); the sum of the exponents is trace A at any
 horizon), then the rigid bodies' properties (a conservative system's exponents sum to zero and pair up; an integrable
 one's largest decays like ln T / T; at a steady spin about the intermediate axis the finite-time exponent is the linear
 growth rate), independence of the renormalisation interval, an independent reference (SciPy's DOP853 at rtol 1e-12 on
 the state and the variational equations, QR every second) for a chaotic heavy top, MEGNO (2 on a quasi-periodic orbit,
-growing on a chaotic one, the early stop), the device (numba-cuda's simulator: the CPU's numbers), and every bad input
+growing on a chaotic one, the early stop), GALI (falling exponentially on a chaotic orbit only), the device (numba-cuda's simulator: the CPU's numbers), and every bad input
 of issue 41 item 6 as one line.
 """
 
@@ -273,6 +273,20 @@ def test_a_sample_that_becomes_non_finite_stops_with_a_status_not_a_silent_nan()
     assert nan_start["status"].values[0] == STATUS_NONFINITE and np.all(np.isnan(nan_start["exponent"].values))
 
 
+# --- GALI -----------------------------------------------------------------------------------------------------------
+
+def test_gali_falls_exponentially_on_a_chaotic_orbit_and_stays_on_a_regular_one():
+    ds = tumble.gali(TOP, [CHAOTIC, REGULAR], 200.0, 0.01, save_every=2000)
+    assert list(ds["time"].values) == [20.0 * i for i in range(1, 11)] and ds.attrs["k"] == 2
+    chaotic, regular = ds["gali"].values
+    assert chaotic[-1] < 1e-6 < 1e-2 < regular.min() <= regular.max() <= 1.0
+    exponents = tumble.lyapunov(TOP, CHAOTIC, 200.0, 0.01)["exponent"].values[0]
+    slope = np.polyfit(ds["time"].values[2:], np.log(chaotic[2:]), 1)[0]
+    assert abs(slope / -(exponents[0] - exponents[1]) - 1) < 0.5  # GALI_2 ~ exp(-(l1 - l2) t)
+    whole = tumble.gali(TOP, CHAOTIC, 20.0, 0.01, k=6)["gali"].values[0, 0]  # k = n: the tangent map's determinant
+    assert 0 < whole < tumble.gali(TOP, CHAOTIC, 20.0, 0.01, k=3)["gali"].values[0, 0] < 1
+
+
 # --- the device -----------------------------------------------------------------------------------------------------
 
 def test_the_device_gives_the_cpus_exponents_and_megno(cuda_device):
@@ -291,6 +305,9 @@ def test_the_device_gives_the_cpus_exponents_and_megno(cuda_device):
     device = tumble.lyapunov(LINEAR, [[0.1, 0.2, 0.3]], 2.0, 0.01, parameters=A, exponents=2, device=cuda_device)
     np.testing.assert_allclose(device["exponent"].values, cpu["exponent"].values, rtol=1e-10)
     assert device.attrs["device"] == "cuda"
+    cpu = tumble.gali(TOP, states, 5.0, 0.01, save_every=100)
+    device = tumble.gali(TOP, states, 5.0, 0.01, save_every=100, device=cuda_device)
+    np.testing.assert_allclose(device["gali"].values, cpu["gali"].values, rtol=1e-10)
     by_hand = hand_written_systems.HEAVY_TOP, CHAOTIC, 2.0, 0.01  # no jacobian: the differences on the device too
     cpu = tumble.lyapunov(*by_hand, parameters=_top_parameters(TOP))
     device = tumble.lyapunov(*by_hand, parameters=_top_parameters(TOP), device=cuda_device)
@@ -325,6 +342,8 @@ def _no_jacobian(t, y, p, dydt):
      r"parameters: 'b' is not a parameter of system 'linear'"),
     (lambda: tumble.megno(BODY, [[0, 1, 0]], 1.0, 0.01, stop_above=0.0), "stop_above must be None or a number > 0"),
     (lambda: tumble.megno(BODY, [[0, 1, 0]], 1.0, 0.01, device="tpu"), "device"),
+    (lambda: tumble.gali(BODY, [[0, 1, 0]], 1.0, 0.01, k=4), r"k must be an integer from 2 to 3 \(GALI_k"),
+    (lambda: tumble.gali(BODY, [[0, 1, 0]], 1.0, 0.01, k=1), "k must be an integer from 2 to 3"),
 ])
 def test_each_bad_input_is_refused_in_one_line(call, message):
     with pytest.raises(ValueError, match=message) as err:

@@ -38,6 +38,7 @@ _FACE = {
     "propagate": ("tumble.engine.integration", "propagate"),
     "lyapunov": ("tumble.engine.chaos", "lyapunov"),
     "megno": ("tumble.engine.chaos", "megno"),
+    "gali": ("tumble.engine.chaos", "gali"),
     "run_study": ("tumble.pipeline.runner", "run_study"),
     "check": ("tumble.measure.check", "check"),
     "measure": ("tumble.measure.scene", "measure"),
@@ -103,6 +104,6 @@ def __dir__():
     return sorted(set(globals()) | set(_FACE))
 
 
-__all__ = ["Body", "System", "attitude_trace", "check", "exact", "flip_time_law", "inertia_triangle", "integrate", "io",
+__all__ = ["Body", "System", "attitude_trace", "check", "exact", "flip_time_law", "gali", "inertia_triangle", "integrate", "io",
            "lyapunov", "measure", "megno", "models", "propagate", "regress_scan", "rotations", "run_ensemble", "run_study", "sampling", "scan", "shapes",
            "theory", "__version__"]

@@ -33,8 +33,8 @@ from ..physics.system import System, with_parameters
 from . import cost
 from .device import resolve_device
 
-__all__ = ["STATUS_ABOVE_NAME", "TANGENT_SEED", "TangentRun", "initial_tangents", "lyapunov", "megno", "run_tangents",
-           "tangent_kind"]
+__all__ = ["STATUS_ABOVE_NAME", "TANGENT_SEED", "TangentRun", "gali", "initial_tangents", "lyapunov", "megno",
+           "run_tangents", "tangent_kind"]
 
 #: The name of :data:`tumble.kernels.tangent_loop.STATUS_ABOVE` in a Dataset's ``status`` flags.
 STATUS_ABOVE_NAME = "megno above threshold"
@@ -255,12 +255,13 @@ def _probe(system, y, p):
                              f"initial state {y[i].tolist()} (t = 0 s)")
 
 
-def run_tangents(system, y, p, method, k, step, n_steps, every, transient, save_every, stop_above, device):
+def run_tangents(system, y, p, method, k, step, n_steps, every, transient, save_every, stop_above, device,
+                 orthogonalise=True):
     # size: the checked plan of one tangent run, handed down as the kernels take it (flat numbers, arrays)
     """Run the tangent loop over the samples ``y`` (N, n) of a checked ``system`` (``p``: its kernels' parameters);
     ``k`` tangent vectors, ``n_steps`` steps of ``step`` s, a factorisation every ``every`` steps, sums from step
     ``transient``, finite-time exponents every ``save_every`` steps (0: none), the MEGNO stop ``stop_above`` (inf:
-    none). Returns :class:`TangentRun`. The arguments are trusted (:func:`lyapunov` and :func:`megno` check them)."""
+    none); without ``orthogonalise`` the vectors are only normalised and ``saved[..., 0]`` holds GALI_k. Returns :class:`TangentRun`. The arguments are trusted (:func:`lyapunov` and :func:`megno` check them)."""
     kernels = _kernels(system, method)
     n_samples, n = y.shape
     state = np.array(y, order="C")
@@ -274,7 +275,8 @@ def run_tangents(system, y, p, method, k, step, n_steps, every, transient, save_
         scalars = np.zeros((n_samples, tangent_loop.SCALARS))
         status = np.zeros(n_samples, dtype=np.int8)
         steps_taken = np.zeros(n_samples, dtype=np.int64)
-        kernels.drive(state, tangents, p, 0.0, step, n_steps, every, transient, save_every, stop_above, logs, saved,
+        kernels.drive(state, tangents, p, 0.0, step, n_steps, every, transient, save_every, stop_above,
+                      bool(orthogonalise), logs, saved,
                       scalars, status, steps_taken)
     else:
         cuda = device_tangent_loop()
@@ -282,7 +284,8 @@ def run_tangents(system, y, p, method, k, step, n_steps, every, transient, save_
         if key not in _DEVICE:
             _DEVICE[key] = cuda.make_kernel(kernels.run_sample, n, k, kernels.stages, len(p))
         logs, saved, scalars, status, steps_taken = cuda.run(_DEVICE[key], state, tangents, p, 0.0, step, n_steps,
-                                                               every, transient, save_every, stop_above, saved)
+                                                               every, transient, save_every, stop_above,
+                                                               orthogonalise, saved)
     return TangentRun(logs, saved, scalars, status, steps_taken)
 
 
@@ -481,6 +484,62 @@ def megno(system, y0, t_end, dt, *, method="rk4", stop_above=None, parameters=No
         "sample": ("sample", np.arange(len(y)), {"long_name": "ensemble member"}),
     }
     attrs = {**_system_attrs(system, values, method, step, n_steps, t_end, device), "stop_above": limit}
+    return _dataset(variables, attrs)
+
+
+def gali(system, y0, t_end, dt, *, k=2, method="rk4", parameters=None, save_every=None, device="cpu"):
+    # size: the contract's arguments (DESIGN.md, "Chaos indicators")
+    """GALI_k, the generalised alignment index (Skokos, Bountis & Antonopoulos 2007, Physica D 231, 30), over time.
+
+    ``k`` tangent vectors ride with each sample (stepped by ``method``, the derivative of its map), each normalised
+    after every step but never orthogonalised; GALI_k is the volume of the parallelepiped the k unit vectors span
+    (the product of their singular values; 1 at the start, from orthonormal vectors). On a chaotic orbit it falls
+    exponentially, ``~ exp(-[(λ1 - λ2) + ... + (λ1 - λk)] t)``; on a regular one on an N-torus it stays near a constant
+    for ``k <= N`` and falls as a power of ``t`` beyond.
+
+    Parameters
+    ----------
+    system, y0, t_end, dt, method, parameters, device
+        As :func:`lyapunov`.
+    k : int
+        The number of vectors, 2 to n.
+    save_every : int, optional
+        GALI after every ``save_every``-th step and at the end; None: at the end only.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``gali(sample, time)`` (0 once the vectors are dependent to round-off), ``status(sample)`` (NaN after a stop),
+        coordinate ``time`` (s); attributes ``method``, ``dt``, ``k``, ``system``, ``tangent``, ``t_end``, ``n_steps``,
+        ``device`` and the parameters.
+
+    Raises
+    ------
+    ValueError
+        As :func:`lyapunov`, and ``k`` not an integer from 2 to n.
+    """
+    device, system, y, p, values, method, t_end, n_steps, step = _checked(system, y0, t_end, dt, method, parameters,
+                                                                          device)
+    n = y.shape[1]
+    if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)) or not 2 <= k <= n:
+        raise ValueError(f"k must be an integer from 2 to {n} (GALI_k of k tangent vectors; the state of {_name(system)} "
+                         f"has {n} components: {', '.join(system.spec.state)}), got {k!r}")
+    save = _save_every(save_every) or n_steps
+    marks = _saved_marks(n_steps, 0, save)
+    _refuse_cost(y, n_steps, int(k), len(marks), device)
+    if isinstance(system, System):
+        _probe(system, y, p)
+    run = run_tangents(system, y, p, method, int(k), step, n_steps, 1, 0, save, math.inf, device, orthogonalise=False)
+    _warn_stopped(run.status, _name(system))
+    times = marks * step
+    times[-1] = t_end
+    variables = {
+        "gali": (("sample", "time"), run.saved[:, :, 0], {"units": "1", "long_name": f"GALI_{k}"}),
+        "status": _status_variable(run.status),
+        "sample": ("sample", np.arange(len(y)), {"long_name": "ensemble member"}),
+        "time": ("time", times, {"units": "s", "long_name": "time"}),
+    }
+    attrs = {**_system_attrs(system, values, method, step, n_steps, t_end, device), "k": int(k)}
     return _dataset(variables, attrs)
 
 

@@ -28,8 +28,8 @@ def make_kernel(run_sample, n_state, k, stages, n_parameters):
     n_p = max(n_parameters, 1)
 
     @cuda_jit
-    def drive(y, V, p, t0, h, n_steps, every, transient, save_every, stop_above, logs, saved, megno, status,
-              steps_taken):
+    def drive(y, V, p, t0, h, n_steps, every, transient, save_every, stop_above, orthogonalise, logs, saved, megno,
+              status, steps_taken):
         i = cuda.grid(1)
         if i >= y.shape[0]:
             return
@@ -48,8 +48,8 @@ def make_kernel(run_sample, n_state, k, stages, n_parameters):
         for j in range(p.shape[0]):
             parameters[j] = p[j]
         code, ran = run_sample(i, state, tangent, parameters[:p.shape[0]], t0, h, n_steps, every, transient,
-                               save_every, stop_above, loop_array(logs), loop_array(saved), loop_array(megno), scratch,
-                               tangent_scratch, work, megno_scratch)
+                               save_every, stop_above, orthogonalise, loop_array(logs), loop_array(saved),
+                               loop_array(megno), scratch, tangent_scratch, work, megno_scratch)
         for j in range(n_state):
             y[i, j] = state[j]
         for r in range(k):
@@ -61,7 +61,7 @@ def make_kernel(run_sample, n_state, k, stages, n_parameters):
     return drive
 
 
-def run(kernel, y, V, p, t0, h, n_steps, every, transient, save_every, stop_above, saved):
+def run(kernel, y, V, p, t0, h, n_steps, every, transient, save_every, stop_above, orthogonalise, saved):
     """Launch ``kernel`` (:func:`make_kernel`) over the samples of ``y`` (N, n) and their tangent vectors ``V`` (N, k,
     n), both overwritten with the final values; ``saved`` (N, n_saved, k) is copied in (its rows after a stop stay as
     given) and back. Returns ``(logs (N, k), saved, megno (N, SCALARS), status (N,) int8, steps_taken (N,) int64)``,
@@ -75,7 +75,7 @@ def run(kernel, y, V, p, t0, h, n_steps, every, transient, save_every, stop_abov
     status = cuda.device_array(n, dtype=np.int8)
     steps_taken = cuda.device_array(n, dtype=np.int64)
     kernel[launch_shape(n)](device_y, device_v, cuda.to_device(p), float(t0), float(h), int(n_steps), int(every),
-                            int(transient), int(save_every), float(stop_above), logs, device_saved, megno, status,
+                            int(transient), int(save_every), float(stop_above), bool(orthogonalise), logs, device_saved, megno, status,
                             steps_taken)
     y[:] = device_y.copy_to_host()
     V[:] = device_v.copy_to_host()

@@ -216,8 +216,9 @@ def make_tangent_step(rate, tangents, tableau):
 def make_tangent_loop(step):
     # size: the one time loop of the tangent flow, written once for both devices: steps, checks, Gram-Schmidt, sums,
     # MEGNO's slope, stores
-    """``run_sample(i, y, V, p, t0, h, n_steps, every, transient, save_every, stop_above, logs, saved, megno, scratch,
-    tangent_scratch, work, megno_scratch) -> (status, steps taken)``: sample ``i``'s whole run (``megno``: its scalars).
+    """``run_sample(i, y, V, p, t0, h, n_steps, every, transient, save_every, stop_above, orthogonalise, logs, saved,
+    megno, scratch, tangent_scratch, work, megno_scratch) -> (status, steps taken)``: sample ``i``'s whole run
+    (``megno``: its scalars).
 
     ``y`` (n,) and ``V`` (k, n, orthonormal rows) are the sample's state and tangent vectors, advanced in place (its own
     copies: the caller copies them in and out). Every ``every`` steps, at step ``transient`` (where the sums start: the
@@ -226,11 +227,17 @@ def make_tangent_loop(step):
     n_saved, k) of ``n_saved > 0``, the finite-time exponents ``logs / (t - t_transient)`` are written to row ``i`` after
     every ``save_every``-th step past the transient and at the last (rows after a stop are left as they are).
     ``megno`` (N, :data:`SCALARS`): row ``i`` gets ``<Y>``, ``2 × slope`` of ``<Y>`` against ``t`` (1/s), the time
-    run and the time the sums cover. ``stop_above`` > 0 stops the sample once ``<Y>`` exceeds it (:data:`STATUS_ABOVE`; ``inf``: never)."""
+    run and the time the sums cover. ``stop_above`` > 0 stops the sample once ``<Y>`` exceeds it (:data:`STATUS_ABOVE`;
+    ``inf``: never).
+
+    Without ``orthogonalise`` (GALI, Skokos, Bountis & Antonopoulos 2007) each vector is only normalised at those
+    steps, so that they keep their directions, and ``saved[i, slot, 0]`` is ``GALI_k``, the volume of the
+    parallelepiped the k unit vectors span (the product of ``R_rr`` of a Gram–Schmidt of a copy: the product of their
+    singular values)."""
 
     @jit(cache=False)
-    def run_sample(i, y, V, p, t0, h, n_steps, every, transient, save_every, stop_above, logs, saved, megno, scratch,
-                   tangent_scratch, work, megno_scratch):
+    def run_sample(i, y, V, p, t0, h, n_steps, every, transient, save_every, stop_above, orthogonalise, logs, saved,
+                   megno, scratch, tangent_scratch, work, megno_scratch):
         # size: the loop itself (see make_tangent_loop)
         n = y.shape[0]
         k = V.shape[0]
@@ -276,7 +283,7 @@ def make_tangent_loop(step):
             if finite and (done == transient or done % every == 0 or done == n_steps
                            or (store and done > transient and done % save_every == 0)):
                 for r in range(k):  # modified Gram-Schmidt: V = Q R, rows of V the vectors
-                    for q in range(r):
+                    for q in range(r if orthogonalise else 0):  # GALI: each vector only normalised
                         proj = 0.0
                         for j in range(n):
                             proj += V[q, j] * V[r, j]
@@ -316,8 +323,31 @@ def make_tangent_loop(step):
             cov += d_t * (average - mean_y)
             var += d_t * (elapsed - mean_t)
             if store and done > transient and (done % save_every == 0 or done == n_steps):
-                for r in range(k):
-                    saved[i, slot, r] = logs[i, r] / ((done - transient) * h)
+                if orthogonalise:
+                    for r in range(k):
+                        saved[i, slot, r] = logs[i, r] / ((done - transient) * h)
+                else:  # GALI_k: the volume the k unit vectors span, the product of R_rr of a copy's Gram-Schmidt
+                    volume = 1.0
+                    for r in range(k):
+                        for j in range(n):
+                            tangent_before[r, j] = V[r, j]
+                    for r in range(k):
+                        for q in range(r):
+                            proj = 0.0
+                            for j in range(n):
+                                proj += tangent_before[q, j] * tangent_before[r, j]
+                            for j in range(n):
+                                tangent_before[r, j] -= proj * tangent_before[q, j]
+                        norm = 0.0
+                        for j in range(n):
+                            norm += tangent_before[r, j] * tangent_before[r, j]
+                        norm = math.sqrt(norm)
+                        volume *= norm
+                        if norm == 0.0:
+                            break  # the vectors became dependent (to round-off): GALI is 0 from here
+                        for j in range(n):
+                            tangent_before[r, j] /= norm
+                    saved[i, slot, 0] = volume
                 slot += 1
             if average > stop_above:
                 code = STATUS_ABOVE
@@ -332,8 +362,8 @@ def make_tangent_loop(step):
 
 
 def make_cpu_driver(run_sample, stages):
-    """``drive(y, V, p, t0, h, n_steps, every, transient, save_every, stop_above, logs, saved, megno, status,
-    steps_taken)``: every sample of ``y`` (N, n) with its tangent vectors ``V`` (N, k, n) run by ``run_sample``
+    """``drive(y, V, p, t0, h, n_steps, every, transient, save_every, stop_above, orthogonalise, logs, saved, megno,
+    status, steps_taken)``: every sample of ``y`` (N, n) with its tangent vectors ``V`` (N, k, n) run by ``run_sample``
     (:func:`make_tangent_loop`), ``y`` and ``V`` overwritten with the final (or frozen) values, ``logs`` (N, k) (zeros
     in), ``saved``, ``megno``, ``status`` (N,) int8 and ``steps_taken`` (N,) int64 written. ``stages``: the method's.
 
@@ -341,8 +371,8 @@ def make_cpu_driver(run_sample, stages):
     :func:`tumble.kernels.sample_loop.make_cpu_driver`."""
 
     @jit(cache=False)
-    def run_share(y, V, p, t0, h, n_steps, every, transient, save_every, stop_above, logs, saved, megno, status,
-                  steps_taken):
+    def run_share(y, V, p, t0, h, n_steps, every, transient, save_every, stop_above, orthogonalise, logs, saved, megno,
+                  status, steps_taken):
         n_samples, n = y.shape
         k = V.shape[1]
         state = np.empty(n)
@@ -355,18 +385,18 @@ def make_cpu_driver(run_sample, stages):
             state[:] = y[i]
             tangent[:, :] = V[i]
             code, ran = run_sample(i, state, tangent, p, t0, h, n_steps, every, transient, save_every, stop_above,
-                                   logs, saved, megno, scratch, tangent_scratch, work, megno_scratch)
+                                   orthogonalise, logs, saved, megno, scratch, tangent_scratch, work, megno_scratch)
             y[i] = state
             V[i] = tangent
             status[i] = code
             steps_taken[i] = ran
 
-    def drive(y, V, p, t0, h, n_steps, every, transient, save_every, stop_above, logs, saved, megno, status,
-              steps_taken):
+    def drive(y, V, p, t0, h, n_steps, every, transient, save_every, stop_above, orthogonalise, logs, saved, megno,
+              status, steps_taken):
         threads = max(1, min(numba.get_num_threads(), len(y)))
         bounds = np.linspace(0, len(y), threads + 1).astype(int)
-        shares = [(y[lo:hi], V[lo:hi], p, t0, h, n_steps, every, transient, save_every, stop_above, logs[lo:hi],
-                   saved[lo:hi], megno[lo:hi], status[lo:hi], steps_taken[lo:hi])
+        shares = [(y[lo:hi], V[lo:hi], p, t0, h, n_steps, every, transient, save_every, stop_above, orthogonalise,
+                   logs[lo:hi], saved[lo:hi], megno[lo:hi], status[lo:hi], steps_taken[lo:hi])
                   for lo, hi in zip(bounds[:-1], bounds[1:])]
         if threads == 1:
             run_share(*shares[0])
