@@ -541,27 +541,9 @@ def _torque_free_omega_reference(kind, amp, cols, kc, phase0, nu, t, out):
     """The scalar kernel :func:`torque_free_omega` replaced: one time grid, libm calls, per-sample arrays.
 
     Kept as the reference the vectorised kernel is tested and benchmarked against (same arguments but a
-    single time grid ``t``, shape (T,)); it evaluates ``sn, cn, dn`` with :func:`_sncndn_shifted`.
-
-    Parameters
-    ----------
-    kind : ndarray of int64, shape (n,)
-        ``KIND_STATIONARY`` (constant), ``KIND_ELLIPTIC`` or ``KIND_SEPARATRIX``.
-    amp : ndarray, shape (n, 3)
-        Signed amplitudes, rad/s, of the components proportional to ``(cn, sn, dn)`` (elliptic),
-        ``(sech, tanh, sech)`` (separatrix), or the constant components (stationary).
-    cols : ndarray of int64, shape (n, 3)
-        Output column of each of those three components.
-    kc : ndarray, shape (n,)
-        Complementary modulus ``k'`` (elliptic samples).
-    phase0 : ndarray, shape (n,)
-        Initial argument: ``u0 - K`` (elliptic) or ``u0`` (separatrix).
-    nu : ndarray, shape (n,)
-        Rate of the argument, rad/s: ``u = u0 + nu t``.
-    t : ndarray, shape (T,)
-        Times, s.
-    out : ndarray, shape (n, T, 3)
-        Receives the angular velocity, rad/s.
+    single time grid ``t``, shape (T,), of times in s, and no ``K``, ``nome`` nor ``row``: ``kind``, ``amp``, ``cols``,
+    ``kc``, ``phase0`` and ``nu`` as :func:`torque_free_omega` takes them); it evaluates ``sn, cn, dn`` with
+    :func:`_sncndn_shifted` into ``out`` (n, T, 3), rad/s.
     """
     for i in numba.prange(kind.shape[0]):
         cq, cm, cp = cols[i, 0], cols[i, 1], cols[i, 2]
