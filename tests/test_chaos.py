@@ -10,6 +10,9 @@ of issue 41 item 6 as one line.
 """
 
 import math
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -312,6 +315,43 @@ def test_the_device_gives_the_cpus_exponents_and_megno(cuda_device):
     cpu = tumble.lyapunov(*by_hand, parameters=_top_parameters(TOP))
     device = tumble.lyapunov(*by_hand, parameters=_top_parameters(TOP), device=cuda_device)
     np.testing.assert_allclose(device["exponent"].values, cpu["exponent"].values, rtol=1e-10)
+
+
+_PTX = """
+import sys, types as pytypes
+from numba import cuda, types
+from numba.cuda.cudadrv import nvvm
+if not nvvm.is_available():
+    print("no NVVM"); sys.exit(0)
+# No driver here: the device functions' compute capability is given, as a GPU's would be (an H100/H200's).
+sys.modules[cuda.jit.__module__.rsplit(".", 1)[0] + ".dispatcher"].get_current_device = (
+    lambda: pytypes.SimpleNamespace(compute_capability=(9, 0)))
+sys.path.insert(0, "tests")
+from tumble.engine import chaos
+from tumble.kernels import cuda_tangent_loop
+from test_chaos import TOP, LINEAR
+f, i = types.float64, types.int64
+A1, A2, A3 = (types.Array(f, d, "C") for d in (1, 2, 3))
+signature = (A2, A3, A1, f, f, i, i, i, i, f, types.boolean, A2, A3, A2, types.Array(types.int8, 1, "C"),
+             types.Array(i, 1, "C"))
+for system, n, n_p in ((TOP, 6, 17), (LINEAR, 3, 9)):
+    kernels = chaos._kernels(system, "rk4")
+    kernel = cuda_tangent_loop.make_kernel(kernels.run_sample, n, n, kernels.stages, n_p)
+    ptx, _ = cuda.compile_ptx(kernel.py_func, signature, cc=(9, 0))
+    assert ".entry" in ptx
+print("compiled")
+"""
+
+
+@pytest.mark.slow
+def test_the_device_kernel_compiles_for_a_gpu():
+    """The simulator runs the kernel's body as Python: numba-cuda's own compiler is what a GPU would run (a local
+    array's shape must be constants, ...). Compiled to PTX for sm_90 without a driver, where NVVM is installed."""
+    done = subprocess.run([sys.executable, "-c", _PTX], capture_output=True, text=True, timeout=600,
+                          env={**os.environ, "NUMBA_ENABLE_CUDASIM": "0"}, cwd=os.path.dirname(os.path.dirname(__file__)))
+    if "no NVVM" in done.stdout:
+        pytest.skip("numba-cuda's NVVM is not installed")
+    assert done.returncode == 0 and "compiled" in done.stdout, done.stderr[-3000:]
 
 
 # --- bad input: one line each (issue 41 item 6) ---------------------------------------------------------------------

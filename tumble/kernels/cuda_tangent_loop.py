@@ -25,6 +25,7 @@ def make_kernel(run_sample, n_state, k, stages, n_parameters):
     ``cuda.grid(1)``; ``n_state``, ``k`` (tangent vectors), ``stages`` and ``n_parameters`` fix the local arrays' sizes
     (:func:`tumble.kernels.tangent_loop.scratch_shapes`)."""
     rows = stages + 2
+    work_rows = n_state + WORK_EXTRA  # here, not in the kernel: a local array's shape must be constants to numba-cuda
     n_p = max(n_parameters, 1)
 
     @cuda_jit
@@ -37,7 +38,7 @@ def make_kernel(run_sample, n_state, k, stages, n_parameters):
         tangent = cuda.local.array((k, n_state), float64)
         scratch = cuda.local.array((rows, n_state), float64)
         tangent_scratch = cuda.local.array((rows, k, n_state), float64)
-        work = cuda.local.array((n_state + WORK_EXTRA, n_state), float64)
+        work = cuda.local.array((work_rows, n_state), float64)
         megno_scratch = cuda.local.array((rows, 2), float64)
         parameters = cuda.local.array(n_p, float64)
         for j in range(n_state):
