@@ -21,7 +21,8 @@ from scipy.integrate import solve_ivp
 import tumble
 from tumble.engine.chaos import STATUS_ABOVE_NAME, initial_tangents
 from tumble.kernels import sample_loop
-from tumble.kernels.tangent_loop import STATUS_ABOVE, WORK_EXTRA, difference_tangents
+from tumble.kernels.tangent_loop import WORK_EXTRA, difference_tangents
+from tumble.registry import STATUS_ABOVE
 
 import hand_written_systems
 from tumble.registry import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK

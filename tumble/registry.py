@@ -9,9 +9,9 @@ checks that the kernels' coefficient tables agree with them.
 from typing import NamedTuple
 
 __all__ = ["ATTITUDE_FIGURES", "AUTO", "AUTO_STEPPING", "CHOICES", "DEFAULT_MODEL", "FIGURES", "FIGURE_MODELS",
-           "FIT_NAMES", "FORMATS", "FigureModel", "LIE_POISSON_MODELS", "METHODS", "MIN_AMPLITUDE", "MODELS",
+           "FIT_NAMES", "FORMATS", "FigureModel", "INDICATOR_STATUSES", "LIE_POISSON_MODELS", "METHODS", "MIN_AMPLITUDE", "MODELS",
            "MODEL_KINDS", "MODEL_PARAMETERS", "MODEL_STEPPING", "Method", "Model", "ModelParameter", "PER_SAMPLE_ARRAYS", "SAMPLE_STATUS_NAMES",
-           "STATE_BLOCKS", "STATUSES", "STATUS_DRIFT", "STATUS_NAMES", "STATUS_NONFINITE", "STATUS_OK", "STEPPING",
+           "STATE_BLOCKS", "STATUSES", "STATUS_ABOVE", "STATUS_DRIFT", "STATUS_NAMES", "STATUS_NONFINITE", "STATUS_OK", "STEPPING",
            "Status", "TORQUE_PROFILES", "TORQUE_USER", "TorqueProfile", "amplitude_problem", "choose_method", "method",
            "model_kind", "model_methods", "model_parameter", "state_blocks", "torque_profile"]
 
@@ -108,6 +108,11 @@ STATUSES = (
 )
 STATUS_NAMES = tuple(s.name for s in STATUSES)
 STATUS_OK, STATUS_NONFINITE, STATUS_DRIFT = (STATUS_NAMES.index(name) for name in ("ok", "non-finite", "invariant drift"))
+#: Per-sample statuses of the chaos indicators' runs (``tumble.lyapunov``, ``megno``, ``gali``): the engine's, then
+#: MEGNO's stop (apart from a scene's statuses, whose next codes are the fit's).
+INDICATOR_STATUSES = (*STATUSES, Status("megno above threshold", "its mean MEGNO <Y> passed stop_above (chaotic): "
+                                                                "stopped there (tumble.megno)"))
+STATUS_ABOVE = len(STATUSES)
 #: Outcomes of a sample's rate fit, by code (:mod:`tumble.kernels.fits` writes the codes).
 FIT_NAMES = ("ok", "fit window too short", "no signal", "undersampled")
 #: Per-sample status of a scene, as written in files: the engine's statuses, then the fit's failures.

@@ -36,8 +36,8 @@ from .device import resolve_device
 __all__ = ["STATUS_ABOVE_NAME", "TANGENT_SEED", "TangentRun", "gali", "initial_tangents", "lyapunov", "megno",
            "run_tangents", "tangent_kind"]
 
-#: The name of :data:`tumble.kernels.tangent_loop.STATUS_ABOVE` in a Dataset's ``status`` flags.
-STATUS_ABOVE_NAME = "megno above threshold"
+#: The name of ``registry.STATUS_ABOVE`` in a Dataset's ``status`` flags.
+STATUS_ABOVE_NAME = registry.INDICATOR_STATUSES[registry.STATUS_ABOVE].name
 
 #: The seed of the initial tangent vectors: one fixed orthonormal set (the Q of a Gaussian matrix), the same for every
 #: sample and run, in no special direction of any system (a coordinate axis can lie in an invariant subspace).
@@ -46,7 +46,7 @@ TANGENT_SEED = 41
 # A ratio within this relative distance of an integer counts as that integer (renormalise / dt, t_end / dt).
 _SLACK = 1e-9
 
-_STATUS_NAMES = (*registry.STATUS_NAMES, STATUS_ABOVE_NAME)
+_STATUS_NAMES = tuple(status.name for status in registry.INDICATOR_STATUSES)
 _FLAG_VALUES = np.arange(len(_STATUS_NAMES), dtype=np.int8)
 _FLAG_MEANINGS = " ".join(name.replace(" ", "_") for name in _STATUS_NAMES)
 

@@ -30,7 +30,7 @@ from numba.core.errors import NumbaError
 from ..registry import STATUS_NONFINITE, STATUS_OK
 from .jit import jit
 
-__all__ = ["JACOBIAN_SIGNATURE", "RATE_SIGNATURE", "compile_function", "make_cpu_driver", "make_sample_loop",
+__all__ = ["JACOBIAN_SIGNATURE", "RATE_SIGNATURE", "combine", "compile_function", "make_cpu_driver", "make_sample_loop",
            "make_step", "saved_count"]
 
 _VECTOR = types.Array(types.float64, 1, "C")
@@ -104,14 +104,22 @@ def make_step(rate, tableau):
                     for j in range(n):
                         stage[j] += weight * k[r, j]
             rate(t + c[s] * h, stage, p, k[s])
-        for j in range(n):
-            total = 0.0
-            for s in range(stages):
-                if b[s] != 0.0:
-                    total += b[s] * k[s, j]
-            y[j] += h * total
+        combine(y, h, b, k)
 
     return step
+
+
+@jit(inline=True)
+def combine(y, h, b, k):
+    """``y += h sum_s b[s] k[s]``, a zero weight skipped: the end of an explicit Runge–Kutta step of the components
+    ``y`` (n,) from their stage rates ``k`` (at least s rows, n) (:func:`make_step`, and the tangent flow's step of
+    :mod:`tumble.kernels.tangent_loop`)."""
+    for j in range(y.shape[0]):
+        total = 0.0
+        for s in range(b.shape[0]):
+            if b[s] != 0.0:
+                total += b[s] * k[s, j]
+        y[j] += h * total
 
 
 def make_sample_loop(step):

@@ -21,8 +21,8 @@ per (system, method):
   chaotic regime ``<Y> ≈ λ t / 2``, so the loop writes ``λ = 2 × slope`` (REBOUND's ``lyapunov()`` returns the slope).
   A state, tangent or MEGNO scalar that is not finite, or a tangent vector that collapses to zero, stops the sample with
   ``STATUS_NONFINITE`` (state and tangents kept from before the step); ``<Y>`` above ``stop_above`` stops it with
-  :data:`STATUS_ABOVE`. Written once: the CPU's driver (:func:`make_cpu_driver`, a share of the samples per thread) and
-  the device's (:mod:`tumble.kernels.cuda_tangent_loop`, one thread per sample) both call it.
+  :data:`tumble.registry.STATUS_ABOVE`. Written once: the CPU's driver (:func:`make_cpu_driver`, a share of the
+  samples per thread) and the device's (:mod:`tumble.kernels.cuda_tangent_loop`, one thread per sample) both call it.
 
 The tangent of a system is given as ``tangents(t, y, V, p, out, work)``: ``out[r] = J(t, y) V[r]`` for each row of ``V``
 (``work``: an (n, n) scratch). :func:`model_tangents` makes it for the built-in models
@@ -41,16 +41,14 @@ from concurrent.futures import ThreadPoolExecutor
 import numba
 import numpy as np
 
-from ..registry import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK
+from ..registry import STATUS_ABOVE, STATUS_NONFINITE, STATUS_OK
 from .jit import jit
 from .model_steps import tangent_sample
+from .sample_loop import combine
 
-__all__ = ["DIFFERENCE_STEP", "SCALARS", "STATUS_ABOVE", "difference_tangents", "jacobian_tangents", "make_cpu_driver", "make_tangent_loop", "make_tangent_step",
+__all__ = ["DIFFERENCE_STEP", "SCALARS", "difference_tangents", "jacobian_tangents", "make_cpu_driver", "make_tangent_loop", "make_tangent_step",
            "model_tangents", "scratch_shapes"]
 
-#: The status of a sample :func:`tumble.megno` stopped because its ``<Y>`` passed ``stop_above`` (the code after the
-#: registry's statuses; its name is :data:`tumble.engine.chaos.STATUS_ABOVE_NAME`).
-STATUS_ABOVE = len(STATUS_NAMES)
 
 #: Scalars per sample a run writes: ``<Y>`` at the end (or at the stop), ``λ`` from its slope (1/s), the time the sample
 #: ran (s), the time its sums of ``log |R_rr|`` cover (s: from the transient to its last orthonormalisation).
@@ -190,25 +188,10 @@ def make_tangent_step(rate, tangents, tableau):
             elapsed = time - t0
             megno_scratch[s, 0] = 2.0 * elapsed * dot / norm2
             megno_scratch[s, 1] = ys / elapsed if elapsed > 0.0 else 0.0  # Ys ~ t^2: Ys / t -> 0 at t0
-        for j in range(n):
-            total = 0.0
-            for s in range(stages):
-                if b[s] != 0.0:
-                    total += b[s] * scratch[s, j]
-            y[j] += h * total
+        combine(y, h, b, scratch)
         for r in range(k):
-            for j in range(n):
-                total = 0.0
-                for s in range(stages):
-                    if b[s] != 0.0:
-                        total += b[s] * tangent_scratch[s, r, j]
-                V[r, j] += h * total
-        for i in range(2):
-            total = 0.0
-            for s in range(stages):
-                if b[s] != 0.0:
-                    total += b[s] * megno_scratch[s, i]
-            m[i] += h * total
+            combine(V[r], h, b, tangent_scratch[:, r])
+        combine(m, h, b, megno_scratch)
 
     return step
 
@@ -227,8 +210,8 @@ def make_tangent_loop(step):
     n_saved, k) of ``n_saved > 0``, the finite-time exponents ``logs / (t - t_transient)`` are written to row ``i`` after
     every ``save_every``-th step past the transient and at the last (rows after a stop are left as they are).
     ``megno`` (N, :data:`SCALARS`): row ``i`` gets ``<Y>``, ``2 × slope`` of ``<Y>`` against ``t`` (1/s), the time
-    run and the time the sums cover. ``stop_above`` > 0 stops the sample once ``<Y>`` exceeds it (:data:`STATUS_ABOVE`;
-    ``inf``: never).
+    run and the time the sums cover. ``stop_above`` > 0 stops the sample once ``<Y>`` exceeds it
+    (:data:`tumble.registry.STATUS_ABOVE`; ``inf``: never).
 
     Without ``orthogonalise`` (GALI, Skokos, Bountis & Antonopoulos 2007) each vector is only normalised at those
     steps, so that they keep their directions, and ``saved[i, slot, 0]`` is ``GALI_k``, the volume of the
