@@ -31,7 +31,7 @@ from ..registry import STATUS_NONFINITE, STATUS_OK
 from .jit import jit
 
 __all__ = ["JACOBIAN_SIGNATURE", "RATE_SIGNATURE", "combine", "compile_function", "make_cpu_driver", "make_sample_loop",
-           "make_step", "saved_count"]
+           "in_shares", "make_step", "saved_count"]
 
 _VECTOR = types.Array(types.float64, 1, "C")
 
@@ -195,15 +195,21 @@ def make_cpu_driver(run_sample, stages):
             steps_taken[i] = ran
 
     def drive(y, p, t0, h, n_steps, save_every, saved, status, steps_taken):
-        threads = max(1, min(numba.get_num_threads(), len(y)))
-        bounds = np.linspace(0, len(y), threads + 1).astype(int)
-        shares = [(y[lo:hi], p, t0, h, n_steps, save_every, saved[lo:hi], status[lo:hi], steps_taken[lo:hi])
-                  for lo, hi in zip(bounds[:-1], bounds[1:])]
-        if threads == 1:
-            run_share(*shares[0])
-            return
-        with ThreadPoolExecutor(threads) as pool:
-            for done in [pool.submit(run_share, *share) for share in shares]:
-                done.result()
+        in_shares(run_share, len(y), lambda lo, hi: (y[lo:hi], p, t0, h, n_steps, save_every, saved[lo:hi],
+                                                     status[lo:hi], steps_taken[lo:hi]))
 
     return drive
+
+
+def in_shares(run_share, n, share):
+    """``run_share(*share(lo, hi))`` for one contiguous share ``lo:hi`` of the ``n`` samples per numba thread, each on
+    a thread of its own (``run_share`` releases the GIL: ``nogil``); one share runs in this thread."""
+    threads = max(1, min(numba.get_num_threads(), n))
+    bounds = np.linspace(0, n, threads + 1).astype(int)
+    shares = [share(lo, hi) for lo, hi in zip(bounds[:-1], bounds[1:])]
+    if threads == 1:
+        run_share(*shares[0])
+        return
+    with ThreadPoolExecutor(threads) as pool:
+        for done in [pool.submit(run_share, *arguments) for arguments in shares]:
+            done.result()

@@ -36,18 +36,15 @@ process on first use.
 
 import math
 
-from concurrent.futures import ThreadPoolExecutor
-
-import numba
 import numpy as np
 
 from ..registry import STATUS_ABOVE, STATUS_NONFINITE, STATUS_OK
 from .jit import jit
 from .model_steps import tangent_sample
-from .sample_loop import combine
+from .sample_loop import combine, in_shares
 
-__all__ = ["DIFFERENCE_STEP", "SCALARS", "difference_tangents", "jacobian_tangents", "make_cpu_driver", "make_tangent_loop", "make_tangent_step",
-           "model_tangents", "scratch_shapes"]
+__all__ = ["DIFFERENCE_STEP", "SCALARS", "difference_tangents", "jacobian_tangents", "make_cpu_driver",
+           "make_tangent_loop", "make_tangent_step", "model_tangents", "orthonormalise_row", "scratch_shapes"]
 
 
 #: Scalars per sample a run writes: ``<Y>`` at the end (or at the stop), ``λ`` from its slope (1/s), the time the sample
@@ -196,6 +193,40 @@ def make_tangent_step(rate, tangents, tableau):
     return step
 
 
+@jit(inline=True)
+def orthonormalise_row(V, r, against):
+    """Row ``r`` of ``V`` less its projections on the rows ``0 .. against - 1`` (orthonormal already), then divided by
+    its norm where that is > 0 and finite: one step of modified Gram–Schmidt. Returns the norm (``R_rr``)."""
+    n = V.shape[1]
+    for q in range(against):
+        proj = 0.0
+        for j in range(n):
+            proj += V[q, j] * V[r, j]
+        for j in range(n):
+            V[r, j] -= proj * V[q, j]
+    norm = 0.0
+    for j in range(n):
+        norm += V[r, j] * V[r, j]
+    norm = math.sqrt(norm)
+    if norm > 0.0 and math.isfinite(norm):
+        for j in range(n):
+            V[r, j] /= norm
+    return norm
+
+
+@jit(inline=True)
+def _copy_sample(y, V, m, to_y, to_V, to_m):
+    """A sample's state ``y`` (n,), tangent vectors ``V`` (k, n) and MEGNO scalars ``m`` (2,) into ``to_y``, ``to_V``,
+    ``to_m``."""
+    for j in range(y.shape[0]):
+        to_y[j] = y[j]
+    for r in range(V.shape[0]):
+        for j in range(V.shape[1]):
+            to_V[r, j] = V[r, j]
+    to_m[0] = m[0]
+    to_m[1] = m[1]
+
+
 def make_tangent_loop(step):
     # size: the one time loop of the tangent flow, written once for both devices: steps, checks, Gram-Schmidt, sums,
     # MEGNO's slope, stores
@@ -248,13 +279,7 @@ def make_tangent_loop(step):
         for s in range(n_steps):
             if code != STATUS_OK:
                 break
-            for j in range(n):
-                before[j] = y[j]
-            for r in range(k):
-                for j in range(n):
-                    tangent_before[r, j] = V[r, j]
-            m_before[0] = m[0]
-            m_before[1] = m[1]
+            _copy_sample(y, V, m, before, tangent_before, m_before)  # kept if the step is not finite
             step(t0 + s * h, t0, y, V, m, p, h, scratch, tangent_scratch, work, megno_scratch)
             finite = math.isfinite(m[0]) and math.isfinite(m[1])
             for j in range(n):
@@ -266,21 +291,10 @@ def make_tangent_loop(step):
             if finite and (done == transient or done % every == 0 or done == n_steps
                            or (store and done > transient and done % save_every == 0)):
                 for r in range(k):  # modified Gram-Schmidt: V = Q R, rows of V the vectors
-                    for q in range(r if orthogonalise else 0):  # GALI: each vector only normalised
-                        proj = 0.0
-                        for j in range(n):
-                            proj += V[q, j] * V[r, j]
-                        for j in range(n):
-                            V[r, j] -= proj * V[q, j]
-                    norm = 0.0
-                    for j in range(n):
-                        norm += V[r, j] * V[r, j]
-                    norm = math.sqrt(norm)
+                    norm = orthonormalise_row(V, r, r if orthogonalise else 0)  # GALI: each vector only normalised
                     if not (norm > 0.0 and math.isfinite(norm)):
                         finite = False  # a tangent vector collapsed (or overflowed): no direction left to follow
                         break
-                    for j in range(n):
-                        V[r, j] /= norm
                     work[0, r] = norm  # the Jacobian's scratch is free between steps (k <= n)
                 if finite and done > transient:
                     for r in range(k):  # added only once all k are factorised
@@ -288,13 +302,7 @@ def make_tangent_loop(step):
                     summed = done
             if not finite:
                 code = STATUS_NONFINITE
-                for j in range(n):
-                    y[j] = before[j]
-                for r in range(k):
-                    for j in range(n):
-                        V[r, j] = tangent_before[r, j]
-                m[0] = m_before[0]
-                m[1] = m_before[1]
+                _copy_sample(before, tangent_before, m_before, y, V, m)
                 break
             ran = done
             elapsed = done * h
@@ -315,21 +323,10 @@ def make_tangent_loop(step):
                         for j in range(n):
                             tangent_before[r, j] = V[r, j]
                     for r in range(k):
-                        for q in range(r):
-                            proj = 0.0
-                            for j in range(n):
-                                proj += tangent_before[q, j] * tangent_before[r, j]
-                            for j in range(n):
-                                tangent_before[r, j] -= proj * tangent_before[q, j]
-                        norm = 0.0
-                        for j in range(n):
-                            norm += tangent_before[r, j] * tangent_before[r, j]
-                        norm = math.sqrt(norm)
+                        norm = orthonormalise_row(tangent_before, r, r)
                         volume *= norm
                         if norm == 0.0:
                             break  # the vectors became dependent (to round-off): GALI is 0 from here
-                        for j in range(n):
-                            tangent_before[r, j] /= norm
                     saved[i, slot, 0] = volume
                 slot += 1
             if average > stop_above:
@@ -376,16 +373,8 @@ def make_cpu_driver(run_sample, stages):
 
     def drive(y, V, p, t0, h, n_steps, every, transient, save_every, stop_above, orthogonalise, logs, saved, megno,
               status, steps_taken):
-        threads = max(1, min(numba.get_num_threads(), len(y)))
-        bounds = np.linspace(0, len(y), threads + 1).astype(int)
-        shares = [(y[lo:hi], V[lo:hi], p, t0, h, n_steps, every, transient, save_every, stop_above, orthogonalise,
-                   logs[lo:hi], saved[lo:hi], megno[lo:hi], status[lo:hi], steps_taken[lo:hi])
-                  for lo, hi in zip(bounds[:-1], bounds[1:])]
-        if threads == 1:
-            run_share(*shares[0])
-            return
-        with ThreadPoolExecutor(threads) as pool:
-            for done in [pool.submit(run_share, *share) for share in shares]:
-                done.result()
+        in_shares(run_share, len(y), lambda lo, hi: (
+            y[lo:hi], V[lo:hi], p, t0, h, n_steps, every, transient, save_every, stop_above, orthogonalise,
+            logs[lo:hi], saved[lo:hi], megno[lo:hi], status[lo:hi], steps_taken[lo:hi]))
 
     return drive
