@@ -305,6 +305,9 @@ def _checked(system, y0, t_end, dt, method, parameters, device):
     method = _method(method)
     t_end, n_steps, step = _plan(t_end, dt)
     y = _initial_states(system, y0)
+    problem = system.state_problem(y) if isinstance(system, Model) else None
+    if problem:
+        raise ValueError(f"y0: {problem}")
     return device, system, y, p, values, method, t_end, n_steps, step
 
 

@@ -111,6 +111,9 @@ class Model:
     #: Near a stability threshold its linear regime of growth ends sooner (the second-order change of the spin shifts
     #: the rate): a growth scene's saturation is scaled by ``rate_theory / |spin|`` (:mod:`tumble.measure.model_scenes`).
     saturates_near_threshold: ClassVar[bool] = True
+    #: The blocks of its state (``registry.STATE_BLOCKS`` letters) that are unit vectors in every state it can be in:
+    #: the heavy top's up vector, the gravity gradient's quaternion (:meth:`state_problem`).
+    unit_blocks: ClassVar[tuple] = ()
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
@@ -163,6 +166,20 @@ class Model:
             raise ValueError(f"{name} of a {self.kind} model must have shape (..., {self.state_size}) "
                              f"({', '.join(self.spec.state)}), got shape {arr.shape}")
         return arr
+
+    def state_problem(self, states, rtol=1e-9):
+        """Why ``states`` (N, n) lie outside the model's domain, as one line, or None: a block of
+        :attr:`unit_blocks` whose norm is not 1 (within ``rtol``), naming the first such sample."""
+        states = np.asarray(states, dtype=float)
+        for letter, start, stop in registry.state_blocks(self.kind):
+            if letter in self.unit_blocks:
+                norms = np.linalg.norm(states[:, start:stop], axis=1)
+                bad = np.flatnonzero(~(np.abs(norms - 1.0) <= rtol))
+                if len(bad):
+                    names = ", ".join(self.spec.state[start:stop])
+                    return (f"({names}) of a {self.kind} model must be a unit vector in every state; sample "
+                            f"{int(bad[0])} has norm {float(norms[bad[0]])!r}")
+        return None
 
     def angular_velocity(self, momentum):
         """Body-frame angular velocity with the given angular momentum: ``w = I⁻¹ (L − h)``.

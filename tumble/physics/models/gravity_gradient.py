@@ -102,6 +102,7 @@ class GravityGradient(base.Model):
     eccentricity: float = 0.0
     kind: ClassVar[str] = "gravity_gradient"
     extras: ClassVar[tuple] = ("eccentricity",)
+    unit_blocks: ClassVar[tuple] = ("q",)
     equilibrium_parameter: ClassVar[str] = "orbit_rate"
     equilibrium_reason: ClassVar[str] = "its equilibrium follows the orbit, w = (0, -n, 0)"
     not_lie_poisson: ClassVar[str] = ("a gravity gradient's state is no Lie–Poisson system in these variables (w and "

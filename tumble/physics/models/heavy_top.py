@@ -45,6 +45,7 @@ class HeavyTop(base.Model):
     centre: np.ndarray = (0.0, 0.0, 1.0)
     kind: ClassVar[str] = "heavy_top"
     extras: ClassVar[tuple] = ("centre",)
+    unit_blocks: ClassVar[tuple] = ("g",)
     spin_axes: ClassVar[tuple] = (3,)
     spin_axes_reason: ClassVar[str] = "the centre of mass lies on body axis 3: the sleeping top spins about it"
     modal: ClassVar[bool] = True  # an asymmetric top's modes are elliptical in any fixed weights
