@@ -151,7 +151,9 @@ def test_a_cache_entry_is_stamped_with_the_modules_its_kernel_imports_so_an_edit
     (package / "__init__.py").write_text("")
     (package / "registry.py").write_text("A = 1\n")
     (package / "kernels" / "__init__.py").write_text("")
-    (package / "kernels" / "driver.py").write_text("from .systems import rate\nfrom ..registry import (\n    A,\n)\n")
+    (package / "kernels" / "driver.py").write_text("from .systems import rate\nfrom ..registry import (  # (x)\n    A,\n)\n"
+                                                   "def f():\n    from . import fused\n")
+    (package / "kernels" / "fused.py").write_text("C = 1\n")
     (package / "kernels" / "other.py").write_text("x = 1\n")
     (package / "kernels" / "systems" / "__init__.py").write_text("")
     (package / "kernels" / "systems" / "rate.py").write_text("from .._rigid import B\n")
@@ -166,7 +168,8 @@ def test_a_cache_entry_is_stamped_with_the_modules_its_kernel_imports_so_an_edit
     before = stamp()
     (package / "kernels" / "other.py").write_text("x = 22\n")
     assert stamp() == before
-    for edited in ("kernels/systems/rate.py", "kernels/_rigid.py", "registry.py", "kernels/systems/__init__.py"):
+    for edited in ("kernels/systems/rate.py", "kernels/_rigid.py", "registry.py", "kernels/systems/__init__.py",
+                   "kernels/fused.py"):
         (package / edited).write_text((package / edited).read_text() + "# edited\n")
         after = stamp()
         assert after != before, edited

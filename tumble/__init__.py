@@ -51,7 +51,7 @@ _FACE = {
 
 # The physics modules of the public contract keep their short import paths (`import tumble.exact`,
 # `from tumble.theory import linear`), as they had before the layers became folders; `tumble.models` (the systems
-# beyond the free body, `tumble.models.Gyrostat`) is physics/models.py under the same kind of short path.
+# beyond the free body, `tumble.models.Gyrostat`) is the package physics/models/ under the same kind of short path.
 _ALIASES = {"exact": "tumble.physics.exact", "theory": "tumble.physics.theory", "models": "tumble.physics.models",
             "shapes": "tumble.physics.shapes", "rotations": "tumble.physics.rotations", "io": "tumble.output.io",
             "sampling": "tumble.engine.sampling"}

@@ -32,6 +32,7 @@ from ..physics.models import FreeBody, Model
 from ..physics.system import System, with_parameters
 from . import cost
 from .device import resolve_device
+from .system_runs import compiled, probe
 
 __all__ = ["STATUS_ABOVE_NAME", "TANGENT_SEED", "TangentRun", "gali", "initial_tangents", "lyapunov", "megno",
            "run_tangents", "tangent_kind"]
@@ -135,14 +136,16 @@ def _exponents(exponents, system, n):
     return int(exponents)
 
 
-def _renormalise_steps(renormalise, dt):
-    """The steps between two factorisations: ``renormalise / dt``, a positive whole number (within round-off)."""
+def _renormalise_steps(renormalise, dt, step):
+    """The steps between two factorisations: ``renormalise / step``, a positive whole number (within round-off), of
+    the step that runs (``dt`` shortened so that whole steps end at ``t_end``: :func:`_plan`)."""
     value = _number(renormalise, "renormalise")
-    ratio = value / dt
+    ratio = value / step
     steps = round(ratio)
     if value <= 0 or steps < 1 or abs(ratio - steps) > _SLACK * max(ratio, 1.0):
-        raise ValueError(f"renormalise must be a positive multiple of dt = {dt:g} s (the tangent vectors are "
-                         f"orthonormalised between steps), got {renormalise!r} s ({ratio:.6g} steps)")
+        shortened = "" if step == dt else f" (dt = {dt:g} s shortened so that whole steps end at t_end)"
+        raise ValueError(f"renormalise must be a positive multiple of the step {step:g} s{shortened}: the tangent "
+                         f"vectors are orthonormalised between steps; got {renormalise!r} s ({ratio:.6g} steps)")
     return steps
 
 
@@ -179,23 +182,25 @@ class _Kernels(NamedTuple):
     stages: int
 
 
-#: Kernels of the built-in models (one rate and tangent for all: the generated dispatch): method -> (tableau, kernels).
+#: Kernels of the built-in models (one rate and tangent for all: the generated dispatch): method -> (tableau, kernels),
+#: and their device kernels under ``(run_sample, n, k, len(p))``.
 _MODEL_KERNELS = {}
-#: System -> {method: _Kernels}, and the System's compiled rate and Jacobian under the key None.
+#: System -> {method: (tableau, _Kernels)}, its compiled Jacobian (and the Jacobian with bounds checked) under the key
+#: None, its device kernels under ``(run_sample, n, k, len(p))``: they go with the system.
 _SYSTEM_KERNELS = weakref.WeakKeyDictionary()
-#: (kernels' loop, k) -> its device kernel.
-_DEVICE = {}
 
 
 def _system_functions(system):
-    """A System's rate and Jacobian (None when it has none), compiled (one line naming the system when numba cannot)."""
+    """A System's rate (compiled once per process for every engine call: :func:`tumble.engine.system_runs.compiled`)
+    and its Jacobian (None when it has none) compiled, as ``(rate, jacobian, jacobian with bounds checked)``; one
+    line naming the system when numba cannot compile either."""
     made = _SYSTEM_KERNELS.setdefault(system, {})
     if None not in made:
-        owner = f"system {system.name!r}"
-        made[None] = (sample_loop.compile_function(system.rate, sample_loop.RATE_SIGNATURE, owner, "rate(t, y, p, dydt)"),
-                      None if system.jacobian is None else sample_loop.compile_function(
-                          system.jacobian, sample_loop.JACOBIAN_SIGNATURE, owner, "jacobian(t, y, p, J)"))
-    return made[None]
+        owner, what = f"system {system.name!r}", "jacobian(t, y, p, J)"
+        made[None] = (None, None) if system.jacobian is None else tuple(
+            sample_loop.compile_function(system.jacobian, sample_loop.JACOBIAN_SIGNATURE, owner, what, boundscheck=check)
+            for check in (False, True))
+    return (compiled(system).rate, *made[None])
 
 
 def tangent_kind(system):
@@ -208,19 +213,19 @@ def tangent_kind(system):
 
 
 def _kernels(system, method):
+    """The tangent loop of ``system`` stepped by ``method``'s tableau, made once (a tableau replaced at run time under
+    the same name is a new method: the kernels are kept with the tableau they were made of)."""
     tableau = TABLEAUX[method]
-    if isinstance(system, System):
-        made = _SYSTEM_KERNELS.setdefault(system, {})
-        if method not in made:
-            rate, jacobian = _system_functions(system)
+    made = _SYSTEM_KERNELS.setdefault(system, {}) if isinstance(system, System) else _MODEL_KERNELS
+    if method not in made or made[method][0] is not tableau:
+        if isinstance(system, System):
+            rate, jacobian, _ = _system_functions(system)
             tangents = (tangent_loop.difference_tangents(rate) if jacobian is None
                         else tangent_loop.jacobian_tangents(jacobian))
-            made[method] = _make(rate, tangents, tableau)
-        return made[method]
-    made = _MODEL_KERNELS.get(method)
-    if made is None or made[0] is not tableau:  # a tableau replaced at run time under the same name is a new method
-        made = _MODEL_KERNELS[method] = (tableau, _make(rate_sample, tangent_loop.model_tangents(), tableau))
-    return made[1]
+        else:
+            rate, tangents = rate_sample, tangent_loop.model_tangents()
+        made[method] = (tableau, _make(rate, tangents, tableau))
+    return made[method][1]
 
 
 def _make(rate, tangents, tableau):
@@ -237,22 +242,25 @@ def _parameters(system, parameters):
 
 
 def _probe(system, y, p):
-    """A System's rate (and Jacobian) at the first finite initial state: one line naming the system when either writes
-    something not finite there (a later non-finite value is a sample's status)."""
-    rate, jacobian = _system_functions(system)
+    """A System's rate as :func:`tumble.integrate` probes it (:func:`tumble.engine.system_runs.probe`: bounds checked,
+    every component set and finite), and its Jacobian at the first finite initial state, bounds checked: one line
+    naming the system when either misbehaves there (a later non-finite value is a sample's status)."""
+    probe(system, y, p, 0.0)
+    _, _, checked = _system_functions(system)
     finite = np.flatnonzero(np.all(np.isfinite(y), axis=1))
-    if not len(finite):
+    if checked is None or not len(finite):
         return
     i = int(finite[0])
     n = y.shape[1]
-    dydt, J = np.full(n, np.nan), np.full((n, n), np.nan)
-    rate(0.0, y[i].copy(), p, dydt)
-    if jacobian is not None:
-        jacobian(0.0, y[i].copy(), p, J)
-    for what, values in (("rate", dydt), ("jacobian", J if jacobian is not None else np.zeros(0))):
-        if not np.all(np.isfinite(values)):
-            raise ValueError(f"system {system.name!r}: its {what} left a value unset, NaN or infinite at sample {i}'s "
-                             f"initial state {y[i].tolist()} (t = 0 s)")
+    J = np.full((n, n), np.nan)
+    try:
+        checked(0.0, y[i].copy(), p, J)
+    except IndexError:
+        raise ValueError(f"system {system.name!r}: its jacobian indexes beyond J ({n} x {n}), the state or the "
+                         f"parameters") from None
+    if not np.all(np.isfinite(J)):
+        raise ValueError(f"system {system.name!r}: its jacobian left a value unset, NaN or infinite at sample {i}'s "
+                         f"initial state {y[i].tolist()} (t = 0 s)")
 
 
 def run_tangents(system, y, p, method, k, step, n_steps, every, transient, save_every, stop_above, device,
@@ -280,10 +288,11 @@ def run_tangents(system, y, p, method, k, step, n_steps, every, transient, save_
                       scalars, status, steps_taken)
     else:
         cuda = device_tangent_loop()
+        made = _SYSTEM_KERNELS[system] if isinstance(system, System) else _MODEL_KERNELS
         key = (kernels.run_sample, n, k, len(p))
-        if key not in _DEVICE:
-            _DEVICE[key] = cuda.make_kernel(kernels.run_sample, n, k, kernels.stages, len(p))
-        logs, saved, scalars, status, steps_taken = cuda.run(_DEVICE[key], state, tangents, p, 0.0, step, n_steps,
+        if key not in made:
+            made[key] = cuda.make_kernel(kernels.run_sample, n, k, kernels.stages, len(p))
+        logs, saved, scalars, status, steps_taken = cuda.run(made[key], state, tangents, p, 0.0, step, n_steps,
                                                                every, transient, save_every, stop_above,
                                                                orthogonalise, saved)
     return TangentRun(logs, saved, scalars, status, steps_taken)
@@ -403,7 +412,7 @@ def lyapunov(system, y0, t_end, dt, *, method="rk4", exponents=None, renormalise
                                                                           device)
     n = y.shape[1]
     k = _exponents(exponents, system, n)
-    every = _renormalise_steps(renormalise, dt)
+    every = _renormalise_steps(renormalise, dt, step)
     first = _transient_steps(transient, t_end, step)
     save = _save_every(save_every)
     marks = _saved_marks(n_steps, first, save) if save else np.zeros(0, dtype=int)

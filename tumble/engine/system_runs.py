@@ -9,9 +9,9 @@ checked once here, then
   System does, its rate the kernels' own (:func:`tumble.kernels.rate_sample`);
 * a :class:`~tumble.physics.system.System` steps with the per-sample loop of :mod:`tumble.kernels.sample_loop` (any
   Runge–Kutta tableau: rk4, rk8, or one added to ``TABLEAUX``), compiled for that system and method on its first run
-  in a process and kept with the system. Before anything runs the rate is compiled alone and called once at the first initial state with
-  bounds checked, and at up to :data:`PROBED` initial states: a rate numba cannot compile, that reads or writes
-  beyond the state, or that leaves a component of ``dydt`` unset or NaN is one line naming the system (ValueError),
+  in a process and kept with the system. Before anything runs the rate is compiled alone and called once at the
+  first initial state with bounds checked, and at up to :data:`PROBED` initial states: a rate numba cannot compile,
+  that reads or writes beyond the state, or that leaves a component of ``dydt`` unset or NaN is one line naming the system (ValueError),
   never a numba traceback or a silent NaN.
 
 Both run on ``device="cpu"`` or ``"cuda"`` (one thread per sample, the same per-sample code).
@@ -32,7 +32,7 @@ from ..physics.system import System, with_parameters
 from . import cost
 from .device import resolve_device
 
-__all__ = ["PROBED", "SystemRun", "is_system", "run_system", "system_methods"]
+__all__ = ["PROBED", "SystemRun", "compiled", "is_system", "probe", "run_system", "system_methods"]
 
 #: Initial states at which a user's rate is called once before a run (the first with bounds checked): a NaN or an
 #: unset component there is refused with the sample named; later in the run a non-finite state is a sample status.
@@ -120,7 +120,9 @@ class _Compiled(NamedTuple):
 _COMPILED = weakref.WeakKeyDictionary()
 
 
-def _compiled(system):
+def compiled(system):
+    """A System's rate compiled once per process, as every engine call runs it, and once more with bounds checked
+    (for :func:`probe`): one line naming the system when numba cannot compile it."""
     if system not in _COMPILED:
         owner, what = f"system {system.name!r}", "rate(t, y, p, dydt)"
         _COMPILED[system] = _Compiled(
@@ -130,22 +132,24 @@ def _compiled(system):
 
 
 def _kernels(system, method):
-    compiled = _compiled(system)
-    if method not in compiled.methods:
-        tableau = TABLEAUX[method]
-        run_sample = sample_loop.make_sample_loop(sample_loop.make_step(compiled.rate, tableau))
-        compiled.methods[method] = _Kernels(sample_loop.make_cpu_driver(run_sample, len(tableau.b)), run_sample,
-                                            len(tableau.b))
-    return compiled.methods[method]
+    """The per-sample loop of ``system`` stepped by ``method``'s tableau, made once (kept with the tableau it was made
+    of: a tableau replaced at run time under the same name is a new method)."""
+    made = compiled(system).methods
+    tableau = TABLEAUX[method]
+    if method not in made or made[method][0] is not tableau:
+        run_sample = sample_loop.make_sample_loop(sample_loop.make_step(compiled(system).rate, tableau))
+        made[method] = (tableau, _Kernels(sample_loop.make_cpu_driver(run_sample, len(tableau.b)), run_sample,
+                                          len(tableau.b)))
+    return made[method][1]
 
 
-def _probe(system, y, p, t0):
+def probe(system, y, p, t0):
     """Call the rate at the first :data:`PROBED` finite initial states (the first with bounds checked): ValueError
     naming the system when it reads or writes beyond the state, or leaves a component unset or not finite."""
-    compiled = _compiled(system)
+    functions = compiled(system)
     n = y.shape[1]
     dydt = np.empty(n)
-    rate = compiled.checked
+    rate = functions.checked
     for i in range(min(len(y), PROBED)):
         state = np.ascontiguousarray(y[i])
         if not np.all(np.isfinite(state)):
@@ -157,7 +161,7 @@ def _probe(system, y, p, t0):
             raise ValueError(f"system {system.name!r}: its rate indexes beyond the state or the parameters (state has "
                              f"{n} components: {', '.join(system.state)}; parameters {len(p)}: "
                              f"{', '.join(system.parameters) or 'none'})") from None
-        rate = compiled.rate
+        rate = functions.rate
         bad = np.flatnonzero(~np.isfinite(dydt))
         if len(bad):
             j = int(bad[0])
@@ -217,7 +221,7 @@ def run_system(system, y0, t_end, n_steps, step, method="rk4", *, save_every=Non
     if isinstance(system, System) or method not in model_methods(system.kind):
         if isinstance(system, System):
             loop_system, p = system, system.parameter_values(parameters)
-            _probe(system, y, p, 0.0)
+            probe(system, y, p, 0.0)
         else:  # a tableau the model's generated steps do not have
             loop_system, p = _sample_loop_system(system)
         kernels = _kernels(loop_system, method)
@@ -261,14 +265,14 @@ def _units(system):
     return tuple(by_letter[component[0]] for component in system.spec.state)
 
 
-#: (System, method) -> its device kernel (made once per process).
+#: System -> {per-sample loop: its device kernel} (made once per process, they go with the system).
 _DEVICE = weakref.WeakKeyDictionary()
 
 
 def _device_kernel(system, method, kernels, n_state):
     made = _DEVICE.setdefault(system, {})
-    if method not in made:
-        made[method] = device_sample_loop().make_kernel(kernels.run_sample, n_state, kernels.stages,
-                                                     len(system.parameters))
-    return made[method]
+    if kernels.run_sample not in made:  # the loop of the method's tableau now (_kernels)
+        made[kernels.run_sample] = device_sample_loop().make_kernel(kernels.run_sample, n_state, kernels.stages,
+                                                                    len(system.parameters))
+    return made[kernels.run_sample]
 

@@ -130,7 +130,7 @@ def _imported_files(path):
     """The files of tumble that the module at ``path`` imports (relative imports, at the top or in a function): a
     module, a package's ``__init__.py``, and each name that is a submodule (``from . import fused``)."""
     with open(path, encoding="utf-8") as f:
-        text = f.read()
+        text = re.sub(r"#[^\n]*", "", f.read())  # comments out: a ")" in one would end a parenthesised import early
     found = []
     for dots, module, names in _RELATIVE_IMPORT.findall(text):
         base = os.path.dirname(path)

@@ -50,7 +50,7 @@ from numba import prange
 
 from ..registry import (LIE_POISSON_MODELS, MODEL_KINDS, MODEL_PARAMETERS, MODEL_STEPPING, STATUS_DRIFT, STATUS_OK,
                         STEPPING, model_kind)
-from ..registry import model_methods as registry_model_methods
+from ..registry import model_methods  # the names the model kernels run for a kind (re-exported)
 from .block_parts import check_finite, freeze, nan_rest, restore_frozen, store, store_initial, store_rest
 from .drift_screen import SCREEN_ATOL, SCREEN_RTOL
 from .jit import jit
@@ -75,11 +75,6 @@ MODEL_METHODS = {name: STEPPING.index(name) for name in MODEL_STEPPING}
 #: The models the splittings apply to (``registry.LIE_POISSON_MODELS``, which says why).
 SPLITTING_KINDS = LIE_POISSON_MODELS
 
-
-def model_methods(kind):
-    """The names of the methods the model kernels run for model ``kind`` (``registry.model_methods``: the Runge–Kutta
-    ones first)."""
-    return registry_model_methods(kind)
 
 #: Steps between two checks for non-finite states when no drift is tracked.
 CHECK_EVERY = 32

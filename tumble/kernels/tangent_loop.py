@@ -332,8 +332,8 @@ def make_tangent_loop(step):
             if average > stop_above:
                 code = STATUS_ABOVE
                 break
-        megno[i, 0] = average
-        megno[i, 1] = 2.0 * cov / var if var > 0.0 else 0.0
+        megno[i, 0] = average if ran > 0 else np.nan  # a sample that never stepped has no <Y>, not a regular 0
+        megno[i, 1] = 2.0 * cov / var if count > 1 and var > 0.0 else np.nan  # a slope needs two points
         megno[i, 2] = ran * h
         megno[i, 3] = (summed - transient) * h if summed > 0 else 0.0
         return code, ran
