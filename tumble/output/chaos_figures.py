@@ -1,0 +1,135 @@
+"""The figures of a chaos study, drawn from its Dataset alone (:func:`tumble.measure.records.chaos_dataset`).
+
+- :func:`megno_map`: ``<Y>`` over the map of initial states, a diverging colour scale centred at 2 (the regular
+  value: blue below, towards 0 near stable periodic orbits; red above, chaotic);
+- :func:`finite_time`: the largest finite-time Lyapunov exponent against time on log axes for the map's most
+  chaotic, median and most regular orbits, with ``ln t / t``, the decay of a regular orbit's, for reference;
+- :func:`spectrum`: the Lyapunov spectrum (exponent against its index) of the same orbits, and each index's range
+  over the map.
+
+:mod:`tumble.output.figures` registers them (``outputs.figures``); each returns a matplotlib Figure.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib import colors
+from matplotlib.figure import Figure
+
+__all__ = ["MAX_PANELS", "finite_time", "megno_map", "picked_orbits", "spectrum"]
+
+#: Panels of a map at most: the scan's scenes along its first dimension (the others at their first value).
+MAX_PANELS = 4
+
+_LABELS = {"tilt": "release tilt (rad)", "rate": "initial spin (rad/s)", "angle": "angle θ (rad)"}
+
+
+def _scenes(ds, name):
+    """``[(label, selection)]``: the scan's scenes (``attrs["scan_dims"]``) along its first dimension (at most
+    :data:`MAX_PANELS`, the other scan dimensions at their first value), or the one scene."""
+    scan = [d for d in str(ds.attrs.get("scan_dims", "")).split() if d in ds[name].dims]
+    if not scan:
+        return [("", {})]
+    first, rest = scan[0], {d: 0 for d in scan[1:]}
+    values = ds[first].values
+    picks = np.unique(np.linspace(0, len(values) - 1, min(len(values), MAX_PANELS)).round().astype(int))
+    return [(f"{first} = {values[i]}", {first: int(i), **rest}) for i in picks]
+
+
+def megno_map(ds, width=7.0):
+    """``<Y>`` over the map: one panel per scene (:func:`_scenes`), colour centred at 2."""
+    scenes = _scenes(ds, "megno")
+    fig = Figure(figsize=(min(width, 3.6 * len(scenes) + 0.8), 3.2), layout="constrained")
+    axes = fig.subplots(1, len(scenes), squeeze=False)
+    values = np.asarray(ds["megno"].values, dtype=float)
+    top = max(4.0, float(np.nanpercentile(values, 98)) if np.isfinite(values).any() else 4.0)
+    norm = colors.TwoSlopeNorm(vmin=0.0, vcenter=2.0, vmax=top)
+    mesh = None
+    for ax, (label, where) in zip(axes[0], scenes):
+        scene = ds["megno"].isel(where)
+        dims = list(scene.dims)
+        if len(dims) == 1:
+            scene = scene.expand_dims("_", axis=1)
+            dims = [dims[0], "_"]
+        x, y = dims[0], dims[1]
+        xs = np.asarray(ds[x].values if x in ds.coords else [0.0], dtype=float)
+        ys = np.asarray(ds[y].values if y in ds.coords else [0.0], dtype=float)
+        mesh = ax.pcolormesh(xs, ys, np.asarray(scene.transpose(x, y).values, dtype=float).T, shading="nearest",
+                             cmap="RdBu_r", norm=norm, rasterized=True)
+        ax.set_xlabel(_LABELS.get(x, x))
+        ax.set_ylabel(_LABELS.get(y, y) if y != "_" else "")
+        if label:
+            ax.set_title(label, fontsize="small")
+    bar = fig.colorbar(mesh, ax=axes[0].tolist(), shrink=0.9)
+    bar.set_label("MEGNO ⟨Y⟩ (2: regular)")
+    bar.ax.axhline(2.0, color="k", lw=0.6)
+    fig.suptitle(f"{ds.attrs.get('model', '')}: MEGNO over T = {ds.attrs.get('t_end', float('nan')):g} s",
+                 fontsize="medium")
+    return fig
+
+
+def picked_orbits(ds):
+    """``[(label, {dim: index})]``: the map's orbits of the largest, the median and the smallest final exponent."""
+    largest = ds["exponent"].isel(index=0)
+    flat = np.asarray(largest.values, dtype=float).ravel()
+    finite = np.flatnonzero(np.isfinite(flat))
+    if not len(finite):
+        return []
+    order = finite[np.argsort(flat[finite])]
+    picks = [("most chaotic", order[-1]), ("median", order[len(order) // 2]), ("most regular", order[0])]
+    out, seen = [], set()
+    for label, i in picks:
+        if i in seen:
+            continue
+        seen.add(i)
+        index = dict(zip(largest.dims, (int(k) for k in np.unravel_index(i, largest.shape))))
+        where = ", ".join(f"{d} = {float(ds[d].values[k]):.3g}" for d, k in index.items() if d in ds.coords)
+        out.append((f"{label} ({where})" if where else label, index))
+    return out
+
+
+def finite_time(ds, width=3.4):
+    """The largest finite-time exponent against time (log axes) of :func:`picked_orbits`, with ``ln t / t``."""
+    fig = Figure(figsize=(width, 2.8), layout="constrained")
+    ax = fig.subplots()
+    t = np.asarray(ds["time"].values, dtype=float)
+    transient = float(ds.attrs.get("transient", 0.0))
+    for k, (label, where) in enumerate(picked_orbits(ds)):
+        curve = np.asarray(ds["finite_time"].isel(where).isel(index=0).values, dtype=float)
+        shown = np.where(curve > 0, curve, np.nan)
+        ax.plot(t, shown, color=f"C{k}", lw=1.0, label=label)
+    span = t - transient
+    with np.errstate(divide="ignore", invalid="ignore"):
+        reference = np.where(span > 1.0, np.log(np.maximum(span, 1.0)) / span, np.nan)
+    ax.plot(t, reference, color="k", lw=0.8, ls="--", label="ln t / t (regular orbit)")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("time t (s)")
+    ax.set_ylabel("finite-time λ₁ (1/s)")
+    ax.set_title(f"{ds.attrs.get('model', '')}: largest exponent against time", fontsize="small")
+    ax.legend(fontsize="x-small", loc="lower left")
+    return fig
+
+
+def spectrum(ds, width=3.4):
+    """The Lyapunov spectrum of :func:`picked_orbits` (exponent against index), over the range each index spans on
+    the map (shaded)."""
+    fig = Figure(figsize=(width, 2.8), layout="constrained")
+    ax = fig.subplots()
+    index = np.asarray(ds["index"].values)
+    exponents = ds["exponent"]
+    rest = [d for d in exponents.dims if d != "index"]
+    low = np.asarray(exponents.min(rest).values, dtype=float)
+    high = np.asarray(exponents.max(rest).values, dtype=float)
+    ax.fill_between(index, low, high, color="0.85", label="range over the map")
+    for k, (label, where) in enumerate(picked_orbits(ds)):
+        values = np.asarray(exponents.isel(where).values, dtype=float)
+        ax.plot(index, values, "o-", color=f"C{k}", lw=0.8, ms=3, label=f"{label}, sum {np.sum(values):.1e}")
+    ax.axhline(0.0, color="k", lw=0.5)
+    ax.set_xticks(index)
+    ax.set_xlabel("exponent index")
+    ax.set_ylabel("Lyapunov exponent (1/s)")
+    ax.set_title(f"{ds.attrs.get('model', '')}: spectrum, T = {ds.attrs.get('t_end', float('nan')):g} s",
+                 fontsize="small")
+    ax.legend(fontsize="x-small")
+    return fig
