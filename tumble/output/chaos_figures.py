@@ -16,7 +16,11 @@ import numpy as np
 from matplotlib import colors
 from matplotlib.figure import Figure
 
-__all__ = ["MAX_PANELS", "finite_time", "megno_map", "picked_orbits", "spectrum"]
+__all__ = ["MAX_PANELS", "MEGNO_TOP", "finite_time", "megno_map", "picked_orbits", "spectrum"]
+
+#: The top of the MEGNO colour scale at most (above: the darkest red): a chaotic orbit's <Y> grows like lambda t / 2
+#: without bound, and a scale stretched to it would wash out the regular side.
+MEGNO_TOP = 8.0
 
 #: Panels of a map at most: the scan's scenes along its first dimension (the others at their first value).
 MAX_PANELS = 4
@@ -42,7 +46,7 @@ def megno_map(ds, width=7.0):
     fig = Figure(figsize=(min(width, 3.6 * len(scenes) + 0.8), 3.2), layout="constrained")
     axes = fig.subplots(1, len(scenes), squeeze=False)
     values = np.asarray(ds["megno"].values, dtype=float)
-    top = max(4.0, float(np.nanpercentile(values, 98)) if np.isfinite(values).any() else 4.0)
+    top = min(max(4.0, float(np.nanpercentile(values, 98)) if np.isfinite(values).any() else 4.0), MEGNO_TOP)
     norm = colors.TwoSlopeNorm(vmin=0.0, vcenter=2.0, vmax=top)
     mesh = None
     for ax, (label, where) in zip(axes[0], scenes):
@@ -60,7 +64,7 @@ def megno_map(ds, width=7.0):
         ax.set_ylabel(_LABELS.get(y, y) if y != "_" else "")
         if label:
             ax.set_title(label, fontsize="small")
-    bar = fig.colorbar(mesh, ax=axes[0].tolist(), shrink=0.9)
+    bar = fig.colorbar(mesh, ax=axes[0].tolist(), shrink=0.9, extend="max" if np.nanmax(values) > top else "neither")
     bar.set_label("MEGNO ⟨Y⟩ (2: regular)")
     bar.ax.axhline(2.0, color="k", lw=0.6)
     fig.suptitle(f"{ds.attrs.get('model', '')}: MEGNO over T = {ds.attrs.get('t_end', float('nan')):g} s",
