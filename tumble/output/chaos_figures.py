@@ -16,6 +16,8 @@ import numpy as np
 from matplotlib import colors
 from matplotlib.figure import Figure
 
+from . import layout
+
 __all__ = ["MAX_PANELS", "MEGNO_TOP", "finite_time", "megno_map", "picked_orbits", "spectrum"]
 
 #: The top of the MEGNO colour scale at most (above: the darkest red): a chaotic orbit's <Y> grows like lambda t / 2
@@ -43,13 +45,13 @@ def _scenes(ds, name):
 def megno_map(ds, width=7.0):
     """``<Y>`` over the map: one panel per scene (:func:`_scenes`), colour centred at 2."""
     scenes = _scenes(ds, "megno")
-    fig = Figure(figsize=(min(width, 3.6 * len(scenes) + 0.8), 3.2), layout="constrained")
-    axes = fig.subplots(1, len(scenes), squeeze=False)
+    fig = Figure(figsize=(min(width, 2.6 * len(scenes) + 1.2), 2.9))
+    axes = fig.subplots(1, len(scenes), squeeze=False)[0]
     values = np.asarray(ds["megno"].values, dtype=float)
     top = min(max(4.0, float(np.nanpercentile(values, 98)) if np.isfinite(values).any() else 4.0), MEGNO_TOP)
     norm = colors.TwoSlopeNorm(vmin=0.0, vcenter=2.0, vmax=top)
     mesh = None
-    for ax, (label, where) in zip(axes[0], scenes):
+    for ax, (label, where) in zip(axes, scenes):
         scene = ds["megno"].isel(where)
         dims = list(scene.dims)
         if len(dims) == 1:
@@ -62,14 +64,11 @@ def megno_map(ds, width=7.0):
                              cmap="RdBu_r", norm=norm, rasterized=True)
         ax.set_xlabel(_LABELS.get(x, x))
         ax.set_ylabel(_LABELS.get(y, y) if y != "_" else "")
-        if label:
-            ax.set_title(label, fontsize="small")
-    bar = fig.colorbar(mesh, ax=axes[0].tolist(), shrink=0.9, extend="max" if np.nanmax(values) > top else "neither")
-    bar.set_label("MEGNO ⟨Y⟩ (2: regular)")
+        ax.set_title(label or f"{ds.attrs.get('model', '')}, T = {ds.attrs.get('t_end', float('nan')):g} s")
+    bar = layout.colorbar(fig, mesh, label="MEGNO ⟨Y⟩ (2: regular)",
+                          extend="max" if np.nanmax(values) > top else "neither")
     bar.ax.axhline(2.0, color="k", lw=0.6)
-    fig.suptitle(f"{ds.attrs.get('model', '')}: MEGNO over T = {ds.attrs.get('t_end', float('nan')):g} s",
-                 fontsize="medium")
-    return fig
+    return layout.fit(fig)
 
 
 def picked_orbits(ds):
@@ -87,38 +86,37 @@ def picked_orbits(ds):
             continue
         seen.add(i)
         index = dict(zip(largest.dims, (int(k) for k in np.unravel_index(i, largest.shape))))
-        where = ", ".join(f"{d} = {float(ds[d].values[k]):.3g}" for d, k in index.items() if d in ds.coords)
+        where = ", ".join(f"{d} {float(ds[d].values[k]):.3g}" for d, k in index.items() if d in ds.coords)
         out.append((f"{label} ({where})" if where else label, index))
     return out
 
 
 def finite_time(ds, width=3.4):
     """The largest finite-time exponent against time (log axes) of :func:`picked_orbits`, with ``ln t / t``."""
-    fig = Figure(figsize=(width, 2.8), layout="constrained")
+    fig = Figure(figsize=(width, 2.6))
     ax = fig.subplots()
     t = np.asarray(ds["time"].values, dtype=float)
     transient = float(ds.attrs.get("transient", 0.0))
     for k, (label, where) in enumerate(picked_orbits(ds)):
         curve = np.asarray(ds["finite_time"].isel(where).isel(index=0).values, dtype=float)
-        shown = np.where(curve > 0, curve, np.nan)
-        ax.plot(t, shown, color=f"C{k}", lw=1.0, label=label)
+        ax.plot(t, np.where(curve > 0, curve, np.nan), color=f"C{k}", lw=1.0, label=label)
     span = t - transient
     with np.errstate(divide="ignore", invalid="ignore"):
         reference = np.where(span > 1.0, np.log(np.maximum(span, 1.0)) / span, np.nan)
-    ax.plot(t, reference, color="k", lw=0.8, ls="--", label="ln t / t (regular orbit)")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
+    ax.plot(t, reference, color="k", lw=0.8, ls="--", label="ln t / t (a regular orbit)")
+    layout.log_scale(ax, "x")
+    layout.log_scale(ax, "y")
     ax.set_xlabel("time t (s)")
     ax.set_ylabel("finite-time λ₁ (1/s)")
-    ax.set_title(f"{ds.attrs.get('model', '')}: largest exponent against time", fontsize="small")
-    ax.legend(fontsize="x-small", loc="lower left")
-    return fig
+    ax.set_title(f"{ds.attrs.get('model', '')}: largest exponent")
+    layout.legend(fig, ax.get_legend_handles_labels()[0], "below")
+    return layout.fit(fig)
 
 
 def spectrum(ds, width=3.4):
     """The Lyapunov spectrum of :func:`picked_orbits` (exponent against index), over the range each index spans on
     the map (shaded)."""
-    fig = Figure(figsize=(width, 2.8), layout="constrained")
+    fig = Figure(figsize=(width, 2.6))
     ax = fig.subplots()
     index = np.asarray(ds["index"].values)
     exponents = ds["exponent"]
@@ -128,12 +126,11 @@ def spectrum(ds, width=3.4):
     ax.fill_between(index, low, high, color="0.85", label="range over the map")
     for k, (label, where) in enumerate(picked_orbits(ds)):
         values = np.asarray(exponents.isel(where).values, dtype=float)
-        ax.plot(index, values, "o-", color=f"C{k}", lw=0.8, ms=3, label=f"{label}, sum {np.sum(values):.1e}")
+        ax.plot(index, values, "o-", color=f"C{k}", lw=0.8, ms=3, label=f"{label}, sum {np.sum(values):.0e}")
     ax.axhline(0.0, color="k", lw=0.5)
     ax.set_xticks(index)
     ax.set_xlabel("exponent index")
     ax.set_ylabel("Lyapunov exponent (1/s)")
-    ax.set_title(f"{ds.attrs.get('model', '')}: spectrum, T = {ds.attrs.get('t_end', float('nan')):g} s",
-                 fontsize="small")
-    ax.legend(fontsize="x-small")
-    return fig
+    ax.set_title(f"{ds.attrs.get('model', '')}: spectrum, T = {ds.attrs.get('t_end', float('nan')):g} s")
+    layout.legend(fig, ax.get_legend_handles_labels()[0], "below")
+    return layout.fit(fig)
