@@ -101,7 +101,7 @@ def _save_every(scene):
 
 def scene_samples(scene, start, stop):
     """Run points ``[start, stop)`` of the map: ``{name: array with the points first}`` of every indicator asked for,
-    the times of the curves (``*_time``) and the worst status of each point (0: ok)."""
+    the times of the curves (``*_time``), the worst status of each point (0: ok) and ``start``."""
     y = scene.states[start:stop]
     common = {"method": scene.method, "device": scene.device}
     out = {}
@@ -126,6 +126,7 @@ def scene_samples(scene, start, stop):
         out["gali_time"] = ds["time"].values
         status = np.maximum(status, ds["status"].values)
     out["status"] = status
+    out["start"] = np.asarray(start, dtype=np.int64)  # where the range begins (a checkpoint's chunk says so)
     return out
 
 
@@ -139,7 +140,10 @@ def scene_records(scenes, parts):
     for scene, ranges in zip(scenes, parts):
         ranges = list(ranges)
         record = {}
+        ranges.sort(key=lambda part: int(part["start"]))
         for name in ranges[0]:
+            if name == "start":
+                continue
             record[name] = (np.asarray(ranges[0][name]) if name in _SHARED
                             else np.concatenate([np.asarray(r[name]) for r in ranges]))
         for name, value in scene.coords.items():
