@@ -170,3 +170,14 @@ def test_a_map_cut_into_sample_ranges_gives_the_same_bits(tmp_path):
     cut = tumble.run_study(study, progress=False, chunk_samples=4096, out=tmp_path)
     assert whole["megno"].shape == (41, 101)
     np.testing.assert_array_equal(whole["megno"].values, cut["megno"].values)
+
+
+def test_a_chaos_map_on_the_device_is_the_cpu_map():
+    """integration.device = "cuda" runs the map's tangent loops on the device (numba-cuda's simulator in CI)."""
+    small = {"scan.tilt": [0.5, 2.0], "scan.rate": [0.5, 3.0], "integration.horizon": 0.1,
+             "chaos.indicators": ["megno", "lyapunov"]}
+    cpu = tumble.run_study("chaos_map", overrides=small, progress=False)
+    device = tumble.run_study("chaos_map", overrides={**small, "integration.device": "cuda"}, progress=False)
+    assert device.attrs.get("study") is None or "cuda" in device.attrs["study"]
+    np.testing.assert_allclose(device["megno"].values, cpu["megno"].values, rtol=1e-10)
+    np.testing.assert_allclose(device["exponent"].values, cpu["exponent"].values, rtol=1e-10, atol=1e-14)
