@@ -159,7 +159,7 @@ def test_the_figures_are_drawn_from_the_dataset_alone(tmp_path):
 
 def test_the_registry_lists_the_chaos_figures_and_starts():
     assert set(registry.CHAOS_FIGURES) <= set(registry.FIGURES)
-    assert {s.kind for s in registry.CHAOS_STARTS} <= set(registry.MODEL_KINDS)
+    assert {s.kind for s in registry.CHAOS_STARTS} - {""} <= set(registry.MODEL_KINDS)  # "": any model
 
 
 def test_a_map_cut_into_sample_ranges_gives_the_same_bits(tmp_path):
@@ -181,3 +181,31 @@ def test_a_chaos_map_on_the_device_is_the_cpu_map():
     assert device.attrs.get("study") is None or "cuda" in device.attrs["study"]
     np.testing.assert_allclose(device["megno"].values, cpu["megno"].values, rtol=1e-10)
     np.testing.assert_allclose(device["exponent"].values, cpu["exponent"].values, rtol=1e-10, atol=1e-14)
+
+
+def test_a_map_over_named_state_components_of_any_system():
+    """chaos.start = "state": the model's state with the components scan.state names replaced; the free body too."""
+    ds = tumble.run_study({"body": {"moments": [1.0, 2.0, 3.0]}, "integration": {"dt": 0.01, "horizon": 1.0},
+                           "chaos": {"indicators": ["megno"], "start": "state", "state": [0.0, 1.0, 0.0]},
+                           "scan": {"state": {"w1": [0.01, 0.1], "w3": [0.01, 0.02, 0.1]}}}, progress=False)
+    assert ds["megno"].dims == ("w1", "w3") and ds["w3"].attrs["units"] == "rad/s"
+    y = [[w1, 1.0, w3] for w1 in (0.01, 0.1) for w3 in (0.01, 0.02, 0.1)]
+    expected = tumble.megno(tumble.Body(1.0, 2.0, 3.0), y, 1.0, 0.01).megno.values
+    np.testing.assert_array_equal(ds["megno"].values.ravel(), expected)
+
+
+STATE_BAD = [
+    ({"state": [0.0, 1.0]}, {"w1": [0.1]}, "chaos.state", "3 components"),
+    ({"state": [0.0, 1.0, 0.0]}, {"g1": [0.1]}, "scan.state.g1", "no component"),
+    ({"state": [0.0, 1.0, 0.0]}, {"w1": []}, "scan.state.w1", "must not be empty"),
+]
+
+
+@pytest.mark.parametrize("chaos, state, field, words", STATE_BAD, ids=[b[2] for b in STATE_BAD])
+def test_bad_state_maps_name_the_field(chaos, state, field, words):
+    study = {"integration": {"dt": 0.01, "horizon": 1.0},
+             "chaos": {"indicators": ["megno"], "start": "state", **chaos}, "scan": {"state": state},
+             "outputs": {"figures": []}}
+    with pytest.raises(StudyError) as refused:
+        load_study(study)
+    assert refused.value.field == field and words in refused.value.problem, str(refused.value)

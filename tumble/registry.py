@@ -219,8 +219,9 @@ CHAOS_FIGURES = {"megno_map": "megno", "finite_time": "lyapunov", "spectrum": "l
 
 
 class ChaosStart(NamedTuple):
-    """A physical parametrisation of a chaos study's initial states (``chaos.start``): the model kind it applies to and
-    its two coordinates (study keys: ``chaos.<key>`` and ``scan.<key>``; ``rate`` is ``spin.rate``)."""
+    """A parametrisation of a chaos study's initial states (``chaos.start``): the model kind it applies to ("": any)
+    and its coordinates (study keys: ``chaos.<key>`` and ``scan.<key>``; ``rate`` is ``spin.rate``; none: the state's
+    components named in ``scan.state``)."""
 
     name: str
     kind: str
@@ -236,6 +237,9 @@ CHAOS_STARTS = (
     ChaosStart("spin_orbit", "gravity_gradient", ("angle", "rate"),
                "a satellite in the orbit plane at perigee, turned by chaos.angle about the orbit normal from the orbit "
                "frame and spinning at spin.rate (inertial) about it: the planar spin-orbit problem"),
+    ChaosStart("state", "", (),
+               "any model: the state chaos.state (the model's components in order), its components named in "
+               "scan.state replaced by each point of their grid"),
 )
 
 #: Figures drawn from the traced attitude of a study's first scene.

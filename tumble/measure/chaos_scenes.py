@@ -13,6 +13,8 @@ Initial states (the choices the issue leaves open; docs/explanation/chaos-maps.m
 
 - ``release``: ``w = (0, 0, rate)`` and the upward vertical in body axes ``g = (0, sin tilt, cos tilt)``: body axis
   3 tilted by ``tilt`` from the vertical by a turn about body axis 1.
+- ``state``: any model's state ``chaos.state`` with the components that ``scan.state`` names replaced by each
+  point of their grid (values as given: nothing is normalised).
 - ``spin_orbit``: the body turned by ``angle`` about its pitch axis 2 (the orbit normal's line) from the orbit frame
   at perigee, ``q = (cos(angle/2), 0, sin(angle/2), 0)``, spinning at ``rate`` (inertial) about the orbit normal:
   ``w = (0, -rate, 0)`` (axis 2 is the negative orbit normal, so the synchronous spin of a circular orbit is
@@ -56,7 +58,7 @@ def map_grid(start, values):
     the order of the start's keys, ``coordinates`` ``{name: 1-D array}`` of them, ``points`` ``{key: (N,) array}`` of
     every key of the start at each point of the grid (C order; N = 1 with no key scanned). ``values``: each key's one
     value or list of values."""
-    keys = next(s for s in registry.CHAOS_STARTS if s.name == start).keys
+    keys = next(s for s in registry.CHAOS_STARTS if s.name == start).keys or tuple(values)  # "state": as named
     dims = tuple(key for key in keys if isinstance(values[key], (list, tuple, np.ndarray)))
     coordinates = {key: np.asarray(values[key], dtype=float) for key in dims}
     mesh = np.meshgrid(*coordinates.values(), indexing="ij") if dims else []
@@ -67,9 +69,14 @@ def map_grid(start, values):
     return dims, coordinates, points
 
 
-def initial_states(start, points):
+def initial_states(start, points, base=None, names=None):
     """The initial states ``(N, n)`` of the map's points (``points`` from :func:`map_grid`); see the module
-    docstring."""
+    docstring. ``"state"``: the state ``base`` (components ``names``) with the named components of each point."""
+    if start == "state":
+        y = np.tile(np.asarray(base, dtype=float), (len(next(iter(points.values()))), 1))
+        for name, values in points.items():
+            y[:, list(names).index(name)] = values
+        return y
     if start == "release":
         tilt, rate = points["tilt"], points["rate"]
         y = np.zeros((len(tilt), 6))
@@ -89,7 +96,7 @@ def scene_plan(kind, moments, parameters, start, points, options, method, coords
     """The :class:`ChaosScene` of a model ``kind`` (its ``parameters`` by study key, extras included), the map's
     ``points`` and the study's ``options`` (``chaos`` table with ``dt``, ``horizon``, ``device``)."""
     model = models.from_kind(kind, moments, **parameters)
-    return ChaosScene(model, initial_states(start, points), tuple(options["indicators"]), method, options["dt"],
+    return ChaosScene(model, initial_states(start, points, options["state"], model.spec.state), tuple(options["indicators"]), method, options["dt"],
                       options["horizon"], options["renormalise"], options["transient"], options["exponents"],
                       options["gali_k"], options["points"], options["device"], dict(coords))
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..registry import SAMPLE_STATUS_NAMES, STATUS_NAMES
+from ..registry import SAMPLE_STATUS_NAMES, STATE_BLOCKS, STATUS_NAMES
 
 __all__ = ["CHAOS_VARIABLES", "CONFIDENCE", "COORDS", "INTERVAL_TEXT", "KIND_UNITS", "assemble_scan", "chaos_dataset", "record_variables", "scene_dataset",
            "stack_records", "unstack_records", "variable_metadata"]
@@ -264,7 +264,8 @@ def chaos_dataset(layout, records, grid):
     scan_shape = tuple(len(v) for v in swept.values())
     map_shape = tuple(len(v) for v in grid.values())
     dims = (*swept, *grid)
-    units = {"tilt": "rad", "angle": "rad", "rate": "rad/s"}
+    units = {"tilt": "rad", "angle": "rad", "rate": "rad/s",
+             **{name: unit for letter, _, unit in STATE_BLOCKS for name in grid if name[0] == letter and name[1:].isdigit()}}
     names = {"tilt": "release tilt of body axis 3 from the vertical", "rate": "initial spin rate",
              "angle": "angle of the roll axis from the orbit frame about the orbit normal"}
     first = records[0]

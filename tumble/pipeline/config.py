@@ -134,7 +134,7 @@ TRIANGLE_RANGE = (2, 200)
 #: study gives.
 _TABLES = schema.TABLES
 _TOP = ("title", *_TABLES)
-_SUBTABLES = {("body", "dimensions")}
+_SUBTABLES = {("body", "dimensions"), ("scan", "state")}
 _TABLE_ARRAYS = {("scan", "body")}
 
 #: Title of a study given as a mapping with ``title = ""`` (a file's default title is its stem).
@@ -614,6 +614,9 @@ def _scan(table, resolved):
     for key in SCAN_KEYS:
         if key not in table or key in MODEL_SCAN_KEYS or key in K_SCAN_KEYS:  # the models' keys: _model_scan
             continue
+        if key == "state":  # a chaos map's components: checked against the model's state (_chaos_state_scan)
+            out[key] = _state_scan(table[key])
+            continue
         field = f"scan.{key}"
         value = table[key]
         if key in ("body", "moments", "triangle") and shape:
@@ -850,8 +853,27 @@ def _tilt(value, field):
     return x
 
 
-#: The chaos table's keys that only a chaos study (chaos.indicators not empty) uses, and the scan keys.
-_CHAOS_SCAN_KEYS = tuple(key for start in registry.CHAOS_STARTS for key in start.keys if key != "rate")
+#: The scan keys of a chaos study's initial states (chaos.indicators not empty).
+_CHAOS_SCAN_KEYS = (*(key for start in registry.CHAOS_STARTS for key in start.keys if key != "rate"), "state")
+
+
+def _state_scan(value):
+    """``scan.state``: a table of state components, each a non-empty list of distinct numbers (the names are checked
+    against the model's state by :func:`_check_chaos_study`)."""
+    if not isinstance(value, Mapping) or not value:
+        raise _Invalid("scan.state", "must be a table of state components, each a list of values, e.g. "
+                                     "{w3 = [0.5, 1.0], g2 = [0.1, 0.2]}")
+    out = {}
+    for name, items in value.items():
+        field = f"scan.state.{name}"
+        items = _array(items, field, empty=False)
+        out[name] = _distinct([_number(v, f"{field}[{i}]") for i, v in enumerate(items)], field, items)
+    return out
+
+
+def _chaos_state(value, field):
+    """``chaos.state``: numbers (the length is checked against the model's state by :func:`_check_chaos_study`)."""
+    return [_number(x, f"{field}[{i}]") for i, x in enumerate(_array(value, field))]
 
 
 def _chaos(study, given, resolved):
@@ -889,7 +911,7 @@ def _chaos(study, given, resolved):
         return x
 
     return _table(study, "chaos", {"indicators": lambda value, field: indicators, "tilt": _tilt, "angle": _number,
-                                   "renormalise": multiple, "transient": transient})
+                                   "state": _chaos_state, "renormalise": multiple, "transient": transient})
 
 
 def _check_chaos_study(resolved, given):
@@ -898,14 +920,17 @@ def _check_chaos_study(resolved, given):
     chaos, scan, model = resolved["chaos"], resolved["scan"], resolved["model"]
     start = next(s for s in registry.CHAOS_STARTS if s.name == chaos["start"])
     kind = model["kind"] if model is not None else registry.DEFAULT_MODEL
-    if kind != start.kind:
+    if start.kind and kind != start.kind:
         raise _Invalid("chaos.start", f"{start.name!r} starts a {start.kind} (model.kind = {start.kind!r}), not a "
                                       f"{kind}; the starts: " + ", ".join(f"{s.name} ({s.kind})"
                                                                           for s in registry.CHAOS_STARTS))
     for key in _CHAOS_SCAN_KEYS:
-        if key in scan and key not in start.keys:
+        if key in scan and key not in start.keys and not (key == "state" and start.name == "state"):
             raise _Invalid(f"scan.{key}", f"is no coordinate of chaos.start = {start.name!r} (its coordinates: "
-                                          f"{', '.join(start.keys)})")
+                                          f"{', '.join(start.keys) or 'the components named in scan.state'})")
+    names = registry.model_kind(kind).state
+    if start.name == "state":
+        _check_state_map(chaos, scan, kind, names)
     for key in ("axis", "amplitude", "body", "moments", "triangle", "k1", "k3"):
         if key in scan:
             raise _Invalid(f"scan.{key}", "not in a chaos study: its map scans the initial states of chaos.start "
@@ -936,7 +961,10 @@ def _check_chaos_study(resolved, given):
                                                     f"{', '.join(registry.CHAOS_FIGURES)}")
         if need not in chaos["indicators"]:
             raise _Invalid(f"outputs.figures[{i}]", f"{name} needs {need!r} in chaos.indicators")
-    if name_of_map := [k for k in start.keys if k in scan]:
+    if start.name == "state":
+        if "megno_map" in outputs["figures"] and len(scan["state"]) < 2:
+            raise _Invalid("scan.state", "megno_map needs two components of the state scanned (the map's axes)")
+    elif name_of_map := [k for k in start.keys if k in scan]:
         if "megno_map" in outputs["figures"] and len(name_of_map) < 2:
             missing = next(k for k in start.keys if k not in scan)
             raise _Invalid(f"scan.{missing}", f"megno_map needs both coordinates of chaos.start = {start.name!r} "
@@ -944,6 +972,23 @@ def _check_chaos_study(resolved, given):
     elif "megno_map" in outputs["figures"]:
         raise _Invalid(f"scan.{start.keys[0]}", f"megno_map needs the map: scan.{start.keys[0]} and "
                                                 f"scan.{start.keys[1]}")
+
+
+def _check_state_map(chaos, scan, kind, names):
+    """chaos.start = "state": chaos.state is a whole state of the model, scan.state names its components, and
+    spin.rate is not a coordinate of the map."""
+    if len(chaos["state"]) != len(names):
+        raise _Invalid("chaos.state", f"must hold the {len(names)} components of a {kind}'s state "
+                                      f"({', '.join(names)}), got {len(chaos['state'])}")
+    if "rate" in scan:
+        raise _Invalid("scan.rate", "not with chaos.start = 'state': scan the spin's components in scan.state "
+                                    "(e.g. w3)")
+    if "state" not in scan:
+        raise _Invalid("scan.state", "chaos.start = 'state' maps the components named here, e.g. "
+                                     "{w3 = [0.5, 1.0], g2 = [0.1, 0.2]}")
+    for name in scan["state"]:
+        if name not in names:
+            raise _Invalid(f"scan.state.{name}", f"is no component of a {kind}'s state ({', '.join(names)})")
 
 
 def _described(study, field):

@@ -178,7 +178,7 @@ def _scene_kind(resolved):
     """What plans, runs and reduces the scenes of a resolved study: the one switch between free-body scenes, model
     scenes (a study with a ``[model]`` table) and chaos maps (a study with ``chaos.indicators``)."""
     if "chaos" in resolved:
-        return ChaosScenes(resolved["model"]["kind"], resolved["chaos"]["start"])
+        return ChaosScenes(resolved.get("model", {"kind": registry.DEFAULT_MODEL})["kind"], resolved["chaos"]["start"])
     return ModelScenes(resolved["model"]["kind"]) if "model" in resolved else FreeScenes()
 
 
@@ -385,9 +385,12 @@ class ChaosScenes:
 
     def _values(self, resolved):
         """The map's coordinates, the model's parameters and the method: one value each or the scan's list."""
-        scan, model, chaos = resolved["scan"], resolved["model"], resolved["chaos"]
+        scan, model, chaos = resolved["scan"], resolved.get("model"), resolved["chaos"]
         keys = next(s for s in registry.CHAOS_STARTS if s.name == self.start).keys
         values = {key: scan.get(key, resolved["spin"]["rate"] if key == "rate" else chaos[key]) for key in keys}
+        if not keys:  # chaos.start = "state": the components scan.state names
+            values = dict(scan["state"])
+        model = model or {}
         params = {key: scan.get(key, model[key]) for key in registry.model_kind(self.kind).parameters}
         extras = {key: model[key] for key in models.CLASSES[self.kind].extras if key in model}
         return values, params, extras
@@ -402,7 +405,7 @@ class ChaosScenes:
                    "horizon": resolved["integration"]["horizon"], "device": resolved["integration"]["device"],
                    "extras": extras, "points_of_map": points}
         scanned = [key for key in values if key in scan]
-        n = len(chaos_scenes.map_grid(self.start, points)[2]["rate"])
+        n = len(next(iter(chaos_scenes.map_grid(self.start, points)[2].values())))
         moments = config.resolve_body(resolved).moments
         return StudyPlan(moments, None, values, options, scanned, n, resolved["perturbation"]["seed"], self)
 
@@ -444,7 +447,7 @@ class ChaosScenes:
         horizon, the finite-time curves kept."""
         points, params, _ = self._values(resolved)
         chaos, integ, scan = resolved["chaos"], resolved["integration"], resolved["scan"]
-        n_points = len(chaos_scenes.map_grid(self.start, points)[2]["rate"])
+        n_points = len(next(iter(chaos_scenes.map_grid(self.start, points)[2].values())))
         scenes = math.prod(len(scan[key]) for key in ("method", *params) if key in scan)
         size = len(registry.model_kind(self.kind).state)
         vectors = 1 * ("megno" in chaos["indicators"]) + (chaos["exponents"] or size) * (

@@ -143,6 +143,9 @@ SCAN_DOC = _lines(
     "                          chaos studies only: the initial-state coordinates of chaos.start (release: tilt, rad,",
     "                          in [0, pi]; spin_orbit: angle, rad); with scan.rate (the initial spin) they span the",
     "                          map: one orbit per point, run together in one scene (the other scan keys: scenes)",
+    "  state = {w3 = [0.5, 1.0], g2 = [0.1, 0.2]}",
+    "                          chaos.start = \"state\" only: named components of the model's state, each a list of",
+    "                          values replacing that component of chaos.state; the map spans them in the order given",
 )
 
 #: The docs of the models' parameters (units and positivity: :data:`tumble.registry.MODEL_PARAMETERS`).
@@ -223,6 +226,12 @@ def _chaos_fields():
             "number (scan.angle scans it). The rate (spin.rate, scan.rate) is the body's inertial spin about the",
             "orbit normal, rad/s (the synchronous spin at perigee is n (1 + e)^2 / (1 - e^2)^(3/2))."),
             units="rad", check="chaos_angle"),
+        Field("chaos", "state", [], _lines(
+            "state: the initial state, the model's components in order (model.kind's state: w1 w2 w3 then g1 g2 g3",
+            "for a heavy_top, q0 q1 q2 q3 for a gravity_gradient, s1 s2 s3 for a damper; w rad/s, the others as the",
+            "model defines them, used as given: a g or q not of unit length is not normalised). scan.state names the",
+            "components the map replaces, e.g. scan.state = {w3 = [0.5, 1.0], g2 = [0.1, 0.2]}."),
+            units="state units", check="chaos_state"),
         Field("chaos", "renormalise", 1.0, _lines(
             "lyapunov: seconds between two orthonormalisations of the tangent vectors, a positive multiple of",
             "integration.dt (the exponents do not depend on it beyond round-off)."),
@@ -338,7 +347,7 @@ FIELDS = (
         ("amplitude", "perturbation.amplitude", "rad"), ("method", "integration.method", ""),
         *((p.key, f"model.{p.key}", p.units) for p in registry.MODEL_PARAMETERS),
         ("k1", "body.moments", "1"), ("k3", "body.moments", "1"),
-        ("tilt", "chaos.tilt", "rad"), ("angle", "chaos.angle", "rad"))),
+        ("tilt", "chaos.tilt", "rad"), ("angle", "chaos.angle", "rad"), ("state", "chaos.state", "state units"))),
     Field("outputs", "figures", ["norm_growth", "summary"], _lines(
         "Figures to draw, any of: stability_map, norm_growth, flip_law, flip_components, invariant_drift,",
         "work_precision, summary ([] for none); and from the traced attitude of the first scene (one spin, its",
