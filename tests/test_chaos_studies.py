@@ -209,3 +209,15 @@ def test_bad_state_maps_name_the_field(chaos, state, field, words):
     with pytest.raises(StudyError) as refused:
         load_study(study)
     assert refused.value.field == field and words in refused.value.problem, str(refused.value)
+
+
+def test_a_line_of_initial_states_and_gali_alone(tmp_path):
+    """One coordinate scanned: megno_map draws <Y> against it; GALI alone draws no figure by default."""
+    line = {"model": {"kind": "heavy_top", "mgl": 1.0}, "integration": {"dt": 0.01, "horizon": 1.0},
+            "chaos": {"indicators": ["megno"]}, "scan": {"rate": [0.5, 1.0, 2.0]}}
+    ds = tumble.run_study(line, out=tmp_path, progress=False)
+    assert ds["megno"].dims == ("rate",) and (tmp_path / "untitled_study_megno_map.png").is_file()
+    alone = load_study({**line, "chaos": {"indicators": ["gali"], "gali_k": 3}})
+    assert alone["outputs"]["figures"] == []
+    with pytest.raises(StudyError, match="scan.tilt"):
+        load_study({**line, "scan": {}})

@@ -43,7 +43,8 @@ def _scenes(ds, name):
 
 
 def megno_map(ds, width=7.0):
-    """``<Y>`` over the map: one panel per scene (:func:`_scenes`), colour centred at 2."""
+    """``<Y>`` over the map: one panel per scene (:func:`_scenes`), colour centred at 2 (a map of one coordinate:
+    ``<Y>`` against it, with the regular value 2 dashed)."""
     scenes = _scenes(ds, "megno")
     fig = Figure(figsize=(min(width, 2.6 * len(scenes) + 1.2), 2.9))
     axes = fig.subplots(1, len(scenes), squeeze=False)[0]
@@ -53,21 +54,25 @@ def megno_map(ds, width=7.0):
     mesh = None
     for ax, (label, where) in zip(axes, scenes):
         scene = ds["megno"].isel(where)
-        dims = list(scene.dims)
-        if len(dims) == 1:
-            scene = scene.expand_dims("_", axis=1)
-            dims = [dims[0], "_"]
-        x, y = dims[0], dims[1]
-        xs = np.asarray(ds[x].values if x in ds.coords else [0.0], dtype=float)
-        ys = np.asarray(ds[y].values if y in ds.coords else [0.0], dtype=float)
+        x = scene.dims[0]
+        xs = np.asarray(ds[x].values, dtype=float)
+        ax.set_xlabel(_LABELS.get(x, x))
+        ax.set_title(label or f"{ds.attrs.get('model', '')}, T = {ds.attrs.get('t_end', float('nan')):g} s")
+        if scene.ndim == 1:  # a line of initial states: <Y> against its coordinate, coloured on the same scale
+            ax.plot(xs, scene.values, color="0.6", lw=0.6)
+            ax.scatter(xs, scene.values, c=scene.values, cmap="RdBu_r", norm=norm, s=12, zorder=3)
+            ax.axhline(2.0, color="k", lw=0.6, ls="--", label="2: regular")
+            ax.set_ylabel("MEGNO ⟨Y⟩")
+            continue
+        y = scene.dims[1]
+        ys = np.asarray(ds[y].values, dtype=float)
         mesh = ax.pcolormesh(xs, ys, np.asarray(scene.transpose(x, y).values, dtype=float).T, shading="nearest",
                              cmap="RdBu_r", norm=norm, rasterized=True)
-        ax.set_xlabel(_LABELS.get(x, x))
-        ax.set_ylabel(_LABELS.get(y, y) if y != "_" else "")
-        ax.set_title(label or f"{ds.attrs.get('model', '')}, T = {ds.attrs.get('t_end', float('nan')):g} s")
-    bar = layout.colorbar(fig, mesh, label="MEGNO ⟨Y⟩ (2: regular)",
-                          extend="max" if np.nanmax(values) > top else "neither")
-    bar.ax.axhline(2.0, color="k", lw=0.6)
+        ax.set_ylabel(_LABELS.get(y, y))
+    if mesh is not None:
+        bar = layout.colorbar(fig, mesh, label="MEGNO ⟨Y⟩ (2: regular)",
+                              extend="max" if np.nanmax(values) > top else "neither")
+        bar.ax.axhline(2.0, color="k", lw=0.6)
     return layout.fit(fig)
 
 

@@ -1011,7 +1011,11 @@ def herpolhode(ds):
 
 
 def _check_megno_map(ds):
-    return _missing(ds, "megno", "status")
+    reason = _missing(ds, "megno", "status")
+    scan = str(ds.attrs.get("scan_dims", "")).split()
+    if not reason and not [d for d in ds["megno"].dims if d not in scan]:
+        reason = "a map: 'megno' over at least one initial-state coordinate"
+    return reason
 
 
 @_figure(_check_megno_map)

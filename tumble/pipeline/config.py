@@ -953,7 +953,8 @@ def _check_chaos_study(resolved, given):
                                        f"{chaos['gali_k']}")
     outputs = resolved["outputs"]
     if "figures" not in given.get("outputs", {}):
-        outputs["figures"] = ["megno_map" if "megno" in chaos["indicators"] else "finite_time"]
+        drawn = [name for name, need in registry.CHAOS_FIGURES.items() if need in chaos["indicators"]]
+        outputs["figures"] = drawn[:1]  # megno_map, else finite_time, else none (GALI has no figure of its own)
     for i, name in enumerate(outputs["figures"]):
         need = registry.CHAOS_FIGURES.get(name)
         if need is None:
@@ -961,17 +962,9 @@ def _check_chaos_study(resolved, given):
                                                     f"{', '.join(registry.CHAOS_FIGURES)}")
         if need not in chaos["indicators"]:
             raise _Invalid(f"outputs.figures[{i}]", f"{name} needs {need!r} in chaos.indicators")
-    if start.name == "state":
-        if "megno_map" in outputs["figures"] and len(scan["state"]) < 2:
-            raise _Invalid("scan.state", "megno_map needs two components of the state scanned (the map's axes)")
-    elif name_of_map := [k for k in start.keys if k in scan]:
-        if "megno_map" in outputs["figures"] and len(name_of_map) < 2:
-            missing = next(k for k in start.keys if k not in scan)
-            raise _Invalid(f"scan.{missing}", f"megno_map needs both coordinates of chaos.start = {start.name!r} "
-                                              f"scanned: scan.{start.keys[0]} and scan.{start.keys[1]}")
-    elif "megno_map" in outputs["figures"]:
-        raise _Invalid(f"scan.{start.keys[0]}", f"megno_map needs the map: scan.{start.keys[0]} and "
-                                                f"scan.{start.keys[1]}")
+    if "megno_map" in outputs["figures"] and start.keys and not any(k in scan for k in start.keys):
+        raise _Invalid(f"scan.{start.keys[0]}", f"megno_map needs a map: scan.{start.keys[0]} and/or "
+                                                f"scan.{start.keys[1]} (a list of values each)")
 
 
 def _check_state_map(chaos, scan, kind, names):
