@@ -23,6 +23,8 @@ DATA = Path(__file__).parent / "data" / "bundled"
 # Overrides that keep each study's scenes (kinds, methods, torques, observers) with few samples.
 SMALL = {
     "amplitude_sweep": {"perturbation.samples": 32},
+    "chaos_map": {"scan.tilt": [0.5, 2.0], "scan.rate": [0.5, 1.0, 3.0], "integration.horizon": 10.0},
+    "hyperion": {"scan.angle": [0.0, 1.0], "scan.rate": [0.5, 1.0, 2.5], "integration.horizon": 10.0},
     "disc_wobble": {"perturbation.samples": 32},
     "dzhanibekov_flip": {"perturbation.samples": 16},
     "gyrostat_map": {"perturbation.samples": 16},

@@ -68,9 +68,11 @@ def test_defaults_load_and_validate(default_study):
     assert default_study["title"] == config.UNTITLED
     # A free-body study records no [model] table and no spin.momentum (its hash and file are as before the models)
     assert "model" not in default_study and "momentum" not in default_study["spin"]
+    # nor a [chaos] table: chaos.indicators = [] (not a chaos map)
+    assert "chaos" not in default_study and defaults["chaos"]["indicators"] == []
     assert defaults["model"]["kind"] == "free" and defaults["spin"]["momentum"] == []
     for table in config._TABLES:
-        if table not in ("scan", "model"):
+        if table not in ("scan", "model", "chaos"):
             expected = {k: v for k, v in defaults[table].items() if not (table == "spin" and k == "momentum")}
             assert default_study[table] == expected
     assert default_study["scan"] == {}

@@ -129,8 +129,11 @@ def model_scans():
     """The bundled model studies, run small: the datasets of the models' figures."""
     studies = {"gyrostat_map": "gyrostat_map", "sleeping_top": "sleeping_top", "debra_delp_map": "debra_delp_map",
                "pitch_libration": "gravity_gradient_pitch", "flat_spin": "explorer1"}  # figure: its study
-    return {figure: tumble.run_study(study, overrides={"perturbation.samples": 8}, progress=False)
-            for figure, study in studies.items()}
+    scans = {figure: tumble.run_study(study, overrides={"perturbation.samples": 8}, progress=False)
+             for figure, study in studies.items()}
+    chaos = tumble.run_study("chaos_map", overrides={"scan.tilt": [0.5, 2.0], "scan.rate": [0.5, 1.0, 3.0],
+                                                     "integration.horizon": 4.0, "chaos.points": 8}, progress=False)
+    return {**scans, "megno_map": chaos, "finite_time": chaos, "spectrum": chaos}
 
 
 def _assert_paper_axes(fig):
@@ -281,7 +284,8 @@ def test_can_draw_rejects_unknown_names(measured):
         plots.can_draw(measured, "nope")
     assert plots.FIGURES == ("stability_map", "norm_growth", "flip_law", "flip_components", "invariant_drift",
                              "work_precision", "summary", "flip_strip", "flip_animation", "polhode", "herpolhode",
-                             "gyrostat_map", "sleeping_top", "debra_delp_map", "pitch_libration", "flat_spin")
+                             "gyrostat_map", "sleeping_top", "debra_delp_map", "pitch_libration", "flat_spin",
+                             "megno_map", "finite_time", "spectrum")
     assert set(plots.ANIMATIONS) <= set(plots.FIGURES)
 
 

@@ -55,8 +55,17 @@ def test_every_described_field_has_a_doc_and_every_numeric_one_units():
 def _with(field, value):
     study = {field.table: {field.key: value}} if field.table else {field.key: value}
     if field.table == "model" and field.key != "kind":  # a kind's own parameter, only with that kind
-        owner = next(m.name for m in config.registry.MODELS if field.key in m.parameters)
+        owner = next(m.name for m in config.registry.MODELS
+                     if field.key in (*m.parameters, *config.models.CLASSES[m.name].extras))
         study["model"]["kind"] = owner
+        if owner == "heavy_top":
+            study["model"].setdefault("mgl", 1.0)
+            study["spin"] = {"axis": 3}
+        elif owner == "gravity_gradient":
+            study["model"].setdefault("orbit_rate", 1.0)
+    if field.table == "chaos" and field.key != "indicators":  # used by a chaos study only: a whole one
+        study = {"model": {"kind": "heavy_top", "mgl": 1.0}, "integration": {"dt": 0.01, "horizon": 1.0},
+                 "chaos": {"indicators": ["megno"], field.key: value}, "scan": {"tilt": [0.1, 0.2], "rate": [1.0]}}
     return study
 
 

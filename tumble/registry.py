@@ -8,8 +8,9 @@ checks that the kernels' coefficient tables agree with them.
 
 from typing import NamedTuple
 
-__all__ = ["ATTITUDE_FIGURES", "AUTO", "AUTO_STEPPING", "CHOICES", "DEFAULT_MODEL", "FIGURES", "FIGURE_MODELS",
-           "FIT_NAMES", "FORMATS", "FigureModel", "INDICATOR_STATUSES", "LIE_POISSON_MODELS", "METHODS", "MIN_AMPLITUDE", "MODELS",
+__all__ = ["ATTITUDE_FIGURES", "AUTO", "AUTO_STEPPING", "CHAOS_FIGURES", "CHAOS_INDICATORS", "CHAOS_STARTS", "CHOICES",
+           "DEFAULT_MODEL", "FIGURES", "FIGURE_MODELS", "FIT_NAMES", "FORMATS", "FigureModel", "INDICATOR_STATUSES",
+           "LIE_POISSON_MODELS", "METHODS", "MIN_AMPLITUDE", "MODELS",
            "MODEL_KINDS", "MODEL_PARAMETERS", "MODEL_STEPPING", "Method", "Model", "ModelParameter", "PER_SAMPLE_ARRAYS", "SAMPLE_STATUS_NAMES",
            "STATE_BLOCKS", "STATUSES", "STATUS_ABOVE", "STATUS_DRIFT", "STATUS_NAMES", "STATUS_NONFINITE", "STATUS_OK", "STEPPING",
            "Status", "TORQUE_PROFILES", "TORQUE_USER", "TorqueProfile", "amplitude_problem", "choose_method", "method",
@@ -193,7 +194,7 @@ def torque_profile(name):
 #: Figures of a result, in the order a report shows them (``outputs.figures``).
 FIGURES = ("stability_map", "norm_growth", "flip_law", "flip_components", "invariant_drift", "work_precision",
            "summary", "flip_strip", "flip_animation", "polhode", "herpolhode", "gyrostat_map", "sleeping_top",
-           "debra_delp_map", "pitch_libration", "flat_spin")
+           "debra_delp_map", "pitch_libration", "flat_spin", "megno_map", "finite_time", "spectrum")
 
 
 
@@ -214,6 +215,38 @@ FIGURE_MODELS = {
     "pitch_libration": FigureModel("gravity_gradient", "orbit_rate", "scan.orbit_rate (the orbital rates)"),
     "flat_spin": FigureModel("damper", None, ""),
 }
+
+#: The chaos indicators a study may ask for (``chaos.indicators``): :func:`tumble.megno`, :func:`tumble.lyapunov`,
+#: :func:`tumble.gali`.
+CHAOS_INDICATORS = ("megno", "lyapunov", "gali")
+
+#: The figures of a chaos study (``chaos.indicators`` not empty), each with the indicator it reads.
+CHAOS_FIGURES = {"megno_map": "megno", "finite_time": "lyapunov", "spectrum": "lyapunov"}
+
+
+class ChaosStart(NamedTuple):
+    """A parametrisation of a chaos study's initial states (``chaos.start``): the model kind it applies to ("": any)
+    and its coordinates (study keys: ``chaos.<key>`` and ``scan.<key>``; ``rate`` is ``spin.rate``; none: the state's
+    components named in ``scan.state``)."""
+
+    name: str
+    kind: str
+    keys: tuple  # the initial-state coordinates, in the order of the map's dimensions
+    text: str
+
+
+#: The parametrisations of a chaos study's initial states (``chaos.start``).
+CHAOS_STARTS = (
+    ChaosStart("release", "heavy_top", ("tilt", "rate"),
+               "a heavy top released with body axis 3 tilted by chaos.tilt from the vertical (about body axis 1) and "
+               "spinning at spin.rate about body axis 3"),
+    ChaosStart("spin_orbit", "gravity_gradient", ("angle", "rate"),
+               "a satellite in the orbit plane at perigee, turned by chaos.angle about the orbit normal from the orbit "
+               "frame and spinning at spin.rate (inertial) about it: the planar spin-orbit problem"),
+    ChaosStart("state", "", (),
+               "any model: the state chaos.state (the model's components in order), its components named in "
+               "scan.state replaced by each point of their grid"),
+)
 
 #: Figures drawn from the traced attitude of a study's first scene.
 ATTITUDE_FIGURES = ("flip_animation", "flip_strip", "polhode", "herpolhode")

@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..registry import SAMPLE_STATUS_NAMES
+from ..registry import SAMPLE_STATUS_NAMES, STATE_BLOCKS, STATUS_NAMES
 
-__all__ = ["CONFIDENCE", "COORDS", "INTERVAL_TEXT", "KIND_UNITS", "assemble_scan", "record_variables", "scene_dataset",
+__all__ = ["CHAOS_VARIABLES", "CONFIDENCE", "COORDS", "INTERVAL_TEXT", "KIND_UNITS", "assemble_scan", "chaos_dataset", "record_variables", "scene_dataset",
            "stack_records", "unstack_records", "variable_metadata"]
 
 #: Level of a scene's confidence interval of the median (distribution-free, from order statistics:
@@ -235,3 +235,70 @@ def unstack_records(stacked):
                     record[name] = np.asarray(strings[j], dtype=dtypes[j])
             records[i] = record
     return records
+
+
+#: A chaos record's entries (:func:`tumble.measure.chaos_scenes.scene_records`): ``name -> (units, long name, the
+#: dimensions after the map's)``; ``None`` dimensions: a coordinate of its own.
+CHAOS_VARIABLES = {
+    "megno": ("1", "mean MEGNO <Y> at the end (2: quasi-periodic, 0: near a stable periodic orbit, ~ lambda t / 2: "
+                   "chaotic)", ()),
+    "megno_lyapunov": ("1/s", "maximal Lyapunov exponent from the slope of <Y> (2 x slope)", ()),
+    "exponent": ("1/s", "Lyapunov exponent, sorted descending", ("index",)),
+    "finite_time": ("1/s", "finite-time Lyapunov exponent since the transient, sorted descending",
+                    ("time", "index")),
+    "gali": ("1", "GALI_k, the generalised alignment index", ("gali_time",)),
+    "status": ("1", "worst status of the orbit over the indicators (0: ok; tumble.megno's flags)", ()),
+    "finite_time_time": ("s", "time of the finite-time exponents", None),
+    "gali_time": ("s", "time of GALI", None),
+}
+
+
+def chaos_dataset(layout, records, grid):
+    """The Dataset of a chaos study from its scene records: every indicator over the map's dimensions (``grid``:
+    ``{name: coordinate values}``, the map's coordinates in order) after the scan's (``layout["swept"]``: the model's
+    parameters, the method), with the curves' dimensions last; the map's and the scan's values as coordinates;
+    attributes from the first scene (its parameters, method, step, horizon)."""
+    import xarray as xr
+
+    swept = layout["swept"]
+    scan_shape = tuple(len(v) for v in swept.values())
+    map_shape = tuple(len(v) for v in grid.values())
+    dims = (*swept, *grid)
+    units = {"tilt": "rad", "angle": "rad", "rate": "rad/s",
+             **{name: unit for letter, _, unit in STATE_BLOCKS for name in grid if name[0] == letter and name[1:].isdigit()}}
+    names = {"tilt": "release tilt of body axis 3 from the vertical", "rate": "initial spin rate",
+             "angle": "angle of the roll axis from the orbit frame about the orbit normal"}
+    first = records[0]
+    data, coords = {}, {}
+    for name, (unit, long_name, extra) in CHAOS_VARIABLES.items():
+        if name not in first:
+            continue
+        attrs = {"units": unit, "long_name": long_name}
+        if extra is None:
+            dim = "time" if name == "finite_time_time" else name  # the finite-time exponents' times: "time"
+            coords[dim] = xr.Variable((dim,), first[name], attrs)
+            continue
+        stacked = np.stack([np.asarray(r[name]) for r in records])
+        stacked = stacked.reshape(scan_shape + map_shape + stacked.shape[2:])
+        if name == "status":
+            attrs.update(flag_values=np.arange(len(STATUS_NAMES) + 1, dtype=np.int8),
+                         flag_meanings=" ".join(n.replace(" ", "_") for n in (*STATUS_NAMES, "megno above threshold")))
+            stacked = stacked.astype(np.int8)
+        data[name] = xr.Variable(dims + extra, stacked, attrs)
+    for name, values in grid.items():
+        coords[name] = xr.Variable((name,), np.asarray(values, dtype=float),
+                                   {"units": units.get(name, "1"), "long_name": names.get(name, name)})
+    for name, values in swept.items():
+        meta = variable_metadata("periodic", 1.0).get(name, ((), {"units": "1", "long_name": name}))[1]
+        coords[name] = xr.Variable((name,), np.asarray(values), meta)
+    if "exponent" in first:
+        coords["index"] = xr.Variable(("index",), np.arange(1, first["exponent"].shape[-1] + 1),
+                                      {"units": "1", "long_name": "exponent index (1: the largest)"})
+    attrs = {name[1:]: (value.item() if value.ndim == 0 else value) for name, value in first.items()
+             if name.startswith("@")}
+    attrs.update(map_dims=" ".join(grid), scan_dims=" ".join(swept))
+    for name, value in first.items():  # a parameter the scan fixed: a scalar coordinate
+        if not name.startswith("@") and name not in CHAOS_VARIABLES and name not in swept:
+            meta = variable_metadata("periodic", 1.0).get(name, ((), {"units": "1", "long_name": name}))[1]
+            coords[name] = xr.Variable((), value, meta)
+    return xr.Dataset(data, coords=coords, attrs=attrs)

@@ -39,10 +39,11 @@ from matplotlib.tri import Triangulation
 from .. import registry
 from ..physics import models, theory
 from . import attitude_figures as attitude_plots
+from . import chaos_figures as chaos_plots
 from . import io, layout
 
 __all__ = ["ANIMATIONS", "DOUBLE", "FIGURES", "SINGLE", "can_draw", "check_request", "flip_animation",
-           "flip_components", "flip_law", "flip_strip", "gyrostat_map", "herpolhode", "sleeping_top", "debra_delp_map",
+           "finite_time", "flip_components", "flip_law", "flip_strip", "gyrostat_map", "megno_map", "spectrum", "herpolhode", "sleeping_top", "debra_delp_map",
            "pitch_libration", "flat_spin", "invariant_drift", "norm_growth", "polhode", "save_figures",
            "stability_map", "summary", "work_precision"]
 
@@ -1006,6 +1007,39 @@ def herpolhode(ds):
     return attitude_plots.herpolhode(ds, width=SINGLE)
 
 
+# ------------------------------------------------------------------------------------------------ chaos maps
+
+
+def _check_megno_map(ds):
+    reason = _missing(ds, "megno", "status")
+    scan = str(ds.attrs.get("scan_dims", "")).split()
+    if not reason and not [d for d in ds["megno"].dims if d not in scan]:
+        reason = "a map: 'megno' over at least one initial-state coordinate"
+    return reason
+
+
+@_figure(_check_megno_map)
+def megno_map(ds):
+    """MEGNO over a chaos study's map of initial states (:func:`tumble.output.chaos_figures.megno_map`)."""
+    return chaos_plots.megno_map(ds, width=DOUBLE)
+
+
+def _check_lyapunov(ds):
+    return _missing(ds, "exponent", "finite_time", "time", "index")
+
+
+@_figure(_check_lyapunov)
+def finite_time(ds):
+    """Finite-time Lyapunov exponents against time (:func:`tumble.output.chaos_figures.finite_time`)."""
+    return chaos_plots.finite_time(ds, width=SINGLE)
+
+
+@_figure(_check_lyapunov)
+def spectrum(ds):
+    """The Lyapunov spectrum per orbit (:func:`tumble.output.chaos_figures.spectrum`)."""
+    return chaos_plots.spectrum(ds, width=SINGLE)
+
+
 # ------------------------------------------------------------------------------------------------ public
 
 
@@ -1013,7 +1047,8 @@ _DRAW = {"stability_map": stability_map, "norm_growth": norm_growth, "flip_law":
          "flip_components": flip_components, "invariant_drift": invariant_drift, "work_precision": work_precision,
          "summary": summary, "flip_strip": flip_strip, "flip_animation": flip_animation, "polhode": polhode,
          "herpolhode": herpolhode, "gyrostat_map": gyrostat_map, "sleeping_top": sleeping_top,
-         "debra_delp_map": debra_delp_map, "pitch_libration": pitch_libration, "flat_spin": flat_spin}
+         "debra_delp_map": debra_delp_map, "pitch_libration": pitch_libration, "flat_spin": flat_spin,
+         "megno_map": megno_map, "finite_time": finite_time, "spectrum": spectrum}
 
 
 def _check_name(name):

@@ -134,7 +134,7 @@ TRIANGLE_RANGE = (2, 200)
 #: study gives.
 _TABLES = schema.TABLES
 _TOP = ("title", *_TABLES)
-_SUBTABLES = {("body", "dimensions")}
+_SUBTABLES = {("body", "dimensions"), ("scan", "state")}
 _TABLE_ARRAYS = {("scan", "body")}
 
 #: Title of a study given as a mapping with ``title = ""`` (a file's default title is its stem).
@@ -614,6 +614,9 @@ def _scan(table, resolved):
     for key in SCAN_KEYS:
         if key not in table or key in MODEL_SCAN_KEYS or key in K_SCAN_KEYS:  # the models' keys: _model_scan
             continue
+        if key == "state":  # a chaos map's components: checked against the model's state (_chaos_state_scan)
+            out[key] = _state_scan(table[key])
+            continue
         field = f"scan.{key}"
         value = table[key]
         if key in ("body", "moments", "triangle") and shape:
@@ -637,6 +640,8 @@ def _scan(table, resolved):
             "rate": _rate,
             "amplitude": lambda v, f: _amplitude(v, f, distribution),
             "method": lambda v, f: _method(v, f, profile),
+            "tilt": _tilt,
+            "angle": _number,
         }[key]
         out[key] = _distinct([check(v, f"{field}[{i}]") for i, v in enumerate(items)], field, items)
     return out
@@ -651,10 +656,11 @@ def _model(table, given, scan):
     if not spec.implemented:
         raise _Invalid("model.kind", f"{kind!r} is reserved for a later issue and not implemented yet; "
                                      f"implemented: {', '.join(implemented)}")
+    extras = models.CLASSES[kind].extras if kind in models.CLASSES else ()
     for key in given:
-        if key != "kind" and key not in spec.parameters:
+        if key != "kind" and key not in spec.parameters and key not in extras:
             raise _Invalid(f"model.{key}", f"not a parameter of model kind {kind!r} (its parameters: "
-                                           f"{', '.join(spec.parameters) or 'none'}); remove it or change "
+                                           f"{', '.join((*spec.parameters, *extras)) or 'none'}); remove it or change "
                                            f"model.kind")
     for key in MODEL_SCAN_KEYS:
         if key in scan and key not in spec.parameters:
@@ -679,7 +685,22 @@ def _model(table, given, scan):
                 parameter = registry.model_parameter(key)
                 raise _Invalid(f"model.{key}", f"must be > 0 {parameter.units} for a {kind} ({parameter.text.split(': ', 1)[1]}), "
                                                f"got {out[key]!r}")
+    for key in extras:  # the physics class's own keys (centre, eccentricity): kept only where a study gives them
+        if key in given:
+            out[key] = _model_extra(kind, key, table[key])
     return out
+
+
+def _model_extra(kind, key, value):
+    """``model.centre`` (a heavy top's centre of mass, a non-zero 3-vector) or ``model.eccentricity`` (a gravity
+    gradient's orbit, in [0, 1)), checked by the model's own class."""
+    field = f"model.{key}"
+    value = _vector(value, field) if isinstance(value, list) else _number(value, field)
+    try:
+        models.CLASSES[kind]([1.0, 1.0, 1.0], *([1.0] * len(registry.model_kind(kind).parameters)), **{key: value})
+    except ValueError as err:
+        raise _Invalid(field, str(err)) from None
+    return value
 
 
 # The models' scalar parameters that must be > 0 (registry data: mgl, orbit_rate, damper_inertia, damping).
@@ -787,6 +808,14 @@ def _check_model_scenes(resolved, given):
                     raise _Invalid(field, f"{h} N m s lies across the spin axis ({axis_field} = {a}); a steady "
                                           f"spin needs the rotor along it (give h along axis {a} only, or numbers "
                                           f"in scan.rotor: h along each scene's axis)")
+    if any(x != 0.0 for x in model.get("centre", [0.0, 0.0, 1.0])[:2]):
+        raise _Invalid("model.centre", f"{model['centre']} is off body axis 3: no steady spin for a stability scene "
+                                       f"(the sleeping top needs it on axis 3); map it in a chaos study "
+                                       f"(chaos.indicators)")
+    if model.get("eccentricity", 0.0) > 0.0:
+        raise _Invalid("model.eccentricity", f"{model['eccentricity']!r} > 0: no attitude is an equilibrium of an "
+                                             f"eccentric orbit, so no stability scene; map it in a chaos study "
+                                             f"(chaos.indicators)")
     if "k1" in scan and resolved["body"]["shape"]:
         raise _Invalid("scan.k1", f"scans bodies, but body.shape = {resolved['body']['shape']!r} fixes the body; use "
                                   f"one of them")
@@ -815,6 +844,144 @@ def _check_model_scenes(resolved, given):
         if name not in MODEL_FIGURES:
             raise _Invalid(f"outputs.figures[{i}]", f"{name!r} reads what only free-body scenes record; a model "
                                                     f"study draws {', '.join(MODEL_FIGURES)}")
+
+
+def _tilt(value, field):
+    x = _number(value, field)
+    if not 0.0 <= x <= math.pi:
+        raise _Invalid(field, f"must lie in [0, pi] rad (the tilt of body axis 3 from the vertical), got {x!r}")
+    return x
+
+
+#: The scan keys of a chaos study's initial states (chaos.indicators not empty).
+_CHAOS_SCAN_KEYS = (*(key for start in registry.CHAOS_STARTS for key in start.keys if key != "rate"), "state")
+
+
+def _state_scan(value):
+    """``scan.state``: a table of state components, each a non-empty list of distinct numbers (the names are checked
+    against the model's state by :func:`_check_chaos_study`)."""
+    if not isinstance(value, Mapping) or not value:
+        raise _Invalid("scan.state", "must be a table of state components, each a list of values, e.g. "
+                                     "{w3 = [0.5, 1.0], g2 = [0.1, 0.2]}")
+    out = {}
+    for name, items in value.items():
+        field = f"scan.state.{name}"
+        items = _array(items, field, empty=False)
+        out[name] = _distinct([_number(v, f"{field}[{i}]") for i, v in enumerate(items)], field, items)
+    return out
+
+
+def _chaos_state(value, field):
+    """``chaos.state``: numbers (the length is checked against the model's state by :func:`_check_chaos_study`)."""
+    return [_number(x, f"{field}[{i}]") for i, x in enumerate(_array(value, field))]
+
+
+def _chaos(study, given, resolved):
+    """The ``[chaos]`` table (None when ``chaos.indicators`` is empty: not a chaos study, which then may give none of
+    its keys nor scan.tilt / scan.angle)."""
+    indicators = _described(study, schema.field("chaos.indicators"))
+    if not indicators:
+        for key in given.get("chaos", {}):
+            if key != "indicators":
+                raise _Invalid(f"chaos.{key}", "is used by a chaos study only; set chaos.indicators (e.g. "
+                                               "[\"megno\"]) or remove it")
+        for key in _CHAOS_SCAN_KEYS:
+            if key in resolved["scan"]:
+                raise _Invalid(f"scan.{key}", "scans a chaos study's initial states; set chaos.indicators (e.g. "
+                                              "[\"megno\"])")
+        return None
+    dt, horizon = resolved["integration"]["dt"], resolved["integration"]["horizon"]
+    if dt <= 0:
+        raise _Invalid("integration.dt", "a chaos study steps its orbits and their tangents with a fixed step: give "
+                                         "one > 0 s (0, the planner's choice, is the stability scenes')")
+    if horizon <= 0:
+        raise _Invalid("integration.horizon", "a chaos study needs the time each orbit runs: give one > 0 s")
+
+    def multiple(value, field):
+        x = _number(value, field)
+        ratio = x / dt
+        if x <= 0 or round(ratio) < 1 or abs(ratio - round(ratio)) > 1e-9 * max(ratio, 1.0):
+            raise _Invalid(field, f"must be a positive multiple of integration.dt = {dt:g} s, got {x!r}")
+        return x
+
+    def transient(value, field):
+        x = _number(value, field)
+        if not 0.0 <= x < horizon:
+            raise _Invalid(field, f"must be >= 0 s and less than integration.horizon = {horizon:g} s, got {x!r}")
+        return x
+
+    return _table(study, "chaos", {"indicators": lambda value, field: indicators, "tilt": _tilt, "angle": _number,
+                                   "state": _chaos_state, "renormalise": multiple, "transient": transient})
+
+
+def _check_chaos_study(resolved, given):
+    """What a chaos study's map needs: a model of its start's kind, an explicit Runge-Kutta method, no torque, no
+    scan of bodies' axes, an exponent count and a GALI k within the state, its own figures."""
+    chaos, scan, model = resolved["chaos"], resolved["scan"], resolved["model"]
+    start = next(s for s in registry.CHAOS_STARTS if s.name == chaos["start"])
+    kind = model["kind"] if model is not None else registry.DEFAULT_MODEL
+    if start.kind and kind != start.kind:
+        raise _Invalid("chaos.start", f"{start.name!r} starts a {start.kind} (model.kind = {start.kind!r}), not a "
+                                      f"{kind}; the starts: " + ", ".join(f"{s.name} ({s.kind})"
+                                                                          for s in registry.CHAOS_STARTS))
+    for key in _CHAOS_SCAN_KEYS:
+        if key in scan and key not in start.keys and not (key == "state" and start.name == "state"):
+            raise _Invalid(f"scan.{key}", f"is no coordinate of chaos.start = {start.name!r} (its coordinates: "
+                                          f"{', '.join(start.keys) or 'the components named in scan.state'})")
+    names = registry.model_kind(kind).state
+    if start.name == "state":
+        _check_state_map(chaos, scan, kind, names)
+    for key in ("axis", "amplitude", "body", "moments", "triangle", "k1", "k3"):
+        if key in scan:
+            raise _Invalid(f"scan.{key}", "not in a chaos study: its map scans the initial states of chaos.start "
+                                          f"({', '.join(start.keys)}) and the model's parameters")
+    if resolved["torque"]["profile"] != "none":
+        raise _Invalid("torque.profile", "must be 'none' in a chaos study (the model's own forces act)")
+    methods = ([(f"scan.method[{i}]", m) for i, m in enumerate(scan["method"])] if "method" in scan
+               else [("integration.method", resolved["integration"]["method"])])
+    runge_kutta = [m.name for m in registry.METHODS if m.family == "runge_kutta"]
+    for field, m in methods:
+        if m not in ("auto", *runge_kutta):
+            raise _Invalid(field, f"a chaos study steps its tangents with an explicit Runge-Kutta method, one of "
+                                  f"{', '.join(runge_kutta)} ('auto': rk4), got {m!r}")
+    n = len(registry.model_kind(kind).state)
+    if chaos["exponents"] > n:
+        raise _Invalid("chaos.exponents", f"must be at most {n} (the state of a {kind}: "
+                                          f"{', '.join(registry.model_kind(kind).state)}), got {chaos['exponents']}")
+    if chaos["gali_k"] > n:
+        raise _Invalid("chaos.gali_k", f"must be at most {n} (the state of a {kind} has {n} components), got "
+                                       f"{chaos['gali_k']}")
+    outputs = resolved["outputs"]
+    if "figures" not in given.get("outputs", {}):
+        drawn = [name for name, need in registry.CHAOS_FIGURES.items() if need in chaos["indicators"]]
+        outputs["figures"] = drawn[:1]  # megno_map, else finite_time, else none (GALI has no figure of its own)
+    for i, name in enumerate(outputs["figures"]):
+        need = registry.CHAOS_FIGURES.get(name)
+        if need is None:
+            raise _Invalid(f"outputs.figures[{i}]", f"{name!r} is not a chaos study's figure; a chaos study draws "
+                                                    f"{', '.join(registry.CHAOS_FIGURES)}")
+        if need not in chaos["indicators"]:
+            raise _Invalid(f"outputs.figures[{i}]", f"{name} needs {need!r} in chaos.indicators")
+    if "megno_map" in outputs["figures"] and start.keys and not any(k in scan for k in start.keys):
+        raise _Invalid(f"scan.{start.keys[0]}", f"megno_map needs a map: scan.{start.keys[0]} and/or "
+                                                f"scan.{start.keys[1]} (a list of values each)")
+
+
+def _check_state_map(chaos, scan, kind, names):
+    """chaos.start = "state": chaos.state is a whole state of the model, scan.state names its components, and
+    spin.rate is not a coordinate of the map."""
+    if len(chaos["state"]) != len(names):
+        raise _Invalid("chaos.state", f"must hold the {len(names)} components of a {kind}'s state "
+                                      f"({', '.join(names)}), got {len(chaos['state'])}")
+    if "rate" in scan:
+        raise _Invalid("scan.rate", "not with chaos.start = 'state': scan the spin's components in scan.state "
+                                    "(e.g. w3)")
+    if "state" not in scan:
+        raise _Invalid("scan.state", "chaos.start = 'state' maps the components named here, e.g. "
+                                     "{w3 = [0.5, 1.0], g2 = [0.1, 0.2]}")
+    for name in scan["state"]:
+        if name not in names:
+            raise _Invalid(f"scan.state.{name}", f"is no component of a {kind}'s state ({', '.join(names)})")
 
 
 def _described(study, field):
@@ -871,7 +1038,10 @@ def _resolve(study, given, title):
     resolved["scan"] = _scan(study["scan"], resolved)
     resolved["scan"].update(_model_scan(study["scan"]))
     resolved["outputs"] = _table(study, "outputs")
-    if resolved["model"] is not None:
+    resolved["chaos"] = _chaos(study, given, resolved)
+    if resolved["chaos"] is not None:
+        _check_chaos_study(resolved, given)
+    elif resolved["model"] is not None:
         _check_model_scenes(resolved, given)
     return {key: resolved[key] for key in _TOP if resolved[key] is not None}
 

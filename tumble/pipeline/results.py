@@ -15,13 +15,13 @@ from ..measure import records as scene_records
 from ..output import io
 from . import checkpoint
 
-__all__ = ["PER_SAMPLE", "result_dataset", "stage_result", "summary_table"]
+__all__ = ["CHAOTIC_MEGNO", "PER_SAMPLE", "chaos_summary", "result_dataset", "stage_result", "summary_table"]
 
 #: Per-sample variables a result may keep (``outputs.arrays``); the rest are dropped after the fit.
 PER_SAMPLE = registry.PER_SAMPLE_ARRAYS
 
 
-def result_dataset(records, *, layout, scanned, body_coords, resolved, extras=()):
+def result_dataset(records, *, layout, scanned, body_coords, resolved, extras=(), grid=None):
     # size: the records and what places them (the scan's layout, whether it is one, its body coordinates)
     """The result dataset of a study from its scene records (:func:`tumble.pipeline.runner.run_scenes`).
 
@@ -35,7 +35,14 @@ def result_dataset(records, *, layout, scanned, body_coords, resolved, extras=()
         The resolved study: its ``outputs.arrays`` (the per-sample arrays kept) and ``title``.
     extras : sequence of xarray.Dataset
         Merged in (the traces some figures draw: invariant drift, attitude, flat spin, work-precision).
+    grid : dict, optional
+        A chaos study's map (name -> coordinate values, :meth:`tumble.pipeline.runner.ChaosScenes.result_shape`):
+        its records hold the indicators of the map's points (:func:`tumble.measure.records.chaos_dataset`).
     """
+    if grid is not None:
+        ds = checkpoint.normalise_scene(scene_records.chaos_dataset(layout, records, grid))
+        ds.attrs["title"] = resolved["title"]
+        return ds
     if scanned:
         ds = scene_records.assemble_scan(layout, records, body_coords)
     else:
@@ -91,7 +98,10 @@ def _only(variable):
 
 
 def summary_table(ds, limit=24):
-    """Measured against theory, as text: one line per scene, or per kind for a scan of more than ``limit``."""
+    """Measured against theory, as text: one line per scene, or per kind for a scan of more than ``limit``; a chaos
+    map's indicators (:func:`chaos_summary`)."""
+    if "kind" not in ds:  # no linear-theory kind: a chaos map
+        return chaos_summary(ds)
     rate = np.atleast_1d(ds.rate.values)
     kinds, errors = np.atleast_1d(ds.kind.values).astype(str), np.atleast_1d(ds.rel_error.values)
     lines = []
@@ -131,4 +141,32 @@ def summary_table(ds, limit=24):
     if "flip_first" in ds and np.isfinite(ds.flip_first.values).any() and ds.flip_first.size == 1:
         lines.append(f"first flip {_only(ds.flip_first):.4g} s (asymptote {_only(ds.flip_first_asymptote):.4g} s), "
                      f"then every {_only(ds.flip_spacing):.6g} s (exact 2K/nu {_only(ds.flip_spacing_exact):.6g} s)")
+    return "\n".join(lines)
+
+
+#: MEGNO above which a chaos map's summary counts an orbit chaotic (2 is the regular value; the threshold leaves
+#: room for the slow approach to 2 over a finite horizon).
+CHAOTIC_MEGNO = 4.0
+
+
+def chaos_summary(ds):
+    """A chaos map as text: its size, the share of chaotic orbits (``<Y>`` > :data:`CHAOTIC_MEGNO`), the range of the
+    largest exponent, the orbits that stopped."""
+    lines = [f"chaos map of {ds.attrs.get('model', 'a model')}: " + " x ".join(
+        f"{dim} ({ds.sizes[dim]})" for dim in ds["status"].dims) + f", T = {ds.attrs.get('t_end', float('nan')):g} s"]
+    if "megno" in ds:
+        megno = np.asarray(ds["megno"].values, dtype=float)
+        lines.append(f"MEGNO <Y>: median {np.nanmedian(megno):.3g}, {np.mean(megno > CHAOTIC_MEGNO):.0%} of the orbits "
+                     f"above {CHAOTIC_MEGNO:g} (chaotic), {np.mean(megno <= CHAOTIC_MEGNO):.0%} regular")
+    if "exponent" in ds:
+        largest = np.asarray(ds["exponent"].isel(index=0).values, dtype=float)
+        lines.append(f"largest Lyapunov exponent: {np.nanmin(largest):.3g} to {np.nanmax(largest):.3g} 1/s "
+                     f"(median {np.nanmedian(largest):.3g}); spectrum sum (median) "
+                     f"{np.nanmedian(ds['exponent'].sum('index').values):.2e} 1/s")
+    if "gali" in ds:
+        final = np.asarray(ds["gali"].isel(gali_time=-1).values, dtype=float)
+        lines.append(f"GALI at the end: median {np.nanmedian(final):.3g}")
+    stopped = int(np.count_nonzero(np.asarray(ds["status"].values) != 0))
+    if stopped:
+        lines.append(f"{stopped} orbit(s) stopped early (non-finite or a lost tangent direction; see status)")
     return "\n".join(lines)

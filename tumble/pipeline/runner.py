@@ -35,14 +35,14 @@ from ..engine.ensemble import torque_spec
 from ..engine.sampling import CHUNK
 from ..engine import cost
 from ..engine.progress import tqdm
-from ..measure import model_scenes
+from ..measure import chaos_scenes, model_scenes
 from ..measure import planning, reduction, running, scans, traces
-from ..physics import exact, theory
+from ..physics import exact, models, theory
 from ..registry import STEPPING
 from . import checkpoint, config, results, schema
 from .config import StudyError
 
-__all__ = ["DEFAULT_CHUNK_SAMPLES", "PER_SAMPLE", "TRACE_FIGURES", "FreeScenes", "ModelSceneOptions", "ModelScenes",
+__all__ = ["DEFAULT_CHUNK_SAMPLES", "PER_SAMPLE", "TRACE_FIGURES", "ChaosScenes", "FreeScenes", "ModelSceneOptions", "ModelScenes",
            "Outputs", "PreparedStudy", "SceneOptions", "Task",
            "chunk_samples_size", "compute_samples", "compute_scenes", "compute_task", "default_chunk_scenes",
            "execute_study", "needs_traces", "open_checkpoint", "output_stem", "plan", "plan_tasks", "prepare_study",
@@ -175,8 +175,10 @@ def plan(resolved, file="<mapping>"):
 
 
 def _scene_kind(resolved):
-    """What plans, runs and reduces the scenes of a resolved study: the one switch between free-body scenes and
-    model scenes (a study with a ``[model]`` table)."""
+    """What plans, runs and reduces the scenes of a resolved study: the one switch between free-body scenes, model
+    scenes (a study with a ``[model]`` table) and chaos maps (a study with ``chaos.indicators``)."""
+    if "chaos" in resolved:
+        return ChaosScenes(resolved.get("model", {"kind": registry.DEFAULT_MODEL})["kind"], resolved["chaos"]["start"])
     return ModelScenes(resolved["model"]["kind"]) if "model" in resolved else FreeScenes()
 
 
@@ -289,6 +291,14 @@ class FreeScenes:
         """Samples the first range of a split scene holds at least: the norm curve's (:data:`planning.SLICE`)."""
         return min(planning.SLICE, job.samples) if "norm" in job.options.curves else 0
 
+    def cost(self, resolved, flips=None):
+        """:func:`study_cost` of a stability study (:func:`_stability_cost`)."""
+        return _stability_cost(resolved, self, flips)
+
+    def result_shape(self, job):
+        """What places the records in the result besides the scan's layout: nothing more."""
+        return {}
+
 
 @dataclass(frozen=True)
 class ModelScenes:
@@ -352,6 +362,105 @@ class ModelScenes:
         """0: a model scene keeps no norm curve."""
         return 0
 
+    cost = FreeScenes.cost
+    result_shape = FreeScenes.result_shape
+
+
+@dataclass(frozen=True)
+class ChaosScenes:
+    """The scenes of a chaos study (``chaos.indicators``; model ``kind``, initial states by ``start``): maps of chaos
+    indicators, planned, run and reduced by :mod:`tumble.measure.chaos_scenes`. The same methods as
+    :class:`FreeScenes`: a scene is one combination of the scanned model parameters and methods, its samples the
+    points of the map of initial states (:func:`tumble.measure.chaos_scenes.map_grid`)."""
+
+    kind: str
+    start: str
+
+    #: Every orbit steps (with its tangent vectors).
+    always_steps = True
+
+    def only_exponential(self, resolved):
+        """False: a chaos map has no linear-theory kind."""
+        return False
+
+    def _values(self, resolved):
+        """The map's coordinates, the model's parameters and the method: one value each or the scan's list."""
+        scan, model, chaos = resolved["scan"], resolved.get("model"), resolved["chaos"]
+        keys = next(s for s in registry.CHAOS_STARTS if s.name == self.start).keys
+        values = {key: scan.get(key, resolved["spin"]["rate"] if key == "rate" else chaos[key]) for key in keys}
+        if not keys:  # chaos.start = "state": the components scan.state names
+            values = dict(scan["state"])
+        model = model or {}
+        params = {key: scan.get(key, model[key]) for key in registry.model_kind(self.kind).parameters}
+        extras = {key: model[key] for key in models.CLASSES[self.kind].extras if key in model}
+        return values, params, extras
+
+    def plan(self, resolved, file):
+        """:func:`plan` of a chaos study: the model's parameters (and the method) are the scan's dimensions, the
+        map's coordinates its samples."""
+        scan = resolved["scan"]
+        points, params, extras = self._values(resolved)
+        values = {"method": scan.get("method", resolved["integration"]["method"]), **params}
+        options = {**resolved["chaos"], "dt": resolved["integration"]["dt"],
+                   "horizon": resolved["integration"]["horizon"], "device": resolved["integration"]["device"],
+                   "extras": extras, "points_of_map": points}
+        scanned = [key for key in values if key in scan]
+        n = len(next(iter(chaos_scenes.map_grid(self.start, points)[2].values())))
+        moments = config.resolve_body(resolved).moments
+        return StudyPlan(moments, None, values, options, scanned, n, resolved["perturbation"]["seed"], self)
+
+    def layout(self, p):
+        """:func:`tumble.measure.model_scenes.scan_layout` of the scanned parameters and methods."""
+        return model_scenes.scan_layout(p.moments, p.values, p.scanned)
+
+    def planner(self, job):
+        """None: a chaos scene is planned on its own (:meth:`scene`)."""
+
+    def scene(self, job, index, moments, params, planner=None):
+        """:func:`tumble.measure.chaos_scenes.scene_plan` of one scene (``params``: its method and parameters)."""
+        options = job.options
+        parameters = {key: params[key] for key in registry.model_kind(self.kind).parameters}
+        _, _, points = chaos_scenes.map_grid(self.start, options["points_of_map"])
+        coords = {key: params[key] for key in job.plan.scanned}
+        return chaos_scenes.scene_plan(self.kind, moments, {**parameters, **options["extras"]}, self.start, points,
+                                       options, params["method"], coords)
+
+    def batch(self, job, indices, *, progress=False):
+        """The records of whole scenes: each scene's points in one run."""
+        scenes = [_scene_plan(job, i) for i in indices]
+        return chaos_scenes.scene_records(scenes, [[self.samples(s, 0, len(s.states))] for s in scenes])
+
+    def samples(self, scene, start, stop, *, progress=False):
+        """Points ``[start, stop)`` of a scene's map (:func:`tumble.measure.chaos_scenes.scene_samples`)."""
+        return chaos_scenes.scene_samples(scene, start, stop)
+
+    def records(self, scenes, parts):
+        """:func:`tumble.measure.chaos_scenes.scene_records`."""
+        return chaos_scenes.scene_records(scenes, parts)
+
+    def first_samples(self, job):
+        """0: a map's ranges may start anywhere."""
+        return 0
+
+    def cost(self, resolved, flips=None):
+        """:class:`tumble.engine.cost.Cost` of the maps: every point of every scene with its tangent vectors over the
+        horizon, the finite-time curves kept."""
+        points, params, _ = self._values(resolved)
+        chaos, integ, scan = resolved["chaos"], resolved["integration"], resolved["scan"]
+        n_points = len(next(iter(chaos_scenes.map_grid(self.start, points)[2].values())))
+        scenes = math.prod(len(scan[key]) for key in ("method", *params) if key in scan)
+        size = len(registry.model_kind(self.kind).state)
+        vectors = 1 * ("megno" in chaos["indicators"]) + (chaos["exponents"] or size) * (
+            "lyapunov" in chaos["indicators"]) + chaos["gali_k"] * ("gali" in chaos["indicators"])
+        steps = integ["horizon"] / integ["dt"] * (1 + vectors)
+        estimate = cost.run_cost(n_points * scenes, steps, stored=chaos["points"] * size)
+        return estimate._replace(peak_bytes=estimate.peak_bytes + cost.RUN_FOOTPRINT)
+
+    def result_shape(self, job):
+        """The map's coordinates (``grid``: name -> values), which shape each record's points."""
+        dims, coordinates, _ = chaos_scenes.map_grid(self.start, job.options["points_of_map"])
+        return {"grid": {name: coordinates[name].tolist() for name in dims}}
+
 
 #: The study field a refusal names, by the bound it broke (:class:`tumble.engine.cost.TooLarge`).
 _BOUND_FIELDS = {"scenes": "scan", "steps": "integration", "memory": "perturbation.samples",
@@ -359,6 +468,12 @@ _BOUND_FIELDS = {"scenes": "scan", "steps": "integration", "memory": "perturbati
 
 
 def study_cost(resolved, *, flips=None):
+    """:class:`tumble.engine.cost.Cost` of a resolved study, from its fields alone: its scene kind's estimate
+    (:func:`_stability_cost` for the stability scenes)."""
+    return _scene_kind(resolved).cost(resolved, flips)
+
+
+def _stability_cost(resolved, scenes_kind, flips=None):
     """:class:`tumble.engine.cost.Cost` of a resolved study, from its fields alone (no scene is planned, so
     this takes microseconds whatever the study's size; ``flips`` replaces ``integration.flips``). Its memory is
     the model of :func:`tumble.measure.planning.scene_estimate` (the worst kind the study may hold) plus the run's
@@ -374,7 +489,6 @@ def study_cost(resolved, *, flips=None):
     scenes *= math.prod(len(scan[key]) for key in config.MODEL_SCAN_KEYS if key in scan)
     methods = scan.get("method", [integ["method"]])
     stepping = [m for m in methods if m in STEPPING]
-    scenes_kind = _scene_kind(resolved)
     if (resolved["torque"]["profile"] != "none" or scenes_kind.always_steps) and not stepping:
         stepping = [registry.AUTO_STEPPING]  # a torque or a model steps (rk4 for "auto")
     rate = abs(max(scan.get("rate", [resolved["spin"]["rate"]]), key=abs))
@@ -815,7 +929,8 @@ def _compile_the_attitude_with_the_scenes(resolved, job):
 def _result_shape(job):
     """What places a study's records in its dataset (:func:`tumble.pipeline.results.result_dataset`'s keywords),
     as plain data."""
-    return {"layout": job.layout, "scanned": job.scanned, "body_coords": job.body_coords}
+    return {"layout": job.layout, "scanned": job.scanned, "body_coords": job.body_coords,
+            **job.scenes.result_shape(job)}
 
 
 def _result_dataset(records, job, resolved, extras=()):

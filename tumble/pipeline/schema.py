@@ -139,6 +139,13 @@ SCAN_DOC = _lines(
     "                          (I1 = (1 - k3)/(1 - k1 k3), I3 = (1 - k1)/(1 - k1 k3): every point of the open square",
     "                          is a body); the result's body dimension has coordinates k1, k3. Not with body,",
     "                          moments, triangle or body.shape",
+    "  tilt = [0.1, 0.2]  angle = [0.0, 0.5]",
+    "                          chaos studies only: the initial-state coordinates of chaos.start (release: tilt, rad,",
+    "                          in [0, pi]; spin_orbit: angle, rad); with scan.rate (the initial spin) they span the",
+    "                          map: one orbit per point, run together in one scene (the other scan keys: scenes)",
+    "  state = {w3 = [0.5, 1.0], g2 = [0.1, 0.2]}",
+    "                          chaos.start = \"state\" only: named components of the model's state, each a list of",
+    "                          values replacing that component of chaos.state; the map spans them in the order given",
 )
 
 #: The docs of the models' parameters (units and positivity: :data:`tumble.registry.MODEL_PARAMETERS`).
@@ -181,7 +188,67 @@ def _model_fields():
     for p in registry.MODEL_PARAMETERS:
         default = [0.0] * p.size if p.size > 1 else 0.0
         fields.append(Field("model", p.key, default, _MODEL_DOCS[p.key], units=p.units, check="model_parameter"))
+    fields += [
+        Field("model", "centre", [0.0, 0.0, 1.0], _lines(
+            "heavy_top: direction of the centre of mass from the pivot, body axes (a non-zero 3-vector, normalised).",
+            "Off body axis 3 only in a chaos study (chaos.indicators): the sleeping top needs it on axis 3."),
+            units="1", check="model_extra"),
+        Field("model", "eccentricity", 0.0, _lines(
+            "gravity_gradient: eccentricity e of the orbit, in [0, 1) (perigee at t = 0; orbit_rate is the mean",
+            "motion). Above 0 only in a chaos study (chaos.indicators): no attitude is then an equilibrium."),
+            units="1", check="model_extra"),
+    ]
     return fields
+
+
+def _chaos_fields():
+    """``[chaos]``: the indicators a study maps and how each point of its map becomes an initial state."""
+    starts = registry.CHAOS_STARTS
+    return (
+        Field("chaos", "indicators", [], _lines(
+            "Chaos indicators to map, any of: megno (mean MEGNO <Y>: 2 regular, 0 near a stable periodic orbit,",
+            "growing like lambda t / 2 when chaotic), lyapunov (the Lyapunov spectrum, and its finite-time",
+            "exponents over time), gali (GALI_k over time). [] (the default): not a chaos study, every key below",
+            "unused. A chaos study needs a [model] with a chaos.start of its kind, a fixed integration.dt > 0 and",
+            "integration.horizon > 0 (the time each orbit runs), an explicit Runge-Kutta integration.method (rk4,",
+            "rk8; \"auto\": rk4); it draws megno_map, finite_time, spectrum (default: megno_map when megno is asked",
+            "for, else finite_time when lyapunov is, else none). Each point of the map (scan.<coordinate> x scan.rate, see [scan]) is one",
+            "initial state, run with every other; the perturbation table is not used."),
+            choices=registry.CHAOS_INDICATORS, check="names"),
+        Field("chaos", "start", starts[0].name, "How a point of the map becomes an initial state:\n" + "".join(
+            _lines(f'  "{s.name}" ({s.kind}; coordinates {", ".join(s.keys)}): {s.text}') for s in starts),
+            choices=tuple(s.name for s in starts), check="choice"),
+        Field("chaos", "tilt", 0.5, _lines(
+            'release: tilt of body axis 3 from the vertical, rad, in [0, pi] (scan.tilt scans it).'),
+            units="rad", check="chaos_tilt"),
+        Field("chaos", "angle", 0.0, _lines(
+            "spin_orbit: angle of the body's roll axis from the orbit frame's about the orbit normal, rad, any finite",
+            "number (scan.angle scans it). The rate (spin.rate, scan.rate) is the body's inertial spin about the",
+            "orbit normal, rad/s (the synchronous spin at perigee is n (1 + e)^2 / (1 - e^2)^(3/2))."),
+            units="rad", check="chaos_angle"),
+        Field("chaos", "state", [], _lines(
+            "state: the initial state, the model's components in order (model.kind's state: w1 w2 w3 then g1 g2 g3",
+            "for a heavy_top, q0 q1 q2 q3 for a gravity_gradient, s1 s2 s3 for a damper; w rad/s, the others as the",
+            "model defines them, used as given: a g or q not of unit length is not normalised). scan.state names the",
+            "components the map replaces, e.g. scan.state = {w3 = [0.5, 1.0], g2 = [0.1, 0.2]}."),
+            units="state units", check="chaos_state"),
+        Field("chaos", "renormalise", 1.0, _lines(
+            "lyapunov: seconds between two orthonormalisations of the tangent vectors, a positive multiple of",
+            "integration.dt (the exponents do not depend on it beyond round-off)."),
+            units="s", check="chaos_renormalise"),
+        Field("chaos", "transient", 0.0, _lines(
+            "lyapunov: seconds before the exponents' sums start, >= 0 and less than integration.horizon."),
+            units="s", check="chaos_transient"),
+        Field("chaos", "exponents", 0, _lines(
+            "lyapunov: how many exponents (the largest first), 1 to the state's size; 0: the whole spectrum."),
+            units="1 (count)", check="integer", minimum=0),
+        Field("chaos", "gali_k", 2, _lines("gali: the number k of tangent vectors of GALI_k, 2 to the state's size."),
+              units="1 (count)", check="integer", minimum=2),
+        Field("chaos", "points", 40, _lines(
+            "lyapunov and gali: about how many times the finite-time exponents and GALI are stored, >= 1 (evenly in",
+            "steps; the finite_time figure draws them on log axes)."),
+            units="1 (count)", check="integer", minimum=1),
+    )
 
 
 #: Every field of a study, table by table, in the order of the defaults file and of the resolved study.
@@ -252,6 +319,7 @@ FIELDS = (
         "falls",
         "back to the CPU silently. tumble run --device overrides it."),
         choices=registry.DEVICES, check="choice", option="device"),
+    *_chaos_fields(),
     Field("torque", "profile", "none", _lines(
         "Body-frame torque N(t), one of the named profiles (no code in studies):",
         '  "none"     N = 0 (torque-free; `vector` must then be zero)',
@@ -278,7 +346,8 @@ FIELDS = (
         ("axis", "spin.axis", "1 (1-based axis)"), ("rate", "spin.rate", "rad/s"),
         ("amplitude", "perturbation.amplitude", "rad"), ("method", "integration.method", ""),
         *((p.key, f"model.{p.key}", p.units) for p in registry.MODEL_PARAMETERS),
-        ("k1", "body.moments", "1"), ("k3", "body.moments", "1"))),
+        ("k1", "body.moments", "1"), ("k3", "body.moments", "1"),
+        ("tilt", "chaos.tilt", "rad"), ("angle", "chaos.angle", "rad"), ("state", "chaos.state", "state units"))),
     Field("outputs", "figures", ["norm_growth", "summary"], _lines(
         "Figures to draw, any of: stability_map, norm_growth, flip_law, flip_components, invariant_drift,",
         "work_precision, summary ([] for none); and from the traced attitude of the first scene (one spin, its",
