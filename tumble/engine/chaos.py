@@ -29,9 +29,10 @@ from .. import registry
 from ..kernels import TABLEAUX, device_tangent_loop, rate_sample, rate_sample_parameters, sample_loop, tangent_loop
 from ..physics.bodies import Body, one_body
 from ..physics.models import FreeBody, Model
-from ..physics.system import System, with_parameters
+from ..physics.system import System, finite_number, with_parameters
 from . import cost
 from .device import resolve_device
+from .integration import checked_save_every
 from .system_runs import compiled, probe
 
 __all__ = ["STATUS_ABOVE_NAME", "TANGENT_SEED", "TangentRun", "gali", "initial_tangents", "lyapunov", "megno",
@@ -79,19 +80,10 @@ def _name(system):
     return system.name if isinstance(system, System) else f"the {system.kind} model"
 
 
-def _number(value, name):
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ValueError(f"{name} must be a number, got {value!r}")
-    x = float(value)
-    if not math.isfinite(x):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return x
-
-
 def _plan(t_end, dt):
     """``(t_end, n_steps, step)``: the horizon and the fixed step that lands on it (the step shortened to
     ``t_end / ceil(t_end / dt)`` when ``t_end / dt`` is not a whole number, as :func:`tumble.integrate`)."""
-    t_end, dt = _number(t_end, "t_end"), _number(dt, "dt")
+    t_end, dt = finite_number(t_end, "t_end"), finite_number(dt, "dt")
     if dt <= 0:
         raise ValueError(f"dt must be > 0 s, got {dt:g}")
     if t_end <= 0:
@@ -139,7 +131,7 @@ def _exponents(exponents, system, n):
 def _renormalise_steps(renormalise, dt, step):
     """The steps between two factorisations: ``renormalise / step``, a positive whole number (within round-off), of
     the step that runs (``dt`` shortened so that whole steps end at ``t_end``: :func:`_plan`)."""
-    value = _number(renormalise, "renormalise")
+    value = finite_number(renormalise, "renormalise")
     ratio = value / step
     steps = round(ratio)
     if value <= 0 or steps < 1 or abs(ratio - steps) > _SLACK * max(ratio, 1.0):
@@ -151,7 +143,7 @@ def _renormalise_steps(renormalise, dt, step):
 
 def _transient_steps(transient, t_end, step):
     """The steps of the transient (rounded up to whole steps), before which nothing is summed: fewer than the run's."""
-    value = _number(transient, "transient")
+    value = finite_number(transient, "transient")
     if value < 0 or value >= t_end:
         raise ValueError(f"transient must be >= 0 s and less than t_end = {t_end:g} s (the exponents average over the "
                          f"time after it), got {transient!r} s")
@@ -162,10 +154,7 @@ def _transient_steps(transient, t_end, step):
 
 
 def _save_every(save_every):
-    if save_every is not None and (isinstance(save_every, (bool, np.bool_))
-                                   or not isinstance(save_every, (int, np.integer)) or save_every < 1):
-        raise ValueError(f"save_every must be None or an integer >= 1 (steps), got {save_every!r}")
-    return int(save_every or 0)
+    return int(checked_save_every(save_every) or 0)
 
 
 def initial_tangents(n, k):
@@ -478,7 +467,7 @@ def megno(system, y0, t_end, dt, *, method="rk4", stop_above=None, parameters=No
                                                                           device)
     limit = math.inf
     if stop_above is not None:
-        limit = _number(stop_above, "stop_above")
+        limit = finite_number(stop_above, "stop_above")
         if limit <= 0:
             raise ValueError(f"stop_above must be None or a number > 0 (a threshold of <Y>, 2 on a regular orbit), "
                              f"got {stop_above!r}")

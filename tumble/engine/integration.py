@@ -95,7 +95,8 @@ def _step_plan(t_end, dt):
     return n_steps, t_end / n_steps
 
 
-def _save_every(save_every):
+def checked_save_every(save_every):
+    """``save_every`` as given (None or a whole number of steps >= 1); ValueError otherwise."""
     if save_every is not None:
         if isinstance(save_every, bool) or not isinstance(save_every, (int, np.integer)) or save_every < 1:
             raise ValueError(f"save_every must be None or an integer >= 1 (steps), got {save_every!r}")
@@ -128,7 +129,7 @@ def _system_run(system, y0, t_end, dt, method, torque, save_every, parameters, d
     _no_torque_or_attitude(system, torque, attitude)
     t_end, dt = _horizon_and_step(t_end, dt)
     n_steps, step = _step_plan(t_end, dt)
-    return run_system(system, y0, t_end, n_steps, step, method, save_every=_save_every(save_every),
+    return run_system(system, y0, t_end, n_steps, step, method, save_every=checked_save_every(save_every),
                       parameters=parameters, device=device)
 
 
@@ -188,7 +189,7 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
     single = np.ndim(w0) == 1
     w = _initial_spins(w0)
     t_end, dt = _horizon_and_step(t_end, dt)
-    save_every = _save_every(save_every)
+    save_every = checked_save_every(save_every)
     device, (kind, params, fn, _), chosen, _, n_steps, step = _checked_run(w, t_end, dt, method, torque, save_every,
                                                                             device)
     if chosen == "exact" and not save_every:
@@ -277,7 +278,7 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
     t_end, dt = _horizon_and_step(t_end, dt)
     if method not in METHOD_NAMES:
         raise ValueError(f"method must be one of {', '.join(METHOD_NAMES)}; got {method!r}")
-    save_every = _save_every(save_every)
+    save_every = checked_save_every(save_every)
     device, torque, _, reason, n_steps, step = _checked_run(w, t_end, dt, method, torque, save_every, device,
                                                             per_state=7 if attitude else 3, attitude=bool(attitude))
     # Every argument is checked above (the engine's run trusts them: tumble.engine.ensemble.run_planned). A plain

@@ -23,7 +23,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["System", "SystemSpec", "with_parameters"]
+__all__ = ["System", "SystemSpec", "finite_number", "with_parameters"]
 
 
 class SystemSpec(NamedTuple):
@@ -50,7 +50,8 @@ def _names(value, what, name):
     return names
 
 
-def _number(value, what):
+def finite_number(value, what):
+    """``value`` as a float; ValueError naming ``what`` when it is no number (a bool is none) or not finite."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise ValueError(f"{what} must be a number, got {value!r}")
     x = float(value)
@@ -121,7 +122,7 @@ class System:
         if not hasattr(given, "items"):
             raise ValueError(f"system {name!r}: parameters must be a mapping of names to numbers, got {given!r}")
         keys = _names(list(given), "parameters", name)
-        values = {key: _number(given[key], f"system {name!r}: parameter {key!r}") for key in keys}
+        values = {key: finite_number(given[key], f"system {name!r}: parameter {key!r}") for key in keys}
         object.__setattr__(self, "state", state)
         object.__setattr__(self, "parameters", values)
 
@@ -153,7 +154,7 @@ class System:
                     known = ", ".join(self.parameters) or "none"
                     raise ValueError(f"parameters: {key!r} is not a parameter of system {self.name!r} (it has: "
                                      f"{known})")
-                values[key] = _number(value, f"parameters: {key!r}")
+                values[key] = finite_number(value, f"parameters: {key!r}")
         return np.array(list(values.values()), dtype=float)
 
     def __repr__(self):
