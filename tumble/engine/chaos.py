@@ -5,8 +5,9 @@ vectors advanced by the variational equations ``δ' = J(t, y) δ`` with the same
 derivative of the method's own map), orthonormalised by modified Gram–Schmidt every ``renormalise`` seconds
 (Benettin, Galgani, Giorgilli & Strelcyn 1980); the exponents are the sums of ``log |R_rr|`` over the time after the
 transient. MEGNO's two scalars are integrated alongside (Cincotta & Simó 2000): ``<Y> → 2`` on a quasi-periodic orbit,
-``→ 0`` near a stable periodic one, ``≈ λ t / 2`` on a chaotic one. The loop is :mod:`tumble.kernels.tangent_loop`'s,
-on the CPU or one CUDA thread per sample.
+``→ 0`` near a stable periodic one, ``≈ λ t / 2`` on a chaotic one. A built-in model stepped by rk4 or rk8 runs on the CPU
+in blocks of samples vectorised across them (:mod:`tumble.kernels.tangent_blocks`); everything else, and the device,
+through the per-sample loop of :mod:`tumble.kernels.tangent_loop` (one CUDA thread per sample).
 
 ``system`` is anything the engine accepts: a :class:`~tumble.physics.bodies.Body` (the free body, as
 :class:`tumble.models.FreeBody`), a built-in model (its generated rate and tangent, with any Runge–Kutta tableau of
@@ -26,7 +27,8 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import registry
-from ..kernels import TABLEAUX, device_tangent_loop, rate_sample, rate_sample_parameters, sample_loop, tangent_loop
+from ..kernels import (TABLEAUX, device_tangent_loop, rate_sample, rate_sample_parameters, sample_loop, tangent_blocks,
+                       tangent_loop)
 from ..physics.bodies import Body, one_body
 from ..physics.models import FreeBody, Model
 from ..physics.system import System, finite_number, with_parameters
@@ -35,8 +37,8 @@ from .device import resolve_device
 from .integration import checked_save_every
 from .system_runs import compiled, probe
 
-__all__ = ["STATUS_ABOVE_NAME", "TANGENT_SEED", "TangentRun", "gali", "initial_tangents", "lyapunov", "megno",
-           "run_tangents", "tangent_kind"]
+__all__ = ["RESCALE_EVERY", "STATUS_ABOVE_NAME", "TANGENT_SEED", "TangentRun", "gali", "initial_tangents", "lyapunov",
+           "megno", "run_tangents", "tangent_kind"]
 
 #: The name of ``registry.STATUS_ABOVE`` in a Dataset's ``status`` flags.
 STATUS_ABOVE_NAME = registry.INDICATOR_STATUSES[registry.STATUS_ABOVE].name
@@ -44,6 +46,11 @@ STATUS_ABOVE_NAME = registry.INDICATOR_STATUSES[registry.STATUS_ABOVE].name
 #: The seed of the initial tangent vectors: one fixed orthonormal set (the Q of a Gaussian matrix), the same for every
 #: sample and run, in no special direction of any system (a coordinate axis can lie in an invariant subspace).
 TANGENT_SEED = 41
+
+#: MEGNO and GALI do not depend on the tangent vectors' lengths (``ρ = δ·δ'/|δ|²``; GALI normalises copies): their
+#: vectors are rescaled every this many steps, which keeps them in range unless one step grows them e^44-fold, and
+#: costs the steps in between nothing (the spectrum's sums need a factorisation each ``renormalise``).
+RESCALE_EVERY = 16
 
 # A ratio within this relative distance of an integer counts as that integer (renormalise / dt, t_end / dt).
 _SLACK = 1e-9
@@ -259,7 +266,6 @@ def run_tangents(system, y, p, method, k, step, n_steps, every, transient, save_
     ``k`` tangent vectors, ``n_steps`` steps of ``step`` s, a factorisation every ``every`` steps, sums from step
     ``transient``, finite-time exponents every ``save_every`` steps (0: none), the MEGNO stop ``stop_above`` (inf:
     none); without ``orthogonalise`` the vectors are only normalised and ``saved[..., 0]`` holds GALI_k. Returns :class:`TangentRun`. The arguments are trusted (:func:`lyapunov` and :func:`megno` check them)."""
-    kernels = _kernels(system, method)
     n_samples, n = y.shape
     state = np.array(y, order="C")
     tangents = np.array(np.broadcast_to(initial_tangents(n, k), (n_samples, k, n)), order="C")
@@ -272,10 +278,16 @@ def run_tangents(system, y, p, method, k, step, n_steps, every, transient, save_
         scalars = np.zeros((n_samples, tangent_loop.SCALARS))
         status = np.zeros(n_samples, dtype=np.int8)
         steps_taken = np.zeros(n_samples, dtype=np.int64)
-        kernels.drive(state, tangents, p, 0.0, step, n_steps, every, transient, save_every, stop_above,
-                      bool(orthogonalise), logs, saved,
-                      scalars, status, steps_taken)
+        outputs = (logs, saved, scalars, status, steps_taken)
+        if isinstance(system, Model) and tangent_blocks.runs(method):  # vectorised across samples
+            tangent_blocks.propagate_tangents(int(p[0]), tangent_blocks.METHODS[method][1], p[1:], state, tangents,
+                                              0.0, step, n_steps, every, transient, save_every, stop_above,
+                                              bool(orthogonalise), *outputs)
+        else:
+            _kernels(system, method).drive(state, tangents, p, 0.0, step, n_steps, every, transient, save_every,
+                                           stop_above, bool(orthogonalise), *outputs)
     else:
+        kernels = _kernels(system, method)
         cuda = device_tangent_loop()
         made = _SYSTEM_KERNELS[system] if isinstance(system, System) else _MODEL_KERNELS
         key = (kernels.run_sample, n, k, len(p))
@@ -474,7 +486,7 @@ def megno(system, y0, t_end, dt, *, method="rk4", stop_above=None, parameters=No
     _refuse_cost(y, n_steps, 1, 0, device)
     if isinstance(system, System):
         _probe(system, y, p)
-    run = run_tangents(system, y, p, method, 1, step, n_steps, 1, 0, 0, limit, device)
+    run = run_tangents(system, y, p, method, 1, step, n_steps, RESCALE_EVERY, 0, 0, limit, device)
     _warn_stopped(run.status, _name(system))
     variables = {
         "megno": ("sample", run.scalars[:, 0], {"units": "1", "long_name": "mean MEGNO <Y>"}),
@@ -493,7 +505,7 @@ def gali(system, y0, t_end, dt, *, k=2, method="rk4", parameters=None, save_ever
     """GALI_k, the generalised alignment index (Skokos, Bountis & Antonopoulos 2007, Physica D 231, 30), over time.
 
     ``k`` tangent vectors ride with each sample (stepped by ``method``, the derivative of its map), each normalised
-    after every step but never orthogonalised; GALI_k is the volume of the parallelepiped the k unit vectors span
+    every :data:`RESCALE_EVERY` steps and at each saved time but never orthogonalised; GALI_k is the volume of the parallelepiped the k unit vectors span
     (the product of their singular values; 1 at the start, from orthonormal vectors). On a chaotic orbit it falls
     exponentially, ``~ exp(-[(λ1 - λ2) + ... + (λ1 - λk)] t)``; on a regular one on an N-torus it stays near a constant
     for ``k <= N`` and falls as a power of ``t`` beyond.
@@ -530,7 +542,8 @@ def gali(system, y0, t_end, dt, *, k=2, method="rk4", parameters=None, save_ever
     _refuse_cost(y, n_steps, int(k), len(marks), device)
     if isinstance(system, System):
         _probe(system, y, p)
-    run = run_tangents(system, y, p, method, int(k), step, n_steps, 1, 0, save, math.inf, device, orthogonalise=False)
+    run = run_tangents(system, y, p, method, int(k), step, n_steps, RESCALE_EVERY, 0, save, math.inf, device,
+                       orthogonalise=False)
     _warn_stopped(run.status, _name(system))
     times = marks * step
     times[-1] = t_end

@@ -5,7 +5,7 @@ This package's face is the one door to the kernels: the engine (:mod:`tumble.eng
 checks it). Tests and benchmarks of the kernels themselves may reach the modules.
 """
 
-from . import elliptic, fits, sample_loop, side_by_side, tangent_loop
+from . import elliptic, fits, sample_loop, side_by_side, tangent_blocks, tangent_loop
 from .drivers import TORQUE_SIGNATURE
 from .jit import parallel_block
 from .methods import BLOCK, METHODS, Method, Observed, run, run_attitude
@@ -20,7 +20,7 @@ __all__ = ["BLOCK", "METHODS", "MODEL_BLOCK", "MODEL_CODES", "MODEL_METHODS", "T
            "device_fits", "device_kernels", "device_models", "device_sample_loop", "elliptic", "fits",
            "Method", "TABLEAUX", "model_methods", "model_rhs", "model_tangent", "ModelObserved", "Observed", "parallel_block",
            "rate_sample", "rate_sample_parameters", "run", "run_attitude", "run_model", "sample_loop", "side_by_side",
-           "device_tangent_loop", "tangent_loop", "tangent_sample"]
+           "device_tangent_loop", "tangent_blocks", "tangent_loop", "tangent_sample"]
 
 
 def device_kernels():

@@ -115,6 +115,100 @@ def block_source(tableau, name, components, project):
     return "\n".join(lines)
 
 
+def tangent_step_source(tableau, name, components):
+    # size: generated from the tableau, every stage of the state, one tangent vector and MEGNO's scalars spelled out
+    """Source of ``<name>_<method>_tangent_sample(t, t0, *y, *d, ys, yss, h, c)``: one step of a system's state
+    ``y``, one tangent vector ``d`` and MEGNO's two scalars for one sample (the augmented system of
+    :func:`tumble.kernels.tangent_loop.make_tangent_step`, the same arithmetic with the state in registers). A
+    forced system's stage forcings come as one tuple: CPython passes a call of more than 30 arguments as ``*args``,
+    which numba cannot inline."""
+    n = len(components)
+    tangent = [f"d_{y}" for y in components]
+    forced = _has_forcing(name)
+    # Ys' = 2 t rho of a stage is needed where the step's combination or the Ys of a stage with Yss' takes it
+    ys_rate = [tableau.b[s] != 0.0 or any(tableau.b[q] != 0.0 and tableau.A[q, s] != 0.0 for q in range(len(tableau.b)))
+               for s in range(len(tableau.b))]
+    lines = [
+        "@jit(inline=True)",
+        f"def {name}_{tableau.name}_tangent_sample(t, t0, {', '.join(components)}, {', '.join(tangent)}, ys, yss, "
+        f"h, c{', forcings' if forced else ''}):",
+        "    # size: generated from the tableau, every stage spelled out (state, tangent and MEGNO in registers)",
+        f'    """One step of {tableau.name} of the {name}, its tangent vector and MEGNO\'s scalars for one sample'
+        f'{" (``forcings``: the forcing of each stage)" if forced else ""}."""',
+    ]
+    if forced:
+        lines.append(f"    {', '.join(f'f{s + 1}' for s in range(len(tableau.b)))} = forcings")
+    for s in range(len(tableau.b)):
+        a = list(enumerate(tableau.A[s, :s]))
+        time = "t" if tableau.c[s] == 0.0 else f"t + {float(tableau.c[s])!r} * h"
+        stage = [f"y{s + 1}_{i + 1}" for i in range(n)]
+        along = [f"e{s + 1}_{i + 1}" for i in range(n)]
+        lines += [f"    {stage[i]} = {combination(y, a, i + 1)}" for i, y in enumerate(components)]
+        lines += [f"    {along[i]} = {combination(d, a, i + 1).replace('* k', '* l')}" for i, d in enumerate(tangent)]
+        at = f"f{s + 1}" if forced else time
+        suffix = "_forced" if forced else ""
+        lines.append(f"    {', '.join(f'k{s + 1}_{i + 1}' for i in range(n))} = {name}.rate{suffix}({at}, "
+                     f"{', '.join(stage)}, c)")
+        lines.append(f"    {', '.join(f'l{s + 1}_{i + 1}' for i in range(n))} = {name}.tangent{suffix}({at}, "
+                     f"{', '.join(stage)}, {', '.join(along)}, c)")
+        lines.append(f"    elapsed = {time} - t0")
+        if ys_rate[s]:
+            lines.append(f"    rho = ({' + '.join(f'{along[i]} * l{s + 1}_{i + 1}' for i in range(n))}) / "
+                         f"({' + '.join(f'{e} * {e}' for e in along)})")
+            lines.append(f"    m{s + 1}_1 = 2.0 * elapsed * rho")
+        if tableau.b[s] != 0.0:  # Yss' = Ys / t enters the step's combination only
+            lines.append(f"    m{s + 1}_2 = ({combination('ys', a, 1).replace('* k', '* m')}) / elapsed if elapsed > 0.0 "
+                         f"else 0.0  # Ys ~ t^2: Ys / t -> 0 at t0")
+    b = list(enumerate(tableau.b))
+    lines.append("    return (")
+    lines += [f"        {combination(y, b, i + 1)}," for i, y in enumerate(components)]
+    lines += [f"        {combination(d, b, i + 1).replace('* k', '* l')}," for i, d in enumerate(tangent)]
+    lines += [f"        {combination('ys', b, 1).replace('* k', '* m')},",
+              f"        {combination('yss', b, 2).replace('* k', '* m')},", "    )"]
+    return "\n".join(lines)
+
+
+def tangent_block_source(tableau, name, components):
+    """Source of ``<name>_<method>_tangent_step(Z, t, t0, h, a)``: every sample of a block advanced in place by one
+    step with its tangent vectors and MEGNO's scalars (``Z`` (k, 2 n + 2, m): for each vector the state's rows, the
+    vector's, ``Ys`` and ``Yss``; the state and MEGNO of ``Z[r > 0]`` are copies of ``Z[0]``'s that the caller makes
+    and that the step overwrites), no projection (the tangent is the derivative of the step itself). ``a``: the
+    constants array. Rows by constant index, updated in place: the form LLVM vectorises across samples (separate
+    input and output arrays, or rows at a runtime offset, leave the loop scalar: measured with numba 0.68.1)."""
+    rows = ", ".join(f"Y[{j}, i]" for j in range(2 * len(components) + 2))
+    lines = [
+        "@jit",
+        f"def {name}_{tableau.name}_tangent_step(Z, t, t0, h, a):",
+        f'    """Every sample of a block, its tangent vectors and MEGNO\'s scalars advanced in place by one '
+        f'{tableau.name} step of\n    the {name}."""',
+        f"    c = {_record(name)}",
+    ]
+    forced = _has_forcing(name)
+    if forced:
+        times = ["t" if c == 0.0 else f"t + {float(c)!r} * h" for c in tableau.c]
+        lines.append(f"    forcings = ({', '.join(f'{name}.forcing({time}, c)' for time in times)},)")
+    lines += ["    for r in range(Z.shape[0]):",
+              "        Y = Z[r]",
+              "        for i in range(Y.shape[1]):",
+              f"            {rows} = {name}_{tableau.name}_tangent_sample(",
+              f"                t, t0, {rows}, h, c{', forcings' if forced else ''})"]
+    return "\n".join(lines)
+
+
+def tangent_table_source(modules):
+    """Source of ``TANGENT_STEPS``: ``(model code, method id) -> <name>_<method>_tangent_step``."""
+    lines = ["#: The generated tangent steps by (model code, method id): a kind's index in ``registry.MODEL_KINDS``, a",
+             "#: method's in ``registry.STEPPING``.",
+             "TANGENT_STEPS = {"]
+    for name, _, kinds in modules:
+        for kind in kinds:
+            for tableau in METHODS:
+                lines.append(f"    ({registry.MODEL_KINDS.index(kind)}, {registry.STEPPING.index(tableau.name)}): "
+                             f"{name}_{tableau.name}_tangent_step,  # {kind}, {tableau.name}")
+    lines.append("}")
+    return "\n".join(lines)
+
+
 def _record(name):
     """``<name>.Constants(a[0], ..., a[k])``: the constants array (or tuple) read into the system's record."""
     return f"{name}.Constants({', '.join(f'a[{i}]' for i in range(len(_fields(name))))})"
@@ -252,8 +346,10 @@ def module_source():
     for name, components, _ in modules:
         for tableau in METHODS:
             blocks += ["", "", step_source(tableau, name, components), "", "",
-                       block_source(tableau, name, components, _has_project(name))]
-    blocks += ["", "", dispatch_source(modules), ""]
+                       block_source(tableau, name, components, _has_project(name)), "", "",
+                       tangent_step_source(tableau, name, components), "", "",
+                       tangent_block_source(tableau, name, components)]
+    blocks += ["", "", dispatch_source(modules), "", "", tangent_table_source(modules), ""]
     return "\n".join(blocks)
 
 

@@ -27,7 +27,7 @@ from ..jit import jit
 from ._rigid import RIGID_BODY, rigid_body
 
 __all__ = ["KEPLER_ITERATIONS", "KINDS", "Constants", "constants", "forcing", "invariants", "orbit", "project", "rate",
-           "rate_forced", "tangent"]
+           "rate_forced", "tangent", "tangent_forced"]
 
 #: The model kinds of ``registry.MODELS`` this module is the system of (its row).
 KINDS = ("gravity_gradient",)
@@ -109,10 +109,17 @@ def rate_forced(f, w1, w2, w3, q0, q1, q2, q3, c):
 
 @jit(inline=True)
 def tangent(t, w1, w2, w3, q0, q1, q2, q3, v1, v2, v3, u0, u1, u2, u3, c):
-    # size: the state's seven components, the tangent's seven (v along w, u along q), the constants
+    # size: the time, the state's seven components, the tangent's seven (v along w, u along q), the constants
     """The tangent flow ``J(y) δ`` along ``δ = (v, u)`` (``v`` along ``w``, ``u`` along ``q``): the exact derivative
     of :func:`rate` (the attitude rows are quadratic in ``q``)."""
-    nu_dot, strength = forcing(t, c)
+    return tangent_forced(forcing(t, c), w1, w2, w3, q0, q1, q2, q3, v1, v2, v3, u0, u1, u2, u3, c)
+
+
+@jit(inline=True)
+def tangent_forced(f, w1, w2, w3, q0, q1, q2, q3, v1, v2, v3, u0, u1, u2, u3, c):
+    # size: the forcing, the state's seven components, the tangent's seven, the constants
+    """:func:`tangent` with the orbit's ``f = (ν', 3 μ/r³)`` given (:func:`forcing`)."""
+    nu_dot, strength = f
     c21, c22, c23, c31, c32, c33 = _orbit_rows(q0, q1, q2, q3)
     # derivatives of the rows along u
     d21 = 2.0 * (u1 * q2 + q1 * u2 + u0 * q3 + q0 * u3)
