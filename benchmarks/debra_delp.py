@@ -52,7 +52,7 @@ def main():
         f"Machine: {machine}", "",
         f"Load before: `{load_before}`", "",
         f"Load after: `{load_after}`", "",
-        f"40 x 40 bodies (k1, k3 cell centres of (-1, 1)², I2 = 1), n = 1 rad/s, 256 samples, amplitude 1e-4, rk4.", "",
+        "40 x 40 bodies (k1, k3 cell centres of (-1, 1)², I2 = 1), n = 1 rad/s, 256 samples, amplitude 1e-4, rk4.", "",
         "| run | seconds |", "|---|---|",
         f"| first (kernels loaded from numba's cache or compiled) | {first:.2f} |",
         f"| warm, median of {REPEATS} | {warm:.2f} |", "",

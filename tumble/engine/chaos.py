@@ -280,9 +280,9 @@ def run_tangents(system, y, p, method, k, step, n_steps, every, transient, save_
         steps_taken = np.zeros(n_samples, dtype=np.int64)
         outputs = (logs, saved, scalars, status, steps_taken)
         if isinstance(system, Model) and tangent_blocks.runs(method):  # vectorised across samples
-            tangent_blocks.propagate_tangents(int(p[0]), tangent_blocks.METHODS[method][1], p[1:], state, tangents,
-                                              0.0, step, n_steps, every, transient, save_every, stop_above,
-                                              bool(orthogonalise), *outputs)
+            tangent_blocks.run(int(p[0]), tangent_blocks.METHODS[method][1], p[1:], state, tangents, 0.0,
+                               float(step), int(n_steps), int(every), int(transient), int(save_every),
+                               float(stop_above), bool(orthogonalise), *outputs)
         else:
             _kernels(system, method).drive(state, tangents, p, 0.0, step, n_steps, every, transient, save_every,
                                            stop_above, bool(orthogonalise), *outputs)

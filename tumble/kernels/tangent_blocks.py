@@ -6,12 +6,13 @@ scalars per sample; modified Gram–Schmidt every ``every`` steps, at the transi
 for SIMD lanes: a block's samples are the columns of ``Z`` (k, 2 n + 2, m), and one generated step per system and
 method (:data:`tumble.kernels.model_steps.TANGENT_STEPS`, rk4 or rk8 with the system's rate and tangent spelled out)
 moves them all at once. The per-sample loop stays the path of a user's ``System``, of a tableau added at run time and
-of the device (one thread per sample); this one is the built-in models' on the CPU with a generated method, about 25
-times faster on the heavy top's MEGNO map (``benchmarks/chaos.py``).
+of the device (one thread per sample); this one is the built-in models' on the CPU with a generated method: the heavy
+top's MEGNO, rk4, 2000 samples, 6.6e7 sample-steps/s against the per-sample loop's 2.7e6 (24 times; 2 cores, AVX2,
+2026-11-28; the whole map: ``benchmarks/chaos.py``).
 
 **One compiled driver per (system, method).** :func:`propagate_tangents` takes the model's and the method's codes
 as literal values (``numba.literally``): each pair compiles (once, then from the disk cache) a driver with its one
-step in it. The call pays numba's literal dispatch, about 13 ms.
+step in it. :func:`run` calls it, paying numba's literal dispatch (about 13 ms a call) once per process.
 
 **Checks.** The running samples of a block are screened for values that are not finite, branch-free, every
 :data:`CHECK_EVERY` steps and at every factorisation (where a tangent vector that collapsed is caught too); the block
@@ -25,7 +26,7 @@ arithmetic is the per-sample loop's, so results match it to round-off (``tests/t
 import math
 
 import numpy as np
-from numba import literally, prange, types
+from numba import literally, prange, typeof, types
 from numba.extending import overload
 
 from ..registry import MODEL_STEPPING, STATUS_ABOVE, STATUS_NONFINITE, STATUS_OK, STEPPING
@@ -34,7 +35,7 @@ from .model_steps import TANGENT_STEPS
 from .tableaux import TABLEAUX
 from .tangent_loop import orthonormalise_row
 
-__all__ = ["BLOCK", "CHECK_EVERY", "METHODS", "propagate_tangents", "runs"]
+__all__ = ["BLOCK", "CHECK_EVERY", "METHODS", "propagate_tangents", "run", "runs"]
 
 #: The methods with generated tangent steps, name -> (the tableau they were generated from, kernel id): the models'
 #: explicit Runge–Kutta methods (a tableau replaced at run time under one of these names is not theirs).
@@ -330,3 +331,15 @@ def propagate_tangents(model, method, a, y, V, t0, h, n_steps, every, transient,
         lo = b * BLOCK
         _run_block(model, method, a, y, V, lo, min(BLOCK, n_samples - lo), t0, h, n_steps, every, transient,
                    save_every, stop_above, orthogonalise, logs, saved, megno, status, steps_taken)
+
+
+def run(model, method, *arguments):
+    """:func:`propagate_tangents` for the codes ``model`` and ``method``, its literal dispatch paid once per process:
+    the driver compiled (or loaded) for these argument types is called directly after the first call. (Each call of
+    the dispatcher itself types the call twice, once without the literal codes and once with them: about 13 ms.)"""
+    signature = (types.literal(model), types.literal(method), *(typeof(argument) for argument in arguments))
+    compiled = propagate_tangents.overloads.get(signature)
+    if compiled is None:
+        propagate_tangents(model, method, *arguments)
+    else:
+        compiled.entry_point(model, method, *arguments)
