@@ -5,9 +5,9 @@ vectors advanced by the variational equations ``δ' = J(t, y) δ`` with the same
 derivative of the method's own map), orthonormalised by modified Gram–Schmidt every ``renormalise`` seconds
 (Benettin, Galgani, Giorgilli & Strelcyn 1980); the exponents are the sums of ``log |R_rr|`` over the time after the
 transient. MEGNO's two scalars are integrated alongside (Cincotta & Simó 2000): ``<Y> → 2`` on a quasi-periodic orbit,
-``→ 0`` near a stable periodic one, ``≈ λ t / 2`` on a chaotic one. A built-in model stepped by rk4 or rk8 runs on the CPU
-in blocks of samples vectorised across them (:mod:`tumble.kernels.tangent_blocks`); everything else, and the device,
-through the per-sample loop of :mod:`tumble.kernels.tangent_loop` (one CUDA thread per sample).
+``→ 0`` near a stable periodic one, ``≈ λ t / 2`` on a chaotic one. A built-in model stepped by rk4 or rk8
+runs on the CPU in blocks of samples vectorised across them (:mod:`tumble.kernels.tangent_blocks`); everything else,
+and the device, through the per-sample loop of :mod:`tumble.kernels.tangent_loop` (one CUDA thread per sample).
 
 ``system`` is anything the engine accepts: a :class:`~tumble.physics.bodies.Body` (the free body, as
 :class:`tumble.models.FreeBody`), a built-in model (its generated rate and tangent, with any Runge–Kutta tableau of
@@ -505,8 +505,9 @@ def gali(system, y0, t_end, dt, *, k=2, method="rk4", parameters=None, save_ever
     """GALI_k, the generalised alignment index (Skokos, Bountis & Antonopoulos 2007, Physica D 231, 30), over time.
 
     ``k`` tangent vectors ride with each sample (stepped by ``method``, the derivative of its map), each normalised
-    every :data:`RESCALE_EVERY` steps and at each saved time but never orthogonalised; GALI_k is the volume of the parallelepiped the k unit vectors span
-    (the product of their singular values; 1 at the start, from orthonormal vectors). On a chaotic orbit it falls
+    every :data:`RESCALE_EVERY` steps and at each saved time but never orthogonalised; GALI_k is the volume of the
+    parallelepiped the k unit vectors span (the product of their singular values; 1 at the start, from orthonormal
+    vectors). On a chaotic orbit it falls
     exponentially, ``~ exp(-[(λ1 - λ2) + ... + (λ1 - λk)] t)``; on a regular one on an N-torus it stays near a constant
     for ``k <= N`` and falls as a power of ``t`` beyond.
 

@@ -1,0 +1,416 @@
+"""Which kernels the first call of each documented entry point compiles (issue 43, "Done means"): a change that makes
+a call compile another kernel, or another signature of one, fails here; so does one that drops a kernel, until the
+table says so.
+
+How: each case runs the probe of ``benchmarks/first_call.py`` (the benchmark's call, inputs and recorder) in a fresh
+interpreter with ``NUMBA_CACHE_DIR`` at a new empty folder under ``tmp_path`` (the user's cache is never touched) and
+``NUMBA_NUM_THREADS=1`` (one core, as each of the suite's workers; and ``tumble.check`` then starts no side-by-side
+compile workers, so every kernel compiles in the probe's process, where numba's events see it). The probe records
+numba's ``numba:compile`` events during the call; the test compares tumble's kernels among them (``module.qualname``
+without the leading ``tumble.`` -> signatures compiled) with :data:`EXPECTED`. numba's own implementations compiled on
+the way (``numba.np.arrayobj.ol_np_empty.<locals>.impl`` and the like) are left out: which of them a kernel needs
+depends on numba's version. Also held: the cache was empty (no file before the call, nothing loaded from it), the call
+wrote cache files, and further calls in the same process compile nothing.
+
+An empty cache, not a warm one: from a warm cache numba loads only the kernels called from Python, whose machine code
+holds every kernel they call; the kernels compiled inside them (integrate rk4's driver compiles every method's block
+kernel) would go unseen, and they are what a first call after an install pays for; and a warm cache in ``tmp_path``
+would have to be compiled first, at the same cost. The cost: about 45 s for ``integrate rk4`` and 20 to 30 s each for
+``exact.omega`` and ``measure`` on 2 cores (AVX2, numba 0.68.1), twice that when other work shares the cores; it
+shrinks as issue 43's item 2 removes kernels (its targets: 5, 3 and 5 s). Until then only ``exact.omega`` runs in the
+default suite (every run pays its compile, the suite's cache warm or not); the others are marked slow (``-m slow``).
+
+Updating :data:`EXPECTED` after a change that rightly alters what a call compiles (issue 43's item 2 removes kernels):
+
+    python tests/test_first_call.py ["integrate rk4" ...]   # every entry point without a name
+
+prints the tables this tree gives, each as the dict literal below; paste the ones that changed, having checked that
+each kernel listed is one the call runs.
+"""
+
+import json
+import sys
+from collections import Counter
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+import first_call  # noqa: E402 - benchmarks/first_call.py, on the path above
+
+#: Entry point (a name of ``first_call.ENTRY_POINTS``) -> the kernels its first call compiles on an empty cache:
+#: ``module.qualname`` (below ``tumble.``) -> number of signatures.
+EXPECTED = {
+    # The driver steps any method, chosen at run time: every method's block kernel is compiled (item 2 removes
+    # all but rk4's), and make_propagate's driver too.
+    "integrate rk4": {
+        "kernels.block_parts.check_finite": 1,
+        "kernels.block_parts.freeze": 3,
+        "kernels.block_parts.restore_frozen": 1,
+        "kernels.block_parts.store": 2,
+        "kernels.block_parts.store_initial": 1,
+        "kernels.block_parts.store_rest": 1,
+        "kernels.drivers._observe_drift": 1,
+        "kernels.drivers._observe_flips": 1,
+        "kernels.drivers._observe_norm": 2,
+        "kernels.drivers._stop_complete": 1,
+        "kernels.drivers.make_propagate.<locals>.propagate": 1,
+        "kernels.drivers.make_run_block.<locals>.run_block": 1,
+        "kernels.fused.rk4_block": 1,
+        "kernels.fused.rk8_block": 1,
+        "kernels.fused.splitting2_block": 1,
+        "kernels.fused.splitting4_block": 1,
+        "kernels.fused.symplectic_euler_block": 1,
+        "kernels.steppers.implicit_midpoint_block": 1,
+        "kernels.steppers.rotate_block": 1,
+    },
+    "exact.omega": {
+        "kernels.elliptic._landen_constants": 1,
+        "kernels.elliptic._omega_row_hyperbolic": 1,
+        "kernels.elliptic._omega_row_landen": 1,
+        "kernels.elliptic._omega_row_separatrix": 1,
+        "kernels.elliptic._series_constants": 1,
+        "kernels.elliptic.agm": 1,
+        "kernels.elliptic.carlson_rf": 1,
+        "kernels.elliptic.complete_integrals": 1,
+        "kernels.elliptic.hyperbolic_nome": 1,
+        "kernels.elliptic.torque_free_omega_grid": 1,
+    },
+    "measure": {
+        "kernels.elliptic._landen_constants": 1,
+        "kernels.elliptic._omega_row_hyperbolic": 1,
+        "kernels.elliptic._omega_row_landen": 1,
+        "kernels.elliptic._omega_row_separatrix": 1,
+        "kernels.elliptic._series_constants": 1,
+        "kernels.elliptic.agm": 1,
+        "kernels.elliptic.carlson_rf": 1,
+        "kernels.elliptic.complete_integrals": 1,
+        "kernels.elliptic.hyperbolic_nome": 1,
+        "kernels.elliptic.torque_free_omega": 1,
+        "kernels.elliptic.torque_free_solve": 1,
+        "kernels.fits.growth_fit": 1,
+        "kernels.fits.transverse_norms": 1,
+    },
+    "integrate rk8": {
+        "kernels.block_parts.check_finite": 1,
+        "kernels.block_parts.freeze": 3,
+        "kernels.block_parts.restore_frozen": 1,
+        "kernels.block_parts.store": 2,
+        "kernels.block_parts.store_initial": 1,
+        "kernels.block_parts.store_rest": 1,
+        "kernels.drivers._observe_drift": 1,
+        "kernels.drivers._observe_flips": 1,
+        "kernels.drivers._observe_norm": 2,
+        "kernels.drivers._stop_complete": 1,
+        "kernels.drivers.make_propagate.<locals>.propagate": 1,
+        "kernels.drivers.make_run_block.<locals>.run_block": 1,
+        "kernels.fused.rk4_block": 1,
+        "kernels.fused.rk8_block": 1,
+        "kernels.fused.splitting2_block": 1,
+        "kernels.fused.splitting4_block": 1,
+        "kernels.fused.symplectic_euler_block": 1,
+        "kernels.steppers.implicit_midpoint_block": 1,
+        "kernels.steppers.rotate_block": 1,
+    },
+    "integrate symplectic_euler": {
+        "kernels.block_parts.check_finite": 1,
+        "kernels.block_parts.freeze": 3,
+        "kernels.block_parts.restore_frozen": 1,
+        "kernels.block_parts.store": 2,
+        "kernels.block_parts.store_initial": 1,
+        "kernels.block_parts.store_rest": 1,
+        "kernels.drivers._observe_drift": 1,
+        "kernels.drivers._observe_flips": 1,
+        "kernels.drivers._observe_norm": 2,
+        "kernels.drivers._stop_complete": 1,
+        "kernels.drivers.make_propagate.<locals>.propagate": 1,
+        "kernels.drivers.make_run_block.<locals>.run_block": 1,
+        "kernels.fused.rk4_block": 1,
+        "kernels.fused.rk8_block": 1,
+        "kernels.fused.splitting2_block": 1,
+        "kernels.fused.splitting4_block": 1,
+        "kernels.fused.symplectic_euler_block": 1,
+        "kernels.steppers.implicit_midpoint_block": 1,
+        "kernels.steppers.rotate_block": 1,
+    },
+    "integrate splitting2": {
+        "kernels.block_parts.check_finite": 1,
+        "kernels.block_parts.freeze": 3,
+        "kernels.block_parts.restore_frozen": 1,
+        "kernels.block_parts.store": 2,
+        "kernels.block_parts.store_initial": 1,
+        "kernels.block_parts.store_rest": 1,
+        "kernels.drivers._observe_drift": 1,
+        "kernels.drivers._observe_flips": 1,
+        "kernels.drivers._observe_norm": 2,
+        "kernels.drivers._stop_complete": 1,
+        "kernels.drivers.make_propagate.<locals>.propagate": 1,
+        "kernels.drivers.make_run_block.<locals>.run_block": 1,
+        "kernels.fused.rk4_block": 1,
+        "kernels.fused.rk8_block": 1,
+        "kernels.fused.splitting2_block": 1,
+        "kernels.fused.splitting4_block": 1,
+        "kernels.fused.symplectic_euler_block": 1,
+        "kernels.steppers.implicit_midpoint_block": 1,
+        "kernels.steppers.rotate_block": 1,
+    },
+    "integrate splitting4": {
+        "kernels.block_parts.check_finite": 1,
+        "kernels.block_parts.freeze": 3,
+        "kernels.block_parts.restore_frozen": 1,
+        "kernels.block_parts.store": 2,
+        "kernels.block_parts.store_initial": 1,
+        "kernels.block_parts.store_rest": 1,
+        "kernels.drivers._observe_drift": 1,
+        "kernels.drivers._observe_flips": 1,
+        "kernels.drivers._observe_norm": 2,
+        "kernels.drivers._stop_complete": 1,
+        "kernels.drivers.make_propagate.<locals>.propagate": 1,
+        "kernels.drivers.make_run_block.<locals>.run_block": 1,
+        "kernels.fused.rk4_block": 1,
+        "kernels.fused.rk8_block": 1,
+        "kernels.fused.splitting2_block": 1,
+        "kernels.fused.splitting4_block": 1,
+        "kernels.fused.symplectic_euler_block": 1,
+        "kernels.steppers.implicit_midpoint_block": 1,
+        "kernels.steppers.rotate_block": 1,
+    },
+    "integrate implicit_midpoint": {
+        "kernels.block_parts.check_finite": 1,
+        "kernels.block_parts.freeze": 3,
+        "kernels.block_parts.restore_frozen": 1,
+        "kernels.block_parts.store": 2,
+        "kernels.block_parts.store_initial": 1,
+        "kernels.block_parts.store_rest": 1,
+        "kernels.drivers._observe_drift": 1,
+        "kernels.drivers._observe_flips": 1,
+        "kernels.drivers._observe_norm": 2,
+        "kernels.drivers._stop_complete": 1,
+        "kernels.drivers.make_propagate.<locals>.propagate": 1,
+        "kernels.drivers.make_run_block.<locals>.run_block": 1,
+        "kernels.fused.rk4_block": 1,
+        "kernels.fused.rk8_block": 1,
+        "kernels.fused.splitting2_block": 1,
+        "kernels.fused.splitting4_block": 1,
+        "kernels.fused.symplectic_euler_block": 1,
+        "kernels.steppers.implicit_midpoint_block": 1,
+        "kernels.steppers.rotate_block": 1,
+    },
+    "integrate exact": {
+        "kernels.elliptic._landen_constants": 1,
+        "kernels.elliptic._omega_row_hyperbolic": 1,
+        "kernels.elliptic._omega_row_landen": 1,
+        "kernels.elliptic._omega_row_separatrix": 1,
+        "kernels.elliptic._series_constants": 1,
+        "kernels.elliptic.agm": 1,
+        "kernels.elliptic.carlson_rf": 1,
+        "kernels.elliptic.complete_integrals": 1,
+        "kernels.elliptic.hyperbolic_nome": 1,
+        "kernels.elliptic.torque_free_omega": 1,
+        "kernels.elliptic.torque_free_solve": 1,
+    },
+    "propagate": {
+        "kernels.block_parts.check_finite": 1,
+        "kernels.block_parts.freeze": 3,
+        "kernels.block_parts.restore_frozen": 1,
+        "kernels.block_parts.store": 2,
+        "kernels.block_parts.store_initial": 1,
+        "kernels.block_parts.store_rest": 1,
+        "kernels.drivers._observe_drift": 1,
+        "kernels.drivers._observe_flips": 1,
+        "kernels.drivers._observe_norm": 2,
+        "kernels.drivers._stop_complete": 1,
+        "kernels.drivers.make_propagate.<locals>.propagate": 1,
+        "kernels.drivers.make_run_block.<locals>.run_block": 1,
+        "kernels.fused.rk4_block": 1,
+        "kernels.fused.rk8_block": 1,
+        "kernels.fused.splitting2_block": 1,
+        "kernels.fused.splitting4_block": 1,
+        "kernels.fused.symplectic_euler_block": 1,
+        "kernels.steppers.implicit_midpoint_block": 1,
+        "kernels.steppers.rotate_block": 1,
+    },
+    "exact.attitude": {
+        "kernels.elliptic._landen_constants": 1,
+        "kernels.elliptic._landen_table": 1,
+        "kernels.elliptic._omega_row_hyperbolic": 1,
+        "kernels.elliptic._omega_row_landen": 1,
+        "kernels.elliptic._omega_row_separatrix": 1,
+        "kernels.elliptic._sech": 1,
+        "kernels.elliptic._series_constants": 1,
+        "kernels.elliptic._setup": 1,
+        "kernels.elliptic._sncndn_core": 2,
+        "kernels.elliptic._sncndn_shifted": 2,
+        "kernels.elliptic.agm": 1,
+        "kernels.elliptic.carlson_rf": 1,
+        "kernels.elliptic.complete_integrals": 1,
+        "kernels.elliptic.hyperbolic_nome": 1,
+        "kernels.elliptic.torque_free_omega": 1,
+        "kernels.elliptic.torque_free_solve": 1,
+        "kernels.elliptic_attitude._local": 1,
+        "kernels.elliptic_attitude._pi_integral": 1,
+        "kernels.elliptic_attitude._rc_one": 1,
+        "kernels.elliptic_attitude._round_half_even": 1,
+        "kernels.elliptic_attitude._sncndn": 2,
+        "kernels.elliptic_attitude._tangent": 1,
+        "kernels.elliptic_attitude.attitude_at": 1,
+        "kernels.elliptic_attitude.attitude_constants": 1,
+        "kernels.elliptic_attitude.attitude_rows": 1,
+        "kernels.elliptic_attitude.attitude_setup": 1,
+        "kernels.elliptic_attitude.carlson_rj": 1,
+    },
+    "scan": {
+        "kernels.elliptic._landen_constants": 1,
+        "kernels.elliptic._omega_row_hyperbolic": 1,
+        "kernels.elliptic._omega_row_landen": 1,
+        "kernels.elliptic._omega_row_separatrix": 1,
+        "kernels.elliptic._series_constants": 1,
+        "kernels.elliptic.agm": 1,
+        "kernels.elliptic.carlson_rf": 1,
+        "kernels.elliptic.complete_integrals": 1,
+        "kernels.elliptic.hyperbolic_nome": 1,
+        "kernels.elliptic.torque_free_omega": 1,
+        "kernels.elliptic.torque_free_solve": 1,
+        "kernels.fits._median_in_place": 1,
+        "kernels.fits._select_in_place": 1,
+        "kernels.fits.fit_sample": 2,
+        "kernels.fits.growth_fit": 1,
+        "kernels.fits.phase_fit": 1,
+        "kernels.fits.phase_fit_sample": 1,
+        "kernels.fits.transverse_norms": 1,
+    },
+    "check": {
+        "kernels.elliptic._landen_constants": 1,
+        "kernels.elliptic._landen_table": 1,
+        "kernels.elliptic._omega_row_hyperbolic": 1,
+        "kernels.elliptic._omega_row_landen": 1,
+        "kernels.elliptic._omega_row_separatrix": 1,
+        "kernels.elliptic._sech": 1,
+        "kernels.elliptic._series_constants": 1,
+        "kernels.elliptic._setup": 1,
+        "kernels.elliptic._sncndn_core": 2,
+        "kernels.elliptic._sncndn_shifted": 2,
+        "kernels.elliptic.agm": 1,
+        "kernels.elliptic.carlson_rf": 1,
+        "kernels.elliptic.complete_integrals": 1,
+        "kernels.elliptic.hyperbolic_nome": 1,
+        "kernels.elliptic.torque_free_omega": 1,
+        "kernels.elliptic.torque_free_omega_grid": 1,
+        "kernels.elliptic.torque_free_solve": 1,
+        "kernels.elliptic_attitude._local": 1,
+        "kernels.elliptic_attitude._pi_integral": 1,
+        "kernels.elliptic_attitude._rc_one": 1,
+        "kernels.elliptic_attitude._round_half_even": 1,
+        "kernels.elliptic_attitude._sncndn": 2,
+        "kernels.elliptic_attitude._tangent": 1,
+        "kernels.elliptic_attitude.attitude_at": 1,
+        "kernels.elliptic_attitude.attitude_constants": 1,
+        "kernels.elliptic_attitude.attitude_rows": 1,
+        "kernels.elliptic_attitude.attitude_setup": 1,
+        "kernels.elliptic_attitude.carlson_rj": 1,
+    },
+    # Every model's and method's block kernels, for a heavy top stepped by rk4 (item 2 removes the others).
+    "run_ensemble HeavyTop": {
+        "kernels.block_parts.check_finite": 2,
+        "kernels.block_parts.freeze": 3,
+        "kernels.block_parts.nan_rest": 1,
+        "kernels.block_parts.restore_frozen": 1,
+        "kernels.block_parts.store": 2,
+        "kernels.block_parts.store_initial": 1,
+        "kernels.block_parts.store_rest": 2,
+        "kernels.model_loop._initial_invariants": 1,
+        "kernels.model_loop._observe_drift": 1,
+        "kernels.model_loop._observe_norm": 2,
+        "kernels.model_loop.propagate_model": 1,
+        "kernels.model_loop.run_block": 1,
+        "kernels.model_splittings.gyrostat_project_block": 1,
+        "kernels.model_splittings.gyrostat_rotate_block": 1,
+        "kernels.model_splittings.gyrostat_splitting_block": 1,
+        "kernels.model_splittings.heavy_top_gravity_block": 1,
+        "kernels.model_splittings.heavy_top_rotate_block": 1,
+        "kernels.model_splittings.heavy_top_splitting_block": 1,
+        "kernels.model_steps.damper_rk4_block": 1,
+        "kernels.model_steps.damper_rk8_block": 1,
+        "kernels.model_steps.drift_suspects": 1,
+        "kernels.model_steps.gravity_gradient_rk4_block": 1,
+        "kernels.model_steps.gravity_gradient_rk8_block": 1,
+        "kernels.model_steps.gyrostat_rk4_block": 1,
+        "kernels.model_steps.gyrostat_rk8_block": 1,
+        "kernels.model_steps.heavy_top_rk4_block": 1,
+        "kernels.model_steps.heavy_top_rk8_block": 1,
+        "kernels.model_steps.step": 1,
+    },
+    # propagate_tangents: typed twice by the first call, without the literal codes of the model and the method and with
+    # them (numba.literally); tangent_blocks.run calls the driver directly after that.
+    "megno HeavyTop": {
+        "kernels.model_steps.heavy_top_rk4_tangent_step": 1,
+        "kernels.tangent_blocks._copy": 1,
+        "kernels.tangent_blocks._finish": 3,
+        "kernels.tangent_blocks._gali": 1,
+        "kernels.tangent_blocks._orthonormalise": 1,
+        "kernels.tangent_blocks._run_block": 1,
+        "kernels.tangent_blocks._screen": 1,
+        "kernels.tangent_blocks._share_state": 1,
+        "kernels.tangent_blocks._tangent_step_of.<locals>.tangent_step": 1,
+        "kernels.tangent_blocks.propagate_tangents": 2,
+    },
+    "lyapunov HeavyTop": {
+        "kernels.model_steps.heavy_top_rk4_tangent_step": 1,
+        "kernels.tangent_blocks._copy": 1,
+        "kernels.tangent_blocks._finish": 3,
+        "kernels.tangent_blocks._gali": 1,
+        "kernels.tangent_blocks._orthonormalise": 1,
+        "kernels.tangent_blocks._run_block": 1,
+        "kernels.tangent_blocks._screen": 1,
+        "kernels.tangent_blocks._share_state": 1,
+        "kernels.tangent_blocks._tangent_step_of.<locals>.tangent_step": 1,
+        "kernels.tangent_blocks.propagate_tangents": 2,
+    },
+}
+
+#: The entry points of the regular run: the cheapest of issue 43's targets (each case compiles from an empty cache
+#: however warm the suite's is: 20 s here, 45 s for integrate rk4). The others are slow.
+REGULAR = ("exact.omega",)
+
+
+def first_call_kernels(name, cache):
+    """The probe's record of entry point ``name``'s first call, in a fresh process on the cache folder ``cache``, and
+    tumble's kernels it compiled as in :data:`EXPECTED`."""
+    record = first_call.run_probe(name, cache, threads=1)
+    kernels = Counter(kernel.removeprefix("tumble.") for kernel, _ in record["compiled"]
+                      if kernel.startswith("tumble."))
+    return record, dict(sorted(kernels.items()))
+
+
+def _difference(found, expected):
+    lines = [f"  {kernel}: {expected.get(kernel, 0)} signature(s) expected, {found.get(kernel, 0)} compiled"
+             for kernel in sorted(set(found) | set(expected)) if found.get(kernel, 0) != expected.get(kernel, 0)]
+    return ("the kernels compiled differ from EXPECTED (this module's docstring says how to update it):\n"
+            + "\n".join(lines))
+
+
+def test_every_entry_point_of_the_benchmark_has_a_table():
+    assert set(EXPECTED) == set(first_call.ENTRY_POINTS)
+
+
+@pytest.mark.parametrize("name", [n if n in REGULAR else pytest.param(n, marks=pytest.mark.slow) for n in EXPECTED])
+def test_a_first_call_compiles_the_kernels_of_its_table(name, tmp_path):
+    record, kernels = first_call_kernels(name, tmp_path)
+    assert record["cache_files_before"] == 0 and record["loaded"] == [], "the numba cache was not empty"
+    assert record["cache_files_written"] > 0
+    assert kernels == EXPECTED[name], _difference(kernels, EXPECTED[name])
+    assert record["later_compiled"] == [], "a second call compiled again"
+
+
+def _literal(name, kernels):
+    """``kernels`` as an entry of :data:`EXPECTED`'s source."""
+    return "\n".join([f"    {json.dumps(name)}: {{", *(f"        {json.dumps(k)}: {n}," for k, n in kernels.items()),
+                      "    },"])
+
+
+if __name__ == "__main__":
+    import tempfile
+
+    for entry in sys.argv[1:] or first_call.ENTRY_POINTS:
+        with tempfile.TemporaryDirectory() as folder:
+            print(_literal(entry, first_call_kernels(entry, folder)[1]))
