@@ -2,7 +2,7 @@
 
     python benchmarks/models.py        # writes benchmarks/results/models.md and models.json
 
-Each model kernel (:func:`tumble.kernels.run_model`: one compiled driver for every model and method) and the free
+Each model kernel (:func:`tumble.kernels.run_model`: one compiled driver per model and method) and the free
 body's own rk4 driver (:func:`tumble.kernels.run` with ``METHODS["rk4"]``) step the same number of samples and
 steps; throughput is sample-steps/s and, to compare systems of different sizes, component-steps/s (sample-steps/s
 times the number of state components). Compile time is excluded (each kernel runs once first) and reported

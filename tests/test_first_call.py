@@ -13,12 +13,12 @@ depends on numba's version. Also held: the cache was empty (no file before the c
 wrote cache files, and further calls in the same process compile nothing.
 
 An empty cache, not a warm one: from a warm cache numba loads only the kernels called from Python, whose machine code
-holds every kernel they call; the kernels compiled inside them (integrate rk4's driver compiles every method's block
-kernel) would go unseen, and they are what a first call after an install pays for; and a warm cache in ``tmp_path``
-would have to be compiled first, at the same cost. The cost: about 45 s for ``integrate rk4`` and 20 to 30 s each for
-``exact.omega`` and ``measure`` on 2 cores (AVX2, numba 0.68.1), twice that when other work shares the cores; it
-shrinks as issue 43's item 2 removes kernels (its targets: 5, 3 and 5 s). Until then only ``exact.omega`` runs in the
-default suite (every run pays its compile, the suite's cache warm or not); the others are marked slow (``-m slow``).
+holds every kernel they call; the kernels compiled inside them (the step kernel of integrate rk4's driver) would go
+unseen, and they are what a first call after an install pays for; and a warm cache in ``tmp_path`` would have to be
+compiled first, at the same cost. The cost: about 25 s for ``integrate rk4`` and 15 to 25 s each for ``exact.omega``
+and ``measure`` on 2 cores (AVX2, numba 0.68.1), twice that when other work shares the cores (issue 43's targets: 5,
+3 and 5 s). So only ``exact.omega`` runs in the default suite (every run pays its compile, the suite's cache warm or
+not); the others are marked slow (``-m slow``).
 
 Updating :data:`EXPECTED` after a change that rightly alters what a call compiles (issue 43's item 2 removes kernels):
 
@@ -38,10 +38,9 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
 import first_call  # noqa: E402 - benchmarks/first_call.py, on the path above
 
-#: What the free body's fixed-step driver compiles, for any method (integrate, propagate): the driver steps any
-#: method, chosen at run time, so every method's block kernel is compiled (item 2 removes all but the one run),
-#: and make_propagate's driver too.
-FREE_BODY_DRIVER = {
+#: What the free body's fixed-step driver compiles for any method (integrate, propagate): the one time loop, its
+#: observers and the CPU's driver; each method adds its own step (:func:`free_body_driver`), and only its own.
+FREE_BODY_LOOP = {
     "kernels.block_parts.check_finite": 1,
     "kernels.block_parts.freeze": 3,
     "kernels.block_parts.restore_frozen": 1,
@@ -54,18 +53,18 @@ FREE_BODY_DRIVER = {
     "kernels.drivers._stop_complete": 1,
     "kernels.drivers.make_propagate.<locals>.propagate": 1,
     "kernels.drivers.make_run_block.<locals>.run_block": 1,
-    "kernels.fused.rk4_block": 1,
-    "kernels.fused.rk8_block": 1,
-    "kernels.fused.splitting2_block": 1,
-    "kernels.fused.splitting4_block": 1,
-    "kernels.fused.symplectic_euler_block": 1,
-    "kernels.steppers.implicit_midpoint_block": 1,
-    "kernels.steppers.rotate_block": 1,
 }
 
-#: What the chaos indicators' first call compiles for a heavy top stepped by rk4 (megno and lyapunov alike):
-#: propagate_tangents is typed twice by the first call, without the literal codes of the model and the method
-#: and with them (numba.literally); tangent_blocks.run calls the driver directly after that.
+
+def free_body_driver(*step_kernels, chosen="step"):
+    """:data:`FREE_BODY_LOOP` with one method's step kernels and the overload that chose them
+    (``drivers._method_step_of``'s implementation ``chosen``)."""
+    return {**FREE_BODY_LOOP, f"kernels.drivers._method_step_of.<locals>.{chosen}": 1,
+            **{kernel: 1 for kernel in step_kernels}}
+
+
+#: What the chaos indicators' first call compiles for a heavy top stepped by rk4 (megno and lyapunov alike): the
+#: driver of that system and method, with its one tangent step.
 HEAVY_TOP_TANGENTS = {
     "kernels.model_steps.heavy_top_rk4_tangent_step": 1,
     "kernels.tangent_blocks._copy": 1,
@@ -76,13 +75,13 @@ HEAVY_TOP_TANGENTS = {
     "kernels.tangent_blocks._screen": 1,
     "kernels.tangent_blocks._share_state": 1,
     "kernels.tangent_blocks._tangent_step_of.<locals>.tangent_step": 1,
-    "kernels.tangent_blocks.propagate_tangents": 2,
+    "kernels.tangent_blocks.make_propagate_tangents.<locals>.propagate_tangents": 1,
 }
 
 #: Entry point (a name of ``first_call.ENTRY_POINTS``) -> the kernels its first call compiles on an empty cache:
 #: ``module.qualname`` (below ``tumble.``) -> number of signatures.
 EXPECTED = {
-    "integrate rk4": FREE_BODY_DRIVER,
+    "integrate rk4": free_body_driver("kernels.fused.rk4_block"),
     "exact.omega": {
         "kernels.elliptic._landen_constants": 1,
         "kernels.elliptic._omega_row_hyperbolic": 1,
@@ -110,11 +109,12 @@ EXPECTED = {
         "kernels.fits.growth_fit": 1,
         "kernels.fits.transverse_norms": 1,
     },
-    "integrate rk8": FREE_BODY_DRIVER,
-    "integrate symplectic_euler": FREE_BODY_DRIVER,
-    "integrate splitting2": FREE_BODY_DRIVER,
-    "integrate splitting4": FREE_BODY_DRIVER,
-    "integrate implicit_midpoint": FREE_BODY_DRIVER,
+    "integrate rk8": free_body_driver("kernels.fused.rk8_block"),
+    # the splittings' torque-free steps turn the state about an axis through rotate_block
+    "integrate symplectic_euler": free_body_driver("kernels.fused.symplectic_euler_block", "kernels.steppers.rotate_block"),
+    "integrate splitting2": free_body_driver("kernels.fused.splitting2_block", "kernels.steppers.rotate_block"),
+    "integrate splitting4": free_body_driver("kernels.fused.splitting4_block", "kernels.steppers.rotate_block"),
+    "integrate implicit_midpoint": free_body_driver("kernels.steppers.implicit_midpoint_block", chosen="midpoint_step"),
     "integrate exact": {
         "kernels.elliptic._landen_constants": 1,
         "kernels.elliptic._omega_row_hyperbolic": 1,
@@ -128,7 +128,7 @@ EXPECTED = {
         "kernels.elliptic.torque_free_omega": 1,
         "kernels.elliptic.torque_free_solve": 1,
     },
-    "propagate": FREE_BODY_DRIVER,
+    "propagate": free_body_driver("kernels.fused.rk4_block"),
     "exact.attitude": {
         "kernels.elliptic._landen_constants": 1,
         "kernels.elliptic._landen_table": 1,
@@ -208,7 +208,7 @@ EXPECTED = {
         "kernels.elliptic_attitude.attitude_setup": 1,
         "kernels.elliptic_attitude.carlson_rj": 1,
     },
-    # Every model's and method's block kernels, for a heavy top stepped by rk4 (item 2 removes the others).
+    # The heavy top's driver for rk4: that system's and that method's step only, its invariants and drift screen
     "run_ensemble HeavyTop": {
         "kernels.block_parts.check_finite": 2,
         "kernels.block_parts.freeze": 3,
@@ -217,34 +217,22 @@ EXPECTED = {
         "kernels.block_parts.store": 2,
         "kernels.block_parts.store_initial": 1,
         "kernels.block_parts.store_rest": 2,
+        "kernels.model_loop._drift_suspects_of.<locals>.system_drift_suspects": 1,
         "kernels.model_loop._initial_invariants": 1,
+        "kernels.model_loop._invariants_of.<locals>.system_invariants": 1,
         "kernels.model_loop._observe_drift": 1,
         "kernels.model_loop._observe_norm": 2,
-        "kernels.model_loop.propagate_model": 1,
+        "kernels.model_loop._step_of.<locals>.system_step": 1,
+        "kernels.model_loop.make_propagate_model.<locals>.propagate": 1,
         "kernels.model_loop.run_block": 1,
-        "kernels.model_splittings.gyrostat_project_block": 1,
-        "kernels.model_splittings.gyrostat_rotate_block": 1,
-        "kernels.model_splittings.gyrostat_splitting_block": 1,
-        "kernels.model_splittings.heavy_top_gravity_block": 1,
-        "kernels.model_splittings.heavy_top_rotate_block": 1,
-        "kernels.model_splittings.heavy_top_splitting_block": 1,
-        "kernels.model_steps.damper_rk4_block": 1,
-        "kernels.model_steps.damper_rk8_block": 1,
-        "kernels.model_steps.drift_suspects": 1,
-        "kernels.model_steps.gravity_gradient_rk4_block": 1,
-        "kernels.model_steps.gravity_gradient_rk8_block": 1,
-        "kernels.model_steps.gyrostat_rk4_block": 1,
-        "kernels.model_steps.gyrostat_rk8_block": 1,
         "kernels.model_steps.heavy_top_rk4_block": 1,
-        "kernels.model_steps.heavy_top_rk8_block": 1,
-        "kernels.model_steps.step": 1,
     },
     "megno HeavyTop": HEAVY_TOP_TANGENTS,
     "lyapunov HeavyTop": HEAVY_TOP_TANGENTS,
 }
 
 #: The entry points of the regular run: the cheapest of issue 43's targets (each case compiles from an empty cache
-#: however warm the suite's is: 20 s here, 45 s for integrate rk4). The others are slow.
+#: however warm the suite's is: 20 s here, 25 s for integrate rk4). The others are slow.
 REGULAR = ("exact.omega",)
 
 

@@ -5,7 +5,7 @@ observed orders against SciPy's DOP853 -> invariants kept to the method's accura
 observer -> growth rates and frequencies against the Jacobian's linear theory -> a wheel stabilises the
 intermediate axis -> bit-for-bit reproducibility across threads and chunks -> bad arguments and bad states.
 
-One compiled driver serves every model and method: the module fixture compiles (or loads) it once.
+One compiled driver per model and method: each compiles (or loads) once per process.
 """
 
 from pathlib import Path

@@ -21,7 +21,7 @@ import traceback
 import warnings
 from pathlib import Path
 
-from . import _interrupt, _startup, registry
+from . import _interrupt, _startup, registry, warm
 from ._version import __version__
 
 # Imports below are made inside the commands that need them: `tumble --help` and `tumble studies` load neither numpy
@@ -461,8 +461,34 @@ def _parser():
     run_demo.add_argument("--samples", type=int, default=2000, help="ensemble size (default 2000)")
     run_demo.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     run_demo.add_argument("--dt", type=float, default=0.002, help="step in s (default 0.002)")
+    warming = commands.add_parser(
+        "warm", help="compile the kernels of the common first calls now, side by side (once after an install)",
+        description="Run each named call once with tiny inputs in new processes, one per core, so that numba "
+                    "compiles its kernels into its disk cache now; later first calls load them. Calls: "
+                    + "; ".join(f"{name}: {what}" for name, (what, _) in warm.CALLS.items())
+                    + f". Default: {' '.join(warm.DEFAULT)}.")
+    warming.add_argument("calls", nargs="*", metavar="CALL", help="which calls (default: the Python API's first "
+                                                               "examples); 'all' for every one")
     _add_check_parser(commands)
     return parser
+
+
+def _warm(args):
+    """``tumble warm``: one line per call as it ends; exit 1 if a call failed (its kernels compile at first use)."""
+    names = list(warm.CALLS) if args.calls == ["all"] else args.calls or list(warm.DEFAULT)
+    unknown = [name for name in names if name not in warm.CALLS]
+    if unknown:
+        raise InputError(f"unknown call {', '.join(map(repr, unknown))} for tumble warm; the calls are "
+                         f"{', '.join(warm.CALLS)} (or all)")
+    start = time.perf_counter()
+
+    def report(warmed):
+        outcome = f"failed: {warmed.error}" if warmed.error else "compiled (or already in the cache)"
+        print(f"warm {warmed.name}: {warmed.seconds:.1f} s, {outcome}", flush=True)
+
+    failed = [w for w in warm.warm(names, report=report) if w.error]
+    print(f"warmed {len(names) - len(failed)} of {len(names)} calls in {time.perf_counter() - start:.1f} s")
+    return 1 if failed else 0
 
 
 def _add_check_parser(commands):
@@ -541,6 +567,8 @@ def main(argv=None):
             _plot(args)
         elif args.command == "bench":
             _bench(args)
+        elif args.command == "warm":
+            return _warm(args)
         elif args.command == "demo":
             if args.samples < 1:
                 raise InputError(f"--samples must be >= 1, got {args.samples}")

@@ -125,8 +125,8 @@ def torque_spec(torque):
 def _warm(method, torque, observe):
     """Compile (or load from the cache) the kernel variant a run needs; seconds it took (0 if done before).
 
-    One driver serves every method and observer for each torque type (none, a profile, a function)."""
-    key = (torque.params is None, torque.fn)
+    One driver per method and torque type (none, a profile, a function) serves every observer."""
+    key = (method, torque.params is None, torque.fn)
     if key in _warmed:
         return 0.0
     started = time.perf_counter()

@@ -7,7 +7,7 @@ damper): the same chunks of samples and observers
 (final state, decimated trajectory, the transverse norm at probe times, the invariants' drift, a status per
 sample), stepped by the models' SIMD kernels (:func:`tumble.kernels.run_model`: rk4 or rk8, and the Lie–Poisson
 splittings symplectic_euler, splitting2, splitting4 for a free body, gyrostat or heavy top; one compiled driver
-for every model). The transverse norm is the model's own (:meth:`~tumble.physics.models.Model.transverse`, about
+per model and method). The transverse norm is the model's own (:meth:`~tumble.physics.models.Model.transverse`, about
 :meth:`~tumble.physics.models.Model.equilibrium`; the gravity gradient's ``Transverse.centre``, ``w2 = −n``, is that
 equilibrium's). Initial states near a steady spin come from
 :func:`tumble.engine.sampling.perturbed_states`.

@@ -23,7 +23,7 @@ code (:func:`tumble.kernels.cuda_launch.loop_array`).
 import numpy as np
 from numba import boolean, cuda, float64, int64
 
-from .cuda_launch import THREADS, launch_shape, loop_array
+from .cuda_launch import THREADS, launch_shape, loop_array, loop_with_codes
 from .drivers import RUN_BLOCK_FREE, RUN_BLOCK_TORQUE, VALUE_ROWS
 from .jit import cuda_jit
 from .methods import Observed, from_kernel_frame, kernel_frame, kernel_observed_axis
@@ -43,9 +43,10 @@ def refusal(method, *, torque_fn=None):
 def make_kernel(method, torque_free):
     """The device kernel of ``method``, torque-free or with a built-in torque profile: one thread per sample, running
     the CPU's time loop (:func:`tumble.kernels.drivers.make_run_block`) on a block of one sample in the thread's local
-    memory. The method is an argument of the loop, as on the CPU; ``torque_free`` a constant of the closure, so that
-    numba compiles only the loop's torque-free or its torque branch."""
+    memory. The method is a constant of the closure, handed to the loop as on the CPU, so that the loop compiles its
+    step only; so is ``torque_free``, so that numba compiles only the loop's torque-free or its torque branch."""
     kernel_id = method.kernel_id
+    run_block = loop_with_codes(RUN_BLOCK_FREE if torque_free else RUN_BLOCK_TORQUE, kernel_id)
 
     @cuda_jit
     def propagate(w, scene, bodies, t0, hs, step_counts, saves, saved, axes, weight_rows, probe_step_rows, probes,
@@ -74,9 +75,9 @@ def make_kernel(method, torque_free):
                loop_array(steps_taken), stop_norms[s], stop_flips, drift_limit, torque_kind)
         fit = (fit_saturations[s], fit_min_points, fit_hs[s], loop_array(fit), loop_array(fit_points))
         if torque_free:  # a constant: numba compiles one of the two
-            RUN_BLOCK_FREE(*run, None, None, *fit)
+            run_block(*run, None, None, *fit)
         else:
-            RUN_BLOCK_TORQUE(*run, loop_array(torque_rows)[s], None, *fit)
+            run_block(*run, loop_array(torque_rows)[s], None, *fit)
 
     return propagate
 

@@ -5,14 +5,21 @@ The time loops (:func:`tumble.kernels.model_loop.run_block`, ...) are ``@jit`` f
 compiles them into the kernel that calls them; on numba-cuda's simulator (``NUMBA_ENABLE_CUDASIM=1``) the kernel's
 body runs as Python and calls them as the CPU's compiled functions, which take numpy arrays, not the simulator's
 wrapped device arrays. :func:`loop_array` is the identity on a device and unwraps the numpy array on the simulator
-(the same memory: what the loop writes is what the launcher copies back).
+(the same memory: what the loop writes is what the launcher copies back). A loop's leading codes (a method's id; a
+model's code and a method's) are constants of the kernel that numba compiles in as literals, so that the loop compiles
+the one step it runs; :func:`loop_with_codes` gives the simulator's Python kernel body a compiled CPU function that
+passes them the same way.
 
 This module imports ``numba.cuda``; only the device launchers import it.
 """
 
+import inspect
+
 from numba import config, cuda
 
-__all__ = ["THREADS", "launch_shape", "loop_array"]
+from .jit import jit
+
+__all__ = ["THREADS", "launch_shape", "loop_array", "loop_with_codes"]
 
 #: Threads per block of a launch (one sample each).
 THREADS = 128
@@ -35,3 +42,28 @@ else:
     def loop_array(array):
         """``array`` itself: on a device the time loop takes the kernel's arrays as they are."""
         return array
+
+
+
+def _with_codes(loop, codes):
+    """A compiled CPU function of ``loop``'s parameters that calls ``loop`` with ``codes`` in place of its first
+    ones: the codes are globals of the function, which numba types as literals (a star-call, ``loop(a, *args)``,
+    would pack them into a tuple of plain ints)."""
+    names = list(inspect.signature(loop.py_func).parameters)
+    constants = {f"code_{k}": code for k, code in enumerate(codes)}
+    arguments = ", ".join([*constants, *names[len(codes):]])
+    namespace = {"loop": loop, **constants}
+    exec(f"def call({', '.join(names)}):\n    return loop({arguments})\n", namespace)
+    return jit(cache=False)(namespace["call"])
+
+
+if config.ENABLE_CUDASIM:
+    def loop_with_codes(loop, *codes):
+        """The time loop ``loop`` as the simulator's kernel body calls it: a compiled CPU function that passes ``codes``
+        (ints) to ``loop`` as constants, as a device kernel does, and the rest of its arguments as given (the codes
+        the kernel body passes in front are not used). From Python, numba would type them as plain ints."""
+        return _with_codes(loop, codes)
+else:
+    def loop_with_codes(loop, *codes):
+        """``loop`` itself: a device kernel passes its codes as the constants they are."""
+        return loop

@@ -19,7 +19,7 @@ import numpy as np
 from numba import boolean, cuda, float64, int64
 
 from ..registry import model_kind
-from .cuda_launch import THREADS, launch_shape, loop_array
+from .cuda_launch import THREADS, launch_shape, loop_array, loop_with_codes
 from .jit import cuda_jit
 from .model_loop import MODEL_CODES, MODEL_METHODS, ModelObserved, model_arguments, run_block
 from .systems import N_CONSTANTS, N_INVARIANTS
@@ -31,7 +31,9 @@ def make_kernel(model, method, n_state):
     """The device kernel of ``model`` (a :data:`~tumble.kernels.model_loop.MODEL_CODES` value) stepped by ``method``
     (a :data:`~tumble.kernels.model_loop.MODEL_METHODS` value), ``n_state`` components: one thread per sample, running
     the CPU's time loop (:func:`tumble.kernels.model_loop.run_block`) on a block of one sample in the thread's local
-    memory."""
+    memory. The codes are constants of the closure, handed to the loop as the CPU's driver hands them: the loop compiles
+    that system's and that method's step only."""
+    loop = loop_with_codes(run_block, model, method)
 
     @cuda_jit
     def propagate(y, c, h, n_steps, save_every, saved, columns, weights, y_eq, probe_steps, probes, drift,
@@ -47,7 +49,7 @@ def make_kernel(model, method, n_state):
         constants = cuda.local.array(N_CONSTANTS, float64)
         for j in range(N_CONSTANTS):
             constants[j] = c[j]
-        run_block(model, method, loop_array(y), i, cuda.local.array((n_state, 1), float64),
+        loop(model, method, loop_array(y), i, cuda.local.array((n_state, 1), float64),
                   cuda.local.array(1, boolean), cuda.local.array((n_state, 1), float64), cuda.local.array(1, int64),
                   cuda.local.array((N_INVARIANTS, 1), float64), cuda.local.array((N_INVARIANTS, 1), float64),
                   constants, h, n_steps, save_every, loop_array(saved), loop_array(columns), loop_array(weights),

@@ -9,12 +9,11 @@ copied into three contiguous component arrays (structure of arrays) so that the 
 depend on the number of threads or on the block size.
 
 Observers are runtime switches: an output that was not asked for is an empty array (a zero-length axis), and
-its branch, outside the loop over the samples of a block, is skipped. So is the method: the driver calls the
-step of the method it is given (``kernel``), once per block and step, outside the loop over the samples. One
-compiled driver per torque type (none, a built-in profile, a user's function) therefore serves every method
-and every combination of observers: three variants to compile instead of eighteen (about 15 s each on a
-2-core AVX2 machine); the branches cost nothing measurable (``benchmarks/engine.py``). Memory is O(samples)
-unless a trajectory is stored.
+its branch, outside the loop over the samples of a block, is skipped; the branches cost nothing measurable
+(``benchmarks/engine.py``). The method is not: it is a constant of the driver (:func:`make_propagate`) and of the
+device kernel, and the loop compiles its one step (:func:`_method_step`). So one compiled driver per method and
+torque type (none, a built-in profile, a user's function) serves every combination of observers, and a run compiles
+(or loads) only the driver of the method it runs. Memory is O(samples) unless a trajectory is stored.
 
 Per-sample status: ``STATUS_OK``, ``STATUS_NONFINITE`` (a component became NaN or inf) or ``STATUS_DRIFT``
 (torque-free only: ``|L|**2`` or the energy drifted by more than ``drift_limit``, relative). A sample with a
@@ -26,12 +25,13 @@ import math
 
 import numpy as np
 from numba import prange, types
+from numba.extending import overload
 
 from ..registry import STATUS_DRIFT, STATUS_NAMES, STATUS_NONFINITE, STATUS_OK, STEPPING  # noqa: F401
 from .fused import rk4_block, rk8_block, splitting2_block, splitting4_block, symplectic_euler_block
 from .block_parts import check_finite, freeze, restore_frozen, store, store_initial, store_rest
 from .fits import GROWTH_WINDOW_START, growth_window_add, growth_window_rate
-from .jit import jit
+from .jit import FASTMATH, jit
 from .steppers import (
     energy,
     euler_rate,
@@ -46,6 +46,13 @@ from .steppers import (
 RK4, RK8, SYMPLECTIC_EULER, SPLITTING2, SPLITTING4, IMPLICIT_MIDPOINT = (
     STEPPING.index(name)
     for name in ("rk4", "rk8", "symplectic_euler", "splitting2", "splitting4", "implicit_midpoint"))
+
+#: Each method's step of a block: the generated ones (:mod:`tumble.kernels.fused`; torque-free, and the Runge–Kutta
+#: methods with a torque too), and the splittings' compositions of sub-flows with a torque.
+_FUSED_STEPS = {RK4: rk4_block, RK8: rk8_block, SYMPLECTIC_EULER: symplectic_euler_block, SPLITTING2: splitting2_block,
+                SPLITTING4: splitting4_block}
+_TORQUE_SPLITTINGS = {SYMPLECTIC_EULER: symplectic_euler_torque_block, SPLITTING2: splitting2_torque_block,
+                      SPLITTING4: splitting4_torque_block}
 
 
 # How often (in steps) samples are checked for non-finite values when no per-step observer runs anyway.
@@ -201,6 +208,45 @@ def _stop_complete(ys, active, reached, stop_norm, stop_flips, flip_count, lo, k
     return remaining
 
 
+def _method_step(kernel, torque_free, y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params,
+                 torque_fn):
+    """One step of method ``kernel`` for every running sample of a block, torque-free or with a torque: the step is
+    chosen when the loop is compiled (:func:`_method_step_of`)."""
+
+
+@overload(_method_step, inline="always", jit_options=dict(fastmath=set(FASTMATH), error_model="numpy"))
+def _method_step_of(kernel, torque_free, y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params,
+                    torque_fn):
+    """The method's id and ``torque_free`` are literal types (constants of the caller: the CPU driver's closure, the
+    device kernel's): each method compiles its own loop with its one step in it (a chain of branches over the methods
+    compiled all six steps into every driver, whichever it ran: 40 s of a first ``integrate`` rk4 on 2 cores,
+    ``benchmarks/first_call.py``). The torque-free splittings are the generated ones of :mod:`tumble.kernels.fused`
+    (ending on each sample's own ``|L|**2``), with a torque their compositions of sub-flows."""
+    if not (isinstance(kernel, types.IntegerLiteral) and isinstance(torque_free, types.BooleanLiteral)):
+        return None
+    method, free = kernel.literal_value, torque_free.literal_value
+    if method == IMPLICIT_MIDPOINT:
+        def midpoint_step(kernel, torque_free, y1, y2, y3, active, t, h, body, target, work, torque_kind,
+                          torque_params, torque_fn):
+            implicit_midpoint_block(y1, y2, y3, active, t, h, body, work, torque_kind, torque_params, torque_fn)
+
+        return midpoint_step
+    if not free and method in _TORQUE_SPLITTINGS:
+        torque_splitting = _TORQUE_SPLITTINGS[method]
+
+        def torque_splitting_step(kernel, torque_free, y1, y2, y3, active, t, h, body, target, work, torque_kind,
+                                  torque_params, torque_fn):
+            torque_splitting(y1, y2, y3, t, h, body, torque_kind, torque_params, torque_fn)
+
+        return torque_splitting_step
+    fused_step = _FUSED_STEPS[method]
+
+    def step(kernel, torque_free, y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn):
+        fused_step(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
+
+    return step
+
+
 #: Rows of a block's float scratch ``values`` (m columns) besides its states: each sample's initial ``|L|**2``
 #: (the splittings project onto it), its initial energy, and its growth window (6 rows, :func:`_feed_window`).
 TARGET, ENERGY, WINDOW = 0, 1, 2
@@ -216,8 +262,8 @@ def make_run_block(torque_free):
     each sample's own ``|L|**2``), the loop with a torque calls the splittings through
     :func:`tumble.kernels.steppers.make_splitting_torque_block`, the loop over their sub-flows with torque sub-flows,
     and never compiles the spelled-out torque-free splittings (splitting4's alone costs about 40 s). (A test of
-    ``torque_params is None`` would not do: numba prunes on it only when it is None.) The method is a runtime
-    argument, tested once per block and step outside the loop over the samples."""
+    ``torque_params is None`` would not do: numba prunes on it only when it is None.) The method (``kernel``) comes in
+    as a literal (a constant of the caller), and the loop compiles that method's step only (:func:`_method_step`)."""
 
     @jit
     def run_block(kernel, w, lo, ys, frozen, previous, values, flags, last,
@@ -288,26 +334,8 @@ def make_run_block(torque_free):
             if track_flips:
                 for i in range(m):
                     previous[0, i], previous[1, i], previous[2, i] = y1[i], y2[i], y3[i]
-            if kernel == RK4:
-                rk4_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
-            elif kernel == RK8:
-                rk8_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
-            elif kernel == IMPLICIT_MIDPOINT:
-                implicit_midpoint_block(y1, y2, y3, active, t, h, body, work, torque_kind, torque_params, torque_fn)
-            elif not torque_free:
-                if kernel == SYMPLECTIC_EULER:
-                    symplectic_euler_torque_block(y1, y2, y3, t, h, body, torque_kind, torque_params, torque_fn)
-                elif kernel == SPLITTING2:
-                    splitting2_torque_block(y1, y2, y3, t, h, body, torque_kind, torque_params, torque_fn)
-                else:
-                    splitting4_torque_block(y1, y2, y3, t, h, body, torque_kind, torque_params, torque_fn)
-            elif kernel == SYMPLECTIC_EULER:
-                symplectic_euler_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params,
-                                       torque_fn)
-            elif kernel == SPLITTING2:
-                splitting2_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
-            else:
-                splitting4_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
+            _method_step(kernel, torque_free, y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params,
+                         torque_fn)
             if n_frozen:
                 restore_frozen(ys, active, frozen)
             ran = k + 1
@@ -357,13 +385,15 @@ RUN_BLOCK_FREE = make_run_block(True)
 RUN_BLOCK_TORQUE = make_run_block(False)
 
 
-def make_propagate(torque_free):
+def make_propagate(torque_free, kernel):
     # size: the closure holds the CPU's driver below (see there)
-    """The CPU's driver of the one time loop, torque-free (:data:`RUN_BLOCK_FREE`) or with a torque
-    (:data:`RUN_BLOCK_TORQUE`): a constant of the closure, as the loop's."""
+    """The CPU's driver of the one time loop for method ``kernel`` (its index in :data:`tumble.registry.STEPPING`),
+    torque-free (:data:`RUN_BLOCK_FREE`) or with a torque (:data:`RUN_BLOCK_TORQUE`): both constants of the closure,
+    so that the loop compiles the one step it runs (:func:`_method_step`). numba's disk cache tells the closures apart
+    by their constants (its index key hashes a closure's cell contents)."""
 
     @jit(parallel=True)
-    def propagate(kernel, w, body, t0, h, n_steps, block,
+    def propagate(w, body, t0, h, n_steps, block,
                   save_every, saved,
                   axis, norm_weights, probe_steps, probes,
                   flips, flip_count,
@@ -372,13 +402,11 @@ def make_propagate(torque_free):
                   stop_norm, stop_flips, drift_limit,
                   torque_kind, torque_params, torque_fn):
         # size: the driver's flat arguments (kernels.methods.run packs them), documented once here
-        """Advance every sample ``n_steps`` fixed steps of size ``h`` of method ``kernel``, observing as asked: the
+        """Advance every sample ``n_steps`` fixed steps of size ``h`` of the closure's method, observing as asked: the
         CPU's wrapper of the one time loop (:func:`make_run_block`), blocks of ``block`` samples in parallel.
 
         Parameters
         ----------
-        kernel : int
-            The method: its index in :data:`tumble.registry.STEPPING`.
         w : ndarray, shape (3, N)
             Body-frame angular velocity, rad/s; overwritten with the final (or frozen) state.
         body : tuple
@@ -431,40 +459,41 @@ def make_propagate(torque_free):
     return propagate
 
 
-# The two drivers, each compiled lazily on first use: torque-free, and with a built-in torque profile.
-PROPAGATE_FREE = make_propagate(True)
-PROPAGATE_TORQUE = make_propagate(False)
-
 # A user's torque function ``f(t, w1, w2, w3) -> (N1, N2, N3)`` is passed as a first-class function of this
-# type, so one compiled (and cached) driver serves every torque function instead of one variant per function
-# (which numba could not cache). The price is an indirect call per sample and stage, which keeps the step
+# type, so one compiled (and cached) driver per method serves every torque function instead of one variant per
+# function (which numba could not cache). The price is an indirect call per sample and stage, which keeps the step
 # from vectorising across samples (measured in benchmarks/engine.py).
 TORQUE_SIGNATURE = types.UniTuple(types.float64, 3)(types.float64, types.float64, types.float64, types.float64)
-_USER_TORQUE_DRIVER = []  # the one dispatcher for torque functions, once made
+
+#: The drivers made so far, by (method id, torque: None, "profile" or "function"); each compiles on its first call.
+_DRIVERS = {}
 
 
-def driver(torque_free, torque_fn=None):
-    """The compiled driver for a run: torque-free, with a built-in torque profile, or with ``torque_fn``.
+def driver(kernel, torque_free, torque_fn=None):
+    """The compiled driver for a run of method ``kernel``: torque-free, with a built-in torque profile, or with
+    ``torque_fn`` (:func:`make_propagate`, made once per method and torque).
 
-    Without a torque function this is :data:`PROPAGATE_FREE` or :data:`PROPAGATE_TORQUE`. With one, the
-    function is compiled for :data:`TORQUE_SIGNATURE` and a second dispatcher of the driver with a torque,
-    compiled only for the first-class function type and then closed to further compilation, takes it: numba
-    converts any jitted function of that signature to the first-class type instead of compiling a variant for it.
+    With a torque function, the function is compiled for :data:`TORQUE_SIGNATURE` and a dispatcher of the driver
+    with a torque, compiled only for the first-class function type and then closed to further compilation, takes it:
+    numba converts any jitted function of that signature to the first-class type instead of compiling a variant for it.
     """
-    if torque_fn is None:
-        return PROPAGATE_FREE if torque_free else PROPAGATE_TORQUE
-    torque_fn.compile(TORQUE_SIGNATURE)
-    if not _USER_TORQUE_DRIVER:
-        dispatcher = jit(parallel=True)(PROPAGATE_TORQUE.py_func)
-        dispatcher.compile(_user_torque_types())
-        dispatcher.disable_compile()
-        _USER_TORQUE_DRIVER.append(dispatcher)
-    return _USER_TORQUE_DRIVER[0]
+    torque = None if torque_free else "profile" if torque_fn is None else "function"
+    if torque_fn is not None:
+        torque_fn.compile(TORQUE_SIGNATURE)
+    key = (kernel, torque)
+    made = _DRIVERS.get(key)
+    if made is None:
+        made = make_propagate(torque_free, kernel)
+        if torque == "function":
+            made.compile(_user_torque_types())
+            made.disable_compile()
+        _DRIVERS[key] = made
+    return made
 
 
 def _user_torque_types():
     """Argument types of the driver for a user torque function (see :func:`driver`)."""
     f8, i8 = types.float64, types.int64
-    return (i8, f8[:, ::1], types.UniTuple(f8, 12), f8, f8, i8, i8, i8, f8[:, :, ::1], i8, f8[::1], i8[::1],
+    return (f8[:, ::1], types.UniTuple(f8, 12), f8, f8, i8, i8, i8, f8[:, :, ::1], i8, f8[::1], i8[::1],
             f8[:, ::1], f8[:, ::1], i8[::1], f8[:, ::1], types.int8[::1], i8[::1], f8, i8, f8, i8, f8[::1],
             types.FunctionType(TORQUE_SIGNATURE))

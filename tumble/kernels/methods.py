@@ -240,11 +240,11 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
     status = np.zeros(n, dtype=np.int8)
     steps_taken = np.zeros(n, dtype=np.int64)
     torque_free = torque_params is None and torque_fn is None
-    args = (method.kernel_id, kernel_w, constants, float(t0), float(h), int(n_steps), int(block),
+    args = (kernel_w, constants, float(t0), float(h), int(n_steps), int(block),
             int(save_every), saved, int(kernel_axis), weights, probe_steps, probes, flips, flip_count, drifts, status,
             steps_taken, float(stop_norm), int(stop_flips), float(drift_limit), int(torque_kind), torque_params,
             torque_fn)
-    driver(torque_free, torque_fn)(*args)
+    driver(method.kernel_id, torque_free, torque_fn)(*args)
     if relabel is not None:
         w[:] = from_kernel_frame(relabel, kernel_w)
         saved = from_kernel_frame(relabel, saved, axis=1)

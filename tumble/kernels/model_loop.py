@@ -8,15 +8,16 @@ block is copied into contiguous component rows (structure of arrays) and the gen
 (:mod:`tumble.kernels.model_steps`, from the Butcher tableaux of :mod:`tumble.kernels.tableaux`) runs in a loop
 over the block's samples that the compiler vectorises across samples (SIMD lanes).
 
-**One compiled variant.** The model and the method are runtime codes, tested once per block and step, outside the
-loop over the samples; the observers are runtime switches on arrays that are empty when not asked for; a model's
-parameters are one float array (:func:`tumble.kernels.systems.constants`: each system's named record first). So one
-compiled (and cached) driver serves the free body, the gyrostat, the heavy top, the gravity gradient and the damper,
-rk4 and rk8 (and the Lie–Poisson splittings for the free body, the gyrostat and the heavy top:
-:mod:`tumble.kernels.model_splittings`), and every combination of outputs. The free body runs as the gyrostat with
-``h = 0`` (the free body keeps its own, faster driver for everything else: :func:`tumble.kernels.run`). A system's
-equations are its module of :mod:`tumble.kernels.systems`; the steps and the dispatch over systems and methods are
-generated from them (:mod:`tumble.kernels.model_steps`).
+**One compiled driver per system and method.** The model and the method are codes that reach the loop as constants of
+its caller (:func:`make_propagate_model`'s closure, the device kernel's), and the loop compiles that system's and that
+method's step only (:func:`_step`); the observers are runtime switches on arrays that are empty when not asked for; a
+model's parameters are one float array (:func:`tumble.kernels.systems.constants`: each system's named record first).
+So one compiled (and cached) driver per system and method serves every combination of outputs: rk4 and rk8 for every
+system, the Lie–Poisson splittings for the free body, the gyrostat and the heavy top
+(:mod:`tumble.kernels.model_splittings`). The free body runs as the gyrostat with ``h = 0`` (the free body keeps its
+own, faster driver for everything else: :func:`tumble.kernels.run`). A system's equations are its module of
+:mod:`tumble.kernels.systems`; the steps and the dispatch over systems and methods are generated from them
+(:mod:`tumble.kernels.model_steps`).
 
 **Observers.** The final state (in place); the state every ``save_every`` steps; the transverse norm
 ``sqrt(sum_j weights[j] (y[columns[j]] − y_eq[columns[j]])²)`` at given steps (the arrays of
@@ -46,22 +47,23 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import prange
+from numba import prange, types
+from numba.extending import overload
 
 from ..registry import (LIE_POISSON_MODELS, MODEL_KINDS, MODEL_PARAMETERS, MODEL_STEPPING, STATUS_DRIFT, STATUS_OK,
                         STEPPING, model_kind)
 from ..registry import model_methods  # the names the model kernels run for a kind (re-exported)
 from .block_parts import check_finite, freeze, nan_rest, restore_frozen, store, store_initial, store_rest
 from .drift_screen import SCREEN_ATOL, SCREEN_RTOL
-from .jit import jit
+from .jit import FASTMATH, jit
 from .model_splittings import SPLITTINGS
 from .model_steps import (drift_suspects, invariants, rate_columns, rate_sample, step, tangent_columns,
                           tangent_sample)
 from .systems import N_INVARIANTS, constants
 
-__all__ = ["MODEL_CODES", "MODEL_METHODS", "ModelObserved", "SPLITTING_KINDS", "model_arguments", "model_methods",
-           "model_rhs", "model_tangent", "propagate_model", "rate_sample", "rate_sample_parameters", "run_block",
-           "run_model", "tangent_sample"]
+__all__ = ["MODEL_CODES", "MODEL_METHODS", "ModelObserved", "SPLITTING_KINDS", "make_propagate_model",
+           "model_arguments", "model_methods", "model_rhs", "model_tangent", "propagate_model", "rate_sample",
+           "rate_sample_parameters", "run_block", "run_model", "tangent_sample"]
 
 #: Kernel codes of the models: their index in ``registry.MODEL_KINDS``. The kernels step every model of this table,
 #: whatever ``registry.MODELS``' ``implemented`` says (that flag is the studies'; the gravity gradient and the damper
@@ -85,11 +87,74 @@ BLOCK = 256
 _TINY = 2.2250738585072014e-308  # smallest normal float: a zero scale gives a zero drift, not 0/0
 
 
+# --- the system's and the method's code, chosen when the loop is compiled ---------------------------------------------
+# The model's and the method's codes reach the loop as literal types (constants of its caller: the CPU driver's closure,
+# :func:`driver`, and the device kernel's, :mod:`tumble.kernels.cuda_models`). The three functions below hand them as
+# constants to the generated chains of :mod:`tumble.kernels.model_steps`, which numba inlines and prunes to the one
+# branch taken: a driver compiles its own system's step, invariants and drift screen only (the chains compiled every
+# system's and method's steps into the one driver there was: 78 s of a first heavy-top ensemble on 2 cores,
+# ``benchmarks/first_call.py``).
+
+_OPTIONS = dict(inline="always", jit_options=dict(fastmath=set(FASTMATH), error_model="numpy"))
+
+
+def _literal(*codes):
+    return all(isinstance(code, types.IntegerLiteral) for code in codes)
+
+
+def _step(model, method, ys, t, h, a, x0):
+    """:func:`tumble.kernels.model_steps.step` of the system and method given as literal codes."""
+
+
+@overload(_step, **_OPTIONS)
+def _step_of(model, method, ys, t, h, a, x0):
+    if not _literal(model, method):
+        return None
+    model_code, method_code = model.literal_value, method.literal_value
+
+    def system_step(model, method, ys, t, h, a, x0):
+        step(model_code, method_code, ys, t, h, a, x0)
+
+    return system_step
+
+
+def _invariants(model, ys, i, a):
+    """:func:`tumble.kernels.model_steps.invariants` of the system given as a literal code."""
+
+
+@overload(_invariants, **_OPTIONS)
+def _invariants_of(model, ys, i, a):
+    if not _literal(model):
+        return None
+    model_code = model.literal_value
+
+    def system_invariants(model, ys, i, a):
+        return invariants(model_code, ys, i, a)
+
+    return system_invariants
+
+
+def _drift_suspects(model, ys, active, a, x0, scale, screen):
+    """:func:`tumble.kernels.model_steps.drift_suspects` of the system given as a literal code."""
+
+
+@overload(_drift_suspects, **_OPTIONS)
+def _drift_suspects_of(model, ys, active, a, x0, scale, screen):
+    if not _literal(model):
+        return None
+    model_code = model.literal_value
+
+    def system_drift_suspects(model, ys, active, a, x0, scale, screen):
+        return drift_suspects(model_code, ys, active, a, x0, scale, screen)
+
+    return system_drift_suspects
+
+
 @jit
 def _initial_invariants(model, ys, c, x0, scale):
     """Each sample's invariants ``x0`` (3, m) and their drift scales (3, m) at the start."""
     for i in range(ys.shape[1]):
-        x1, x2, x3, s1, s2, s3 = invariants(model, ys, i, c)
+        x1, x2, x3, s1, s2, s3 = _invariants(model, ys, i, c)
         x0[0, i], x0[1, i], x0[2, i] = x1, x2, x3
         scale[0, i], scale[1, i], scale[2, i] = max(s1, _TINY), max(s2, _TINY), max(s3, _TINY)
 
@@ -103,7 +168,7 @@ def _observe_drift(model, ys, active, c, x0, scale, drift, lo, drift_limit, k, f
     for i in range(ys.shape[1]):
         if not active[i]:
             continue
-        x1, x2, x3, _, _, _ = invariants(model, ys, i, c)
+        x1, x2, x3, _, _, _ = _invariants(model, ys, i, c)
         d1 = abs(x1 - x0[0, i]) / scale[0, i]
         d2 = abs(x2 - x0[1, i]) / scale[1, i]
         d3 = abs(x3 - x0[2, i]) / scale[2, i]
@@ -168,13 +233,13 @@ def run_block(model, method, y, lo, ys, active, frozen, last, x0, scale, c, h, n
     for k in range(n_steps):
         if n_frozen == m:
             break
-        step(model, method, ys, k * h, h, c, x0)
+        _step(model, method, ys, k * h, h, c, x0)
         if n_frozen:
             restore_frozen(ys, active, frozen)
         ran = k + 1
         # with drifts tracked every step, the exact observers run only for a block with a suspect (or whose
         # drifts are recorded): the screen's "nothing to stop" is exact, its suspects are checked exactly
-        exact = track_drift and (record_drift or drift_suspects(model, ys, active, c, x0, scale, screen))
+        exact = track_drift and (record_drift or _drift_suspects(model, ys, active, c, x0, scale, screen))
         if exact or (not track_drift and (ran % CHECK_EVERY == 0 or ran == n_steps)):
             n_frozen += check_finite(ys, active, ran, frozen, block_status, last)
         if exact:
@@ -195,7 +260,30 @@ def run_block(model, method, y, lo, ys, active, frozen, last, x0, scale, c, h, n
         steps_taken[lo + i] = last[i]
 
 
-@jit(parallel=True)
+def make_propagate_model(model, method):
+    """The CPU's driver of the one time loop (:func:`run_block`) for ``model`` and ``method`` (codes of
+    :data:`MODEL_CODES` and :data:`MODEL_METHODS`), constants of the closure: the loop compiles that system's and that
+    method's step only. numba's disk cache tells the closures apart by their constants."""
+
+    @jit(parallel=True)
+    def propagate(y, constants, h, n_steps, block, save_every, saved, columns, weights, y_eq, probe_steps, probes,
+                  drift, drift_limit, status, steps_taken):
+        n_state, n = y.shape
+        for ib in prange((n + block - 1) // block):
+            lo = ib * block
+            m = min(block, n - lo)
+            run_block(model, method, y, lo, np.empty((n_state, m)), np.empty(m, dtype=np.bool_),
+                      np.empty((n_state, m)), np.empty(m, dtype=np.int64), np.empty((N_INVARIANTS, m)),
+                      np.empty((N_INVARIANTS, m)), constants, h, n_steps, save_every, saved, columns, weights, y_eq,
+                      probe_steps, probes, drift, drift_limit, status, steps_taken)
+
+    return propagate
+
+
+#: The CPU drivers made so far, by (model code, method code); each compiles (or loads) on its first call.
+_DRIVERS = {}
+
+
 def propagate_model(model, method, y, constants, h, n_steps, block,
                     save_every, saved,
                     columns, weights, y_eq, probe_steps, probes,
@@ -230,14 +318,12 @@ def propagate_model(model, method, y, constants, h, n_steps, block,
     status, steps_taken : ndarray (N,) int8, ndarray (N,) int64
         Outputs: per-sample status and the number of steps each sample took.
     """
-    n_state, n = y.shape
-    for ib in prange((n + block - 1) // block):
-        lo = ib * block
-        m = min(block, n - lo)
-        run_block(model, method, y, lo, np.empty((n_state, m)), np.empty(m, dtype=np.bool_),
-                  np.empty((n_state, m)), np.empty(m, dtype=np.int64), np.empty((N_INVARIANTS, m)),
-                  np.empty((N_INVARIANTS, m)), constants, h, n_steps, save_every, saved, columns, weights, y_eq,
-                  probe_steps, probes, drift, drift_limit, status, steps_taken)
+    key = (int(model), int(method))
+    driver = _DRIVERS.get(key)
+    if driver is None:
+        driver = _DRIVERS[key] = make_propagate_model(*key)
+    driver(y, constants, h, n_steps, block, save_every, saved, columns, weights, y_eq, probe_steps, probes, drift,
+           drift_limit, status, steps_taken)
 
 
 class ModelObserved(NamedTuple):

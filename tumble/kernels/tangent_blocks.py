@@ -10,9 +10,9 @@ of the device (one thread per sample); this one is the built-in models' on the C
 top's MEGNO, rk4, 2000 samples, 6.6e7 sample-steps/s against the per-sample loop's 2.7e6 (24 times; 2 cores, AVX2,
 2026-11-28; the whole map: ``benchmarks/chaos.py``).
 
-**One compiled driver per (system, method).** :func:`propagate_tangents` takes the model's and the method's codes
-as literal values (``numba.literally``): each pair compiles (once, then from the disk cache) a driver with its one
-step in it. :func:`run` calls it, paying numba's literal dispatch (about 13 ms a call) once per process.
+**One compiled driver per (system, method).** :func:`make_propagate_tangents`'s driver holds the model's and the
+method's codes as constants of its closure, and passes them to the loop as literal values: each pair compiles (once,
+then from the disk cache) a driver with its one step in it (:func:`_tangent_step`).
 
 **Checks.** The running samples of a block are screened for values that are not finite, branch-free, every
 :data:`CHECK_EVERY` steps and at every factorisation (where a tangent vector that collapsed is caught too); the block
@@ -26,7 +26,7 @@ arithmetic is the per-sample loop's, so results match it to round-off (``tests/t
 import math
 
 import numpy as np
-from numba import literally, prange, typeof, types
+from numba import prange, types
 from numba.extending import overload
 
 from ..registry import MODEL_STEPPING, STATUS_ABOVE, STATUS_NONFINITE, STATUS_OK, STEPPING
@@ -35,7 +35,7 @@ from .model_steps import TANGENT_STEPS
 from .tableaux import TABLEAUX
 from .tangent_loop import orthonormalise_row
 
-__all__ = ["BLOCK", "CHECK_EVERY", "METHODS", "propagate_tangents", "run", "runs"]
+__all__ = ["BLOCK", "CHECK_EVERY", "METHODS", "make_propagate_tangents", "run", "runs"]
 
 #: The methods with generated tangent steps, name -> (the tableau they were generated from, kernel id): the models'
 #: explicit Runge–Kutta methods (a tableau replaced at run time under one of these names is not theirs).
@@ -58,7 +58,7 @@ def _tangent_step(model, method, Z, t, t0, h, a):
 
 @overload(_tangent_step, inline="always", jit_options=dict(fastmath=set(FASTMATH), error_model="numpy"))
 def _tangent_step_of(model, method, Z, t, t0, h, a):
-    """The model's and the method's codes are literal types (:func:`propagate_tangents` asks for them): each pair
+    """The model's and the method's codes are literal types (constants of :func:`make_propagate_tangents`): each pair
     compiles its own driver, with its one step in it, and is cached as such (a chain of branches over every system and
     method compiled all of them into one driver: 150 s on 2 cores, measured)."""
     if not (isinstance(model, types.IntegerLiteral) and isinstance(method, types.IntegerLiteral)):
@@ -72,7 +72,7 @@ def _tangent_step_of(model, method, Z, t, t0, h, a):
 
 
 def runs(method):
-    """Whether :func:`propagate_tangents` runs ``method`` (the tableau of that name now is the one its steps were
+    """Whether :func:`run` runs ``method`` (the tableau of that name now is the one its steps were
     generated from)."""
     return method in METHODS and TABLEAUX[method] is METHODS[method][0]
 
@@ -314,32 +314,36 @@ def _run_block(model, method, a, y, V, lo, m, t0, h, n_steps, every, transient, 
                             megno, status, steps_taken)
 
 
-@jit(parallel=True)
-def propagate_tangents(model, method, a, y, V, t0, h, n_steps, every, transient, save_every, stop_above,
-                       orthogonalise, logs, saved, megno, status, steps_taken):
-    # size: tangent_loop's driver's arguments, with the model's code, the method's and its constants first
-    """Every sample of ``y`` (N, n) with its tangent vectors ``V`` (N, k, n) through the whole run, blocks of
-    :data:`BLOCK` samples in parallel (``prange``): ``y`` and ``V`` overwritten with the final (or stopped) values,
-    ``logs`` (N, k) (zeros in), ``saved`` (N, n_saved, k), ``megno`` (N, 4), ``status`` (N,) int8 and ``steps_taken``
-    (N,) int64 written, as :func:`tumble.kernels.tangent_loop.make_cpu_driver`'s driver. ``model``: the model's code
-    (``registry.MODEL_KINDS``), ``method``: rk4's or rk8's (``registry.STEPPING``), ``a``: its constants
-    (:func:`tumble.kernels.systems.constants`)."""
-    literally(model)
-    literally(method)
-    n_samples = y.shape[0]
-    for b in prange((n_samples + BLOCK - 1) // BLOCK):
-        lo = b * BLOCK
-        _run_block(model, method, a, y, V, lo, min(BLOCK, n_samples - lo), t0, h, n_steps, every, transient,
-                   save_every, stop_above, orthogonalise, logs, saved, megno, status, steps_taken)
+def make_propagate_tangents(model, method):
+    """The driver of ``model``'s and ``method``'s codes, constants of the closure (the step is chosen when it is
+    compiled: :func:`_tangent_step`); numba's disk cache tells the closures apart by their constants."""
+
+    @jit(parallel=True)
+    def propagate_tangents(a, y, V, t0, h, n_steps, every, transient, save_every, stop_above, orthogonalise, logs,
+                           saved, megno, status, steps_taken):
+        # size: tangent_loop's driver's arguments, with the model's constants first
+        """Every sample of ``y`` (N, n) with its tangent vectors ``V`` (N, k, n) through the whole run, blocks of
+        :data:`BLOCK` samples in parallel (``prange``): ``y`` and ``V`` overwritten with the final (or stopped) values,
+        ``logs`` (N, k) (zeros in), ``saved`` (N, n_saved, k), ``megno`` (N, 4), ``status`` (N,) int8 and
+        ``steps_taken`` (N,) int64 written, as :func:`tumble.kernels.tangent_loop.make_cpu_driver`'s driver. ``a``:
+        the model's constants (:func:`tumble.kernels.systems.constants`)."""
+        n_samples = y.shape[0]
+        for b in prange((n_samples + BLOCK - 1) // BLOCK):
+            lo = b * BLOCK
+            _run_block(model, method, a, y, V, lo, min(BLOCK, n_samples - lo), t0, h, n_steps, every, transient,
+                       save_every, stop_above, orthogonalise, logs, saved, megno, status, steps_taken)
+
+    return propagate_tangents
+
+
+#: The drivers made so far, by (model code, method id); each compiles (or loads) on its first call.
+_DRIVERS = {}
 
 
 def run(model, method, *arguments):
-    """:func:`propagate_tangents` for the codes ``model`` and ``method``, its literal dispatch paid once per process:
-    the driver compiled (or loaded) for these argument types is called directly after the first call. (Each call of
-    the dispatcher itself types the call twice, once without the literal codes and once with them: about 13 ms.)"""
-    signature = (types.literal(model), types.literal(method), *(typeof(argument) for argument in arguments))
-    compiled = propagate_tangents.overloads.get(signature)
-    if compiled is None:
-        propagate_tangents(model, method, *arguments)
-    else:
-        compiled.entry_point(model, method, *arguments)
+    """The driver of the codes ``model`` (the model's, ``registry.MODEL_KINDS``) and ``method`` (rk4's or rk8's,
+    ``registry.STEPPING``) on ``arguments`` (:func:`make_propagate_tangents`'s driver's), made once per pair."""
+    driver = _DRIVERS.get((model, method))
+    if driver is None:
+        driver = _DRIVERS[model, method] = make_propagate_tangents(model, method)
+    driver(*arguments)

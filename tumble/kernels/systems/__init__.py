@@ -26,7 +26,7 @@ SYSTEMS = {kind: module for kind in MODEL_KINDS for module in (gyrostat, heavy_t
            if kind in module.KINDS}
 assert tuple(SYSTEMS) == MODEL_KINDS, "one module per model kind of the registry"
 
-#: Length of the constants array one compiled driver takes for every system (each reads its own first fields).
+#: Length of the constants array every system's driver takes (each reads its own first fields).
 N_CONSTANTS = max(len(module.Constants._fields) for module in SYSTEMS.values())
 
 #: Invariants the kernels track per sample (each system's own, then zeros).
