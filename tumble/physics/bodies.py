@@ -210,11 +210,18 @@ def moment_unit(moments):
 
 
 def finite_array(value, name):
-    """``value`` as a float64 array, or a ValueError naming ``name`` if it is not numbers or not finite."""
+    """``value`` as a writable float64 array, or a ValueError naming ``name`` if it is not numbers or not finite.
+
+    A read-only array (an xarray coordinate's ``.values``, a memory map) is copied: numba types a read-only array
+    apart from a writable one, and a kernel handed one would compile a second variant of itself (measured: the
+    integrator-check tutorial's ``exact.omega(body, w0, ds.time.values)`` compiled the closed form's grid kernel
+    again, 16 s on 2 cores, after ``tumble warm``)."""
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as err:
         raise ValueError(f"{name} must be a number or an array of numbers, got {value!r}") from err
+    if not arr.flags.writeable:
+        arr = arr.copy()
     # a few numbers (one spin, a scalar) are checked as Python floats: a quarter of the array check's cost
     finite = all(map(math.isfinite, arr.ravel().tolist())) if arr.size <= 16 else np.isfinite(arr).all()
     if not finite:
