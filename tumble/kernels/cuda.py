@@ -43,8 +43,11 @@ def refusal(method, *, torque_fn=None):
 def make_kernel(method, torque_free):
     """The device kernel of ``method``, torque-free or with a built-in torque profile: one thread per sample, running
     the CPU's time loop (:func:`tumble.kernels.drivers.make_run_block`) on a block of one sample in the thread's local
-    memory. The method is a constant of the closure, handed to the loop as on the CPU, so that the loop compiles its
-    step only; so is ``torque_free``, so that numba compiles only the loop's torque-free or its torque branch."""
+    memory. The method is a constant of the closure, handed to the loop: on the simulator as a literal
+    (:func:`tumble.kernels.cuda_launch.loop_with_codes`: the CPU's compiled loop of that method), on a device as a
+    plain int (numba-cuda does not pass a kernel's constants on as literals), where the loop keeps a branch per method.
+    ``torque_free`` is a constant of the loop's own closure, so that numba compiles only its torque-free or its torque
+    branch."""
     kernel_id = method.kernel_id
     run_block = loop_with_codes(RUN_BLOCK_FREE if torque_free else RUN_BLOCK_TORQUE, kernel_id)
 

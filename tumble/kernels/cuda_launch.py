@@ -6,9 +6,10 @@ compiles them into the kernel that calls them; on numba-cuda's simulator (``NUMB
 body runs as Python and calls them as the CPU's compiled functions, which take numpy arrays, not the simulator's
 wrapped device arrays. :func:`loop_array` is the identity on a device and unwraps the numpy array on the simulator
 (the same memory: what the loop writes is what the launcher copies back). A loop's leading codes (a method's id; a
-model's code and a method's) are constants of the kernel that numba compiles in as literals, so that the loop compiles
-the one step it runs; :func:`loop_with_codes` gives the simulator's Python kernel body a compiled CPU function that
-passes them the same way.
+model's code and a method's) choose its step: as literal types it compiles that step only, as plain ints a branch per
+method. :func:`loop_with_codes` gives the simulator's Python kernel body a compiled CPU function that passes them as
+literals, so that it runs the CPU's own compiled loop; on a device numba-cuda passes a kernel's constants to the
+functions it calls as plain ints.
 
 This module imports ``numba.cuda``; only the device launchers import it.
 """
@@ -60,10 +61,11 @@ def _with_codes(loop, codes):
 if config.ENABLE_CUDASIM:
     def loop_with_codes(loop, *codes):
         """The time loop ``loop`` as the simulator's kernel body calls it: a compiled CPU function that passes ``codes``
-        (ints) to ``loop`` as constants, as a device kernel does, and the rest of its arguments as given (the codes
-        the kernel body passes in front are not used). From Python, numba would type them as plain ints."""
+        (ints) to ``loop`` as constants, as the CPU's drivers do, and the rest of its arguments as given (the codes
+        the kernel body passes in front are not used): the simulator runs the CPU's compiled loop of those codes.
+        From Python, numba would type them as plain ints."""
         return _with_codes(loop, codes)
 else:
     def loop_with_codes(loop, *codes):
-        """``loop`` itself: a device kernel passes its codes as the constants they are."""
+        """``loop`` itself: numba-cuda passes a kernel's codes on as plain ints (the loop keeps a branch per code)."""
         return loop

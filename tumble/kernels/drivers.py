@@ -208,23 +208,60 @@ def _stop_complete(ys, active, reached, stop_norm, stop_flips, flip_count, lo, k
     return remaining
 
 
+@jit(inline=True)
+def _any_method_step(kernel, torque_free, y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params,
+                     torque_fn):
+    """:func:`_method_step` of a method known at run time: a branch per method (``torque_free`` a constant of the
+    caller, so that numba prunes the splittings' other form)."""
+    if kernel == RK4:
+        rk4_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
+    elif kernel == RK8:
+        rk8_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
+    elif kernel == IMPLICIT_MIDPOINT:
+        implicit_midpoint_block(y1, y2, y3, active, t, h, body, work, torque_kind, torque_params, torque_fn)
+    elif not torque_free:
+        if kernel == SYMPLECTIC_EULER:
+            symplectic_euler_torque_block(y1, y2, y3, t, h, body, torque_kind, torque_params, torque_fn)
+        elif kernel == SPLITTING2:
+            splitting2_torque_block(y1, y2, y3, t, h, body, torque_kind, torque_params, torque_fn)
+        else:
+            splitting4_torque_block(y1, y2, y3, t, h, body, torque_kind, torque_params, torque_fn)
+    elif kernel == SYMPLECTIC_EULER:
+        symplectic_euler_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
+    elif kernel == SPLITTING2:
+        splitting2_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
+    else:
+        splitting4_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
+
+
 def _method_step(kernel, torque_free, y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params,
                  torque_fn):
     """One step of method ``kernel`` for every running sample of a block, torque-free or with a torque: the step is
     chosen when the loop is compiled (:func:`_method_step_of`)."""
 
 
-@overload(_method_step, inline="always", jit_options=dict(fastmath=set(FASTMATH), error_model="numpy"))
+@overload(_method_step, jit_options=dict(fastmath=set(FASTMATH), error_model="numpy"))
 def _method_step_of(kernel, torque_free, y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params,
                     torque_fn):
     """The method's id and ``torque_free`` are literal types (constants of the caller: the CPU driver's closure, the
     device kernel's): each method compiles its own loop with its one step in it (a chain of branches over the methods
     compiled all six steps into every driver, whichever it ran: 40 s of a first ``integrate`` rk4 on 2 cores,
     ``benchmarks/first_call.py``). The torque-free splittings are the generated ones of :mod:`tumble.kernels.fused`
-    (ending on each sample's own ``|L|**2``), with a torque their compositions of sub-flows."""
-    if not (isinstance(kernel, types.IntegerLiteral) and isinstance(torque_free, types.BooleanLiteral)):
+    (ending on each sample's own ``|L|**2``), with a torque their compositions of sub-flows.
+
+    A method id that is not a literal (a device kernel: numba-cuda passes a kernel's constants to the functions it
+    calls as plain ints) gets that chain of branches, every method's step compiled in."""
+    if not isinstance(torque_free, types.BooleanLiteral):
         return None
-    method, free = kernel.literal_value, torque_free.literal_value
+    free = torque_free.literal_value
+    if not isinstance(kernel, types.IntegerLiteral):
+        def any_step(kernel, torque_free, y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params,
+                     torque_fn):
+            _any_method_step(kernel, free, y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params,
+                             torque_fn)
+
+        return any_step
+    method = kernel.literal_value
     if method == IMPLICIT_MIDPOINT:
         def midpoint_step(kernel, torque_free, y1, y2, y3, active, t, h, body, target, work, torque_kind,
                           torque_params, torque_fn):

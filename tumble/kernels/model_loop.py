@@ -93,9 +93,11 @@ _TINY = 2.2250738585072014e-308  # smallest normal float: a zero scale gives a z
 # constants to the generated chains of :mod:`tumble.kernels.model_steps`, which numba inlines and prunes to the one
 # branch taken: a driver compiles its own system's step, invariants and drift screen only (the chains compiled every
 # system's and method's steps into the one driver there was: 78 s of a first heavy-top ensemble on 2 cores,
-# ``benchmarks/first_call.py``).
+# ``benchmarks/first_call.py``). A device kernel's codes reach the loop as plain ints (numba-cuda does not pass a
+# kernel's constants on as literals): there the chains keep every branch, as before.
 
-_OPTIONS = dict(inline="always", jit_options=dict(fastmath=set(FASTMATH), error_model="numpy"))
+# Not inlined at numba's IR level: numba-cuda's pipeline cannot take an overload inlined so (LLVM inlines it).
+_OPTIONS = dict(jit_options=dict(fastmath=set(FASTMATH), error_model="numpy"))
 
 
 def _literal(*codes):
@@ -108,8 +110,11 @@ def _step(model, method, ys, t, h, a, x0):
 
 @overload(_step, **_OPTIONS)
 def _step_of(model, method, ys, t, h, a, x0):
-    if not _literal(model, method):
-        return None
+    if not _literal(model, method):  # a device kernel's codes (plain ints there): every branch
+        def any_step(model, method, ys, t, h, a, x0):
+            step(model, method, ys, t, h, a, x0)
+
+        return any_step
     model_code, method_code = model.literal_value, method.literal_value
 
     def system_step(model, method, ys, t, h, a, x0):
@@ -125,7 +130,10 @@ def _invariants(model, ys, i, a):
 @overload(_invariants, **_OPTIONS)
 def _invariants_of(model, ys, i, a):
     if not _literal(model):
-        return None
+        def any_invariants(model, ys, i, a):
+            return invariants(model, ys, i, a)
+
+        return any_invariants
     model_code = model.literal_value
 
     def system_invariants(model, ys, i, a):
@@ -141,7 +149,10 @@ def _drift_suspects(model, ys, active, a, x0, scale, screen):
 @overload(_drift_suspects, **_OPTIONS)
 def _drift_suspects_of(model, ys, active, a, x0, scale, screen):
     if not _literal(model):
-        return None
+        def any_drift_suspects(model, ys, active, a, x0, scale, screen):
+            return drift_suspects(model, ys, active, a, x0, scale, screen)
+
+        return any_drift_suspects
     model_code = model.literal_value
 
     def system_drift_suspects(model, ys, active, a, x0, scale, screen):
