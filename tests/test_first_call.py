@@ -78,32 +78,29 @@ HEAVY_TOP_TANGENTS = {
     "kernels.tangent_blocks.make_propagate_tangents.<locals>.propagate_tangents": 1,
 }
 
+#: The closed form's per-sample set-up and rows, which every closed-form entry point compiles.
+CLOSED_FORM_ROWS = {
+    "kernels.elliptic._landen_constants": 1,
+    "kernels.elliptic._omega_row_hyperbolic": 1,
+    "kernels.elliptic._omega_row_landen": 1,
+    "kernels.elliptic._omega_row_separatrix": 1,
+    "kernels.elliptic._series_constants": 1,
+    "kernels.elliptic.agm": 1,
+    "kernels.elliptic.carlson_rf": 1,
+    "kernels.elliptic.complete_integrals": 1,
+    "kernels.elliptic.hyperbolic_nome": 1,
+}
+
 #: Entry point (a name of ``first_call.ENTRY_POINTS``) -> the kernels its first call compiles on an empty cache:
 #: ``module.qualname`` (below ``tumble.``) -> number of signatures.
 EXPECTED = {
     "integrate rk4": free_body_driver("kernels.fused.rk4_block"),
     "exact.omega": {
-        "kernels.elliptic._landen_constants": 1,
-        "kernels.elliptic._omega_row_hyperbolic": 1,
-        "kernels.elliptic._omega_row_landen": 1,
-        "kernels.elliptic._omega_row_separatrix": 1,
-        "kernels.elliptic._series_constants": 1,
-        "kernels.elliptic.agm": 1,
-        "kernels.elliptic.carlson_rf": 1,
-        "kernels.elliptic.complete_integrals": 1,
-        "kernels.elliptic.hyperbolic_nome": 1,
+        **CLOSED_FORM_ROWS,
         "kernels.elliptic.torque_free_omega_grid": 1,
     },
     "measure": {
-        "kernels.elliptic._landen_constants": 1,
-        "kernels.elliptic._omega_row_hyperbolic": 1,
-        "kernels.elliptic._omega_row_landen": 1,
-        "kernels.elliptic._omega_row_separatrix": 1,
-        "kernels.elliptic._series_constants": 1,
-        "kernels.elliptic.agm": 1,
-        "kernels.elliptic.carlson_rf": 1,
-        "kernels.elliptic.complete_integrals": 1,
-        "kernels.elliptic.hyperbolic_nome": 1,
+        **CLOSED_FORM_ROWS,
         "kernels.elliptic.torque_free_omega": 1,
         "kernels.elliptic.torque_free_solve": 1,
         "kernels.fits.growth_fit": 1,
@@ -116,15 +113,7 @@ EXPECTED = {
     "integrate splitting4": free_body_driver("kernels.fused.splitting4_block", "kernels.steppers.rotate_block"),
     "integrate implicit_midpoint": free_body_driver("kernels.steppers.implicit_midpoint_block", chosen="midpoint_step"),
     "integrate exact": {
-        "kernels.elliptic._landen_constants": 1,
-        "kernels.elliptic._omega_row_hyperbolic": 1,
-        "kernels.elliptic._omega_row_landen": 1,
-        "kernels.elliptic._omega_row_separatrix": 1,
-        "kernels.elliptic._series_constants": 1,
-        "kernels.elliptic.agm": 1,
-        "kernels.elliptic.carlson_rf": 1,
-        "kernels.elliptic.complete_integrals": 1,
-        "kernels.elliptic.hyperbolic_nome": 1,
+        **CLOSED_FORM_ROWS,
         "kernels.elliptic.torque_free_omega": 1,
         "kernels.elliptic.torque_free_solve": 1,
     },
@@ -159,15 +148,7 @@ EXPECTED = {
         "kernels.elliptic_attitude.carlson_rj": 1,
     },
     "scan": {
-        "kernels.elliptic._landen_constants": 1,
-        "kernels.elliptic._omega_row_hyperbolic": 1,
-        "kernels.elliptic._omega_row_landen": 1,
-        "kernels.elliptic._omega_row_separatrix": 1,
-        "kernels.elliptic._series_constants": 1,
-        "kernels.elliptic.agm": 1,
-        "kernels.elliptic.carlson_rf": 1,
-        "kernels.elliptic.complete_integrals": 1,
-        "kernels.elliptic.hyperbolic_nome": 1,
+        **CLOSED_FORM_ROWS,
         "kernels.elliptic.torque_free_omega": 1,
         "kernels.elliptic.torque_free_solve": 1,
         "kernels.fits._median_in_place": 1,
