@@ -6,7 +6,8 @@ in a new process once the cache is warm, and from then on, and where that time g
 
 Every entry point (:data:`ENTRY_POINTS`: ``integrate`` per method, ``propagate``, ``exact.omega``,
 ``exact.attitude``, ``measure``, ``scan``, ``check``, ``run_ensemble`` with a built-in model, ``megno`` and
-``lyapunov`` on one) is run in fresh interpreters, each started as ``python benchmarks/first_call.py --probe NAME``
+``lyapunov`` on one), and two floors under them (a cached one-line numba kernel, and it with an xarray Dataset built:
+``numba_floor.py``, no tumble in it), is run in fresh interpreters, each started as ``python benchmarks/first_call.py --probe NAME``
 (:func:`probe`), which times
 
 * ``import tumble``;
@@ -93,6 +94,9 @@ ENTRY_POINTS = {
     "run_ensemble HeavyTop": (_TOP + "run_ensemble = tumble.run_ensemble", "run_ensemble(top, y0, 10.0, 0.005)"),
     "megno HeavyTop": (_TOP + "megno = tumble.megno", "megno(top, y0, t_end=20.0, dt=0.01)"),
     "lyapunov HeavyTop": (_TOP + "lyapunov = tumble.lyapunov", "lyapunov(top, y0, t_end=20.0, dt=0.01)"),
+    # the floor under every row (no tumble in it: benchmarks/numba_floor.py)
+    "floor: one numba kernel": ("import numba_floor\nx = np.ones(8)", "numba_floor.total(x)"),
+    "floor: one numba kernel, a Dataset": ("import numba_floor\nx = np.ones(8)", "numba_floor.total_as_dataset(x)"),
 }
 
 
@@ -228,10 +232,13 @@ def probe(name, steady=True):
     set_up_numba = recorder.take()
     before = len(cache_files(cache))
     code = compile(call, f"<{name}>", "eval")
+    packages = {module.partition(".")[0] for module in sys.modules}
     started = time.perf_counter()
     eval(code, namespace)
     first = time.perf_counter() - started
+    imported_packages = sorted({module.partition(".")[0] for module in sys.modules} - packages)
     record = {"name": name, "import_s": imported, "layer_import_s": layer, "first_s": first,
+              "imported_packages": imported_packages,
               "cache_files_before": before, "cache_files_written": len(cache_files(cache)) - before,
               "set_up_compiled": set_up_numba["compiled"], **recorder.take()}
     if steady:
@@ -303,7 +310,8 @@ def summary(name, runs):
                               ("type inference", "lowering", "other passes", "compile, outside passes", "cache load",
                                "cache save", "target set-up", "llvm lock", "numba, all")},
             "warm_seconds": {key: part(warm, key) for key in ("cache load", "target set-up", "numba, all")},
-            "later_compiled": sorted({k for r in warm for k, _ in r["later_compiled"]})}
+            "later_compiled": sorted({k for r in warm for k, _ in r["later_compiled"]}),
+            "warm_imported_packages": [p for p in warm[0].get("imported_packages", []) if not p.startswith("_")]}
 
 
 def machine():
@@ -373,6 +381,8 @@ def report(rows, runs, repeats, warm, load, out, quiet=False):
                      f"{s['cache load']:.2f} | {s['cache save']:.2f} | {s['target set-up']:.2f} | "
                      f"{s['llvm lock']:.2f} | {r['empty_s'] - s['numba, all']:.2f} | {r['warm_s']:.2f} | "
                      f"{w['numba, all']:.2f} | {w['cache load']:.2f} | {w['target set-up']:.2f} |")
+    lines += ["", "Packages the warm-cache first call imported (the layer's imports apart): "
+              + "; ".join(f"`{r['name']}`: {', '.join(r['warm_imported_packages']) or 'none'}" for r in rows) + "."]
     set_up = sorted({k for name in runs for r in runs[name]["empty"] for k, _ in r["set_up_compiled"]})
     if set_up:
         lines += ["", "Compiled while building the inputs, outside the figures above: " + ", ".join(set_up) + "."]

@@ -376,17 +376,17 @@ _PTX = textwrap.dedent("""
     a2 = f8[:, ::1]
     signature = (a2, i8[::1], a2, f8, f8[::1], i8[::1], i8[::1], f8[:, :, ::1], i8[::1], a2, i8[:, ::1], a2, a2,
                  i8[::1], a2, nt.int8[::1], i8[::1], f8[::1], i8, f8, i8, a2, f8[::1], i8, f8[::1], a2, i8[::1])
-    # numba-cuda hands a kernel's constants to the functions it calls as plain ints, so the device loop keeps a branch
-    # per method (the CPU's driver compiles its own method's step only)
-    for torque_free in (True, False):
-        kernel = device_kernels().make_kernel(METHODS["rk4"], torque_free)
+    # the kernel hands its method's id to the loop as a literal: each kernel holds its own method's step only, the
+    # splittings' torque-free or torque form by the constant torque_free
+    steps = ("rk4_block", "rk8_block", "implicit_midpoint_block", "splitting4_block", "splitting_torque_block")
+    for name, torque_free, step in (("rk4", True, "rk4_block"), ("rk4", False, "rk4_block"),
+                                    ("splitting4", True, "splitting4_block"),
+                                    ("splitting4", False, "splitting_torque_block")):
+        kernel = device_kernels().make_kernel(METHODS[name], torque_free)
         ptx, _ = cuda.compile_ptx(kernel.py_func, signature, cc=(9, 0))
         assert "div.approx" not in ptx and "fma.rn.f64" in ptx, torque_free
-        for step in ("rk8_block", "implicit_midpoint_block"):
-            assert step in ptx, step
-        # one of the splittings' two forms, by the constant torque_free (the other one is pruned)
-        assert ("splitting4_block" in ptx) == torque_free != ("splitting_torque_block" in ptx)
-        print(torque_free, ptx.count("\\n"))
+        assert [s for s in steps if s in ptx] == [step], (name, torque_free)
+        print(name, torque_free, ptx.count("\\n"))
 """)
 
 
@@ -394,13 +394,13 @@ _PTX = textwrap.dedent("""
 @pytest.mark.skipif(importlib.util.find_spec("nvidia") is None, reason="no NVVM wheel (pip install nvidia-nvvm "
                     "nvidia-cuda-nvrtc, or the gpu extra)")
 def test_every_device_kernel_compiles_to_ptx_for_a_gpu():
-    """numba-cuda compiles the device kernel, the CPU's time loop and every method's steps included, to PTX for sm_90
-    with IEEE division and fused multiply-adds, torque-free and with a torque (about 100 s; a private hook stands in
-    for the GPU's compute capability)."""
+    """numba-cuda compiles the device kernel, the CPU's time loop and the kernel's method's step (only that one), to
+    PTX for sm_90 with IEEE division and fused multiply-adds, torque-free and with a torque (about 60 s; a private hook
+    stands in for the GPU's compute capability)."""
     env = dict(os.environ, NUMBA_ENABLE_CUDASIM="0")
     result = subprocess.run([sys.executable, "-c", _PTX], capture_output=True, text=True, env=env)
     assert result.returncode == 0, result.stderr[-3000:]
-    assert len(result.stdout.splitlines()) == 2
+    assert len(result.stdout.splitlines()) == 4
 
 
 # --- the device choice beyond the engine: measure, scan, studies, the command line ---------------------------------

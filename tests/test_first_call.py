@@ -210,11 +210,14 @@ EXPECTED = {
     },
     "megno HeavyTop": HEAVY_TOP_TANGENTS,
     "lyapunov HeavyTop": HEAVY_TOP_TANGENTS,
+    # the floors: no tumble kernel (benchmarks/numba_floor.py)
+    "floor: one numba kernel": {},
+    "floor: one numba kernel, a Dataset": {},
 }
 
-#: The entry points of the regular run: the cheapest of issue 43's targets (each case compiles from an empty cache
-#: however warm the suite's is: 20 s here, 25 s for integrate rk4). The others are slow.
-REGULAR = ("exact.omega",)
+#: The entry points of the regular run: the cheapest of issue 43's targets, and the floor (each case compiles from an
+#: empty cache however warm the suite's is: 20 s here, 25 s for integrate rk4). The others are slow.
+REGULAR = ("exact.omega", "floor: one numba kernel")
 
 
 def first_call_kernels(name, cache):

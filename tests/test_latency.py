@@ -39,6 +39,15 @@ def test_each_public_name_loads_only_its_own_layers():
     assert not {"matplotlib", "netCDF4"} & set(loaded_after("import tumble\ntumble.integrate"))
 
 
+def test_integrate_and_its_dataset_leave_dask_unloaded():
+    # xarray's duck-array checks import dask.array (0.8 s in a new process: more than a warm first call's kernels
+    # take) unless the Dataset is built from numpy arrays directly (engine.integration.indexed_dataset). The user's
+    # first selection on the result still imports it: xarray's own checks, which tumble cannot skip
+    code = ("import numpy as np, tumble\n"
+            "tumble.integrate(tumble.Body(1, 2, 3), np.array([0.01, 1.0, 0.01]), 0.01, 0.001, attitude=True)")
+    assert "dask" not in loaded_after(code)
+
+
 def test_the_short_import_paths_give_the_layers_modules():
     code = ("import sys, tumble, tumble.exact, tumble.io\nfrom tumble.theory import linear\n"
             "from tumble.models import Gyrostat\nimport tumble.measure.scans\n"

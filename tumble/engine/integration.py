@@ -381,11 +381,14 @@ def indexed_dataset(variables, attrs):
     variables and their pandas indexes are made directly and handed to ``Dataset._construct_direct``, xarray's own
     constructor of a Dataset from its parts (present since 2017; ``tests/test_latency.py`` checks the result is
     ``identical`` to the public constructor's). Should a future xarray drop it, the public constructor is used.
+    The variables take xarray's ``fastpath`` (their data are numpy arrays already) and the indexes a ``pandas.Index``:
+    xarray's checks for duck arrays would import ``dask.array`` in a new process (0.8 s, more than a warm
+    :func:`integrate` takes otherwise; ``tests/test_first_call.py`` holds that the call does not import dask).
     """
     import xarray as xr  # here, not at the top: the scenes of a study import this module and run without xarray
 
-    made = {name: xr.Variable(dims, np.asarray(values), dict(var_attrs)) for name, (dims, values, var_attrs)
-            in variables.items()}
+    made = {name: xr.Variable(dims, np.asarray(values), dict(var_attrs), fastpath=True)
+            for name, (dims, values, var_attrs) in variables.items()}
     coords = [name for name, var in made.items() if var.dims == (name,)]
     build = getattr(xr.Dataset, "_construct_direct", None)
     if build is None:
@@ -401,13 +404,14 @@ def _index(name, variable):
     """The pandas index of the coordinate ``variable``. The last few small ones of each name are reused while their
     values are the same (an index is immutable: xarray shares one between a Dataset and its copies, selections and
     results): building one costs 30-60 us, comparing a few thousand values 2 us."""
+    import pandas as pd
     import xarray as xr
 
     values = variable.values
     for key, index in _INDEXES.get(name, ()):
         if key.shape == values.shape and key.dtype == values.dtype and np.array_equal(key, values):
             return index
-    index = xr.indexes.PandasIndex.from_variables({name: variable}, options={})
+    index = xr.indexes.PandasIndex(pd.Index(values), name, coord_dtype=values.dtype)
     if values.size <= _REUSED_INDEX_SIZE:
         _INDEXES[name] = [(values.copy(), index)] + _INDEXES.get(name, [])[:3]
     return index

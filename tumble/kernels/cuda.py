@@ -43,11 +43,10 @@ def refusal(method, *, torque_fn=None):
 def make_kernel(method, torque_free):
     """The device kernel of ``method``, torque-free or with a built-in torque profile: one thread per sample, running
     the CPU's time loop (:func:`tumble.kernels.drivers.make_run_block`) on a block of one sample in the thread's local
-    memory. The method is a constant of the closure, handed to the loop: on the simulator as a literal
-    (:func:`tumble.kernels.cuda_launch.loop_with_codes`: the CPU's compiled loop of that method), on a device as a
-    plain int (numba-cuda does not pass a kernel's constants on as literals), where the loop keeps a branch per method.
-    ``torque_free`` is a constant of the loop's own closure, so that numba compiles only its torque-free or its torque
-    branch."""
+    memory. The method is a constant of the closure, handed to the loop as a literal, so that the kernel compiles that
+    method's step only (on the simulator through :func:`tumble.kernels.cuda_launch.loop_with_codes`: the CPU's
+    compiled loop of that method). ``torque_free`` is a constant of the loop's own closure, so that numba compiles
+    only its torque-free or its torque branch."""
     kernel_id = method.kernel_id
     run_block = loop_with_codes(RUN_BLOCK_FREE if torque_free else RUN_BLOCK_TORQUE, kernel_id)
 
@@ -70,17 +69,21 @@ def make_kernel(method, torque_free):
         s = scene[i] if scene.shape[0] > 0 else 0
         body = (bodies[s, 0], bodies[s, 1], bodies[s, 2], bodies[s, 3], bodies[s, 4], bodies[s, 5], bodies[s, 6],
                 bodies[s, 7], bodies[s, 8], bodies[s, 9], bodies[s, 10], bodies[s, 11])  # registers, as a tuple
-        run = (kernel_id, loop_array(w), i, cuda.local.array((3, 1), float64), cuda.local.array((3, 1), float64),
-               cuda.local.array((3, 1), float64), cuda.local.array((VALUE_ROWS, 1), float64),
-               cuda.local.array((2, 1), boolean), cuda.local.array(1, int64), body, t0, hs[s], step_counts[s], saves[s],
-               loop_array(saved), axes[s], loop_array(weight_rows)[s], loop_array(probe_step_rows)[s],
-               loop_array(probes), loop_array(flips), loop_array(flip_count), loop_array(drift), loop_array(status),
-               loop_array(steps_taken), stop_norms[s], stop_flips, drift_limit, torque_kind)
-        fit = (fit_saturations[s], fit_min_points, fit_hs[s], loop_array(fit), loop_array(fit_points))
         if torque_free:  # a constant: numba compiles one of the two
-            run_block(*run, None, None, *fit)
+            torque_params = None
         else:
-            run_block(*run, loop_array(torque_rows)[s], None, *fit)
+            torque_params = loop_array(torque_rows)[s]
+        # every argument spelled out, at most 30 (see the loop's note): a star-call would pass the method's id on as
+        # a plain int, and the loop would keep a branch per method
+        scratch = (cuda.local.array((3, 1), float64), cuda.local.array((3, 1), float64),
+                   cuda.local.array((3, 1), float64), cuda.local.array((VALUE_ROWS, 1), float64),
+                   cuda.local.array((2, 1), boolean), cuda.local.array(1, int64))
+        growth = (fit_saturations[s], fit_min_points, fit_hs[s], loop_array(fit), loop_array(fit_points))
+        run_block(kernel_id, loop_array(w), i, scratch, body, t0, hs[s], step_counts[s], saves[s], loop_array(saved),
+                  axes[s], loop_array(weight_rows)[s], loop_array(probe_step_rows)[s], loop_array(probes),
+                  loop_array(flips), loop_array(flip_count), loop_array(drift), loop_array(status),
+                  loop_array(steps_taken), stop_norms[s], stop_flips, drift_limit, torque_kind, torque_params, None,
+                  growth)
 
     return propagate
 

@@ -7,9 +7,10 @@ body runs as Python and calls them as the CPU's compiled functions, which take n
 wrapped device arrays. :func:`loop_array` is the identity on a device and unwraps the numpy array on the simulator
 (the same memory: what the loop writes is what the launcher copies back). A loop's leading codes (a method's id; a
 model's code and a method's) choose its step: as literal types it compiles that step only, as plain ints a branch per
-method. :func:`loop_with_codes` gives the simulator's Python kernel body a compiled CPU function that passes them as
-literals, so that it runs the CPU's own compiled loop; on a device numba-cuda passes a kernel's constants to the
-functions it calls as plain ints.
+method. A kernel's constants reach the loop as literals on a device when the call spells its arguments out (at most
+30: CPython compiles a call with more as a star-call, whose tuple numba-cuda types as plain ints);
+:func:`loop_with_codes` gives the simulator's Python kernel body, whose calls numba types from Python values, a
+compiled CPU function that passes them as literals, so that it runs the CPU's own compiled loop.
 
 This module imports ``numba.cuda``; only the device launchers import it.
 """
@@ -67,5 +68,5 @@ if config.ENABLE_CUDASIM:
         return _with_codes(loop, codes)
 else:
     def loop_with_codes(loop, *codes):
-        """``loop`` itself: numba-cuda passes a kernel's codes on as plain ints (the loop keeps a branch per code)."""
+        """``loop`` itself: the kernel passes its codes on as literals (see the module's note)."""
         return loop

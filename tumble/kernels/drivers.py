@@ -249,8 +249,8 @@ def _method_step_of(kernel, torque_free, y1, y2, y3, active, t, h, body, target,
     ``benchmarks/first_call.py``). The torque-free splittings are the generated ones of :mod:`tumble.kernels.fused`
     (ending on each sample's own ``|L|**2``), with a torque their compositions of sub-flows.
 
-    A method id that is not a literal (a device kernel: numba-cuda passes a kernel's constants to the functions it
-    calls as plain ints) gets that chain of branches, every method's step compiled in."""
+    A method id that is not a literal (a caller passing it as a run-time int, or through a star-call's tuple, which
+    numba-cuda types as plain ints) gets that chain of branches, every method's step compiled in."""
     if not isinstance(torque_free, types.BooleanLiteral):
         return None
     free = torque_free.literal_value
@@ -303,14 +303,14 @@ def make_run_block(torque_free):
     as a literal (a constant of the caller), and the loop compiles that method's step only (:func:`_method_step`)."""
 
     @jit
-    def run_block(kernel, w, lo, ys, frozen, previous, values, flags, last,
+    def run_block(kernel, w, lo, scratch,
                   body, t0, h, n_steps, save_every, saved,
                   axis, norm_weights, probe_steps, probes,
                   flips, flip_count, drift,
                   status, steps_taken,
                   stop_norm, stop_flips, drift_limit,
                   torque_kind, torque_params, torque_fn,
-                  fit_saturation, fit_min_points, fit_h, fit, fit_points):
+                  growth):
         # size: the one time loop of every method and observer, on either device: flat arrays and scalars
         # (DESIGN.md: arrays and scalars below the kernels' door), the block's scratch owned by the caller, the
         # observers the helpers above, in one order of step, flips, drift, status, store, probes and early stop
@@ -322,16 +322,23 @@ def make_run_block(torque_free):
         kernel (:mod:`tumble.kernels.cuda`) for one sample per thread (``m = 1``, the scratch in the thread's local
         memory).
 
-        The scratch, owned by the caller: ``ys``, ``frozen`` and ``previous`` (3, m): the states, the state each
-        stopped sample keeps, the states before the step (flips); ``values`` (:data:`VALUE_ROWS`, m) float;
-        ``flags`` (2, m) bool: running, its norm reached ``stop_norm``; ``last`` (m,) int64: the steps each sample
-        took. The other arguments are the CPU driver's, and the growth fit's: ``fit_saturation > 0`` feeds each
-        sample's norms at the probes (``fit_h`` apart) to its growth window as they come
+        The scratch, owned by the caller, ``scratch = (ys, frozen, previous, values, flags, last)``: ``ys``,
+        ``frozen`` and ``previous`` (3, m): the states, the state each stopped sample keeps, the states before the step
+        (flips); ``values`` (:data:`VALUE_ROWS`, m) float; ``flags`` (2, m) bool: running, its norm reached
+        ``stop_norm``; ``last`` (m,) int64: the steps each sample took. The other arguments are the CPU driver's, and
+        the growth fit's, ``growth = (fit_saturation, fit_min_points, fit_h, fit, fit_points)``: ``fit_saturation >
+        0`` feeds each sample's norms at the probes (``fit_h`` apart) to its growth window as they come
         (:func:`tumble.kernels.fits.growth_window_add`, the CPU fit's own step): ``fit`` (3, N) receives the rate (1/s,
         NaN unless the window has ``fit_min_points``), the first and the last norm of the window, ``fit_points`` its
         length (0 unless the fit is good). The loop writes the block's columns of every output, and sets them all (an
         output's initial content does not matter).
+
+        The scratch and the growth fit come as tuples so that a call spells out at most 30 arguments: CPython compiles
+        a call with more as a star-call (``f(*args)``), whose tuple numba-cuda types without the method's literal, and
+        the device's loop would compile every method's step.
         """
+        ys, frozen, previous, values, flags, last = scratch
+        fit_saturation, fit_min_points, fit_h, fit, fit_points = growth
         m = ys.shape[1]
         y1, y2, y3 = ys[0], ys[1], ys[2]
         active, reached = flags[0], flags[1]
@@ -483,11 +490,11 @@ def make_propagate(torque_free, kernel):
         for ib in prange((n + block - 1) // block):
             lo = ib * block
             m = min(block, n - lo)
-            run = (kernel, w, lo, np.empty((3, m)), np.empty((3, m)), np.empty((3, m)), np.empty((VALUE_ROWS, m)),
-                   np.empty((2, m), dtype=np.bool_), np.empty(m, dtype=np.int64), body, t0, h, n_steps, save_every,
-                   saved, axis, norm_weights, probe_steps, probes, flips, flip_count, drift, status, steps_taken,
-                   stop_norm, stop_flips, drift_limit, torque_kind, torque_params, torque_fn, 0.0, 0, 0.0, no_fit,
-                   no_fit_points)
+            scratch = (np.empty((3, m)), np.empty((3, m)), np.empty((3, m)), np.empty((VALUE_ROWS, m)),
+                       np.empty((2, m), dtype=np.bool_), np.empty(m, dtype=np.int64))
+            run = (kernel, w, lo, scratch, body, t0, h, n_steps, save_every, saved, axis, norm_weights, probe_steps,
+                   probes, flips, flip_count, drift, status, steps_taken, stop_norm, stop_flips, drift_limit,
+                   torque_kind, torque_params, torque_fn, (0.0, 0, 0.0, no_fit, no_fit_points))
             if torque_free:
                 RUN_BLOCK_FREE(*run)
             else:
