@@ -261,3 +261,41 @@ if __name__ == "__main__":
     for entry in sys.argv[1:] or first_call.ENTRY_POINTS:
         with tempfile.TemporaryDirectory() as folder:
             print(_literal(entry, first_call_kernels(entry, folder)[1]))
+
+
+def _signature_counts():
+    """Compiled signatures of every dispatcher tumble holds: module-level kernels and the drivers made so far."""
+    from numba.core.dispatcher import Dispatcher
+
+    from tumble.kernels import drivers
+
+    found = {f"{name}.{key}": len(value.overloads) for name, module in list(sys.modules.items())
+             if name.startswith("tumble.") for key, value in list(vars(module).items())
+             if isinstance(value, Dispatcher)}
+    found.update({f"driver {key}": len(made.overloads) for key, made in drivers._DRIVERS.items()})
+    return found
+
+
+def test_one_compiled_variant_serves_every_layout_of_an_input():
+    """Issue 43's item 2: Fortran-ordered, read-only (an xarray coordinate's values), strided, float32 and list
+    inputs, and one spin as a vector, reach the same compiled kernels as a C-ordered float64 array: no second
+    signature of any kernel."""
+    import numpy as np
+
+    import tumble
+
+    body = tumble.shapes.t_handle()
+    w = np.array([[0.01, 10.0, 0.01], [0.02, 9.0, 0.0]])
+    times = np.linspace(0.0, 1.0, 5)
+    tumble.integrate(body, w, 0.01, 1e-3)
+    tumble.exact.omega(body, w, times)
+    before = _signature_counts()
+    read_only, read_only_times = w.copy(), times.copy()
+    read_only.flags.writeable = read_only_times.flags.writeable = False
+    for spins in (np.asfortranarray(w), read_only, w.tolist(), w.astype(np.float32), np.repeat(w, 2, axis=0)[::2],
+                  w[0]):
+        tumble.integrate(body, spins, 0.01, 1e-3)
+        for t in (read_only_times, times[::2], list(times)):
+            tumble.exact.omega(body, spins, t)
+    after = _signature_counts()
+    assert {k: (before.get(k, 0), n) for k, n in after.items() if before.get(k, 0) != n} == {}
