@@ -61,6 +61,10 @@ CACHE_SUFFIXES = (".tbi", ".tbc", ".nbi", ".nbc")
 #: The issue's targets, seconds of the first call: (empty cache, warm cache in a new process).
 TARGETS = {"integrate rk4": (5.0, 0.3), "exact.omega": (3.0, 0.3), "measure": (5.0, 0.3)}
 
+#: The third-party packages whose import the report names when a warm first call pays for it (0.1-0.8 s each).
+HEAVY_PACKAGES = ("numba", "scipy", "pandas", "xarray", "dask", "distributed", "netCDF4", "cftime", "matplotlib",
+                  "tqdm")
+
 #: Further calls timed for the steady state (at most; fewer once they add up to STEADY_SECONDS).
 STEADY_CALLS = 20
 STEADY_SECONDS = 2.0
@@ -311,7 +315,7 @@ def summary(name, runs):
                                "cache save", "target set-up", "llvm lock", "numba, all")},
             "warm_seconds": {key: part(warm, key) for key in ("cache load", "target set-up", "numba, all")},
             "later_compiled": sorted({k for r in warm for k, _ in r["later_compiled"]}),
-            "warm_imported_packages": [p for p in warm[0].get("imported_packages", []) if not p.startswith("_")]}
+            "warm_imported_packages": [p for p in HEAVY_PACKAGES if p in warm[0].get("imported_packages", [])]}
 
 
 def machine():
@@ -381,7 +385,7 @@ def report(rows, runs, repeats, warm, load, out, quiet=False):
                      f"{s['cache load']:.2f} | {s['cache save']:.2f} | {s['target set-up']:.2f} | "
                      f"{s['llvm lock']:.2f} | {r['empty_s'] - s['numba, all']:.2f} | {r['warm_s']:.2f} | "
                      f"{w['numba, all']:.2f} | {w['cache load']:.2f} | {w['target set-up']:.2f} |")
-    lines += ["", "Packages the warm-cache first call imported (the layer's imports apart): "
+    lines += ["", "Heavy packages the warm-cache first call imported (the layer's imports apart): "
               + "; ".join(f"`{r['name']}`: {', '.join(r['warm_imported_packages']) or 'none'}" for r in rows) + "."]
     set_up = sorted({k for name in runs for r in runs[name]["empty"] for k, _ in r["set_up_compiled"]})
     if set_up:

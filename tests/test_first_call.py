@@ -299,3 +299,52 @@ def test_one_compiled_variant_serves_every_layout_of_an_input():
             tumble.exact.omega(body, spins, t)
     after = _signature_counts()
     assert {k: (before.get(k, 0), n) for k, n in after.items() if before.get(k, 0) != n} == {}
+
+
+_CHOSEN = """
+import json
+import numba
+import numpy as np
+from numba.core import event
+
+compiled = []
+
+
+class Listener(event.Listener):
+    def on_start(self, ev):
+        compiled.append(getattr(ev.data["dispatcher"], "py_func", ev.data["dispatcher"]).__qualname__)
+
+    def on_end(self, ev):
+        pass
+
+
+event.register("numba:compile", Listener())
+from tumble.kernels import model_loop
+from tumble.kernels.systems import N_CONSTANTS
+
+model, method = model_loop.MODEL_CODES["heavy_top"], model_loop.MODEL_METHODS["rk4"]
+source = f'''
+def models(ys, t, h, a, x0, active, scale, screen):
+    model_loop._step({model}, {method}, ys, t, h, a, x0)
+    model_loop._drift_suspects({model}, ys, active, a, x0, scale, screen)
+    return model_loop._invariants({model}, ys, 0, a)
+'''
+namespace = {"model_loop": model_loop}
+exec(source, namespace)
+ys, a = np.zeros((6, 4)), np.zeros(N_CONSTANTS)
+numba.njit(namespace["models"])(ys, 0.0, 0.01, a, np.zeros((6, 4)), np.ones(4, dtype=np.bool_), np.ones((3, 4)), 1.0)
+print(json.dumps(compiled))
+"""
+
+
+def test_the_overloads_take_the_branch_of_literal_codes():
+    """numba tries an overload with plain types first unless it prefers literals: the models' step, invariants and
+    drift screen given literal codes must compile that system's branch, not the chain of every system's (which a
+    device's plain ints get). Found missing by the first-call benchmark (a heavy top's ensemble 36 -> 85 s)."""
+    import subprocess
+
+    done = subprocess.run([sys.executable, "-c", _CHOSEN], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    chosen = {name for name in json.loads(done.stdout.splitlines()[-1]) if "_of.<locals>." in name}
+    assert chosen == {"_step_of.<locals>.system_step", "_invariants_of.<locals>.system_invariants",
+                      "_drift_suspects_of.<locals>.system_drift_suspects"}

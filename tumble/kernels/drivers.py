@@ -240,7 +240,7 @@ def _method_step(kernel, torque_free, y1, y2, y3, active, t, h, body, target, wo
     chosen when the loop is compiled (:func:`_method_step_of`)."""
 
 
-@overload(_method_step, jit_options=dict(fastmath=set(FASTMATH), error_model="numpy"))
+@overload(_method_step, prefer_literal=True, jit_options=dict(fastmath=set(FASTMATH), error_model="numpy"))
 def _method_step_of(kernel, torque_free, y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params,
                     torque_fn):
     """The method's id and ``torque_free`` are literal types (constants of the caller: the CPU driver's closure, the

@@ -97,7 +97,10 @@ _TINY = 2.2250738585072014e-308  # smallest normal float: a zero scale gives a z
 # kernel's constants on as literals): there the chains keep every branch, as before.
 
 # Not inlined at numba's IR level: numba-cuda's pipeline cannot take an overload inlined so (LLVM inlines it).
-_OPTIONS = dict(jit_options=dict(fastmath=set(FASTMATH), error_model="numpy"))
+# ``prefer_literal``: numba tries an overload with the arguments' plain types first and keeps what that gives, so the
+# chain of every branch (the plain-int case) would be taken even for literal codes (it was, from 2026-11-29 until
+# this was found by benchmarks/first_call.py: a heavy top's first ensemble compiled every system's steps again).
+_OPTIONS = dict(prefer_literal=True, jit_options=dict(fastmath=set(FASTMATH), error_model="numpy"))
 
 
 def _literal(*codes):
