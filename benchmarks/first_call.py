@@ -6,9 +6,9 @@ in a new process once the cache is warm, and from then on, and where that time g
 
 Every entry point (:data:`ENTRY_POINTS`: ``integrate`` per method, ``propagate``, ``exact.omega``,
 ``exact.attitude``, ``measure``, ``scan``, ``check``, ``run_ensemble`` with a built-in model, ``megno`` and
-``lyapunov`` on one), and two floors under them (a cached one-line numba kernel, and it with an xarray Dataset built:
-``numba_floor.py``, no tumble in it), is run in fresh interpreters, each started as ``python benchmarks/first_call.py --probe NAME``
-(:func:`probe`), which times
+``lyapunov`` on one), and two floors under them (a cached one-line numba kernel, and it with an xarray Dataset
+built: ``numba_floor.py``, no tumble in it), is run in fresh interpreters, each started as
+``python benchmarks/first_call.py --probe NAME`` (:func:`probe`), which times
 
 * ``import tumble``;
 * the layer's imports: numpy, numba, the first look-up of the public names the call uses (``tumble.integrate``

@@ -69,6 +69,11 @@ def test_the_map_is_the_api_run_point_by_point():
     # the study also stores the finite-time exponents (save_every): the same sums, to round-off
     np.testing.assert_allclose(ds["exponent"].values.reshape(4, 6), tumble.lyapunov(top, y, 2.0, 0.01).exponent.values,
                                rtol=1e-12, atol=1e-14)
+    study = _top()  # the implicit midpoint rule steps a map as the API does
+    study["integration"]["method"] = "implicit_midpoint"
+    ds = tumble.run_study(study, progress=False)
+    np.testing.assert_array_equal(ds["megno"].values.ravel(),
+                                  tumble.megno(top, y, 2.0, 0.01, method="implicit_midpoint").megno.values)
 
 
 def test_a_scanned_parameter_is_a_dimension_before_the_map():

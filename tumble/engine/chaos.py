@@ -6,8 +6,9 @@ derivative of the method's own map), orthonormalised by modified Gram–Schmidt 
 (Benettin, Galgani, Giorgilli & Strelcyn 1980); the exponents are the sums of ``log |R_rr|`` over the time after the
 transient. MEGNO's two scalars are integrated alongside (Cincotta & Simó 2000): ``<Y> → 2`` on a quasi-periodic orbit,
 ``→ 0`` near a stable periodic one, ``≈ λ t / 2`` on a chaotic one. A built-in model stepped by rk4 or rk8
-runs on the CPU in blocks of samples vectorised across them (:mod:`tumble.kernels.tangent_blocks`); everything else,
-and the device, through the per-sample loop of :mod:`tumble.kernels.tangent_loop` (one CUDA thread per sample).
+runs on the CPU in blocks of samples vectorised across them (:mod:`tumble.kernels.tangent_blocks`); everything else
+(the implicit midpoint rule too), and the device, through the per-sample loop of :mod:`tumble.kernels.tangent_loop`
+(one CUDA thread per sample).
 
 ``system`` is anything the engine accepts: a :class:`~tumble.physics.bodies.Body` (the free body, as
 :class:`tumble.models.FreeBody`), a built-in model (its generated rate and tangent, with any Runge–Kutta tableau of
@@ -116,12 +117,16 @@ def _initial_states(system, y0):
     return np.ascontiguousarray(y)
 
 
+#: The implicit method the tangent flow runs besides the explicit Runge–Kutta methods of :data:`TABLEAUX`.
+MIDPOINT = "implicit_midpoint"
+
+
 def _method(method):
     if method == registry.AUTO:
         method = registry.AUTO_STEPPING
-    if not isinstance(method, str) or method not in TABLEAUX:
-        raise ValueError(f"method must be one of {', '.join(TABLEAUX)} (an explicit Runge-Kutta method: the tangent "
-                         f"is its own derivative), got {method!r}")
+    if not isinstance(method, str) or (method not in TABLEAUX and method != MIDPOINT):
+        raise ValueError(f"method must be one of {', '.join([*TABLEAUX, MIDPOINT])} (a Runge-Kutta method, whose "
+                         f"tangent is the derivative of its own map; the splittings have none yet), got {method!r}")
     return method
 
 
@@ -209,24 +214,31 @@ def tangent_kind(system):
 
 
 def _kernels(system, method):
-    """The tangent loop of ``system`` stepped by ``method``'s tableau, made once (a tableau replaced at run time under
-    the same name is a new method: the kernels are kept with the tableau they were made of)."""
-    tableau = TABLEAUX[method]
+    """The tangent loop of ``system`` stepped by ``method``'s tableau (or the implicit midpoint rule), made once (a
+    tableau replaced at run time under the same name is a new method: the kernels are kept with the tableau they were
+    made of). The midpoint rule's scratch grows with the state: the built-in models' are kept per state size."""
+    tableau = TABLEAUX.get(method)  # None: the implicit midpoint rule
+    n = len(system.spec.state)
     made = _SYSTEM_KERNELS.setdefault(system, {}) if isinstance(system, System) else _MODEL_KERNELS
-    if method not in made or made[method][0] is not tableau:
+    key = method if tableau is not None else (method, n)
+    if key not in made or made[key][0] is not tableau:
         if isinstance(system, System):
             rate, jacobian, _ = _system_functions(system)
             tangents = (tangent_loop.difference_tangents(rate) if jacobian is None
                         else tangent_loop.jacobian_tangents(jacobian))
         else:
             rate, tangents = rate_sample, tangent_loop.model_tangents()
-        made[method] = (tableau, _make(rate, tangents, tableau))
-    return made[method][1]
+        made[key] = (tableau, _make(rate, tangents, tableau, n))
+    return made[key][1]
 
 
-def _make(rate, tangents, tableau):
-    run_sample = tangent_loop.make_tangent_loop(tangent_loop.make_tangent_step(rate, tangents, tableau))
-    return _Kernels(tangent_loop.make_cpu_driver(run_sample, len(tableau.b)), run_sample, len(tableau.b))
+def _make(rate, tangents, tableau, n):
+    if tableau is None:
+        step, stages = tangent_loop.make_midpoint_tangent_step(rate, tangents), tangent_loop.midpoint_stages(n)
+    else:
+        step, stages = tangent_loop.make_tangent_step(rate, tangents, tableau), len(tableau.b)
+    run_sample = tangent_loop.make_tangent_loop(step)
+    return _Kernels(tangent_loop.make_cpu_driver(run_sample, stages), run_sample, stages)
 
 
 def _parameters(system, parameters):
@@ -367,7 +379,9 @@ def lyapunov(system, y0, t_end, dt, *, method="rk4", exponents=None, renormalise
         not a whole number (``attrs["dt"]``).
     method : str
         An explicit Runge–Kutta method of :data:`tumble.kernels.TABLEAUX` (``"rk4"``, ``"rk8"``, or one added at run
-        time), or ``"auto"`` (rk4).
+        time), ``"implicit_midpoint"`` (its tangent solved from ``(I - h/2 J) δ1 = (I + h/2 J) δ0``: the derivative
+        of its map too; it keeps quadratic invariants such as ``|g|²`` exactly), or ``"auto"`` (rk4).
+        The splittings have no tangent map yet (refused).
     exponents : int, optional
         ``k``, how many (1 to n; default n, the whole spectrum).
     renormalise : float

@@ -42,9 +42,11 @@ from ..registry import STATUS_ABOVE, STATUS_NONFINITE, STATUS_OK
 from .jit import jit
 from .model_steps import tangent_sample
 from .sample_loop import combine, in_shares
+from .steppers import _EPS, _MIDPOINT_MAX_ITERATIONS, _MIDPOINT_ULPS
 
 __all__ = ["DIFFERENCE_STEP", "SCALARS", "difference_tangents", "jacobian_tangents", "make_cpu_driver",
-           "make_tangent_loop", "make_tangent_step", "model_tangents", "orthonormalise_row", "scratch_shapes"]
+           "make_midpoint_tangent_step", "make_tangent_loop", "make_tangent_step", "midpoint_stages", "model_tangents",
+           "orthonormalise_row", "scratch_shapes"]
 
 
 #: Scalars per sample a run writes: ``<Y>`` at the end (or at the stop), ``λ`` from its slope (1/s), the time the sample
@@ -189,6 +191,115 @@ def make_tangent_step(rate, tangents, tableau):
         for r in range(k):
             combine(V[r], h, b, tangent_scratch[:, r])
         combine(m, h, b, megno_scratch)
+
+    return step
+
+
+def midpoint_stages(n):
+    """The ``stages`` of :func:`scratch_shapes` that :func:`make_midpoint_tangent_step` needs for a state of ``n``
+    components: its scratch rows hold the identity, the Jacobian's columns, the factorised ``I - (h/2) J``, the
+    midpoint, its rate and the pivots."""
+    return 3 * n + 3
+
+
+def make_midpoint_tangent_step(rate, tangents):
+    """``step(t, t0, y, V, m, p, h, scratch, tangent_scratch, work, megno_scratch)`` (as :func:`make_tangent_step`'s):
+    one step of the implicit midpoint rule ``y1 = y0 + h f(t + h/2, (y0 + y1)/2)`` applied to the augmented system.
+
+    The state: the midpoint ``z = y0 + (h/2) f(t + h/2, z)`` by fixed-point iteration until the update is below a few
+    ulps of the state, as the free body's and the models' midpoint rule (:func:`tumble.kernels.steppers.
+    implicit_midpoint_sample`), then ``y1 = 2 z - y0``; a step whose iteration does not converge makes the state NaN
+    (the loop stops the sample, ``STATUS_NONFINITE``). The tangent vectors: the same rule for ``δ' = J δ``,
+    ``(I - (h/2) J) δ1 = (I + (h/2) J) δ0`` with ``J = J(t + h/2, z)``, which is the derivative of the state's map
+    ``y0 -> y1`` (differentiate ``y1 = y0 + h f(z)``: ``δ1 = δ0 + h J (δ0 + δ1) / 2``), so the exponents are those of
+    the map the method computes, as the explicit methods' are. ``J`` is built once per step from ``n`` tangent
+    products with the unit vectors and factorised by Gaussian elimination with partial pivoting (``n`` is small: a
+    rigid body's 3 to 7 components). MEGNO's scalars by the same rule: ``Ys1 = Ys0 + h 2 (t + h/2 - t0) ρ`` with ``ρ``
+    of the mean tangent vector ``(δ0 + δ1)/2`` at the midpoint, ``Yss1 = Yss0 + h (Ys0 + Ys1) / 2 / (t + h/2 - t0)``.
+
+    Scratch arrays of :func:`scratch_shapes` with ``stages = midpoint_stages(n)``; the step allocates nothing."""
+
+    @jit(cache=False)
+    def step(t, t0, y, V, m, p, h, scratch, tangent_scratch, work, megno_scratch):
+        n = y.shape[0]
+        k = V.shape[0]
+        unit, columns, lu = scratch[:n], scratch[n:2 * n], scratch[2 * n:3 * n]
+        z, rate_z, pivots = scratch[3 * n], scratch[3 * n + 1], scratch[3 * n + 2]
+        half = 0.5 * h
+        tm = t + half
+        for j in range(n):
+            z[j] = y[j]
+        converged = False
+        for _ in range(_MIDPOINT_MAX_ITERATIONS):
+            rate(tm, z, p, rate_z)
+            change = 0.0
+            size = 0.0
+            for j in range(n):
+                new = y[j] + half * rate_z[j]
+                change += abs(new - z[j])
+                size += abs(new)
+                z[j] = new
+            if not change > _MIDPOINT_ULPS * _EPS * size:  # converged (or NaN: caught by the loop)
+                converged = True
+                break
+        if not converged:
+            for j in range(n):
+                z[j] = math.nan
+        # J at the midpoint, column by column (columns[c] = J e_c), then lu = I - (h/2) J factorised in place
+        for a in range(n):
+            for c in range(n):
+                unit[a, c] = 1.0 if a == c else 0.0
+        tangents(tm, z, unit, p, columns, work)
+        for a in range(n):
+            for c in range(n):
+                lu[a, c] = (1.0 if a == c else 0.0) - half * columns[c, a]
+        for c in range(n):
+            pivot = c
+            for a in range(c + 1, n):
+                if abs(lu[a, c]) > abs(lu[pivot, c]):
+                    pivot = a
+            pivots[c] = pivot
+            if pivot != c:
+                for b in range(n):
+                    lu[c, b], lu[pivot, b] = lu[pivot, b], lu[c, b]
+            for a in range(c + 1, n):
+                lu[a, c] /= lu[c, c]
+                for b in range(c + 1, n):
+                    lu[a, b] -= lu[a, c] * lu[c, b]
+        right = tangent_scratch[0]
+        for r in range(k):
+            for a in range(n):  # (I + (h/2) J) δ0
+                total = 0.0
+                for c in range(n):
+                    total += columns[c, a] * V[r, c]
+                right[r, a] = V[r, a] + half * total
+            for c in range(n):  # the rows swapped as in the factorisation, then the two triangles
+                pivot = int(pivots[c])
+                if pivot != c:
+                    right[r, c], right[r, pivot] = right[r, pivot], right[r, c]
+            for a in range(n):
+                for c in range(a):
+                    right[r, a] -= lu[a, c] * right[r, c]
+            for a in range(n - 1, -1, -1):
+                for c in range(a + 1, n):
+                    right[r, a] -= lu[a, c] * right[r, c]
+                right[r, a] /= lu[a, a]
+        # MEGNO: rho of the first tangent vector's mean (δ0 + δ1)/2 at the midpoint, J (δ0 + δ1)/2 = (δ1 - δ0) / h
+        dot = 0.0
+        norm2 = 0.0
+        for a in range(n):
+            mean = 0.5 * (V[0, a] + right[0, a])
+            dot += mean * (right[0, a] - V[0, a]) / h
+            norm2 += mean * mean
+        elapsed = tm - t0
+        ys = m[0] + h * 2.0 * elapsed * dot / norm2
+        m[1] += h * 0.5 * (m[0] + ys) / elapsed
+        m[0] = ys
+        for j in range(n):
+            y[j] = 2.0 * z[j] - y[j]
+        for r in range(k):
+            for a in range(n):
+                V[r, a] = right[r, a]
 
     return step
 

@@ -915,7 +915,7 @@ def _chaos(study, given, resolved):
 
 
 def _check_chaos_study(resolved, given):
-    """What a chaos study's map needs: a model of its start's kind, an explicit Runge-Kutta method, no torque, no
+    """What a chaos study's map needs: a model of its start's kind, a Runge-Kutta method, no torque, no
     scan of bodies' axes, an exponent count and a GALI k within the state, its own figures."""
     chaos, scan, model = resolved["chaos"], resolved["scan"], resolved["model"]
     start = next(s for s in registry.CHAOS_STARTS if s.name == chaos["start"])
@@ -939,11 +939,12 @@ def _check_chaos_study(resolved, given):
         raise _Invalid("torque.profile", "must be 'none' in a chaos study (the model's own forces act)")
     methods = ([(f"scan.method[{i}]", m) for i, m in enumerate(scan["method"])] if "method" in scan
                else [("integration.method", resolved["integration"]["method"])])
-    runge_kutta = [m.name for m in registry.METHODS if m.family == "runge_kutta"]
+    tangent_methods = [m.name for m in registry.METHODS if m.family == "runge_kutta"] + ["implicit_midpoint"]
     for field, m in methods:
-        if m not in ("auto", *runge_kutta):
-            raise _Invalid(field, f"a chaos study steps its tangents with an explicit Runge-Kutta method, one of "
-                                  f"{', '.join(runge_kutta)} ('auto': rk4), got {m!r}")
+        if m not in ("auto", *tangent_methods):
+            raise _Invalid(field, f"a chaos study steps its tangents with a Runge-Kutta method (the tangent is the "
+                                  f"derivative of its map), one of {', '.join(tangent_methods)} ('auto': rk4), got "
+                                  f"{m!r}")
     n = len(registry.model_kind(kind).state)
     if chaos["exponents"] > n:
         raise _Invalid("chaos.exponents", f"must be at most {n} (the state of a {kind}: "

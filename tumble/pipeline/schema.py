@@ -210,9 +210,9 @@ def _chaos_fields():
             "growing like lambda t / 2 when chaotic), lyapunov (the Lyapunov spectrum, and its finite-time",
             "exponents over time), gali (GALI_k over time). [] (the default): not a chaos study, every key below",
             "unused. A chaos study needs a [model] with a chaos.start of its kind, a fixed integration.dt > 0 and",
-            "integration.horizon > 0 (the time each orbit runs), an explicit Runge-Kutta integration.method (rk4,",
-            "rk8; \"auto\": rk4); it draws megno_map, finite_time, spectrum (default: megno_map when megno is asked",
-            "for, else finite_time when lyapunov is, else none). Each point of the map (scan.<coordinate> x scan.rate, see [scan]) is one",
+            "integration.horizon > 0 (the time each orbit runs), a Runge-Kutta integration.method (rk4, rk8,",
+            "implicit_midpoint; \"auto\": rk4); it draws megno_map, finite_time, spectrum (default: megno_map",
+            "when megno is asked for, else finite_time when lyapunov is, else none). Each point of the map (scan.<coordinate> x scan.rate, see [scan]) is one",
             "initial state, run with every other; the perturbation table is not used."),
             choices=registry.CHAOS_INDICATORS, check="names"),
         Field("chaos", "start", starts[0].name, "How a point of the map becomes an initial state:\n" + "".join(
