@@ -31,8 +31,9 @@ def make_kernel(model, method, n_state):
     """The device kernel of ``model`` (a :data:`~tumble.kernels.model_loop.MODEL_CODES` value) stepped by ``method``
     (a :data:`~tumble.kernels.model_loop.MODEL_METHODS` value), ``n_state`` components: one thread per sample, running
     the CPU's time loop (:func:`tumble.kernels.model_loop.run_block`) on a block of one sample in the thread's local
-    memory. The codes are constants of the closure, handed to the loop: on the simulator as literals (the CPU's
-    compiled loop of that system and method), on a device as plain ints, where the loop keeps every system's branch."""
+    memory. The codes are constants of the closure, handed to the loop as literals (on the simulator through
+    :func:`tumble.kernels.cuda_launch.loop_with_codes`: the CPU's compiled loop of that system and method), so that
+    the kernel compiles that system's and that method's step only."""
     loop = loop_with_codes(run_block, model, method)
 
     @cuda_jit

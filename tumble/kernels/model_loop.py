@@ -93,8 +93,8 @@ _TINY = 2.2250738585072014e-308  # smallest normal float: a zero scale gives a z
 # constants to the generated chains of :mod:`tumble.kernels.model_steps`, which numba inlines and prunes to the one
 # branch taken: a driver compiles its own system's step, invariants and drift screen only (the chains compiled every
 # system's and method's steps into the one driver there was: 78 s of a first heavy-top ensemble on 2 cores,
-# ``benchmarks/first_call.py``). A device kernel's codes reach the loop as plain ints (numba-cuda does not pass a
-# kernel's constants on as literals): there the chains keep every branch, as before.
+# ``benchmarks/first_call.py``). Codes that reach the loop as plain ints (a caller passing them at run time, or
+# through a star-call's tuple, which numba-cuda types as plain ints) keep every branch.
 
 # Not inlined at numba's IR level: numba-cuda's pipeline cannot take an overload inlined so (LLVM inlines it).
 # ``prefer_literal``: numba tries an overload with the arguments' plain types first and keeps what that gives, so the
@@ -113,7 +113,7 @@ def _step(model, method, ys, t, h, a, x0):
 
 @overload(_step, **_OPTIONS)
 def _step_of(model, method, ys, t, h, a, x0):
-    if not _literal(model, method):  # a device kernel's codes (plain ints there): every branch
+    if not _literal(model, method):  # codes known at run time only: every branch
         def any_step(model, method, ys, t, h, a, x0):
             step(model, method, ys, t, h, a, x0)
 
