@@ -202,7 +202,46 @@ def midpoint_stages(n):
     return 3 * n + 3
 
 
+@jit(inline=True)
+def _factorise(lu, pivots):
+    """``lu`` (n, n) in place: its LU factors by Gaussian elimination with partial pivoting (rows swapped whole, the
+    row chosen at column ``c`` in ``pivots[c]``)."""
+    n = lu.shape[0]
+    for c in range(n):
+        pivot = c
+        for a in range(c + 1, n):
+            if abs(lu[a, c]) > abs(lu[pivot, c]):
+                pivot = a
+        pivots[c] = pivot
+        if pivot != c:
+            for b in range(n):
+                lu[c, b], lu[pivot, b] = lu[pivot, b], lu[c, b]
+        for a in range(c + 1, n):
+            lu[a, c] /= lu[c, c]
+            for b in range(c + 1, n):
+                lu[a, b] -= lu[a, c] * lu[c, b]
+
+
+@jit(inline=True)
+def _solve(lu, pivots, x):
+    """``x`` (n,) in place: the solution of ``A x = x`` for the ``A`` that :func:`_factorise` factorised into
+    ``lu``, ``pivots``."""
+    n = lu.shape[0]
+    for c in range(n):
+        pivot = int(pivots[c])
+        if pivot != c:
+            x[c], x[pivot] = x[pivot], x[c]
+    for a in range(n):
+        for c in range(a):
+            x[a] -= lu[a, c] * x[c]
+    for a in range(n - 1, -1, -1):
+        for c in range(a + 1, n):
+            x[a] -= lu[a, c] * x[c]
+        x[a] /= lu[a, a]
+
+
 def make_midpoint_tangent_step(rate, tangents):
+    # size: the closure holds the step and its fixed-point solve (see there)
     """``step(t, t0, y, V, m, p, h, scratch, tangent_scratch, work, megno_scratch)`` (as :func:`make_tangent_step`'s):
     one step of the implicit midpoint rule ``y1 = y0 + h f(t + h/2, (y0 + y1)/2)`` applied to the augmented system.
 
@@ -220,18 +259,13 @@ def make_midpoint_tangent_step(rate, tangents):
     Scratch arrays of :func:`scratch_shapes` with ``stages = midpoint_stages(n)``; the step allocates nothing."""
 
     @jit(cache=False)
-    def step(t, t0, y, V, m, p, h, scratch, tangent_scratch, work, megno_scratch):
+    def midpoint(t, y, p, half, z, rate_z):
+        """``z = y + half f(t, z)`` into ``z`` by fixed-point iteration; NaN when it does not converge."""
         n = y.shape[0]
-        k = V.shape[0]
-        unit, columns, lu = scratch[:n], scratch[n:2 * n], scratch[2 * n:3 * n]
-        z, rate_z, pivots = scratch[3 * n], scratch[3 * n + 1], scratch[3 * n + 2]
-        half = 0.5 * h
-        tm = t + half
         for j in range(n):
             z[j] = y[j]
-        converged = False
         for _ in range(_MIDPOINT_MAX_ITERATIONS):
-            rate(tm, z, p, rate_z)
+            rate(t, z, p, rate_z)
             change = 0.0
             size = 0.0
             for j in range(n):
@@ -240,50 +274,35 @@ def make_midpoint_tangent_step(rate, tangents):
                 size += abs(new)
                 z[j] = new
             if not change > _MIDPOINT_ULPS * _EPS * size:  # converged (or NaN: caught by the loop)
-                converged = True
-                break
-        if not converged:
-            for j in range(n):
-                z[j] = math.nan
-        # J at the midpoint, column by column (columns[c] = J e_c), then lu = I - (h/2) J factorised in place
+                return
+        for j in range(n):
+            z[j] = math.nan
+
+    @jit(cache=False)
+    def step(t, t0, y, V, m, p, h, scratch, tangent_scratch, work, megno_scratch):
+        n = y.shape[0]
+        unit, columns, lu = scratch[:n], scratch[n:2 * n], scratch[2 * n:3 * n]
+        z, rate_z, pivots = scratch[3 * n], scratch[3 * n + 1], scratch[3 * n + 2]
+        half = 0.5 * h
+        tm = t + half
+        midpoint(tm, y, p, half, z, rate_z)
+        # J at the midpoint, column by column (columns[c] = J e_c); lu = I - (h/2) J, factorised
         for a in range(n):
             for c in range(n):
                 unit[a, c] = 1.0 if a == c else 0.0
         tangents(tm, z, unit, p, columns, work)
         for a in range(n):
             for c in range(n):
-                lu[a, c] = (1.0 if a == c else 0.0) - half * columns[c, a]
-        for c in range(n):
-            pivot = c
-            for a in range(c + 1, n):
-                if abs(lu[a, c]) > abs(lu[pivot, c]):
-                    pivot = a
-            pivots[c] = pivot
-            if pivot != c:
-                for b in range(n):
-                    lu[c, b], lu[pivot, b] = lu[pivot, b], lu[c, b]
-            for a in range(c + 1, n):
-                lu[a, c] /= lu[c, c]
-                for b in range(c + 1, n):
-                    lu[a, b] -= lu[a, c] * lu[c, b]
+                lu[a, c] = unit[a, c] - half * columns[c, a]
+        _factorise(lu, pivots)
         right = tangent_scratch[0]
-        for r in range(k):
-            for a in range(n):  # (I + (h/2) J) δ0
+        for r in range(V.shape[0]):
+            for a in range(n):  # (I + (h/2) J) δ0, then solved for δ1
                 total = 0.0
                 for c in range(n):
                     total += columns[c, a] * V[r, c]
                 right[r, a] = V[r, a] + half * total
-            for c in range(n):  # the rows swapped as in the factorisation, then the two triangles
-                pivot = int(pivots[c])
-                if pivot != c:
-                    right[r, c], right[r, pivot] = right[r, pivot], right[r, c]
-            for a in range(n):
-                for c in range(a):
-                    right[r, a] -= lu[a, c] * right[r, c]
-            for a in range(n - 1, -1, -1):
-                for c in range(a + 1, n):
-                    right[r, a] -= lu[a, c] * right[r, c]
-                right[r, a] /= lu[a, a]
+            _solve(lu, pivots, right[r])
         # MEGNO: rho of the first tangent vector's mean (δ0 + δ1)/2 at the midpoint, J (δ0 + δ1)/2 = (δ1 - δ0) / h
         dot = 0.0
         norm2 = 0.0
@@ -297,9 +316,7 @@ def make_midpoint_tangent_step(rate, tangents):
         m[0] = ys
         for j in range(n):
             y[j] = 2.0 * z[j] - y[j]
-        for r in range(k):
-            for a in range(n):
-                V[r, a] = right[r, a]
+        V[:, :] = right
 
     return step
 
