@@ -118,7 +118,7 @@ def _initial_states(system, y0):
 
 
 #: The implicit method the tangent flow runs besides the explicit Runge–Kutta methods of :data:`TABLEAUX`.
-MIDPOINT = "implicit_midpoint"
+MIDPOINT = next(m.name for m in registry.METHODS if m.family == "implicit")
 
 
 def _method(method):

@@ -939,7 +939,7 @@ def _check_chaos_study(resolved, given):
         raise _Invalid("torque.profile", "must be 'none' in a chaos study (the model's own forces act)")
     methods = ([(f"scan.method[{i}]", m) for i, m in enumerate(scan["method"])] if "method" in scan
                else [("integration.method", resolved["integration"]["method"])])
-    tangent_methods = [m.name for m in registry.METHODS if m.family == "runge_kutta"] + ["implicit_midpoint"]
+    tangent_methods = [m.name for m in registry.METHODS if m.family in ("runge_kutta", "implicit")]
     for field, m in methods:
         if m not in ("auto", *tangent_methods):
             raise _Invalid(field, f"a chaos study steps its tangents with a Runge-Kutta method (the tangent is the "
