@@ -120,6 +120,61 @@ def test_the_implicit_midpoint_rule_gives_rk4s_exponents_and_megno_of_a_chaotic_
     np.testing.assert_allclose(midpoint["megno"].values, rk4["megno"].values, rtol=1e-3)
 
 
+SPLITTINGS = ("symplectic_euler", "splitting2", "splitting4")
+
+
+@pytest.mark.parametrize("method", SPLITTINGS)
+@pytest.mark.parametrize("model, y0", [
+    (tumble.models.FreeBody((1.0, 2.0, 3.0)), [0.3, 1.0, 0.2]),
+    (tumble.models.Gyrostat((1.0, 2.0, 3.0), (0.1, -0.2, 0.4)), [0.3, 1.0, 0.2]),
+    (TOP, CHAOTIC),
+    (LAGRANGE, REGULAR),
+], ids=["free", "gyrostat", "heavy_top", "lagrange"])
+def test_a_splittings_tangent_is_the_derivative_of_its_map(model, y0, method):
+    """The tangent of one splitting step (each exact sub-flow's derivative, composed) against a fourth-order central
+    difference of the same step's map, at a step long enough that the map is far from the identity."""
+    from tumble.kernels import rate_sample_parameters
+    from tumble.kernels.model_splittings import SPLITTINGS as CODES, splitting_tangent_sample
+
+    p = rate_sample_parameters(model.kind, model.moments, model.parameters)
+    y = np.array(y0, dtype=float)
+    n, h, e = len(y), 0.3, 1e-4
+
+    def step(x):
+        x = x.copy()
+        splitting_tangent_sample(CODES[method], x, np.zeros((0, n)), p, h)
+        return x
+
+    state, jacobian = y.copy(), np.eye(n)
+    splitting_tangent_sample(CODES[method], state, jacobian, p, h)  # rows: the derivative along each unit vector
+    np.testing.assert_array_equal(state, step(y))  # the tangent leaves the state's bits alone
+    for j in range(n):
+        v = np.eye(n)[j]
+        difference = (8.0 * (step(y + e * v) - step(y - e * v)) - (step(y + 2 * e * v) - step(y - 2 * e * v))) / (
+            12.0 * e)
+        np.testing.assert_allclose(jacobian[j], difference, rtol=0, atol=1e-9)
+    assert abs(np.linalg.det(jacobian) - 1.0) < 1e-12  # every sub-flow keeps volume
+
+
+def test_the_splittings_exponents_are_rk4s_sum_to_zero_and_their_megno_agrees():
+    """splitting4 and rk4 at the same small step give the same spectrum of a chaotic top and of the free body; the
+    splittings' maps keep volume exactly, so their exponents sum to zero to round-off (rk4's: to its error)."""
+    states = [CHAOTIC, REGULAR]
+    rk4 = tumble.lyapunov(TOP, states, 10.0, 0.002)
+    for method, tolerance in (("splitting4", 1e-6), ("splitting2", 1e-3)):
+        split = tumble.lyapunov(TOP, states, 10.0, 0.002, method=method)
+        assert split.attrs["method"] == method and np.all(split["status"].values == STATUS_OK)
+        np.testing.assert_allclose(split["exponent"].values, rk4["exponent"].values, rtol=0, atol=tolerance)
+        assert np.all(np.abs(split["exponent"].values.sum(axis=1)) < 1e-13)
+    body = tumble.lyapunov(BODY, [[0.0, 1.0, 1e-3]], 15.0, 0.01, transient=5.0, method="splitting4")
+    np.testing.assert_allclose(body["exponent"].values,
+                               tumble.lyapunov(BODY, [[0.0, 1.0, 1e-3]], 15.0, 0.01, transient=5.0)["exponent"].values,
+                               rtol=0, atol=1e-7)
+    split = tumble.megno(TOP, states, 30.0, 0.005, method="splitting4")
+    np.testing.assert_allclose(split["megno"].values, tumble.megno(TOP, states, 30.0, 0.005)["megno"].values,
+                               rtol=1e-3)
+
+
 # --- the rigid bodies -----------------------------------------------------------------------------------------------
 
 def test_a_steady_spin_about_the_intermediate_axis_grows_at_the_linear_rate():
@@ -425,6 +480,9 @@ def test_the_device_gives_the_cpus_exponents_and_megno(cuda_device):
         cpu = tumble.megno(system, states, 2.0, 0.01, method="implicit_midpoint", **kwargs)
         device = tumble.megno(system, states, 2.0, 0.01, method="implicit_midpoint", device=cuda_device, **kwargs)
         np.testing.assert_allclose(device["megno"].values, cpu["megno"].values, rtol=1e-10)
+    cpu = tumble.lyapunov(TOP, states, 2.0, 0.01, method="splitting4")  # a splitting's sub-flows and their derivatives
+    device = tumble.lyapunov(TOP, states, 2.0, 0.01, method="splitting4", device=cuda_device)
+    np.testing.assert_allclose(device["exponent"].values, cpu["exponent"].values, rtol=1e-10, atol=1e-14)
 
 
 _PTX = """
@@ -444,10 +502,10 @@ f, i = types.float64, types.int64
 A1, A2, A3 = (types.Array(f, d, "C") for d in (1, 2, 3))
 signature = (A2, A3, A1, f, f, i, i, i, i, f, types.boolean, A2, A3, A2, types.Array(types.int8, 1, "C"),
              types.Array(i, 1, "C"))
-for system in (TOP, LINEAR):
+for system, method in ((TOP, "rk4"), (LINEAR, "rk4"), (TOP, "splitting4")):
     _, p, _ = chaos._parameters(system, None)
     n, n_p = len(system.spec.state), len(p)
-    kernels = chaos._kernels(system, "rk4")
+    kernels = chaos._kernels(system, method)
     kernel = cuda_tangent_loop.make_kernel(kernels.run_sample, n, n, kernels.stages, n_p)
     ptx, _ = cuda.compile_ptx(kernel.py_func, signature, cc=(9, 0))
     assert ".entry" in ptx
@@ -494,7 +552,13 @@ def _no_jacobian(t, y, p, dydt):
     (lambda: tumble.megno(tumble.models.GravityGradient((1.0, 2.0, 3.0), 1.0), [[0, -1, 0, 1, 0, 0, 0.1]], 1.0, 0.01),
      r"y0: \(q0, q1, q2, q3\) of a gravity_gradient model must be a unit vector in every state; sample 0 has norm"),
     (lambda: tumble.lyapunov(BODY, [[0, 1, 0]], 1.0, 0.01, save_every=0), "save_every must be None or an integer"),
-    (lambda: tumble.lyapunov(BODY, [[0, 1, 0]], 1.0, 0.01, method="splitting4"), "method must be one of rk4"),
+    (lambda: tumble.lyapunov(tumble.models.Damper((1.0, 2.0, 3.0), 0.5, 0.3), [[0, 1, 0, 0, 0, 0]], 1.0, 0.01,
+                             method="splitting4"),
+     r"method must be one of rk4, .*implicit_midpoint for the damper model \(symplectic_euler, splitting2, "
+     r"splitting4: for free, gyrostat, heavy_top only, whose exact sub-flows they compose\), got 'splitting4'"),
+    (lambda: tumble.megno(LINEAR, [[0, 1, 0]], 1.0, 0.01, method="splitting2"),
+     r"method must be one of rk4, .* for system 'linear' \(.*\), got 'splitting2'"),
+    (lambda: tumble.megno(BODY, [[0, 1, 0]], 1.0, 0.01, method="rk5"), r"method must be one of .*got 'rk5'"),
     (lambda: tumble.lyapunov("body", [[0, 1, 0]], 1.0, 0.01), "system must be a tumble.Body"),
     (lambda: tumble.lyapunov((1.0, 2.0, 5.0), [[0, 1, 0]], 1.0, 0.01), "triangle"),
     (lambda: tumble.lyapunov(LINEAR, [[0, 0, 0]], 1.0, 0.01, parameters={"b": 1.0}),

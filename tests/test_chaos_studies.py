@@ -69,11 +69,12 @@ def test_the_map_is_the_api_run_point_by_point():
     # the study also stores the finite-time exponents (save_every): the same sums, to round-off
     np.testing.assert_allclose(ds["exponent"].values.reshape(4, 6), tumble.lyapunov(top, y, 2.0, 0.01).exponent.values,
                                rtol=1e-12, atol=1e-14)
-    study = _top()  # the implicit midpoint rule steps a map as the API does
-    study["integration"]["method"] = "implicit_midpoint"
-    ds = tumble.run_study(study, progress=False)
-    np.testing.assert_array_equal(ds["megno"].values.ravel(),
-                                  tumble.megno(top, y, 2.0, 0.01, method="implicit_midpoint").megno.values)
+    for method in ("implicit_midpoint", "splitting4"):  # the implicit rule and a splitting step maps as the API does
+        study = _top()
+        study["integration"]["method"] = method
+        ds = tumble.run_study(study, progress=False)
+        np.testing.assert_array_equal(ds["megno"].values.ravel(),
+                                      tumble.megno(top, y, 2.0, 0.01, method=method).megno.values)
 
 
 def test_a_scanned_parameter_is_a_dimension_before_the_map():
@@ -105,7 +106,10 @@ BAD = [
     ({"chaos": {"indicators": ["megno"], "start": "spin_orbit"}}, "chaos.start", "gravity_gradient"),
     ({"integration": {"dt": 0.0, "horizon": 2.0}}, "integration.dt", "fixed step"),
     ({"integration": {"dt": 0.01, "horizon": 0.0}}, "integration.horizon", "> 0 s"),
-    ({"integration": {"dt": 0.01, "horizon": 2.0, "method": "splitting4"}}, "integration.method", "Runge-Kutta"),
+    ({"model": {"kind": "gravity_gradient", "orbit_rate": 1.0},
+      "chaos": {"indicators": ["megno"], "start": "spin_orbit"}, "scan": {"angle": [0.0], "rate": [1.0]},
+      "integration": {"dt": 0.01, "horizon": 2.0, "method": "splitting4"}},
+     "integration.method", "the splittings for free, gyrostat, heavy_top only"),
     ({"scan": {"tilt": [0.5, 4.0], "rate": [1.0]}}, "scan.tilt[1]", "[0, pi]"),
     ({"scan": {"angle": [0.5], "rate": [1.0]}}, "scan.angle", "no coordinate"),
     ({"scan": {"tilt": [0.5], "rate": [1.0], "axis": [1, 2]}}, "scan.axis", "not in a chaos study"),
@@ -177,12 +181,14 @@ def test_a_map_cut_into_sample_ranges_gives_the_same_bits(tmp_path):
     np.testing.assert_array_equal(whole["megno"].values, cut["megno"].values)
 
 
-def test_a_chaos_map_on_the_device_is_the_cpu_map():
+@pytest.mark.parametrize("name", sorted(TINY))
+def test_a_bundled_chaos_map_on_the_device_is_the_cpu_map(name):
     """integration.device = "cuda" runs the map's tangent loops on the device (numba-cuda's simulator in CI)."""
-    small = {"scan.tilt": [0.5, 2.0], "scan.rate": [0.5, 3.0], "integration.horizon": 0.1,
+    first, second = COORDINATES[name]
+    small = {f"scan.{first}": TINY[name][f"scan.{first}"], f"scan.{second}": [0.5, 3.0], "integration.horizon": 0.1,
              "chaos.indicators": ["megno", "lyapunov"]}
-    cpu = tumble.run_study("chaos_map", overrides=small, progress=False)
-    device = tumble.run_study("chaos_map", overrides={**small, "integration.device": "cuda"}, progress=False)
+    cpu = tumble.run_study(name, overrides=small, progress=False)
+    device = tumble.run_study(name, overrides={**small, "integration.device": "cuda"}, progress=False)
     assert device.attrs.get("study") is None or "cuda" in device.attrs["study"]
     np.testing.assert_allclose(device["megno"].values, cpu["megno"].values, rtol=1e-10)
     np.testing.assert_allclose(device["exponent"].values, cpu["exponent"].values, rtol=1e-10, atol=1e-14)

@@ -14,7 +14,7 @@ __all__ = ["ATTITUDE_FIGURES", "AUTO", "AUTO_STEPPING", "CHAOS_FIGURES", "CHAOS_
            "MODEL_KINDS", "MODEL_PARAMETERS", "MODEL_STEPPING", "Method", "Model", "ModelParameter", "PER_SAMPLE_ARRAYS", "SAMPLE_STATUS_NAMES",
            "STATE_BLOCKS", "STATUSES", "STATUS_ABOVE", "STATUS_DRIFT", "STATUS_NAMES", "STATUS_NONFINITE", "STATUS_OK", "STEPPING",
            "Status", "TORQUE_PROFILES", "TORQUE_USER", "TorqueProfile", "amplitude_problem", "choose_method", "method",
-           "model_kind", "model_methods", "model_parameter", "state_blocks", "torque_profile"]
+           "model_kind", "model_methods", "model_parameter", "state_blocks", "tangent_methods", "torque_profile"]
 
 
 class Method(NamedTuple):
@@ -348,6 +348,14 @@ MODEL_STEPPING = tuple(m.name for m in METHODS if m.family in ("runge_kutta", "s
 def model_methods(kind):
     """The names of the methods the models' kernels run for model ``kind``, the Runge–Kutta ones first."""
     return tuple(m.name for m in METHODS if m.family == "runge_kutta" or
+                 (m.family == "splitting" and kind in LIE_POISSON_MODELS))
+
+
+def tangent_methods(kind):
+    """The methods whose tangent map the chaos indicators compute for model ``kind`` (None: a user's ``System``): the
+    Runge–Kutta ones and the implicit midpoint rule for every system, the splittings for :data:`LIE_POISSON_MODELS`
+    (the derivatives of their exact sub-flows; a System has no sub-flows, only a rate)."""
+    return tuple(m.name for m in METHODS if m.family in ("runge_kutta", "implicit") or
                  (m.family == "splitting" and kind in LIE_POISSON_MODELS))
 
 

@@ -7,8 +7,8 @@ derivative of the method's own map), orthonormalised by modified Gram–Schmidt 
 transient. MEGNO's two scalars are integrated alongside (Cincotta & Simó 2000): ``<Y> → 2`` on a quasi-periodic orbit,
 ``→ 0`` near a stable periodic one, ``≈ λ t / 2`` on a chaotic one. A built-in model stepped by rk4 or rk8
 runs on the CPU in blocks of samples vectorised across them (:mod:`tumble.kernels.tangent_blocks`); everything else
-(the implicit midpoint rule too), and the device, through the per-sample loop of :mod:`tumble.kernels.tangent_loop`
-(one CUDA thread per sample).
+(the implicit midpoint rule and the splittings too), and the device, through the per-sample loop of
+:mod:`tumble.kernels.tangent_loop` (one CUDA thread per sample).
 
 ``system`` is anything the engine accepts: a :class:`~tumble.physics.bodies.Body` (the free body, as
 :class:`tumble.models.FreeBody`), a built-in model (its generated rate and tangent, with any Runge–Kutta tableau of
@@ -121,12 +121,19 @@ def _initial_states(system, y0):
 MIDPOINT = next(m.name for m in registry.METHODS if m.family == "implicit")
 
 
-def _method(method):
+def _method(method, system):
+    """``method`` checked for ``system``: a Runge–Kutta tableau of :data:`TABLEAUX` (one added at run time too), the
+    implicit midpoint rule, or a splitting for the Lie–Poisson models (:func:`tumble.registry.tangent_methods`)."""
     if method == registry.AUTO:
         method = registry.AUTO_STEPPING
-    if not isinstance(method, str) or (method not in TABLEAUX and method != MIDPOINT):
-        raise ValueError(f"method must be one of {', '.join([*TABLEAUX, MIDPOINT])} (a Runge-Kutta method, whose "
-                         f"tangent is the derivative of its own map; the splittings have none yet), got {method!r}")
+    kind = None if isinstance(system, System) else system.kind
+    allowed = [*TABLEAUX, *(m for m in registry.tangent_methods(kind) if m not in TABLEAUX)]
+    if not isinstance(method, str) or method not in allowed:
+        splittings = ", ".join(m.name for m in registry.METHODS if m.family == "splitting")
+        why = (f"{splittings}: for {', '.join(registry.LIE_POISSON_MODELS)} only, whose exact sub-flows they compose"
+               if method in splittings.split(", ") else "each one's tangent is the derivative of its own map")
+        owner = f"system {system.name!r}" if isinstance(system, System) else _name(system)
+        raise ValueError(f"method must be one of {', '.join(allowed)} for {owner} ({why}), got {method!r}")
     return method
 
 
@@ -214,13 +221,14 @@ def tangent_kind(system):
 
 
 def _kernels(system, method):
-    """The tangent loop of ``system`` stepped by ``method``'s tableau (or the implicit midpoint rule), made once (a
-    tableau replaced at run time under the same name is a new method: the kernels are kept with the tableau they were
-    made of). The midpoint rule's scratch grows with the state: the built-in models' are kept per state size."""
-    tableau = TABLEAUX.get(method)  # None: the implicit midpoint rule
+    """The tangent loop of ``system`` stepped by ``method``: a tableau's (a tableau replaced at run time under the same
+    name is a new method: the kernels are kept with the tableau they were made of), the implicit midpoint rule's (its
+    scratch grows with the state: the built-in models' are kept per state size) or a splitting's (the built-in
+    Lie–Poisson models only: :func:`_method`), made once."""
+    tableau = TABLEAUX.get(method)
     n = len(system.spec.state)
     made = _SYSTEM_KERNELS.setdefault(system, {}) if isinstance(system, System) else _MODEL_KERNELS
-    key = method if tableau is not None else (method, n)
+    key = (method, n) if method == MIDPOINT else method
     if key not in made or made[key][0] is not tableau:
         if isinstance(system, System):
             rate, jacobian, _ = _system_functions(system)
@@ -228,17 +236,15 @@ def _kernels(system, method):
                         else tangent_loop.jacobian_tangents(jacobian))
         else:
             rate, tangents = rate_sample, tangent_loop.model_tangents()
-        made[key] = (tableau, _make(rate, tangents, tableau, n))
+        if tableau is not None:
+            step, stages = tangent_loop.make_tangent_step(rate, tangents, tableau), len(tableau.b)
+        elif method == MIDPOINT:
+            step, stages = tangent_loop.make_midpoint_tangent_step(rate, tangents), tangent_loop.midpoint_stages(n)
+        else:
+            step, stages = tangent_loop.make_splitting_tangent_step(registry.STEPPING.index(method)), 0
+        run_sample = tangent_loop.make_tangent_loop(step)
+        made[key] = (tableau, _Kernels(tangent_loop.make_cpu_driver(run_sample, stages), run_sample, stages))
     return made[key][1]
-
-
-def _make(rate, tangents, tableau, n):
-    if tableau is None:
-        step, stages = tangent_loop.make_midpoint_tangent_step(rate, tangents), tangent_loop.midpoint_stages(n)
-    else:
-        step, stages = tangent_loop.make_tangent_step(rate, tangents, tableau), len(tableau.b)
-    run_sample = tangent_loop.make_tangent_loop(step)
-    return _Kernels(tangent_loop.make_cpu_driver(run_sample, stages), run_sample, stages)
 
 
 def _parameters(system, parameters):
@@ -324,7 +330,7 @@ def _checked(system, y0, t_end, dt, method, parameters, device):
     device = resolve_device(device)
     system = _as_system(system)
     system, p, values = _parameters(system, parameters)
-    method = _method(method)
+    method = _method(method, system)
     t_end, n_steps, step = _plan(t_end, dt)
     y = _initial_states(system, y0)
     problem = system.state_problem(y) if isinstance(system, Model) else None
@@ -380,8 +386,10 @@ def lyapunov(system, y0, t_end, dt, *, method="rk4", exponents=None, renormalise
     method : str
         An explicit Runge–Kutta method of :data:`tumble.kernels.TABLEAUX` (``"rk4"``, ``"rk8"``, or one added at run
         time), ``"implicit_midpoint"`` (its tangent solved from ``(I - h/2 J) δ1 = (I + h/2 J) δ0``: the derivative
-        of its map too; it keeps quadratic invariants such as ``|g|²`` exactly), or ``"auto"`` (rk4).
-        The splittings have no tangent map yet (refused).
+        of its map too; it keeps quadratic invariants such as ``|g|²`` exactly), a Lie–Poisson splitting
+        (``"symplectic_euler"``, ``"splitting2"``, ``"splitting4"``) for the free body, the gyrostat and the heavy top
+        (the derivative of each exact sub-flow, composed: a map that keeps volume, so the exponents sum to zero to
+        round-off), or ``"auto"`` (rk4).
     exponents : int, optional
         ``k``, how many (1 to n; default n, the whole spectrum).
     renormalise : float

@@ -33,12 +33,13 @@ import numpy as np
 
 from ..registry import STEPPING
 from .jit import jit
+from .systems import gyrostat, heavy_top
 from .tableaux import SPLITTING2, SPLITTING4, SYMPLECTIC_EULER, TORQUE
 from .trig import sincos
 from .steppers import rotate
 
 __all__ = ["SPLITTINGS", "gyrostat_project_block", "gyrostat_rotate_block", "gyrostat_splitting_block",
-           "heavy_top_gravity_block", "heavy_top_rotate_block", "heavy_top_splitting_block"]
+           "heavy_top_gravity_block", "heavy_top_rotate_block", "heavy_top_splitting_block", "splitting_tangent_sample"]
 
 #: The splittings the model kernels run, by name: kernel id (index in ``registry.STEPPING``).
 SPLITTINGS = {s.name: STEPPING.index(s.name) for s in (SYMPLECTIC_EULER, SPLITTING2, SPLITTING4)}
@@ -169,3 +170,87 @@ def heavy_top_splitting_block(method, y1, y2, y3, y4, y5, y6, h, c, x0):
             heavy_top_gravity_block(tau, y1, y2, y3, y4, y5, y6, c)
         else:
             heavy_top_rotate_block(_TOP_FLOWS[s], tau, y1, y2, y3, y4, y5, y6, c)
+
+
+# --- the tangent map: each sub-flow with its derivative, one sample ---------------------------------------------------
+#
+# The chaos indicators (:mod:`tumble.kernels.tangent_loop`) need the derivative of the splitting's map ``y0 -> y1``,
+# which is the product of its sub-flows' derivatives. A turn about axis ``a`` by ``theta = w_a tau`` is linear in the
+# components it turns, and ``theta`` depends on the state through ``w_a`` alone (constant along that sub-flow): with
+# ``(b, c)`` the turned pair and ``R(theta)`` the turn,
+#     δ(b, c)' = R(theta) δ(b, c) + tau δw_a ∂(b', c')/∂theta,   ∂(u_b', u_c')/∂theta = (r_cb u_c', −r_bc u_b')
+# (``r_cb r_bc = 1``), and ``δw_a`` (the heavy top's ``δg_a`` too) is kept. The heavy top's gravity kick is linear in
+# ``g``: ``δw += tau I⁻¹ mgl (δg × c)``, ``δg`` kept. Every factor has determinant 1, so the map keeps volume and the
+# exponents sum to zero to round-off. The state follows the block sub-flows' formulas without the gyrostat's projection
+# onto its initial ``|L|`` (a few-ulp correction whose derivative would remove the tangent's radial part).
+
+
+def _slots(module, *names):
+    """The positions in ``p`` (a model's code, then its ``Constants``: :func:`tumble.kernels.model_loop.
+    rate_sample_parameters`) of the named constants, checked consecutive (the kernel reads ``p[first + axis]``)."""
+    first = 1 + module.Constants._fields.index(names[0])
+    assert [1 + module.Constants._fields.index(name) for name in names] == list(range(first, first + len(names)))
+    return first
+
+
+_MOMENTS = _slots(gyrostat, "i1", "i2", "i3")
+assert _MOMENTS == _slots(heavy_top, "i1", "i2", "i3")
+_ROTOR = _slots(gyrostat, "h1", "h2", "h3")
+_M12, _M13, _M21, _M23, _M31, _M32 = (_slots(heavy_top, name) for name in ("m12", "m13", "m21", "m23", "m31", "m32"))
+_HEAVY_TOP = 2  # the heavy top's code in p[0] (the free body 0 and the gyrostat 1 share the gyrostat's flows)
+
+
+@jit(inline=True)
+def _turn_with_tangent(y, V, a, b, c, tau, shift_b, shift_c, r_cb, r_bc):
+    """The turn of ``(y_b + shift_b, y_c + shift_c)`` by ``theta = y_a tau`` (the free body's ratios), and each
+    tangent vector's row of ``V`` by its derivative. Returns the turn's ``(sin, cos)`` for the turned pairs that
+    follow (the heavy top's ``g``)."""
+    s, k = sincos(y[a] * tau)
+    ub, uc = y[b] + shift_b, y[c] + shift_c
+    nb, nc = k * ub + s * r_cb * uc, k * uc - s * r_bc * ub
+    y[b], y[c] = nb - shift_b, nc - shift_c
+    for r in range(V.shape[0]):
+        d_theta = tau * V[r, a]
+        db, dc = V[r, b], V[r, c]
+        V[r, b] = k * db + s * r_cb * dc + d_theta * r_cb * nc
+        V[r, c] = k * dc - s * r_bc * db - d_theta * r_bc * nb
+    return s, k
+
+
+@jit
+def splitting_tangent_sample(method, y, V, p, h):
+    """One step of splitting ``method`` (kernel id) of one sample of a free body, gyrostat or heavy top (``p[0]`` its
+    code, as :func:`tumble.kernels.model_steps.rate_sample`'s ``p``): the state ``y`` (n,) and, by the derivative of
+    the same map, the tangent vectors ``V`` (k, n), in place (see the section's comment)."""
+    top = int(p[0]) == _HEAVY_TOP
+    if top:
+        position, start, flows, fractions = _TOP_POSITION, _TOP_START, _TOP_FLOWS, _TOP_FRACTIONS
+    else:
+        position, start, flows, fractions = _FREE_POSITION, _FREE_START, _FREE_FLOWS, _FREE_FRACTIONS
+    q = position[method]
+    for s in range(start[q], start[q + 1]):
+        tau = fractions[s] * h
+        if flows[s] == TORQUE:  # the heavy top's gravity: w += tau I^-1 mgl (g x c), g kept
+            m12, m13, m21, m23, m31, m32 = p[_M12], p[_M13], p[_M21], p[_M23], p[_M31], p[_M32]
+            for row in range(-1, V.shape[0]):
+                x = y if row < 0 else V[row]
+                g1, g2, g3 = x[3], x[4], x[5]
+                x[0] += tau * m13 * g2 - tau * m12 * g3
+                x[1] += tau * m21 * g3 - tau * m23 * g1
+                x[2] += tau * m32 * g1 - tau * m31 * g2
+            continue
+        a = flows[s]
+        b, c = (a + 1) % 3, (a + 2) % 3
+        r_cb, r_bc = p[_MOMENTS + c] / p[_MOMENTS + b], p[_MOMENTS + b] / p[_MOMENTS + c]
+        if top:  # L and g turn together about axis a: g plainly, by the same angle
+            sn, k = _turn_with_tangent(y, V, a, b, c, tau, 0.0, 0.0, r_cb, r_bc)
+            gb, gc = y[3 + b], y[3 + c]
+            y[3 + b], y[3 + c] = k * gb + sn * gc, k * gc - sn * gb
+            for r in range(V.shape[0]):
+                d_theta = tau * V[r, a]
+                db, dc = V[r, 3 + b], V[r, 3 + c]
+                V[r, 3 + b] = k * db + sn * dc + d_theta * y[3 + c]
+                V[r, 3 + c] = k * dc - sn * db - d_theta * y[3 + b]
+        else:  # the gyrostat's u = w + h / I turns
+            _turn_with_tangent(y, V, a, b, c, tau, p[_ROTOR + b] / p[_MOMENTS + b], p[_ROTOR + c] / p[_MOMENTS + c],
+                               r_cb, r_bc)

@@ -12,6 +12,8 @@ per (system, method):
   (Cincotta & Simó 2000, A&AS 147, 205, eqs. 9-11, as REBOUND integrates them: ``Ys' = 2 t ρ``, ``Yss' = Ys / t`` with
   ``ρ = δ·δ' / |δ|²`` of the first tangent vector; ``Y = Ys / t``, ``<Y> = Yss / t``); ``ρ`` does not depend on ``|δ|``,
   so renormalising ``δ`` leaves them alone.
+* :func:`make_midpoint_tangent_step` and :func:`make_splitting_tangent_step`: the implicit midpoint rule's step and a
+  Lie–Poisson splitting's (free body, gyrostat, heavy top), each with the derivative of its own map.
 * :func:`make_tangent_loop`: the per-sample time loop. Every ``every`` steps (and where the transient ends, where a
   finite-time value is saved, and at the end) the tangent vectors are orthonormalised by modified Gram–Schmidt (Benettin
   et al. 1980; Golub & Van Loan sect. 5.2.8), ``V = Q R``; after the transient ``log |R_rr|`` is added to the sample's
@@ -40,12 +42,14 @@ import numpy as np
 
 from ..registry import STATUS_ABOVE, STATUS_NONFINITE, STATUS_OK
 from .jit import jit
+from .model_splittings import splitting_tangent_sample
 from .model_steps import tangent_sample
 from .sample_loop import combine, in_shares
 from .steppers import _EPS, _MIDPOINT_MAX_ITERATIONS, _MIDPOINT_ULPS
 
 __all__ = ["DIFFERENCE_STEP", "SCALARS", "difference_tangents", "jacobian_tangents", "make_cpu_driver",
-           "make_midpoint_tangent_step", "make_tangent_loop", "make_tangent_step", "midpoint_stages", "model_tangents",
+           "make_midpoint_tangent_step", "make_splitting_tangent_step", "make_tangent_loop", "make_tangent_step",
+           "midpoint_stages", "model_tangents",
            "orthonormalise_row", "scratch_shapes"]
 
 
@@ -317,6 +321,36 @@ def make_midpoint_tangent_step(rate, tangents):
         for j in range(n):
             y[j] = 2.0 * z[j] - y[j]
         V[:, :] = right
+
+    return step
+
+
+def make_splitting_tangent_step(method):
+    """``step(t, t0, y, V, m, p, h, scratch, tangent_scratch, work, megno_scratch)`` (as :func:`make_tangent_step`'s):
+    one step of the Lie–Poisson splitting ``method`` (kernel id) of a free body, gyrostat or heavy top (``p`` as
+    :func:`model_tangents`'), the tangent vectors by the derivative of the splitting's map
+    (:func:`tumble.kernels.model_splittings.splitting_tangent_sample`: each exact sub-flow's derivative).
+
+    A splitting has no stages at which ``ρ = δ·δ'/|δ|²`` could be evaluated; over a step ``∫ ρ = ln(|δ1| / |δ0|)``
+    exactly, and MEGNO's first scalar takes it at the step's middle, ``Ys1 = Ys0 + 2 (t + h/2 - t0) ln(|δ1| / |δ0|)``
+    (MEGNO of a map, Cincotta & Simó 2000 sect. 3, with the time of the step's middle; an error of the splitting's
+    second order), the second as the midpoint rule's, ``Yss1 = Yss0 + h (Ys0 + Ys1) / 2 / (t + h/2 - t0)``. No
+    scratch is used (``stages = 0``)."""
+
+    @jit(cache=False)
+    def step(t, t0, y, V, m, p, h, scratch, tangent_scratch, work, megno_scratch):
+        n = y.shape[0]
+        before = 0.0
+        for j in range(n):
+            before += V[0, j] * V[0, j]
+        splitting_tangent_sample(method, y, V, p, h)
+        after = 0.0
+        for j in range(n):
+            after += V[0, j] * V[0, j]
+        elapsed = t + 0.5 * h - t0
+        ys = m[0] + elapsed * math.log(after / before)  # 2 (t + h/2 - t0) ln(|δ1| / |δ0|)
+        m[1] += h * 0.5 * (m[0] + ys) / elapsed
+        m[0] = ys
 
     return step
 

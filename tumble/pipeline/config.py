@@ -939,12 +939,12 @@ def _check_chaos_study(resolved, given):
         raise _Invalid("torque.profile", "must be 'none' in a chaos study (the model's own forces act)")
     methods = ([(f"scan.method[{i}]", m) for i, m in enumerate(scan["method"])] if "method" in scan
                else [("integration.method", resolved["integration"]["method"])])
-    tangent_methods = [m.name for m in registry.METHODS if m.family in ("runge_kutta", "implicit")]
+    tangent_methods = registry.tangent_methods(kind)
     for field, m in methods:
         if m not in ("auto", *tangent_methods):
-            raise _Invalid(field, f"a chaos study steps its tangents with a Runge-Kutta method (the tangent is the "
-                                  f"derivative of its map), one of {', '.join(tangent_methods)} ('auto': rk4), got "
-                                  f"{m!r}")
+            raise _Invalid(field, f"a chaos study of a {kind} steps its tangents with a method whose map tumble "
+                                  f"differentiates, one of {', '.join(tangent_methods)} ('auto': rk4; the splittings "
+                                  f"for {', '.join(registry.LIE_POISSON_MODELS)} only), got {m!r}")
     n = len(registry.model_kind(kind).state)
     if chaos["exponents"] > n:
         raise _Invalid("chaos.exponents", f"must be at most {n} (the state of a {kind}: "
