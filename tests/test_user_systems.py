@@ -129,7 +129,7 @@ def test_a_tableau_registered_at_test_time_runs_at_its_order_on_the_cpu_and_the_
     y0 = SPINS[:1]
     exact = tumble.exact.omega(tumble.Body(*MOMENTS), y0, np.array([2.0]))[:, -1]
     top = tumble.propagate(HEAVY_TOP, HEAVY_TOP_STATE, 2.0, 0.002, method="rk8")
-    cases = [(FREE_BODY, y0, exact), (tumble.models.FreeBody(MOMENTS), y0, exact),
+    cases = [(FREE_BODY, y0, exact), (tumble.models.FreeBody(MOMENTS), y0, exact), (tumble.Body(*MOMENTS), y0, exact),
              (HEAVY_TOP, HEAVY_TOP_STATE, top)]
     for system, state, reference in cases:
         for device in ("cpu", cuda_device):
@@ -139,6 +139,29 @@ def test_a_tableau_registered_at_test_time_runs_at_its_order_on_the_cpu_and_the_
     np.testing.assert_allclose(  # the same per-sample code on both devices
         tumble.propagate(HEAVY_TOP, HEAVY_TOP_STATE, 1.0, 0.05, method="ralston3", device=cuda_device),
         tumble.propagate(HEAVY_TOP, HEAVY_TOP_STATE, 1.0, 0.05, method="ralston3"), rtol=1e-13, atol=1e-15)
+
+
+def test_a_body_steps_a_tableau_added_at_run_time_as_the_free_body_model_does(monkeypatch):
+    """A tumble.Body with a tableau added at run time runs it through the per-sample loop (its fused steps know the
+    built-in methods only): the free-body Dataset of integrate, the same bits as tumble.models.FreeBody, torque-free
+    and without the attitude (each refused in one line), and run_ensemble's final states."""
+    monkeypatch.setitem(TABLEAUX, "ralston3", _ralston3())
+    body, y0 = tumble.Body(*MOMENTS), SPINS[:2]
+    ds = tumble.integrate(body, y0, 1.0, 0.1, method="ralston3", save_every=5)
+    assert ds["omega"].dims == ("sample", "time", "axis") and ds["omega"].shape == (2, 3, 3)
+    assert ds.attrs["method"] == "ralston3" and ds.attrs["order"] == 3 and ds.attrs["path"] == "per-sample loop"
+    assert ds.attrs["sample_steps_computed"] == 20 and list(ds["time"].values) == [0.0, 0.5, 1.0]
+    model = tumble.integrate(tumble.models.FreeBody(MOMENTS), y0, 1.0, 0.1, method="ralston3", save_every=5)
+    np.testing.assert_array_equal(ds["omega"].values, model["state"].values)
+    final = tumble.propagate(body, y0, 1.0, 0.1, method="ralston3")
+    np.testing.assert_array_equal(final, ds["omega"].values[:, -1])
+    np.testing.assert_array_equal(tumble.run_ensemble(body, y0, 1.0, 0.1, method="ralston3").final, final)
+    for extra in ({"torque": (0.0, 0.0, 0.1)}, {"attitude": True}):
+        with pytest.raises(ValueError, match="a tableau added at run time, steps a free body torque-free") as refused:
+            tumble.integrate(body, y0, 1.0, 0.1, method="ralston3", **extra)
+        assert "\n" not in str(refused.value)
+    with pytest.raises(ValueError, match="max_flips observe a rigid body's scene with the built-in methods"):
+        tumble.run_ensemble(body, y0, 1.0, 0.1, method="ralston3", max_flips=2)
 
 
 def test_a_built_in_model_integrates_by_name_with_its_state_components():

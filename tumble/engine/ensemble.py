@@ -35,12 +35,13 @@ from ..kernels import (BLOCK, METHODS, TORQUE_CONSTANT, TORQUE_SIGNATURE, TORQUE
                        device_kernels, fits, run, run_attitude)
 from ..physics import exact
 from ..physics.bodies import finite_array, one_body, spin_vectors
+from ..physics.models import FreeBody
 from ..registry import STATUS_NAMES, STATUS_NONFINITE, STATUS_OK, choose_method
 from . import cost
 from .device import LAUNCH_SAMPLES, WARP, check_on_device, resolve_device, stepper
 from .progress import tqdm
 from .sampling import CHUNK
-from .system_runs import is_system, run_system
+from .system_runs import added_tableau, is_system, run_system
 
 __all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "Interrupted", "STATUS_NAMES", "check_torque_step", "checked_torque",
            "run_ensemble", "run_planned", "run_scene_table", "torque_spec"]
@@ -358,6 +359,8 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         An argument that is not finite, of the wrong shape or out of range (named in the message), an unknown
         method, a method that cannot serve the request, a torque profile shorter than its steps.
     """
+    if added_tableau(method) and not is_system(body) and parameters is None:
+        body = FreeBody(one_body(body))  # a tableau added at run time: the free body's rate in the per-sample loop
     if is_system(body):
         asked = [name for name, value in (("probe_times", probe_times is not None), ("max_flips", max_flips),
                                           ("drift", drift), ("stop_norm", stop_norm), ("stop_flips", stop_flips),
@@ -365,8 +368,9 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
                                           ("phase_window", phase_window is not None), ("torque", torque is not None))
                  if value]
         if asked:
-            raise ValueError(f"run_ensemble of a model or a System observes its final state and trajectory; "
-                             f"{', '.join(asked)} observe a rigid body's scene (remove them)")
+            raise ValueError(f"run_ensemble of a model, a System or a tableau added at run time observes its final "
+                             f"state and trajectory; {', '.join(asked)} observe a rigid body's scene with the built-in "
+                             f"methods (remove them)")
         t_end, dt = _number(t_end, "t_end", low=0.0), _number(dt, "dt", positive=True)
         n_steps = int(np.rint(t_end / dt)) if t_end > 0.0 else 0
         result, _ = run_system(body, w0, t_end, n_steps, t_end / n_steps if n_steps else dt, method,

@@ -14,11 +14,12 @@ from .. import registry
 from ..kernels import METHODS, TABLEAUX
 from ..physics import exact
 from ..physics.bodies import finite_array, one_body, spin_vectors
+from ..physics.models import FreeBody
 from ..registry import STATUS_NAMES, STATUS_OK
 from . import cost
 from .device import check_on_device, resolve_device, stepper
 from .ensemble import check_torque_step, checked_torque, run_planned
-from .system_runs import is_system, run_system
+from .system_runs import added_tableau, is_system, run_system
 
 __all__ = ["integrate", "propagate", "METHOD_NAMES"]
 
@@ -113,15 +114,30 @@ def _horizon_and_step(t_end, dt):
     return t_end, dt
 
 
+def _has_torque(torque):
+    """Whether ``torque`` (as :func:`integrate` and :func:`propagate` take it) asks for one: not None nor zeros."""
+    return torque is not None and (callable(torque) or hasattr(torque, "items") or np.any(np.asarray(torque) != 0))
+
+
 def _no_torque_or_attitude(system, torque, attitude):
     """A model or a System carries its torques in its own equations: refuse a ``torque`` or ``attitude`` for it."""
     name = system.name if hasattr(system, "rate") else f"the {system.kind} model"
     if attitude:
         raise ValueError(f"attitude=True integrates a free body's orientation; {name!r} has its state's own "
                          f"components (give the attitude as part of its state)")
-    if torque is not None and (callable(torque) or hasattr(torque, "items") or np.any(np.asarray(torque) != 0)):
+    if _has_torque(torque):
         raise ValueError(f"torque acts on a free body; {name!r} has its torques in its own equations (write them "
                          f"into its rate)")
+
+
+def _free_body_by_tableau(body, w0, t_end, dt, method, torque, save_every, attitude, device):
+    # size: integrate's and propagate's arguments, each checked or passed on once
+    """A ``Body`` stepped by a tableau added at run time (:func:`added_tableau`): ``(SystemRun, single)``."""
+    if attitude or _has_torque(torque):
+        raise ValueError(f"method {method!r}, a tableau added at run time, steps a free body torque-free and without "
+                         f"its attitude (the per-sample loop of tumble.models.FreeBody); a torque or attitude=True "
+                         f"needs one of {', '.join(m for m in METHOD_NAMES if m != 'exact')}")
+    return _system_run(FreeBody(one_body(body)), w0, t_end, dt, method, None, save_every, None, device)
 
 
 def _system_run(system, y0, t_end, dt, method, torque, save_every, parameters, device, attitude=False):
@@ -155,7 +171,7 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
         ``t_end / dt`` is not a whole number, so that the run ends exactly at ``t_end``.
     method : str
         A fixed-step method, ``"exact"`` (:data:`tumble.registry.METHODS`) or ``"auto"`` (the closed form when
-        torque-free, else ``rk4``).
+        torque-free, else ``rk4``); or a tableau added at run time (as :func:`integrate`).
     torque : None, array_like (3,), mapping or callable
         As :func:`integrate` (``None`` or zero: torque-free).
     save_every : int, optional
@@ -179,8 +195,10 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
         Invalid moments, spins, horizon, step, method, torque or save interval, or ``"exact"`` with a torque; a
         device that is unknown, missing, or cannot run this yet (``device 'cuda': ...``).
     """
-    if is_system(body):
-        result, single = _system_run(body, w0, t_end, dt, method, torque, save_every, parameters, device)
+    if is_system(body) or (added_tableau(method) and parameters is None):
+        result, single = (_system_run(body, w0, t_end, dt, method, torque, save_every, parameters, device)
+                          if is_system(body) else
+                          _free_body_by_tableau(body, w0, t_end, dt, method, torque, save_every, False, device))
         out = result.trajectory if save_every else result.final
         return out[0] if single else out
     if parameters is not None:
@@ -238,7 +256,8 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
         ``attrs["dt"]``.
     method : str
         One of ``"rk4"``, ``"rk8"``, ``"symplectic_euler"``, ``"splitting2"``, ``"splitting4"``,
-        ``"implicit_midpoint"``, ``"exact"``.
+        ``"implicit_midpoint"``, ``"exact"``; or a Butcher tableau added to :data:`tumble.kernels.TABLEAUX` at run
+        time (torque-free, without the attitude: the per-sample loop, as :class:`tumble.models.FreeBody`).
     torque : array_like, shape (3,), or callable
         Body-frame torque, N m: three constants, or a function ``f(t, w1, w2, w3) -> (N1, N2, N3)``
         (numba-jitted, or jittable in nopython mode). Zero torque is compiled out of the kernel.
@@ -274,10 +293,20 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
     if parameters is not None:
         raise ValueError("parameters are a model's or a System's; a free body has none (its moments are the body)")
     moments = one_body(body)
+    if added_tableau(method):
+        run, _ = _free_body_by_tableau(moments, w0, t_end, dt, method, torque, save_every, attitude, device)
+        t_end = float(t_end)  # checked by the run
+        computed = int(run.steps_taken.sum())
+        info = {"path": "per-sample loop", "torque": "none", "sample_steps_computed": computed,
+                "sample_steps_skipped": len(run.final) * run.n_steps - computed, "device": resolve_device(device)}
+        return _free_body_dataset(run.trajectory if save_every else run.final[:, None],
+                                  run.times if save_every else np.array([t_end]), run.status, None, method, run.dt,
+                                  run.n_steps, t_end, moments, info)
     w = _initial_spins(w0)
     t_end, dt = _horizon_and_step(t_end, dt)
     if method not in METHOD_NAMES:
-        raise ValueError(f"method must be one of {', '.join(METHOD_NAMES)}; got {method!r}")
+        added = [name for name in TABLEAUX if name not in METHOD_NAMES]
+        raise ValueError(f"method must be one of {', '.join(METHOD_NAMES + tuple(added))}; got {method!r}")
     save_every = checked_save_every(save_every)
     device, torque, _, reason, n_steps, step = _checked_run(w, t_end, dt, method, torque, save_every, device,
                                                             per_state=7 if attitude else 3, attitude=bool(attitude))
@@ -291,22 +320,28 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
                          progress=False, attitude=bool(attitude), device=device)
     omega = (result.trajectory if save_every else result.trajectory[:, -1:, :]) if trajectory else result.final[:, None]
     times = result.times if save_every else np.array([t_end])
-    info = result.info
+    quaternion = (result.quaternion if save_every else result.quaternion[:, -1:, :]) if attitude else None
+    return _free_body_dataset(omega, times, result.status, quaternion, method, step,
+                              n_steps if method != "exact" else 0, t_end, moments, result.info)
 
-    n_bad = int(np.count_nonzero(result.status != STATUS_OK))
+
+def _free_body_dataset(omega, times, status, quaternion, method, step, n_steps, t_end, moments, info):
+    # size: the Dataset's contents, each once
+    """:func:`integrate`'s Dataset of a free body: ``omega(sample, time, axis)``, ``status``, with ``quaternion`` (not
+    None) the attitude; ``info`` the run's (its path, torque, sample-steps and device)."""
+    n_bad = int(np.count_nonzero(status != STATUS_OK))
     if n_bad:
-        warnings.warn(f"{n_bad} of {len(w)} samples became non-finite (step too large for the spin rate?)",
-                      RuntimeWarning, stacklevel=2)
+        warnings.warn(f"{n_bad} of {len(omega)} samples became non-finite (step too large for the spin rate?)",
+                      RuntimeWarning, stacklevel=3)
     variables = {
         "omega": (("sample", "time", "axis"), omega, {"units": "rad/s", "long_name": "body-frame angular velocity"}),
-        "status": ("sample", result.status, {"long_name": "sample status", "flag_values": _FLAG_VALUES.copy(),
-                                             "flag_meanings": _FLAG_MEANINGS}),
-        "sample": ("sample", np.arange(len(w)), {"long_name": "ensemble member"}),
+        "status": ("sample", status, {"long_name": "sample status", "flag_values": _FLAG_VALUES.copy(),
+                                      "flag_meanings": _FLAG_MEANINGS}),
+        "sample": ("sample", np.arange(len(omega)), {"long_name": "ensemble member"}),
         "time": ("time", times, {"units": "s", "long_name": "time"}),
         "axis": ("axis", np.array([1, 2, 3]), {"long_name": "principal axis (1-based)"}),
     }
-    if attitude:
-        quaternion = result.quaternion if save_every else result.quaternion[:, -1:, :]
+    if quaternion is not None:
         variables["quaternion"] = (("sample", "time", "component"), quaternion,
                                    {"units": "1", "long_name": "body-to-space rotation, unit quaternion, scalar first"})
         variables["component"] = ("component", np.arange(4), {"long_name": "quaternion component (0: scalar part)"})
@@ -315,14 +350,14 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
         "order": _order(method),
         "path": info["path"],
         "dt": step,
-        "n_steps": n_steps if method != "exact" else 0,
+        "n_steps": n_steps,
         "t_end": t_end,
         "moments": moments,
         "torque": info["torque"],
         "n_nonfinite": n_bad,
         "sample_steps_computed": info["sample_steps_computed"],
         "sample_steps_skipped": info["sample_steps_skipped"],
-        "attitude": int(bool(attitude)),  # 0: no attitude code ran
+        "attitude": int(quaternion is not None),  # 0: no attitude code ran
         "device": info["device"],
     }
     return indexed_dataset(variables, attrs)

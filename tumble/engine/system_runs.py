@@ -32,7 +32,7 @@ from ..physics.system import System, with_parameters
 from . import cost
 from .device import resolve_device
 
-__all__ = ["PROBED", "SystemRun", "compiled", "is_system", "probe", "run_system", "system_methods"]
+__all__ = ["PROBED", "SystemRun", "added_tableau", "compiled", "is_system", "probe", "run_system", "system_methods"]
 
 #: Initial states at which a user's rate is called once before a run (the first with bounds checked): a NaN or an
 #: unset component there is refused with the sample named; later in the run a non-finite state is a sample status.
@@ -59,6 +59,13 @@ class SystemRun(NamedTuple):
 def is_system(value):
     """Whether ``value`` is a built-in model or a user's :class:`System` (not a ``Body``: the free-body path)."""
     return isinstance(value, (System, Model))
+
+
+def added_tableau(method):
+    """Whether ``method`` is a Butcher tableau added to :data:`tumble.kernels.TABLEAUX` at run time. The free body's
+    fused steps are generated for the built-in methods only, so a ``Body`` runs such a tableau as
+    :class:`tumble.models.FreeBody` does: through the per-sample loop with the kernels' own free-body rate."""
+    return isinstance(method, str) and method in TABLEAUX and method not in registry.STEPPING
 
 
 def system_methods(system):
