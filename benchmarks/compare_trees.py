@@ -2,8 +2,8 @@
 
     python benchmarks/compare_trees.py OLD_TREE NEW_TREE [rounds]
 
-Each round runs every tree in a fresh process (its own kernels, compiled or loaded from its own cache;
-compile time excluded) and prints sample-steps/s on 20 000 samples, medians of 5 runs: rk4, splitting2 and rk8 bare;
+After one warm-up round (not printed), each round runs every tree in a fresh process (its own kernels, compiled
+or loaded from its own cache; compile time excluded) and prints sample-steps/s on 20 000 samples, medians of 5 runs: rk4, splitting2 and rk8 bare;
 rk4 with a scene's observers (probes every 10 steps, flips, drift records and limit); rk4 with a constant torque; the
 models' driver (heavy top rk4 with probes and drift). Machines here differ from day to day; compare trees only within
 one invocation.
@@ -49,6 +49,11 @@ print(sys.argv[1], "  ".join(rates))
 
 
 def main(trees, rounds=2):
+    # A warm-up round first, not printed: a tree's first process compiles or loads its kernels and reads its files
+    # from a cold page cache, and its rates came out up to half the later rounds' (2026-11-29, ca28622's rk4 3.7e8
+    # against 6.5-7.6e8 in the rounds after).
+    for tree in trees:
+        subprocess.run([sys.executable, "-c", _ONE_TREE, tree], check=True, stdout=subprocess.DEVNULL)
     for _ in range(rounds):
         for tree in trees:
             subprocess.run([sys.executable, "-c", _ONE_TREE, tree], check=True)

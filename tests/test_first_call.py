@@ -339,8 +339,8 @@ print(json.dumps(compiled))
 
 def test_the_overloads_take_the_branch_of_literal_codes():
     """numba tries an overload with plain types first unless it prefers literals: the models' step, invariants and
-    drift screen given literal codes must compile that system's branch, not the chain of every system's (which a
-    device's plain ints get). Found missing by the first-call benchmark (a heavy top's ensemble 36 -> 85 s)."""
+    drift screen given literal codes must compile that system's branch, not the chain of every system's. Found
+    missing by the first-call benchmark (a heavy top's ensemble 36 -> 85 s)."""
     import subprocess
 
     done = subprocess.run([sys.executable, "-c", _CHOSEN], capture_output=True, text=True, timeout=600)
@@ -348,3 +348,28 @@ def test_the_overloads_take_the_branch_of_literal_codes():
     chosen = {name for name in json.loads(done.stdout.splitlines()[-1]) if "_of.<locals>." in name}
     assert chosen == {"_step_of.<locals>.system_step", "_invariants_of.<locals>.system_invariants",
                       "_drift_suspects_of.<locals>.system_drift_suspects"}
+
+
+def test_codes_known_at_run_time_are_a_typing_error_that_says_so():
+    """A loop's method (and system) code must reach it as a literal, a constant of its caller: given as a run-time int
+    (or through a star-call's tuple, which numba-cuda types as plain ints) it is a typing error naming the cause, where
+    it was a silent chain that compiled every method's step into the loop."""
+    import numba
+    import numpy as np
+    from numba.core.errors import TypingError
+
+    from tumble.kernels import drivers, model_loop
+
+    @numba.njit
+    def model_step(model, method, ys, a, x0):
+        model_loop._step(model, method, ys, 0.0, 0.1, a, x0)
+
+    with pytest.raises(TypingError, match="codes as literals"):
+        model_step(2, 0, np.zeros((6, 1)), np.zeros(20), np.zeros((3, 1)))
+
+    @numba.njit
+    def free_step(kernel, y):
+        drivers._method_step(kernel, True, y, y, y, y, 0.0, 0.1, y, y, y, 0, y, 0)
+
+    with pytest.raises(TypingError, match="method id must be a literal"):
+        free_step(0, np.zeros(1))

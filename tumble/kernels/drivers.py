@@ -25,6 +25,7 @@ import math
 
 import numpy as np
 from numba import prange, types
+from numba.core.errors import TypingError
 from numba.extending import overload
 
 from ..registry import STATUS_DRIFT, STATUS_NAMES, STATUS_NONFINITE, STATUS_OK, STEPPING  # noqa: F401
@@ -208,32 +209,6 @@ def _stop_complete(ys, active, reached, stop_norm, stop_flips, flip_count, lo, k
     return remaining
 
 
-@jit(inline=True)
-def _any_method_step(kernel, torque_free, y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params,
-                     torque_fn):
-    """:func:`_method_step` of a method known at run time: a branch per method (``torque_free`` a constant of the
-    caller, so that numba prunes the splittings' other form)."""
-    if kernel == RK4:
-        rk4_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
-    elif kernel == RK8:
-        rk8_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
-    elif kernel == IMPLICIT_MIDPOINT:
-        implicit_midpoint_block(y1, y2, y3, active, t, h, body, work, torque_kind, torque_params, torque_fn)
-    elif not torque_free:
-        if kernel == SYMPLECTIC_EULER:
-            symplectic_euler_torque_block(y1, y2, y3, t, h, body, torque_kind, torque_params, torque_fn)
-        elif kernel == SPLITTING2:
-            splitting2_torque_block(y1, y2, y3, t, h, body, torque_kind, torque_params, torque_fn)
-        else:
-            splitting4_torque_block(y1, y2, y3, t, h, body, torque_kind, torque_params, torque_fn)
-    elif kernel == SYMPLECTIC_EULER:
-        symplectic_euler_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
-    elif kernel == SPLITTING2:
-        splitting2_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
-    else:
-        splitting4_block(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)
-
-
 def _method_step(kernel, torque_free, y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params,
                  torque_fn):
     """One step of method ``kernel`` for every running sample of a block, torque-free or with a torque: the step is
@@ -250,17 +225,14 @@ def _method_step_of(kernel, torque_free, y1, y2, y3, active, t, h, body, target,
     (ending on each sample's own ``|L|**2``), with a torque their compositions of sub-flows.
 
     A method id that is not a literal (a caller passing it as a run-time int, or through a star-call's tuple, which
-    numba-cuda types as plain ints) gets that chain of branches, every method's step compiled in."""
+    numba-cuda types as plain ints) is a typing error that says so, not a silent chain of every method's step."""
     if not isinstance(torque_free, types.BooleanLiteral):
         return None
-    free = torque_free.literal_value
     if not isinstance(kernel, types.IntegerLiteral):
-        def any_step(kernel, torque_free, y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params,
-                     torque_fn):
-            _any_method_step(kernel, free, y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params,
-                             torque_fn)
-
-        return any_step
+        raise TypingError(f"the loop's method id must be a literal, a constant of its caller (the driver's closure, "
+                          f"the device kernel's), got {kernel}: a call of more than 30 arguments passes its tuple "
+                          f"without the literal")
+    free = torque_free.literal_value
     method = kernel.literal_value
     if method == IMPLICIT_MIDPOINT:
         def midpoint_step(kernel, torque_free, y1, y2, y3, active, t, h, body, target, work, torque_kind,

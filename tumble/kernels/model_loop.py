@@ -48,6 +48,7 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import prange, types
+from numba.core.errors import TypingError
 from numba.extending import overload
 
 from ..registry import (LIE_POISSON_MODELS, MODEL_KINDS, MODEL_PARAMETERS, MODEL_STEPPING, STATUS_DRIFT, STATUS_OK,
@@ -94,17 +95,22 @@ _TINY = 2.2250738585072014e-308  # smallest normal float: a zero scale gives a z
 # branch taken: a driver compiles its own system's step, invariants and drift screen only (the chains compiled every
 # system's and method's steps into the one driver there was: 78 s of a first heavy-top ensemble on 2 cores,
 # ``benchmarks/first_call.py``). Codes that reach the loop as plain ints (a caller passing them at run time, or
-# through a star-call's tuple, which numba-cuda types as plain ints) keep every branch.
+# through a star-call's tuple, which numba-cuda types as plain ints) are a typing error that says so (:func:`_literal`).
 
 # Not inlined at numba's IR level: numba-cuda's pipeline cannot take an overload inlined so (LLVM inlines it).
-# ``prefer_literal``: numba tries an overload with the arguments' plain types first and keeps what that gives, so the
-# chain of every branch (the plain-int case) would be taken even for literal codes (it was, from 2026-11-29 until
-# this was found by benchmarks/first_call.py: a heavy top's first ensemble compiled every system's steps again).
+# ``prefer_literal``: numba tries an overload with the arguments' plain types first and keeps what that gives (when
+# the plain-int case had a chain of every branch, it was taken even for literal codes, from 2026-11-29 until
+# benchmarks/first_call.py found it: a heavy top's first ensemble compiled every system's steps again).
 _OPTIONS = dict(prefer_literal=True, jit_options=dict(fastmath=set(FASTMATH), error_model="numpy"))
 
 
 def _literal(*codes):
-    return all(isinstance(code, types.IntegerLiteral) for code in codes)
+    """Refuse codes that are not literals (a typing error that says so): the generated chain would compile every
+    system's (and method's) branch into the loop."""
+    for code in codes:
+        if not isinstance(code, types.IntegerLiteral):
+            raise TypingError(f"the models' loop takes its system and method codes as literals, constants of its "
+                              f"caller (the driver's closure, the device kernel's), got {code}")
 
 
 def _step(model, method, ys, t, h, a, x0):
@@ -113,11 +119,7 @@ def _step(model, method, ys, t, h, a, x0):
 
 @overload(_step, **_OPTIONS)
 def _step_of(model, method, ys, t, h, a, x0):
-    if not _literal(model, method):  # codes known at run time only: every branch
-        def any_step(model, method, ys, t, h, a, x0):
-            step(model, method, ys, t, h, a, x0)
-
-        return any_step
+    _literal(model, method)
     model_code, method_code = model.literal_value, method.literal_value
 
     def system_step(model, method, ys, t, h, a, x0):
@@ -132,11 +134,7 @@ def _invariants(model, ys, i, a):
 
 @overload(_invariants, **_OPTIONS)
 def _invariants_of(model, ys, i, a):
-    if not _literal(model):
-        def any_invariants(model, ys, i, a):
-            return invariants(model, ys, i, a)
-
-        return any_invariants
+    _literal(model)
     model_code = model.literal_value
 
     def system_invariants(model, ys, i, a):
@@ -151,11 +149,7 @@ def _drift_suspects(model, ys, active, a, x0, scale, screen):
 
 @overload(_drift_suspects, **_OPTIONS)
 def _drift_suspects_of(model, ys, active, a, x0, scale, screen):
-    if not _literal(model):
-        def any_drift_suspects(model, ys, active, a, x0, scale, screen):
-            return drift_suspects(model, ys, active, a, x0, scale, screen)
-
-        return any_drift_suspects
+    _literal(model)
     model_code = model.literal_value
 
     def system_drift_suspects(model, ys, active, a, x0, scale, screen):
