@@ -5,9 +5,9 @@ vectors advanced by the variational equations ``δ' = J(t, y) δ`` with the same
 derivative of the method's own map), orthonormalised by modified Gram–Schmidt every ``renormalise`` seconds
 (Benettin, Galgani, Giorgilli & Strelcyn 1980); the exponents are the sums of ``log |R_rr|`` over the time after the
 transient. MEGNO's two scalars are integrated alongside (Cincotta & Simó 2000): ``<Y> → 2`` on a quasi-periodic orbit,
-``→ 0`` near a stable periodic one, ``≈ λ t / 2`` on a chaotic one. A built-in model stepped by rk4 or rk8
-runs on the CPU in blocks of samples vectorised across them (:mod:`tumble.kernels.tangent_blocks`); everything else
-(the implicit midpoint rule and the splittings too), and the device, through the per-sample loop of
+``→ 0`` near a stable periodic one, ``≈ λ t / 2`` on a chaotic one. A built-in model stepped by rk4, rk8 or a
+splitting runs on the CPU in blocks of samples vectorised across them (:mod:`tumble.kernels.tangent_blocks`);
+everything else (the implicit midpoint rule too), and the device, through the per-sample loop of
 :mod:`tumble.kernels.tangent_loop` (one CUDA thread per sample).
 
 ``system`` is anything the engine accepts: a :class:`~tumble.physics.bodies.Body` (the free body, as
@@ -297,8 +297,8 @@ def run_tangents(system, y, p, method, k, step, n_steps, every, transient, save_
         status = np.zeros(n_samples, dtype=np.int8)
         steps_taken = np.zeros(n_samples, dtype=np.int64)
         outputs = (logs, saved, scalars, status, steps_taken)
-        if isinstance(system, Model) and tangent_blocks.runs(method):  # vectorised across samples
-            tangent_blocks.run(int(p[0]), tangent_blocks.METHODS[method][1], p[1:], state, tangents, 0.0,
+        if isinstance(system, Model) and tangent_blocks.runs(method, system.kind):  # vectorised across samples
+            tangent_blocks.run(int(p[0]), registry.STEPPING.index(method), p[1:], state, tangents, 0.0,
                                float(step), int(n_steps), int(every), int(transient), int(save_every),
                                float(stop_above), bool(orthogonalise), *outputs)
         else:

@@ -31,15 +31,16 @@ import math
 
 import numpy as np
 
-from ..registry import STEPPING
+from ..registry import MODEL_KINDS, STEPPING
 from .jit import jit
 from .systems import gyrostat, heavy_top
 from .tableaux import SPLITTING2, SPLITTING4, SYMPLECTIC_EULER, TORQUE
 from .trig import sincos
 from .steppers import rotate
 
-__all__ = ["SPLITTINGS", "gyrostat_project_block", "gyrostat_rotate_block", "gyrostat_splitting_block",
-           "heavy_top_gravity_block", "heavy_top_rotate_block", "heavy_top_splitting_block", "splitting_tangent_sample"]
+__all__ = ["HEAVY_TOP_CODE", "SPLITTINGS", "gyrostat_project_block", "gyrostat_rotate_block", "gyrostat_splitting_block",
+           "heavy_top_gravity_block", "heavy_top_rotate_block", "heavy_top_splitting_block", "splitting_tangent_block",
+           "splitting_tangent_sample"]
 
 #: The splittings the model kernels run, by name: kernel id (index in ``registry.STEPPING``).
 SPLITTINGS = {s.name: STEPPING.index(s.name) for s in (SYMPLECTIC_EULER, SPLITTING2, SPLITTING4)}
@@ -172,85 +173,165 @@ def heavy_top_splitting_block(method, y1, y2, y3, y4, y5, y6, h, c, x0):
             heavy_top_rotate_block(_TOP_FLOWS[s], tau, y1, y2, y3, y4, y5, y6, c)
 
 
-# --- the tangent map: each sub-flow with its derivative, one sample ---------------------------------------------------
+# --- the tangent map: each sub-flow with its derivative ---------------------------------------------------------------
 #
-# The chaos indicators (:mod:`tumble.kernels.tangent_loop`) need the derivative of the splitting's map ``y0 -> y1``,
-# which is the product of its sub-flows' derivatives. A turn about axis ``a`` by ``theta = w_a tau`` is linear in the
-# components it turns, and ``theta`` depends on the state through ``w_a`` alone (constant along that sub-flow): with
-# ``(b, c)`` the turned pair and ``R(theta)`` the turn,
+# The chaos indicators (:mod:`tumble.kernels.tangent_loop`, :mod:`tumble.kernels.tangent_blocks`) need the derivative
+# of the splitting's map ``y0 -> y1``, which is the product of its sub-flows' derivatives. A turn about axis ``a`` by
+# ``theta = w_a tau`` is linear in the components it turns, and ``theta`` depends on the state through ``w_a`` alone
+# (constant along that sub-flow): with ``(b, c)`` the turned pair and ``R(theta)`` the turn,
 #     δ(b, c)' = R(theta) δ(b, c) + tau δw_a ∂(b', c')/∂theta,   ∂(u_b', u_c')/∂theta = (r_cb u_c', −r_bc u_b')
 # (``r_cb r_bc = 1``), and ``δw_a`` (the heavy top's ``δg_a`` too) is kept. The heavy top's gravity kick is linear in
 # ``g``: ``δw += tau I⁻¹ mgl (δg × c)``, ``δg`` kept. Every factor has determinant 1, so the map keeps volume and the
 # exponents sum to zero to round-off. The state follows the block sub-flows' formulas without the gyrostat's projection
 # onto its initial ``|L|`` (a few-ulp correction whose derivative would remove the tangent's radial part).
+#
+# The arithmetic is written once, per sample and per sub-flow (:func:`_turned`, :func:`_turned_tangent`,
+# :func:`_kick`); :func:`splitting_tangent_sample` applies it to one sample (the per-sample loop, either device),
+# :func:`splitting_tangent_block` to a block's samples in SIMD lanes (one loop over them per sub-flow).
 
 
-def _slots(module, *names):
-    """The positions in ``p`` (a model's code, then its ``Constants``: :func:`tumble.kernels.model_loop.
-    rate_sample_parameters`) of the named constants, checked consecutive (the kernel reads ``p[first + axis]``)."""
-    first = 1 + module.Constants._fields.index(names[0])
-    assert [1 + module.Constants._fields.index(name) for name in names] == list(range(first, first + len(names)))
+def _slot(module, *names):
+    """The position in a system's constants array (its ``Constants`` fields in order) of the first named field, the
+    others checked to follow it (the kernels read ``a[first + axis]``)."""
+    first = module.Constants._fields.index(names[0])
+    assert [module.Constants._fields.index(name) for name in names] == list(range(first, first + len(names)))
     return first
 
 
-_MOMENTS = _slots(gyrostat, "i1", "i2", "i3")
-assert _MOMENTS == _slots(heavy_top, "i1", "i2", "i3")
-_ROTOR = _slots(gyrostat, "h1", "h2", "h3")
-_M12, _M13, _M21, _M23, _M31, _M32 = (_slots(heavy_top, name) for name in ("m12", "m13", "m21", "m23", "m31", "m32"))
-_HEAVY_TOP = 2  # the heavy top's code in p[0] (the free body 0 and the gyrostat 1 share the gyrostat's flows)
+_MOMENTS = _slot(gyrostat, "i1", "i2", "i3")
+assert _MOMENTS == _slot(heavy_top, "i1", "i2", "i3")
+_ROTOR = _slot(gyrostat, "h1", "h2", "h3")
+_M12, _M13, _M21, _M23, _M31, _M32 = (_slot(heavy_top, name) for name in ("m12", "m13", "m21", "m23", "m31", "m32"))
+#: The heavy top's model code (``registry.MODEL_KINDS``); the free body's and the gyrostat's share the gyrostat's flows.
+HEAVY_TOP_CODE = MODEL_KINDS.index(heavy_top.KINDS[0])
 
 
 @jit(inline=True)
-def _turn_with_tangent(y, V, a, b, c, tau, shift_b, shift_c, r_cb, r_bc):
-    """The turn of ``(y_b + shift_b, y_c + shift_c)`` by ``theta = y_a tau`` (the free body's ratios), and each
-    tangent vector's row of ``V`` by its derivative. Returns the turn's ``(sin, cos)`` for the turned pairs that
-    follow (the heavy top's ``g``)."""
-    s, k = sincos(y[a] * tau)
-    ub, uc = y[b] + shift_b, y[c] + shift_c
-    nb, nc = k * ub + s * r_cb * uc, k * uc - s * r_bc * ub
-    y[b], y[c] = nb - shift_b, nc - shift_c
-    for r in range(V.shape[0]):
-        d_theta = tau * V[r, a]
-        db, dc = V[r, b], V[r, c]
-        V[r, b] = k * db + s * r_cb * dc + d_theta * r_cb * nc
-        V[r, c] = k * dc - s * r_bc * db - d_theta * r_bc * nb
-    return s, k
+def _turned(theta, ub, uc, r_cb, r_bc):
+    """``(u_b, u_c)`` turned by ``theta`` with the free body's ratios, and the turn's ``(sin, cos)``."""
+    s, k = sincos(theta)
+    return k * ub + s * r_cb * uc, k * uc - s * r_bc * ub, s, k
+
+
+@jit(inline=True)
+def _turned_tangent(d_theta, db, dc, nb, nc, s, k, r_cb, r_bc):
+    """The turn's derivative applied to a tangent's ``(δb, δc)``, with ``δtheta = tau δw_a`` and ``(nb, nc)`` the
+    turned state (``r_cb = r_bc = 1``: the heavy top's plain turn of ``g``)."""
+    return k * db + s * r_cb * dc + d_theta * r_cb * nc, k * dc - s * r_bc * db - d_theta * r_bc * nb
+
+
+@jit(inline=True)
+def _kick(tau, a, g1, g2, g3):
+    """Gravity's kick of ``w`` over ``tau``, ``tau I⁻¹ mgl (g × c)``: linear in ``g``, so the same for a tangent."""
+    return (tau * a[_M13] * g2 - tau * a[_M12] * g3, tau * a[_M21] * g3 - tau * a[_M23] * g1,
+            tau * a[_M32] * g1 - tau * a[_M31] * g2)
+
+
+@jit(inline=True)
+def _composition(top, method):
+    """``(start, end, flows, fractions)``: where splitting ``method``'s sub-flows lie in the gyrostat's or the heavy
+    top's tables."""
+    if top:
+        q = _TOP_POSITION[method]
+        return _TOP_START[q], _TOP_START[q + 1], _TOP_FLOWS, _TOP_FRACTIONS
+    q = _FREE_POSITION[method]
+    return _FREE_START[q], _FREE_START[q + 1], _FREE_FLOWS, _FREE_FRACTIONS
+
+
+@jit(inline=True)
+def _ratios(a, axis):
+    """``(b, c, r_cb, r_bc)`` of a turn about ``axis``: the turned pair and the free body's ratios ``I_c/I_b``,
+    ``I_b/I_c``."""
+    b, c = (axis + 1) % 3, (axis + 2) % 3
+    return b, c, a[_MOMENTS + c] / a[_MOMENTS + b], a[_MOMENTS + b] / a[_MOMENTS + c]
 
 
 @jit
 def splitting_tangent_sample(method, y, V, p, h):
     """One step of splitting ``method`` (kernel id) of one sample of a free body, gyrostat or heavy top (``p[0]`` its
-    code, as :func:`tumble.kernels.model_steps.rate_sample`'s ``p``): the state ``y`` (n,) and, by the derivative of
-    the same map, the tangent vectors ``V`` (k, n), in place (see the section's comment)."""
-    top = int(p[0]) == _HEAVY_TOP
-    if top:
-        position, start, flows, fractions = _TOP_POSITION, _TOP_START, _TOP_FLOWS, _TOP_FRACTIONS
-    else:
-        position, start, flows, fractions = _FREE_POSITION, _FREE_START, _FREE_FLOWS, _FREE_FRACTIONS
-    q = position[method]
-    for s in range(start[q], start[q + 1]):
+    code, then its constants, as :func:`tumble.kernels.model_steps.rate_sample`'s ``p``): the state ``y`` (n,) and,
+    by the derivative of the same map, the tangent vectors ``V`` (k, n), in place (see the section's comment)."""
+    top = int(p[0]) == HEAVY_TOP_CODE
+    a = p[1:]
+    first, end, flows, fractions = _composition(top, method)
+    for s in range(first, end):
         tau = fractions[s] * h
-        if flows[s] == TORQUE:  # the heavy top's gravity: w += tau I^-1 mgl (g x c), g kept
-            m12, m13, m21, m23, m31, m32 = p[_M12], p[_M13], p[_M21], p[_M23], p[_M31], p[_M32]
+        if flows[s] == TORQUE:
             for row in range(-1, V.shape[0]):
                 x = y if row < 0 else V[row]
-                g1, g2, g3 = x[3], x[4], x[5]
-                x[0] += tau * m13 * g2 - tau * m12 * g3
-                x[1] += tau * m21 * g3 - tau * m23 * g1
-                x[2] += tau * m32 * g1 - tau * m31 * g2
+                k1, k2, k3 = _kick(tau, a, x[3], x[4], x[5])
+                x[0] += k1
+                x[1] += k2
+                x[2] += k3
             continue
-        a = flows[s]
-        b, c = (a + 1) % 3, (a + 2) % 3
-        r_cb, r_bc = p[_MOMENTS + c] / p[_MOMENTS + b], p[_MOMENTS + b] / p[_MOMENTS + c]
-        if top:  # L and g turn together about axis a: g plainly, by the same angle
-            sn, k = _turn_with_tangent(y, V, a, b, c, tau, 0.0, 0.0, r_cb, r_bc)
-            gb, gc = y[3 + b], y[3 + c]
-            y[3 + b], y[3 + c] = k * gb + sn * gc, k * gc - sn * gb
-            for r in range(V.shape[0]):
-                d_theta = tau * V[r, a]
-                db, dc = V[r, 3 + b], V[r, 3 + c]
-                V[r, 3 + b] = k * db + sn * dc + d_theta * y[3 + c]
-                V[r, 3 + c] = k * dc - sn * db - d_theta * y[3 + b]
-        else:  # the gyrostat's u = w + h / I turns
-            _turn_with_tangent(y, V, a, b, c, tau, p[_ROTOR + b] / p[_MOMENTS + b], p[_ROTOR + c] / p[_MOMENTS + c],
-                               r_cb, r_bc)
+        axis = flows[s]
+        b, c, r_cb, r_bc = _ratios(a, axis)
+        shift_b = 0.0 if top else a[_ROTOR + b] / a[_MOMENTS + b]  # the gyrostat's u = w + h / I turns
+        shift_c = 0.0 if top else a[_ROTOR + c] / a[_MOMENTS + c]
+        gb = gc = 0.0
+        nb, nc, sn, k = _turned(y[axis] * tau, y[b] + shift_b, y[c] + shift_c, r_cb, r_bc)
+        y[b], y[c] = nb - shift_b, nc - shift_c
+        if top:
+            gb, gc, _, _ = _turned(y[axis] * tau, y[3 + b], y[3 + c], 1.0, 1.0)
+            y[3 + b], y[3 + c] = gb, gc
+        for r in range(V.shape[0]):
+            d_theta = tau * V[r, axis]
+            V[r, b], V[r, c] = _turned_tangent(d_theta, V[r, b], V[r, c], nb, nc, sn, k, r_cb, r_bc)
+            if top:
+                V[r, 3 + b], V[r, 3 + c] = _turned_tangent(d_theta, V[r, 3 + b], V[r, 3 + c], gb, gc, sn, k, 1.0,
+                                                           1.0)
+
+
+@jit
+def splitting_tangent_block(method, top, Z, t, t0, h, a):
+    # size: one loop over the block's samples per sub-flow and per tangent vector, the MEGNO update around them
+    """One step of splitting ``method`` (kernel id) of every sample of a block of a free body or gyrostat (``top``
+    False) or a heavy top, laid out as :mod:`tumble.kernels.tangent_blocks` holds it: ``Z[r]`` (2 n + 2, m) the state,
+    tangent vector ``r`` and MEGNO's two scalars of each sample (``a``: the system's constants). Each row ``r`` steps
+    its own copy of the state, as the generated Runge–Kutta steps do. MEGNO as
+    :func:`tumble.kernels.tangent_loop.make_splitting_tangent_step`: ``Ys += 2 (t + h/2 - t0) ln(|δ1| / |δ0|)``,
+    ``Yss`` by the trapezoid."""
+    k_vectors, rows, m = Z.shape
+    n = (rows - 2) // 2
+    elapsed = t + 0.5 * h - t0
+    first, end, flows, fractions = _composition(top, method)
+    for r in range(k_vectors):
+        Y = Z[r]
+        for i in range(m):  # MEGNO before the step: Ys0's half of the trapezoid, less ln |δ0|²
+            norm2 = 0.0
+            for j in range(n, 2 * n):
+                norm2 += Y[j, i] * Y[j, i]
+            Y[rows - 1, i] += 0.5 * h * Y[rows - 2, i] / elapsed
+            Y[rows - 2, i] -= elapsed * math.log(norm2)
+        for s in range(first, end):
+            tau = fractions[s] * h
+            if flows[s] == TORQUE:
+                for offset in (0, n):  # the state, then the tangent: the same linear kick
+                    for i in range(m):
+                        k1, k2, k3 = _kick(tau, a, Y[offset + 3, i], Y[offset + 4, i], Y[offset + 5, i])
+                        Y[offset, i] += k1
+                        Y[offset + 1, i] += k2
+                        Y[offset + 2, i] += k3
+                continue
+            axis = flows[s]
+            b, c, r_cb, r_bc = _ratios(a, axis)
+            shift_b = 0.0 if top else a[_ROTOR + b] / a[_MOMENTS + b]
+            shift_c = 0.0 if top else a[_ROTOR + c] / a[_MOMENTS + c]
+            for i in range(m):
+                gb = gc = 0.0
+                nb, nc, sn, k = _turned(Y[axis, i] * tau, Y[b, i] + shift_b, Y[c, i] + shift_c, r_cb, r_bc)
+                d_theta = tau * Y[n + axis, i]
+                Y[b, i], Y[c, i] = nb - shift_b, nc - shift_c
+                Y[n + b, i], Y[n + c, i] = _turned_tangent(d_theta, Y[n + b, i], Y[n + c, i], nb, nc, sn, k, r_cb,
+                                                           r_bc)
+                if top:
+                    gb, gc, _, _ = _turned(Y[axis, i] * tau, Y[3 + b, i], Y[3 + c, i], 1.0, 1.0)
+                    Y[3 + b, i], Y[3 + c, i] = gb, gc
+                    Y[n + 3 + b, i], Y[n + 3 + c, i] = _turned_tangent(d_theta, Y[n + 3 + b, i], Y[n + 3 + c, i], gb,
+                                                                       gc, sn, k, 1.0, 1.0)
+        for i in range(m):  # MEGNO after: plus ln |δ1|², then Ys1's half of the trapezoid
+            norm2 = 0.0
+            for j in range(n, 2 * n):
+                norm2 += Y[j, i] * Y[j, i]
+            Y[rows - 2, i] += elapsed * math.log(norm2)
+            Y[rows - 1, i] += 0.5 * h * Y[rows - 2, i] / elapsed

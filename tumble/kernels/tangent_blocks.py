@@ -4,9 +4,11 @@ The same run as :mod:`tumble.kernels.tangent_loop`'s per-sample loop (a state, `
 scalars per sample; modified Gram–Schmidt every ``every`` steps, at the transient, at each saved step and at the end;
 ``log |R_rr|`` summed after the transient; MEGNO's least-squares slope; the same statuses, stops and outputs), laid out
 for SIMD lanes: a block's samples are the columns of ``Z`` (k, 2 n + 2, m), and one generated step per system and
-method (:data:`tumble.kernels.model_steps.TANGENT_STEPS`, rk4 or rk8 with the system's rate and tangent spelled out)
-moves them all at once. The per-sample loop stays the path of a user's ``System``, of a tableau added at run time and
-of the device (one thread per sample); this one is the built-in models' on the CPU with a generated method: the heavy
+method (:data:`tumble.kernels.model_steps.TANGENT_STEPS`, rk4 or rk8 with the system's rate and tangent spelled out;
+for the Lie–Poisson models' splittings, their sub-flows each looped over the block:
+:func:`tumble.kernels.model_splittings.splitting_tangent_block`) moves them all at once. The per-sample loop stays the
+path of a user's ``System``, of a tableau added at run time, of the implicit midpoint rule and of the device (one
+thread per sample); this one is the built-in models' on the CPU: the heavy
 top's MEGNO, rk4, 2000 samples, 6.6e7 sample-steps/s against the per-sample loop's 2.7e6 (24 times; 2 cores, AVX2,
 2026-11-28; the whole map: ``benchmarks/chaos.py``).
 
@@ -29,8 +31,9 @@ import numpy as np
 from numba import prange, types
 from numba.extending import overload
 
-from ..registry import MODEL_STEPPING, STATUS_ABOVE, STATUS_NONFINITE, STATUS_OK, STEPPING
+from ..registry import LIE_POISSON_MODELS, MODEL_STEPPING, STATUS_ABOVE, STATUS_NONFINITE, STATUS_OK, STEPPING
 from .jit import FASTMATH, jit
+from .model_splittings import HEAVY_TOP_CODE, SPLITTINGS, splitting_tangent_block
 from .model_steps import TANGENT_STEPS
 from .tableaux import TABLEAUX
 from .tangent_loop import orthonormalise_row
@@ -38,7 +41,8 @@ from .tangent_loop import orthonormalise_row
 __all__ = ["BLOCK", "CHECK_EVERY", "METHODS", "make_propagate_tangents", "run", "runs"]
 
 #: The methods with generated tangent steps, name -> (the tableau they were generated from, kernel id): the models'
-#: explicit Runge–Kutta methods (a tableau replaced at run time under one of these names is not theirs).
+#: explicit Runge–Kutta methods (a tableau replaced at run time under one of these names is not theirs). The
+#: Lie–Poisson models' splittings (:data:`tumble.kernels.model_splittings.SPLITTINGS`) run here too.
 METHODS = {name: (TABLEAUX[name], STEPPING.index(name)) for name in MODEL_STEPPING if name in TABLEAUX}
 
 #: Steps between two checks for values that are not finite (and at every factorisation): a sample caught keeps its
@@ -63,7 +67,15 @@ def _tangent_step_of(model, method, Z, t, t0, h, a):
     method compiled all of them into one driver: 150 s on 2 cores, measured)."""
     if not (isinstance(model, types.IntegerLiteral) and isinstance(method, types.IntegerLiteral)):
         return None
-    step = TANGENT_STEPS[model.literal_value, method.literal_value]
+    code, method_id = model.literal_value, method.literal_value
+    if method_id in SPLITTINGS.values():  # the sub-flows' loops over the block (model_splittings)
+        top = code == HEAVY_TOP_CODE
+
+        def splitting_step(model, method, Z, t, t0, h, a):
+            splitting_tangent_block(method_id, top, Z, t, t0, h, a)
+
+        return splitting_step
+    step = TANGENT_STEPS[code, method_id]
 
     def tangent_step(model, method, Z, t, t0, h, a):
         step(Z, t, t0, h, a)
@@ -71,9 +83,11 @@ def _tangent_step_of(model, method, Z, t, t0, h, a):
     return tangent_step
 
 
-def runs(method):
-    """Whether :func:`run` runs ``method`` (the tableau of that name now is the one its steps were
-    generated from)."""
+def runs(method, kind):
+    """Whether :func:`run` runs ``method`` for model ``kind``: rk4 or rk8 (the tableau of that name now is the one its
+    steps were generated from), or a splitting of a Lie–Poisson model."""
+    if method in SPLITTINGS:
+        return kind in LIE_POISSON_MODELS
     return method in METHODS and TABLEAUX[method] is METHODS[method][0]
 
 
