@@ -38,9 +38,9 @@ from .tableaux import SPLITTING2, SPLITTING4, SYMPLECTIC_EULER, TORQUE
 from .trig import sincos
 from .steppers import rotate
 
-__all__ = ["HEAVY_TOP_CODE", "SPLITTINGS", "gyrostat_project_block", "gyrostat_rotate_block", "gyrostat_splitting_block",
-           "heavy_top_gravity_block", "heavy_top_rotate_block", "heavy_top_splitting_block", "splitting_tangent_block",
-           "splitting_tangent_sample"]
+__all__ = ["HEAVY_TOP_CODE", "SPLITTINGS", "gyrostat_project_block", "gyrostat_rotate_block",
+           "gyrostat_splitting_block", "heavy_top_gravity_block", "heavy_top_rotate_block", "heavy_top_splitting_block",
+           "splitting_tangent_block", "splitting_tangent_sample"]
 
 #: The splittings the model kernels run, by name: kernel id (index in ``registry.STEPPING``).
 SPLITTINGS = {s.name: STEPPING.index(s.name) for s in (SYMPLECTIC_EULER, SPLITTING2, SPLITTING4)}
