@@ -244,7 +244,7 @@ CHAOS_STARTS = (
                "a satellite in the orbit plane at perigee, turned by chaos.angle about the orbit normal from the orbit "
                "frame and spinning at spin.rate (inertial) about it: the planar spin-orbit problem"),
     ChaosStart("state", "", (),
-               "any model: the state chaos.state (the model's components in order), its components named in "
+               "the state chaos.state (the model's components in order), its components named in "
                "scan.state replaced by each point of their grid"),
 )
 

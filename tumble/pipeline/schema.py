@@ -216,7 +216,8 @@ def _chaos_fields():
             "initial state, run with every other; the perturbation table is not used."),
             choices=registry.CHAOS_INDICATORS, check="names"),
         Field("chaos", "start", starts[0].name, "How a point of the map becomes an initial state:\n" + "".join(
-            _lines(f'  "{s.name}" ({s.kind}; coordinates {", ".join(s.keys)}): {s.text}') for s in starts),
+            _lines(f'  "{s.name}" ({s.kind or "any model"}; coordinates '
+                   f'{", ".join(s.keys) or "the components scan.state names"}): {s.text}') for s in starts),
             choices=tuple(s.name for s in starts), check="choice"),
         Field("chaos", "tilt", 0.5, _lines(
             'release: tilt of body axis 3 from the vertical, rad, in [0, pi] (scan.tilt scans it).'),
