@@ -207,10 +207,18 @@ HEAVY_TOP_CODE = MODEL_KINDS.index(heavy_top.KINDS[0])
 
 
 @jit(inline=True)
+def _rotated(s, k, ub, uc, r_cb, r_bc):
+    """``(u_b, u_c)`` turned by the angle whose sine and cosine are ``s``, ``k``, with the free body's ratios
+    (``r_cb = r_bc = 1``: a plain turn, the heavy top's ``g``)."""
+    return k * ub + s * r_cb * uc, k * uc - s * r_bc * ub
+
+
+@jit(inline=True)
 def _turned(theta, ub, uc, r_cb, r_bc):
     """``(u_b, u_c)`` turned by ``theta`` with the free body's ratios, and the turn's ``(sin, cos)``."""
     s, k = sincos(theta)
-    return k * ub + s * r_cb * uc, k * uc - s * r_bc * ub, s, k
+    nb, nc = _rotated(s, k, ub, uc, r_cb, r_bc)
+    return nb, nc, s, k
 
 
 @jit(inline=True)
@@ -271,8 +279,8 @@ def splitting_tangent_sample(method, y, V, p, h):
         gb = gc = 0.0
         nb, nc, sn, k = _turned(y[axis] * tau, y[b] + shift_b, y[c] + shift_c, r_cb, r_bc)
         y[b], y[c] = nb - shift_b, nc - shift_c
-        if top:
-            gb, gc, _, _ = _turned(y[axis] * tau, y[3 + b], y[3 + c], 1.0, 1.0)
+        if top:  # g turns by the same angle, plainly
+            gb, gc = _rotated(sn, k, y[3 + b], y[3 + c], 1.0, 1.0)
             y[3 + b], y[3 + c] = gb, gc
         for r in range(V.shape[0]):
             d_theta = tau * V[r, axis]
@@ -325,7 +333,7 @@ def splitting_tangent_block(method, top, Z, t, t0, h, a):
                 Y[n + b, i], Y[n + c, i] = _turned_tangent(d_theta, Y[n + b, i], Y[n + c, i], nb, nc, sn, k, r_cb,
                                                            r_bc)
                 if top:
-                    gb, gc, _, _ = _turned(Y[axis, i] * tau, Y[3 + b, i], Y[3 + c, i], 1.0, 1.0)
+                    gb, gc = _rotated(sn, k, Y[3 + b, i], Y[3 + c, i], 1.0, 1.0)
                     Y[3 + b, i], Y[3 + c, i] = gb, gc
                     Y[n + 3 + b, i], Y[n + 3 + c, i] = _turned_tangent(d_theta, Y[n + 3 + b, i], Y[n + 3 + c, i], gb,
                                                                        gc, sn, k, 1.0, 1.0)
