@@ -129,9 +129,9 @@ def _method(method, system):
     kind = None if isinstance(system, System) else system.kind
     allowed = [*TABLEAUX, *(m for m in registry.tangent_methods(kind) if m not in TABLEAUX)]
     if not isinstance(method, str) or method not in allowed:
-        splittings = ", ".join(m.name for m in registry.METHODS if m.family == "splitting")
-        why = (f"{splittings}: for {', '.join(registry.LIE_POISSON_MODELS)} only, whose exact sub-flows they compose"
-               if method in splittings.split(", ") else "each one's tangent is the derivative of its own map")
+        splittings = [m.name for m in registry.METHODS if m.family == "splitting"]
+        why = (f"{', '.join(splittings)}: for {', '.join(registry.LIE_POISSON_MODELS)} only, whose exact sub-flows "
+               f"they compose" if method in splittings else "each one's tangent is the derivative of its own map")
         owner = f"system {system.name!r}" if isinstance(system, System) else _name(system)
         raise ValueError(f"method must be one of {', '.join(allowed)} for {owner} ({why}), got {method!r}")
     return method
