@@ -4,7 +4,8 @@
 
 After one warm-up round (not printed), each round runs every tree in a fresh process (its own kernels, compiled
 or loaded from its own cache; compile time excluded) and prints sample-steps/s on 20 000 samples, medians of 5 runs: rk4, splitting2 and rk8 bare;
-rk4 with a scene's observers (probes every 10 steps, flips, drift records and limit); rk4 with a constant torque; the
+rk4 with a scene's observers (probes every 10 steps, flips, drift records and limit); rk4 with a drift limit alone
+(``run_ensemble``'s default); rk4 with a constant torque; the
 models' driver (heavy top rk4 with probes and drift). Machines here differ from day to day; compare trees only within
 one invocation.
 """
@@ -24,6 +25,7 @@ rates = []
 observers = dict(axis=1, probe_steps=np.arange(0, 1001, 10), max_flips=4, drift=True, drift_limit=1e-3)
 y0 = np.ascontiguousarray(np.vstack([w0, np.tile([[0.0], [0.0], [1.0]], 20000)]))
 cases = (("rk4", 2000, {}), ("splitting2", 1000, {}), ("rk8", 500, {}), ("rk4+observers", 1000, observers),
+         ("rk4+drift_limit", 1000, dict(drift_limit=1e-3)),
          ("rk4+torque", 1000, dict(torque_params=np.array([0.0, 0.0, 0.1, 0.0]))), ("heavy_top rk4", 500, None))
 for label, steps, options in cases:
     if options is None:  # the models' driver

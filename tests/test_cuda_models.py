@@ -206,9 +206,9 @@ _PTX = textwrap.dedent("""
     for torque_free in (True, False):  # the free body's implicit midpoint rule (kernels/cuda.py)
         a2 = f8[:, ::1]  # the arguments of kernels/cuda.py's kernel, its observers included (as in test_cuda.py)
         kernels.append((device_kernels().make_kernel(METHODS["implicit_midpoint"], torque_free),
-                        (a2, i8[::1], a2, f8, f8[::1], i8[::1], i8[::1], f8[:, :, ::1], i8[::1], a2, i8[:, ::1], a2,
-                         a2, i8[::1], a2, nt.int8[::1], i8[::1], f8[::1], i8, f8, i8, a2, f8[::1], i8, f8[::1], a2,
-                         i8[::1])))
+                        (a2, i8[::1], a2, f8, f8[::1], i8[::1], i8[::1], f8[:, :, ::1], i8[::1], i8[:, ::1], a2,
+                         f8[::1], i8[:, ::1], a2, a2, i8[::1], a2, nt.int8[::1], i8[::1], f8[::1], i8, f8, i8, a2,
+                         f8[::1], i8, f8[::1], a2, i8[::1])))
     from tumble.kernels import device_attitude
     from tumble.kernels.methods import attitude_frame
 

@@ -41,26 +41,30 @@ import first_call  # noqa: E402 - benchmarks/first_call.py, on the path above
 #: What the free body's fixed-step driver compiles for any method (integrate, propagate): the one time loop, its
 #: observers and the CPU's driver; each method adds its own step (:func:`free_body_driver`), and only its own.
 FREE_BODY_LOOP = {
+    "kernels.block_loop._drift_suspects_of.<locals>.free_body": 1,
+    "kernels.block_loop._initial_invariants": 1,
+    "kernels.block_loop._invariants_of.<locals>.free_body": 1,
+    "kernels.block_loop._observe_drift": 1,
+    "kernels.block_loop._observe_flips_of.<locals>.free_body": 1,
+    "kernels.block_loop._observe_norm": 2,
+    "kernels.block_loop._step_of.<locals>.fused_step": 1,
+    "kernels.block_loop._stop_complete": 1,
+    "kernels.block_loop.run_block": 1,
     "kernels.block_parts.check_finite": 1,
     "kernels.block_parts.freeze": 3,
     "kernels.block_parts.restore_frozen": 1,
     "kernels.block_parts.store": 2,
     "kernels.block_parts.store_initial": 1,
     "kernels.block_parts.store_rest": 1,
-    "kernels.drivers._observe_drift": 1,
-    "kernels.drivers._observe_flips": 1,
-    "kernels.drivers._observe_norm": 2,
-    "kernels.drivers._stop_complete": 1,
     "kernels.drivers.make_propagate.<locals>.propagate": 1,
-    "kernels.drivers.make_run_block.<locals>.run_block": 1,
+    "kernels.free_body_parts.drift_suspects": 1,
+    "kernels.free_body_parts.observe_flips": 1,
 }
 
 
-def free_body_driver(*step_kernels, chosen="step"):
-    """:data:`FREE_BODY_LOOP` with one method's step kernels and the overload that chose them
-    (``drivers._method_step_of``'s implementation ``chosen``)."""
-    return {**FREE_BODY_LOOP, f"kernels.drivers._method_step_of.<locals>.{chosen}": 1,
-            **{kernel: 1 for kernel in step_kernels}}
+def free_body_driver(*step_kernels):
+    """:data:`FREE_BODY_LOOP` with one method's step kernels (:func:`tumble.kernels.free_body_parts.method_step`)."""
+    return {**FREE_BODY_LOOP, **{kernel: 1 for kernel in step_kernels}}
 
 
 #: What the chaos indicators' first call compiles for a heavy top stepped by rk4 (megno and lyapunov alike): the
@@ -111,7 +115,8 @@ EXPECTED = {
     "integrate symplectic_euler": free_body_driver("kernels.fused.symplectic_euler_block", "kernels.steppers.rotate_block"),
     "integrate splitting2": free_body_driver("kernels.fused.splitting2_block", "kernels.steppers.rotate_block"),
     "integrate splitting4": free_body_driver("kernels.fused.splitting4_block", "kernels.steppers.rotate_block"),
-    "integrate implicit_midpoint": free_body_driver("kernels.steppers.implicit_midpoint_block", chosen="midpoint_step"),
+    "integrate implicit_midpoint": free_body_driver("kernels.free_body_parts._midpoint_step",
+                                                    "kernels.steppers.implicit_midpoint_block"),
     "integrate exact": {
         **CLOSED_FORM_ROWS,
         "kernels.elliptic.torque_free_omega": 1,
@@ -191,21 +196,22 @@ EXPECTED = {
     },
     # The heavy top's driver for rk4: that system's and that method's step only, its invariants and drift screen
     "run_ensemble HeavyTop": {
-        "kernels.block_parts.check_finite": 2,
+        "kernels.block_loop._drift_suspects_of.<locals>.system_drift_suspects": 1,
+        "kernels.block_loop._initial_invariants": 1,
+        "kernels.block_loop._invariants_of.<locals>.system_invariants": 1,
+        "kernels.block_loop._observe_drift": 1,
+        "kernels.block_loop._observe_flips_of.<locals>.no_flips": 1,
+        "kernels.block_loop._observe_norm": 2,
+        "kernels.block_loop._step_of.<locals>.system_step": 1,
+        "kernels.block_loop._stop_complete": 1,
+        "kernels.block_loop.run_block": 1,
+        "kernels.block_parts.check_finite": 1,
         "kernels.block_parts.freeze": 3,
-        "kernels.block_parts.nan_rest": 1,
         "kernels.block_parts.restore_frozen": 1,
         "kernels.block_parts.store": 2,
         "kernels.block_parts.store_initial": 1,
-        "kernels.block_parts.store_rest": 2,
-        "kernels.model_loop._drift_suspects_of.<locals>.system_drift_suspects": 1,
-        "kernels.model_loop._initial_invariants": 1,
-        "kernels.model_loop._invariants_of.<locals>.system_invariants": 1,
-        "kernels.model_loop._observe_drift": 1,
-        "kernels.model_loop._observe_norm": 2,
-        "kernels.model_loop._step_of.<locals>.system_step": 1,
+        "kernels.block_parts.store_rest": 1,
         "kernels.model_loop.make_propagate_model.<locals>.propagate": 1,
-        "kernels.model_loop.run_block": 1,
         "kernels.model_steps.heavy_top_rk4_block": 1,
     },
     "megno HeavyTop": HEAVY_TOP_TANGENTS,
@@ -319,17 +325,17 @@ class Listener(event.Listener):
 
 
 event.register("numba:compile", Listener())
-from tumble.kernels import model_loop
+from tumble.kernels import block_loop, model_loop
 from tumble.kernels.systems import N_CONSTANTS
 
 model, method = model_loop.MODEL_CODES["heavy_top"], model_loop.MODEL_METHODS["rk4"]
 source = f'''
 def models(ys, t, h, a, x0, active, scale, screen):
-    model_loop._step({model}, {method}, ys, t, h, a, x0)
-    model_loop._drift_suspects({model}, ys, active, a, x0, scale, screen)
-    return model_loop._invariants({model}, ys, 0, a)
+    block_loop._step({model}, {method}, True, ys, active, t, h, a, x0, (0, None, None))
+    block_loop._drift_suspects({model}, ys, active, a, x0, scale, screen)
+    return block_loop._invariants({model}, ys, 0, a)
 '''
-namespace = {"model_loop": model_loop}
+namespace = {"block_loop": block_loop}
 exec(source, namespace)
 ys, a = np.zeros((6, 4)), np.zeros(N_CONSTANTS)
 numba.njit(namespace["models"])(ys, 0.0, 0.01, a, np.zeros((6, 4)), np.ones(4, dtype=np.bool_), np.ones((3, 4)), 1.0)
@@ -358,18 +364,18 @@ def test_codes_known_at_run_time_are_a_typing_error_that_says_so():
     import numpy as np
     from numba.core.errors import TypingError
 
-    from tumble.kernels import drivers, model_loop
+    from tumble.kernels import block_loop
 
     @numba.njit
     def model_step(model, method, ys, a, x0):
-        model_loop._step(model, method, ys, 0.0, 0.1, a, x0)
+        block_loop._step(model, method, True, ys, ys[0] > 0, 0.0, 0.1, a, x0, (0, None, None))
 
     with pytest.raises(TypingError, match="codes as literals"):
         model_step(2, 0, np.zeros((6, 1)), np.zeros(20), np.zeros((3, 1)))
 
     @numba.njit
-    def free_step(kernel, y):
-        drivers._method_step(kernel, True, y, y, y, y, 0.0, 0.1, y, y, y, 0, y, 0)
+    def free_step(kernel, ys, body):
+        block_loop._step(block_loop.FREE_BODY, kernel, True, ys, ys[0] > 0, 0.0, 0.1, body, ys, (0, None, None))
 
-    with pytest.raises(TypingError, match="method id must be a literal"):
-        free_step(0, np.zeros(1))
+    with pytest.raises(TypingError, match="codes as literals"):
+        free_step(0, np.zeros((3, 1)), (1.0,) * 12)

@@ -1,5 +1,5 @@
-"""What a block time loop does to its block of samples, written once for the free body's loop
-(:func:`tumble.kernels.drivers.make_run_block`) and the models' (:func:`tumble.kernels.model_loop.run_block`).
+"""What a block time loop does to its block of samples: the one time loop's parts
+(:func:`tumble.kernels.block_loop.run_block`) that do not depend on the system.
 
 A block's states are a structure of arrays ``ys`` (n_state, m): one row per component, one column per sample. A
 sample that stops (a bad status, or its measurement complete) keeps the state it had then in ``frozen`` (n_state, m),
@@ -9,12 +9,10 @@ block together (SIMD lanes) and :func:`restore_frozen` puts the stopped ones bac
 
 import math
 
-import numpy as np
-
 from ..registry import STATUS_NONFINITE, STATUS_OK
 from .jit import jit
 
-__all__ = ["check_finite", "freeze", "nan_rest", "restore_frozen", "store", "store_initial", "store_rest"]
+__all__ = ["check_finite", "freeze", "restore_frozen", "store", "store_initial", "store_rest"]
 
 
 @jit
@@ -93,11 +91,3 @@ def store_rest(saved, slot, ys, lo, ran, n_steps, save_every):
             if (k + 1) % save_every == 0 or k + 1 == n_steps:
                 store(saved, slot, ys, lo)
                 slot += 1
-
-
-@jit
-def nan_rest(probes, probe, lo, m):
-    """NaN for the block's probes from row ``probe`` on: no measurement after a sample stopped."""
-    for row in range(probe, probes.shape[0]):
-        for i in range(m):
-            probes[row, lo + i] = np.nan

@@ -1,6 +1,6 @@
 """The ensemble on a CUDA device: one thread per sample, float64.
 
-The time loop is written once: each thread runs the CPU's own loop (:func:`tumble.kernels.drivers.make_run_block`:
+The time loop is written once: each thread runs the CPU's own loop (:func:`tumble.kernels.block_loop.run_block`:
 steps, flips, drift, status, stores, probes, early stop, the growth fit) on a block of one sample held in the thread's
 local memory; numba-cuda compiles it and the ``@jit`` functions it calls (the generated steps of
 :mod:`tumble.kernels.fused`, the splittings' sub-flows of :mod:`tumble.kernels.steppers`) for the device. A method, an
@@ -24,7 +24,7 @@ import numpy as np
 from numba import boolean, cuda, float64, int64
 
 from .cuda_launch import THREADS, launch_shape, loop_array, loop_with_codes
-from .drivers import RUN_BLOCK_FREE, RUN_BLOCK_TORQUE, VALUE_ROWS
+from .block_loop import FREE_BODY, N_INVARIANTS, WINDOW_ROWS, run_block
 from .jit import cuda_jit
 from .methods import Observed, from_kernel_frame, kernel_frame, kernel_observed_axis
 from .steppers import TORQUE_CONSTANT
@@ -42,24 +42,24 @@ def refusal(method, *, torque_fn=None):
 
 def make_kernel(method, torque_free):
     """The device kernel of ``method``, torque-free or with a built-in torque profile: one thread per sample, running
-    the CPU's time loop (:func:`tumble.kernels.drivers.make_run_block`) on a block of one sample in the thread's local
-    memory. The method is a constant of the closure, handed to the loop as a literal, so that the kernel compiles that
-    method's step only (on the simulator through :func:`tumble.kernels.cuda_launch.loop_with_codes`: the CPU's
-    compiled loop of that method). ``torque_free`` is a constant of the loop's own closure, so that numba compiles
-    only its torque-free or its torque branch."""
+    the CPU's time loop (:func:`tumble.kernels.block_loop.run_block`) on a block of one sample in the thread's local
+    memory. The free body's code, the method and ``torque_free`` are constants of the closure, handed to the loop as
+    literals, so that the kernel compiles that method's step only, torque-free or with a torque (on the simulator
+    through :func:`tumble.kernels.cuda_launch.loop_with_codes`: the CPU's compiled loop of those codes)."""
     kernel_id = method.kernel_id
-    run_block = loop_with_codes(RUN_BLOCK_FREE if torque_free else RUN_BLOCK_TORQUE, kernel_id)
+    loop = loop_with_codes(run_block, FREE_BODY, kernel_id, torque_free)
 
     @cuda_jit
-    def propagate(w, scene, bodies, t0, hs, step_counts, saves, saved, axes, weight_rows, probe_step_rows, probes,
-                  flips, flip_count, drift, status, steps_taken, stop_norms, stop_flips, drift_limit, torque_kind,
-                  torque_rows, fit_saturations, fit_min_points, fit_hs, fit, fit_points):
+    def propagate(w, scene, bodies, t0, hs, step_counts, saves, saved, axes, column_rows, weight_rows, y_eq,
+                  probe_step_rows, probes, flips, flip_count, drift, status, steps_taken, stop_norms, stop_flips,
+                  drift_limit, torque_kind, torque_rows, fit_saturations, fit_min_points, fit_hs, fit, fit_points):
         # size: a kernel's flat arguments (DESIGN.md: arrays and scalars below the kernels' door), packed by
         # run_scenes(), each scene's row read here and handed to the one time loop
         """Advance sample ``i = cuda.grid(1)`` of scene ``s = scene[i]`` (0 when ``scene`` is empty: one scene) by
         ``step_counts[s]`` steps of ``hs[s]`` from ``t0``, observing as asked. Each scene's quantities are a row of a
         per-scene table: ``bodies`` (S, 12) the body constants, ``axes``, ``saves`` (steps between stored states),
-        ``weight_rows`` (S, 3), ``probe_step_rows`` (S, P), ``stop_norms``, ``torque_rows`` (S, 4),
+        the transverse norm's ``column_rows`` (S, 2) and ``weight_rows`` (S, 2) (``y_eq`` zeros), ``probe_step_rows``
+        (S, P), ``stop_norms``, ``torque_rows`` (S, 4),
         ``fit_saturations`` and ``fit_hs``; for one scene they are the arguments of
         :func:`tumble.kernels.drivers.make_propagate`'s driver that the device serves (``probes`` may be empty while
         the probe steps are not: the norms then only feed the growth fit)."""
@@ -73,17 +73,18 @@ def make_kernel(method, torque_free):
             torque_params = None
         else:
             torque_params = loop_array(torque_rows)[s]
-        # every argument spelled out, at most 30 (see the loop's note): a star-call would pass the method's id on as
-        # a plain int, and the loop would keep a branch per method
+        # every argument spelled out, at most 30 (see the loop's note): a star-call would pass the codes on as plain
+        # ints, a typing error
         scratch = (cuda.local.array((3, 1), float64), cuda.local.array((3, 1), float64),
-                   cuda.local.array((3, 1), float64), cuda.local.array((VALUE_ROWS, 1), float64),
+                   cuda.local.array((3, 1), float64), cuda.local.array((N_INVARIANTS, 1), float64),
+                   cuda.local.array((N_INVARIANTS, 1), float64), cuda.local.array((WINDOW_ROWS, 1), float64),
                    cuda.local.array((2, 1), boolean), cuda.local.array(1, int64))
+        norm = (loop_array(column_rows)[s], loop_array(weight_rows)[s], loop_array(y_eq))
         growth = (fit_saturations[s], fit_min_points, fit_hs[s], loop_array(fit), loop_array(fit_points))
-        run_block(kernel_id, loop_array(w), i, scratch, body, t0, hs[s], step_counts[s], saves[s], loop_array(saved),
-                  axes[s], loop_array(weight_rows)[s], loop_array(probe_step_rows)[s], loop_array(probes),
-                  loop_array(flips), loop_array(flip_count), loop_array(drift), loop_array(status),
-                  loop_array(steps_taken), stop_norms[s], stop_flips, drift_limit, torque_kind, torque_params, None,
-                  growth)
+        loop(FREE_BODY, kernel_id, torque_free, loop_array(w), i, scratch, body, t0, hs[s], step_counts[s], saves[s],
+             loop_array(saved), norm, loop_array(probe_step_rows)[s], loop_array(probes),
+             (axes[s], loop_array(flips), loop_array(flip_count)), loop_array(drift), drift_limit, loop_array(status),
+             loop_array(steps_taken), (stop_norms[s], stop_flips), (torque_kind, torque_params, None), growth)
 
     return propagate
 
@@ -179,7 +180,8 @@ def run_scenes(method, w, sizes, moments, t0, h, n_steps, *, save_every, axis, n
     torque_free = torque_params is None
     frames = []
     bodies, torque_rows = np.empty((count, 12)), np.zeros((count, 4))
-    axes, weight_rows = np.empty(count, dtype=np.int64), np.empty((count, 3))
+    axes, column_rows = np.empty(count, dtype=np.int64), np.empty((count, 2), dtype=np.int64)
+    weight_rows = np.empty((count, 2))
     kernel_w = np.empty((3, n))
     for k in range(count):  # each scene in its kernel frame (a splitting relabels the axes by its moments)
         rows = slice(starts[k], starts[k + 1])
@@ -188,8 +190,10 @@ def run_scenes(method, w, sizes, moments, t0, h, n_steps, *, save_every, axis, n
         bodies[k] = constants
         if not torque_free:
             torque_rows[k] = params
-        axes[k], weight_rows[k] = kernel_observed_axis(relabel, int(axis[k]), None if norm_weights is None
-                                                       else norm_weights[k])
+        axes[k], weights = kernel_observed_axis(relabel, int(axis[k]), None if norm_weights is None
+                                                else norm_weights[k])
+        column_rows[k] = (axes[k] + 1) % 3, (axes[k] + 2) % 3  # the transverse norm's two components
+        weight_rows[k] = weights[column_rows[k]]
         frames.append((rows, relabel))
     save_every = np.asarray(save_every, dtype=np.int64)
     n_steps = np.asarray(n_steps, dtype=np.int64)
@@ -215,7 +219,8 @@ def run_scenes(method, w, sizes, moments, t0, h, n_steps, *, save_every, axis, n
     kernel(method, torque_free)[launch_shape(n)](
         device_w, cuda.to_device(scene), cuda.to_device(bodies), float(t0), cuda.to_device(np.asarray(h, float)),
         cuda.to_device(n_steps), cuda.to_device(save_every), saved, cuda.to_device(axes),
-        cuda.to_device(weight_rows), cuda.to_device(probe_steps), probes, flips, flip_count, drifts, status,
+        cuda.to_device(column_rows), cuda.to_device(weight_rows), cuda.to_device(np.zeros(3)),
+        cuda.to_device(probe_steps), probes, flips, flip_count, drifts, status,
         steps_taken, cuda.to_device(np.asarray(stop_norm, float)), int(stop_flips),
         float(drift_limit) if torque_free else 0.0, int(torque_kind), cuda.to_device(torque_rows),
         cuda.to_device(np.asarray(saturation, float)), int(min_points), cuda.to_device(np.asarray(fit_h, float)),

@@ -1,13 +1,13 @@
 """What every CUDA launcher of :mod:`tumble.kernels` shares: the launch shape, one thread per sample, and the door
 through which a kernel hands its arrays to a time loop written once for both devices.
 
-The time loops (:func:`tumble.kernels.model_loop.run_block`, ...) are ``@jit`` functions: on a device numba-cuda
+The time loops (:func:`tumble.kernels.block_loop.run_block`, ...) are ``@jit`` functions: on a device numba-cuda
 compiles them into the kernel that calls them; on numba-cuda's simulator (``NUMBA_ENABLE_CUDASIM=1``) the kernel's
 body runs as Python and calls them as the CPU's compiled functions, which take numpy arrays, not the simulator's
 wrapped device arrays. :func:`loop_array` is the identity on a device and unwraps the numpy array on the simulator
-(the same memory: what the loop writes is what the launcher copies back). A loop's leading codes (a method's id; a
-model's code and a method's) choose its step: as literal types it compiles that step only, as plain ints a branch per
-method. A kernel's constants reach the loop as literals on a device when the call spells its arguments out (at most
+(the same memory: what the loop writes is what the launcher copies back). A loop's leading codes (a system's code, a
+method's id) choose its step: as literal types it compiles that step only; plain ints are a typing error that says so.
+A kernel's constants reach the loop as literals on a device when the call spells its arguments out (at most
 30: CPython compiles a call with more as a star-call, whose tuple numba-cuda types as plain ints);
 :func:`loop_with_codes` gives the simulator's Python kernel body, whose calls numba types from Python values, a
 compiled CPU function that passes them as literals, so that it runs the CPU's own compiled loop.

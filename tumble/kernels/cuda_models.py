@@ -1,6 +1,6 @@
 """The models of :mod:`tumble.physics.models` on a CUDA device: one thread per sample, float64 (issue 28).
 
-The time loop is written once: each thread runs the CPU's own loop, :func:`tumble.kernels.model_loop.run_block` (steps,
+The time loop is written once: each thread runs the CPU's own loop, :func:`tumble.kernels.block_loop.run_block` (steps,
 stores, probes, drift screening and checks, early stop, status), on a block of one sample held in the thread's local
 memory; numba-cuda compiles it and the ``@jit`` functions it calls (the steps of :mod:`tumble.kernels.model_steps`,
 the splittings of :mod:`tumble.kernels.model_splittings`, the invariants of :mod:`tumble.kernels.systems`) for the
@@ -21,8 +21,9 @@ from numba import boolean, cuda, float64, int64
 from ..registry import model_kind
 from .cuda_launch import THREADS, launch_shape, loop_array, loop_with_codes
 from .jit import cuda_jit
-from .model_loop import MODEL_CODES, MODEL_METHODS, ModelObserved, model_arguments, run_block
-from .systems import N_CONSTANTS, N_INVARIANTS
+from .block_loop import N_INVARIANTS, WINDOW_ROWS, run_block
+from .model_loop import MODEL_CODES, MODEL_METHODS, ModelObserved, model_arguments
+from .systems import N_CONSTANTS
 
 __all__ = ["THREADS", "kernel", "make_kernel", "run_model"]
 
@@ -30,11 +31,11 @@ __all__ = ["THREADS", "kernel", "make_kernel", "run_model"]
 def make_kernel(model, method, n_state):
     """The device kernel of ``model`` (a :data:`~tumble.kernels.model_loop.MODEL_CODES` value) stepped by ``method``
     (a :data:`~tumble.kernels.model_loop.MODEL_METHODS` value), ``n_state`` components: one thread per sample, running
-    the CPU's time loop (:func:`tumble.kernels.model_loop.run_block`) on a block of one sample in the thread's local
+    the CPU's time loop (:func:`tumble.kernels.block_loop.run_block`) on a block of one sample in the thread's local
     memory. The codes are constants of the closure, handed to the loop as literals (on the simulator through
     :func:`tumble.kernels.cuda_launch.loop_with_codes`: the CPU's compiled loop of that system and method), so that
     the kernel compiles that system's and that method's step only."""
-    loop = loop_with_codes(run_block, model, method)
+    loop = loop_with_codes(run_block, model, method, True)
 
     @cuda_jit
     def propagate(y, c, h, n_steps, save_every, saved, columns, weights, y_eq, probe_steps, probes, drift,
@@ -50,12 +51,15 @@ def make_kernel(model, method, n_state):
         constants = cuda.local.array(N_CONSTANTS, float64)
         for j in range(N_CONSTANTS):
             constants[j] = c[j]
-        loop(model, method, loop_array(y), i, cuda.local.array((n_state, 1), float64),
-                  cuda.local.array(1, boolean), cuda.local.array((n_state, 1), float64), cuda.local.array(1, int64),
-                  cuda.local.array((N_INVARIANTS, 1), float64), cuda.local.array((N_INVARIANTS, 1), float64),
-                  constants, h, n_steps, save_every, loop_array(saved), loop_array(columns), loop_array(weights),
-                  loop_array(y_eq), loop_array(probe_steps), loop_array(probes), loop_array(drift), drift_limit,
-                  loop_array(status), loop_array(steps_taken))
+        scratch = (cuda.local.array((n_state, 1), float64), cuda.local.array((n_state, 1), float64),
+                   cuda.local.array((n_state, 1), float64), cuda.local.array((N_INVARIANTS, 1), float64),
+                   cuda.local.array((N_INVARIANTS, 1), float64), cuda.local.array((WINDOW_ROWS, 1), float64),
+                   cuda.local.array((2, 1), boolean), cuda.local.array(1, int64))
+        no_flips, no_count = loop_array(probes)[:, :0], loop_array(steps_taken)[:0]  # a model's flips: not observed
+        loop(model, method, True, loop_array(y), i, scratch, constants, 0.0, h, n_steps, save_every, loop_array(saved),
+             (loop_array(columns), loop_array(weights), loop_array(y_eq)), loop_array(probe_steps), loop_array(probes),
+             (0, no_flips, no_count), loop_array(drift), drift_limit, loop_array(status), loop_array(steps_taken),
+             (0.0, 0), (0, None, None), (0.0, 0, 0.0, no_flips, no_count))
 
     return propagate
 

@@ -1,31 +1,27 @@
-"""The models' ensemble kernels: one parallel driver for every model and method, observers on the fly (issue 18).
+"""The models' ensemble kernels: the CPU driver of every model and method through the one time loop, and the
+kernels' door for the models (:func:`run_model`, :func:`model_rhs`, :func:`model_tangent`).
 
 The state of every sample is a column of ``y`` (shape ``(n_state, N)``, ``n_state`` up to 7: the model's components
 as ``registry.MODELS`` lists them, ``w1 w2 w3`` first, then the heavy top's ``g1 g2 g3``, the gravity gradient's
-``q0 q1 q2 q3`` or the damper's ``s1 s2 s3``). As in the free body's
-driver (:mod:`tumble.kernels.drivers`) the samples are cut into blocks that run in parallel (``prange``); each
-block is copied into contiguous component rows (structure of arrays) and the generated per-sample step
-(:mod:`tumble.kernels.model_steps`, from the Butcher tableaux of :mod:`tumble.kernels.tableaux`) runs in a loop
-over the block's samples that the compiler vectorises across samples (SIMD lanes).
+``q0 q1 q2 q3`` or the damper's ``s1 s2 s3``). The samples are cut into blocks that run in parallel (``prange``)
+through the one time loop (:func:`tumble.kernels.block_loop.run_block`, the free body's too), where the generated
+per-sample step (:mod:`tumble.kernels.model_steps`, from each system's module of :mod:`tumble.kernels.systems` and the
+Butcher tableaux of :mod:`tumble.kernels.tableaux`) runs over a block's samples vectorised across them (SIMD lanes).
 
 **One compiled driver per system and method.** The model and the method are codes that reach the loop as constants of
 its caller (:func:`make_propagate_model`'s closure, the device kernel's), and the loop compiles that system's and that
-method's step only (:func:`_step`); the observers are runtime switches on arrays that are empty when not asked for; a
-model's parameters are one float array (:func:`tumble.kernels.systems.constants`: each system's named record first).
-So one compiled (and cached) driver per system and method serves every combination of outputs: rk4 and rk8 for every
-system, the Lie–Poisson splittings for the free body, the gyrostat and the heavy top
-(:mod:`tumble.kernels.model_splittings`). The free body runs as the gyrostat with ``h = 0`` (the free body keeps its
-own, faster driver for everything else: :func:`tumble.kernels.run`). A system's equations are its module of
-:mod:`tumble.kernels.systems`; the steps and the dispatch over systems and methods are generated from them
-(:mod:`tumble.kernels.model_steps`).
+method's step only; the observers are runtime switches on arrays that are empty when not asked for; a model's
+parameters are one float array (:func:`tumble.kernels.systems.constants`: each system's named record first). So one
+compiled (and cached) driver per system and method serves every combination of outputs: rk4 and rk8 for every system,
+the Lie–Poisson splittings for the free body, the gyrostat and the heavy top (:mod:`tumble.kernels.model_splittings`).
+The ``free`` model is the gyrostat with ``h = 0`` (the free body's own fused steps run by :func:`tumble.kernels.run`).
 
 **Observers.** The final state (in place); the state every ``save_every`` steps; the transverse norm
 ``sqrt(sum_j weights[j] (y[columns[j]] − y_eq[columns[j]])²)`` at given steps (the arrays of
 :class:`tumble.physics.models.Transverse`); the running maximum of each invariant's drift ``|x − x0| / scale0``
-(each system's ``invariants``, :mod:`tumble.kernels.systems`: the scale is the invariant itself where it is
-sign-definite, else the largest magnitude it can take, so that an invariant that starts at 0 does not divide by 0;
-the gravity gradient's Jacobi integral: the sum of its three terms' magnitudes; the damper tracks ``|L|²`` only, its
-energy decays).
+(each system's ``invariants``, :mod:`tumble.kernels.systems`; the gravity gradient's Jacobi integral is scaled by the
+sum of its three terms' magnitudes; the damper tracks ``|L|²`` only, its energy decays). Status and early stop: the
+loop's (:mod:`tumble.kernels.block_loop`).
 
 **Gravity gradient.** The quaternion is divided by its norm after every step (in the generated block loop): the
 right-hand side keeps ``|q|`` exactly but rk4 and rk8 only to their order, and off the unit sphere the attitude rows
@@ -34,37 +30,25 @@ order and puts every observer (probes, trajectory, drifts) on the unit sphere; t
 (and a non-unit initial quaternion, rescaled by the first step). The probes' ``y_eq`` is the orbit-following
 equilibrium ``w = (0, −n, 0)``, ``q = (1, 0, 0, 0)``: subtracting it from the norm's columns ``(w1, w2, w3, q1, q2,
 q3)`` is the ``Transverse.centre`` of the physics layer.
-
-**Status.** ``STATUS_OK``, ``STATUS_NONFINITE`` (a component NaN or infinite, checked before the first step, every
-:data:`CHECK_EVERY` steps, at the end, and every step while drifts are tracked) or ``STATUS_DRIFT`` (a drift beyond
-``drift_limit``; each step a branch-free screening pass over the block,
-:func:`tumble.kernels.model_steps.drift_suspects` (:mod:`tumble.kernels.drift_screen`), finds whether any sample comes
-near either, and only then do the exact per-sample checks run); a sample with a bad status stops and keeps the state
-it had when it was caught; its later probes are NaN. Samples never interact: results do not depend on the number of threads or on the block size.
 """
 
 import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import prange, types
-from numba.core.errors import TypingError
-from numba.extending import overload
+from numba import prange
 
-from ..registry import (LIE_POISSON_MODELS, MODEL_KINDS, MODEL_PARAMETERS, MODEL_STEPPING, STATUS_DRIFT, STATUS_OK,
-                        STEPPING, model_kind)
+from ..registry import LIE_POISSON_MODELS, MODEL_KINDS, MODEL_PARAMETERS, MODEL_STEPPING, STEPPING, model_kind
 from ..registry import model_methods  # the names the model kernels run for a kind (re-exported)
-from .block_parts import check_finite, freeze, nan_rest, restore_frozen, store, store_initial, store_rest
-from .drift_screen import SCREEN_ATOL, SCREEN_RTOL
-from .jit import FASTMATH, jit
+from .block_loop import N_INVARIANTS, WINDOW_ROWS, run_block
+from .jit import jit
 from .model_splittings import SPLITTINGS
-from .model_steps import (drift_suspects, invariants, rate_columns, rate_sample, step, tangent_columns,
-                          tangent_sample)
-from .systems import N_INVARIANTS, constants
+from .model_steps import rate_columns, rate_sample, tangent_columns, tangent_sample
+from .systems import constants
 
 __all__ = ["MODEL_CODES", "MODEL_METHODS", "ModelObserved", "SPLITTING_KINDS", "make_propagate_model",
            "model_arguments", "model_methods", "model_rhs", "model_tangent", "propagate_model", "rate_sample",
-           "rate_sample_parameters", "run_block", "run_model", "tangent_sample"]
+           "rate_sample_parameters", "run_model", "tangent_sample"]
 
 #: Kernel codes of the models: their index in ``registry.MODEL_KINDS``. The kernels step every model of this table,
 #: whatever ``registry.MODELS``' ``implemented`` says (that flag is the studies'; the gravity gradient and the damper
@@ -79,211 +63,31 @@ MODEL_METHODS = {name: STEPPING.index(name) for name in MODEL_STEPPING}
 SPLITTING_KINDS = LIE_POISSON_MODELS
 
 
-#: Steps between two checks for non-finite states when no drift is tracked.
-CHECK_EVERY = 32
-
 # Samples per SIMD block: the free body's 256 (kernels.methods.BLOCK); results do not depend on it.
 BLOCK = 256
 
-_TINY = 2.2250738585072014e-308  # smallest normal float: a zero scale gives a zero drift, not 0/0
-
-
-# --- the system's and the method's code, chosen when the loop is compiled ---------------------------------------------
-# The model's and the method's codes reach the loop as literal types (constants of its caller: the CPU driver's closure,
-# :func:`driver`, and the device kernel's, :mod:`tumble.kernels.cuda_models`). The three functions below hand them as
-# constants to the generated chains of :mod:`tumble.kernels.model_steps`, which numba inlines and prunes to the one
-# branch taken: a driver compiles its own system's step, invariants and drift screen only (the chains compiled every
-# system's and method's steps into the one driver there was: 78 s of a first heavy-top ensemble on 2 cores,
-# ``benchmarks/first_call.py``). Codes that reach the loop as plain ints (a caller passing them at run time, or
-# through a star-call's tuple, which numba-cuda types as plain ints) are a typing error that says so (:func:`_literal`).
-
-# Not inlined at numba's IR level: numba-cuda's pipeline cannot take an overload inlined so (LLVM inlines it).
-# ``prefer_literal``: numba tries an overload with the arguments' plain types first and keeps what that gives (when
-# the plain-int case had a chain of every branch, it was taken even for literal codes, from 2026-11-29 until
-# benchmarks/first_call.py found it: a heavy top's first ensemble compiled every system's steps again).
-_OPTIONS = dict(prefer_literal=True, jit_options=dict(fastmath=set(FASTMATH), error_model="numpy"))
-
-
-def _literal(*codes):
-    """Refuse codes that are not literals (a typing error that says so): the generated chain would compile every
-    system's (and method's) branch into the loop."""
-    for code in codes:
-        if not isinstance(code, types.IntegerLiteral):
-            raise TypingError(f"the models' loop takes its system and method codes as literals, constants of its "
-                              f"caller (the driver's closure, the device kernel's), got {code}")
-
-
-def _step(model, method, ys, t, h, a, x0):
-    """:func:`tumble.kernels.model_steps.step` of the system and method given as literal codes."""
-
-
-@overload(_step, **_OPTIONS)
-def _step_of(model, method, ys, t, h, a, x0):
-    _literal(model, method)
-    model_code, method_code = model.literal_value, method.literal_value
-
-    def system_step(model, method, ys, t, h, a, x0):
-        step(model_code, method_code, ys, t, h, a, x0)
-
-    return system_step
-
-
-def _invariants(model, ys, i, a):
-    """:func:`tumble.kernels.model_steps.invariants` of the system given as a literal code."""
-
-
-@overload(_invariants, **_OPTIONS)
-def _invariants_of(model, ys, i, a):
-    _literal(model)
-    model_code = model.literal_value
-
-    def system_invariants(model, ys, i, a):
-        return invariants(model_code, ys, i, a)
-
-    return system_invariants
-
-
-def _drift_suspects(model, ys, active, a, x0, scale, screen):
-    """:func:`tumble.kernels.model_steps.drift_suspects` of the system given as a literal code."""
-
-
-@overload(_drift_suspects, **_OPTIONS)
-def _drift_suspects_of(model, ys, active, a, x0, scale, screen):
-    _literal(model)
-    model_code = model.literal_value
-
-    def system_drift_suspects(model, ys, active, a, x0, scale, screen):
-        return drift_suspects(model_code, ys, active, a, x0, scale, screen)
-
-    return system_drift_suspects
-
-
-@jit
-def _initial_invariants(model, ys, c, x0, scale):
-    """Each sample's invariants ``x0`` (3, m) and their drift scales (3, m) at the start."""
-    for i in range(ys.shape[1]):
-        x1, x2, x3, s1, s2, s3 = _invariants(model, ys, i, c)
-        x0[0, i], x0[1, i], x0[2, i] = x1, x2, x3
-        scale[0, i], scale[1, i], scale[2, i] = max(s1, _TINY), max(s2, _TINY), max(s3, _TINY)
-
-
-@jit
-def _observe_drift(model, ys, active, c, x0, scale, drift, lo, drift_limit, k, frozen, status, last):
-    """Running maximum of each invariant's drift ``|x − x0| / scale``; samples past ``drift_limit`` stop.
-
-    Returns how many samples it stopped."""
-    stopped = 0
-    for i in range(ys.shape[1]):
-        if not active[i]:
-            continue
-        x1, x2, x3, _, _, _ = _invariants(model, ys, i, c)
-        d1 = abs(x1 - x0[0, i]) / scale[0, i]
-        d2 = abs(x2 - x0[1, i]) / scale[1, i]
-        d3 = abs(x3 - x0[2, i]) / scale[2, i]
-        if drift.shape[0] > 0:
-            drift[0, lo + i] = max(drift[0, lo + i], d1)
-            drift[1, lo + i] = max(drift[1, lo + i], d2)
-            drift[2, lo + i] = max(drift[2, lo + i], d3)
-        if drift_limit > 0.0 and not (d1 <= drift_limit and d2 <= drift_limit and d3 <= drift_limit):
-            freeze(i, k, STATUS_DRIFT, ys, active, frozen, status, last)
-            stopped += 1
-    return stopped
-
-
-@jit
-def _observe_norm(ys, active, columns, weights, y_eq, probes, lo, row):
-    """The weighted transverse norm of each sample into ``probes[row]`` (NaN for stopped samples)."""
-    for i in range(ys.shape[1]):
-        total = 0.0
-        for j in range(columns.shape[0]):
-            d = ys[columns[j], i] - y_eq[columns[j]]
-            total += weights[j] * d * d
-        probes[row, lo + i] = math.sqrt(total) if active[i] else np.nan
-
-
-@jit
-def run_block(model, method, y, lo, ys, active, frozen, last, x0, scale, c, h, n_steps, save_every, saved, columns,
-              weights, y_eq, probe_steps, probes, drift, drift_limit, status, steps_taken):
-    # size: the one time loop of every model, method and observer, on either device: flat arrays and scalars
-    # (DESIGN.md: arrays and scalars below the kernels' door), the block's scratch owned by the caller, the observers
-    # the helpers above
-    """Samples ``lo, ..., lo + m - 1`` of ``y`` through the whole run: the models' one time loop, for the CPU and the
-    device.
-
-    The CPU's driver (:func:`propagate_model`) calls it for each block of samples in parallel, where the block's
-    samples move together in SIMD lanes; the device's kernel (:mod:`tumble.kernels.cuda_models`) for one sample per
-    thread (``m = 1``, the scratch in the thread's local memory). The scratch, owned by the caller: ``ys`` and
-    ``frozen`` (n_state, m), ``active`` (m,) bool, ``last`` (m,) int64, ``x0`` and ``scale`` (N_INVARIANTS, m). The
-    other arguments are :func:`propagate_model`'s; the loop writes the block's columns of ``y``, ``saved``,
-    ``probes``, ``drift``, ``status`` and ``steps_taken``.
-    """
-    n_state, m = ys.shape
-    n_probes = probe_steps.shape[0]
-    storing = saved.shape[0] > 0
-    record_drift = drift.shape[0] > 0
-    track_drift = record_drift or drift_limit > 0.0
-    screen = drift_limit * (1.0 - SCREEN_RTOL) - SCREEN_ATOL if drift_limit > 0.0 else math.inf
-    block_status = status[lo:lo + m]
-    for i in range(m):
-        for j in range(n_state):
-            ys[j, i] = y[j, lo + i]
-        active[i] = True
-        last[i] = n_steps
-        block_status[i] = STATUS_OK
-    _initial_invariants(model, ys, c, x0, scale)
-    n_frozen = check_finite(ys, active, 0, frozen, block_status, last)
-    slot = store_initial(saved, ys, lo)
-    probe = 0
-    while probe < n_probes and probe_steps[probe] == 0:
-        _observe_norm(ys, active, columns, weights, y_eq, probes, lo, probe)
-        probe += 1
-    ran = 0
-    for k in range(n_steps):
-        if n_frozen == m:
-            break
-        _step(model, method, ys, k * h, h, c, x0)
-        if n_frozen:
-            restore_frozen(ys, active, frozen)
-        ran = k + 1
-        # with drifts tracked every step, the exact observers run only for a block with a suspect (or whose
-        # drifts are recorded): the screen's "nothing to stop" is exact, its suspects are checked exactly
-        exact = track_drift and (record_drift or _drift_suspects(model, ys, active, c, x0, scale, screen))
-        if exact or (not track_drift and (ran % CHECK_EVERY == 0 or ran == n_steps)):
-            n_frozen += check_finite(ys, active, ran, frozen, block_status, last)
-        if exact:
-            n_frozen += _observe_drift(model, ys, active, c, x0, scale, drift, lo, drift_limit, ran, frozen,
-                                       block_status, last)
-        if storing and (ran % save_every == 0 or ran == n_steps):
-            store(saved, slot, ys, lo)
-            slot += 1
-        while probe < n_probes and probe_steps[probe] == ran:
-            _observe_norm(ys, active, columns, weights, y_eq, probes, lo, probe)
-            probe += 1
-    # A block whose samples all stopped fills the rest of its outputs: the frozen states, NaN probes.
-    store_rest(saved, slot, ys, lo, ran, n_steps, save_every)
-    nan_rest(probes, probe, lo, m)
-    for i in range(m):
-        for j in range(n_state):
-            y[j, lo + i] = ys[j, i]
-        steps_taken[lo + i] = last[i]
-
 
 def make_propagate_model(model, method):
-    """The CPU's driver of the one time loop (:func:`run_block`) for ``model`` and ``method`` (codes of
-    :data:`MODEL_CODES` and :data:`MODEL_METHODS`), constants of the closure: the loop compiles that system's and that
-    method's step only. numba's disk cache tells the closures apart by their constants."""
+    """The CPU's driver of the one time loop (:func:`tumble.kernels.block_loop.run_block`) for ``model`` and ``method``
+    (codes of :data:`MODEL_CODES` and :data:`MODEL_METHODS`), constants of the closure: the loop compiles that system's
+    and that method's step only. numba's disk cache tells the closures apart by their constants."""
 
     @jit(parallel=True)
     def propagate(y, constants, h, n_steps, block, save_every, saved, columns, weights, y_eq, probe_steps, probes,
                   drift, drift_limit, status, steps_taken):
         n_state, n = y.shape
+        no_flips, no_count = np.empty((n, 0)), np.empty(0, dtype=np.int64)  # a model's flips are not observed
+        no_fit = np.empty((0, 1))
+        no_stops = (0.0, np.int64(0))  # (not the literal 0: the parallel loop's body would compile a second variant)
         for ib in prange((n + block - 1) // block):
             lo = ib * block
             m = min(block, n - lo)
-            run_block(model, method, y, lo, np.empty((n_state, m)), np.empty(m, dtype=np.bool_),
-                      np.empty((n_state, m)), np.empty(m, dtype=np.int64), np.empty((N_INVARIANTS, m)),
-                      np.empty((N_INVARIANTS, m)), constants, h, n_steps, save_every, saved, columns, weights, y_eq,
-                      probe_steps, probes, drift, drift_limit, status, steps_taken)
+            scratch = (np.empty((n_state, m)), np.empty((n_state, m)), np.empty((n_state, m)),
+                       np.empty((N_INVARIANTS, m)), np.empty((N_INVARIANTS, m)), np.empty((WINDOW_ROWS, m)),
+                       np.empty((2, m), dtype=np.bool_), np.empty(m, dtype=np.int64))
+            run_block(model, method, True, y, lo, scratch, constants, 0.0, h, n_steps, save_every, saved,
+                      (columns, weights, y_eq), probe_steps, probes, (0, no_flips, no_count), drift, drift_limit,
+                      status, steps_taken, no_stops, (0, None, None), (0.0, 0, 0.0, no_fit, no_count))
 
     return propagate
 
@@ -298,7 +102,8 @@ def propagate_model(model, method, y, constants, h, n_steps, block,
                     drift, drift_limit,
                     status, steps_taken):
     """Advance every sample ``n_steps`` steps of size ``h`` of ``method`` on ``model``, observing as asked: the CPU's
-    wrapper of the one time loop (:func:`run_block`), blocks of ``block`` samples in parallel (``prange``).
+    wrapper of the one time loop (:func:`tumble.kernels.block_loop.run_block`), blocks of ``block`` samples in parallel
+    (``prange``).
 
     Parameters
     ----------
