@@ -20,7 +20,7 @@ loop: 40 s of a first rk4 ``integrate`` on 2 cores, 78 s of a first heavy-top en
 
 **Observers** are runtime switches: an output not asked for is an empty array and its branch, outside the loop over a
 block's samples, is skipped. They come in one order after each step: flips (the free body's spin-axis component
-changing sign, timed by cubic Hermite interpolation), the non-finite check, the invariants' drifts, the stored state,
+changing sign, timed by cubic Hermite interpolation), the invariants' drifts, the non-finite check, the stored state,
 the probes of the transverse norm ``sqrt(sum_j weights[j] (y[columns[j]] − y_eq[columns[j]])²)`` (each feeding the
 sample's growth window, :func:`tumble.kernels.fits.growth_window_add`, when the growth fit runs in the loop), and the
 early stop of samples whose measurement is complete.
@@ -32,8 +32,9 @@ each step first runs a branch-free screen over the block (:mod:`tumble.kernels.d
 suspect (a drift near the limit, or a non-finite state) runs the exact per-sample checks.
 
 **Status.** ``STATUS_OK``, ``STATUS_NONFINITE`` (a component NaN or infinite: checked before the first step, every
-:data:`CHECK_EVERY` steps, at the end, and after every step while flips are timed or a block has a drift suspect) or
-``STATUS_DRIFT`` (a drift beyond the limit; torque-free runs only). A sample with a bad status, or whose measurement is
+:data:`CHECK_EVERY` steps, at the end, and after every step while flips are timed; under a drift limit the step it
+happens, by the drift observer) or ``STATUS_DRIFT`` (a drift beyond the limit of a finite state; torque-free runs
+only). A sample with a bad status, or whose measurement is
 complete, stops and keeps the state it had then; its later probes are NaN and its later stores repeat that state.
 """
 
@@ -44,7 +45,7 @@ from numba import types
 from numba.core.errors import TypingError
 from numba.extending import overload
 
-from ..registry import STATUS_DRIFT, STATUS_OK
+from ..registry import STATUS_DRIFT, STATUS_NONFINITE, STATUS_OK
 from .block_parts import check_finite, freeze, restore_frozen, store, store_initial, store_rest
 from .drift_screen import SCREEN_ATOL, SCREEN_RTOL
 from .fits import GROWTH_WINDOW_START, growth_window_add, growth_window_rate
@@ -55,7 +56,7 @@ from .jit import FASTMATH, jit
 from .model_steps import drift_suspects, invariants, step
 from .systems import N_INVARIANTS
 
-__all__ = ["CHECK_EVERY", "FREE_BODY", "N_INVARIANTS", "WINDOW_ROWS", "run_block"]
+__all__ = ["CHECK_EVERY", "FREE_BODY", "N_INVARIANTS", "PROBE_ROWS", "WINDOW_ROWS", "run_block"]
 
 #: The system code of the free body with its own fused steps (the models' codes are their index in
 #: ``registry.MODEL_KINDS``, from 0).
@@ -66,6 +67,9 @@ CHECK_EVERY = 32
 
 #: Rows of a sample's growth window (:func:`_feed_window`).
 WINDOW_ROWS = 6
+
+#: Rows of the loop's ``window`` scratch: the growth window's, then the transverse norm's sums of squares.
+PROBE_ROWS = WINDOW_ROWS + 1
 
 _TINY = 2.2250738585072014e-308  # smallest normal float: a zero scale gives a zero drift, not 0/0
 
@@ -132,22 +136,22 @@ def _invariants_of(system, ys, i, params):
     return system_invariants
 
 
-def _drift_suspects(system, ys, active, params, x0, scale, screen):
+def _drift_suspects(system, ys, active, params, x0, inverse_scale, screen):
     """Whether any active sample of the block is non-finite or has drifted beyond ``screen`` (branch-free)."""
 
 
 @overload(_drift_suspects, **_OPTIONS)
-def _drift_suspects_of(system, ys, active, params, x0, scale, screen):
+def _drift_suspects_of(system, ys, active, params, x0, inverse_scale, screen):
     _literal(system)
     system_code = system.literal_value
     if system_code == FREE_BODY:
-        def free_body(system, ys, active, params, x0, scale, screen):
-            return free_body_drift_suspects(ys, active, params, x0, scale, screen)
+        def free_body(system, ys, active, params, x0, inverse_scale, screen):
+            return free_body_drift_suspects(ys, active, params, x0, inverse_scale, screen)
 
         return free_body
 
-    def system_drift_suspects(system, ys, active, params, x0, scale, screen):
-        return drift_suspects(system_code, ys, active, params, x0, scale, screen)
+    def system_drift_suspects(system, ys, active, params, x0, inverse_scale, screen):
+        return drift_suspects(system_code, ys, active, params, x0, inverse_scale, screen)
 
     return system_drift_suspects
 
@@ -176,34 +180,40 @@ def _observe_flips_of(system, ys, previous, active, axis, t, h, params, times, c
 # --- observers, the same for every system -----------------------------------------------------------------------------
 
 @jit
-def _initial_invariants(system, ys, params, x0, scale):
-    """Each sample's invariants ``x0`` (3, m) and their drift scales (3, m) at the start."""
+def _initial_invariants(system, ys, params, x0, inverse_scale):
+    """Each sample's invariants ``x0`` (3, m) and the inverses of their drift scales (3, m) at the start."""
     for i in range(ys.shape[1]):
         x1, x2, x3, s1, s2, s3 = _invariants(system, ys, i, params)
         x0[0, i], x0[1, i], x0[2, i] = x1, x2, x3
-        scale[0, i], scale[1, i], scale[2, i] = max(s1, _TINY), max(s2, _TINY), max(s3, _TINY)
+        inverse_scale[0, i] = 1.0 / max(s1, _TINY)
+        inverse_scale[1, i] = 1.0 / max(s2, _TINY)
+        inverse_scale[2, i] = 1.0 / max(s3, _TINY)
 
 
 @jit
-def _observe_drift(system, ys, active, params, x0, scale, drift, lo, drift_limit, k, frozen, status, last):
+def _observe_drift(system, ys, active, params, x0, inverse_scale, drift, lo, drift_limit, k, frozen, status, last):
     """Running maximum of each invariant's drift ``|x − x0| / scale`` into ``drift`` (its rows; not recorded when
-    empty); samples past ``drift_limit`` (<= 0: never; NaN counts as past) stop. Returns how many it stopped."""
+    empty); samples past ``drift_limit`` (<= 0: never; NaN counts as past) stop, with ``STATUS_DRIFT``, or
+    ``STATUS_NONFINITE`` when their state is not finite. Returns how many it stopped."""
     stopped = 0
     rows = drift.shape[0]
     for i in range(ys.shape[1]):
         if not active[i]:
             continue
         x1, x2, x3, _, _, _ = _invariants(system, ys, i, params)
-        d1 = abs(x1 - x0[0, i]) / scale[0, i]
-        d2 = abs(x2 - x0[1, i]) / scale[1, i]
-        d3 = abs(x3 - x0[2, i]) / scale[2, i]
+        d1 = abs(x1 - x0[0, i]) * inverse_scale[0, i]
+        d2 = abs(x2 - x0[1, i]) * inverse_scale[1, i]
+        d3 = abs(x3 - x0[2, i]) * inverse_scale[2, i]
         if rows > 0:
             drift[0, lo + i] = max(drift[0, lo + i], d1)
             drift[1, lo + i] = max(drift[1, lo + i], d2)
         if rows > 2:
             drift[2, lo + i] = max(drift[2, lo + i], d3)
         if drift_limit > 0.0 and not (d1 <= drift_limit and d2 <= drift_limit and d3 <= drift_limit):
-            freeze(i, k, STATUS_DRIFT, ys, active, frozen, status, last)
+            finite = True
+            for j in range(ys.shape[0]):
+                finite = finite and math.isfinite(ys[j, i])
+            freeze(i, k, STATUS_DRIFT if finite else STATUS_NONFINITE, ys, active, frozen, status, last)
             stopped += 1
     return stopped
 
@@ -212,15 +222,19 @@ def _observe_drift(system, ys, active, params, x0, scale, drift, lo, drift_limit
 def _observe_norm(ys, active, columns, weights, y_eq, probes, lo, row, stop_norm, reached, window, fit_saturation):
     """The weighted transverse norm ``sqrt(sum_j weights[j] (y[columns[j]] − y_eq[columns[j]])²)`` of each sample
     into ``probes[row]`` (NaN for stopped samples; not kept when ``probes`` is empty) and into its growth window
-    (with ``fit_saturation > 0``); marks samples whose norm reached ``stop_norm``."""
+    (``window``'s first :data:`WINDOW_ROWS` rows, with ``fit_saturation > 0``); marks samples whose norm reached
+    ``stop_norm``. The sums of squares are taken a term at a time over the whole block (``window``'s last row), so
+    that they vectorise across samples."""
+    squares = window[WINDOW_ROWS]
     for i in range(ys.shape[1]):
-        norm = np.nan
-        if active[i]:
-            total = 0.0
-            for j in range(columns.shape[0]):
-                d = ys[columns[j], i] - y_eq[columns[j]]
-                total += weights[j] * d * d
-            norm = math.sqrt(total)
+        squares[i] = 0.0
+    for j in range(columns.shape[0]):
+        column, weight, centre = columns[j], weights[j], y_eq[columns[j]]
+        for i in range(ys.shape[1]):
+            d = ys[column, i] - centre
+            squares[i] += weight * d * d
+    for i in range(ys.shape[1]):
+        norm = math.sqrt(squares[i]) if active[i] else np.nan
         if probes.shape[0] > 0:
             probes[row, lo + i] = norm
         if fit_saturation > 0.0:
@@ -276,11 +290,11 @@ def run_block(system, method, torque_free, y, lo, scratch, params, t0, h, n_step
     lo : int
         The block's first sample.
     scratch : tuple
-        Owned by the caller, ``(ys, frozen, previous, x0, scale, window, flags, last)``: ``ys``, ``frozen`` and
-        ``previous`` (n_state, m): the states, the state each stopped sample keeps, the states before the step
-        (flips); ``x0`` and ``scale`` (:data:`N_INVARIANTS`, m): the initial invariants and their scales; ``window``
-        (:data:`WINDOW_ROWS`, m): the growth windows; ``flags`` (2, m) bool: running, its norm reached ``stop_norm``;
-        ``last`` (m,) int64: the steps each sample took.
+        Owned by the caller, ``(ys, frozen, previous, x0, inverse_scale, window, flags, last)``: ``ys``, ``frozen``
+        and ``previous`` (n_state, m): the states, the state each stopped sample keeps, the states before the step
+        (flips); ``x0`` and ``inverse_scale`` (:data:`N_INVARIANTS`, m): the initial invariants and the inverses of
+        their scales; ``window`` (:data:`PROBE_ROWS`, m): the growth windows and a row for the norm's sums; ``flags``
+        (2, m) bool: running, its norm reached ``stop_norm``; ``last`` (m,) int64: the steps each sample took.
     params
         The system's constants: the free body's :func:`tumble.kernels.steppers.body_constants` tuple, a model's
         :func:`tumble.kernels.systems.constants` array.
@@ -316,7 +330,7 @@ def run_block(system, method, torque_free, y, lo, scratch, params, t0, h, n_step
     matter). The arguments are grouped in tuples so that a call spells out at most 30: CPython compiles a call with
     more as a star-call (``f(*args)``), whose tuple numba-cuda types without the codes' literals.
     """
-    ys, frozen, previous, x0, scale, window, flags, last = scratch
+    ys, frozen, previous, x0, inverse_scale, window, flags, last = scratch
     columns, weights, y_eq = norm
     flip_axis, flip_times, flip_count = flips
     stop_norm, stop_flips = stops
@@ -345,7 +359,7 @@ def run_block(system, method, torque_free, y, lo, scratch, params, t0, h, n_step
             flip_times[lo + i, j] = np.nan
         for j in range(drift.shape[0]):
             drift[j, lo + i] = 0.0
-    _initial_invariants(system, ys, params, x0, scale)
+    _initial_invariants(system, ys, params, x0, inverse_scale)
     ran = np.int64(0)  # (not the literal 0: a literal argument would compile a second variant of the check)
     n_frozen = check_finite(ys, active, ran, frozen, block_status, last)
     slot = store_initial(saved, ys, lo)
@@ -367,14 +381,14 @@ def run_block(system, method, torque_free, y, lo, scratch, params, t0, h, n_step
         ran = k + 1
         if track_flips:
             _observe_flips(system, ys, previous, active, flip_axis, t, h, params, flip_times, flip_count, lo, torque)
-        # with drifts tracked, the exact observers run only for a block with a suspect (or whose drifts are recorded):
-        # the screen's "nothing to stop" is exact (a non-finite state is a suspect), its suspects are checked exactly
-        exact = track_drift and (record_drift or _drift_suspects(system, ys, active, params, x0, scale, screen))
-        if exact or track_flips or (not track_drift and (ran % CHECK_EVERY == 0 or ran == n_steps)):
-            n_frozen += check_finite(ys, active, ran, frozen, block_status, last)
-        if exact:
-            n_frozen += _observe_drift(system, ys, active, params, x0, scale, drift, lo, limit, ran, frozen,
+        # with drifts tracked, the exact observer runs only for a block with a suspect (or whose drifts are recorded):
+        # the screen's "nothing to stop" is exact (a non-finite state is a suspect: the exact observer stops it with
+        # its status), its suspects are checked exactly
+        if track_drift and (record_drift or _drift_suspects(system, ys, active, params, x0, inverse_scale, screen)):
+            n_frozen += _observe_drift(system, ys, active, params, x0, inverse_scale, drift, lo, limit, ran, frozen,
                                        block_status, last)
+        if track_flips or ran % CHECK_EVERY == 0 or ran == n_steps:
+            n_frozen += check_finite(ys, active, ran, frozen, block_status, last)
         if storing and (ran % save_every == 0 or ran == n_steps):
             store(saved, slot, ys, lo)
             slot += 1

@@ -24,7 +24,7 @@ import numpy as np
 from numba import boolean, cuda, float64, int64
 
 from .cuda_launch import THREADS, launch_shape, loop_array, loop_with_codes
-from .block_loop import FREE_BODY, N_INVARIANTS, WINDOW_ROWS, run_block
+from .block_loop import FREE_BODY, N_INVARIANTS, PROBE_ROWS, run_block
 from .jit import cuda_jit
 from .methods import Observed, from_kernel_frame, kernel_frame, kernel_observed_axis
 from .steppers import TORQUE_CONSTANT
@@ -77,7 +77,7 @@ def make_kernel(method, torque_free):
         # ints, a typing error
         scratch = (cuda.local.array((3, 1), float64), cuda.local.array((3, 1), float64),
                    cuda.local.array((3, 1), float64), cuda.local.array((N_INVARIANTS, 1), float64),
-                   cuda.local.array((N_INVARIANTS, 1), float64), cuda.local.array((WINDOW_ROWS, 1), float64),
+                   cuda.local.array((N_INVARIANTS, 1), float64), cuda.local.array((PROBE_ROWS, 1), float64),
                    cuda.local.array((2, 1), boolean), cuda.local.array(1, int64))
         norm = (loop_array(column_rows)[s], loop_array(weight_rows)[s], loop_array(y_eq))
         growth = (fit_saturations[s], fit_min_points, fit_hs[s], loop_array(fit), loop_array(fit_points))

@@ -21,7 +21,7 @@ from numba import boolean, cuda, float64, int64
 from ..registry import model_kind
 from .cuda_launch import THREADS, launch_shape, loop_array, loop_with_codes
 from .jit import cuda_jit
-from .block_loop import N_INVARIANTS, WINDOW_ROWS, run_block
+from .block_loop import N_INVARIANTS, PROBE_ROWS, run_block
 from .model_loop import MODEL_CODES, MODEL_METHODS, ModelObserved, model_arguments
 from .systems import N_CONSTANTS
 
@@ -53,7 +53,7 @@ def make_kernel(model, method, n_state):
             constants[j] = c[j]
         scratch = (cuda.local.array((n_state, 1), float64), cuda.local.array((n_state, 1), float64),
                    cuda.local.array((n_state, 1), float64), cuda.local.array((N_INVARIANTS, 1), float64),
-                   cuda.local.array((N_INVARIANTS, 1), float64), cuda.local.array((WINDOW_ROWS, 1), float64),
+                   cuda.local.array((N_INVARIANTS, 1), float64), cuda.local.array((PROBE_ROWS, 1), float64),
                    cuda.local.array((2, 1), boolean), cuda.local.array(1, int64))
         no_flips, no_count = loop_array(probes)[:, :0], loop_array(steps_taken)[:0]  # a model's flips: not observed
         loop(model, method, True, loop_array(y), i, scratch, constants, 0.0, h, n_steps, save_every, loop_array(saved),

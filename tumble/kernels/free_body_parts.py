@@ -73,14 +73,14 @@ def invariants(w1, w2, w3, body):
 
 
 @jit
-def drift_suspects(ys, active, body, x0, scale, screen):
+def drift_suspects(ys, active, body, x0, inverse_scale, screen):
     """Whether any active sample of a block is non-finite or has drifted beyond ``screen``: one branch-free pass that
     vectorises across samples (:func:`tumble.kernels.drift_screen.suspect`)."""
     suspects = 0
     for i in range(ys.shape[1]):
         w1, w2, w3 = ys[0, i], ys[1, i], ys[2, i]
-        suspects += suspect(i, active, x0, scale, screen, energy(w1, w2, w3, body), l_squared(w1, w2, w3, body), 0.0,
-                            w1 + w2 + w3)
+        suspects += suspect(i, active, x0, inverse_scale, screen, energy(w1, w2, w3, body),
+                            l_squared(w1, w2, w3, body), 0.0, w1 + w2 + w3)
     return suspects > 0
 
 

@@ -259,7 +259,7 @@ def dispatch_source(modules):
                 "for i in range(ys.shape[1]):",
                 f"    x1, x2, x3, _, _, _ = {name}.invariants({items}, c_{name})",
                 f"    total = {' + '.join(f'ys[{i}, i]' for i in range(len(components)))}",
-                "    suspects += suspect(i, active, x0, scale, screen, x1, x2, x3, total)"]
+                "    suspects += suspect(i, active, x0, inverse_scale, screen, x1, x2, x3, total)"]
 
     def call(function, at, constants):
         """A branch that calls the system's ``function`` (rate or tangent) on the components ``y[j{at}]`` (and ``v``)
@@ -289,10 +289,10 @@ def dispatch_source(modules):
         "",
         "",
         "@jit(inline=True)",
-        "def drift_suspects(model, ys, active, a, x0, scale, screen):",
+        "def drift_suspects(model, ys, active, a, x0, inverse_scale, screen):",
         '    """Whether any active sample of a block is non-finite or has an invariant\'s drift beyond ``screen``: one '
         'pass\n    per system without stores, calls or inner loops, so that it vectorises across samples (see\n'
-        '    :func:`tumble.kernels.model_loop.propagate_model`)."""',
+        '    :func:`tumble.kernels.block_loop.run_block`)."""',
         "    suspects = 0",
         *_chain(modules, suspects),
         "    return suspects > 0",

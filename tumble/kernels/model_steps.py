@@ -2112,35 +2112,35 @@ def invariants(model, ys, i, a):
 
 
 @jit(inline=True)
-def drift_suspects(model, ys, active, a, x0, scale, screen):
+def drift_suspects(model, ys, active, a, x0, inverse_scale, screen):
     """Whether any active sample of a block is non-finite or has an invariant's drift beyond ``screen``: one pass
     per system without stores, calls or inner loops, so that it vectorises across samples (see
-    :func:`tumble.kernels.model_loop.propagate_model`)."""
+    :func:`tumble.kernels.block_loop.run_block`)."""
     suspects = 0
     if model == 0 or model == 1:  # free, gyrostat
         c_gyrostat = gyrostat.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14])
         for i in range(ys.shape[1]):
             x1, x2, x3, _, _, _ = gyrostat.invariants(ys[0, i], ys[1, i], ys[2, i], c_gyrostat)
             total = ys[0, i] + ys[1, i] + ys[2, i]
-            suspects += suspect(i, active, x0, scale, screen, x1, x2, x3, total)
+            suspects += suspect(i, active, x0, inverse_scale, screen, x1, x2, x3, total)
     elif model == 2:  # heavy_top
         c_heavy_top = heavy_top.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14], a[15])
         for i in range(ys.shape[1]):
             x1, x2, x3, _, _, _ = heavy_top.invariants(ys[0, i], ys[1, i], ys[2, i], ys[3, i], ys[4, i], ys[5, i], c_heavy_top)
             total = ys[0, i] + ys[1, i] + ys[2, i] + ys[3, i] + ys[4, i] + ys[5, i]
-            suspects += suspect(i, active, x0, scale, screen, x1, x2, x3, total)
+            suspects += suspect(i, active, x0, inverse_scale, screen, x1, x2, x3, total)
     elif model == 3:  # gravity_gradient
         c_gravity_gradient = gravity_gradient.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10])
         for i in range(ys.shape[1]):
             x1, x2, x3, _, _, _ = gravity_gradient.invariants(ys[0, i], ys[1, i], ys[2, i], ys[3, i], ys[4, i], ys[5, i], ys[6, i], c_gravity_gradient)
             total = ys[0, i] + ys[1, i] + ys[2, i] + ys[3, i] + ys[4, i] + ys[5, i] + ys[6, i]
-            suspects += suspect(i, active, x0, scale, screen, x1, x2, x3, total)
+            suspects += suspect(i, active, x0, inverse_scale, screen, x1, x2, x3, total)
     else:  # damper
         c_damper = damper.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10])
         for i in range(ys.shape[1]):
             x1, x2, x3, _, _, _ = damper.invariants(ys[0, i], ys[1, i], ys[2, i], ys[3, i], ys[4, i], ys[5, i], c_damper)
             total = ys[0, i] + ys[1, i] + ys[2, i] + ys[3, i] + ys[4, i] + ys[5, i]
-            suspects += suspect(i, active, x0, scale, screen, x1, x2, x3, total)
+            suspects += suspect(i, active, x0, inverse_scale, screen, x1, x2, x3, total)
     return suspects > 0
 
 
