@@ -179,7 +179,7 @@ def _observe_flips_of(system, ys, previous, active, axis, t, h, params, times, c
 
 # --- observers, the same for every system -----------------------------------------------------------------------------
 
-@jit
+@jit(inline=True)
 def _initial_invariants(system, ys, params, x0, inverse_scale):
     """Each sample's invariants ``x0`` (3, m) and the inverses of their drift scales (3, m) at the start."""
     for i in range(ys.shape[1]):

@@ -1,6 +1,9 @@
 """The free body's parts of the one time loop (:func:`tumble.kernels.block_loop.run_block`): its step of each method,
 torque-free or with a torque, its invariants and their drift screen, and the flips of its spin axis.
 
+Inlined into the loop's overloads where they can be (``inline=True``): each function compiled on its own costs a first
+call about a second more of numba's pipeline (``benchmarks/first_call.py``).
+
 The free body is the one system whose steps are not generated from a rate: :mod:`tumble.kernels.fused` spells each
 method out on ``(w1, w2, w3)`` (the splittings ending on each sample's own ``|L|**2``), and with a torque the
 splittings run as compositions of sub-flows (:mod:`tumble.kernels.steppers`). Its state is the body-frame angular
@@ -48,13 +51,13 @@ def method_step(method, torque_free):
     return _FUSED_STEPS[method]
 
 
-@jit
+@jit(inline=True)
 def _midpoint_step(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn):
     implicit_midpoint_block(y1, y2, y3, active, t, h, body, work, torque_kind, torque_params, torque_fn)
 
 
 def _torque_splitting_step(splitting):
-    @jit
+    @jit(inline=True)
     def step(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn):
         splitting(y1, y2, y3, t, h, body, torque_kind, torque_params, torque_fn)
 
@@ -72,7 +75,7 @@ def invariants(w1, w2, w3, body):
     return e, l2, 0.0, e, l2, 1.0
 
 
-@jit
+@jit(inline=True)
 def drift_suspects(ys, active, body, x0, inverse_scale, screen):
     """Whether any active sample of a block is non-finite or has drifted beyond ``screen``: one branch-free pass that
     vectorises across samples (:func:`tumble.kernels.drift_screen.suspect`)."""
@@ -128,7 +131,7 @@ def _flip_in_step(axis, t, h, p1, p2, p3, w1, w2, w3, body, torque_kind, torque_
     return False, 0.0
 
 
-@jit
+@jit  # not inlined: compiled on its own, numba prunes the torque function's branch when there is none
 def observe_flips(ys, previous, active, axis, t, h, body, flips, flip_count, lo, torque_kind, torque_params,
                   torque_fn):
     """Record sign changes of the ``axis`` component during the step ``[t, t + h]``: their times into ``flips`` (N, F)
