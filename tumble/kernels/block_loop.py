@@ -56,7 +56,7 @@ from .jit import FASTMATH, jit
 from .model_steps import drift_suspects, invariants, step
 from .systems import N_INVARIANTS
 
-__all__ = ["CHECK_EVERY", "FREE_BODY", "N_INVARIANTS", "PROBE_ROWS", "WINDOW_ROWS", "run_block"]
+__all__ = ["CHECK_EVERY", "FREE_BODY", "N_INVARIANTS", "PROBE_ROWS", "WINDOW_ROWS", "block_scratch", "run_block"]
 
 #: The system code of the free body with its own fused steps (the models' codes are their index in
 #: ``registry.MODEL_KINDS``, from 0).
@@ -270,6 +270,15 @@ def _stop_complete(ys, active, reached, stop_norm, stop_flips, flip_count, lo, k
             else:
                 remaining += 1
     return remaining
+
+
+@jit(inline=True)
+def block_scratch(n_state, m):
+    """The scratch of :func:`run_block` for a block of ``m`` samples of ``n_state`` components, on the CPU (a device
+    thread's is in its local memory)."""
+    return (np.empty((n_state, m)), np.empty((n_state, m)), np.empty((n_state, m)), np.empty((N_INVARIANTS, m)),
+            np.empty((N_INVARIANTS, m)), np.empty((PROBE_ROWS, m)), np.empty((2, m), dtype=np.bool_),
+            np.empty(m, dtype=np.int64))
 
 
 @jit

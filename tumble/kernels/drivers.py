@@ -23,7 +23,7 @@ import numpy as np
 from numba import prange, types
 
 from ..registry import STATUS_DRIFT, STATUS_NAMES, STATUS_NONFINITE, STATUS_OK  # noqa: F401
-from .block_loop import CHECK_EVERY, FREE_BODY, N_INVARIANTS, PROBE_ROWS, run_block  # noqa: F401
+from .block_loop import CHECK_EVERY, FREE_BODY, block_scratch, run_block  # noqa: F401
 from .free_body_parts import IMPLICIT_MIDPOINT, RK4, RK8, SPLITTING2, SPLITTING4, SYMPLECTIC_EULER  # noqa: F401
 from .jit import jit
 
@@ -93,11 +93,8 @@ def make_propagate(torque_free, kernel):
         for ib in prange((n + block - 1) // block):
             lo = ib * block
             m = min(block, n - lo)
-            scratch = (np.empty((3, m)), np.empty((3, m)), np.empty((3, m)), np.empty((N_INVARIANTS, m)),
-                       np.empty((N_INVARIANTS, m)), np.empty((PROBE_ROWS, m)), np.empty((2, m), dtype=np.bool_),
-                       np.empty(m, dtype=np.int64))
-            run_block(FREE_BODY, kernel, torque_free, w, lo, scratch, body, t0, h, n_steps, save_every, saved, norm,
-                      probe_steps, probes, (axis, flips, flip_count), drift, drift_limit, status, steps_taken,
+            run_block(FREE_BODY, kernel, torque_free, w, lo, block_scratch(3, m), body, t0, h, n_steps, save_every,
+                      saved, norm, probe_steps, probes, (axis, flips, flip_count), drift, drift_limit, status, steps_taken,
                       (stop_norm, stop_flips), (torque_kind, torque_params, torque_fn),
                       (0.0, 0, 0.0, no_fit, no_fit_points))
 

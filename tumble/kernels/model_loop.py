@@ -40,7 +40,7 @@ from numba import prange
 
 from ..registry import LIE_POISSON_MODELS, MODEL_KINDS, MODEL_PARAMETERS, MODEL_STEPPING, STEPPING, model_kind
 from ..registry import model_methods  # the names the model kernels run for a kind (re-exported)
-from .block_loop import N_INVARIANTS, PROBE_ROWS, run_block
+from .block_loop import N_INVARIANTS, block_scratch, run_block
 from .jit import jit
 from .model_splittings import SPLITTINGS
 from .model_steps import rate_columns, rate_sample, tangent_columns, tangent_sample
@@ -82,11 +82,8 @@ def make_propagate_model(model, method):
         for ib in prange((n + block - 1) // block):
             lo = ib * block
             m = min(block, n - lo)
-            scratch = (np.empty((n_state, m)), np.empty((n_state, m)), np.empty((n_state, m)),
-                       np.empty((N_INVARIANTS, m)), np.empty((N_INVARIANTS, m)), np.empty((PROBE_ROWS, m)),
-                       np.empty((2, m), dtype=np.bool_), np.empty(m, dtype=np.int64))
-            run_block(model, method, True, y, lo, scratch, constants, 0.0, h, n_steps, save_every, saved,
-                      (columns, weights, y_eq), probe_steps, probes, (0, no_flips, no_count), drift, drift_limit,
+            run_block(model, method, True, y, lo, block_scratch(n_state, m), constants, 0.0, h, n_steps, save_every,
+                      saved, (columns, weights, y_eq), probe_steps, probes, (0, no_flips, no_count), drift, drift_limit,
                       status, steps_taken, no_stops, (0, None, None), (0.0, 0, 0.0, no_fit, no_count))
 
     return propagate
