@@ -4,7 +4,7 @@
 each, every one returning ``{"megno": (N,), "lyapunov": (N,), "seconds", "setup_seconds", "settings", ...}``
 (``seconds``: the run, compiling and setting up excluded and timed apart as ``setup_seconds``).
 
-The problem, as tumble's ``heavy_top`` system writes it (``tumble/kernels/systems/heavy_top.py``): the heavy top
+The problem, as tumble's ``heavy_top`` system writes it (``tumble/physics/models/heavy_top.py``): the heavy top
 (Euler–Poisson) in body axes, moments ``I = (1.0, 1.5, 2.0)`` kg m², ``mgl = 1.0`` N m, the centre of mass's direction
 ``c = (1, 0.5, 1)/|(1, 0.5, 1)| = (2/3, 1/3, 2/3)``; state ``y = (w1, w2, w3, g1, g2, g3)``, ``g`` the upward vertical::
 

@@ -233,3 +233,16 @@ def test_every_subpackage_is_installed():
     listed = set(tomllib.loads((PACKAGE.parent / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
     found = {".".join(("tumble", *path.relative_to(PACKAGE).parent.parts)) for path in PACKAGE.rglob("__init__.py")}
     assert found - listed == set(), "add them to [tool.setuptools] packages in pyproject.toml"
+
+
+def test_no_two_hand_written_modules_share_a_name():
+    """A module's name says what it holds, once (issue 40): no two hand-written modules of the package share a file
+    name (``__init__.py`` aside). A generated module (its first line says GENERATED) may carry the name of the one it
+    is copied from: ``kernels/systems/heavy_top.py`` is the kernels' copy of ``physics/models/heavy_top.py``'s
+    equations."""
+    names = {}
+    for path, _ in MODULES:
+        if path.name != "__init__.py" and not path.read_text().startswith('"""GENERATED'):
+            names.setdefault(path.name, []).append(path.relative_to(PACKAGE).as_posix())
+    shared = {name: paths for name, paths in names.items() if len(paths) > 1}
+    assert not shared, shared

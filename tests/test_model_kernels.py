@@ -54,7 +54,26 @@ def _general_state(model):
 
 def test_committed_model_steps_are_what_the_generator_writes():
     committed = Path(model_codegen.TARGET).read_text()
-    assert committed == model_codegen.module_source(), "run: python tumble/kernels/model_codegen.py"
+    assert committed == model_codegen.module_source(), "run: python -m tumble.kernels.model_codegen"
+
+
+@pytest.mark.parametrize("name", model_codegen.equation_modules())
+def test_the_kernels_equations_are_a_copy_of_the_systems_modules(name):
+    """Each system's equations are written once, in its module of tumble.physics.models; the kernels' module is the
+    generator's copy of that section, jitted (and nothing else)."""
+    committed = (model_codegen.SYSTEMS_DIR / f"{name}.py").read_text()
+    assert committed == model_codegen.system_source(name), "run: python -m tumble.kernels.model_codegen"
+    section, functions = model_codegen.equations_section(name)
+    assert {"Constants", "constants", "rate", "tangent", "invariants"} <= {*functions, "Constants"}
+    assert "\n".join(section) in committed.replace("@jit(inline=True)\n", "")
+
+
+def test_an_equations_section_with_a_decorated_function_is_refused(tmp_path, monkeypatch):
+    (tmp_path / "spinner.py").write_text('__all__ = ["rate"]\n\n\n@staticmethod\ndef rate(t, w, c):\n    return w\n\n\n'
+                                         'class Spinner:\n    pass\n')
+    monkeypatch.setattr(model_codegen, "PHYSICS_MODELS", tmp_path)
+    with pytest.raises(ValueError, match="rate has a decorator"):
+        model_codegen.equations_section("spinner")
 
 
 def test_every_nonzero_coefficient_of_rk4_and_rk8_appears_as_an_exact_literal():

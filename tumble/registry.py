@@ -297,6 +297,25 @@ class Model(NamedTuple):
     physics: bool  # True: a class in physics/models/ (rhs, analytic Jacobian, invariants, linear theory)
     text: str
     scan_keys: tuple = ()  # scan keys of its own beyond its parameters (a grid of bodies in its own terms)
+    equations: str = ""  # the module of tumble/physics/models/ that holds its equations ("": the one named as the kind)
+
+    @property
+    def equations_module(self):
+        """The name of the module (``tumble/physics/models/<name>.py``, copied into ``tumble/kernels/systems/``) that
+        holds the model's per-sample equations: :attr:`equations`, or the kind's own name."""
+        return self.equations or self.name
+
+
+#: The first fields of every system's ``Constants`` (the record of named numbers its equations read): the moments
+#: ``i1 i2 i3`` (kg m²) and Euler's coefficients ``a_i = (I_j − I_k)/I_i`` (``(i, j, k)`` cyclic), the differences of
+#: the moments first (exact for close moments).
+RIGID_BODY = ("i1", "i2", "i3", "a1", "a2", "a3")
+
+
+def rigid_body(moments):
+    """The :data:`RIGID_BODY` values of moments ``(I1, I2, I3)`` (kg m²), as plain floats."""
+    i1, i2, i3 = (float(x) for x in moments)
+    return i1, i2, i3, (i2 - i3) / i1, (i3 - i1) / i2, (i1 - i2) / i3
 
 
 #: The blocks a model's state is made of, by the letter its component names start with: (letter, meaning, units).
@@ -310,7 +329,7 @@ STATE_BLOCKS = (
 #: Every model, the default first.
 MODELS = (
     Model("free", (), ("w1", "w2", "w3"), ("energy", "momentum_squared"), True, True,
-          "torque-free rigid body: I w' = (I w) x w"),
+          "torque-free rigid body: I w' = (I w) x w", equations="gyrostat"),  # the gyrostat with no rotor
     Model("gyrostat", ("rotor",), ("w1", "w2", "w3"), ("energy", "momentum_squared"), True, True,
           "rigid body with a rotor of constant relative angular momentum h: I w' = (I w + h) x w"),
     Model("heavy_top", ("mgl",), ("w1", "w2", "w3", "g1", "g2", "g3"),

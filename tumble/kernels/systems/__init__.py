@@ -1,15 +1,16 @@
-"""The built-in systems' per-sample code, one module each: constants, rate, tangent flow, invariants (numba).
+"""The built-in systems' per-sample equations for the kernels: constants, rate, tangent flow, invariants (numba).
 
-Each module holds, once, what the kernels compute for its system: a ``Constants`` record of named numbers built from
-the physical parameters by ``constants(moments, ...)`` (keywords: the model's parameters), the rate
-``rate(t, *y, c)``, the tangent flow ``tangent(t, *y, *v, c)`` (``J(y) v``, the derivative of the rate along ``v``:
-linear theory and the chaos indicators' variational equations), the invariants ``invariants(*y, c)`` and, where the
-state carries a constraint, a ``project(*y)`` applied after each step. The free body runs as the gyrostat with
-``h = 0``.
+Each system's equations are written once, in its module of :mod:`tumble.physics.models` (with the model and its
+scenes); the module here of the same name is a GENERATED copy of them (``python -m tumble.kernels.model_codegen``;
+the kernels sit below physics and do not import it): a ``Constants`` record of named numbers built from the physical
+parameters by ``constants(moments, ...)`` (keywords: the model's parameters), the rate ``rate(t, *y, c)``, the
+tangent flow ``tangent(t, *y, *v, c)`` (``J(y) v``, the derivative of the rate along ``v``: linear theory and the
+chaos indicators' variational equations), the invariants ``invariants(*y, c)`` and, where the state carries a
+constraint, a ``project(*y)`` applied after each step. The free body runs as the gyrostat with ``h = 0``.
 
 :data:`SYSTEMS` maps each model kind (``registry.MODEL_KINDS``) to its module; the generated steps and the dispatch of
-:mod:`tumble.kernels.model_steps` (``python tumble/kernels/model_codegen.py``), the kernels' constants and
-:data:`N_CONSTANTS` derive from it, so adding a system is a module and its row here and in the registry.
+:mod:`tumble.kernels.model_steps`, the kernels' constants and :data:`N_CONSTANTS` derive from it, so adding a system
+is its module in :mod:`tumble.physics.models`, its row in the registry and its import here.
 """
 
 import inspect

@@ -1,10 +1,14 @@
-"""Models: the systems tumble studies, as right-hand sides with analytic Jacobians (numpy).
+"""Models: the systems tumble studies, one module each, its equations written once (numpy and numba alike).
 
 A model is a frozen record of a body's principal moments (kg m², body frame = principal axes) and the model's
-parameters, validated once when it is built. Its state is a flat vector ``y`` of :attr:`Model.state_size`
-components; every function here is vectorised over leading axes, ``y`` of shape ``(..., n)``:
+parameters, validated once when it is built. Its module holds, before the class, the system's per-sample equations as
+scalar code (``Constants``, ``constants``, ``rate``, ``tangent``, ``invariants``: :mod:`.base` says how); the kernels
+compile a generated copy of them (:mod:`tumble.kernels.systems`), the methods here evaluate them on arrays. Its state
+is a flat vector ``y`` of :attr:`Model.state_size` components; every function here is vectorised over leading axes,
+``y`` of shape ``(..., n)``:
 
-* :meth:`Model.rhs` ``y' = f(y)``, :meth:`Model.jacobian` ``∂f/∂y`` (analytic, ``(..., n, n)``);
+* :meth:`Model.rhs` ``y' = f(t, y)``, :meth:`Model.jacobian` ``∂f/∂y`` (exact: the tangent flow along each unit
+  vector, ``(..., n, n)``);
 * :meth:`Model.invariants`: the quantities the motion conserves, by name (``registry.MODELS``);
 * :meth:`Model.equilibrium`: the steady spin about a principal axis, the point linear theory expands about
   (:func:`tumble.physics.theory.linear` of a model: eigenvalues of the Jacobian there);
@@ -17,10 +21,10 @@ components: ``g`` the unit vector pointing up in the body frame (heavy top), ``q
 scalar first (gravity gradient), ``s`` an internal body's angular velocity (damper). A kernel finds a block by
 the offsets of ``registry.state_blocks(kind)``.
 
-One module a model: the base (:mod:`.base`: :class:`Model`, :class:`Transverse` and the helpers the models share,
-Euler's equations among them), then :mod:`.free_body`, :mod:`.gyrostat`, :mod:`.heavy_top`, :mod:`.gravity_gradient`
-and :mod:`.damper`, each the one place its kind is named; this package re-exports them, :data:`CLASSES` and
-:func:`from_kind`.
+One module a model: the base (:mod:`.base`: :class:`Model`, :class:`Transverse`, the evaluation of a module's
+equations on arrays and the helpers the models share), then :mod:`.free_body`, :mod:`.gyrostat`, :mod:`.heavy_top`,
+:mod:`.gravity_gradient` and :mod:`.damper`, each the one place its kind is named (the free body's equations are the
+gyrostat's); this package re-exports them, :data:`CLASSES` and :func:`from_kind`.
 
 Models (Landau & Lifshitz, *Mechanics*, §35-§37; Wittenburg, *Dynamics of Multibody Systems*, §3.6 for the
 gyrostat; Arnold, *Mathematical Methods of Classical Mechanics*, §30 and Goldstein §5.7 for the heavy top):
@@ -28,13 +32,14 @@ gyrostat; Arnold, *Mathematical Methods of Classical Mechanics*, §30 and Goldst
 * :class:`FreeBody`: ``I w' = (I w) × w``.
 * :class:`Gyrostat`: a rotor of constant angular momentum ``h`` relative to the body (N m s, body frame),
   ``L = I w + h``, ``I w' = (I w + h) × w``.
-* :class:`HeavyTop` (Euler-Poisson): moments about the fixed pivot, centre of mass on body axis 3 at distance
-  ``l`` above the pivot, ``mgl = M g l`` (N m); ``g`` the unit up vector in the body frame:
-  ``I w' = (I w) × w + mgl (g × e3)``, ``g' = g × w``. The torque ``r × F = l e3 × (−M g g) = mgl (g × e3)``
+* :class:`HeavyTop` (Euler-Poisson): moments about the fixed pivot, centre of mass in the direction ``c`` (body
+  axis 3 by default) at distance ``l`` from the pivot, ``mgl = M g l`` (N m); ``g`` the unit up vector in the body
+  frame: ``I w' = (I w) × w + mgl (g × c)``, ``g' = g × w``. The torque ``r × F = l c × (−M g g) = mgl (g × c)``
   tips the top away from upright: a top at rest upright falls at the rate ``sqrt(mgl / I1)`` (``I1 <= I2``).
-* :class:`GravityGradient`: a satellite in a circular orbit of rate ``n``; ``w`` and the attitude ``q`` relative
-  to the orbit frame (roll, pitch, yaw): ``I w' = (I w) × w + 3 n² (c3 × I c3)``, ``q' = ½ q ⊗ (0, w + n c2)``.
-  Linear theory in a 3-angle attitude error (:meth:`Model.tangent_jacobian`), not the quaternion's 4 components.
+* :class:`GravityGradient`: a satellite in a circular orbit of rate ``n`` (or an elliptic one); ``w`` and the
+  attitude ``q`` relative to the orbit frame (roll, pitch, yaw): ``I w' = (I w) × w + 3 n² (c3 × I c3)``,
+  ``q' = ½ q ⊗ (0, w + n c2)``. Linear theory in a 3-angle attitude error (:meth:`Model.tangent_jacobian`), not the
+  quaternion's 4 components.
 * :class:`Damper` (Kane's spherical damper): ``I w' = (I w) × w + c (s − w)``, ``J (s' + w × s) = −c (s − w)``;
   ``|I w + J s|`` is kept, the energy decays.
 """

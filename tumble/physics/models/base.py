@@ -1,9 +1,20 @@
 """The base of the models (:mod:`tumble.physics.models`): :class:`Model`, :class:`Transverse` and the helpers
-the models share (Euler's equations with the differences of the moments, a steady spin's state, circular
-weights, a parameter checked against its registry row)."""
+the models share (the rigid body's constants, the Jacobian of Euler's equations with the differences of the
+moments, a steady spin's state, circular weights, a parameter checked against its registry row).
+
+A model's module holds its equations once, as per-sample scalar code (plain Python that numba compiles: the kernels'
+copy of it is generated, :mod:`tumble.kernels.model_codegen`): ``Constants`` (the named numbers the equations
+read), ``constants(moments, **parameters)``, ``rate(t, *y, c)``, ``tangent(t, *y, *v, c)`` (``J(y) v``) and
+``invariants(*y, c)``. Called with numpy arrays as the components (:func:`on_arrays`: the same code, its ``math``
+read as numpy), the same functions give :meth:`Model.rhs`, :meth:`Model.jacobian` and :meth:`Model.invariants` here:
+there is no second transcription of the equations in numpy.
+"""
 
 from __future__ import annotations
 
+import functools
+import importlib
+import types
 from dataclasses import dataclass
 from typing import ClassVar, NamedTuple
 
@@ -12,7 +23,7 @@ import numpy as np
 from ... import registry
 from ..bodies import finite_array, one_body
 
-__all__ = ["Model", "Transverse", "circular_weights", "cross_matrix", "euler_jacobian", "euler_rhs", "one_axis",
+__all__ = ["Model", "Transverse", "circular_weights", "cross_matrix", "euler_jacobian", "on_arrays", "one_axis",
            "parameter", "spin_state"]
 
 
@@ -66,6 +77,23 @@ def parameter(key, value):
     arr = arr.copy()
     arr.setflags(write=False)
     return arr
+
+
+_ON_ARRAYS = {}
+
+
+def on_arrays(module):
+    """The functions of a system's ``module`` as functions of numpy arrays: the same code objects with the module's
+    names, ``math`` replaced by numpy (whose ``sqrt``, ``sin``, ``floor``, ... broadcast; ``math``'s take one
+    number, and numba's device code takes ``math``'s only), as a namespace (``.rate``, ``.tangent``, ...). Made once
+    a module."""
+    if module.__name__ not in _ON_ARRAYS:
+        names = {**vars(module), "math": np}
+        for name, value in vars(module).items():
+            if isinstance(value, types.FunctionType) and value.__module__ == module.__name__:
+                names[name] = types.FunctionType(value.__code__, names, name, value.__defaults__, value.__closure__)
+        _ON_ARRAYS[module.__name__] = types.SimpleNamespace(**names)
+    return _ON_ARRAYS[module.__name__]
 
 
 @dataclass(frozen=True, eq=False)
@@ -289,21 +317,56 @@ class Model:
             out[key] = float(value) if np.ndim(value) == 0 else float(value[axis - 1])
         return out
 
-    # Each model defines: rhs, jacobian, invariants, equilibrium, transverse.
-    def rhs(self, state):  # pragma: no cover - abstract
-        """The time derivative of ``state`` (shape (..., n), n = :attr:`state_size`), same shape; each model
-        says its units."""
-        raise NotImplementedError
+    # --- its equations: the per-sample functions of its module (see the module docstring) ------------------------
+    @classmethod
+    def equations(cls):
+        """The module that holds the model's per-sample equations (``registry.Model.equations_module``): its own,
+        the gyrostat's for the free body."""
+        return importlib.import_module(f"{__package__}.{registry.model_kind(cls.kind).equations_module}")
 
-    def jacobian(self, state):  # pragma: no cover - abstract
-        """``∂ rhs / ∂ state`` at ``state`` (shape (..., n)): shape (..., n, n)."""
-        raise NotImplementedError
+    @functools.cached_property
+    def constants(self):
+        """The equations' ``Constants`` record of this model: its moments and parameters as named numbers (built
+        once)."""
+        return self.equations().constants(self.moments, **self.parameters)
 
-    def invariants(self, state):  # pragma: no cover - abstract
+    def _equations_on(self, state, tangent=False):
+        """``(y, the module's function on arrays, its state arguments)``: ``y`` (..., n) as its ``n`` columns; for
+        the tangent flow each with a last axis of length ``n``, along which the tangent runs over the unit vectors
+        (one call gives the Jacobian's every column)."""
+        y = self._state(state)
+        functions = on_arrays(self.equations())
+        if not tangent:
+            return y, functions.rate, tuple(y[..., i] for i in range(self.state_size))
+        columns = tuple(y[..., i, None] for i in range(self.state_size))
+        return y, functions.tangent, (*columns, *np.eye(self.state_size))
+
+    def rhs(self, state, t=0.0):
+        """The time derivative of ``state`` (shape (..., n), n = :attr:`state_size`) at time ``t`` (s; only an
+        eccentric orbit's equations depend on it), same shape: the module's ``rate``; each model says its units."""
+        y, rate, arguments = self._equations_on(state)
+        out = np.empty(y.shape, dtype=np.result_type(y, float))
+        for i, value in enumerate(rate(t, *arguments, self.constants)):
+            out[..., i] = value
+        return out
+
+    def jacobian(self, state, t=0.0):
+        """``∂ rhs / ∂ state`` at ``state`` (shape (..., n)) and time ``t``: shape (..., n, n), column ``k`` the
+        module's ``tangent`` along the unit vector ``e_k`` (its exact derivative)."""
+        y, tangent, arguments = self._equations_on(state, tangent=True)
+        jac = np.empty(y.shape + (self.state_size,), dtype=np.result_type(y, float))
+        for i, row in enumerate(tangent(t, *arguments, self.constants)):
+            jac[..., i, :] = row
+        return jac
+
+    def invariants(self, state):
         """The conserved quantities of ``state`` (shape (..., n)): ``{name: array of shape (...)}``, named as in
-        ``registry.MODELS``."""
-        raise NotImplementedError
+        ``registry.MODELS`` (the module's ``invariants``, in that order)."""
+        y = self._state(state)
+        values = on_arrays(self.equations()).invariants(*(y[..., i] for i in range(self.state_size)), self.constants)
+        return {name: np.broadcast_to(value, y.shape[:-1]) + 0.0 for name, value in zip(self.spec.invariants, values)}
 
+    # Each model defines: equilibrium, transverse.
     def equilibrium(self, axis, spin=1.0):  # pragma: no cover - abstract
         """The steady state of a spin ``spin`` (rad/s) about body ``axis`` (1, 2 or 3): shape (..., n)."""
         raise NotImplementedError
@@ -317,25 +380,11 @@ class Model:
 _CYCLIC = ((0, 1, 2), (1, 2, 0), (2, 0, 1))
 
 
-def euler_rhs(moments, w, h):
-    """``I⁻¹ ((I w + h) × w)`` for ``w`` (..., 3), ``h`` (3,): ``w_i' = ((I_j − I_k) w_j w_k + h_j w_k − h_k w_j) / I_i``.
-
-    Written with the differences of the moments, as Euler's equations are: ``I_j − I_k`` is exact for close moments
-    (Sterbenz), where ``I_j w_j w_k − I_k w_k w_j`` would lose their common digits (a nearly symmetric body).
-    """
-    h = np.broadcast_to(np.asarray(h, dtype=float), (3,))
-    out = np.empty(w.shape, dtype=np.result_type(w, float))
-    for i, j, k in _CYCLIC:
-        wj, wk = w[..., j], w[..., k]
-        out[..., i] = ((moments[j] - moments[k]) * wj * wk + h[j] * wk - h[k] * wj) / moments[i]
-    return out
-
-
 def euler_jacobian(moments, w, h):
-    """``∂/∂w`` of :func:`euler_rhs`, shape (..., 3, 3): ``I⁻¹ ([I w + h]× − [w]× I)``, entry by entry from the
-    differences of the moments (as :func:`euler_rhs`, so that linear theory of a nearly symmetric body keeps its
-    digits): ``J_ij = ((I_j − I_k) w_k − h_k) / I_i``, ``J_ik = ((I_j − I_k) w_j + h_j) / I_i`` for ``(i, j, k)``
-    cyclic, ``J_ii = 0``."""
+    """``∂w'/∂w`` of Euler's equations with a rotor ``h``, ``I w' = (I w + h) × w``, shape (..., 3, 3): ``I⁻¹ ([I w +
+    h]× − [w]× I)``, entry by entry from the differences of the moments (so that linear theory of a nearly symmetric
+    body keeps its digits; the gravity gradient's Jacobian in its attitude error): ``J_ij = ((I_j − I_k) w_k − h_k) /
+    I_i``, ``J_ik = ((I_j − I_k) w_j + h_j) / I_i`` for ``(i, j, k)`` cyclic, ``J_ii = 0``."""
     h = np.broadcast_to(np.asarray(h, dtype=float), (3,))
     jac = np.zeros(w.shape + (3,), dtype=np.result_type(w, float))
     for i, j, k in _CYCLIC:

@@ -1,4 +1,8 @@
-"""The torque-free rigid body (Landau & Lifshitz, *Mechanics*, §36)."""
+"""The torque-free rigid body (Landau & Lifshitz, *Mechanics*, §36): the gyrostat's equations with no rotor.
+
+Its fused SIMD steps, which ``tumble.integrate`` runs, are the kernels' own (:mod:`tumble.kernels.free_body_parts`);
+as a model of studies and of :func:`tumble.run_ensemble` it runs the gyrostat's generated steps with ``h = 0``.
+"""
 
 from __future__ import annotations
 
@@ -25,20 +29,6 @@ class FreeBody(base.Model):
     """
 
     kind: ClassVar[str] = "free"
-
-    def rhs(self, state):
-        """``w'`` (rad/s²) for states ``w`` of shape (..., 3), rad/s."""
-        return base.euler_rhs(self.moments, self._state(state), 0.0)
-
-    def jacobian(self, state):
-        """``∂w'/∂w`` (1/s), shape (..., 3, 3), for states of shape (..., 3)."""
-        return base.euler_jacobian(self.moments, self._state(state), 0.0)
-
-    def invariants(self, state):
-        """``{"energy": ½ w·Iw (J), "momentum_squared": |Iw|² ((N m s)²)}``, each of shape (...)."""
-        w = self._state(state)
-        lw = self.moments * w
-        return {"energy": 0.5 * np.sum(lw * w, axis=-1), "momentum_squared": np.sum(lw * lw, axis=-1)}
 
     def equilibrium(self, axis, spin=1.0):
         """The steady spin ``w = spin e_axis``: shape (..., 3) for ``spin`` (...) rad/s; ``axis`` 1, 2 or 3."""

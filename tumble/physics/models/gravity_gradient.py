@@ -1,53 +1,164 @@
-"""A rigid satellite in a circular or elliptic orbit under the gravity-gradient torque (Hughes, *Spacecraft
-Attitude Dynamics*, §8.1-8.3)."""
+"""A satellite under the gravity-gradient torque, in a circular or an elliptic orbit.
+
+State: the body-frame angular velocity ``w1 w2 w3`` (rad/s, inertial) and the attitude ``q0 q1 q2 q3`` relative to
+the orbit frame (unit quaternion, scalar first; orbit axes: 1 roll along track, 2 pitch = negative orbit normal, 3
+yaw = nadir). ``c2``, ``c3`` are the orbit's pitch and nadir axes in the body frame (rows of ``C(q)``). Parameters:
+the orbit's mean motion ``n`` (rad/s) and eccentricity ``e`` in [0, 1), perigee at ``t = 0``. With the true anomaly
+``ν(t)`` and the radius ``r`` (Kepler's equation ``E − e sin E = n t``; ``a/r = 1/(1 − e cos E)``), the orbit frame
+turns at ``ν' = n sqrt(1 − e²) (a/r)²`` and the gradient's strength is ``3 μ/r³ = 3 n² (a/r)³`` (Hughes,
+*Spacecraft Attitude Dynamics*, §8.1)::
+
+    I w' = (I w) × w + 3 n² (a/r)³ (c3 × I c3),    q' = ½ q ⊗ (0, w + ν' c2)
+
+In a circular orbit (``e = 0``: ``ν' = n``, ``a/r = 1``, the equations of the circular model to the last bit) the
+motion conserves the Jacobi integral ``½ w_r·I w_r + (3/2) n² c3·I c3 − ½ n² c2·I c2`` (``w_r = w + n c2``); an
+eccentric orbit makes the torque periodic in time and conserves none (only ``|q|²``). The quaternion is put back
+on the unit sphere after every step (:func:`project`, called by the generated block loop): the right-hand side
+keeps ``|q|`` only exactly, a Runge–Kutta step only to its order, and ``c2``, ``c3`` are a rotation's only on the
+unit sphere.
+
+The system in one module, as :mod:`tumble.physics.models.gyrostat`: its per-sample equations and the model with
+its scenes (Hughes, *Spacecraft Attitude Dynamics*, §8.1-8.3).
+"""
 
 from __future__ import annotations
 
+import math
+from collections import namedtuple
 from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
+from ... import registry
 from ..bodies import finite_array
 from . import base
 
-__all__ = ["GravityGradient"]
+__all__ = ["KEPLER_ITERATIONS", "Constants", "GravityGradient", "constants", "forcing", "invariants", "orbit",
+           "project", "rate", "rate_forced", "tangent", "tangent_forced"]
 
 
-def _rows_of_attitude(q):
-    """``(c2, c3)``: the orbit frame's pitch axis ``o2`` and nadir ``o3`` in the body frame, each (..., 3), for
-    attitudes ``q`` (..., 4) (scalar first, body to orbit frame): the second and third rows of the rotation matrix
-    ``C(q)`` (``v_orbit = C v_body``), ``1 − 2(…)`` on the diagonal (the rotation's matrix on the unit sphere)."""
-    q0, q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    c2 = np.stack([2 * (q1 * q2 + q0 * q3), 1 - 2 * (q1 * q1 + q3 * q3), 2 * (q2 * q3 - q0 * q1)], axis=-1)
-    c3 = np.stack([2 * (q1 * q3 - q0 * q2), 2 * (q2 * q3 + q0 * q1), 1 - 2 * (q1 * q1 + q2 * q2)], axis=-1)
-    return c2, c3
+#: Newton iterations at most for Kepler's equation (from Danby's start ``E = M + 0.85 e sign(sin M)``): 8 reach
+#: round-off for every mean anomaly up to e = 0.99 (4e-16 of ``M``; 6 suffice to e = 0.9), more near e = 1.
+KEPLER_ITERATIONS = 64
+
+_TWO_PI = 2.0 * math.pi
 
 
-def _rows_derivatives(q):
-    """``(∂c2/∂q, ∂c3/∂q)`` of :func:`_rows_of_attitude`, each (..., 3, 4)."""
-    q0, q1, q2, q3 = (2 * q[..., i] for i in range(4))
-    z = np.zeros_like(q0)
-    d2 = np.stack([np.stack([q3, q2, q1, q0], -1), np.stack([z, -2 * q1, z, -2 * q3], -1),
-                   np.stack([-q1, -q0, q3, q2], -1)], -2)
-    d3 = np.stack([np.stack([-q2, q3, -q0, q1], -1), np.stack([q1, q0, q3, q2], -1),
-                   np.stack([z, -2 * q1, -2 * q2, z], -1)], -2)
-    return d2, d3
+#: The rigid body's fields, the mean motion ``n`` (rad/s), ``n²``, ``3 n²`` (1/s²), the eccentricity ``e`` and
+#: ``sqrt(1 − e²)``.
+Constants = namedtuple("Constants", (*registry.RIGID_BODY, "n", "n2", "three_n2", "e", "root"))
 
 
-def _xi(q):
-    """``Ξ(q)``, (..., 4, 3): ``q ⊗ (0, v) = Ξ(q) v`` (Hamilton product, scalar first)."""
-    q0, q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    return np.stack([np.stack([-q1, -q2, -q3], -1), np.stack([q0, -q3, q2], -1), np.stack([q3, q0, -q1], -1),
-                     np.stack([-q2, q1, q0], -1)], -2)
+def constants(moments, orbit_rate, eccentricity=0.0):
+    """:class:`Constants` of moments ``(I1, I2, I3)`` (kg m²), the orbit's mean motion (rad/s) and eccentricity."""
+    n, e = float(orbit_rate), float(eccentricity)
+    return Constants(*registry.rigid_body(moments), n, n * n, 3 * (n * n), e, math.sqrt(1.0 - e * e))
 
 
-def _omega_right(v):
-    """``Ω(v)``, (..., 4, 4): ``q ⊗ (0, v) = Ω(v) q``."""
-    v1, v2, v3 = v[..., 0], v[..., 1], v[..., 2]
-    z = np.zeros_like(v1)
-    return np.stack([np.stack([z, -v1, -v2, -v3], -1), np.stack([v1, z, v3, -v2], -1),
-                     np.stack([v2, -v3, z, v1], -1), np.stack([v3, v2, -v1, z], -1)], -2)
+def orbit(t, c):
+    """``(ν', 3 μ/r³)`` at time ``t`` (s from perigee): the orbit frame's rate (rad/s) and the gradient's strength
+    (1/s²); ``(n, 3 n²)`` exactly in a circular orbit."""
+    if c.e == 0.0:
+        return c.n, c.three_n2
+    mean = c.n * t
+    mean -= _TWO_PI * math.floor(mean / _TWO_PI + 0.5)  # in [-pi, pi)
+    big = mean + 0.85 * c.e * (1.0 if math.sin(mean) >= 0.0 else -1.0)
+    for _ in range(KEPLER_ITERATIONS):
+        step = (big - c.e * math.sin(big) - mean) / (1.0 - c.e * math.cos(big))
+        big -= step
+        if abs(step) <= 1e-15 * (1.0 + abs(big)):
+            break
+    a_r = 1.0 / (1.0 - c.e * math.cos(big))
+    return c.n * c.root * a_r * a_r, c.three_n2 * a_r * a_r * a_r
+
+
+def _orbit_rows(q0, q1, q2, q3):
+    """Rows ``c2`` (orbit normal, negative) and ``c3`` (nadir) of the orbit frame in the body frame, from the attitude
+    quaternion: ``(c21, c22, c23, c31, c32, c33)``."""
+    return (2.0 * (q1 * q2 + q0 * q3), 1.0 - 2.0 * (q1 * q1 + q3 * q3), 2.0 * (q2 * q3 - q0 * q1),
+            2.0 * (q1 * q3 - q0 * q2), 2.0 * (q2 * q3 + q0 * q1), 1.0 - 2.0 * (q1 * q1 + q2 * q2))
+
+
+def forcing(t, c):
+    """What the rate takes from time: :func:`orbit`. The generated steps evaluate it once per stage for a whole block
+    of samples (it is the same for every sample), outside the loop over them, so that the loop keeps no branch and
+    vectorises."""
+    return orbit(t, c)
+
+
+def rate(t, w1, w2, w3, q0, q1, q2, q3, c):
+    # size: the time, the state's seven components (scalars: the generated steps keep them in registers), the constants
+    """``(w', q')`` at time ``t``: rad/s², then 1/s."""
+    return rate_forced(forcing(t, c), w1, w2, w3, q0, q1, q2, q3, c)
+
+
+def rate_forced(f, w1, w2, w3, q0, q1, q2, q3, c):
+    # size: the forcing, the state's seven components, the constants
+    """:func:`rate` with the orbit's ``f = (ν', 3 μ/r³)`` given (:func:`forcing`)."""
+    nu_dot, strength = f
+    c21, c22, c23, c31, c32, c33 = _orbit_rows(q0, q1, q2, q3)
+    v1, v2, v3 = w1 + nu_dot * c21, w2 + nu_dot * c22, w3 + nu_dot * c23  # w_r, relative to the orbit frame
+    return (c.a1 * (w2 * w3 - strength * (c32 * c33)),
+            c.a2 * (w3 * w1 - strength * (c33 * c31)),
+            c.a3 * (w1 * w2 - strength * (c31 * c32)),
+            0.5 * (-q1 * v1 - q2 * v2 - q3 * v3),
+            0.5 * (q0 * v1 - q3 * v2 + q2 * v3),
+            0.5 * (q3 * v1 + q0 * v2 - q1 * v3),
+            0.5 * (-q2 * v1 + q1 * v2 + q0 * v3))
+
+
+def tangent(t, w1, w2, w3, q0, q1, q2, q3, v1, v2, v3, u0, u1, u2, u3, c):
+    # size: the time, the state's seven components, the tangent's seven (v along w, u along q), the constants
+    """The tangent flow ``J(y) δ`` along ``δ = (v, u)`` (``v`` along ``w``, ``u`` along ``q``): the exact derivative
+    of :func:`rate` (the attitude rows are quadratic in ``q``)."""
+    return tangent_forced(forcing(t, c), w1, w2, w3, q0, q1, q2, q3, v1, v2, v3, u0, u1, u2, u3, c)
+
+
+def tangent_forced(f, w1, w2, w3, q0, q1, q2, q3, v1, v2, v3, u0, u1, u2, u3, c):
+    # size: the forcing, the state's seven components, the tangent's seven, the constants
+    """:func:`tangent` with the orbit's ``f = (ν', 3 μ/r³)`` given (:func:`forcing`)."""
+    nu_dot, strength = f
+    c21, c22, c23, c31, c32, c33 = _orbit_rows(q0, q1, q2, q3)
+    # derivatives of the rows along u
+    d21 = 2.0 * (u1 * q2 + q1 * u2 + u0 * q3 + q0 * u3)
+    d22 = -4.0 * (q1 * u1 + q3 * u3)
+    d23 = 2.0 * (u2 * q3 + q2 * u3 - u0 * q1 - q0 * u1)
+    d31 = 2.0 * (u1 * q3 + q1 * u3 - u0 * q2 - q0 * u2)
+    d32 = 2.0 * (u2 * q3 + q2 * u3 + u0 * q1 + q0 * u1)
+    d33 = -4.0 * (q1 * u1 + q2 * u2)
+    r1, r2, r3 = w1 + nu_dot * c21, w2 + nu_dot * c22, w3 + nu_dot * c23
+    s1, s2, s3 = v1 + nu_dot * d21, v2 + nu_dot * d22, v3 + nu_dot * d23  # derivative of w_r
+    return (c.a1 * ((v2 * w3 + w2 * v3) - strength * (d32 * c33 + c32 * d33)),
+            c.a2 * ((v3 * w1 + w3 * v1) - strength * (d33 * c31 + c33 * d31)),
+            c.a3 * ((v1 * w2 + w1 * v2) - strength * (d31 * c32 + c31 * d32)),
+            0.5 * ((-u1 * r1 - u2 * r2 - u3 * r3) + (-q1 * s1 - q2 * s2 - q3 * s3)),
+            0.5 * ((u0 * r1 - u3 * r2 + u2 * r3) + (q0 * s1 - q3 * s2 + q2 * s3)),
+            0.5 * ((u3 * r1 + u0 * r2 - u1 * r3) + (q3 * s1 + q0 * s2 - q1 * s3)),
+            0.5 * ((-u2 * r1 + u1 * r2 + u0 * r3) + (-q2 * s1 + q1 * s2 + q0 * s3)))
+
+
+def project(w1, w2, w3, q0, q1, q2, q3):
+    """The state with its quaternion divided by its norm (after each step; ``w`` unchanged)."""
+    norm = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+    return w1, w2, w3, q0 / norm, q1 / norm, q2 / norm, q3 / norm
+
+
+def invariants(w1, w2, w3, q0, q1, q2, q3, c):
+    """``(Jacobi integral (J), |q|², 0)`` and their scales ``(T_r + V_g + V_c, |q|², 1)``; in an eccentric orbit the
+    Jacobi integral is no invariant: ``(0, |q|², 0)``.
+
+    The Jacobi integral ``T_r + V_g − V_c`` (``T_r = ½ w_r·I w_r``, ``V_g = (3/2) n² c3·I c3``, ``V_c = ½ n²
+    c2·I c2``) may vanish, so its scale is the sum of the three terms' magnitudes; ``|q|²`` is its own scale.
+    """
+    c21, c22, c23, c31, c32, c33 = _orbit_rows(q0, q1, q2, q3)
+    v1, v2, v3 = w1 + c.n * c21, w2 + c.n * c22, w3 + c.n * c23
+    kinetic = 0.5 * (c.i1 * v1 * v1 + c.i2 * v2 * v2 + c.i3 * v3 * v3)
+    gravity = 1.5 * c.n2 * (c.i1 * c31 * c31 + c.i2 * c32 * c32 + c.i3 * c33 * c33)
+    centrifugal = 0.5 * c.n2 * (c.i1 * c21 * c21 + c.i2 * c22 * c22 + c.i3 * c23 * c23)
+    unit = q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3
+    jacobi = kinetic + gravity - centrifugal if c.e == 0.0 else 0.0
+    return jacobi, unit, 0.0, kinetic + gravity + centrifugal, unit, 1.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -118,65 +229,26 @@ class GravityGradient(base.Model):
 
     def orbit(self, t=0.0):
         """``(ν', 3 μ/r³)`` at time ``t`` (s from perigee), each of the shape of ``t``: the orbit frame's rate (rad/s)
-        and the gradient's strength (1/s²), from Kepler's equation ``E − e sin E = n t`` (Newton's method from
-        Danby's start, to round-off); ``(n, 3 n²)`` in a circular orbit."""
-        n, e = self.orbit_rate, self.eccentricity
+        and the gradient's strength (1/s²), from Kepler's equation (:func:`orbit`); ``(n, 3 n²)`` in a circular
+        orbit."""
         t = np.asarray(t, dtype=float)
-        if e == 0.0:
-            return np.full(t.shape, n), np.full(t.shape, 3 * n * n)
-        mean = n * t
-        mean = mean - 2 * np.pi * np.floor(mean / (2 * np.pi) + 0.5)
-        big = mean + 0.85 * e * np.where(np.sin(mean) >= 0.0, 1.0, -1.0)
-        for _ in range(64):
-            step = (big - e * np.sin(big) - mean) / (1.0 - e * np.cos(big))
-            big = big - step
-            if np.all(np.abs(step) <= 1e-15 * (1.0 + np.abs(big))):
-                break
-        a_r = 1.0 / (1.0 - e * np.cos(big))
-        return n * np.sqrt(1.0 - e * e) * a_r ** 2, 3 * n * n * a_r ** 3
+        c = self.constants
+        pairs = np.array([orbit(x, c) for x in t.ravel().tolist()]).reshape(t.shape + (2,))
+        return pairs[..., 0], pairs[..., 1]
 
     @property
     def tangent_size(self):
         """6: ``w`` and the attitude error ``θ`` (rad) of :meth:`tangent_jacobian`."""
         return 6
 
-    def _parts(self, state, t=0.0):
+    def _parts(self, state):
+        """``(y, w, c2, c3, w_r)`` of states (..., 7) in a circular orbit: the rows ``c2``, ``c3`` (..., 3) and ``w_r =
+        w + n c2``."""
         y = self._state(state)
-        w, q = y[..., :3], y[..., 3:]
-        c2, c3 = _rows_of_attitude(q)
-        rate, strength = (self.orbit_rate, 3 * self.orbit_rate ** 2) if self.eccentricity == 0.0 else (
-            float(x) for x in self.orbit(t))
-        return y, w, q, c2, c3, w + rate * c2, rate, strength
-
-    def _torque_jacobian(self, c3, strength):
-        """``∂/∂c3`` of ``3 μ/r³ I⁻¹ (c3 × I c3)``, (..., 3, 3): ``3 μ/r³ I⁻¹ ([c3]× I − [I c3]×)``."""
-        return (strength / self.moments[:, None]) * (base.cross_matrix(c3) * self.moments - base.cross_matrix(self.moments * c3))
-
-    def rhs(self, state, t=0.0):
-        """``(w', q')`` for states of shape (..., 7) at time ``t`` (s; only an eccentric orbit depends on it): rad/s²,
-        then 1/s."""
-        _, w, q, _, c3, w_r, _, strength = self._parts(state, t)
-        torque = strength * np.cross(c3, self.moments * c3)
-        dq = 0.5 * np.einsum("...ij,...j->...i", _xi(q), w_r)
-        return np.concatenate([base.euler_rhs(self.moments, w, 0.0) + torque / self.moments, dq], axis=-1)
-
-    def jacobian(self, state, t=0.0):
-        """``∂(w', q')/∂(w, q)`` (1/s), shape (..., 7, 7), in the state's own components, at time ``t`` (s).
-
-        Blocks: ``∂w'/∂w = I⁻¹ ([Iw]× − [w]× I)``; ``∂w'/∂q = 3 n² I⁻¹ ([c3]× I − [I c3]×) ∂c3/∂q``;
-        ``∂q'/∂w = ½ Ξ(q)``; ``∂q'/∂q = ½ Ω(w_r) + ½ n Ξ(q) ∂c2/∂q`` (``q ⊗ (0, v) = Ξ(q) v = Ω(v) q``). At the
-        equilibrium the row and the column of ``q0`` vanish: the quaternion's norm is a constraint, an eigenvalue
-        0 that is no motion (linear theory uses :meth:`tangent_jacobian`).
-        """
-        y, w, q, _, c3, w_r, rate, strength = self._parts(state, t)
-        d2, d3 = _rows_derivatives(q)
-        xi = _xi(q)
-        jac = np.zeros(y.shape + (7,), dtype=np.result_type(y, float))
-        jac[..., :3, :3] = base.euler_jacobian(self.moments, w, 0.0)
-        jac[..., :3, 3:] = self._torque_jacobian(c3, strength) @ d3
-        jac[..., 3:, :3] = 0.5 * xi
-        jac[..., 3:, 3:] = 0.5 * _omega_right(w_r) + 0.5 * rate * (xi @ d2)
-        return jac
+        rows = _orbit_rows(*(y[..., 3 + i] for i in range(4)))
+        c2, c3 = np.stack(rows[:3], axis=-1), np.stack(rows[3:], axis=-1)
+        w = y[..., :3]
+        return y, w, c2, c3, w + self.orbit_rate * c2
 
     def _circular(self, what):
         if self.eccentricity != 0.0:
@@ -189,7 +261,7 @@ class GravityGradient(base.Model):
         q = finite_array(attitude, "attitude")
         if q.ndim == 0 or q.shape[-1] != 4:
             raise ValueError(f"attitude must have shape (..., 4) (a quaternion, scalar first), got shape {q.shape}")
-        return -self.orbit_rate * _rows_of_attitude(q)[0]
+        return -self.orbit_rate * np.stack(_orbit_rows(*(q[..., i] for i in range(4)))[:3], axis=-1)
 
     def tangent_jacobian(self, state):
         """The Jacobian in ``(w, θ)``, shape (..., 6, 6) (1/s): ``θ`` the attitude error in the body frame,
@@ -202,28 +274,24 @@ class GravityGradient(base.Model):
         with the ``q`` columns doubled and rows halved.
         """
         self._circular("linear theory in the attitude error")
-        y, w, _, c2, c3, w_r, _, strength = self._parts(state)
+        y, w, c2, c3, w_r = self._parts(state)
+        strength = 3 * self.orbit_rate ** 2
+        torque = (strength / self.moments[:, None]) * (base.cross_matrix(c3) * self.moments
+                                                       - base.cross_matrix(self.moments * c3))
         jac = np.zeros(y.shape[:-1] + (6, 6), dtype=np.result_type(y, float))
         jac[..., :3, :3] = base.euler_jacobian(self.moments, w, 0.0)
-        jac[..., :3, 3:] = self._torque_jacobian(c3, strength) @ base.cross_matrix(c3)
+        jac[..., :3, 3:] = torque @ base.cross_matrix(c3)
         jac[..., 3:, :3] = np.eye(3)
         jac[..., 3:, 3:] = self.orbit_rate * base.cross_matrix(c2) - base.cross_matrix(w_r)
         return jac
 
     def invariants(self, state):
-        """``jacobi_integral`` (J) and ``quaternion_squared`` ``|q|²`` (1), each of shape (...).
-
-        ``jacobi_integral = ½ w_r·I w_r + (3/2) n² c3·I c3 − ½ n² c2·I c2`` with ``w_r = w + n c2``. In an eccentric
-        orbit only ``quaternion_squared``: nothing else is conserved.
-        """
-        _, _, q, c2, c3, w_r, _, _ = self._parts(state)
+        """``jacobi_integral`` (J) and ``quaternion_squared`` ``|q|²`` (1), each of shape (...) (:func:`invariants`);
+        in an eccentric orbit only ``quaternion_squared``: nothing else is conserved."""
+        found = super().invariants(state)
         if self.eccentricity != 0.0:
-            return {"quaternion_squared": np.sum(q * q, axis=-1)}
-        n2 = self.orbit_rate ** 2
-        moments = self.moments
-        jacobi = 0.5 * np.sum(moments * w_r * w_r, axis=-1) + 1.5 * n2 * np.sum(moments * c3 * c3, axis=-1) \
-            - 0.5 * n2 * np.sum(moments * c2 * c2, axis=-1)
-        return {"jacobi_integral": jacobi, "quaternion_squared": np.sum(q * q, axis=-1)}
+            del found[self.spec.invariants[0]]
+        return found
 
     def equilibrium(self, axis=2, spin=1.0):
         """The orbit-following attitude: ``w = (0, −n, 0)``, ``q = (1, 0, 0, 0)``; shape ``spin.shape + (7,)``.

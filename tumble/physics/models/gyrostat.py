@@ -1,20 +1,70 @@
-"""A rigid body with a rotor of constant relative angular momentum (Wittenburg, *Dynamics of Multibody
-Systems*, §3.6)."""
+"""The gyrostat (and the free body, its ``h = 0``): a rigid body with a rotor of constant relative angular momentum.
+
+``I w' = (I w + h) × w`` in the body frame (Wittenburg, *Dynamics of Multibody Systems*, §3.6), i.e. for ``(i, j, k)``
+cyclic ``w_i' = (I_j − I_k)/I_i w_j w_k + (h_j/I_i) w_k − (h_k/I_i) w_j``. State ``w1 w2 w3`` (rad/s); parameter
+``rotor`` ``h`` (N m s, body frame). Kept: the energy ``½ w·I w`` and ``|I w + h|²``.
+
+The system in one module: its per-sample equations (:class:`Constants`, :func:`constants`, :func:`rate`,
+:func:`tangent`, :func:`invariants`: scalar code that numba compiles into the kernels' generated steps, and that
+:class:`Gyrostat` evaluates on numpy arrays, :mod:`tumble.physics.models.base`) and the model with its scenes.
+"""
 
 from __future__ import annotations
 
+import math
+from collections import namedtuple
 from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
+from ... import registry
 from ..bodies import finite_array
 from . import base
 
-__all__ = ["Gyrostat"]
+__all__ = ["Constants", "Gyrostat", "constants", "invariants", "rate", "tangent"]
 
-#: A rotor component across the spin axis smaller than this fraction of |rotor| counts as 0 (equilibrium check).
-ROTOR_RTOL = 1e-12
+#: The rigid body's fields (:data:`tumble.registry.RIGID_BODY`), ``h_j/I_i`` (1/s) and the rotor ``h``
+#: (N m s).
+Constants = namedtuple("Constants", (*registry.RIGID_BODY, "h2_i1", "h3_i1", "h3_i2", "h1_i2", "h1_i3", "h2_i3", "h1",
+                                     "h2", "h3"))
+
+
+def constants(moments, rotor=(0.0, 0.0, 0.0)):
+    """:class:`Constants` of moments ``(I1, I2, I3)`` (kg m²) and ``rotor`` (N m s)."""
+    rigid = registry.rigid_body(moments)
+    i1, i2, i3 = rigid[:3]
+    h1, h2, h3 = (float(x) for x in np.asarray(rotor, dtype=float))
+    return Constants(*rigid, h2 / i1, h3 / i1, h3 / i2, h1 / i2, h1 / i3, h2 / i3, h1, h2, h3)
+
+
+def rate(t, w1, w2, w3, c):
+    """``w'`` (rad/s²) at ``w`` (rad/s)."""
+    return (c.a1 * w2 * w3 + (c.h2_i1 * w3 - c.h3_i1 * w2),
+            c.a2 * w3 * w1 + (c.h3_i2 * w1 - c.h1_i2 * w3),
+            c.a3 * w1 * w2 + (c.h1_i3 * w2 - c.h2_i3 * w1))
+
+
+def tangent(t, w1, w2, w3, v1, v2, v3, c):
+    """The tangent flow ``J(w) v``: the derivative of :func:`rate` at ``w`` along ``v``."""
+    return (c.a1 * (v2 * w3 + w2 * v3) + (c.h2_i1 * v3 - c.h3_i1 * v2),
+            c.a2 * (v3 * w1 + w3 * v1) + (c.h3_i2 * v1 - c.h1_i2 * v3),
+            c.a3 * (v1 * w2 + w1 * v2) + (c.h1_i3 * v2 - c.h2_i3 * v1))
+
+
+def invariants(w1, w2, w3, c):
+    """``(energy ½ w·Iw (J), |I w + h|² ((N m s)²), 0)`` and their scales ``(½ w·Iw, (|I w| + |h|)², 1)``.
+
+    A drift is ``|x − x0| / scale0``: the energy is >= 0 and its own scale; ``|I w + h|²`` may vanish (``I w =
+    −h``), so its scale is the largest value it can take for the given ``|I w|`` and ``|h|``.
+    """
+    l1, l2, l3 = c.i1 * w1, c.i2 * w2, c.i3 * w3
+    t1, t2, t3 = l1 + c.h1, l2 + c.h2, l3 + c.h3
+    e = 0.5 * (l1 * w1 + l2 * w2 + l3 * w3)
+    m = t1 * t1 + t2 * t2 + t3 * t3
+    s = math.sqrt(l1 * l1 + l2 * l2 + l3 * l3) + math.sqrt(c.h1 * c.h1 + c.h2 * c.h2 + c.h3 * c.h3)
+    return e, m, 0.0, e, s * s, 1.0
+
 
 @dataclass(frozen=True, eq=False)
 class Gyrostat(base.Model):
@@ -40,24 +90,11 @@ class Gyrostat(base.Model):
 
     rotor: np.ndarray
     kind: ClassVar[str] = "gyrostat"
+    #: A rotor component across the spin axis smaller than this fraction of ``|rotor|`` counts as 0 (equilibrium check).
+    rotor_rtol: ClassVar[float] = 1e-12
 
     def _rotor(self):
         return self.rotor
-
-    def rhs(self, state):
-        """``w'`` (rad/s²) for states ``w`` of shape (..., 3), rad/s."""
-        return base.euler_rhs(self.moments, self._state(state), self.rotor)
-
-    def jacobian(self, state):
-        """``∂w'/∂w`` (1/s), shape (..., 3, 3): ``I⁻¹ ([I w + h]× − [w]× I)``."""
-        return base.euler_jacobian(self.moments, self._state(state), self.rotor)
-
-    def invariants(self, state):
-        """``{"energy": ½ w·Iw (J), "momentum_squared": |Iw + h|² ((N m s)²)}``, each of shape (...)."""
-        w = self._state(state)
-        lw = self.moments * w
-        total = lw + self.rotor
-        return {"energy": 0.5 * np.sum(lw * w, axis=-1), "momentum_squared": np.sum(total * total, axis=-1)}
 
     def equilibrium(self, axis, spin=1.0):
         """The steady spin ``w = spin e_axis`` (shape (..., 3)); it is one only with the rotor along ``axis``.
@@ -65,11 +102,11 @@ class Gyrostat(base.Model):
         Raises
         ------
         ValueError
-            The rotor has a component across ``axis`` (beyond ``ROTOR_RTOL |h|``): ``(I w + h) × w ≠ 0``.
+            The rotor has a component across ``axis`` (beyond ``rotor_rtol |h|``): ``(I w + h) × w ≠ 0``.
         """
         k = base.one_axis(axis)
         across = np.delete(self.rotor, k)
-        if np.abs(across).max() > ROTOR_RTOL * np.linalg.norm(self.rotor):
+        if np.abs(across).max() > self.rotor_rtol * np.linalg.norm(self.rotor):
             raise ValueError(f"rotor must lie along the spin axis {k + 1} for a steady spin about it, got rotor = "
                              f"{self.rotor.tolist()} N m s")
         return base.spin_state(3, k, spin)
