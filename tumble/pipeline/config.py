@@ -123,9 +123,6 @@ MODEL_FIGURES = (*registry.FIGURE_MODELS, "summary")
 #: kind they belong to says so in its registry row (``scan_keys``).
 K_SCAN_KEYS = ("k1", "k3")
 
-#: A rotor component across the spin axis above this fraction of ``|rotor|`` breaks the steady spin.
-_ROTOR_RTOL = 1e-12
-
 #: ``scan.triangle``: the n x n inertia-triangle grid, n in this range.
 TRIANGLE_RANGE = (2, 200)
 
@@ -804,7 +801,7 @@ def _check_model_scenes(resolved, given):
                 continue  # a number: along each scene's axis
             for axis_field, a in axes:
                 across = [x for i, x in enumerate(h) if i != a - 1]
-                if max(abs(x) for x in across) > _ROTOR_RTOL * math.hypot(*h):
+                if max(abs(x) for x in across) > cls.rotor_rtol * math.hypot(*h):  # the model's own
                     raise _Invalid(field, f"{h} N m s lies across the spin axis ({axis_field} = {a}); a steady "
                                           f"spin needs the rotor along it (give h along axis {a} only, or numbers "
                                           f"in scan.rotor: h along each scene's axis)")
