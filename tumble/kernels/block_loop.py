@@ -266,7 +266,7 @@ def _stop_complete(ys, active, reached, stop_norm, stop_flips, flip_count, lo, k
         if active[i]:
             flipped = stop_flips <= 0 or flip_count[lo + i] >= stop_flips
             if (stop_norm <= 0.0 or reached[i]) and flipped:
-                freeze(i, k, STATUS_OK, ys, active, frozen, status, last)
+                freeze(i, k, np.int64(STATUS_OK), ys, active, frozen, status, last)  # (int64: one variant)
             else:
                 remaining += 1
     return remaining
@@ -372,7 +372,7 @@ def run_block(system, method, torque_free, y, lo, scratch, params, t0, h, n_step
     ran = np.int64(0)  # (not the literal 0: a literal argument would compile a second variant of the check)
     n_frozen = check_finite(ys, active, ran, frozen, block_status, last)
     slot = store_initial(saved, ys, lo)
-    probe = 0
+    probe = np.int64(0)  # (as ``ran``)
     while probe < n_probes and probe_steps[probe] == 0:
         _observe_norm(ys, active, columns, weights, y_eq, probes, lo, probe, stop_norm, reached, window, fit_saturation)
         probe += 1

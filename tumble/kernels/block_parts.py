@@ -9,6 +9,8 @@ block together (SIMD lanes) and :func:`restore_frozen` puts the stopped ones bac
 
 import math
 
+import numpy as np
+
 from ..registry import STATUS_NONFINITE, STATUS_OK
 from .jit import jit
 
@@ -60,7 +62,7 @@ def check_finite(ys, active, k, frozen, status, last):
             for j in range(ys.shape[0]):
                 finite = finite and math.isfinite(ys[j, i])
             if not finite:
-                freeze(i, k, STATUS_NONFINITE, ys, active, frozen, status, last)
+                freeze(i, k, np.int64(STATUS_NONFINITE), ys, active, frozen, status, last)  # (int64: one variant)
                 stopped += 1
     return stopped
 
@@ -78,7 +80,7 @@ def store_initial(saved, ys, lo):
     """The block's initial states into ``saved[0]``; returns the next slot (0 when ``saved`` is empty)."""
     if saved.shape[0] == 0:
         return 0
-    store(saved, 0, ys, lo)
+    store(saved, np.int64(0), ys, lo)  # (not the literal 0: a second compiled variant)
     return 1
 
 

@@ -29,6 +29,7 @@ Kernels take plain float64 arrays and scalars and write into arrays they are giv
 import math
 
 import numba
+import numpy as np
 
 from .elliptic import (KIND_SEPARATRIX, KIND_STATIONARY, _LANDEN_MAX, _sech, _setup, _sncndn_core, _sncndn_shifted,
                        carlson_rf)
@@ -130,7 +131,8 @@ def _pi_integral(u, cst, landen_a, landen_c):
     if separatrix:
         j = 0.0
         r = u
-        s, c, d = _sncndn(r, 0.0, 0.0, 0.0, 0.0, 0.0, 0, landen_a, landen_c, 0)
+        zero = np.int64(0)  # (not the literal 0: a second compiled variant of the sn cn dn chain)
+        s, c, d = _sncndn(r, 0.0, 0.0, 0.0, 0.0, 0.0, zero, landen_a, landen_c, zero)
     else:
         j = math.floor(u / (2.0 * K) + 0.5)
         r = u - 2.0 * K * j

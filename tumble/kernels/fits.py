@@ -248,8 +248,9 @@ def phase_fit(times, row, states, columns, weights, floor, max_step, frequency, 
     n, t_count = states.shape[0], states.shape[1]
     unsigned = np.ones(1)
     for i in numba.prange(n):
-        frequency[i], radius[i], code[i] = fit_sample(i, times, row, states, columns, weights, unsigned, floor,
-                                                      max_step, False, np.empty(t_count), np.empty(t_count))
+        # np.int64(i): the parallel loop's index is unsigned in its body's own compile; one variant of fit_sample
+        frequency[i], radius[i], code[i] = fit_sample(np.int64(i), times, row, states, columns, weights, unsigned,
+                                                      floor, max_step, False, np.empty(t_count), np.empty(t_count))
 
 
 @jit(contract=False)

@@ -234,8 +234,9 @@ def _run_block(model, method, a, y, V, lo, m, t0, h, n_steps, every, transient, 
         if not finite:
             live[i] = False
             n_live -= 1
-            _finish(i, lo, Z, STATUS_NONFINITE, 0, h, np.nan, np.nan, 0.0, block_logs, y, V, logs, megno, status,
-                    steps_taken)
+            # int64 codes and counts, not literals: one compiled variant of _finish
+            _finish(i, lo, Z, np.int64(STATUS_NONFINITE), np.int64(0), h, np.nan, np.nan, 0.0, block_logs, y, V, logs,
+                    megno, status, steps_taken)
     _copy(Z, kept)
     store = saved.shape[1] > 0
     slot = 0
@@ -243,7 +244,7 @@ def _run_block(model, method, a, y, V, lo, m, t0, h, n_steps, every, transient, 
     mean_t = 0.0
     var = 0.0
     summed = 0
-    checked = 0  # the step of the last check, and the fit's shared sums then
+    checked = np.int64(0)  # the step of the last check, and the fit's shared sums then (int64: one _finish)
     kept_count = 0
     kept_var = 0.0
     for s in range(n_steps):
@@ -275,7 +276,7 @@ def _run_block(model, method, a, y, V, lo, m, t0, h, n_steps, every, transient, 
                         live[i] = False
                         n_live -= 1
                         average = kept[0, 2 * n + 1, i] / (checked * h) if checked > 0 else np.nan
-                        _finish(i, lo, kept, STATUS_NONFINITE, checked, h, average, kept_cov[i] * slope_scale,
+                        _finish(i, lo, kept, np.int64(STATUS_NONFINITE), checked, h, average, kept_cov[i] * slope_scale,
                                 covered, block_logs, y, V, logs, megno, status, steps_taken)
         if factorise and done > transient:
             for r in range(k):
