@@ -1,6 +1,7 @@
-"""Each built-in system's kernel module (tumble/kernels/systems/): its rate against the physics layer's, its tangent
-flow ``J(y) v`` against the analytic Jacobian and central differences, and the general heavy top (a centre of mass
-off the axes) and the gravity-gradient satellite in an eccentric orbit, end to end."""
+"""Each built-in system's kernel module (tumble/kernels/systems/, the generated copy of its equations): its rate
+compiled by numba against the same equations evaluated on numpy arrays (the physics layer's ``rhs``), its tangent
+flow ``J(y) v`` against the physics layer's Jacobian and central differences, and the general heavy top (a centre of
+mass off the axes) and the gravity-gradient satellite in an eccentric orbit, end to end."""
 
 import math
 

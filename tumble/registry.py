@@ -294,7 +294,7 @@ class Model(NamedTuple):
     invariants: tuple  # names of the quantities the motion conserves
     implemented: bool  # True: studies run it; False: reserved there (name, keys, state fixed; kernels.MODEL_CODES
     # says which models the kernels step, these included)
-    physics: bool  # True: a class in physics/models/ (rhs, analytic Jacobian, invariants, linear theory)
+    physics: bool  # True: a class in physics/models/ (its equations, rhs, exact Jacobian, invariants, linear theory)
     text: str
     scan_keys: tuple = ()  # scan keys of its own beyond its parameters (a grid of bodies in its own terms)
     equations: str = ""  # the module of tumble/physics/models/ that holds its equations ("": the one named as the kind)
