@@ -3,6 +3,8 @@ model against them. A System's rate is compiled once per process and System obje
 one object here, with its parameters given per call, is one compile for every test that uses it on a worker (the
 tests that use it are in one xdist group, ``user_systems``: one worker runs them all)."""
 
+import math
+
 import tumble
 
 #: The xdist group (pyproject's ``--dist loadgroup``) of the tests that compile the Systems of this module.
@@ -26,3 +28,18 @@ def heavy_top(t, y, p, dydt):
 HEAVY_TOP = tumble.System(heavy_top, state=("w1", "w2", "w3", "g1", "g2", "g3"),
                           parameters={"I1": 2.0, "I2": 2.5, "I3": 3.0, "mgl": 0.5, "c1": 0.0, "c2": 0.0, "c3": 1.0},
                           name="heavy top by hand")
+
+
+def rotor(t, y, p, dydt):
+    """A driven, damped pendulum that turns over and over: its angle grows without bound."""
+    dydt[0] = y[1]
+    dydt[1] = -p[0] * math.sin(y[0]) - p[1] * y[1] + p[2] * math.cos(p[3] * t)
+
+
+def rotor_jacobian(t, y, p, J):
+    J[0, 0], J[0, 1] = 0.0, 1.0
+    J[1, 0], J[1, 1] = -p[0] * math.cos(y[0]), -p[1]
+
+
+#: The rotor's parameters: stiffness k, damping c, drive amplitude a and frequency w.
+ROTOR = {"k": 1.0, "c": 0.1, "a": 1.2, "w": 0.9}

@@ -94,14 +94,14 @@ def test_the_free_body_by_hand_gives_tumbles_free_body_and_dop853():
 
 
 def test_a_system_on_the_device_gives_the_cpu_run(cuda_device):
-    y0 = np.array([[0.5, 0.0], [2.5, -0.3], [np.nan, 0.0]])
+    y0 = np.array([[0.5, 0.0], [2.5, -0.3], [0.0, 1e308]])  # the last overflows in rk8's first stages
     with pytest.warns(RuntimeWarning, match="1 of 3 samples of 'pendulum' became non-finite"):
         cpu = tumble.integrate(PENDULUM, y0, 1.0, 0.05, method="rk8", save_every=4)
     with pytest.warns(RuntimeWarning, match="1 of 3 samples"):
         device = tumble.integrate(PENDULUM, y0, 1.0, 0.05, method="rk8", save_every=4, device=cuda_device)
     np.testing.assert_allclose(device["state"].values, cpu["state"].values, rtol=1e-13, atol=1e-15)
     np.testing.assert_array_equal(device["status"].values, cpu["status"].values)
-    assert list(cpu["status"].values) == [0, 0, 1]  # the sample that starts NaN says so, it is not refused
+    assert list(cpu["status"].values) == [0, 0, 1]  # the sample that overflows says so
     assert device.attrs["device"] == "cuda"
 
 
@@ -242,6 +242,14 @@ def test_a_rate_that_cannot_run_is_one_line_naming_the_system(rate, message):
     (lambda: tumble.System(pendulum, state=("x", "v"), parameters={"k": math.nan}, name="p"),
      r"system 'p': parameter 'k' must be finite"),
     (lambda: tumble.System("not a function", state=("x",), name="p"), r"system 'p': rate must be a function"),
+    (lambda: tumble.integrate(PENDULUM, [[1.0, 0.0], [math.nan, 0.0]], 1.0, 0.1),
+     r"y0 must be finite: sample 1 holds NaN or inf \(x, v = \[nan, 0.0\]\)"),
+    (lambda: tumble.propagate(PENDULUM, [[math.inf, 0.0]] * 3, 1.0, 0.1),
+     r"y0 must be finite: sample 0 holds NaN or inf \(x, v = \[inf, 0.0\]\), and 2 more"),
+    (lambda: tumble.propagate(tumble.models.HeavyTop((2.0, 2.5, 3.0), 0.7), [[0, 0, 1, 0, 0, math.nan]], 1.0, 0.1),
+     r"y0 must be finite: sample 0 holds NaN or inf"),
+    (lambda: tumble.integrate(PENDULUM, [[1.0, 0.0]], 1.0, 0.1, parameters={"k": math.inf}),
+     r"parameters: 'k' must be finite"),
     (lambda: tumble.theory.eigenvalues_at(PENDULUM, [1.0]), r"state must have shape \(\.\.\., 2\) \(x, v of system"),
 ])
 def test_a_users_mistake_is_one_clear_line(call, message):

@@ -36,17 +36,16 @@ from ..physics.system import System, finite_number, with_parameters
 from . import cost
 from .device import resolve_device
 from .integration import checked_save_every
-from .system_runs import compiled, probe
+from .system_runs import compiled, initial_states, probe
 
-__all__ = ["RESCALE_EVERY", "STATUS_ABOVE_NAME", "TANGENT_SEED", "TangentRun", "gali", "initial_tangents", "lyapunov",
+__all__ = ["RESCALE_EVERY", "STATUS_ABOVE_NAME", "TANGENT_TURN", "TangentRun", "gali", "initial_tangents", "lyapunov",
            "megno", "run_tangents", "tangent_kind"]
 
 #: The name of ``registry.STATUS_ABOVE`` in a Dataset's ``status`` flags.
 STATUS_ABOVE_NAME = registry.INDICATOR_STATUSES[registry.STATUS_ABOVE].name
 
-#: The seed of the initial tangent vectors: one fixed orthonormal set (the Q of a Gaussian matrix), the same for every
-#: sample and run, in no special direction of any system (a coordinate axis can lie in an invariant subspace).
-TANGENT_SEED = 41
+#: The turn that takes the initial tangent vectors off the Hartley matrix's rows (:func:`initial_tangents`), rad.
+TANGENT_TURN = -math.pi / 16
 
 #: MEGNO and GALI do not depend on the tangent vectors' lengths (``ρ = δ·δ'/|δ|²``; GALI normalises copies): their
 #: vectors are rescaled every this many steps, which keeps them in range unless one step grows them e^44-fold, and
@@ -101,20 +100,6 @@ def _plan(t_end, dt):
     if n_steps == 0 or abs(ratio - n_steps) > _SLACK * ratio:
         n_steps = math.ceil(ratio)
     return t_end, n_steps, t_end / n_steps
-
-
-def _initial_states(system, y0):
-    names = system.spec.state
-    shape = f"(N, {len(names)}) ({', '.join(names)} of {_name(system)})"
-    try:
-        y = np.array(y0, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"y0 must be an array of numbers of shape {shape}, got {y0!r}") from None
-    if y.ndim == 1:
-        y = y[None, :]
-    if y.ndim != 2 or y.shape[1] != len(names) or len(y) == 0:
-        raise ValueError(f"y0 must have shape {shape} with N >= 1, got shape {np.shape(y0)}")
-    return np.ascontiguousarray(y)
 
 
 #: The implicit method the tangent flow runs besides the explicit Runge–Kutta methods of :data:`TABLEAUX`.
@@ -177,11 +162,56 @@ def _save_every(save_every):
 
 
 def initial_tangents(n, k):
-    """The initial tangent vectors, (k, n) orthonormal rows: the first k columns of the Q of a Gaussian (n, n) matrix
-    drawn from :data:`TANGENT_SEED` (so the first k of any run are those of the whole spectrum's run, and evolve alike:
-    Gram-Schmidt never lets a later vector change an earlier one)."""
-    q, _ = np.linalg.qr(np.random.default_rng(TANGENT_SEED).standard_normal((n, n)))
-    return np.ascontiguousarray(q[:, :k].T)
+    """The default initial tangent vectors, (k, n) orthonormal rows: rows 1, 2, ..., n - 1 and then 0 of the discrete
+    Hartley matrix ``cas(2π r j / n) / √n`` (``cas = cos + sin``; Bracewell 1983), each then turned by
+    :data:`TANGENT_TURN` (-11.25°) in the plane of coordinates 1 and 2, then 2 and 3, and so on to n - 1 and n.
+
+    Why these: a coordinate axis is often special to a system (an angle at a symmetric start, where the axis is a pure
+    phase shift; an invariant subspace), and so is the diagonal (1, ..., 1) (the synchronised motion of identical
+    units), which is the Hartley matrix's row 0, put last. The Hartley rows spread over all components (none within
+    37° of an axis for n ≤ 12); the turn takes them off the diagonal and off the coordinate planes their zero entries
+    lie in, and keeps every vector at least 33° from every coordinate axis for n = 2 ... 12 (45° is the most any
+    vector can be for n = 2). The first vector has components of both signs: a start in one octant (spins about
+    positive axes) can make a vector of one sign special (for the free body at such starts the diagonal's vector
+    lies nearly along the period's level set, where MEGNO's approach to 2 takes thousands of periods longer). The
+    first k of any run are those of the whole spectrum's run, and evolve alike: Gram-Schmidt never lets a later
+    vector change an earlier one. ``tangent=`` on :func:`lyapunov`, :func:`megno` and :func:`gali` gives others."""
+    r, j = np.meshgrid((np.arange(n) + 1) % n, np.arange(n), indexing="ij")
+    angle = 2.0 * np.pi * r * j / n
+    vectors = (np.cos(angle) + np.sin(angle)) / math.sqrt(n)
+    c, s = math.cos(TANGENT_TURN), math.sin(TANGENT_TURN)
+    for a in range(n - 1):
+        vectors[:, a:a + 2] = vectors[:, a:a + 2] @ np.array([[c, s], [-s, c]])
+    return np.ascontiguousarray(vectors[:k])
+
+
+def _tangent_vectors(tangent, k, system, n, orthonormal):
+    """The first tangent vectors of a run, (k, n): :func:`initial_tangents`, or ``tangent`` (a user's (k, n) or (n,))
+    checked (finite, ``k`` rows of ``n``, independent) and made unit (``orthonormal``: by Gram–Schmidt in their
+    order, so the first keeps its direction; else each only normalised, as GALI takes them)."""
+    if tangent is None:
+        return initial_tangents(n, k)
+    names = ", ".join(system.spec.state)
+    try:
+        vectors = np.array(tangent, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"tangent must be None or an array of numbers of shape ({k}, {n}) (vectors over {names}), "
+                         f"got {tangent!r}") from None
+    if vectors.ndim == 1:
+        vectors = vectors[None, :]
+    if vectors.shape != (k, n):
+        raise ValueError(f"tangent must have shape ({k}, {n}): {k} vector{'s' * (k > 1)} over the {n} components of "
+                         f"{_name(system)} ({names}), got shape {np.shape(tangent)}")
+    if not np.all(np.isfinite(vectors)):
+        raise ValueError("tangent must be finite (found NaN or inf)")
+    q, r = np.linalg.qr(vectors.T)
+    lengths = np.abs(np.diag(r))
+    if np.any(lengths <= 1e-12 * max(float(np.max(np.abs(vectors))), np.finfo(float).tiny)):
+        raise ValueError(f"tangent: the {k} vectors must be independent (none zero, none a combination of the "
+                         f"others), got {vectors.tolist()}")
+    if orthonormal:
+        return np.ascontiguousarray((q * np.sign(np.diag(r))).T)
+    return np.ascontiguousarray(vectors / np.linalg.norm(vectors, axis=1)[:, None])
 
 
 class _Kernels(NamedTuple):
@@ -277,16 +307,22 @@ def _probe(system, y, p):
                          f"initial state {y[i].tolist()} (t = 0 s)")
 
 
-def run_tangents(system, y, p, method, k, step, n_steps, every, transient, save_every, stop_above, device,
+def run_tangents(system, y, p, method, first, step, n_steps, every, transient, save_every, stop_above, device,
                  orthogonalise=True):
     # size: the checked plan of one tangent run, handed down as the kernels take it (flat numbers, arrays)
     """Run the tangent loop over the samples ``y`` (N, n) of a checked ``system`` (``p``: its kernels' parameters);
-    ``k`` tangent vectors, ``n_steps`` steps of ``step`` s, a factorisation every ``every`` steps, sums from step
+    the ``k`` tangent vectors ``first`` (k, n) to start every sample from, ``n_steps`` steps of ``step`` s, a factorisation every ``every`` steps, sums from step
     ``transient``, finite-time exponents every ``save_every`` steps (0: none), the MEGNO stop ``stop_above`` (inf:
     none); without ``orthogonalise`` the vectors are only normalised and ``saved[..., 0]`` holds GALI_k. Returns :class:`TangentRun`. The arguments are trusted (:func:`lyapunov` and :func:`megno` check them)."""
     n_samples, n = y.shape
+    k = len(first)
+    differences = tangent_kind(system) == "differences"
+    if differences:  # the components' scales ride after the parameters (difference_tangents reads them there)
+        scales = system.difference_scales()
+        _warn_unsteady_difference(system, y, p, first, scales)
+        p = np.concatenate([p, scales])
     state = np.array(y, order="C")
-    tangents = np.array(np.broadcast_to(initial_tangents(n, k), (n_samples, k, n)), order="C")
+    tangents = np.array(np.broadcast_to(first, (n_samples, k, n)), order="C")
     n_saved = 0
     if save_every:
         n_saved = len(_saved_marks(n_steps, transient, save_every))
@@ -314,7 +350,61 @@ def run_tangents(system, y, p, method, k, step, n_steps, every, transient, save_
         logs, saved, scalars, status, steps_taken = cuda.run(made[key], state, tangents, p, 0.0, step, n_steps,
                                                                every, transient, save_every, stop_above,
                                                                orthogonalise, saved)
+    if differences and device == "cpu":  # the CPU driver leaves the final states in `state`
+        _warn_beyond_scale(system, state, scales)
     return TangentRun(logs, saved, scalars, status, steps_taken)
+
+
+#: The relative error of a difference tangent that tumble still vouches for: beyond it, :func:`_warn_unsteady_difference`
+#: and :func:`_warn_beyond_scale` say so.
+VOUCHED = 1e-6
+
+
+def _difference(rate, y, p, v, e):
+    """:func:`tumble.kernels.tangent_loop.difference_tangents`' product along ``v`` with the step ``e``, on the host."""
+    f = [np.zeros_like(y) for _ in range(4)]
+    for m, shift in enumerate((e, -e, 2 * e, -2 * e)):
+        rate(0.0, y + shift * v, p, f[m])
+    return (8.0 * (f[0] - f[1]) - (f[2] - f[3])) / (12.0 * e)
+
+
+def _warn_unsteady_difference(system, y, p, vectors, scales):
+    """One warning when, at the first finite initial state, a difference tangent changes by more than :data:`VOUCHED`
+    of its size when the step is made four times shorter: the rate varies on a scale shorter than the one declared
+    (the fourth-order error falls 256-fold, so the change is the error of the step run; rounding moves it by 1e-12)."""
+    finite = np.flatnonzero(np.all(np.isfinite(y), axis=1))
+    if not len(finite):
+        return
+    rate = compiled(system).rate
+    y0 = y[finite[0]].copy()
+    dydt = np.zeros_like(y0)
+    rate(0.0, y0, p, dydt)
+    for v in vectors:
+        e = tangent_loop.DIFFERENCE_STEP / np.max(np.abs(v) / scales)
+        coarse, fine = _difference(rate, y0, p, v, e), _difference(rate, y0, p, v, e / 4)
+        size = max(np.max(np.abs(fine)), np.max(np.abs(dydt) / scales), np.finfo(float).tiny)
+        change = np.max(np.abs(coarse - fine)) / size
+        if change > VOUCHED:
+            warnings.warn(f"system {system.name!r} has no jacobian, and its difference tangent at the first state "
+                          f"changes by {change:.0e} of itself with a step four times shorter: its rate varies on a "
+                          f"shorter scale than its components' scales ({', '.join(f'{s:g}' for s in scales)}): give "
+                          f"the system a jacobian, or a smaller scale=", RuntimeWarning, stacklevel=4)
+            return
+
+
+def _warn_beyond_scale(system, final, scales):
+    """One warning when a component of a System without a Jacobian ended so far beyond its scale that the rounding of
+    ``y + e v`` (``eps |y| / (2^-10 scale)`` of the difference) passes :data:`VOUCHED`."""
+    with np.errstate(invalid="ignore"):
+        ratio = np.nanmax(np.where(np.isfinite(final), np.abs(final), np.nan), axis=0, initial=0.0) / scales
+    j = int(np.argmax(ratio))
+    error = ratio[j] * np.finfo(float).eps / 2 / tangent_loop.DIFFERENCE_STEP
+    if error > VOUCHED:
+        name = system.spec.state[j]
+        warnings.warn(f"system {system.name!r} has no jacobian: its tangents are central differences stepping 2^-10 of "
+                      f"each component's scale, and {name!r} reached {ratio[j]:.1e} times its scale {scales[j]:g}, "
+                      f"where a difference is accurate to about {error:.0e} relative only: give the system a jacobian, "
+                      f"or a scale for {name!r}", RuntimeWarning, stacklevel=4)
 
 
 def _saved_marks(n_steps, transient, save_every):
@@ -332,7 +422,7 @@ def _checked(system, y0, t_end, dt, method, parameters, device):
     system, p, values = _parameters(system, parameters)
     method = _method(method, system)
     t_end, n_steps, step = _plan(t_end, dt)
-    y = _initial_states(system, y0)
+    y, _ = initial_states(system, y0)
     problem = system.state_problem(y) if isinstance(system, Model) else None
     if problem:
         raise ValueError(f"y0: {problem}")
@@ -365,7 +455,7 @@ def _system_attrs(system, values, method, step, n_steps, t_end, device):
 
 
 def lyapunov(system, y0, t_end, dt, *, method="rk4", exponents=None, renormalise=1.0, transient=0.0, parameters=None,
-             save_every=None, device="cpu"):
+             save_every=None, tangent=None, device="cpu"):
     # size: the contract's arguments (DESIGN.md, "Chaos indicators"); each checked once, then one run, one Dataset
     """The Lyapunov spectrum of an ensemble of initial states: the ``k`` largest exponents per sample.
 
@@ -391,7 +481,7 @@ def lyapunov(system, y0, t_end, dt, *, method="rk4", exponents=None, renormalise
         (the derivative of each exact sub-flow, composed: a map that keeps volume, so the exponents sum to zero to
         round-off), or ``"auto"`` (rk4).
     exponents : int, optional
-        ``k``, how many (1 to n; default n, the whole spectrum).
+        ``k``, how many (1 to n; default n, the whole spectrum, or as many as ``tangent`` has vectors).
     renormalise : float
         Seconds between two orthonormalisations, a positive multiple of ``dt`` (within round-off). The result does not
         depend on it beyond round-off, as long as ``exp(λ renormalise)`` stays within the floating-point range.
@@ -402,6 +492,10 @@ def lyapunov(system, y0, t_end, dt, *, method="rk4", exponents=None, renormalise
     save_every : int, optional
         Also the finite-time exponents ``finite_time(sample, time, index)`` after every ``save_every``-th step past the
         transient and at the end (the sums so far over the time since the transient).
+    tangent : array_like, shape (k, n) or (n,), optional
+        The first tangent vectors, the same for every sample (independent; orthonormalised by Gram–Schmidt in their
+        order, so the first keeps its direction). Default: :func:`initial_tangents`, a fixed orthonormal set whose
+        every vector lies at least 33° from every coordinate axis (n ≤ 12).
     device : str
         ``"cpu"`` or ``"cuda"`` (one thread per sample).
 
@@ -434,7 +528,10 @@ def lyapunov(system, y0, t_end, dt, *, method="rk4", exponents=None, renormalise
     device, system, y, p, values, method, t_end, n_steps, step = _checked(system, y0, t_end, dt, method, parameters,
                                                                           device)
     n = y.shape[1]
+    if exponents is None and tangent is not None:
+        exponents = len(np.atleast_2d(np.asarray(tangent, dtype=object)))
     k = _exponents(exponents, system, n)
+    vectors = _tangent_vectors(tangent, k, system, n, orthonormal=True)
     every = _renormalise_steps(renormalise, dt, step)
     first = _transient_steps(transient, t_end, step)
     save = _save_every(save_every)
@@ -442,7 +539,7 @@ def lyapunov(system, y0, t_end, dt, *, method="rk4", exponents=None, renormalise
     _refuse_cost(y, n_steps, k, len(marks), device)
     if isinstance(system, System):
         _probe(system, y, p)
-    run = run_tangents(system, y, p, method, k, step, n_steps, every, first, save, math.inf, device)
+    run = run_tangents(system, y, p, method, vectors, step, n_steps, every, first, save, math.inf, device)
     covered = run.scalars[:, 3]
     with np.errstate(invalid="ignore", divide="ignore"):
         exponent = np.where(covered[:, None] > 0, run.logs / covered[:, None], np.nan)
@@ -467,7 +564,7 @@ def lyapunov(system, y0, t_end, dt, *, method="rk4", exponents=None, renormalise
     return _dataset(variables, attrs)
 
 
-def megno(system, y0, t_end, dt, *, method="rk4", stop_above=None, parameters=None, device="cpu"):
+def megno(system, y0, t_end, dt, *, method="rk4", stop_above=None, parameters=None, tangent=None, device="cpu"):
     # size: the contract's arguments (DESIGN.md, "Chaos indicators")
     """MEGNO, the mean exponential growth factor of nearby orbits (Cincotta & Simó 2000), of an ensemble of states.
 
@@ -484,6 +581,9 @@ def megno(system, y0, t_end, dt, *, method="rk4", stop_above=None, parameters=No
     stop_above : float, optional
         A sample stops once ``<Y>`` exceeds it (> 0): chaotic enough; its status then says so
         (``"megno above threshold"``) and its values are those at the stop.
+    tangent : array_like, shape (n,) or (1, n), optional
+        The first tangent vector, the same for every sample (normalised). Default: the first of
+        :func:`initial_tangents`.
 
     Returns
     -------
@@ -505,10 +605,11 @@ def megno(system, y0, t_end, dt, *, method="rk4", stop_above=None, parameters=No
         if limit <= 0:
             raise ValueError(f"stop_above must be None or a number > 0 (a threshold of <Y>, 2 on a regular orbit), "
                              f"got {stop_above!r}")
+    vectors = _tangent_vectors(tangent, 1, system, y.shape[1], orthonormal=True)
     _refuse_cost(y, n_steps, 1, 0, device)
     if isinstance(system, System):
         _probe(system, y, p)
-    run = run_tangents(system, y, p, method, 1, step, n_steps, RESCALE_EVERY, 0, 0, limit, device)
+    run = run_tangents(system, y, p, method, vectors, step, n_steps, RESCALE_EVERY, 0, 0, limit, device)
     _warn_stopped(run.status, _name(system))
     variables = {
         "megno": ("sample", run.scalars[:, 0], {"units": "1", "long_name": "mean MEGNO <Y>"}),
@@ -522,7 +623,7 @@ def megno(system, y0, t_end, dt, *, method="rk4", stop_above=None, parameters=No
     return _dataset(variables, attrs)
 
 
-def gali(system, y0, t_end, dt, *, k=2, method="rk4", parameters=None, save_every=None, device="cpu"):
+def gali(system, y0, t_end, dt, *, k=2, method="rk4", parameters=None, save_every=None, tangent=None, device="cpu"):
     # size: the contract's arguments (DESIGN.md, "Chaos indicators")
     """GALI_k, the generalised alignment index (Skokos, Bountis & Antonopoulos 2007, Physica D 231, 30), over time.
 
@@ -541,6 +642,9 @@ def gali(system, y0, t_end, dt, *, k=2, method="rk4", parameters=None, save_ever
         The number of vectors, 2 to n.
     save_every : int, optional
         GALI after every ``save_every``-th step and at the end; None: at the end only.
+    tangent : array_like, shape (k, n), optional
+        The first tangent vectors, the same for every sample (independent; each normalised, not orthogonalised: GALI
+        then starts below 1). Default: the first k of :func:`initial_tangents`.
 
     Returns
     -------
@@ -560,12 +664,13 @@ def gali(system, y0, t_end, dt, *, k=2, method="rk4", parameters=None, save_ever
     if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)) or not 2 <= k <= n:
         raise ValueError(f"k must be an integer from 2 to {n} (GALI_k of k tangent vectors; the state of {_name(system)} "
                          f"has {n} components: {', '.join(system.spec.state)}), got {k!r}")
+    vectors = _tangent_vectors(tangent, int(k), system, n, orthonormal=False)
     save = _save_every(save_every) or n_steps
     marks = _saved_marks(n_steps, 0, save)
     _refuse_cost(y, n_steps, int(k), len(marks), device)
     if isinstance(system, System):
         _probe(system, y, p)
-    run = run_tangents(system, y, p, method, int(k), step, n_steps, RESCALE_EVERY, 0, save, math.inf, device,
+    run = run_tangents(system, y, p, method, vectors, step, n_steps, RESCALE_EVERY, 0, save, math.inf, device,
                        orthogonalise=False)
     _warn_stopped(run.status, _name(system))
     times = marks * step

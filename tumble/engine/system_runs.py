@@ -32,7 +32,8 @@ from ..physics.system import System, with_parameters
 from . import cost
 from .device import resolve_device
 
-__all__ = ["PROBED", "SystemRun", "added_tableau", "compiled", "is_system", "probe", "run_system", "system_methods"]
+__all__ = ["PROBED", "SystemRun", "added_tableau", "compiled", "initial_states", "is_system", "probe", "run_system",
+           "system_methods"]
 
 #: Initial states at which a user's rate is called once before a run (the first with bounds checked): a NaN or an
 #: unset component there is refused with the sample named; later in the run a non-finite state is a sample status.
@@ -95,7 +96,9 @@ def _name(system):
     return system.name if isinstance(system, System) else system.kind
 
 
-def _initial_states(system, y0):
+def initial_states(system, y0):
+    """``(y (N, n) float64 contiguous, whether y0 was one state)``: ``y0`` checked against ``system``'s state (shape,
+    numbers, every value finite); ValueError naming the components otherwise."""
     names = system.spec.state
     try:
         y = np.array(y0, dtype=float)
@@ -108,7 +111,11 @@ def _initial_states(system, y0):
     if y.ndim != 2 or y.shape[1] != len(names) or len(y) == 0:
         raise ValueError(f"y0 must have shape (N, {len(names)}) with N >= 1 ({', '.join(names)} of "
                          f"{_name(system)!r}), got shape {np.shape(y0)}")
-    return y, single
+    bad = np.flatnonzero(~np.all(np.isfinite(y), axis=1))
+    if len(bad):
+        raise ValueError(f"y0 must be finite: sample {int(bad[0])} holds NaN or inf ({', '.join(names)} = "
+                         f"{y[bad[0]].tolist()}){f', and {len(bad) - 1} more' if len(bad) > 1 else ''}")
+    return np.ascontiguousarray(y), single
 
 
 class _Kernels(NamedTuple):
@@ -220,7 +227,7 @@ def run_system(system, y0, t_end, n_steps, step, method="rk4", *, save_every=Non
         why = (" (a System runs the explicit Runge-Kutta methods: the splittings need a Lie-Poisson structure, the "
                "closed form exists for the free body only)" if isinstance(system, System) else "")
         raise ValueError(f"method must be one of {', '.join(methods)} for {name!r}, got {method!r}{why}")
-    y, single = _initial_states(system, y0)
+    y, single = initial_states(system, y0)
     n_state = y.shape[1]
     stored = n_state * (n_steps / save_every + 2 if save_every else 2)
     cost.refuse(cost.run_cost(len(y), n_steps, stored), f"y0 ({len(y):,} states) over {n_steps:,} steps", device)

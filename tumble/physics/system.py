@@ -8,6 +8,8 @@ Any system of ordinary differential equations ``y' = f(t, y; p)`` that the engin
   state ``y`` (float64, shape (n,)) into ``dydt`` (float64, shape (n,)), with the parameters ``p`` (float64, shape
   (k,)) in the order of ``parameters``. It returns nothing.
 * ``jacobian(t, y, p, J)`` (optional), the same convention: writes ``∂f/∂y`` into ``J`` (n, n).
+* ``scale`` (optional): the scale on which the rate varies along each component, for the tangents of a system
+  without a Jacobian (central differences step by a fixed share of it).
 
 The record holds the description only, checked once here (names, numbers); the engine compiles the functions on
 first use (:mod:`tumble.engine.system_runs`) and says in one line, naming the system, what numba or a first call of the
@@ -81,7 +83,17 @@ class System:
     jacobian : callable, optional
         ``jacobian(t, y, p, J)``, the same convention, writing ``∂f/∂y`` into ``J`` (float64, (n, n)). Without it,
         :func:`tumble.theory.eigenvalues_at` differentiates ``rate`` numerically (adaptive central differences
-        with Richardson extrapolation, :func:`scipy.differentiate.jacobian`).
+        with Richardson extrapolation, :func:`scipy.differentiate.jacobian`), and the chaos indicators' tangents are
+        central differences of ``rate`` (:func:`tumble.kernels.tangent_loop.difference_tangents`).
+    scale : mapping of str to float, or sequence of float, optional
+        Without a ``jacobian``: the scale on which ``rate`` varies along each component (a positive number per
+        component, by name or in order; unnamed components keep the default 1), for the difference tangents, which
+        move no component by more than 2^-10 of its scale, wherever the state is: an angle keeps the scale 1 however
+        far it turns (its sine varies on that scale). A component that varies on another scale (a position in metres
+        of order 7e6, a concentration of order 1e-6) needs its own. The chaos indicators warn in one line where they
+        cannot vouch for a difference: at the first state, when the difference changes with a quarter of the step
+        (the scale too large), and at the end, when a component went so far beyond its scale that rounding
+        dominates (beyond about 1e5 times it).
 
     Raises
     ------
@@ -105,6 +117,7 @@ class System:
     parameters: dict = None
     name: str = "system"
     jacobian: object = None
+    scale: object = None
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name:
@@ -125,6 +138,40 @@ class System:
         values = {key: finite_number(given[key], f"system {name!r}: parameter {key!r}") for key in keys}
         object.__setattr__(self, "state", state)
         object.__setattr__(self, "parameters", values)
+        object.__setattr__(self, "scale", self._checked_scale(self.scale))
+
+    def _checked_scale(self, scale):
+        """``scale`` as ``{component: value}`` (the declared ones; None: none), each a finite number > 0."""
+        if scale is None:
+            return None
+        name = self.name
+        if hasattr(scale, "items"):
+            unknown = [key for key in scale if key not in self.state]
+            if unknown:
+                raise ValueError(f"system {name!r}: scale names {unknown[0]!r}, which is not a component of its state "
+                                 f"({', '.join(self.state)})")
+            given = dict(scale)
+        else:
+            try:
+                values = list(scale)
+            except TypeError:
+                raise ValueError(f"system {name!r}: scale must be a mapping of components to numbers or one number "
+                                 f"per component ({', '.join(self.state)}), got {scale!r}") from None
+            if len(values) != len(self.state):
+                raise ValueError(f"system {name!r}: scale must have one number per component "
+                                 f"({', '.join(self.state)}), got {len(values)}")
+            given = dict(zip(self.state, values))
+        checked = {}
+        for key, value in given.items():
+            checked[key] = finite_number(value, f"system {name!r}: scale of {key!r}")
+            if checked[key] <= 0:
+                raise ValueError(f"system {name!r}: scale of {key!r} must be > 0, got {value!r}")
+        return checked
+
+    def difference_scales(self):
+        """The components' scales for difference tangents: the declared :attr:`scale`, else 1; float64 (n,)."""
+        declared = self.scale or {}
+        return np.array([declared.get(key, 1.0) for key in self.state])
 
     @property
     def spec(self):
