@@ -311,9 +311,12 @@ def run_tangents(system, y, p, method, first, step, n_steps, every, transient, s
                  orthogonalise=True):
     # size: the checked plan of one tangent run, handed down as the kernels take it (flat numbers, arrays)
     """Run the tangent loop over the samples ``y`` (N, n) of a checked ``system`` (``p``: its kernels' parameters);
-    the ``k`` tangent vectors ``first`` (k, n) to start every sample from, ``n_steps`` steps of ``step`` s, a factorisation every ``every`` steps, sums from step
-    ``transient``, finite-time exponents every ``save_every`` steps (0: none), the MEGNO stop ``stop_above`` (inf:
-    none); without ``orthogonalise`` the vectors are only normalised and ``saved[..., 0]`` holds GALI_k. Returns :class:`TangentRun`. The arguments are trusted (:func:`lyapunov` and :func:`megno` check them)."""
+    the ``k`` tangent vectors ``first`` (k, n) to start every sample from, ``n_steps`` steps of ``step`` s, a
+    factorisation every ``every`` steps, sums from step ``transient``, finite-time exponents every ``save_every`` steps
+    (0: none), the MEGNO stop ``stop_above`` (inf: none); without ``orthogonalise`` the vectors are only normalised and
+    ``saved[..., 0]`` holds GALI_k. A System without a Jacobian gets its components' scales after ``p`` here, and the
+    warnings where its differences cannot be vouched for. Returns :class:`TangentRun`. The arguments are trusted
+    (:func:`lyapunov`, :func:`megno` and :func:`gali` check them)."""
     n_samples, n = y.shape
     k = len(first)
     differences = tangent_kind(system) == "differences"
