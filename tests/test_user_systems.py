@@ -316,3 +316,70 @@ def test_a_system_is_compiled_once_per_process_not_per_call(monkeypatch):
     tumble.propagate(PENDULUM, np.array([[1.0, 0.0]]), 0.1, 0.01, method="rk8")
     tumble.integrate(PENDULUM, np.array([[0.5, 0.0]]), 0.2, 0.01, method="rk8", save_every=5)
     assert calls == []
+
+
+# --- the mission's job on any system: tumble.measure(system, state=y_eq) ----------------------------------------------
+
+@pytest.mark.parametrize("equilibrium, kind", [([math.pi, 0.0], "exponential"), ([0.0, 0.0], "periodic")])
+def test_a_pendulum_measured_about_its_equilibria_gives_linear_theory(equilibrium, kind):
+    """Upright, perturbations grow at sqrt(k + c²/4) - c/2; hanging, they oscillate at sqrt(k - c²/4)."""
+    k, c = 1.0, 0.1
+    ds = tumble.measure(PENDULUM, state=equilibrium, samples=128, parameters={"k": k, "c": c})
+    exact = math.sqrt(k + c * c / 4) - c / 2 if kind == "exponential" else math.sqrt(k - c * c / 4)
+    assert ds["kind"].item() == kind
+    assert ds["rate_theory"].item() == pytest.approx(exact, rel=1e-9)
+    assert ds["rel_error"].item() < 1e-5 and ds["samples_used"].item() == 128
+    assert ds["rate_ci_low"].item() <= ds["rate"].item() <= ds["rate_ci_high"].item()
+    assert ds["system"].item() == "pendulum" and list(ds.attrs["equilibrium"]) == equilibrium
+    assert ds.attrs["parameter_c"] == c and ds["sample_rate"].shape == (128,)
+
+
+def test_a_system_scene_has_a_body_scenes_variables():
+    body = tumble.measure(tumble.Body(*MOMENTS), 2, samples=64, flips=0)
+    mine = tumble.measure(FREE_BODY, state=[0.0, 1.0, 0.0], samples=64)
+    assert set(body.data_vars) == set(mine.data_vars)
+    assert set(body.coords) - set(mine.coords) == {"I1", "I2", "I3", "axis", "spin"}
+
+
+def test_a_hand_written_free_body_at_its_intermediate_axis_grows_at_the_linear_rate():
+    ds = tumble.measure(FREE_BODY, state=[0.0, 2.0, 0.0], samples=256)
+    kind, rate = tumble.theory.linear(tumble.Body(*MOMENTS), axis=2, spin=2.0)
+    assert ds["kind"].item() == kind == "exponential"
+    assert ds["rate_theory"].item() == pytest.approx(rate, rel=1e-9)
+    assert ds["rel_error"].item() < 1e-4  # the O(amplitude²) nonlinear correction
+
+
+@pytest.mark.parametrize("w3", [3.0, 0.5])
+def test_a_hand_written_heavy_top_about_its_sleeping_spin_follows_the_built_in_theory(w3):
+    """Above the threshold (w3² > 4 I1 mgl / I3²) the sleeping top precesses; below, it falls."""
+    model = tumble.models.HeavyTop((2.0, 2.5, 3.0), 0.5)
+    kind, value = tumble.theory.linear(model, 3, w3)
+    ds = tumble.measure(hand_written_systems.HEAVY_TOP, state=[0.0, 0.0, w3, 0.0, 0.0, 1.0], samples=128)
+    assert (ds["kind"].item(), kind) == (("periodic",) * 2 if w3 == 3.0 else ("exponential",) * 2)
+    assert ds["rate_theory"].item() == pytest.approx(value, rel=1e-7)
+    assert ds["rel_error"].item() < 1e-3
+
+
+def _drift(t, y, p, dydt):
+    dydt[0] = y[1]
+    dydt[1] = 0.0
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda: tumble.measure(PENDULUM, state=[1.0, 0.0]), r"state is not an equilibrium of system 'pendulum'"),
+    (lambda: tumble.measure(tumble.System(_drift, state=("x", "v"), name="drift"), state=[0.0, 0.0]),
+     r"the equilibrium \[0.0, 0.0\] of system 'drift' is neutral in linear theory"),
+    (lambda: tumble.measure(PENDULUM, 2, state=[0.0, 0.0]), r"axis is a body's spin axis"),
+    (lambda: tumble.measure(PENDULUM), r"state is required for system 'pendulum'"),
+    (lambda: tumble.measure(tumble.Body(*MOMENTS), state=[0.0, 1.0, 0.0]), r"state= measures a tumble.System"),
+    (lambda: tumble.measure(tumble.Body(*MOMENTS), 2, parameters={"k": 1.0}), r"parameters are a System's"),
+    (lambda: tumble.measure(PENDULUM, state=[math.nan, 0.0]), r"state must be finite: sample 0 holds NaN"),
+    (lambda: tumble.measure(PENDULUM, state=[[0.0, 0.0]] * 2), r"state must be one equilibrium of shape \(2,\)"),
+    (lambda: tumble.measure(PENDULUM, state=[0.0, 0.0], amplitude=-1.0), r"amplitude must be a number > 0"),
+    (lambda: tumble.measure(PENDULUM, state=[0.0, 0.0], method="splitting2"), r"method must be auto or one of"),
+    (lambda: tumble.measure(PENDULUM, state=[0.0, 0.0], parameters={"q": 1.0}), r"'q' is not a parameter"),
+])
+def test_a_system_scenes_bad_input_is_one_line(call, message):
+    with pytest.raises(ValueError, match=message) as caught:
+        call()
+    assert "\n" not in str(caught.value)

@@ -32,8 +32,8 @@ from ..physics.system import System, with_parameters
 from . import cost
 from .device import resolve_device
 
-__all__ = ["PROBED", "SystemRun", "added_tableau", "compiled", "initial_states", "is_system", "probe", "run_system",
-           "system_methods"]
+__all__ = ["PROBED", "SystemRun", "added_tableau", "compiled", "initial_states", "is_system", "method_order", "probe",
+           "run_system", "system_methods"]
 
 #: Initial states at which a user's rate is called once before a run (the first with bounds checked): a NaN or an
 #: unset component there is refused with the sample named; later in the run a non-finite state is a sample status.
@@ -78,6 +78,11 @@ def system_methods(system):
     return tuple(TABLEAUX)
 
 
+def method_order(method):
+    """The order of one of :func:`system_methods`' Runge–Kutta tableaux."""
+    return TABLEAUX[method].order
+
+
 #: Model kind -> the System that runs a built-in model's rate through the per-sample loop, for a tableau its
 #: generated SIMD steps do not have; its parameters are :func:`tumble.kernels.rate_sample_parameters`.
 _SAMPLE_LOOP_SYSTEMS = {}
@@ -96,24 +101,24 @@ def _name(system):
     return system.name if isinstance(system, System) else system.kind
 
 
-def initial_states(system, y0):
+def initial_states(system, y0, name="y0"):
     """``(y (N, n) float64 contiguous, whether y0 was one state)``: ``y0`` checked against ``system``'s state (shape,
-    numbers, every value finite); ValueError naming the components otherwise."""
+    numbers, every value finite); ValueError naming ``name`` and the components otherwise."""
     names = system.spec.state
     try:
         y = np.array(y0, dtype=float)
     except (TypeError, ValueError):
-        raise ValueError(f"y0 must be an array of numbers of shape (N, {len(names)}) ({', '.join(names)} of "
+        raise ValueError(f"{name} must be an array of numbers of shape (N, {len(names)}) ({', '.join(names)} of "
                          f"{_name(system)!r}), got {y0!r}") from None
     single = y.ndim == 1
     if single:
         y = y[None, :]
     if y.ndim != 2 or y.shape[1] != len(names) or len(y) == 0:
-        raise ValueError(f"y0 must have shape (N, {len(names)}) with N >= 1 ({', '.join(names)} of "
+        raise ValueError(f"{name} must have shape (N, {len(names)}) with N >= 1 ({', '.join(names)} of "
                          f"{_name(system)!r}), got shape {np.shape(y0)}")
     bad = np.flatnonzero(~np.all(np.isfinite(y), axis=1))
     if len(bad):
-        raise ValueError(f"y0 must be finite: sample {int(bad[0])} holds NaN or inf ({', '.join(names)} = "
+        raise ValueError(f"{name} must be finite: sample {int(bad[0])} holds NaN or inf ({', '.join(names)} = "
                          f"{y[bad[0]].tolist()}){f', and {len(bad) - 1} more' if len(bad) > 1 else ''}")
     return np.ascontiguousarray(y), single
 

@@ -93,6 +93,7 @@ def variable_metadata(kind, value):
         "orbit_rate": ("rad/s", "gravity_gradient: orbital angular rate n of the circular orbit"),
         "damper_inertia": ("kg m2", "damper: moment of inertia J of the damper sphere"),
         "damping": ("N m s", "damper: viscous coupling c between the sphere and the body"),
+        "system": ("1", "the measured System's name"),
     }
     return {name: (entry[2] if len(entry) > 2 else (), {"units": entry[0], "long_name": entry[1],
                                                         **(entry[3] if len(entry) > 3 else {})})
@@ -101,7 +102,7 @@ def variable_metadata(kind, value):
 
 #: Record entries that are coordinates of the scene's dataset (the rest are variables, or ``@`` attributes).
 COORDS = ("I1", "I2", "I3", "axis", "spin", "amplitude", "method", "sample", "component", "model", "rotor", "mgl",
-          "orbit_rate", "damper_inertia", "damping")
+          "orbit_rate", "damper_inertia", "damping", "system")
 
 
 def record_variables(record):

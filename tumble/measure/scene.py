@@ -9,6 +9,7 @@ next to linear theory: planned (:mod:`tumble.measure.planning`), run (:mod:`tumb
 
 from __future__ import annotations
 
+from ..physics.system import System
 from .planning import scene_plan
 from .reduction import scene_result
 from .running import scene_samples
@@ -16,15 +17,22 @@ from .running import scene_samples
 __all__ = ["measure"]
 
 
-def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="auto", *, dt=None, flips=3,
-            distribution="cone", torque=None, horizon=None, curves=(), progress=None, device="cpu"):
+def measure(body, axis=None, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="auto", *, dt=None, flips=3,
+            distribution="cone", torque=None, horizon=None, curves=(), progress=None, state=None, parameters=None,
+            device="cpu"):
     # size: a public call (tumble.measure): each keyword is a documented scene option
     """Measure one scene: how fast perturbations of a steady spin oscillate or grow, against linear theory.
 
+    ``measure(system, state=y_eq, amplitude, samples, seed, *, dt, horizon, parameters, device)`` does the same for
+    any :class:`tumble.System` about an equilibrium ``y_eq`` (n,): perturbations of size ``amplitude`` (in the
+    state's units) in isotropic directions, the measured mode's amplitude (its left eigenvector) fitted, against the
+    eigenvalues of the Jacobian there (:func:`tumble.theory.eigenvalues_at`); the Dataset has the same variables,
+    with the coordinate ``system`` in place of the body's (:mod:`tumble.measure.system_scenes`).
+
     Parameters
     ----------
-    body : Body or array_like, shape (3,)
-        Principal moments, kg m².
+    body : Body, array_like (3,), or System
+        Principal moments, kg m²; or a :class:`tumble.System` (then ``state`` and no ``axis``).
     axis : {1, 2, 3}
         Spin axis, 1-based.
     spin : float
@@ -57,6 +65,10 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
         the first sample over the horizon).
     progress : bool, optional
         Progress bar (default: on a terminal only).
+    state : array_like, shape (n,), optional
+        A System's equilibrium (its rate 0 there).
+    parameters : mapping, optional
+        A System's parameters, by name, in place of its own.
     device : {"cpu", "cuda"}
         Where the scene's samples step. On ``"cuda"`` a stepping scene (a named fixed-step method, or a torque) runs
         its samples and their observers (probe norms, flips, early stop) on the device and only the per-sample
@@ -87,6 +99,21 @@ def measure(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, method="
     >>> str(ds.kind.values), bool(ds.rel_error < 5e-3)
     ('exponential', True)
     """
+    if isinstance(body, System) or state is not None:
+        if not isinstance(body, System):
+            raise ValueError(f"state= measures a tumble.System about an equilibrium; a body is measured about an axis "
+                             f"(measure(body, axis, spin)), got {body!r}")
+        if axis is not None:
+            raise ValueError("axis is a body's spin axis: a System is measured about state=, its equilibrium")
+        if state is None:
+            raise ValueError(f"state is required for system {body.name!r}: the equilibrium (one state of "
+                             f"{', '.join(body.state)}) whose perturbations to measure")
+        from .system_scenes import measure_system
+
+        return measure_system(body, state, amplitude, samples, seed, method, dt=dt, horizon=horizon,
+                              parameters=parameters, device=device)
+    if parameters is not None:
+        raise ValueError("parameters are a System's; a body has none")
     scene = scene_plan(body, axis, spin, amplitude, samples, seed, method, dt=dt, flips=flips,
                        distribution=distribution, torque=torque, horizon=horizon, curves=curves, device=device)
     return scene_result(scene, [scene_samples(scene, 0, scene.samples, progress=progress)])

@@ -347,8 +347,27 @@ def eigenvalues_at(system, state, parameters=None, *, t=0.0):
 
 
 def _system_eigenvalues(system, state, parameters, t):
-    """:func:`eigenvalues_at` of a :class:`System`: its functions called as the Python they are (a few dozen calls:
-    nothing to compile)."""
+    """:func:`eigenvalues_at` of a :class:`System`."""
+    jacobians = system_jacobian(system, state, parameters, t=t)
+    return np.linalg.eigvals(jacobians)
+
+
+def system_linearisation(system, state, parameters=None, *, t=0.0):
+    """:class:`Linearisation` of a :class:`System` at one state (n,): the kind and value :func:`linear` would
+    report (the largest real part of the eigenvalues if it is growth beyond round-off, else the least damped
+    oscillation's frequency, else neutral), its Jacobian and eigenvalues."""
+    jac = system_jacobian(system, state, parameters, t=t)
+    if jac.ndim != 2:
+        raise ValueError(f"state must be one state of shape ({system.state_size},), got shape {np.shape(state)}")
+    lam = np.linalg.eigvals(jac)
+    kind, value = _classified(jac, lam)
+    return Linearisation(kind, value, jac, lam)
+
+
+def system_jacobian(system, state, parameters=None, *, t=0.0):
+    """The Jacobian ``∂f/∂y`` of a :class:`System` at states (..., n), shape (..., n, n): its ``jacobian``, else its
+    rate differentiated by :func:`scipy.differentiate.jacobian`; both called as the Python they are (a few dozen
+    calls: nothing to compile)."""
     n = system.state_size
     y = finite_array(state, "state")
     if y.ndim == 0 or y.shape[-1] != n:
@@ -383,7 +402,7 @@ def _system_eigenvalues(system, state, parameters, t):
     if not np.all(np.isfinite(jacobians)):
         raise ValueError(f"system {system.name!r}: its Jacobian at the state is not finite (NaN or inf: an entry left "
                          f"unset, or a rate that is not differentiable there)")
-    return np.linalg.eigvals(jacobians).reshape(*y.shape[:-1], n)
+    return jacobians.reshape(*y.shape[:-1], n, n)
 
 
 def _linear_model(model, axis, spin):
