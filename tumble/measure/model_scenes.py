@@ -73,7 +73,7 @@ from . import estimators as analysis
 from . import planning, reduction
 
 __all__ = ["HEAVY_TOP_SPIN_TILT", "METHODS", "MODAL", "Mode", "ModelScene", "PERIODS", "mode", "model_of", "scan_layout",
-           "flat_spin_trace", "scene_batch", "scene_plan", "scene_records", "scene_samples"]
+           "flat_spin_trace", "periodic_plan", "scene_batch", "scene_plan", "scene_records", "scene_samples"]
 
 #: The model kernels' methods; ``"auto"`` is the first.
 METHODS = registry.MODEL_STEPPING
@@ -222,6 +222,12 @@ def _plan(scene_args, kind, value, y0_norms, dt, horizon, eigenvalues=None):
         n_steps = first + planning.PROBES * every
         return planning.StepPlan(t_end=n_steps * dt, dt=dt, n_steps=n_steps, probe_times=probes, saturation=saturation,
                                save_every=every if model.modal else None)
+    return periodic_plan(value, dt, horizon)
+
+
+def periodic_plan(value, dt, horizon):
+    """The plan of a periodic scene of frequency ``value`` (rad/s) with a step of at most ``dt``: :data:`PERIODS`
+    periods (or ``horizon`` s), the state stored :data:`~tumble.measure.planning.SAVES_PER_PERIOD` times a period."""
     period = 2 * np.pi / value
     t_end = horizon or PERIODS * period
     spacing = period / planning.SAVES_PER_PERIOD

@@ -16,7 +16,7 @@ A System scene is a model scene (:mod:`tumble.measure.model_scenes`) with the sy
 * exponential: ``|z|`` stored at :data:`~tumble.measure.planning.PROBES` + 1 equally spaced times up to 2 e-foldings
   past the end of the linear regime (``|z|`` reaching ``max(SATURATION, SATURATION_TILTS amplitude)`` in the state's
   units) and fitted by :func:`~tumble.measure.estimators.growth_rates`; periodic: ``(Re z, Im z)`` stored
-  :data:`~tumble.measure.planning.SAVES_PER_PERIOD` times a period over :data:`PERIODS` periods and its phase fitted
+  :data:`~tumble.measure.planning.SAVES_PER_PERIOD` times a period over :data:`~tumble.measure.model_scenes.PERIODS` periods and its phase fitted
   by :func:`~tumble.measure.estimators.oscillation_frequencies`;
 * the step resolves the fastest eigenvalue (:data:`~tumble.measure.planning.STEPS_PER_RADIAN` of the method's
   order); the samples step in :data:`~tumble.measure.model_scenes.SLICE`-sized engine calls
@@ -44,7 +44,7 @@ from ..physics.system import System, with_parameters
 from ..registry import STATUS_OK
 from . import estimators as analysis
 from . import planning, reduction
-from .model_scenes import PERIODS, SLICE
+from .model_scenes import SLICE, periodic_plan
 from .records import scene_dataset
 
 __all__ = ["SystemScene", "measure_system", "system_scene_plan"]
@@ -142,17 +142,7 @@ def _plan(kind, value, lam, start, amplitude, order, dt, horizon):
         return planning.StepPlan(t_end=n_steps * dt, dt=dt, n_steps=n_steps,
                                  probe_times=np.arange(planning.PROBES + 1) * every * dt, saturation=saturation,
                                  save_every=every)
-    period = 2 * np.pi / value
-    t_end = horizon or PERIODS * period
-    spacing = period / planning.SAVES_PER_PERIOD
-    if t_end / spacing > planning.MAX_SAVES:
-        raise ValueError(f"horizon {t_end:g} s needs {t_end / spacing:.0f} stored states per sample for the phase "
-                         f"fit ({planning.SAVES_PER_PERIOD} per period), more than {planning.MAX_SAVES}; choose a "
-                         f"shorter horizon")
-    every = max(1, math.ceil(spacing / dt))
-    dt = spacing / every
-    n_steps = max(1, math.ceil(t_end / dt - 1e-9))
-    return planning.StepPlan(t_end=n_steps * dt, dt=dt, n_steps=n_steps, save_every=every)
+    return periodic_plan(value, dt, horizon)
 
 
 def _perturbed(scene, lo, hi):
