@@ -9,6 +9,7 @@ growing on a chaotic one, the early stop), GALI (falling exponentially on a chao
 of issue 41 item 6 as one line.
 """
 
+import importlib.util
 import math
 import os
 import subprocess
@@ -589,6 +590,8 @@ print("compiled")
 
 
 @pytest.mark.slow
+@pytest.mark.skipif(importlib.util.find_spec("nvidia") is None, reason="no NVVM wheel (pip install nvidia-nvvm "
+                    "nvidia-cuda-nvrtc-cu12, or the gpu extra)")
 def test_the_device_kernel_compiles_for_a_gpu():
     """The simulator runs the kernel's body as Python: numba-cuda's own compiler is what a GPU would run (a local
     array's shape must be constants, ...). Compiled to PTX for sm_90 without a driver, where NVVM is installed."""
