@@ -73,7 +73,7 @@ from . import estimators as analysis
 from . import planning, reduction
 
 __all__ = ["HEAVY_TOP_SPIN_TILT", "METHODS", "MODAL", "Mode", "ModelScene", "PERIODS", "mode", "model_of", "scan_layout",
-           "flat_spin_trace", "periodic_plan", "scene_batch", "scene_plan", "scene_records", "scene_samples"]
+           "flat_spin_trace", "measured_eigenvalue", "periodic_plan", "scene_batch", "scene_plan", "scene_records", "scene_samples"]
 
 #: The model kernels' methods; ``"auto"`` is the first.
 METHODS = registry.MODEL_STEPPING
@@ -147,18 +147,22 @@ def mode(model, axis, spin, kind, *, jacobian=None):
     equilibrium = model.equilibrium(axis, spin)
     jac = model.tangent_jacobian(equilibrium) if jacobian is None else jacobian
     lam, vectors = np.linalg.eig(jac[np.ix_(rows, rows)])
-    tol = theory.EIGEN_RTOL * np.abs(lam).max()
-    if kind == "exponential":
-        top = lam.real.max()
-        m = int(np.argmax(np.where(lam.real >= top - 1e-9 * np.abs(lam).max(), lam.imag, -np.inf)))
-    else:
-        oscillating = lam.imag > tol
-        lead = np.where(oscillating, lam.real, -np.inf).max()
-        m = int(np.argmax(np.where(oscillating & (lam.real >= lead - tol), lam.imag, -np.inf)))
+    m = measured_eigenvalue(lam, kind)
     in_columns = vectors[:, m] / factor  # the mode in the state's columns
     scale = math.sqrt(float(np.sum(weights * np.abs(in_columns) ** 2)))
     left = np.linalg.inv(vectors)[m] * factor * scale
     return Mode(columns, left, complex(lam[m]), np.asarray(equilibrium[columns], dtype=float))
+
+
+def measured_eigenvalue(lam, kind):
+    """The index in ``lam`` of the eigenvalue a scene of ``kind`` measures (:func:`mode`)."""
+    tol = theory.EIGEN_RTOL * np.abs(lam).max()
+    if kind == "exponential":
+        top = lam.real.max()
+        return int(np.argmax(np.where(lam.real >= top - 1e-9 * np.abs(lam).max(), lam.imag, -np.inf)))
+    oscillating = lam.imag > tol
+    lead = np.where(oscillating, lam.real, -np.inf).max()
+    return int(np.argmax(np.where(oscillating & (lam.real >= lead - tol), lam.imag, -np.inf)))
 
 
 def _scene_mode(scene):

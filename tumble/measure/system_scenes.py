@@ -44,7 +44,7 @@ from ..physics.system import System, with_parameters
 from ..registry import STATUS_OK
 from . import estimators as analysis
 from . import planning, reduction
-from .model_scenes import SLICE, periodic_plan
+from .model_scenes import SLICE, measured_eigenvalue, periodic_plan
 from .records import scene_dataset
 
 __all__ = ["SystemScene", "measure_system", "system_scene_plan"]
@@ -80,19 +80,12 @@ class SystemScene:
     torque: None = None
 
 
-def _left_mode(jac, lam, kind):
+def _left_mode(jac, kind):
     """``(left eigenvector, eigenvalue)`` of the mode a scene of ``kind`` measures (as
     :func:`tumble.measure.model_scenes.mode` chooses it), scaled so that ``u . v = 1`` for the mode's unit right
     eigenvector ``v``: ``|u . x|`` is then the mode's amplitude in units of a unit perturbation."""
-    tol = theory.EIGEN_RTOL * np.abs(lam).max()
-    if kind == "exponential":
-        top = lam.real.max()
-        m = int(np.argmax(np.where(lam.real >= top - tol, lam.imag, -np.inf)))
-    else:
-        oscillating = lam.imag > tol
-        lead = np.where(oscillating, lam.real, -np.inf).max()
-        m = int(np.argmax(np.where(oscillating & (lam.real >= lead - tol), lam.imag, -np.inf)))
-    _, right = np.linalg.eig(jac)
+    lam, right = np.linalg.eig(jac)
+    m = measured_eigenvalue(lam, kind)
     lam_t, left = np.linalg.eig(jac.T)
     v = right[:, m] / np.linalg.norm(right[:, m])
     u = left[:, int(np.argmin(np.abs(lam_t - lam[m])))]
@@ -145,10 +138,10 @@ def _plan(kind, value, lam, start, amplitude, order, dt, horizon):
     return periodic_plan(value, dt, horizon)
 
 
-def _perturbed(scene, lo, hi):
-    """States ``[lo, hi)`` of the scene's ensemble: the equilibrium plus ``amplitude`` times isotropic unit
-    directions (the whole ensemble drawn from the seed, so a range is the same samples however it is cut)."""
-    directions = np.random.default_rng(scene.entropy).standard_normal((scene.samples, len(scene.equilibrium)))[lo:hi]
+def _perturbed(scene, count):
+    """The first ``count`` states of the scene's ensemble: the equilibrium plus ``amplitude`` times isotropic unit
+    directions drawn from the seed (a prefix is the same samples whatever ``count``)."""
+    directions = np.random.default_rng(scene.entropy).standard_normal((count, len(scene.equilibrium)))
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     return scene.equilibrium + scene.amplitude * directions
 
@@ -177,11 +170,11 @@ def system_scene_plan(system, state, amplitude=1e-3, samples=1024, seed=0, metho
         raise ValueError(f"the equilibrium {equilibrium.tolist()} of system {system.name!r} is neutral in linear theory "
                          f"(eigenvalues {np.round(linear.eigenvalues, 12).tolist()}: no growth or oscillation to "
                          f"measure)")
-    left, eigenvalue = _left_mode(linear.jacobian, linear.eigenvalues, linear.kind)
+    left, eigenvalue = _left_mode(linear.jacobian, linear.kind)
     amplitude, entropy = float(amplitude), seed_entropy(seed)
     scene = SystemScene(system, equilibrium, values, amplitude, int(samples), method, chosen, linear.kind,
                         linear.value, None, entropy, left, eigenvalue, 0.0, device)
-    first = _perturbed(scene, 0, min(int(samples), 256))
+    first = _perturbed(scene, min(int(samples), 256))
     start = float(np.median(np.abs((first - equilibrium) @ left)))
     plan = _plan(linear.kind, linear.value, linear.eigenvalues, start, amplitude, _order(chosen), dt, horizon)
     planning.check_fit_span(linear.kind, linear.value, plan.t_end, horizon)
@@ -215,10 +208,10 @@ def system_scene_samples(scene):
     names = ("t_start", "t_stop", "norm_start", "norm_stop") if scene.kind == "exponential" else ("radius",)
     out = {"start": np.int64(0), "rate": np.empty(n), "code": np.empty(n, dtype=np.int8),
            **{name: np.empty(n) for name in names}}
-    computed = 0
+    computed, states = 0, _perturbed(scene, n)
     for lo in range(0, n, SLICE):
         hi = min(lo + SLICE, n)
-        run, _ = run_system(scene.system, _perturbed(scene, lo, hi), plan.t_end, plan.n_steps, plan.dt, scene.chosen,
+        run, _ = run_system(scene.system, states[lo:hi], plan.t_end, plan.n_steps, plan.dt, scene.chosen,
                             save_every=plan.save_every, parameters=scene.parameters, device=scene.device)
         z = (run.trajectory - scene.equilibrium) @ scene.left
         out["rate"][lo:hi], out["code"][lo:hi], extras = _fit(scene, run.times, z, run.status)

@@ -93,7 +93,7 @@ class System:
         of order 7e6, a concentration of order 1e-6) needs its own. The chaos indicators warn in one line where they
         cannot vouch for a difference: at the first state, when the difference changes with a quarter of the step
         (the scale too large), and at the end, when a component went so far beyond its scale that rounding
-        dominates (beyond about 1e5 times it).
+        dominates (beyond about 1e7 times it).
 
     Raises
     ------
