@@ -99,7 +99,9 @@ def test_a_system_on_the_device_gives_the_cpu_run(cuda_device):
         cpu = tumble.integrate(PENDULUM, y0, 1.0, 0.05, method="rk8", save_every=4)
     with pytest.warns(RuntimeWarning, match="1 of 3 samples"):
         device = tumble.integrate(PENDULUM, y0, 1.0, 0.05, method="rk8", save_every=4, device=cuda_device)
-    np.testing.assert_allclose(device["state"].values, cpu["state"].values, rtol=1e-13, atol=1e-15)
+    # the finite samples agree (the CPU's blocks keep a sample's state from the check that caught it, the device's
+    # per-sample loop the last finite one: either way its status says it is not a result)
+    np.testing.assert_allclose(device["state"].values[:2], cpu["state"].values[:2], rtol=1e-13, atol=1e-15)
     np.testing.assert_array_equal(device["status"].values, cpu["status"].values)
     assert list(cpu["status"].values) == [0, 0, 1]  # the sample that overflows says so
     assert device.attrs["device"] == "cuda"

@@ -28,15 +28,15 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import registry
-from ..kernels import (TABLEAUX, device_tangent_loop, rate_sample, rate_sample_parameters, sample_loop, tangent_blocks,
-                       tangent_loop)
+from ..kernels import (TABLEAUX, device_tangent_loop, rate_sample, rate_sample_parameters, sample_loop, system_steps,
+                       tangent_blocks, tangent_loop)
 from ..physics.bodies import Body, one_body
 from ..physics.models import FreeBody, Model
 from ..physics.system import System, finite_number, with_parameters
 from . import cost
 from .device import resolve_device
 from .integration import checked_save_every
-from .system_runs import compiled, initial_states, probe
+from .system_runs import block_code, compiled, initial_states, probe
 
 __all__ = ["RESCALE_EVERY", "STATUS_ABOVE_NAME", "TANGENT_TURN", "TangentRun", "gali", "initial_tangents", "lyapunov",
            "megno", "run_tangents", "tangent_kind"]
@@ -277,6 +277,15 @@ def _kernels(system, method):
     return made[key][1]
 
 
+def _block_code(system, method):
+    """The code of ``system``'s tangent steps on the CPU's block path (a built-in model's kind, a System's generated
+    steps: :func:`tumble.kernels.system_steps.tangent_code`), or None where it runs one sample at a time."""
+    if isinstance(system, Model):
+        return registry.MODEL_KINDS.index(system.kind) if tangent_blocks.runs(method, system.kind) else None
+    return block_code(system, method, key="tangents", make=lambda: system_steps.tangent_code(
+        system.rate, system.state_size, len(system.parameters), system.jacobian, system.difference_scales()))
+
+
 def _parameters(system, parameters):
     """``(system with parameters, p for the kernels, {name: value})``."""
     system, values = with_parameters(system, parameters)
@@ -336,8 +345,10 @@ def run_tangents(system, y, p, method, first, step, n_steps, every, transient, s
         status = np.zeros(n_samples, dtype=np.int8)
         steps_taken = np.zeros(n_samples, dtype=np.int64)
         outputs = (logs, saved, scalars, status, steps_taken)
-        if isinstance(system, Model) and tangent_blocks.runs(method, system.kind):  # vectorised across samples
-            tangent_blocks.run(int(p[0]), registry.STEPPING.index(method), p[1:], state, tangents, 0.0,
+        code = _block_code(system, method)
+        if code is not None:  # vectorised across samples
+            constants = p[1:] if isinstance(system, Model) else system_steps.block_constants(p[:len(system.parameters)])
+            tangent_blocks.run(code, registry.STEPPING.index(method), constants, state, tangents, 0.0,
                                float(step), int(n_steps), int(every), int(transient), int(save_every),
                                float(stop_above), bool(orthogonalise), *outputs)
         else:

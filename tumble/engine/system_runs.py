@@ -7,18 +7,21 @@ checked once here, then
   driver for every model: rk4, rk8 and, for the Lie–Poisson models, the splittings), ``parameters`` overriding the
   model's own; with any other tableau of :data:`tumble.kernels.TABLEAUX` (a method added at run time) it runs as a
   System does, its rate the kernels' own (:func:`tumble.kernels.rate_sample`);
-* a :class:`~tumble.physics.system.System` steps with the per-sample loop of :mod:`tumble.kernels.sample_loop` (any
-  Runge–Kutta tableau: rk4, rk8, or one added to ``TABLEAUX``), compiled for that system and method on its first run
-  in a process and kept with the system. Before anything runs the rate is compiled alone and called once at the
-  first initial state with bounds checked, and at up to :data:`PROBED` initial states: a rate numba cannot compile,
-  that reads or writes beyond the state, or that leaves a component of ``dydt`` unset or NaN is one line naming the system (ValueError),
-  never a numba traceback or a silent NaN.
+* a :class:`~tumble.physics.system.System` steps on the CPU with the built-ins' vectorised blocks, its rate rewritten
+  into their scalar form and its rk4 and rk8 steps generated from it (:mod:`tumble.kernels.system_steps`: made once
+  per process, their drivers cached on disk), and otherwise (a rate without a scalar form, said in one warning; any
+  other tableau; the device) with the per-sample loop of :mod:`tumble.kernels.sample_loop`, compiled for that system
+  and method on its first run in a process and kept with the system. Before anything runs the rate is compiled alone
+  and called once at the first initial state with bounds checked, and at up to :data:`PROBED` initial states: a rate
+  numba cannot compile, that reads or writes beyond the state, or that leaves a component of ``dydt`` unset or NaN is
+  one line naming the system (ValueError), never a numba traceback or a silent NaN.
 
 Both run on ``device="cpu"`` or ``"cuda"`` (one thread per sample, the same per-sample code).
 """
 
 from __future__ import annotations
 
+import warnings
 import weakref
 from typing import NamedTuple
 
@@ -26,13 +29,13 @@ import numpy as np
 
 from .. import registry
 from ..kernels import (MODEL_BLOCK, TABLEAUX, device_models, device_sample_loop, model_methods, parallel_block,
-                       rate_sample, rate_sample_parameters, run_model, sample_loop)
+                       rate_sample, rate_sample_parameters, run_model, run_system_blocks, sample_loop, system_steps)
 from ..physics.models import Model
 from ..physics.system import System, with_parameters
 from . import cost
 from .device import resolve_device
 
-__all__ = ["PROBED", "SystemRun", "added_tableau", "compiled", "initial_states", "is_system", "method_order", "probe",
+__all__ = ["PROBED", "SystemRun", "added_tableau", "block_code", "compiled", "initial_states", "is_system", "method_order", "probe",
            "run_system", "system_methods"]
 
 #: Initial states at which a user's rate is called once before a run (the first with bounds checked): a NaN or an
@@ -162,6 +165,30 @@ def _kernels(system, method):
     return made[method][1]
 
 
+#: System -> the code of its steps on the block path (None: it has no scalar form), made once per process.
+_BLOCK_CODES = weakref.WeakKeyDictionary()
+
+
+def block_code(system, method, make=None, key=None):
+    """The code of ``system``'s steps on the CPU's vectorised block path for ``method``
+    (:func:`tumble.kernels.system_steps.system_code`, or ``make()`` for another kind of steps, kept under ``key``), or
+    None where it runs one sample at a time: a method without generated steps, or a rate (or Jacobian) that has no
+    scalar form, which one warning per System and kind says, with why."""
+    if not system_steps.runs(method):
+        return None
+    made = _BLOCK_CODES.setdefault(system, {})
+    if key not in made:
+        try:
+            made[key] = (make or (lambda: system_steps.system_code(system.rate, system.state_size,
+                                                                   len(system.parameters))))()
+        except system_steps.NotScalar as why:
+            made[key] = None
+            warnings.warn(f"system {system.name!r} runs one sample at a time, about 20 times slower than on the "
+                          f"vectorised blocks: {why} (a rate that reads y[j] and writes dydt[j] at constant indices "
+                          f"j, as a Jacobian J[i, j], runs vectorised)", stacklevel=4)
+    return made[key]
+
+
 def probe(system, y, p, t0):
     """Call the rate at the first :data:`PROBED` finite initial states (the first with bounds checked): ValueError
     naming the system when it reads or writes beyond the state, or leaves a component unset or not finite."""
@@ -237,11 +264,14 @@ def run_system(system, y0, t_end, n_steps, step, method="rk4", *, save_every=Non
     stored = n_state * (n_steps / save_every + 2 if save_every else 2)
     cost.refuse(cost.run_cost(len(y), n_steps, stored), f"y0 ({len(y):,} states) over {n_steps:,} steps", device)
     every = int(save_every or 0)
-    if isinstance(system, System) or method not in model_methods(system.kind):
-        if isinstance(system, System):
-            loop_system, p = system, system.parameter_values(parameters)
-            probe(system, y, p, 0.0)
-        else:  # a tableau the model's generated steps do not have
+    code = None
+    if isinstance(system, System):
+        p = system.parameter_values(parameters)
+        probe(system, y, p, 0.0)
+        code = block_code(system, method) if device == "cpu" else None
+    if code is None and (isinstance(system, System) or method not in model_methods(system.kind)):
+        loop_system = system
+        if not isinstance(system, System):  # a tableau the model's generated steps do not have
             loop_system, p = _sample_loop_system(system)
         kernels = _kernels(loop_system, method)
         n_saved = sample_loop.saved_count(n_steps, every)
@@ -258,10 +288,14 @@ def run_system(system, y0, t_end, n_steps, step, method="rk4", *, save_every=Non
         final, trajectory = state, (saved if every else None)
     else:
         state = np.array(y.T, order="C")
-        run = run_model if device == "cpu" else device_models().run_model
         block = parallel_block(len(y), MODEL_BLOCK)
-        observed = run(system.kind, method, state, system.moments, step, n_steps, **system.parameters,
-                       save_every=every, block=block)
+        if code is not None:  # a System on the block path
+            observed = run_system_blocks(code, method, state, system_steps.block_constants(p), step, n_steps, every,
+                                         block)
+        else:
+            run = run_model if device == "cpu" else device_models().run_model
+            observed = run(system.kind, method, state, system.moments, step, n_steps, **system.parameters,
+                           save_every=every, block=block)
         final = state.T
         trajectory = observed.saved.transpose(2, 0, 1) if every else None
         status, steps_taken = observed.status, observed.steps_taken

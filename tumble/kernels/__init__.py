@@ -5,13 +5,13 @@ This package's face is the one door to the kernels: the engine (:mod:`tumble.eng
 checks it). Tests and benchmarks of the kernels themselves may reach the modules.
 """
 
-from . import elliptic, fits, sample_loop, side_by_side, tangent_blocks, tangent_loop
+from . import elliptic, fits, sample_loop, side_by_side, system_steps, tangent_blocks, tangent_loop
 from .drivers import TORQUE_SIGNATURE
 from .jit import parallel_block
 from .methods import BLOCK, METHODS, Method, Observed, run, run_attitude
 from .model_loop import BLOCK as MODEL_BLOCK
 from .model_loop import (MODEL_CODES, MODEL_METHODS, ModelObserved, model_methods, model_rhs, model_tangent,
-                         rate_sample, rate_sample_parameters, run_model, tangent_sample)
+                         rate_sample, rate_sample_parameters, run_model, run_system_blocks, tangent_sample)
 from .tableaux import TABLEAUX
 from .steppers import TORQUE_CONSTANT, TORQUE_PULSE, TORQUE_RAMP, TORQUE_SINE, TORQUE_USER
 
@@ -19,7 +19,8 @@ __all__ = ["BLOCK", "METHODS", "MODEL_BLOCK", "MODEL_CODES", "MODEL_METHODS", "T
            "TORQUE_RAMP", "TORQUE_SIGNATURE", "TORQUE_SINE", "TORQUE_USER", "device_attitude", "device_closed_form",
            "device_fits", "device_kernels", "device_models", "device_sample_loop", "elliptic", "fits",
            "Method", "TABLEAUX", "model_methods", "model_rhs", "model_tangent", "ModelObserved", "Observed", "parallel_block",
-           "rate_sample", "rate_sample_parameters", "run", "run_attitude", "run_model", "sample_loop", "side_by_side",
+           "rate_sample", "rate_sample_parameters", "run", "run_attitude", "run_model", "run_system_blocks", "sample_loop",
+           "side_by_side", "system_steps",
            "device_tangent_loop", "tangent_blocks", "tangent_loop", "tangent_sample"]
 
 

@@ -14,9 +14,11 @@ kernel's). The loop's system parts are overloads on them, :func:`_step`, :func:`
 and :func:`_observe_flips`, so that numba compiles one system's and one method's code into the loop and nothing else.
 :data:`FREE_BODY` is the free body with its own fused steps (:mod:`tumble.kernels.free_body_parts`: torques too, and
 the flips of its spin axis); every other code is a model of :data:`tumble.registry.MODEL_KINDS` stepped by the steps
-generated from its system module (:mod:`tumble.kernels.model_steps`, :mod:`tumble.kernels.systems`). A code that is not
-a literal is a typing error that says so (a chain of branches would compile every system's and method's step into the
-loop: 40 s of a first rk4 ``integrate`` on 2 cores, 78 s of a first heavy-top ensemble, ``benchmarks/first_call.py``).
+generated from its system module (:mod:`tumble.kernels.model_steps`, :mod:`tumble.kernels.systems`), and a code from
+:data:`tumble.kernels.system_steps.SYSTEM_CODES` up a user's System, stepped by the steps generated from its rewritten
+rate (no invariants, no flips). A code that is not a literal is a typing error that says so (a chain of branches would
+compile every system's and method's step into the loop: 40 s of a first rk4 ``integrate`` on 2 cores, 78 s of a first
+heavy-top ensemble, ``benchmarks/first_call.py``).
 
 **Observers** are runtime switches: an output not asked for is an empty array and its branch, outside the loop over a
 block's samples, is skipped. They come in one order after each step: flips (the free body's spin-axis component
@@ -54,6 +56,7 @@ from .free_body_parts import invariants as free_body_invariants
 from .free_body_parts import method_step, observe_flips
 from .jit import FASTMATH, jit
 from .model_steps import drift_suspects, invariants, step
+from .system_steps import SYSTEM_CODES, block_step
 from .systems import N_INVARIANTS
 
 __all__ = ["CHECK_EVERY", "FREE_BODY", "N_INVARIANTS", "PROBE_ROWS", "WINDOW_ROWS", "block_scratch", "run_block"]
@@ -101,6 +104,13 @@ def _step_of(system, method, torque_free, ys, active, t, h, params, x0, torque):
     free body's splittings end on its ``|L|²``, the gyrostat projects onto its ``|L|``)."""
     _literal(system, method, torque_free)
     system_code, method_code = system.literal_value, method.literal_value
+    if system_code >= SYSTEM_CODES:
+        user_step = block_step(system_code, method_code)
+
+        def users_step(system, method, torque_free, ys, active, t, h, params, x0, torque):
+            user_step(ys, t, h, params)
+
+        return users_step
     if system_code != FREE_BODY:
         def system_step(system, method, torque_free, ys, active, t, h, params, x0, torque):
             step(system_code, method_code, ys, t, h, params, x0)
@@ -129,6 +139,11 @@ def _invariants_of(system, ys, i, params):
             return free_body_invariants(ys[0, i], ys[1, i], ys[2, i], params)
 
         return free_body
+    if system_code >= SYSTEM_CODES:
+        def none_known(system, ys, i, params):
+            return 0.0, 0.0, 0.0, 1.0, 1.0, 1.0  # a user's System declares no invariants
+
+        return none_known
 
     def system_invariants(system, ys, i, params):
         return invariants(system_code, ys, i, params)
@@ -149,6 +164,11 @@ def _drift_suspects_of(system, ys, active, params, x0, inverse_scale, screen):
             return free_body_drift_suspects(ys, active, params, x0, inverse_scale, screen)
 
         return free_body
+    if system_code >= SYSTEM_CODES:
+        def non_finite(system, ys, active, params, x0, inverse_scale, screen):
+            return _non_finite(ys, active)
+
+        return non_finite
 
     def system_drift_suspects(system, ys, active, params, x0, inverse_scale, screen):
         return drift_suspects(system_code, ys, active, params, x0, inverse_scale, screen)
@@ -175,6 +195,16 @@ def _observe_flips_of(system, ys, previous, active, axis, t, h, params, times, c
                       torque_fn)
 
     return free_body
+
+
+@jit(inline=True)
+def _non_finite(ys, active):
+    """Whether an active sample of the block holds a value that is not finite (a user's System: no invariants)."""
+    bad = 0.0
+    for j in range(ys.shape[0]):
+        for i in range(ys.shape[1]):
+            bad += 0.0 * ys[j, i] if active[i] else 0.0
+    return bad != 0.0
 
 
 # --- observers, the same for every system -----------------------------------------------------------------------------

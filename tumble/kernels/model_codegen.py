@@ -150,11 +150,12 @@ def _fields(name):
     return _module(name).Constants._fields
 
 
-def step_source(tableau, name, components):
-    """Source of ``<name>_<method>_sample(t, *components, h, c)``: one step of a system for one sample."""
+def step_source(tableau, name, components, forced=None):
+    """Source of ``<name>_<method>_sample(t, *components, h, c)``: one step of a system for one sample (``forced``:
+    whether its rate takes a forcing, :func:`_has_forcing`; None: the built-in system's module says)."""
     args = ", ".join(components)
     n = len(components)
-    forced = _has_forcing(name)
+    forced = _has_forcing(name) if forced is None else forced
     stages = "".join(f", f{s + 1}" for s in range(len(tableau.b))) if forced else ""
     lines = [
         "@jit(inline=True)",
@@ -164,7 +165,7 @@ def step_source(tableau, name, components):
         f'sample."""',
     ]
     for s in range(len(tableau.b)):
-        ks = ", ".join(f"k{s + 1}_{i + 1}" for i in range(n))
+        ks = ", ".join(f"k{s + 1}_{i + 1}" for i in range(n)) + ("," if n == 1 else "")
         time = "t" if tableau.c[s] == 0.0 else f"t + {float(tableau.c[s])!r} * h"
         lines.append(f"    {ks} = {name}.rate_forced(" if forced else f"    {ks} = {name}.rate(")
         lines.append(f"        f{s + 1}," if forced else f"        {time},")
@@ -178,11 +179,12 @@ def step_source(tableau, name, components):
     return "\n".join(lines)
 
 
-def block_source(tableau, name, components, project):
+def block_source(tableau, name, components, project, forced=None):
     """Source of ``<name>_<method>_block(t, y1, ..., h, c)``: every sample of a block advanced by one step (then
-    projected by the module's ``project`` when it has one)."""
+    projected by the module's ``project`` when it has one; ``forced`` as :func:`step_source`)."""
     arrays = ", ".join(f"y{i + 1}" for i in range(len(components)))
     items = ", ".join(f"y{i + 1}[i]" for i in range(len(components)))
+    target = items + ("," if len(components) == 1 else "")
     lines = [
         "@jit",
         f"def {name}_{tableau.name}_block(t, {arrays}, h, c):",
@@ -190,7 +192,7 @@ def block_source(tableau, name, components, project):
         f'{", then project it" if project else ""}."""',
     ]
     forcing = ""
-    if _has_forcing(name):
+    if _has_forcing(name) if forced is None else forced:
         for s in range(len(tableau.b)):
             time = "t" if tableau.c[s] == 0.0 else f"t + {float(tableau.c[s])!r} * h"
             lines.append(f"    f{s + 1} = {name}.forcing({time}, c)")
@@ -201,13 +203,13 @@ def block_source(tableau, name, components, project):
         lines[2:2] = ["    # size: generated: one array per state component (the block's rows), the time, the step, the "
                       "constants"]
         lines += [f"        {values} = {name}_{tableau.name}_sample(t, {items}, h, c{forcing})",
-                  f"        {items} = {name}.project({values})"]
+                  f"        {target} = {name}.project({values})"]
     else:
-        lines += [f"        {items} = {name}_{tableau.name}_sample(t, {items}, h, c{forcing})"]
+        lines += [f"        {target} = {name}_{tableau.name}_sample(t, {items}, h, c{forcing})"]
     return "\n".join(lines)
 
 
-def tangent_step_source(tableau, name, components):
+def tangent_step_source(tableau, name, components, forced=None):
     # size: generated from the tableau, every stage of the state, one tangent vector and MEGNO's scalars spelled out
     """Source of ``<name>_<method>_tangent_sample(t, t0, *y, *d, ys, yss, h, c)``: one step of a system's state
     ``y``, one tangent vector ``d`` and MEGNO's two scalars for one sample (the augmented system of
@@ -216,7 +218,7 @@ def tangent_step_source(tableau, name, components):
     which numba cannot inline."""
     n = len(components)
     tangent = [f"d_{y}" for y in components]
-    forced = _has_forcing(name)
+    forced = _has_forcing(name) if forced is None else forced
     # Ys' = 2 t rho of a stage is needed where the step's combination or the Ys of a stage with Yss' takes it
     ys_rate = [tableau.b[s] != 0.0 or any(tableau.b[q] != 0.0 and tableau.A[q, s] != 0.0 for q in range(len(tableau.b)))
                for s in range(len(tableau.b))]
@@ -239,9 +241,9 @@ def tangent_step_source(tableau, name, components):
         lines += [f"    {along[i]} = {combination(d, a, i + 1).replace('* k', '* l')}" for i, d in enumerate(tangent)]
         at = f"f{s + 1}" if forced else time
         suffix = "_forced" if forced else ""
-        lines.append(f"    {', '.join(f'k{s + 1}_{i + 1}' for i in range(n))} = {name}.rate{suffix}({at}, "
+        lines.append(f"    {', '.join(f'k{s + 1}_{i + 1}' for i in range(n))}{',' * (n == 1)} = {name}.rate{suffix}({at}, "
                      f"{', '.join(stage)}, c)")
-        lines.append(f"    {', '.join(f'l{s + 1}_{i + 1}' for i in range(n))} = {name}.tangent{suffix}({at}, "
+        lines.append(f"    {', '.join(f'l{s + 1}_{i + 1}' for i in range(n))}{',' * (n == 1)} = {name}.tangent{suffix}({at}, "
                      f"{', '.join(stage)}, {', '.join(along)}, c)")
         lines.append(f"    elapsed = {time} - t0")
         if ys_rate[s]:
@@ -260,22 +262,24 @@ def tangent_step_source(tableau, name, components):
     return "\n".join(lines)
 
 
-def tangent_block_source(tableau, name, components):
+def tangent_block_source(tableau, name, components, forced=None, n_fields=None):
     """Source of ``<name>_<method>_tangent_step(Z, t, t0, h, a)``: every sample of a block advanced in place by one
     step with its tangent vectors and MEGNO's scalars (``Z`` (k, 2 n + 2, m): for each vector the state's rows, the
     vector's, ``Ys`` and ``Yss``; the state and MEGNO of ``Z[r > 0]`` are copies of ``Z[0]``'s that the caller makes
     and that the step overwrites), no projection (the tangent is the derivative of the step itself). ``a``: the
-    constants array. Rows by constant index, updated in place: the form LLVM vectorises across samples (separate
-    input and output arrays, or rows at a runtime offset, leave the loop scalar: measured with numba 0.68.1)."""
+    constants array (``n_fields`` of them read into the system's record; None: the built-in's ``Constants``; ``forced``
+    as :func:`step_source`). Rows by constant index, updated in place: the form LLVM vectorises across samples
+    (separate input and output arrays, or rows at a runtime offset, leave the loop scalar: measured with numba
+    0.68.1)."""
     rows = ", ".join(f"Y[{j}, i]" for j in range(2 * len(components) + 2))
     lines = [
         "@jit",
         f"def {name}_{tableau.name}_tangent_step(Z, t, t0, h, a):",
         f'    """Every sample of a block, its tangent vectors and MEGNO\'s scalars advanced in place by one '
         f'{tableau.name} step of\n    the {name}."""',
-        f"    c = {_record(name)}",
+        f"    c = {_record(name, n_fields)}",
     ]
-    forced = _has_forcing(name)
+    forced = _has_forcing(name) if forced is None else forced
     if forced:
         times = ["t" if c == 0.0 else f"t + {float(c)!r} * h" for c in tableau.c]
         lines.append(f"    forcings = ({', '.join(f'{name}.forcing({time}, c)' for time in times)},)")
@@ -301,9 +305,11 @@ def tangent_table_source(modules):
     return "\n".join(lines)
 
 
-def _record(name):
-    """``<name>.Constants(a[0], ..., a[k])``: the constants array (or tuple) read into the system's record."""
-    return f"{name}.Constants({', '.join(f'a[{i}]' for i in range(len(_fields(name))))})"
+def _record(name, n_fields=None):
+    """``<name>.Constants(a[0], ..., a[k])``: the constants array (or tuple) read into the system's record (its
+    ``n_fields`` fields; None: the built-in system's ``Constants``)."""
+    n_fields = len(_fields(name)) if n_fields is None else n_fields
+    return f"{name}.Constants({', '.join(f'a[{i}]' for i in range(n_fields))})"
 
 
 def _codes(kinds):

@@ -43,12 +43,14 @@ from ..registry import model_methods  # the names the model kernels run for a ki
 from .block_loop import N_INVARIANTS, block_scratch, run_block
 from .jit import jit
 from .model_splittings import SPLITTINGS
+from .sample_loop import saved_count
 from .model_steps import rate_columns, rate_sample, tangent_columns, tangent_sample
+from .system_steps import cacheable
 from .systems import constants
 
 __all__ = ["MODEL_CODES", "MODEL_METHODS", "ModelObserved", "SPLITTING_KINDS", "make_propagate_model",
            "model_arguments", "model_methods", "model_rhs", "model_tangent", "propagate_model", "rate_sample",
-           "rate_sample_parameters", "run_model", "tangent_sample"]
+           "rate_sample_parameters", "run_model", "run_system_blocks", "tangent_sample"]
 
 #: Kernel codes of the models: their index in ``registry.MODEL_KINDS``. The kernels step every model of this table,
 #: whatever ``registry.MODELS``' ``implemented`` says (that flag is the studies'; the gravity gradient and the damper
@@ -70,9 +72,10 @@ BLOCK = 256
 def make_propagate_model(model, method):
     """The CPU's driver of the one time loop (:func:`tumble.kernels.block_loop.run_block`) for ``model`` and ``method``
     (codes of :data:`MODEL_CODES` and :data:`MODEL_METHODS`), constants of the closure: the loop compiles that system's
-    and that method's step only. numba's disk cache tells the closures apart by their constants."""
+    and that method's step only. numba's disk cache tells the closures apart by their constants (a user's System's code
+    that keys nothing is not cached: :func:`tumble.kernels.system_steps.cacheable`)."""
 
-    @jit(parallel=True)
+    @jit(parallel=True, cache=cacheable(model))
     def propagate(y, constants, h, n_steps, block, save_every, saved, columns, weights, y_eq, probe_steps, probes,
                   drift, drift_limit, status, steps_taken):
         n_state, n = y.shape
@@ -134,6 +137,21 @@ def propagate_model(model, method, y, constants, h, n_steps, block,
         driver = _DRIVERS[key] = make_propagate_model(*key)
     driver(y, constants, h, n_steps, block, save_every, saved, columns, weights, y_eq, probe_steps, probes, drift,
            drift_limit, status, steps_taken)
+
+
+def run_system_blocks(code, method, y, constants, h, n_steps, save_every=0, block=BLOCK):
+    """Integrate an ensemble of a user's System on the block path: ``code`` its steps'
+    (:func:`tumble.kernels.system_steps.system_code`), ``method`` rk4 or rk8 (:data:`MODEL_METHODS`), ``y`` (n, N)
+    the states as columns (overwritten with the final ones), ``constants`` its parameters; stores as
+    :func:`run_model`, no other observer. Returns :class:`ModelObserved` (no probes, no drift)."""
+    n_state, n = y.shape
+    saved = np.empty((saved_count(n_steps, save_every), n_state, n))
+    status = np.zeros(n, dtype=np.int8)
+    steps_taken = np.zeros(n, dtype=np.int64)
+    propagate_model(code, MODEL_METHODS[method], y, np.ascontiguousarray(constants, dtype=float), float(h),
+                    int(n_steps), int(block), int(save_every), saved, _NO_COLUMNS, _NO_WEIGHTS, np.zeros(n_state),
+                    _NO_STEPS, np.empty((0, n)), np.zeros((0, n)), 0.0, status, steps_taken)
+    return ModelObserved(saved if save_every > 0 else None, None, None, status, steps_taken)
 
 
 class ModelObserved(NamedTuple):
@@ -250,9 +268,7 @@ def model_arguments(kind, method, y, moments, n_steps, parameters, save_every, c
                          f"kernels, got {method!r}" + _NOT_LIE_POISSON * (method in SPLITTINGS))
     if y.ndim != 2 or y.shape[0] != n_state or y.dtype != np.float64 or not y.flags.c_contiguous:
         raise ValueError(f"y must be a C-contiguous float64 array of shape ({n_state}, N), got {y.dtype} {y.shape}")
-    n_saved = 0
-    if save_every > 0:
-        n_saved = 1 + n_steps // save_every + (1 if n_steps % save_every else 0)
+    n_saved = saved_count(n_steps, save_every)
     return (code, n_state, constants, n_saved,
             _NO_COLUMNS if columns is None else np.ascontiguousarray(columns, dtype=np.int64),
             _NO_WEIGHTS if weights is None else np.ascontiguousarray(weights, dtype=float),

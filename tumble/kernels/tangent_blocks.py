@@ -1,4 +1,5 @@
-"""The tangent flow of the built-in models on the CPU, a block of samples at a time (vectorised across samples).
+"""The tangent flow of the built-in models and of a user's System on the CPU, a block of samples at a time
+(vectorised across samples).
 
 The same run as :mod:`tumble.kernels.tangent_loop`'s per-sample loop (a state, ``k`` tangent vectors and MEGNO's two
 scalars per sample; modified Gram–Schmidt every ``every`` steps, at the transient, at each saved step and at the end;
@@ -6,9 +7,10 @@ scalars per sample; modified Gram–Schmidt every ``every`` steps, at the transi
 for SIMD lanes: a block's samples are the columns of ``Z`` (k, 2 n + 2, m), and one generated step per system and
 method (:data:`tumble.kernels.model_steps.TANGENT_STEPS`, rk4 or rk8 with the system's rate and tangent spelled out;
 for the Lie–Poisson models' splittings, their sub-flows each looped over the block:
-:func:`tumble.kernels.model_splittings.splitting_tangent_block`) moves them all at once. The per-sample loop stays the
-path of a user's ``System``, of a tableau added at run time, of the implicit midpoint rule and of the device (one
-thread per sample); this one is the built-in models' on the CPU: the heavy
+:func:`tumble.kernels.model_splittings.splitting_tangent_block`; a user's System's, generated from its rewritten rate
+and Jacobian: :mod:`tumble.kernels.system_steps`) moves them all at once. The per-sample loop stays the path of a
+System without a scalar form, of a tableau added at run time, of the implicit midpoint rule and of the device (one
+thread per sample); this one is the CPU's: the heavy
 top's MEGNO, rk4, 2000 samples, 6.6e7 sample-steps/s against the per-sample loop's 2.7e6 (24 times; 2 cores, AVX2,
 2026-11-28; the whole map: ``benchmarks/chaos.py``).
 
@@ -35,6 +37,7 @@ from ..registry import LIE_POISSON_MODELS, MODEL_STEPPING, STATUS_ABOVE, STATUS_
 from .jit import FASTMATH, jit
 from .model_splittings import HEAVY_TOP_CODE, SPLITTINGS, splitting_tangent_block
 from .model_steps import TANGENT_STEPS
+from .system_steps import SYSTEM_CODES, cacheable, tangent_step
 from .tableaux import TABLEAUX
 from .tangent_loop import orthonormalise_row
 
@@ -75,12 +78,12 @@ def _tangent_step_of(model, method, Z, t, t0, h, a):
             splitting_tangent_block(method_id, top, Z, t, t0, h, a)
 
         return splitting_step
-    step = TANGENT_STEPS[code, method_id]
+    step = tangent_step(code, method_id) if code >= SYSTEM_CODES else TANGENT_STEPS[code, method_id]
 
-    def tangent_step(model, method, Z, t, t0, h, a):
+    def generated_step(model, method, Z, t, t0, h, a):
         step(Z, t, t0, h, a)
 
-    return tangent_step
+    return generated_step
 
 
 def runs(method, kind):
@@ -331,9 +334,10 @@ def _run_block(model, method, a, y, V, lo, m, t0, h, n_steps, every, transient, 
 
 def make_propagate_tangents(model, method):
     """The driver of ``model``'s and ``method``'s codes, constants of the closure (the step is chosen when it is
-    compiled: :func:`_tangent_step`); numba's disk cache tells the closures apart by their constants."""
+    compiled: :func:`_tangent_step`); numba's disk cache tells the closures apart by their constants (a user's System's
+    code that keys nothing is not cached: :func:`tumble.kernels.system_steps.cacheable`)."""
 
-    @jit(parallel=True)
+    @jit(parallel=True, cache=cacheable(model))
     def propagate_tangents(a, y, V, t0, h, n_steps, every, transient, save_every, stop_above, orthogonalise, logs,
                            saved, megno, status, steps_taken):
         # size: tangent_loop's driver's arguments, with the model's constants first

@@ -71,7 +71,10 @@ class System:
     rate : callable
         ``rate(t, y, p, dydt)``: plain Python numba can compile in nopython mode (or a ``numba.njit`` function);
         writes the derivative of the state ``y`` (float64, (n,)) at time ``t`` (s) into ``dydt`` (float64, (n,));
-        ``p`` (float64, (k,)) holds the parameters in the order of ``parameters``.
+        ``p`` (float64, (k,)) holds the parameters in the order of ``parameters``. A rate that reads ``y[j]`` and
+        writes ``dydt[j]`` at constant indices (straight-line code, branches allowed) runs on the CPU vectorised
+        across samples, as the built-in models do, its kernels cached on disk; one that loops over the components or
+        passes its arrays on runs one sample at a time, and a warning says so.
     state : sequence of str
         Names of the state's components, in order (n >= 1): the ``component`` coordinate of
         :func:`tumble.integrate`'s ``state(sample, time, component)``.
