@@ -273,7 +273,7 @@ MODEL_PARAMETERS = (
     ModelParameter("rotor", 3, "N m s", False, "gyrostat: rotor angular momentum relative to the body, body frame"),
     ModelParameter("mgl", 1, "N m", True, "heavy_top: M g l, weight times the pivot-to-centre-of-mass distance"),
     ModelParameter("orbit_rate", 1, "rad/s", True, "gravity_gradient: orbital angular rate n of a circular orbit"),
-    ModelParameter("damper_inertia", 1, "kg m^2", True, "damper: moment of inertia J of the damper sphere"),
+    ModelParameter("damper_inertia", 1, "kg m2", True, "damper: moment of inertia J of the damper sphere"),
     ModelParameter("damping", 1, "N m s", True, "damper: viscous coupling c between the sphere and the body"),
 )
 _PARAMETER_BY_KEY = {p.key: p for p in MODEL_PARAMETERS}

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..registry import SAMPLE_STATUS_NAMES, STATE_BLOCKS, STATUS_NAMES
+from ..registry import MODEL_PARAMETERS, SAMPLE_STATUS_NAMES, STATE_BLOCKS, STATUS_NAMES
 
 __all__ = ["CHAOS_VARIABLES", "CONFIDENCE", "COORDS", "INTERVAL_TEXT", "KIND_UNITS", "assemble_scan", "chaos_dataset", "record_variables", "scene_dataset",
            "stack_records", "unstack_records", "variable_metadata"]
@@ -88,11 +88,7 @@ def variable_metadata(kind, value):
         "sample": ("1", "sample index", ("sample",)),
         "component": ("1", "body-frame component (principal axis)", ("component",)),
         "model": ("1", "model kind (registry.MODELS): free, gyrostat, heavy_top, gravity_gradient, damper"),
-        "rotor": ("N m s", "gyrostat: rotor angular momentum along the spin axis, body frame"),
-        "mgl": ("N m", "heavy_top: M g l, weight times the pivot-to-centre-of-mass distance"),
-        "orbit_rate": ("rad/s", "gravity_gradient: orbital angular rate n of the circular orbit"),
-        "damper_inertia": ("kg m2", "damper: moment of inertia J of the damper sphere"),
-        "damping": ("N m s", "damper: viscous coupling c between the sphere and the body"),
+        **{p.key: (p.units, p.text) for p in MODEL_PARAMETERS},  # the registry holds them once
         "system": ("1", "the measured System's name"),
     }
     return {name: (entry[2] if len(entry) > 2 else (), {"units": entry[0], "long_name": entry[1],
