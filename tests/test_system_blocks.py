@@ -29,7 +29,7 @@ def _evaluate(source, name, *arguments):
 
 
 def test_a_rate_is_rewritten_into_the_scalar_form_with_its_numbers_and_divisions_by_a_parameter_made_products():
-    source, _ = system_steps.scalar_rate(heavy_top, 6, 7)
+    source = system_steps.scalar_rate(heavy_top, 6, 7)
     assert "_d5 = " in source and "y[" not in source and "dydt" not in source
     assert "/ p[0]" not in source and "* p[7]" in source  # 1 / I1 rides after the seven parameters
     rng = np.random.default_rng(5)
@@ -46,11 +46,11 @@ def test_a_jacobian_becomes_the_tangent_flow_and_without_one_the_difference_is_t
     p = (k, c, a, w)
     y, v = np.array([1e4 + 0.3, -0.7]), np.array([0.6, -0.8])
     exact = np.array([v[1], -k * math.cos(y[0]) * v[0] - c * v[1]])
-    source, _ = system_steps.scalar_tangent(2, 4, hand_written_systems.rotor_jacobian)
+    source = system_steps.scalar_tangent(2, 4, hand_written_systems.rotor_jacobian)
     np.testing.assert_allclose(_evaluate(source, "_tumble_tangent", 0.5, *y, *v, p + tuple(1 / np.array(p))), exact,
                                rtol=1e-15)
-    rate, _ = system_steps.scalar_rate(hand_written_systems.rotor, 2, 4)
-    difference, _ = system_steps.scalar_tangent(2, 4, None, np.ones(2))
+    rate = system_steps.scalar_rate(hand_written_systems.rotor, 2, 4)
+    difference = system_steps.scalar_tangent(2, 4, None, np.ones(2))
     got = _evaluate(rate + "\n" + difference, "_tumble_tangent", 0.5, *y, *v, p + tuple(1 / np.array(p)))
     np.testing.assert_allclose(got, exact, rtol=1e-10)  # an angle of 1e4 rad: the step follows the scale, not |y|
 
@@ -168,7 +168,7 @@ def test_a_rate_whose_file_was_edited_since_it_was_imported_is_not_rewritten_fro
     monkeypatch.syspath_prepend(str(tmp_path))
     import edited_rate
 
-    assert "_d0 = -_y0" in system_steps.scalar_rate(edited_rate.rate, 1, 0)[0]
+    assert "_d0 = -_y0" in system_steps.scalar_rate(edited_rate.rate, 1, 0)
     module.write_text("def rate(t, y, p, dydt):\n    dydt[0] = +y[0]\n")
     import linecache
     linecache.checkcache(str(module))

@@ -68,7 +68,8 @@ def _uncached_jit(fn=None, **options):
 
 
 def _function_tree(fn, what):
-    """The syntax tree of ``fn``'s definition, its decorators removed; NotScalar when its source cannot be read."""
+    """The syntax tree of ``fn``'s definition (a numba function: its Python function's), its decorators removed;
+    NotScalar when its source cannot be read or is not a plain function of four arguments."""
     fn = getattr(fn, "py_func", fn)
     try:
         source = textwrap.dedent(inspect.getsource(fn))
@@ -90,7 +91,7 @@ def _function_tree(fn, what):
             raise NotScalar(f"{what} defines a function inside")
         if isinstance(node, (ast.Global, ast.Nonlocal, ast.Yield, ast.YieldFrom)):
             raise NotScalar(f"{what} uses {type(node).__name__.lower()}")
-    return fn, tree
+    return tree
 
 
 def _source_is_current(fn):
@@ -170,25 +171,25 @@ class _Scalars(ast.NodeTransformer):
 
 
 def _rewrite(fn, what, arrays, result, arguments, n_parameters):
-    """``(source, fn)``: ``fn``'s definition named ``_tumble_<what>`` with ``arguments`` (the new argument list),
-    its ``arrays`` (position -> (shape, variable)) made variables, every ``return`` returning ``result(written)``."""
-    fn, tree = _function_tree(fn, what)
+    """The source of ``fn``'s definition named ``_tumble_<what>``: its ``arrays`` (argument position -> (shape,
+    variable name of an index tuple)) made variables, its arguments ``arguments(names)`` (``names``: its own), every
+    ``return`` returning ``result(names, written)`` (``written``: array name -> the index tuples it stores)."""
+    tree = _function_tree(fn, what)
     names = [a.arg for a in tree.args.args]
     used = {node.id for node in ast.walk(tree) if isinstance(node, ast.Name)}
     transformer = _Scalars({names[position]: spec for position, spec in arrays.items()}, what, names[2], n_parameters)
     body = [transformer.visit(statement) for statement in tree.body]
-    generated = set(arguments(names)) - set(names)
-    clash = sorted(used & generated)
+    clash = sorted(used & (set(arguments(names)) - set(names)))
     if clash:
         raise NotScalar(f"{what} uses the name {clash[0]}, which its rewrite needs")
-    returned = result(transformer.written)
+    returned = result(names, transformer.written)
     tree.body = body + [ast.parse(f"return {returned}").body[0]]
     for node in ast.walk(tree):
         if isinstance(node, ast.Return) and node is not tree.body[-1]:
             node.value = ast.parse(returned, mode="eval").body
     tree.name = f"_tumble_{what}"
     tree.args = ast.parse(f"def f({', '.join(arguments(names))}): pass").body[0].args
-    return ast.unparse(ast.fix_missing_locations(tree)), fn
+    return ast.unparse(ast.fix_missing_locations(tree))
 
 
 def _state(n):
@@ -196,77 +197,63 @@ def _state(n):
 
 
 def scalar_rate(rate, n, n_parameters):
-    """The source of ``_tumble_rate(t, _y0, ..., _y{n-1}, p)``, ``rate(t, y, p, dydt)`` rewritten to return the
-    derivative as a tuple, and the Python function it came from (its module's names are the rewrite's).
+    """The source of ``_tumble_rate(t, _y0, ..., _y{n-1}, p)``: ``rate(t, y, p, dydt)`` of ``n`` components and
+    ``n_parameters`` parameters rewritten to return the derivative as a tuple (a division by a parameter a product
+    with its reciprocal, ``p[n_parameters + k]``).
 
     Raises
     ------
     NotScalar
         The rate uses its state or derivative other than by constant indices, or leaves a component unset.
     """
-    def result(written):
-        missing = sorted(set(range(n)) - {j for (j,) in written.get(names[3], ())}) if names else []
+    def result(names, written):
+        missing = sorted(set(range(n)) - {j for (j,) in written.get(names[3], ())})
         if missing:
             raise NotScalar(f"rate sets no dydt[{missing[0]}] as a constant index")
         return f"({', '.join(f'_d{j}' for j in range(n))},)"
 
-    names = []
-
-    def arguments(given):
-        names[:] = given
-        return [given[0], *_state(n), given[2]]
-
     return _rewrite(rate, "rate", {1: ((n,), lambda j: f"_y{j[0]}"), 3: ((n,), lambda j: f"_d{j[0]}")}, result,
-                    arguments, n_parameters)
+                    lambda names: [names[0], *_state(n), names[2]], n_parameters)
 
 
 def scalar_tangent(n, n_parameters, jacobian=None, scales=None):
     """The source of ``_tumble_tangent(t, _y0, ..., _v0, ..., p)``, ``J(t, y) v``: from ``jacobian(t, y, p, J)``
     rewritten (an entry it never sets is 0), or without it the fourth-order difference of ``_tumble_rate`` along
     ``v`` whose step moves no component by more than :data:`DIFFERENCE_STEP` of its scale (``scales``, (n,)), as
-    :func:`tumble.kernels.tangent_loop.difference_tangents` does per sample; and the Python function it came from (None
-    for the difference)."""
+    :func:`tumble.kernels.tangent_loop.difference_tangents` does per sample (the same shifts, the same bits)."""
     along = [f"_v{j}" for j in range(n)]
     if jacobian is None:
-        state = _state(n)
-        size = ", ".join(f"abs(_v{j}) / {float(s)!r}" for j, s in enumerate(scales)) if n > 1 else \
-            f"abs(_v0) / {float(scales[0])!r}"
-        lines = [f"def _tumble_tangent(t, {', '.join(state)}, {', '.join(along)}, p):",
-                 f"    size = {'max(' + size + ')' if n > 1 else size}",
+        sizes = [f"abs(_v{j}) / {float(s)!r}" for j, s in enumerate(scales)]
+        lines = [f"def _tumble_tangent(t, {', '.join(_state(n))}, {', '.join(along)}, p):",
+                 f"    size = {sizes[0] if n == 1 else 'max(' + ', '.join(sizes) + ')'}",
                  f"    e = {DIFFERENCE_STEP!r} / max(size, 2.2250738585072014e-308)  # v = 0: a zero difference"]
         for label, shift in (("a", "e"), ("b", "-e"), ("c", "2.0 * e"), ("d", "-2.0 * e")):
             lines.append(f"    {', '.join(f'{label}{j}' for j in range(n))}, = _tumble_rate(t, "
                          f"{', '.join(f'_y{j} + ({shift}) * _v{j}' for j in range(n))}, p)")
         lines.append(f"    return ({', '.join(f'(8.0 * (a{j} - b{j}) - (c{j} - d{j})) / (12.0 * e)' for j in range(n))},)")
-        return "\n".join(lines), None
+        return "\n".join(lines)
 
-    def result(written):
+    def result(names, written):
         entries = written.get(names[3], set())
-        rows = []
-        for i in range(n):
-            terms = [f"_J{i}_{j} * _v{j}" for j in range(n) if (i, j) in entries]
-            rows.append(" + ".join(terms) if terms else "0.0")
+        rows = [" + ".join(f"_J{i}_{j} * _v{j}" for j in range(n) if (i, j) in entries) or "0.0" for i in range(n)]
         return f"({', '.join(rows)},)"
 
-    names = []
-
-    def arguments(given):
-        names[:] = given
-        return [given[0], *_state(n), *along, given[2]]
-
     return _rewrite(jacobian, "tangent", {1: ((n,), lambda j: f"_y{j[0]}"), 3: ((n, n), lambda ij: f"_J{ij[0]}_{ij[1]}")},
-                    result, arguments, n_parameters)
+                    result, lambda names: [names[0], *_state(n), *along, names[2]], n_parameters)
 
 
-def _reads(fn):
+def _reads(fn, seen=None):
     """What ``fn`` reads from its module and closure, as text that keys it: numbers and strings by value, arrays by
     their bytes, modules by name, functions by their source (and what they read); None when something else."""
     if fn is None:
         return ""
     fn = getattr(fn, "py_func", fn)
+    seen = set() if seen is None else seen
+    seen.add(fn)
     values = inspect.getclosurevars(fn)
     keyed = []
     for name, value in sorted({**values.globals, **values.nonlocals}.items()):
+        function = getattr(value, "py_func", value)
         if isinstance(value, types.ModuleType):
             text = f"module {value.__name__}"
         elif isinstance(value, (bool, int, float, complex, str, np.number)) or value is None:
@@ -275,16 +262,18 @@ def _reads(fn):
             text = repr(value)
         elif isinstance(value, np.ndarray):
             text = f"array {value.dtype} {value.shape} {hashlib.sha256(value.tobytes()).hexdigest()}"
-        elif callable(getattr(value, "py_func", value)) and inspect.isfunction(getattr(value, "py_func", value)):
-            inner = _reads(value)
-            try:
-                text = inspect.getsource(getattr(value, "py_func", value))
-            except (OSError, TypeError):
-                return None
-            if inner is None:
-                return None
-            text += inner
+        elif inspect.isfunction(function):
+            if function in seen:
+                text = "(read above)"  # a recursion, or a helper two functions call
+            else:
+                try:
+                    inner = _reads(function, seen)
+                    text = None if inner is None else inspect.getsource(function) + inner
+                except (OSError, TypeError):
+                    text = None
         else:
+            text = None
+        if text is None:
             return None
         keyed.append(f"{name} = {text}")
     return "\n".join(keyed)
@@ -364,7 +353,7 @@ def system_code(rate, n, n_parameters):
     NotScalar
         The rate has no scalar form (:func:`scalar_rate`).
     """
-    source, _ = scalar_rate(rate, n, n_parameters)
+    source = scalar_rate(rate, n, n_parameters)
     code = _code([source, f"{n} {n_parameters}"], _reads(rate))
     if code not in _MADE:
         module = _namespace(rate, [source], n_parameters)
@@ -376,8 +365,8 @@ def tangent_code(rate, n, n_parameters, jacobian=None, scales=None):
     """The code of the tangent steps of ``rate`` with ``jacobian`` (or, without it, the differences on ``scales``),
     made once per process: their rk4 and rk8 steps for :func:`tangent_step`. Raises NotScalar as
     :func:`system_code`, or when the Jacobian has no scalar form."""
-    rate_source, _ = scalar_rate(rate, n, n_parameters)
-    tangent_source, _ = scalar_tangent(n, n_parameters, jacobian, scales)
+    rate_source = scalar_rate(rate, n, n_parameters)
+    tangent_source = scalar_tangent(n, n_parameters, jacobian, scales)
     reads = _reads(rate)
     more = _reads(jacobian)
     code = _code([rate_source, tangent_source, f"{n} {n_parameters}"],
