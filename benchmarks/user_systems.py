@@ -60,7 +60,7 @@ class _PerSample:
 
     def __enter__(self):
         self.kept = system_runs._BLOCK_CODES.pop(self.system, None)
-        system_runs._BLOCK_CODES[self.system] = {None: None, "tangents": None}
+        system_runs._BLOCK_CODES[self.system] = {False: None, True: None}
 
     def __exit__(self, *exc):
         system_runs._BLOCK_CODES[self.system] = self.kept or {}

@@ -282,8 +282,7 @@ def _block_code(system, method):
     steps: :func:`tumble.kernels.system_steps.tangent_code`), or None where it runs one sample at a time."""
     if isinstance(system, Model):
         return registry.MODEL_KINDS.index(system.kind) if tangent_blocks.runs(method, system.kind) else None
-    return block_code(system, method, key="tangents", make=lambda: system_steps.tangent_code(
-        system.rate, system.state_size, len(system.parameters), system.jacobian, system.difference_scales()))
+    return block_code(system, method, tangents=True)
 
 
 def _parameters(system, parameters):

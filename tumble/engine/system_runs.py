@@ -169,24 +169,25 @@ def _kernels(system, method):
 _BLOCK_CODES = weakref.WeakKeyDictionary()
 
 
-def block_code(system, method, make=None, key=None):
-    """The code of ``system``'s steps on the CPU's vectorised block path for ``method``
-    (:func:`tumble.kernels.system_steps.system_code`, or ``make()`` for another kind of steps, kept under ``key``), or
+def block_code(system, method, tangents=False):
+    """The code of ``system``'s steps (with ``tangents``, its tangent steps) on the CPU's vectorised block path for
+    ``method`` (:func:`tumble.kernels.system_steps.system_code`, :func:`~tumble.kernels.system_steps.tangent_code`), or
     None where it runs one sample at a time: a method without generated steps, or a rate (or Jacobian) that has no
     scalar form, which one warning per System and kind says, with why."""
     if not system_steps.runs(method):
         return None
     made = _BLOCK_CODES.setdefault(system, {})
-    if key not in made:
+    if tangents not in made:
+        n, k = system.state_size, len(system.parameters)
         try:
-            made[key] = (make or (lambda: system_steps.system_code(system.rate, system.state_size,
-                                                                   len(system.parameters))))()
+            made[tangents] = (system_steps.tangent_code(system.rate, n, k, system.jacobian, system.difference_scales())
+                              if tangents else system_steps.system_code(system.rate, n, k))
         except system_steps.NotScalar as why:
-            made[key] = None
+            made[tangents] = None
             warnings.warn(f"system {system.name!r} runs one sample at a time, about 20 times slower than on the "
                           f"vectorised blocks: {why} (a rate that reads y[j] and writes dydt[j] at constant indices "
                           f"j, as a Jacobian J[i, j], runs vectorised)", stacklevel=4)
-    return made[key]
+    return made[tangents]
 
 
 def probe(system, y, p, t0):
