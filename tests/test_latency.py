@@ -56,7 +56,9 @@ def test_the_short_import_paths_give_the_layers_modules():
             "assert tumble.io is sys.modules['tumble.output.io']\n"
             "assert linear is sys.modules['tumble.physics.theory'].linear\n"
             "assert callable(tumble.measure) and tumble.measure.__name__ == 'measure'\n"
-            "assert set(tumble.__all__) <= set(dir(tumble))")
+            "assert set(tumble.__all__) <= set(dir(tumble))\n"
+            "assert not {'sys', 'importlib'} & set(vars(tumble)), 'the face shows only its names'\n"
+            "assert not any(type(f).__module__.startswith('tumble') for f in sys.meta_path), 'no import hook'")
     subprocess.run([sys.executable, "-c", code], check=True)
 
 
@@ -120,8 +122,8 @@ def test_the_side_by_side_signatures_are_those_the_closed_form_scenes_call(warm_
 
     tumble.measure((1.0, 2.0, 3.0), 2, samples=16)  # exponential
     tumble.measure((1.0, 2.0, 3.0), 1, samples=16)  # periodic
-    for jobs in side_by_side.CLOSED_FORM.values():
-        for name, signature in jobs:
+    for kind in ("exponential", "periodic"):  # the "grid" jobs are tumble check's (test_check calls them)
+        for name, signature in side_by_side.CLOSED_FORM[kind]:
             assert tuple(signature) in side_by_side._dispatcher(name).signatures, name
 
 

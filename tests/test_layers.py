@@ -14,10 +14,15 @@ PACKAGE = Path(__file__).resolve().parents[1] / "tumble"
 
 # Bottom to top; a module may import its own layer and the layers below it. `_interrupt` (Ctrl-C while the command
 # starts), `_startup` (the command's imports without the garbage collector) and `_disk` (a failed write's diagnosis)
-# import nothing of tumble, like `_version`. `warm` imports nothing of tumble either: it runs the public API's calls in
-# new interpreters, so it sits above every layer those calls reach, below the command line that offers it.
+# import nothing of tumble, like `_version`. `warm` imports only the registry (the methods' names): it runs the public
+# API's calls in new interpreters, so it sits above every layer those calls reach, below the command line that offers
+# it.
 LAYERS = ("_version", "_interrupt", "_startup", "_disk", "registry", "kernels", "physics", "engine", "measure", "output",
           "pipeline", "warm", "cli", "__main__", "__init__")
+# The face's short paths (tumble/exact.py, ...): each puts a layer's module in its place (tumble._ALIASES), so they
+# are the face, like __init__.
+FACE_ALIASES = {path.stem for path in PACKAGE.glob("*.py")
+                if path.read_text().rstrip().endswith(f"sys.modules[__name__] = {path.stem}")}
 FORBIDDEN = {"output": {"engine", "measure"}}
 # Third-party packages a layer must not import.
 FORBIDDEN_EXTERNAL = {"kernels": {"xarray", "matplotlib", "tqdm", "dask", "netCDF4", "scipy"},
@@ -26,7 +31,7 @@ FORBIDDEN_EXTERNAL = {"kernels": {"xarray", "matplotlib", "tqdm", "dask", "netCD
 
 def _layer(parts):
     """Layer of a module given as the parts of its dotted path below ``tumble``."""
-    return parts[0] if parts else "__init__"
+    return "__init__" if not parts or (len(parts) == 1 and parts[0] in FACE_ALIASES) else parts[0]
 
 
 def _modules():
@@ -239,10 +244,11 @@ def test_no_two_hand_written_modules_share_a_name():
     """A module's name says what it holds, once (issue 40): no two hand-written modules of the package share a file
     name (``__init__.py`` aside). A generated module (its first line says GENERATED) may carry the name of the one it
     is copied from: ``kernels/systems/heavy_top.py`` is the kernels' copy of ``physics/models/heavy_top.py``'s
-    equations."""
+    equations; a short path of the face (``tumble/exact.py``) is the module it names."""
     names = {}
     for path, _ in MODULES:
-        if path.name != "__init__.py" and not path.read_text().startswith('"""GENERATED'):
+        if (path.name != "__init__.py" and path.stem not in FACE_ALIASES
+                and not path.read_text().startswith('"""GENERATED')):
             names.setdefault(path.name, []).append(path.relative_to(PACKAGE).as_posix())
     shared = {name: paths for name, paths in names.items() if len(paths) > 1}
     assert not shared, shared

@@ -20,11 +20,6 @@ package's modules are reached with ``from tumble.measure import scans`` (or ``im
 followed by ``sys.modules``), never by attribute access through the face.
 """
 
-import importlib
-import importlib.abc
-import importlib.util
-import sys
-
 # First: Ctrl-C while the tumble command imports the rest is one line and exit 130 (see tumble._interrupt).
 from . import _interrupt  # noqa: F401
 from ._version import __version__
@@ -50,35 +45,13 @@ _FACE = {
 }
 
 # The physics modules of the public contract keep their short import paths (`import tumble.exact`,
-# `from tumble.theory import linear`), as they had before the layers became folders; `tumble.models` (the systems
-# beyond the free body, `tumble.models.Gyrostat`) is the package physics/models/ under the same kind of short path.
+# `from tumble.theory import linear`): each short path is a module of four lines here (tumble/exact.py, ...) that puts
+# the layer's module in its place, so that both names are one module object; `tumble.models` (the systems beyond the
+# free body, `tumble.models.Gyrostat`) is the package physics/models/ under the same kind of short path.
 _ALIASES = {"exact": "tumble.physics.exact", "theory": "tumble.physics.theory", "models": "tumble.physics.models",
             "shapes": "tumble.physics.shapes", "rotations": "tumble.physics.rotations", "io": "tumble.output.io",
             "sampling": "tumble.engine.sampling"}
 _FACE.update({name: (module, None) for name, module in _ALIASES.items()})
-
-
-class _AliasImporter(importlib.abc.MetaPathFinder, importlib.abc.Loader):
-    """``import tumble.exact`` (and the other short paths) gives the module ``tumble.physics.exact`` itself, imported
-    when first asked for: one module object under two names, as ``sys.modules`` aliasing gave when the face was
-    eager."""
-
-    def find_spec(self, fullname, path=None, target=None):
-        short = fullname.removeprefix(__name__ + ".")
-        if short == fullname or short not in _ALIASES:
-            return None
-        return importlib.util.spec_from_loader(fullname, self)
-
-    def create_module(self, spec):
-        module = importlib.import_module(_ALIASES[spec.name.removeprefix(__name__ + ".")])
-        spec.loader_state = module.__spec__  # the import machinery now gives the module the alias's spec...
-        return module
-
-    def exec_module(self, module):
-        module.__spec__ = module.__spec__.loader_state  # ...and the module keeps its own (reloading, pickling)
-
-
-sys.meta_path.append(_AliasImporter())
 
 # The package tumble.measure is imported now so that importing its modules later never rebinds the face's
 # `tumble.measure` (the function) to the package: the import system sets a package as its parent's attribute only
@@ -93,7 +66,9 @@ def __getattr__(name):
         module, attribute = _FACE[name]
     except KeyError:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
-    value = importlib.import_module(module)
+    from importlib import import_module  # here, not at the top: `import tumble` shows only the public names
+
+    value = import_module(module)
     if attribute is not None:
         value = getattr(value, attribute)
     globals()[name] = value  # later lookups skip this function

@@ -8,7 +8,7 @@ checks that the kernels' coefficient tables agree with them.
 
 from typing import NamedTuple
 
-__all__ = ["ATTITUDE_FIGURES", "AUTO", "AUTO_STEPPING", "CHAOS_FIGURES", "CHAOS_INDICATORS", "CHAOS_STARTS", "CHOICES",
+__all__ = ["ATTITUDE_FIGURES", "ACCURATE_STEPPING", "AUTO", "AUTO_STEPPING", "CHAOS_FIGURES", "CHAOS_INDICATORS", "CHAOS_STARTS", "CHOICES",
            "DEFAULT_MODEL", "FIGURES", "FIGURE_MODELS", "FIT_NAMES", "FORMATS", "FigureModel", "INDICATOR_STATUSES",
            "LIE_POISSON_MODELS", "METHODS", "MIN_AMPLITUDE", "MODELS",
            "MODEL_KINDS", "MODEL_PARAMETERS", "MODEL_STEPPING", "Method", "Model", "ModelParameter", "PER_SAMPLE_ARRAYS", "SAMPLE_STATUS_NAMES",
@@ -53,6 +53,9 @@ CHOICES = (AUTO, *_BY_NAME)
 
 #: The stepping method ``"auto"`` takes when the closed form cannot serve: the fastest fourth-order kernel.
 AUTO_STEPPING = "rk4"
+
+#: The stepping method where accuracy, not speed, decides (a damper's flat-spin trace): the highest-order one.
+ACCURATE_STEPPING = max((m for m in METHODS if m.family == "runge_kutta"), key=lambda m: m.order).name
 
 
 def method(name):
@@ -265,15 +268,27 @@ class ModelParameter(NamedTuple):
     size: int  # 1: a number; 3: a body-frame vector
     units: str
     positive: bool  # must be > 0 (else: any finite value)
-    text: str
+    text: str  # "<kind>: what it is" (a result's long_name)
+    study: str = ""  # what a study does with it, beyond the text (the docs of studies/defaults.toml)
 
 
 #: Every numeric parameter of the models, by study key (keys of the ``[model]`` table other than ``kind``).
 MODEL_PARAMETERS = (
-    ModelParameter("rotor", 3, "N m s", False, "gyrostat: rotor angular momentum relative to the body, body frame"),
-    ModelParameter("mgl", 1, "N m", True, "heavy_top: M g l, weight times the pivot-to-centre-of-mass distance"),
-    ModelParameter("orbit_rate", 1, "rad/s", True, "gravity_gradient: orbital angular rate n of a circular orbit"),
-    ModelParameter("damper_inertia", 1, "kg m2", True, "damper: moment of inertia J of the damper sphere"),
+    ModelParameter("rotor", 3, "N m s", False, "gyrostat: rotor angular momentum relative to the body, body frame",
+                   "A 3-vector; for a steady spin it must lie along spin.axis. In a scan, scan.rotor lists "
+                   "3-vectors, or numbers: h along each scene's spin axis (so that scan.axis can be scanned with it)."),
+    ModelParameter("mgl", 1, "N m", True, "heavy_top: M g l, weight times the pivot-to-centre-of-mass distance",
+                   "body.moments are about the fixed point; spin.axis must be 3 (the sleeping top). The perturbation "
+                   "tilts the spin by perturbation.amplitude / 1000 and the up direction by perturbation.amplitude."),
+    ModelParameter("orbit_rate", 1, "rad/s", True, "gravity_gradient: orbital angular rate n of a circular orbit",
+                   "spin.axis and spin.rate are not used: the equilibrium follows the orbit (w = (0, -n, 0), body axes "
+                   "along the orbit's); the resolved study keeps them as given (defaults: 2, 1.0), scenes record "
+                   "spin = n, and scan.axis, scan.rate and spin.momentum are errors. The perturbation tilts the "
+                   "attitude by perturbation.amplitude about a uniformly random axis, w at the orbit frame's rate."),
+    ModelParameter("damper_inertia", 1, "kg m2", True, "damper: moment of inertia J of the damper sphere",
+                   "body.moments exclude the sphere. Any spin.axis: about the minor axis the nutation grows slowly "
+                   "(exponential), about the major one it decays (periodic: the least damped nutation frequency); "
+                   "the sphere starts moving with the body."),
     ModelParameter("damping", 1, "N m s", True, "damper: viscous coupling c between the sphere and the body"),
 )
 _PARAMETER_BY_KEY = {p.key: p for p in MODEL_PARAMETERS}

@@ -19,6 +19,8 @@ import time
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from typing import NamedTuple
 
+from .registry import AUTO, AUTO_STEPPING, CHOICES
+
 __all__ = ["CALLS", "DEFAULT", "Warmed", "warm"]
 
 _BODY = "body = tumble.Body(1.0, 2.0, 3.0)\nW = np.array([[0.01, 1.0, 0.01]])\n"
@@ -32,13 +34,13 @@ def _integrate(method):
 
 #: Name -> (what the call warms, its Python source: ``np`` and ``tumble`` imported), the longest compile first.
 CALLS = {
-    "integrate": _integrate("rk4"),
+    "integrate": _integrate(AUTO_STEPPING),
     "measure": ("tumble.measure and tumble.scan (the closed form and the growth fit)",
                 _BODY + "tumble.measure(body, axis=2, spin=1.0, samples=16)"),
     "exact": ("tumble.exact.omega on a grid of times", _BODY + "tumble.exact.omega(body, W, np.linspace(0.0, 1.0, 3))"),
     "attitude": ("tumble.exact.attitude", _BODY + "tumble.exact.attitude(body, W, np.linspace(0.0, 1.0, 3))"),
     **{f"integrate-{method}": _integrate(method)
-       for method in ("rk8", "symplectic_euler", "splitting2", "splitting4", "implicit_midpoint", "exact")},
+       for method in CHOICES if method not in (AUTO, AUTO_STEPPING)},
     "heavy-top": ("tumble.run_ensemble with a heavy top, rk4", _TOP + "tumble.run_ensemble(top, y0, 0.01, 0.005)"),
     "megno": ("tumble.megno and tumble.lyapunov with a heavy top, rk4",
               _TOP + "tumble.megno(top, y0, t_end=0.1, dt=0.01)"),

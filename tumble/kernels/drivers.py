@@ -24,7 +24,6 @@ from numba import prange, types
 
 from ..registry import STATUS_DRIFT, STATUS_NAMES, STATUS_NONFINITE, STATUS_OK  # noqa: F401
 from .block_loop import CHECK_EVERY, FREE_BODY, block_scratch, run_block  # noqa: F401
-from .free_body_parts import IMPLICIT_MIDPOINT, RK4, RK8, SPLITTING2, SPLITTING4, SYMPLECTIC_EULER  # noqa: F401
 from .jit import jit
 
 

@@ -11,40 +11,30 @@ velocity, its constants the tuple :func:`tumble.kernels.steppers.body_constants`
 """
 
 from ..registry import STEPPING
+from . import fused, steppers
 from .drift_screen import suspect
-from .fused import rk4_block, rk8_block, splitting2_block, splitting4_block, symplectic_euler_block
 from .jit import jit
-from .steppers import (
-    energy,
-    euler_rate,
-    implicit_midpoint_block,
-    l_squared,
-    splitting2_torque_block,
-    splitting4_torque_block,
-    symplectic_euler_torque_block,
-)
+from .steppers import energy, euler_rate, implicit_midpoint_block, l_squared
+from .tableaux import ALL_METHODS, IMPLICIT_MIDPOINT, Splitting
 
-__all__ = ["IMPLICIT_MIDPOINT", "RK4", "RK8", "SPLITTING2", "SPLITTING4", "SYMPLECTIC_EULER", "TORQUE_SPLITTINGS",
-           "drift_suspects", "invariants", "method_step", "observe_flips"]
+__all__ = ["TORQUE_SPLITTINGS", "drift_suspects", "invariants", "method_step", "observe_flips"]
 
-# Kernel ids: a method's index in the registry's table of fixed-step methods.
-RK4, RK8, SYMPLECTIC_EULER, SPLITTING2, SPLITTING4, IMPLICIT_MIDPOINT = (
-    STEPPING.index(name)
-    for name in ("rk4", "rk8", "symplectic_euler", "splitting2", "splitting4", "implicit_midpoint"))
-
-#: Each method's step of a block: the generated ones (:mod:`tumble.kernels.fused`; torque-free, and the Runge–Kutta
-#: methods with a torque too), and the splittings' compositions of sub-flows with a torque.
-_FUSED_STEPS = {RK4: rk4_block, RK8: rk8_block, SYMPLECTIC_EULER: symplectic_euler_block, SPLITTING2: splitting2_block,
-                SPLITTING4: splitting4_block}
-TORQUE_SPLITTINGS = {SYMPLECTIC_EULER: symplectic_euler_torque_block, SPLITTING2: splitting2_torque_block,
-                     SPLITTING4: splitting4_torque_block}
+#: Each method's step of a block, by kernel id (a method's index in the registry's table of fixed-step methods): the
+#: generated ones (:mod:`tumble.kernels.fused`, ``<method>_block``: torque-free, and the Runge–Kutta methods with a
+#: torque too), and the splittings' compositions of sub-flows with a torque (:mod:`tumble.kernels.steppers`,
+#: ``<method>_torque_block``).
+_FUSED_STEPS = {STEPPING.index(m.name): getattr(fused, f"{m.name}_block") for m in ALL_METHODS
+                if hasattr(fused, f"{m.name}_block")}
+TORQUE_SPLITTINGS = {STEPPING.index(m.name): getattr(steppers, f"{m.name}_torque_block") for m in ALL_METHODS
+                     if isinstance(m, Splitting)}
+_IMPLICIT_MIDPOINT = STEPPING.index(IMPLICIT_MIDPOINT.name)
 
 
 def method_step(method, torque_free):
     """The step of a block of method ``method`` (its index in :data:`tumble.registry.STEPPING`), torque-free or with a
     torque: ``step(y1, y2, y3, active, t, h, body, target, work, torque_kind, torque_params, torque_fn)``, ``target``
     each sample's initial ``|L|**2`` (the torque-free splittings end on it)."""
-    if method == IMPLICIT_MIDPOINT:
+    if method == _IMPLICIT_MIDPOINT:
         return _midpoint_step
     if not torque_free and method in TORQUE_SPLITTINGS:
         return _TORQUE_SPLITTING_STEPS[method]

@@ -31,7 +31,7 @@ import math
 
 import numpy as np
 
-from ..registry import MODEL_KINDS, STEPPING
+from ..registry import MODELS, STEPPING
 from .jit import jit
 from .systems import gyrostat, heavy_top
 from .tableaux import SPLITTING2, SPLITTING4, SYMPLECTIC_EULER, TORQUE
@@ -203,7 +203,8 @@ assert _MOMENTS == _slot(heavy_top, "i1", "i2", "i3")
 _ROTOR = _slot(gyrostat, "h1", "h2", "h3")
 _M12, _M13, _M21, _M23, _M31, _M32 = (_slot(heavy_top, name) for name in ("m12", "m13", "m21", "m23", "m31", "m32"))
 #: The heavy top's model code (``registry.MODEL_KINDS``); the free body's and the gyrostat's share the gyrostat's flows.
-HEAVY_TOP_CODE = MODEL_KINDS.index(heavy_top.KINDS[0])
+HEAVY_TOP_CODE = next(code for code, model in enumerate(MODELS)
+                      if model.equations_module == heavy_top.__name__.rpartition(".")[2])
 
 
 @jit(inline=True)

@@ -512,8 +512,8 @@ def _settle_time(model, axis, spin, amplitude):
     return (math.log(1.0 / amplitude) + 2.0) / growth + 8.0 / decay
 
 
-def flat_spin_trace(model, axis, spin=1.0, amplitude=1e-3, *, seed=0, method="rk8", horizon=None,
-                    samples=TRACE_SAMPLES, points=TRACE_POINTS):
+def flat_spin_trace(model, axis, spin=1.0, amplitude=1e-3, *, seed=0, method=registry.ACCURATE_STEPPING,
+                    horizon=None, samples=TRACE_SAMPLES, points=TRACE_POINTS):
     # size: a public call: the scene's physics, its ensemble and the trace's options
     """A damper's minor-axis spin turning over to the flat spin about its major axis (Explorer 1), as the
     ``flat_spin`` figure reads it: ``samples`` samples of the scene's ensemble run for ``horizon`` s (default:

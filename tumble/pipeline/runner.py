@@ -896,10 +896,10 @@ def _extras(resolved, job, progress):
     if "flat_spin" in figures:  # a damper's turn-over to the flat spin, from the first scene
         kind = registry.FIGURE_MODELS["flat_spin"].kind  # the study's own: ModelScenes.plan refuses another
         parameters = {key: _first(values[key]) for key in registry.model_kind(kind).parameters}
-        damper = model_scenes.model_of(kind, first_body, _first(values["axis"]), parameters)
+        model = model_scenes.model_of(kind, first_body, _first(values["axis"]), parameters)
         method = _first(values["method"])
-        extras.append(model_scenes.flat_spin_trace(damper, *scene[1:], seed=p.seed,
-                                                   method="rk8" if method == "auto" else method))
+        extras.append(model_scenes.flat_spin_trace(model, *scene[1:], seed=p.seed, method=registry.ACCURATE_STEPPING
+                                                   if method == registry.AUTO else method))
     if any(name in config.ATTITUDE_FIGURES for name in figures):
         body = resolved["body"] if "body" not in resolved["scan"] else {}
         method = _first(values["method"])

@@ -21,6 +21,7 @@ Plain data, imported by the command line's start-up: nothing here imports numba,
 from __future__ import annotations
 
 import sys
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -148,27 +149,10 @@ SCAN_DOC = _lines(
     "                          values replacing that component of chaos.state; the map spans them in the order given",
 )
 
-#: The docs of the models' parameters (units and positivity: :data:`tumble.registry.MODEL_PARAMETERS`).
-_MODEL_DOCS = {
-    "rotor": _lines(
-        "gyrostat: rotor angular momentum relative to the body, body frame, N m s (a finite 3-vector); for a",
-        "steady spin it must lie along spin.axis. In a scan, scan.rotor lists 3-vectors, or numbers: h along each",
-        "scene's spin axis (so that scan.axis can be scanned with it)."),
-    "mgl": _lines(
-        "heavy_top: M g l, weight times the pivot-to-centre-of-mass distance, N m (> 0); body.moments are about",
-        "the fixed point; spin.axis must be 3 (the sleeping top). The perturbation tilts the spin by",
-        "perturbation.amplitude / 1000 and the up direction by perturbation.amplitude."),
-    "orbit_rate": _lines(
-        "gravity_gradient: orbital rate n, rad/s (> 0). spin.axis and spin.rate are not used: the equilibrium follows",
-        "the orbit (w = (0, -n, 0), body axes along the orbit's); the resolved study keeps them as given (defaults: 2,",
-        "1.0), scenes record spin = n, and scan.axis, scan.rate and spin.momentum are errors. The perturbation tilts the",
-        "attitude by perturbation.amplitude about a uniformly random axis, w at the orbit frame's rate."),
-    "damper_inertia": _lines(
-        "damper: moment of inertia J of the damper sphere, kg m^2 (> 0; body.moments exclude the sphere). Any",
-        "spin.axis: about the minor axis the nutation grows slowly (exponential), about the major one it decays",
-        "(periodic: the least damped nutation frequency); the sphere starts moving with the body."),
-    "damping": _lines("damper: viscous coupling c between the sphere and the body, N m s (> 0)."),
-}
+def _parameter_doc(p):
+    """The docs of model parameter ``p`` (a row of :data:`tumble.registry.MODEL_PARAMETERS`, which holds them once)."""
+    text = f"{p.text}, {p.units} ({'> 0' if p.positive else 'finite'}). {p.study}".rstrip()
+    return _lines(*textwrap.wrap(text, 110))
 
 
 def _model_fields():
@@ -187,7 +171,7 @@ def _model_fields():
         choices=registry.MODEL_KINDS, check="model_kind")]
     for p in registry.MODEL_PARAMETERS:
         default = [0.0] * p.size if p.size > 1 else 0.0
-        fields.append(Field("model", p.key, default, _MODEL_DOCS[p.key], units=p.units, check="model_parameter"))
+        fields.append(Field("model", p.key, default, _parameter_doc(p), units=p.units, check="model_parameter"))
     fields += [
         Field("model", "centre", [0.0, 0.0, 1.0], _lines(
             "heavy_top: direction of the centre of mass from the pivot, body axes (a non-zero 3-vector, normalised).",

@@ -10,22 +10,21 @@ constraint, a ``project(*y)`` applied after each step. The free body runs as the
 
 :data:`SYSTEMS` maps each model kind (``registry.MODEL_KINDS``) to its module; the generated steps and the dispatch of
 :mod:`tumble.kernels.model_steps`, the kernels' constants and :data:`N_CONSTANTS` derive from it, so adding a system
-is its module in :mod:`tumble.physics.models`, its row in the registry and its import here.
+is its module in :mod:`tumble.physics.models` and its row in the registry (then ``python -m
+tumble.kernels.model_codegen``): the modules here are found by the registry's rows, not a list of imports.
 """
 
 import inspect
+from importlib import import_module
 
 import numpy as np
 
-from ...registry import MODEL_KINDS
-from . import damper, gravity_gradient, gyrostat, heavy_top
+from ...registry import MODELS
 
 __all__ = ["N_CONSTANTS", "N_INVARIANTS", "SYSTEMS", "constants"]  # and a module per system
 
-#: Model kind -> its module, in the registry's order (each module names its kinds: ``KINDS``).
-SYSTEMS = {kind: module for kind in MODEL_KINDS for module in (gyrostat, heavy_top, gravity_gradient, damper)
-           if kind in module.KINDS}
-assert tuple(SYSTEMS) == MODEL_KINDS, "one module per model kind of the registry"
+#: Model kind -> its module (``registry.Model.equations_module``), in the registry's order.
+SYSTEMS = {model.name: import_module(f"{__name__}.{model.equations_module}") for model in MODELS}
 
 #: Length of the constants array every system's driver takes (each reads its own first fields).
 N_CONSTANTS = max(len(module.Constants._fields) for module in SYSTEMS.values())

@@ -11,9 +11,6 @@ from collections import namedtuple
 from ... import registry
 from ..jit import jit
 
-#: The model kinds of ``registry.MODELS`` whose equations these are (their rows' ``equations_module``).
-KINDS = ('damper',)
-
 
 #: The rigid body's fields (``I`` excludes the sphere), ``c/I_i`` and ``c/J`` (1/s), and ``J`` (kg m²).
 Constants = namedtuple("Constants", (*registry.RIGID_BODY, "c_i1", "c_i2", "c_i3", "c_j", "j"))

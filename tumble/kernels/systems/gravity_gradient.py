@@ -11,9 +11,6 @@ from collections import namedtuple
 from ... import registry
 from ..jit import jit
 
-#: The model kinds of ``registry.MODELS`` whose equations these are (their rows' ``equations_module``).
-KINDS = ('gravity_gradient',)
-
 
 #: Newton iterations at most for Kepler's equation (from Danby's start ``E = M + 0.85 e sign(sin M)``): 8 reach
 #: round-off for every mean anomaly up to e = 0.99 (4e-16 of ``M``; 6 suffice to e = 0.9), more near e = 1.

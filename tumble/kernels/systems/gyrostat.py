@@ -13,9 +13,6 @@ import numpy as np
 from ... import registry
 from ..jit import jit
 
-#: The model kinds of ``registry.MODELS`` whose equations these are (their rows' ``equations_module``).
-KINDS = ('free', 'gyrostat')
-
 
 #: The rigid body's fields (:data:`tumble.registry.RIGID_BODY`), ``h_j/I_i`` (1/s) and the rotor ``h``
 #: (N m s).

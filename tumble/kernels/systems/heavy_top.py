@@ -13,9 +13,6 @@ import numpy as np
 from ... import registry
 from ..jit import jit
 
-#: The model kinds of ``registry.MODELS`` whose equations these are (their rows' ``equations_module``).
-KINDS = ('heavy_top',)
-
 
 #: The rigid body's fields (moments about the pivot), ``mgl`` (N m), the centre's direction ``c1 c2 c3`` and the
 #: products ``m_ij = (mgl/I_i) c_j`` (1/s²) the torque's components are made of (two multiply-adds each: the general
