@@ -26,8 +26,8 @@ import numba
 import numpy as np
 
 import tumble
-from tumble.kernels import methods as kernel_methods
-from tumble.kernels.methods import METHODS
+from tumble.kernels.loops import methods as kernel_methods
+from tumble.kernels.loops.methods import METHODS
 from tumble.physics import exact
 
 sys.path.insert(0, str(Path(__file__).parent))

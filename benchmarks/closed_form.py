@@ -23,7 +23,7 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from tumble.kernels import elliptic as ell
+from tumble.kernels.closed_form import elliptic as ell
 from tumble.physics import exact
 
 import timing  # benchmarks/timing.py (the script's folder is on sys.path)

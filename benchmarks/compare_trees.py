@@ -16,7 +16,7 @@ import sys
 _ONE_TREE = r"""
 import sys, time, numpy as np
 sys.path.insert(0, sys.argv[1])
-from tumble.kernels.methods import METHODS, run
+from tumble.kernels.loops.methods import METHODS, run
 rng = np.random.default_rng(0)
 w0 = np.ascontiguousarray((rng.normal(size=(20000, 3)) * 0.5).T)
 moments = np.array([1.0, 2.0, 3.0])

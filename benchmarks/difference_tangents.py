@@ -3,7 +3,7 @@
     python benchmarks/difference_tangents.py
 
 A System without ``jacobian`` gets its tangent products ``J(t, y) v`` from extrapolated central differences of its
-rate (:func:`tumble.kernels.tangent_loop.difference_tangents`), stepping 2^-10 of each component's scale (1 unless
+rate (:func:`tumble.kernels.loops.tangent_loop.difference_tangents`), stepping 2^-10 of each component's scale (1 unless
 the System declares ``scale``). Two systems, each with an exact Jacobian to compare with:
 
 1. angle-like: a driven, damped pendulum that turns over and over (``rotor``), its angle placed at 0 ... 1e8 rad;
@@ -27,8 +27,8 @@ import numpy as np
 from provenance import source_digest  # benchmarks/provenance.py
 
 import tumble
-from tumble.kernels import sample_loop
-from tumble.kernels.tangent_loop import WORK_EXTRA, difference_tangents
+from tumble.kernels.loops import sample_loop
+from tumble.kernels.loops.tangent_loop import WORK_EXTRA, difference_tangents
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))

@@ -22,10 +22,10 @@ from numba import prange
 
 import tumble
 from tumble import measure
-from tumble.kernels import fused, steppers
-from tumble.kernels.codegen import multiplies_per_sample_step
+from tumble.kernels.steps import fused, steppers
+from tumble.kernels.steps.codegen import multiplies_per_sample_step
 from tumble.kernels.jit import jit
-from tumble.kernels.methods import METHODS, run
+from tumble.kernels.loops.methods import METHODS, run
 
 import timing  # benchmarks/timing.py (the script's folder is on sys.path)
 

@@ -10,7 +10,7 @@ horizon (rk8's error at 4 dt, 4e-14, is round-off: no step of diffrax's Dopri8 c
 reported apart), throughput in sample-steps per second:
 
 1. ``gpu``: ``tumble.propagate(..., device="cuda")`` per method, with its host transfers (what a user gets), and
-   the kernel alone (:func:`tumble.kernels.cuda.kernel` launched on device arrays, synchronised; checked to give
+   the kernel alone (:func:`tumble.kernels.cuda.rigid_body.kernel` launched on device arrays, synchronised; checked to give
    propagate's bits);
 2. ``agreement``: the GPU's final states against ``device="cpu"`` on the same spins, max |difference| / max |w|
    (target 1e-10);
@@ -101,8 +101,8 @@ def fp64_counts(method):
     divisions and square roots, the instructions (each of those one issue slot of an FP64 lane) and the FLOPs
     (an FMA 2, the others 1), with how they were counted."""
     from tumble.kernels import tableaux
-    from tumble.kernels.codegen import multiplies_per_sample_step
-    from tumble.kernels.methods import METHODS
+    from tumble.kernels.steps.codegen import multiplies_per_sample_step
+    from tumble.kernels.loops.methods import METHODS
 
     coefficients = METHODS[method].coefficients
     if isinstance(coefficients, tableaux.ButcherTableau):
@@ -132,7 +132,7 @@ def check_counts():
 
     import numba
 
-    from tumble.kernels.steppers import project_l_squared, rotate
+    from tumble.kernels.steps.steppers import project_l_squared, rotate
 
     body = np.ones(12)
 
@@ -262,7 +262,7 @@ def part_gpu(ctx):
     from numba import cuda
 
     from tumble.kernels import device_kernels
-    from tumble.kernels.methods import METHODS, from_kernel_frame, kernel_frame
+    from tumble.kernels.loops.methods import METHODS, from_kernel_frame, kernel_frame
 
     device = device_kernels()
     p = ctx["problem"]
@@ -281,7 +281,7 @@ def part_gpu(ctx):
                    seconds_with_transfers=seconds, rate_with_transfers=p.samples * n_steps / seconds,
                    error=p.error(out))
         ctx["gpu_states"][name] = out[:p.check].copy()
-        # the kernel alone, as tumble.kernels.cuda.run launches it, on arrays already on the device
+        # the kernel alone, as tumble.kernels.cuda.rigid_body.run launches it, on arrays already on the device
         method = METHODS[name]
         kernel_w, constants, _, relabel = kernel_frame(method, np.ascontiguousarray(p.w0.T), moments, None, None)
         start = cuda.to_device(np.ascontiguousarray(kernel_w))

@@ -214,7 +214,7 @@ def main():
               f"Cold compile of the one model driver (every model, rk4, rk8 and the splittings, every observer; fresh process, empty "
               f"numba cache): **{cold:.1f} s**; later processes load it from numba's cache.", ""]
     if generic_rows:
-        lines += ["Generated steps (every stage spelled out, `kernels/model_codegen.py`) against a generic stage loop "
+        lines += ["Generated steps (every stage spelled out, `kernels/steps/model_codegen.py`) against a generic stage loop "
                   "over the tableau as data (stages in a per-block buffer), the heavy top, same run:", "",
                   "| method | generic loop's block | generated, sample-steps/s | generic loop, sample-steps/s | "
                   "generic / generated |", "|---|---|---|---|---|"]

@@ -57,8 +57,8 @@ import tumble
 from tumble.engine.ensemble import DEFAULT_DRIFT_LIMIT, run_ensemble
 from tumble.engine.sampling import perturbed_spins
 from tumble.kernels import tableaux
-from tumble.kernels.drivers import STATUS_DRIFT, STATUS_NAMES, STATUS_OK
-from tumble.kernels.methods import METHODS as _KERNEL_METHODS
+from tumble.kernels.loops.drivers import STATUS_DRIFT, STATUS_NAMES, STATUS_OK
+from tumble.kernels.loops.methods import METHODS as _KERNEL_METHODS
 from tumble.physics import exact, theory
 
 import timing  # benchmarks/timing.py (the script's folder is on sys.path)
@@ -353,7 +353,7 @@ def rk_damping(tableau, y):
 def _splitting_step(split, I, w, h):
     """One torque-free step of a splitting (numpy; complex ``w`` of shape (3, H) for the complex step).
 
-    The same exact sub-flows as :func:`tumble.kernels.steppers.rotate`, in the kernel's frame (moments
+    The same exact sub-flows as :func:`tumble.kernels.steps.steppers.rotate`, in the kernel's frame (moments
     ascending)."""
     w = w.copy()
     for flow, fraction in zip(split.flows, split.fractions):
@@ -1096,7 +1096,7 @@ def notes(report):
     if loss:
         text += (" Below that it is cut after 60 sweeps without any flag: on the tumbling orbits the energy and |L|² "
                  f"(which the rule keeps to round-off) are off by more than 1e-9 from h|ω| ≈ {min(loss):.3g} with status "
-                 "`ok` (**bug**: `implicit_midpoint_block` in `tumble/kernels/steppers.py` leaves the loop after "
+                 "`ok` (**bug**: `implicit_midpoint_block` in `tumble/kernels/steps/steppers.py` leaves the loop after "
                  "`_MIDPOINT_MAX_ITERATIONS` and uses the last iterate; nothing records the non-convergence, and "
                  "`tumble.integrate` never flags drift).")
     out.append(text)
@@ -1132,7 +1132,7 @@ def notes(report):
                  + f"), to {_e(max(r['energy_max'] for r in drifting))} after {lt['steps']:.0e} steps — a symplectic "
                  "method's round-off should random-walk (as RK8's and the implicit midpoint rule's do here). Cause "
                  "(**minor bug**, reproduced in a numba emulation of the step): `project_l_squared` in "
-                 "`tumble/kernels/steppers.py` multiplies each component by `sqrt(target / now)`, a number within an "
+                 "`tumble/kernels/steps/steppers.py` multiplies each component by `sqrt(target / now)`, a number within an "
                  "ulp of 1; `w_i * (1 - 2**-53)` rounds to `w_i` minus one ulp *of w_i*, a relative kick between "
                  "1.1e-16 and 2.2e-16 that depends on each component's mantissa, so the rescaling is not uniform and "
                  "E/|L|² creeps. Without the projection there is no trend; with the correction applied additively, "

@@ -4,7 +4,7 @@ and ``tumble.models.HeavyTop``, through the documented calls.
     python benchmarks/user_systems.py [--quick]     # writes benchmarks/results/user_systems.md and .json
 
 * ``tumble.propagate``, rk4, 20 000 samples: the built-in, the System on the vectorised block path (its rate
-  rewritten into the built-ins' scalar form: ``tumble/kernels/system_steps.py``), and the same System through the
+  rewritten into the built-ins' scalar form: ``tumble/kernels/steps/system_steps.py``), and the same System through the
   per-sample loop (the path of a rate without a scalar form, and of every System before the block path);
 * ``tumble.megno``, rk4, 4 000 samples: the built-in (its exact tangent), the System with its Jacobian, the System
   without one (fourth-order differences: four rate calls per tangent and stage), and the per-sample loop;

@@ -70,7 +70,7 @@ intersphinx_mapping = {
 
 # Nitpicky: a Python cross-reference to a name of the public face (tumble.integrate, tumble.exact.omega, ...) that
 # does not resolve fails the build. The docstrings also name internals the site does not document (the layers'
-# other modules, e.g. tumble.kernels.elliptic, and unqualified helpers such as scene_batch): those are let through.
+# other modules, e.g. tumble.kernels.closed_form.elliptic, and unqualified helpers such as scene_batch): those are let through.
 nitpicky = True
 nitpick_ignore_regex = [
     (r"py:.*", r"tumble\.(kernels|engine|measure|pipeline|output|physics|registry)(\..*)?"),

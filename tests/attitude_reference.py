@@ -1,12 +1,12 @@
 """The closed form's attitude as tumble computed it until 2026-11-27: numpy over every sample and time, with
 Carlson's ``R_F`` and ``R_J`` from ``scipy.special`` (``tumble.physics.exact.attitude`` then). Kept as an independent
-reference for the per-sample kernels that replaced it (:mod:`tumble.kernels.elliptic_attitude`), which the CUDA device
+reference for the per-sample kernels that replaced it (:mod:`tumble.kernels.closed_form.elliptic_attitude`), which the CUDA device
 runs too; ``tests/test_exact_attitude.py`` compares them."""
 
 import numpy as np
 from scipy.special import elliprf, elliprj
 
-from tumble.kernels import elliptic as _ell
+from tumble.kernels.closed_form import elliptic as _ell
 from tumble.physics import exact, rotations
 from tumble.physics.bodies import one_body, spin_vectors
 

@@ -6,8 +6,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import tumble
-from tumble.kernels import methods as kernel_methods
-from tumble.kernels.methods import METHODS
+from tumble.kernels.loops import methods as kernel_methods
+from tumble.kernels.loops.methods import METHODS
 from tumble.physics import exact, rotations, shapes
 
 BODY = tumble.Body(1.0, 2.0, 3.0)

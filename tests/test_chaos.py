@@ -22,8 +22,8 @@ from scipy.integrate import solve_ivp
 
 import tumble
 from tumble.engine.chaos import STATUS_ABOVE_NAME, initial_tangents
-from tumble.kernels import sample_loop
-from tumble.kernels.tangent_loop import WORK_EXTRA, difference_tangents
+from tumble.kernels.loops import sample_loop
+from tumble.kernels.loops.tangent_loop import WORK_EXTRA, difference_tangents
 from tumble.registry import STATUS_ABOVE
 
 import hand_written_systems
@@ -136,7 +136,7 @@ def test_a_splittings_tangent_is_the_derivative_of_its_map(model, y0, method):
     """The tangent of one splitting step (each exact sub-flow's derivative, composed) against a fourth-order central
     difference of the same step's map, at a step long enough that the map is far from the identity."""
     from tumble.kernels import rate_sample_parameters
-    from tumble.kernels.model_splittings import SPLITTINGS as CODES, splitting_tangent_sample
+    from tumble.kernels.steps.model_splittings import SPLITTINGS as CODES, splitting_tangent_sample
 
     p = rate_sample_parameters(model.kind, model.moments, model.parameters)
     y = np.array(y0, dtype=float)

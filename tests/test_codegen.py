@@ -2,12 +2,13 @@
 
 from pathlib import Path
 
-from tumble.kernels import codegen, tableaux
+from tumble.kernels.steps import codegen
+from tumble.kernels import tableaux
 
 
 def test_committed_fused_module_is_what_the_generator_writes():
     committed = Path(codegen.TARGET).read_text()
-    assert committed == codegen.module_source(), "run: python tumble/kernels/codegen.py"
+    assert committed == codegen.module_source(), "run: python -m tumble.kernels.steps.codegen"
 
 
 def test_every_nonzero_coefficient_appears_as_an_exact_literal():

@@ -84,7 +84,7 @@ def test_the_defaults_path_lives_in_the_studies_folder():
 
 
 def test_named_lists_match_the_packages_that_implement_them():
-    from tumble.kernels.methods import METHODS  # imported here: `tumble` imports its subpackages lazily
+    from tumble.kernels.loops.methods import METHODS  # imported here: `tumble` imports its subpackages lazily
 
     assert set(config.METHOD_NAMES) == {"auto", "exact", *METHODS}
     assert all(callable(getattr(tumble.shapes, name)) for name in config.SHAPES)

@@ -1,4 +1,4 @@
-"""The device kernels (tumble/kernels/cuda.py) give the CPU kernels' answers, and a device that cannot run says why.
+"""The device kernels (tumble/kernels/cuda/rigid_body.py) give the CPU kernels' answers, and a device that cannot run says why.
 
 They run on numba-cuda's simulator: tests/conftest.py sets ``NUMBA_ENABLE_CUDASIM=1`` before numba is imported
 (numba reads it once). With ``NUMBA_ENABLE_CUDASIM=0`` on a GPU machine the same tests run on the GPU. Sizes are
@@ -223,7 +223,7 @@ def _phase_fit_states():
 @pytest.mark.parametrize("time_major, sign", [(False, 1.0), (True, -1.0)],
                          ids=["closed_form_layout", "stepping_layout"])
 def test_the_phase_fit_on_the_device_is_the_cpu_fit_of_the_same_states(cuda_device, time_major, sign):
-    """The device's fit (kernels/cuda_fits.py) reads the closed form's (n, T, 3) or a stepping kernel's (T, 3, n)
+    """The device's fit (kernels/cuda/phase_fit.py) reads the closed form's (n, T, 3) or a stepping kernel's (T, 3, n)
     states, in a splitting's relabelled frame (every component times -1), and gives the CPU's fit of them."""
     from tumble.kernels import device_fits, fits
 

@@ -148,7 +148,7 @@ def test_the_closed_form_flips_on_the_device_are_the_cpus(cuda_device, closed_fo
                          ids=["sorted", "unsorted", "symmetric"])
 def test_the_closed_form_attitude_on_the_device_gives_the_cpu_quaternions(cuda_device, closed_form_spins, body):
     """A thread sets up its sample, evaluates its angular velocity at t = 0 and at each time, and runs the CPU's
-    per-sample attitude code (kernels/elliptic_attitude.py): both regimes, a steady spin, a spin 1e-9 from the
+    per-sample attitude code (kernels/closed_form/elliptic_attitude.py): both regimes, a steady spin, a spin 1e-9 from the
     intermediate axis, the separatrix; a launch with a spin within 1e-151 of an axis goes to the CPU (lifted)."""
     cpu = tumble.integrate(body, closed_form_spins, 1.1, 0.1, method="exact", save_every=3, attitude=True)
     device = tumble.integrate(body, closed_form_spins, 1.1, 0.1, method="exact", save_every=3, attitude=True,
@@ -190,7 +190,7 @@ _PTX = textwrap.dedent("""
     import numba.cuda.dispatcher as dispatcher
     from numba import cuda, types as nt
     from tumble.kernels import METHODS, device_closed_form, device_kernels, device_models
-    from tumble.kernels.model_loop import MODEL_CODES, MODEL_METHODS
+    from tumble.kernels.loops.model_loop import MODEL_CODES, MODEL_METHODS
     from tumble.registry import model_kind
 
     # Device functions are compiled for the current GPU's compute capability; without a GPU, name one (H100).
@@ -203,14 +203,14 @@ _PTX = textwrap.dedent("""
                                                     len(model_kind(kind).state)),
                         (f8[:, ::1], nt.UniTuple(f8, 26), f8, i8, i8, f8[:, :, ::1], i8[::1], f8[::1], f8[::1],
                          i8[::1], f8[:, ::1], f8[:, ::1], f8, nt.int8[::1], i8[::1])))
-    for torque_free in (True, False):  # the free body's implicit midpoint rule (kernels/cuda.py)
-        a2 = f8[:, ::1]  # the arguments of kernels/cuda.py's kernel, its observers included (as in test_cuda.py)
+    for torque_free in (True, False):  # the free body's implicit midpoint rule (kernels/cuda/rigid_body.py)
+        a2 = f8[:, ::1]  # the arguments of kernels/cuda/rigid_body.py's kernel, its observers included (as in test_cuda.py)
         kernels.append((device_kernels().make_kernel(METHODS["implicit_midpoint"], torque_free),
                         (a2, i8[::1], a2, f8, f8[::1], i8[::1], i8[::1], f8[:, :, ::1], i8[::1], i8[:, ::1], a2,
                          f8[::1], i8[:, ::1], a2, a2, i8[::1], a2, nt.int8[::1], i8[::1], f8[::1], i8, f8, i8, a2,
                          f8[::1], i8, f8[::1], a2, i8[::1])))
     from tumble.kernels import device_attitude
-    from tumble.kernels.methods import attitude_frame
+    from tumble.kernels.loops.methods import attitude_frame
 
     for name, torque_free in (("rk4", True), ("splitting2", False), ("implicit_midpoint", True)):  # the attitude
         frame = attitude_frame(METHODS[name], np.ones((1, 3)), np.array([1.0, 2.0, 3.0]),

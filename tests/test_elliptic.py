@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import scipy.special as sc
 
-from tumble.kernels.elliptic import KC_HYPERBOLIC, agm, jacobi_sncndn
+from tumble.kernels.closed_form.elliptic import KC_HYPERBOLIC, agm, jacobi_sncndn
 
 mpmath = pytest.importorskip("mpmath")
 
@@ -83,7 +83,7 @@ def test_agm_gives_complete_integral():
 
 
 def test_carlson_rf_matches_scipy_including_tiny_arguments():
-    from tumble.kernels.elliptic import carlson_rf
+    from tumble.kernels.closed_form.elliptic import carlson_rf
 
     rng = np.random.default_rng(3)
     args = [(0.0, 1e-24, 1.0), (1e-30, 1e-24, 1.0), (0.5, 0.25, 1.0), (1.0, 1.0, 1.0), (0.0, 1.0, 1.0)]
@@ -94,7 +94,7 @@ def test_carlson_rf_matches_scipy_including_tiny_arguments():
 
 def test_carlson_rf_inverts_sncndn():
     # u = sn R_F(cn², dn², 1) (DLMF 19.25.5), the initial argument of the exact solution
-    from tumble.kernels.elliptic import carlson_rf
+    from tumble.kernels.closed_form.elliptic import carlson_rf
 
     for kc in [1.0, 0.3, 1e-4, 1e-12]:
         with mpmath.workdps(40):

@@ -8,7 +8,7 @@ import numba
 import numpy as np
 import pytest
 
-from tumble.kernels import elliptic as ell
+from tumble.kernels.closed_form import elliptic as ell
 from tumble.kernels.jit import FASTMATH
 from tumble.physics import exact
 

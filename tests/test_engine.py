@@ -11,7 +11,7 @@ import pytest
 
 from tumble.engine.ensemble import run_ensemble
 from tumble.engine.sampling import perturbed_spins
-from tumble.kernels.drivers import CHECK_EVERY, STATUS_DRIFT, STATUS_NONFINITE, STATUS_OK
+from tumble.kernels.loops.drivers import CHECK_EVERY, STATUS_DRIFT, STATUS_NONFINITE, STATUS_OK
 from tumble.physics import exact
 
 MOMENTS = np.array([1.0, 2.0, 3.0])
@@ -160,8 +160,9 @@ def test_the_per_sample_step_compiles_to_packed_simd_code(method):
 
     import numba
 
-    from tumble.kernels import fused, steppers, tableaux
-    from tumble.kernels.codegen import multiplies_per_sample_step
+    from tumble.kernels.steps import fused, steppers
+    from tumble.kernels import tableaux
+    from tumble.kernels.steps.codegen import multiplies_per_sample_step
     from tumble.kernels.jit import FASTMATH
 
     if "+fma" not in numba.core.codegen.get_host_cpu_features():
@@ -183,7 +184,7 @@ def test_a_splitting_sub_flow_turns_the_block_with_packed_simd_code():
 
     import numba
 
-    from tumble.kernels import steppers
+    from tumble.kernels.steps import steppers
     from tumble.kernels.jit import FASTMATH
 
     if "+fma" not in numba.core.codegen.get_host_cpu_features():

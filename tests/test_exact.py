@@ -666,7 +666,7 @@ def test_one_time_path_gives_a_sample_the_same_bits_alone_or_in_any_batch():
 
 
 # --------------------------------------------------------------------------------------------------
-# a time grid in one kernel call (exact.omega: kernels.elliptic.torque_free_omega_grid)
+# a time grid in one kernel call (exact.omega: kernels.closed_form.elliptic.torque_free_omega_grid)
 
 
 @pytest.mark.parametrize("moments", [(1.0, 2.0, 3.0), (3.0, 1.0, 2.0), (1.0, 1.0, 1.8), (2.0, 2.0, 2.0),
@@ -675,7 +675,7 @@ def test_the_one_call_grid_path_gives_the_bits_of_the_set_up_and_the_grid_kernel
     """exact.omega on a time grid sets up and evaluates in one kernel call; every sample (near each axis, on both
     sides of the separatrix, zeros, tiny and huge scales) gets the bits of solve_rows + omega_rows, which the
     scenes use, alone or in any batch (chunks of 64 samples)."""
-    from tumble.kernels import elliptic
+    from tumble.kernels.closed_form import elliptic
 
     rng = np.random.default_rng(12)
     moments = np.asarray(moments)
@@ -701,7 +701,7 @@ def test_the_one_call_grid_path_gives_the_bits_of_the_set_up_and_the_grid_kernel
 
 
 def test_the_one_call_grid_path_hands_spins_within_tiny_of_an_axis_to_the_two_kernels():
-    from tumble.kernels import elliptic
+    from tumble.kernels.closed_form import elliptic
 
     moments = np.array([1.0, 2.0, 3.0])
     w0 = np.array([[1e-200, 1.0, 3e-201], [0.1, 1.0, 0.2]])  # the first below TINY_TRANSVERSE: lifted

@@ -1,4 +1,4 @@
-"""The closed form's attitude by the per-sample kernels (tumble/kernels/elliptic_attitude.py), which the CUDA device
+"""The closed form's attitude by the per-sample kernels (tumble/kernels/closed_form/elliptic_attitude.py), which the CUDA device
 runs too, against the numpy and scipy.special formulation it replaced (tests/attitude_reference.py), and Carlson's
 R_J against scipy's."""
 
@@ -7,7 +7,7 @@ import pytest
 from attitude_reference import attitude as reference_attitude
 from scipy.special import elliprj
 
-from tumble.kernels.elliptic_attitude import carlson_rj
+from tumble.kernels.closed_form.elliptic_attitude import carlson_rj
 from tumble.physics import exact
 
 

@@ -9,12 +9,12 @@ import pytest
 import tumble
 from tumble import registry
 from tumble.kernels import tableaux
-from tumble.kernels.methods import METHODS, run
+from tumble.kernels.loops.methods import METHODS, run
 from tumble.physics import theory
 
 STEPPING = ["rk4", "rk8", "symplectic_euler", "splitting2", "splitting4", "implicit_midpoint"]
 
-# One compiled driver per method and torque type (tumble.kernels.drivers): each torque case compiles its method's
+# One compiled driver per method and torque type (tumble.kernels.loops.drivers): each torque case compiles its method's
 # driver once. The default run keeps one method per family: a built-in profile with rk4, splitting4
 # and implicit_midpoint, a torque function with rk4 and splitting2; the full method x torque matrix runs with
 # `-m slow`.
@@ -404,7 +404,7 @@ def test_exact_path_with_a_torque_function_is_refused():
 # --- user torque functions: one compiled driver, whatever the function and the method ------------------------
 
 def test_torque_functions_share_one_compiled_driver_and_match_the_constant_profile():
-    from tumble.kernels import drivers
+    from tumble.kernels.loops import drivers
 
     @numba.njit
     def constant_spin_up(t, w1, w2, w3):

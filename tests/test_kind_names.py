@@ -9,7 +9,7 @@ the registry or the classes instead). Prose that uses a kind's word unquoted ("a
 kind name and passes.
 
 Exempt: ``registry.py`` and ``pipeline/schema.py`` (the data and the study's documented fields), the generated modules
-(``kernels/fused.py``, ``kernels/model_steps.py``, ``kernels/systems/<module>.py``: their first line says GENERATED),
+(``kernels/steps/fused.py``, ``kernels/steps/model_steps.py``, ``kernels/systems/<module>.py``: their first line says GENERATED),
 and a kind's own modules for its own kind: its model class's (``physics/models/heavy_top.py`` for ``"heavy_top"``,
 ...) and the one that holds its equations (its registry row's ``equations_module``: the free body's are the
 gyrostat's).
@@ -95,4 +95,4 @@ def test_no_module_switches_on_a_model_kind_name():
 def test_the_exempt_generated_modules_are_the_models_steps_and_equations():
     generated = {path.relative_to(PACKAGE).as_posix() for path in PACKAGE.rglob("*.py") if _generated(path)}
     equations = {f"kernels/systems/{m.equations_module}.py" for m in registry.MODELS}
-    assert generated == {"kernels/fused.py", "kernels/model_steps.py", *equations}
+    assert generated == {"kernels/steps/fused.py", "kernels/steps/model_steps.py", *equations}

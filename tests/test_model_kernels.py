@@ -8,17 +8,23 @@ intermediate axis -> bit-for-bit reproducibility across threads and chunks -> ba
 One compiled driver per model and method: each compiles (or loads) once per process.
 """
 
+import os
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from model_checks import assert_same_bits_on_any_threads_and_chunks, fitted_rate, model_errors, observed_order
+import tumble
 from tumble.theory import linear
 
 from tumble import registry
 from tumble.engine.model_ensemble import run_model_ensemble
 from tumble.engine.sampling import perturbed_spins, perturbed_states
-from tumble.kernels import model_codegen, model_rhs, tableaux
+from tumble.kernels.steps import model_codegen
+from tumble.kernels import model_rhs, tableaux
 from tumble.physics.models import FreeBody, Gyrostat, HeavyTop
 
 MODELS = {
@@ -54,7 +60,24 @@ def _general_state(model):
 
 def test_committed_model_steps_are_what_the_generator_writes():
     committed = Path(model_codegen.TARGET).read_text()
-    assert committed == model_codegen.module_source(), "run: python -m tumble.kernels.model_codegen"
+    assert committed == model_codegen.module_source(), "run: python -m tumble.kernels.steps.model_codegen"
+
+
+def test_the_generators_write_every_generated_module_when_none_of_them_is_there(tmp_path):
+    """No bootstrap trap: in a copy of the package without its generated modules (the systems' equations, their steps,
+    the free body's fused steps), the two generators run and write them again, each as committed."""
+    package = Path(tumble.__file__).parent
+    shutil.copytree(package, tmp_path / "tumble", ignore=shutil.ignore_patterns("__pycache__"))
+    generated = [path.relative_to(package.parent) for path in package.rglob("*.py")
+                 if path.read_text().startswith('"""GENERATED')]
+    assert len(generated) == 2 + len(model_codegen.equation_modules())
+    for path in generated:
+        (tmp_path / path).unlink()
+    for generator in ("tumble.kernels.steps.codegen", "tumble.kernels.steps.model_codegen"):
+        subprocess.run([sys.executable, "-m", generator], cwd=tmp_path, check=True, capture_output=True,
+                       env={**os.environ, "PYTHONPATH": str(tmp_path)})
+    for path in generated:
+        assert (tmp_path / path).read_text() == (package.parent / path).read_text(), path
 
 
 @pytest.mark.parametrize("name", model_codegen.equation_modules())
@@ -62,7 +85,7 @@ def test_the_kernels_equations_are_a_copy_of_the_systems_modules(name):
     """Each system's equations are written once, in its module of tumble.physics.models; the kernels' module is the
     generator's copy of that section, jitted (and nothing else)."""
     committed = (model_codegen.SYSTEMS_DIR / f"{name}.py").read_text()
-    assert committed == model_codegen.system_source(name), "run: python -m tumble.kernels.model_codegen"
+    assert committed == model_codegen.system_source(name), "run: python -m tumble.kernels.steps.model_codegen"
     section, functions = model_codegen.equations_section(name)
     assert {"Constants", "constants", "rate", "tangent", "invariants"} <= {*functions, "Constants"}
     assert "\n".join(section) in committed.replace("@jit(inline=True)\n", "")

@@ -13,7 +13,8 @@ from tumble.theory import linear
 from tumble import registry
 from tumble.engine.model_ensemble import run_model_ensemble
 from tumble.engine.sampling import perturbed_states
-from tumble.kernels import model_methods, model_splittings, tableaux
+from tumble.kernels import model_methods, tableaux
+from tumble.kernels.steps import model_splittings
 from tumble.physics.models import Damper, FreeBody, GravityGradient, Gyrostat, HeavyTop
 
 MODELS = {

@@ -8,7 +8,6 @@ import xarray as xr
 import tumble
 from tumble import cli
 from tumble.measure import model_scenes
-from tumble.measure import records
 from tumble.physics import models, theory
 from tumble.pipeline import checkpoint, config, runner
 from tumble.pipeline.config import StudyError, load_study
@@ -129,8 +128,8 @@ def test_the_command_line_refuses_an_invalid_model_with_exit_2(tmp_path, capsys,
 
 
 def _measure(model, axis, spin, amplitude, samples=64):
-    scene = model_scenes.scene_plan(model, axis, spin, amplitude, samples, seed=1)
-    return records.scene_dataset(model_scenes.scene_batch([scene])[0])
+    """A model scene by the public call (a study's scene: model_scenes.scene_plan, then its batch)."""
+    return tumble.measure(model, axis, spin, amplitude, samples, seed=1)
 
 
 @pytest.mark.parametrize("rotor, kind", [(0.3, "exponential"), (1.5, "periodic"), (-2.5, "periodic")])

@@ -22,7 +22,7 @@ from tumble.engine.ensemble import run_ensemble
 from tumble.engine.integration import METHOD_NAMES
 from tumble.engine.sampling import perturbed_spins
 from tumble.kernels import tableaux
-from tumble.kernels.drivers import STATUS_DRIFT, STATUS_NONFINITE, STATUS_OK
+from tumble.kernels.loops.drivers import STATUS_DRIFT, STATUS_NONFINITE, STATUS_OK
 from tumble.physics import exact, theory
 
 STEPPERS = [m for m in METHOD_NAMES if m != "exact"]

@@ -1,4 +1,4 @@
-"""A user's System on the built-ins' vectorised block path (tumble/kernels/system_steps.py): its rate rewritten into
+"""A user's System on the built-ins' vectorised block path (tumble/kernels/steps/system_steps.py): its rate rewritten into
 the built-ins' scalar form, the same numbers as the built-in model it copies and as the per-sample loop, what has no
 scalar form said in one warning, and its kernels loaded from numba's disk cache by a new process."""
 
@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import tumble
-from tumble.kernels import system_steps
-from tumble.kernels.system_steps import NotScalar
+from tumble.kernels.steps import system_steps
+from tumble.kernels.steps.system_steps import NotScalar
 
 import hand_written_systems
 from hand_written_systems import HEAVY_TOP, heavy_top

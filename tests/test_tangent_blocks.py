@@ -1,5 +1,5 @@
-"""The built-in models' tangent flow vectorised across samples (:mod:`tumble.kernels.tangent_blocks`) is the per-sample
-loop's run (:mod:`tumble.kernels.tangent_loop`), to round-off.
+"""The built-in models' tangent flow vectorised across samples (:mod:`tumble.kernels.loops.tangent_blocks`) is the per-sample
+loop's run (:mod:`tumble.kernels.loops.tangent_loop`), to round-off.
 
 Each model's generated rk4 (and, slow, rk8) step with its tangent vectors and MEGNO's scalars against the per-sample
 loop stepping the same tableau registered under another name (which the generated steps do not have), and the
@@ -13,7 +13,8 @@ import pytest
 
 import tumble
 from tumble.engine.chaos import RESCALE_EVERY
-from tumble.kernels import TABLEAUX, tangent_blocks
+from tumble.kernels import TABLEAUX
+from tumble.kernels.loops import tangent_blocks
 from tumble.registry import STATUS_ABOVE, STATUS_NONFINITE, STATUS_OK
 
 pytestmark = pytest.mark.xdist_group("chaos")

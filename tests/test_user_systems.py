@@ -309,7 +309,7 @@ def test_run_ensemble_runs_a_system_and_refuses_a_scenes_observers():
 
 
 def test_a_system_is_compiled_once_per_process_not_per_call(monkeypatch):
-    from tumble.kernels import sample_loop
+    from tumble.kernels.loops import sample_loop
 
     tumble.propagate(PENDULUM, np.array([[1.0, 0.0]]), 0.1, 0.01, method="rk8")
     calls = []
@@ -360,6 +360,29 @@ def test_a_hand_written_heavy_top_about_its_sleeping_spin_follows_the_built_in_t
     assert (ds["kind"].item(), kind) == (("periodic",) * 2 if w3 == 3.0 else ("exponential",) * 2)
     assert ds["rate_theory"].item() == pytest.approx(value, rel=1e-7)
     assert ds["rel_error"].item() < 1e-3
+
+
+def test_a_built_in_model_is_measured_about_an_axis_or_a_state_like_a_system():
+    """tumble.measure takes a built-in model both ways: about axis at spin (a study's scene) and about state= (the
+    System scene, with the model's exact Jacobian and its own parameters replaced by parameters=)."""
+    top = tumble.models.HeavyTop((2.0, 2.5, 3.0), 0.5)
+    for w3 in (3.0, 0.5):
+        kind, value = tumble.theory.linear(top, 3, w3)
+        by_axis = tumble.measure(top, 3, w3, samples=64)
+        by_state = tumble.measure(top, state=top.equilibrium(3, w3), samples=64)
+        for ds in (by_axis, by_state):
+            assert ds["kind"].item() == kind and ds["rate_theory"].item() == pytest.approx(value, rel=1e-9)
+            assert ds["rel_error"].item() < 1e-3
+        assert by_state["system"].item() == "heavy_top" and by_axis["model"].item() == "heavy_top"
+    lighter = tumble.measure(top, state=top.equilibrium(3, 0.5), samples=64, parameters={"mgl": 0.05})
+    assert lighter["rate_theory"].item() == pytest.approx(
+        tumble.theory.linear(tumble.models.HeavyTop((2.0, 2.5, 3.0), 0.05), 3, 0.5)[1], rel=1e-9)
+    with pytest.raises(ValueError, match=r"torque: not for a built-in model \(heavy_top\)"):
+        tumble.measure(top, 3, torque=(0.0, 0.0, 1.0))
+    with pytest.raises(ValueError, match=r"axis is required for a heavy_top .* or state="):
+        tumble.measure(top)
+    with pytest.raises(ValueError, match=r"parameters: 'k' is not a parameter of the heavy_top model"):
+        tumble.measure(top, state=top.equilibrium(3, 3.0), parameters={"k": 1.0})
 
 
 def _drift(t, y, p, dydt):

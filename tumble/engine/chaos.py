@@ -6,15 +6,15 @@ derivative of the method's own map), orthonormalised by modified Gram–Schmidt 
 (Benettin, Galgani, Giorgilli & Strelcyn 1980); the exponents are the sums of ``log |R_rr|`` over the time after the
 transient. MEGNO's two scalars are integrated alongside (Cincotta & Simó 2000): ``<Y> → 2`` on a quasi-periodic orbit,
 ``→ 0`` near a stable periodic one, ``≈ λ t / 2`` on a chaotic one. A built-in model stepped by rk4, rk8 or a
-splitting runs on the CPU in blocks of samples vectorised across them (:mod:`tumble.kernels.tangent_blocks`);
+splitting runs on the CPU in blocks of samples vectorised across them (:mod:`tumble.kernels.loops.tangent_blocks`);
 everything else (the implicit midpoint rule too), and the device, through the per-sample loop of
-:mod:`tumble.kernels.tangent_loop` (one CUDA thread per sample).
+:mod:`tumble.kernels.loops.tangent_loop` (one CUDA thread per sample).
 
 ``system`` is anything the engine accepts: a :class:`~tumble.physics.bodies.Body` (the free body, as
 :class:`tumble.models.FreeBody`), a built-in model (its generated rate and tangent, with any Runge–Kutta tableau of
 :data:`tumble.kernels.TABLEAUX`), or a user's :class:`~tumble.physics.system.System` (its ``jacobian(t, y, p, J)`` times each tangent vector; without one,
 the rate's derivative along each vector by extrapolated central differences, about 1e-12 relative:
-:func:`tumble.kernels.tangent_loop.difference_tangents` says why that method).
+:func:`tumble.kernels.loops.tangent_loop.difference_tangents` says why that method).
 Every argument is checked once here, each refusal one line (ValueError).
 """
 
@@ -28,8 +28,8 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import registry
-from ..kernels import (TABLEAUX, device_tangent_loop, rate_sample, rate_sample_parameters, sample_loop, system_steps,
-                       tangent_blocks, tangent_loop)
+from ..kernels import TABLEAUX, device_tangent_loop, rate_sample, rate_sample_parameters
+from ..kernels import sample_loop, system_steps, tangent_blocks, tangent_loop
 from ..physics.bodies import Body, one_body
 from ..physics.models import FreeBody, Model
 from ..physics.system import System, finite_number, with_parameters
@@ -244,7 +244,7 @@ def _system_functions(system):
 def tangent_kind(system):
     """How the tangent flow of ``system`` (as :func:`_as_system` gives it) is computed: ``"generated"`` (a built-in
     model's ``tangent`` in :mod:`tumble.kernels.systems`), ``"jacobian"`` (a System's), or ``"differences"`` (a System
-    without one: :func:`tumble.kernels.tangent_loop.difference_tangents`)."""
+    without one: :func:`tumble.kernels.loops.tangent_loop.difference_tangents`)."""
     if not isinstance(system, System):
         return "generated"
     return "differences" if system.jacobian is None else "jacobian"
@@ -279,7 +279,7 @@ def _kernels(system, method):
 
 def _block_code(system, method):
     """The code of ``system``'s tangent steps on the CPU's block path (a built-in model's kind, a System's generated
-    steps: :func:`tumble.kernels.system_steps.tangent_code`), or None where it runs one sample at a time."""
+    steps: :func:`tumble.kernels.steps.system_steps.tangent_code`), or None where it runs one sample at a time."""
     if isinstance(system, Model):
         return registry.MODEL_KINDS.index(system.kind) if tangent_blocks.runs(method, system.kind) else None
     return block_code(system, method, tangents=True)
@@ -374,7 +374,7 @@ VOUCHED = 1e-6
 
 
 def _difference(rate, y, p, v, e):
-    """:func:`tumble.kernels.tangent_loop.difference_tangents`' product along ``v`` with the step ``e``, on the host."""
+    """:func:`tumble.kernels.loops.tangent_loop.difference_tangents`' product along ``v`` with the step ``e``, on the host."""
     f = [np.zeros_like(y) for _ in range(4)]
     for m, shift in enumerate((e, -e, 2 * e, -2 * e)):
         rate(0.0, y + shift * v, p, f[m])

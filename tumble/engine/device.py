@@ -107,7 +107,7 @@ def check_on_device(method, *, torque_fn=None):
         The chosen method (``"auto"`` already resolved). The closed form (``"exact"``) runs on the device with every
         observer, its flips (analytic in the set-up, timed on the host) and its attitude included.
     torque_fn : callable or None
-        A user's torque function (:func:`tumble.kernels.cuda.refusal`). Every observer runs on the device.
+        A user's torque function (:func:`tumble.kernels.cuda.rigid_body.refusal`). Every observer runs on the device.
     """
     if method == "exact":
         return

@@ -9,7 +9,7 @@ error. :func:`run_ensemble` picks the cheapest path that still delivers all of t
   it is zero, and — when the caller gives stop criteria — each sample stopping once its measurement is
   complete;
 * the attitude (orientation quaternion) only when asked (``attitude=True``): the closed form
-  (:func:`tumble.physics.exact.attitude`) or the attitude kernels (:mod:`tumble.kernels.attitude`), which are never
+  (:func:`tumble.physics.exact.attitude`) or the attitude kernels (:mod:`tumble.kernels.steps.attitude`), which are never
   compiled or run otherwise.
 
 Samples run in chunks of :data:`tumble.engine.sampling.CHUNK`; a progress bar (tqdm, only on a terminal) advances
@@ -88,7 +88,7 @@ def torque_spec(torque):
 
     ``torque`` is None, three numbers (N m, body frame; all zero means none), a named profile — a mapping
     ``{"profile": "constant" | "ramp" | "sine" | "pulse", "vector": (N1, N2, N3), "duration": s, "period": s}``
-    (``duration`` for ramp and pulse, ``period`` for sine; see :mod:`tumble.kernels.steppers`), or a function
+    (``duration`` for ramp and pulse, ``period`` for sine; see :mod:`tumble.kernels.steps.steppers`), or a function
     ``f(t, w1, w2, w3) -> (N1, N2, N3)`` (numba-jitted, or jittable in nopython mode). ``params`` is
     ``(N1, N2, N3, tau)``.
     """
@@ -335,7 +335,7 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         ``weights`` ``(g_b, g_c)``, ``floor`` the radius (rad/s) at or below which a sample has no signal,
         ``max_step`` the largest phase step that unwraps safely (rad), as :func:`tumble.kernels.fits.phase_fit`
         takes them: ``phase`` holds ``(frequency, radius, code)``. On the device the fit runs there, on the
-        trajectory where the kernel stored it (the CPU's per-sample fit, :mod:`tumble.kernels.cuda_fits`); on the CPU
+        trajectory where the kernel stored it (the CPU's per-sample fit, :mod:`tumble.kernels.cuda.phase_fit`); on the CPU
         after the run.
     keep_trajectory : bool
         With ``phase_window``: also return the trajectory (False: on the device it never leaves it).
@@ -549,7 +549,7 @@ def run_scene_table(method, moments, w0, sizes, t_end, dt, *, axis, save_every=N
                     phase_window=None):
     # size: run_ensemble's observers of a scene, a row per scene: what a scan's planned scenes differ in
     """The samples of many planned scenes in one device launch: :func:`run_ensemble` on ``device="cuda"`` with a row
-    per scene (:func:`tumble.kernels.cuda.run_scenes`), for a scan whose scenes are each too small to fill a GPU.
+    per scene (:func:`tumble.kernels.cuda.rigid_body.run_scenes`), for a scan whose scenes are each too small to fill a GPU.
 
     Each scene is observed as ``run_ensemble(moments[k], w0 of scene k, t_end[k], dt[k], method=method,
     axis=axis[k], final=False, save_every=..., probe_times=..., norm_weights=..., max_flips=max_flips,

@@ -266,7 +266,7 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
     attitude : bool
         Also integrate the orientation: ``quaternion(sample, time, component)``, the unit quaternion (scalar
         first) of the body-to-space rotation, ``v_space = q v_body q*``, with the space frame equal to the body
-        frame at ``t = 0``. Every method carries it in its own way (:mod:`tumble.kernels.attitude`); ``"exact"``
+        frame at ``t = 0``. Every method carries it in its own way (:mod:`tumble.kernels.steps.attitude`); ``"exact"``
         gives it in closed form (:func:`tumble.physics.exact.attitude`). Without it no attitude code runs.
     parameters : mapping, optional
         A model's or a System's parameters, by name, in place of its own (a free body has none).

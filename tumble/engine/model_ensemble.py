@@ -139,7 +139,7 @@ def run_model_ensemble(model, y0, t_end, dt, *, method="rk4", axis, spin=None, s
         Times (s) at which to record the transverse norm (rad/s); rounded to whole steps.
     drift : bool
         Record the running maximum drift of each of the model's invariants (``model.spec.invariants``), relative to
-        its scale (:mod:`tumble.kernels.model_loop`: the invariant itself, or the largest magnitude an invariant that
+        its scale (:mod:`tumble.kernels.loops.model_loop`: the invariant itself, or the largest magnitude an invariant that
         may vanish can take).
     drift_limit : float
         A drift beyond it flags a sample ``invariant drift`` and stops it (0: no flagging).
@@ -153,7 +153,7 @@ def run_model_ensemble(model, y0, t_end, dt, *, method="rk4", axis, spin=None, s
         projection, reads it row by row).
     device : str
         ``"cpu"`` or ``"cuda"`` (:func:`tumble.engine.device.resolve_device`): on ``"cuda"`` every model, method and
-        observer above runs on the device, one thread per sample (:mod:`tumble.kernels.cuda_models`, the CPU's
+        observer above runs on the device, one thread per sample (:mod:`tumble.kernels.cuda.models`, the CPU's
         per-sample steps); recorded in ``info["device"]``.
 
     Returns

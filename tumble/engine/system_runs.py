@@ -8,9 +8,9 @@ checked once here, then
   model's own; with any other tableau of :data:`tumble.kernels.TABLEAUX` (a method added at run time) it runs as a
   System does, its rate the kernels' own (:func:`tumble.kernels.rate_sample`);
 * a :class:`~tumble.physics.system.System` steps on the CPU with the built-ins' vectorised blocks, its rate rewritten
-  into their scalar form and its rk4 and rk8 steps generated from it (:mod:`tumble.kernels.system_steps`: made once
+  into their scalar form and its rk4 and rk8 steps generated from it (:mod:`tumble.kernels.steps.system_steps`: made once
   per process, their drivers cached on disk), and otherwise (a rate without a scalar form, said in one warning; any
-  other tableau; the device) with the per-sample loop of :mod:`tumble.kernels.sample_loop`, compiled for that system
+  other tableau; the device) with the per-sample loop of :mod:`tumble.kernels.loops.sample_loop`, compiled for that system
   and method on its first run in a process and kept with the system. Before anything runs the rate is compiled alone
   and called once at the first initial state with bounds checked, and at up to :data:`PROBED` initial states: a rate
   numba cannot compile, that reads or writes beyond the state, or that leaves a component of ``dydt`` unset or NaN is
@@ -29,7 +29,8 @@ import numpy as np
 
 from .. import registry
 from ..kernels import (MODEL_BLOCK, TABLEAUX, device_models, device_sample_loop, model_methods, parallel_block,
-                       rate_sample, rate_sample_parameters, run_model, run_system_blocks, sample_loop, system_steps)
+                       rate_sample, rate_sample_parameters, run_model, run_system_blocks)
+from ..kernels import sample_loop, system_steps
 from ..physics.models import Model
 from ..physics.system import System, with_parameters
 from . import cost
@@ -171,7 +172,7 @@ _BLOCK_CODES = weakref.WeakKeyDictionary()
 
 def block_code(system, method, tangents=False):
     """The code of ``system``'s steps (with ``tangents``, its tangent steps) on the CPU's vectorised block path for
-    ``method`` (:func:`tumble.kernels.system_steps.system_code`, :func:`~tumble.kernels.system_steps.tangent_code`), or
+    ``method`` (:func:`tumble.kernels.steps.system_steps.system_code`, :func:`~tumble.kernels.steps.system_steps.tangent_code`), or
     None where it runs one sample at a time: a method without generated steps, or a rate (or Jacobian) that has no
     scalar form, which one warning per System and kind says, with why."""
     if not system_steps.runs(method):

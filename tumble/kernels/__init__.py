@@ -2,22 +2,51 @@
 
 This package's face is the one door to the kernels: the engine (:mod:`tumble.engine`), the closed form
 (:mod:`tumble.physics.exact`) and the phase fit's inner loop (:mod:`tumble.measure.estimators`) import from here, never from the modules inside (``tests/test_layers.py``
-checks it). Tests and benchmarks of the kernels themselves may reach the modules.
+checks it). Tests and benchmarks of the kernels themselves may reach the modules. The rooms: ``steps/`` (one step of
+each method for each system), ``loops/`` (the time loops and their CPU drivers), ``closed_form/`` (the Jacobi-elliptic
+solution), ``cuda/`` (the CUDA launchers) and ``systems/`` (the built-in systems' equations); at the top what they
+all use (``jit``, ``tableaux``, ``trig``) and the fits' inner loops.
 """
 
-from . import elliptic, fits, sample_loop, side_by_side, system_steps, tangent_blocks, tangent_loop
-from .drivers import TORQUE_SIGNATURE
-from .jit import parallel_block
-from .methods import BLOCK, METHODS, Method, Observed, run, run_attitude
-from .model_loop import BLOCK as MODEL_BLOCK
-from .model_loop import (MODEL_CODES, MODEL_METHODS, ModelObserved, model_methods, model_rhs, model_tangent,
-                         rate_sample, rate_sample_parameters, run_model, run_system_blocks, tangent_sample)
-from .tableaux import TABLEAUX
-from .steppers import TORQUE_CONSTANT, TORQUE_PULSE, TORQUE_RAMP, TORQUE_SINE, TORQUE_USER
+#: The door's names -> (module below this package, attribute; None: the module itself). Imported on first use (PEP
+#: 562), so that importing one module inside (``python -m tumble.kernels.steps.model_codegen``, which writes the
+#: generated modules the loops import) runs none of the others.
+_DOOR = {
+    **{name: (name, None) for name in ("fits", "side_by_side")},
+    **{name: (f"closed_form.{name}", None) for name in ("elliptic", "elliptic_attitude")},
+    **{name: (f"loops.{name}", None) for name in ("sample_loop", "tangent_blocks", "tangent_loop")},
+    "system_steps": ("steps.system_steps", None),
+    "parallel_block": ("jit", "parallel_block"),
+    "TABLEAUX": ("tableaux", "TABLEAUX"),
+    "TORQUE_SIGNATURE": ("loops.drivers", "TORQUE_SIGNATURE"),
+    **{name: ("loops.methods", name) for name in ("BLOCK", "METHODS", "Method", "Observed", "run", "run_attitude")},
+    "MODEL_BLOCK": ("loops.model_loop", "BLOCK"),
+    **{name: ("loops.model_loop", name) for name in (
+        "MODEL_CODES", "MODEL_METHODS", "ModelObserved", "model_methods", "model_rhs", "model_tangent", "rate_sample",
+        "rate_sample_parameters", "run_model", "run_system_blocks", "tangent_sample")},
+    **{name: ("steps.steppers", name) for name in ("TORQUE_CONSTANT", "TORQUE_PULSE", "TORQUE_RAMP", "TORQUE_SINE",
+                                                    "TORQUE_USER")},
+}
+
+
+def __getattr__(name):
+    try:
+        module, attribute = _DOOR[name]
+    except KeyError:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    from importlib import import_module
+
+    value = import_module(f"{__name__}.{module}")
+    if attribute is not None:
+        value = getattr(value, attribute)
+    globals()[name] = value
+    return value
+
 
 __all__ = ["BLOCK", "METHODS", "MODEL_BLOCK", "MODEL_CODES", "MODEL_METHODS", "TORQUE_CONSTANT", "TORQUE_PULSE",
            "TORQUE_RAMP", "TORQUE_SIGNATURE", "TORQUE_SINE", "TORQUE_USER", "device_attitude", "device_closed_form",
-           "device_fits", "device_kernels", "device_models", "device_sample_loop", "elliptic", "fits",
+           "device_fits", "device_kernels", "device_models", "device_sample_loop", "elliptic",
+           "elliptic_attitude", "fits",
            "Method", "TABLEAUX", "model_methods", "model_rhs", "model_tangent", "ModelObserved", "Observed", "parallel_block",
            "rate_sample", "rate_sample_parameters", "run", "run_attitude", "run_model", "run_system_blocks", "sample_loop",
            "side_by_side", "system_steps",
@@ -25,57 +54,61 @@ __all__ = ["BLOCK", "METHODS", "MODEL_BLOCK", "MODEL_CODES", "MODEL_METHODS", "T
 
 
 def device_kernels():
-    """The CUDA kernels, :mod:`tumble.kernels.cuda` (its ``run`` takes :func:`run`'s arguments). Imported on the
+    """The CUDA kernels, :mod:`tumble.kernels.cuda.rigid_body` (its ``run`` takes :func:`run`'s arguments). Imported on the
     first call, never by ``import tumble``: importing them imports ``numba.cuda`` (``tumble.engine.device`` checks
     first that numba-cuda and a GPU, or its simulator, are there)."""
-    from . import cuda
+    from .cuda import rigid_body
 
-    return cuda
+    return rigid_body
 
 
 def device_models():
-    """The models' CUDA kernels, :mod:`tumble.kernels.cuda_models` (its ``run_model`` takes :func:`run_model`'s
+    """The models' CUDA kernels, :mod:`tumble.kernels.cuda.models` (its ``run_model`` takes :func:`run_model`'s
     arguments), imported on the first call as :func:`device_kernels`."""
-    from . import cuda_models
+    from .cuda import models
 
-    return cuda_models
+    return models
 
 
 def device_closed_form():
-    """The closed form's CUDA kernels, :mod:`tumble.kernels.cuda_exact`, imported on the first call as
+    """The closed form's CUDA kernels, :mod:`tumble.kernels.cuda.closed_form`, imported on the first call as
     :func:`device_kernels`."""
-    from . import cuda_exact
+    from .cuda import closed_form
 
-    return cuda_exact
+    return closed_form
 
 
 def device_fits():
-    """The phase fit's CUDA kernels, :mod:`tumble.kernels.cuda_fits` (its ``phase_fit`` takes :func:`fits.phase_fit`'s
+    """The phase fit's CUDA kernels, :mod:`tumble.kernels.cuda.phase_fit` (its ``phase_fit`` takes :func:`fits.phase_fit`'s
     arguments, over states on the device), imported on the first call as :func:`device_kernels`."""
-    from . import cuda_fits
+    from .cuda import phase_fit
 
-    return cuda_fits
+    return phase_fit
 
 
 def device_attitude():
-    """The attitude's CUDA kernels, :mod:`tumble.kernels.cuda_attitude` (its ``run_attitude`` takes
+    """The attitude's CUDA kernels, :mod:`tumble.kernels.cuda.attitude_steps` (its ``run_attitude`` takes
     :func:`run_attitude`'s arguments), imported on the first call as :func:`device_kernels`."""
-    from . import cuda_attitude
+    from .cuda import attitude_steps
 
-    return cuda_attitude
+    return attitude_steps
 
 
 def device_sample_loop():
-    """The CUDA launcher of a system given by its rate, :mod:`tumble.kernels.cuda_sample_loop` (one thread per
+    """The CUDA launcher of a system given by its rate, :mod:`tumble.kernels.cuda.rate_loop` (one thread per
     sample running :func:`sample_loop.make_sample_loop`'s loop), imported on the first call as :func:`device_kernels`."""
-    from . import cuda_sample_loop
+    from .cuda import rate_loop
 
-    return cuda_sample_loop
+    return rate_loop
 
 
 def device_tangent_loop():
-    """The CUDA launcher of the tangent flow, :mod:`tumble.kernels.cuda_tangent_loop` (one thread per sample running
+    """The CUDA launcher of the tangent flow, :mod:`tumble.kernels.cuda.tangent_flow` (one thread per sample running
     :func:`tangent_loop.make_tangent_loop`'s loop), imported on the first call as :func:`device_kernels`."""
-    from . import cuda_tangent_loop
+    from .cuda import tangent_flow
 
-    return cuda_tangent_loop
+    return tangent_flow
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_DOOR))

@@ -113,7 +113,7 @@ def _median_in_place(a):
 def phase_fit_sample(t, x, y, floor, max_step):
     # size: the fit's passes over one sample (radius and phase, unwrapping, slope), the CPU's and the device's
     """The phase fit of one sample (:func:`phase_fit`), written once: the CPU's ``prange`` body and a device thread
-    (:mod:`tumble.kernels.cuda_fits`) call it.
+    (:mod:`tumble.kernels.cuda.phase_fit`) call it.
 
     Parameters
     ----------
@@ -242,7 +242,7 @@ def phase_fit(times, row, states, columns, weights, floor, max_step, frequency, 
     Notes
     -----
     A sample's gather and fit is :func:`fit_sample`, which the device runs too
-    (:func:`tumble.kernels.cuda_fits.phase_fit`): the two components are gathered first (a strided read, which AVX2
+    (:func:`tumble.kernels.cuda.phase_fit.phase_fit`): the two components are gathered first (a strided read, which AVX2
     cannot pack cheaply) into the scratch the fit works in.
     """
     n, t_count = states.shape[0], states.shape[1]
@@ -257,7 +257,7 @@ def phase_fit(times, row, states, columns, weights, floor, max_step, frequency, 
 def fit_sample(i, times, row, states, columns, weights, signs, floor, max_step, time_major, x, y):
     # size: one sample's gather and fit, the CPU's and the device's (flat arrays, the scratch owned by the caller)
     """Sample ``i``'s phase fit, for the CPU (:func:`phase_fit`'s ``prange`` body) and the device
-    (:mod:`tumble.kernels.cuda_fits`, one thread per sample): its transverse components gathered into ``x`` and ``y``
+    (:mod:`tumble.kernels.cuda.phase_fit`, one thread per sample): its transverse components gathered into ``x`` and ``y``
     (the scratch, (T,) each, owned by the caller), scaled by ``sqrt(g)`` and by the sign ``signs[i]`` (``signs`` of
     one element: the same for every sample), then :func:`phase_fit_sample` at its times ``times[row[i]]`` (``row`` of
     one element: row 0 for every sample). ``states`` is ``(n, T, k)``, or ``(T, k, n)`` with ``time_major``; the

@@ -20,7 +20,7 @@ error model are decided here and nowhere else.
 * ``error_model="numpy"``: a division by zero gives inf/NaN (and is caught by the status checks) instead of
   raising, which also lets loops vectorise.
 
-The device kernels (:mod:`tumble.kernels.cuda`) are compiled through :func:`cuda_jit`. The ``@jit`` functions they
+The device kernels (:mod:`tumble.kernels.cuda.rigid_body`) are compiled through :func:`cuda_jit`. The ``@jit`` functions they
 call are compiled for the device by numba-cuda with the options above (it copies a CPU function's options).
 """
 
@@ -243,7 +243,7 @@ def jit(fn=None, *, parallel=False, inline=False, contract=True, cache=True, bou
         different products, so a cold and a warm run would disagree in the last bits.
     cache : bool
         Keep the compiled code in the disk cache (:class:`CheckedCache`). ``False`` for a user's function and
-        the closures over it (:mod:`tumble.kernels.sample_loop`): numba's cache cannot key a closure over another
+        the closures over it (:mod:`tumble.kernels.loops.sample_loop`): numba's cache cannot key a closure over another
         function (issue #6264: a new entry every process, never a hit) nor a function typed in a notebook.
     boundscheck : bool
         Raise ``IndexError`` on an index out of bounds (slow: only for a first call that checks a user's function).

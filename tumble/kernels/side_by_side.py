@@ -18,7 +18,8 @@ import sys
 import numba
 from numba import types
 
-from . import elliptic, elliptic_attitude, fits
+from .closed_form import elliptic, elliptic_attitude
+from . import fits
 
 
 def _array(dtype, ndim, readonly=False):

@@ -1,6 +1,6 @@
 """Integrator coefficients as data.
 
-Two kinds of method share two generic steppers (:mod:`tumble.kernels.steppers`):
+Two kinds of method share two generic steppers (:mod:`tumble.kernels.steps.steppers`):
 
 * explicit Runge–Kutta methods, given by a Butcher tableau ``(A, b, c)``;
 * Lie–Poisson splittings of the free rigid body, given by a sequence of exact sub-flows and the fraction of
@@ -162,6 +162,6 @@ IMPLICIT_MIDPOINT = ImplicitMidpoint()
 # Every fixed-step method; a method's kernel id is its index here.
 ALL_METHODS = (RK4, RK8, SYMPLECTIC_EULER, SPLITTING2, SPLITTING4, IMPLICIT_MIDPOINT)
 
-#: The explicit Runge–Kutta methods by name: what a system given by its rate runs (:mod:`tumble.kernels.sample_loop`).
+#: The explicit Runge–Kutta methods by name: what a system given by its rate runs (:mod:`tumble.kernels.loops.sample_loop`).
 TABLEAUX = {m.name: m for m in ALL_METHODS if isinstance(m, ButcherTableau)}
 METHOD_ORDER = tuple(m.name for m in ALL_METHODS)

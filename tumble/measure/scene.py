@@ -9,6 +9,8 @@ next to linear theory: planned (:mod:`tumble.measure.planning`), run (:mod:`tumb
 
 from __future__ import annotations
 
+from ..engine.device import resolve_device
+from ..physics.models import Model
 from ..physics.system import System
 from .planning import scene_plan
 from .reduction import scene_result
@@ -31,8 +33,9 @@ def measure(body, axis=None, spin=1.0, amplitude=1e-3, samples=1024, seed=0, met
 
     Parameters
     ----------
-    body : Body, array_like (3,), or System
-        Principal moments, kg m²; or a :class:`tumble.System` (then ``state`` and no ``axis``).
+    body : Body, array_like (3,), Model or System
+        Principal moments, kg m²; a built-in model (:mod:`tumble.models`: measured about ``axis`` at ``spin`` as a
+        study's scene, or about ``state``), or a :class:`tumble.System` (then ``state`` and no ``axis``).
     axis : {1, 2, 3}
         Spin axis, 1-based.
     spin : float
@@ -99,8 +102,12 @@ def measure(body, axis=None, spin=1.0, amplitude=1e-3, samples=1024, seed=0, met
     >>> str(ds.kind.values), bool(ds.rel_error < 5e-3)
     ('exponential', True)
     """
-    if isinstance(body, System) or state is not None:
-        if not isinstance(body, System):
+    if isinstance(body, Model) and state is None:
+        return _measure_model(body, axis, spin, amplitude, samples, seed, method, dt=dt, horizon=horizon,
+                              distribution=distribution, device=device, unused={"flips": flips != 3,
+                              "torque": torque is not None, "curves": bool(curves), "parameters": parameters is not None})
+    if isinstance(body, (System, Model)) or state is not None:
+        if not isinstance(body, (System, Model)):
             raise ValueError(f"state= measures a tumble.System about an equilibrium; a body is measured about an axis "
                              f"(measure(body, axis, spin)), got {body!r}")
         if axis is not None:
@@ -117,3 +124,23 @@ def measure(body, axis=None, spin=1.0, amplitude=1e-3, samples=1024, seed=0, met
     scene = scene_plan(body, axis, spin, amplitude, samples, seed, method, dt=dt, flips=flips,
                        distribution=distribution, torque=torque, horizon=horizon, curves=curves, device=device)
     return scene_result(scene, [scene_samples(scene, 0, scene.samples, progress=progress)])
+
+
+def _measure_model(model, axis, spin, amplitude, samples, seed, method, *, dt, horizon, distribution, device, unused):
+    # size: measure's keywords for a built-in model, and those it refuses
+    """:func:`measure` of a built-in model about ``axis`` at ``spin``: one scene as a model study runs it
+    (:func:`tumble.measure.model_scenes.scene_plan`), its Dataset as a free body's."""
+    from .model_scenes import scene_batch
+    from .model_scenes import scene_plan as model_scene_plan
+    from .records import scene_dataset
+
+    refused = [name for name, given in unused.items() if given]
+    if refused:
+        raise ValueError(f"{', '.join(refused)}: not for a built-in model ({model.kind}); a model's scene measures its "
+                         f"rate about axis at spin (or state=, its equilibrium)")
+    if axis is None:
+        raise ValueError(f"axis is required for a {model.kind} (the spin axis of its steady state), or state= (an "
+                         f"equilibrium of its {', '.join(model.spec.state)})")
+    plan = model_scene_plan(model, axis, spin, amplitude, samples, seed, method, dt=dt, horizon=horizon,
+                            distribution=distribution, device=resolve_device(device))
+    return scene_dataset(scene_batch([plan])[0])

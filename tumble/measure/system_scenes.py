@@ -97,12 +97,32 @@ def _order(method):
     return max(k for k in planning.STEPS_PER_RADIAN if k <= order)
 
 
+def _name(system):
+    """What a message and the Dataset call ``system``: a System's name, a built-in model's kind."""
+    return system.name if isinstance(system, System) else system.kind
+
+
+def _components(system):
+    return system.state if isinstance(system, System) else system.spec.state
+
+
+def _rate(system, y, values):
+    """The rate of ``system`` at one state ``y`` (n,): a System's function, a built-in model's ``rhs``."""
+    if not isinstance(system, System):
+        return system.rhs(y)
+    out = np.zeros_like(y)
+    system.rate(0.0, y.copy(), system.parameter_values(values), out)
+    return out
+
+
 def _checked(system, state, amplitude, samples, method, parameters):
-    """``(equilibrium (n,), p values, chosen method)``: the scene's arguments checked, ValueError naming each."""
+    """``(system, equilibrium (n,), p values, chosen method)``: the scene's arguments checked, ValueError naming each
+    (``system`` with ``parameters`` in place: a built-in model's own)."""
     y, _ = initial_states(system, state, "state")
     if len(y) != 1:
-        raise ValueError(f"state must be one equilibrium of shape ({system.state_size},) ({', '.join(system.state)} "
-                         f"of system {system.name!r}), got shape {np.shape(state)}")
+        raise ValueError(f"state must be one equilibrium of shape ({len(_components(system))},) "
+                         f"({', '.join(_components(system))} of system {_name(system)!r}), got shape "
+                         f"{np.shape(state)}")
     if isinstance(amplitude, (bool, np.bool_)) or not isinstance(amplitude, (int, float, np.integer, np.floating)) \
             or not math.isfinite(amplitude) or amplitude <= 0:
         raise ValueError(f"amplitude must be a number > 0 (the size of the perturbations, in the state's units), got "
@@ -113,10 +133,10 @@ def _checked(system, state, amplitude, samples, method, parameters):
     methods = system_methods(system)
     chosen = methods[0] if method == "auto" else method
     if chosen not in methods:
-        raise ValueError(f"method must be auto or one of {', '.join(methods)} for system {system.name!r}, got "
+        raise ValueError(f"method must be auto or one of {', '.join(methods)} for system {_name(system)!r}, got "
                          f"{method!r}")
-    _, values = with_parameters(system, parameters)
-    return y[0], values, chosen
+    system, values = with_parameters(system, parameters)
+    return system, y[0], values, chosen
 
 
 def _plan(kind, value, lam, start, amplitude, order, dt, horizon):
@@ -158,16 +178,15 @@ def system_scene_plan(system, state, amplitude=1e-3, samples=1024, seed=0, metho
         equilibrium (no growth or oscillation to measure); a plan past the cost bound.
     """
     device = resolve_device(device)
-    equilibrium, values, chosen = _checked(system, state, amplitude, samples, method, parameters)
+    system, equilibrium, values, chosen = _checked(system, state, amplitude, samples, method, parameters)
     linear = theory.system_linearisation(system, equilibrium, values)
-    rate = np.zeros_like(equilibrium)
-    system.rate(0.0, equilibrium.copy(), system.parameter_values(values), rate)
+    rate = _rate(system, equilibrium, values)
     size = max(1.0, float(np.abs(equilibrium).max()))
     if not np.abs(rate).max() <= 1e-9 * max(1.0, float(np.abs(linear.jacobian).max())) * size:
-        raise ValueError(f"state is not an equilibrium of system {system.name!r}: its rate there is {rate.tolist()} "
+        raise ValueError(f"state is not an equilibrium of system {_name(system)!r}: its rate there is {rate.tolist()} "
                          f"(measure perturbations of a state whose rate is 0)")
     if linear.kind == "neutral":
-        raise ValueError(f"the equilibrium {equilibrium.tolist()} of system {system.name!r} is neutral in linear theory "
+        raise ValueError(f"the equilibrium {equilibrium.tolist()} of system {_name(system)!r} is neutral in linear theory "
                          f"(eigenvalues {np.round(linear.eigenvalues, 12).tolist()}: no growth or oscillation to "
                          f"measure)")
     left, eigenvalue = _left_mode(linear.jacobian, linear.kind)
@@ -212,7 +231,8 @@ def system_scene_samples(scene):
     for lo in range(0, n, SLICE):
         hi = min(lo + SLICE, n)
         run, _ = run_system(scene.system, states[lo:hi], plan.t_end, plan.n_steps, plan.dt, scene.chosen,
-                            save_every=plan.save_every, parameters=scene.parameters, device=scene.device)
+                            save_every=plan.save_every, device=scene.device,
+                            parameters=scene.parameters if isinstance(scene.system, System) else None)
         z = (run.trajectory - scene.equilibrium) @ scene.left
         out["rate"][lo:hi], out["code"][lo:hi], extras = _fit(scene, run.times, z, run.status)
         for name, values in extras.items():
@@ -235,11 +255,11 @@ def measure_system(system, state, amplitude=1e-3, samples=1024, seed=0, method="
     record = reduction.scene_records([scene], [[system_scene_samples(scene)]])[0]
     for name in ("I1", "I2", "I3", "axis", "spin"):
         del record[name]
-    record["system"] = np.asarray(system.name)
-    record["@title"] = np.asarray(f"tumble measurement: system {system.name!r}, {scene.kind} rate about "
+    record["system"] = np.asarray(_name(system))
+    record["@title"] = np.asarray(f"tumble measurement: system {_name(system)!r}, {scene.kind} rate about "
                                   f"{scene.equilibrium.tolist()}")
     record["@equilibrium"] = scene.equilibrium
-    record["@state_components"] = np.asarray(" ".join(system.state))
+    record["@state_components"] = np.asarray(" ".join(_components(system)))
     record["@eigenvalue"] = np.array([scene.eigenvalue.real, scene.eigenvalue.imag])
     record["@distribution"] = np.asarray("isotropic directions of the state, size amplitude")
     for name, value in scene.parameters.items():

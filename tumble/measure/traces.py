@@ -126,7 +126,7 @@ def attitude_trace(body, axis=2, spin=1.0, amplitude=1e-3, method="auto", *, hor
     The spin is sample 0 of :func:`tumble.engine.sampling.perturbed_spins` (the same seed gives the same spin as a
     scene's first sample). Torque-free with ``method="auto"`` the closed form runs
     (:func:`tumble.physics.exact.attitude`); otherwise ``method`` (``rk4`` when ``"auto"``) steps the angular
-    velocity and the attitude together (:mod:`tumble.kernels.attitude`), about 400 steps per turn.
+    velocity and the attitude together (:mod:`tumble.kernels.steps.attitude`), about 400 steps per turn.
 
     Parameters
     ----------

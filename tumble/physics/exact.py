@@ -26,7 +26,7 @@ there is a *small difference*: ``k'² = 1 - m``, ``L² - 2E I2``, and the compon
 spin near the intermediate axis. None of them is formed by subtraction here:
 
 * ``L² - 2E I2 = I3 (I3 - I2) w3² - I1 (I2 - I1) w1²`` is evaluated in double-double arithmetic (error-free
-  products by fused multiply-add and Knuth's two-sum, :func:`tumble.kernels.elliptic.torque_free_solve`), so it is correctly rounded even on heavy cancellation;
+  products by fused multiply-add and Knuth's two-sum, :func:`tumble.kernels.closed_form.elliptic.torque_free_solve`), so it is correctly rounded even on heavy cancellation;
   ``2E I3 - L²`` and ``L² - 2E I1`` are sums of terms of one sign;
 * the complementary modulus comes directly from those, ``k'² = (I3 - I1)(L² - 2E I2) / ((I3 - I2)(L² -
   2E I1))``, never as ``sqrt(1 - m)``;
@@ -34,7 +34,7 @@ spin near the intermediate axis. None of them is formed by subtraction here:
   intermediate axis), and the initial offset comes from the initial components through Carlson's
   ``R_F``: ``u - K = sn·R_F(cn², dn², 1)`` at the reduced argument (DLMF 19.25.5), with
   ``sn, cn, dn`` there read off the components *relative to themselves*;
-* ``sn, cn, dn`` are evaluated by :mod:`tumble.kernels.elliptic`, which keeps relative accuracy up to
+* ``sn, cn, dn`` are evaluated by :mod:`tumble.kernels.closed_form.elliptic`, which keeps relative accuracy up to
   ``m = 1`` (quarter-period reduction, hyperbolic series for small ``k'``, Landen/AGM otherwise).
 
 Measured against mpmath at 50 digits (``tests/test_exact.py``; 8 random bodies and spins per row, both
@@ -320,7 +320,7 @@ def omega_at(moments, w, t):
     """Angular velocity (n, 3), rad/s, at one time ``t`` (s) of spins ``w`` (n, 3) of one body ``moments`` (3,), all
     validated by the caller: the lean path of :func:`omega` for a single time.
 
-    One fused kernel (:func:`tumble.kernels.elliptic.torque_free_omega_at`: no initial argument, Jacobi's
+    One fused kernel (:func:`tumble.kernels.closed_form.elliptic.torque_free_omega_at`: no initial argument, Jacobi's
     addition theorem instead); agrees with :func:`omega` to a few ulps of ``|w|``. A call with a spin within
     ``TINY_TRANSVERSE`` of an axis takes the set-up and the grid kernel apart, for all its spins.
     """
@@ -401,7 +401,7 @@ def omega(body, w0, t):
     One time (a scalar ``t`` or an array of one) takes the fused one-time kernel (:func:`omega_at`; for 2000 spins
     about 9x faster than the grid's set-up), which agrees with a time grid holding ``t`` to a few ulps of ``|w|``,
     not bit for bit. A grid of two or more times is set up and evaluated in one kernel call
-    (:func:`tumble.kernels.elliptic.torque_free_omega_grid`), with the bits of the set-up and the grid kernel the
+    (:func:`tumble.kernels.closed_form.elliptic.torque_free_omega_grid`), with the bits of the set-up and the grid kernel the
     scenes call apart.
     """
     tt = _check_t(t)
@@ -423,7 +423,7 @@ def omega_apart(moments, w, times):
 def omega_rows_on_device(moments, w, times, row):
     """:func:`omega_rows` on the CUDA device, set-up included, for the samples of many scenes in one launch: sample
     ``i`` (of ``w``, (n, 3)) of the body ``moments[row[i]]`` ((R, 3)) at the times ``times[row[i]]`` ((R, T)), all
-    validated; :func:`tumble.kernels.cuda_exact.omega_rows`. A launch with a spin within ``TINY_TRANSVERSE`` of an
+    validated; :func:`tumble.kernels.cuda.closed_form.omega_rows`. A launch with a spin within ``TINY_TRANSVERSE`` of an
     axis is evaluated as the CPU's is (:func:`solve_rows`, :func:`omega_rows`), on the CPU."""
     out, tiny, non_finite = device_closed_form().omega_rows(moments, w, times, row)
     if tiny:
@@ -436,7 +436,7 @@ def omega_rows_on_device(moments, w, times, row):
 def phase_fit_rows_on_device(moments, w, times, row, columns, weights, floor, max_step):
     """The phase fit (:func:`tumble.kernels.fits.phase_fit`) of the motion of the samples of
     :func:`omega_rows_on_device` (its first four arguments), evaluated and fitted on the CUDA device
-    (:func:`tumble.kernels.cuda_exact.omega_rows_phase_fit`): the states stay there and only the frequency, the median
+    (:func:`tumble.kernels.cuda.closed_form.omega_rows_phase_fit`): the states stay there and only the frequency, the median
     radius and the fit's code of each sample come back. ``columns``, ``weights``, ``floor`` and ``max_step`` as
     :func:`tumble.kernels.fits.phase_fit` takes them. A launch with a spin within ``TINY_TRANSVERSE`` of an axis is
     evaluated and fitted as the CPU's is, on the CPU.
@@ -464,8 +464,8 @@ def phase_fit_rows_on_device(moments, w, times, row, columns, weights, floor, ma
 def omega_on_device(moments, w, times):
     """Angular velocity (n, T, 3), rad/s, of spins ``w`` (n, 3) of one body ``moments`` (3,) at ``times`` (T,), all
     validated, on the CUDA device (resolved by the caller: :func:`tumble.engine.device.resolve_device`), one thread
-    per sample: :func:`tumble.kernels.cuda_exact.omega_at` for one time, else
-    :func:`tumble.kernels.cuda_exact.omega_grid` (set-up and evaluation). They agree with :func:`omega_at` and
+    per sample: :func:`tumble.kernels.cuda.closed_form.omega_at` for one time, else
+    :func:`tumble.kernels.cuda.closed_form.omega_grid` (set-up and evaluation). They agree with :func:`omega_at` and
     :func:`omega` to a few ulps of ``|w|`` (not bit for bit: the CPU's one-time kernel runs in SIMD lanes, and a
     GPU fuses multiply-adds its own way). A call with a spin within ``TINY_TRANSVERSE`` of an axis (whose
     invariants underflow) is evaluated as the CPU's is, by :func:`omega_apart` (the lifted set-up), on the CPU."""
@@ -484,7 +484,7 @@ def omega_on_device(moments, w, times):
 
 def _omega_grid(body, w0, tt):
     """:func:`omega` on the time grid ``tt`` (validated, scalar or 1-d): one kernel call,
-    :func:`tumble.kernels.elliptic.torque_free_omega_grid` (set-up and evaluation in one pass), the same bits as the
+    :func:`tumble.kernels.closed_form.elliptic.torque_free_omega_grid` (set-up and evaluation in one pass), the same bits as the
     set-up and the grid kernel apart; a call with a spin within ``TINY_TRANSVERSE`` of an axis takes those two
     apart (:func:`omega_apart`), for all its spins."""
     moments = one_body(body)
@@ -656,7 +656,7 @@ def attitude(body, w0, t):
 
     Notes
     -----
-    Evaluated by :mod:`tumble.kernels.elliptic_attitude`, one sample and one time at a time, in parallel over both:
+    Evaluated by :mod:`tumble.kernels.closed_form.elliptic_attitude`, one sample and one time at a time, in parallel over both:
     the per-sample code the CUDA device runs too (:func:`attitude_on_device`). Carlson's ``R_J`` there agrees with
     ``scipy.special.elliprj`` to a few ulps.
     """
@@ -693,7 +693,7 @@ def attitude_rows(moments, w, sol, times):
 def attitude_on_device(moments, w, times):
     """:func:`attitude` (n, T, 4) of spins ``w`` (n, 3) of one body ``moments`` (3,) at ``times`` (T,), all validated,
     on the CUDA device (resolved by the caller), one thread per sample: the closed form's set-up, its angular velocity
-    at each time and the CPU's per-sample attitude code (:func:`tumble.kernels.cuda_exact.attitude_rows`). Agrees
+    at each time and the CPU's per-sample attitude code (:func:`tumble.kernels.cuda.closed_form.attitude_rows`). Agrees
     with :func:`attitude` to a few ulps where the angular velocity does (:func:`omega_on_device`). A call with a spin
     within ``TINY_TRANSVERSE`` of an axis is evaluated as the CPU's is (the lifted set-up), on the CPU."""
     out, tiny, non_finite = device_closed_form().attitude_rows(np.reshape(moments, (1, 3)), w,

@@ -87,7 +87,7 @@ class System:
         ``jacobian(t, y, p, J)``, the same convention, writing ``∂f/∂y`` into ``J`` (float64, (n, n)). Without it,
         :func:`tumble.theory.eigenvalues_at` differentiates ``rate`` numerically (adaptive central differences
         with Richardson extrapolation, :func:`scipy.differentiate.jacobian`), and the chaos indicators' tangents are
-        central differences of ``rate`` (:func:`tumble.kernels.tangent_loop.difference_tangents`).
+        central differences of ``rate`` (:func:`tumble.kernels.loops.tangent_loop.difference_tangents`).
     scale : mapping of str to float, or sequence of float, optional
         Without a ``jacobian``: the scale on which ``rate`` varies along each component (a positive number per
         component, by name or in order; unnamed components keep the default 1), for the difference tangents, which

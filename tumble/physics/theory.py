@@ -355,8 +355,13 @@ def _system_eigenvalues(system, state, parameters, t):
 def system_linearisation(system, state, parameters=None, *, t=0.0):
     """:class:`Linearisation` of a :class:`System` at one state (n,): the kind and value :func:`linear` would
     report (the largest real part of the eigenvalues if it is growth beyond round-off, else the least damped
-    oscillation's frequency, else neutral), its Jacobian and eigenvalues."""
-    jac = system_jacobian(system, state, parameters, t=t)
+    oscillation's frequency, else neutral), its Jacobian and eigenvalues. A built-in model's is its exact Jacobian
+    (:meth:`~tumble.physics.models.Model.jacobian`; its parameters are its own)."""
+    if isinstance(system, Model):
+        y = finite_array(state, "state")
+        jac = system.jacobian(y) if y.shape == (system.state_size,) else np.empty(0)
+    else:
+        jac = system_jacobian(system, state, parameters, t=t)
     if jac.ndim != 2:
         raise ValueError(f"state must be one state of shape ({system.state_size},), got shape {np.shape(state)}")
     lam = np.linalg.eigvals(jac)

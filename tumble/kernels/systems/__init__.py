@@ -1,7 +1,7 @@
 """The built-in systems' per-sample equations for the kernels: constants, rate, tangent flow, invariants (numba).
 
 Each system's equations are written once, in its module of :mod:`tumble.physics.models` (with the model and its
-scenes); the module here of the same name is a GENERATED copy of them (``python -m tumble.kernels.model_codegen``;
+scenes); the module here of the same name is a GENERATED copy of them (``python -m tumble.kernels.steps.model_codegen``;
 the kernels sit below physics and do not import it): a ``Constants`` record of named numbers built from the physical
 parameters by ``constants(moments, ...)`` (keywords: the model's parameters), the rate ``rate(t, *y, c)``, the
 tangent flow ``tangent(t, *y, *v, c)`` (``J(y) v``, the derivative of the rate along ``v``: linear theory and the
@@ -9,9 +9,9 @@ chaos indicators' variational equations), the invariants ``invariants(*y, c)`` a
 constraint, a ``project(*y)`` applied after each step. The free body runs as the gyrostat with ``h = 0``.
 
 :data:`SYSTEMS` maps each model kind (``registry.MODEL_KINDS``) to its module; the generated steps and the dispatch of
-:mod:`tumble.kernels.model_steps`, the kernels' constants and :data:`N_CONSTANTS` derive from it, so adding a system
+:mod:`tumble.kernels.steps.model_steps`, the kernels' constants and :data:`N_CONSTANTS` derive from it, so adding a system
 is its module in :mod:`tumble.physics.models` and its row in the registry (then ``python -m
-tumble.kernels.model_codegen``): the modules here are found by the registry's rows, not a list of imports.
+tumble.kernels.steps.model_codegen``): the modules here are found by the registry's rows, not a list of imports.
 """
 
 import inspect

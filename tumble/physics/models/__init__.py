@@ -21,10 +21,11 @@ components: ``g`` the unit vector pointing up in the body frame (heavy top), ``q
 scalar first (gravity gradient), ``s`` an internal body's angular velocity (damper). A kernel finds a block by
 the offsets of ``registry.state_blocks(kind)``.
 
-One module a model: the base (:mod:`.base`: :class:`Model`, :class:`Transverse`, the evaluation of a module's
-equations on arrays and the helpers the models share), then :mod:`.free_body`, :mod:`.gyrostat`, :mod:`.heavy_top`,
-:mod:`.gravity_gradient` and :mod:`.damper`, each the one place its kind is named (the free body's equations are the
-gyrostat's); this package re-exports them, :data:`CLASSES` and :func:`from_kind`.
+One module a system: the base (:mod:`.base`: :class:`Model`, :class:`Transverse`, the evaluation of a module's
+equations on arrays and the helpers the models share), then :mod:`.gyrostat` (with the free body, the gyrostat with no
+rotor), :mod:`.heavy_top`, :mod:`.gravity_gradient` and :mod:`.damper`, each the one place its kinds are named; this
+package finds each model's class in the module its registry row names (no list of imports) and re-exports them,
+:data:`CLASSES` and :func:`from_kind`. Adding a system is its module here and its row in the registry.
 
 Models (Landau & Lifshitz, *Mechanics*, §35-§37; Wittenburg, *Dynamics of Multibody Systems*, §3.6 for the
 gyrostat; Arnold, *Mathematical Methods of Classical Mechanics*, §30 and Goldstein §5.7 for the heavy top):
@@ -46,24 +47,30 @@ gyrostat; Arnold, *Mathematical Methods of Classical Mechanics*, §30 and Goldst
 
 from __future__ import annotations
 
+from importlib import import_module
+
 from ... import registry
 from .base import Model, Transverse
-from .damper import Damper
-from .free_body import FreeBody
-from .gravity_gradient import GravityGradient
-from .gyrostat import Gyrostat
-from .heavy_top import HeavyTop
-
-__all__ = ["CLASSES", "IMPLEMENTED", "Damper", "FreeBody", "GravityGradient", "Gyrostat", "HeavyTop", "Model",
-           "Transverse", "from_kind"]
 
 
-#: Every model with a class here, by kind (``registry.MODELS``' ``physics`` flag).
-CLASSES = {cls.kind: cls for cls in (FreeBody, Gyrostat, HeavyTop, GravityGradient, Damper)}
+def _class_of(model):
+    """The class of model ``model`` (a row of ``registry.MODELS``): the one of its kind in the module that holds its
+    equations (``registry.Model.equations_module``)."""
+    module = import_module(f"{__name__}.{model.equations_module}")
+    return next(value for value in vars(module).values()
+                if isinstance(value, type) and issubclass(value, Model) and value.kind == model.name)
+
+
+#: Every model with a class here, by kind, found by the registry's rows (``registry.MODELS``' ``physics`` flag): no list
+#: of imports to keep.
+CLASSES = {model.name: _class_of(model) for model in registry.MODELS if model.physics}
 
 #: The models studies run (``registry.MODELS``' ``implemented`` flag); the others have no studies yet (:func:`from_kind`
 #: builds them, ``theory.linear`` linearises them, the kernels step them: ``tumble.kernels.MODEL_CODES``).
 IMPLEMENTED = {kind: cls for kind, cls in CLASSES.items() if registry.model_kind(kind).implemented}
+
+globals().update({cls.__name__: cls for cls in CLASSES.values()})
+__all__ = ["CLASSES", "IMPLEMENTED", "Model", "Transverse", "from_kind", *sorted(cls.__name__ for cls in CLASSES.values())]
 
 
 def from_kind(kind, body, **parameters):

@@ -3,7 +3,7 @@ the models share (the rigid body's constants, the Jacobian of Euler's equations 
 moments, a steady spin's state, circular weights, a parameter checked against its registry row).
 
 A model's module holds its equations once, as per-sample scalar code (plain Python that numba compiles: the kernels'
-copy of it is generated, :mod:`tumble.kernels.model_codegen`): ``Constants`` (the named numbers the equations
+copy of it is generated, :mod:`tumble.kernels.steps.model_codegen`): ``Constants`` (the named numbers the equations
 read), ``constants(moments, **parameters)``, ``rate(t, *y, c)``, ``tangent(t, *y, *v, c)`` (``J(y) v``) and
 ``invariants(*y, c)``. Called with numpy arrays as the components (:func:`on_arrays`: the same code, its ``math``
 read as numpy), the same functions give :meth:`Model.rhs`, :meth:`Model.jacobian` and :meth:`Model.invariants` here:

@@ -22,7 +22,7 @@ from ... import registry
 from ..bodies import finite_array
 from . import base
 
-__all__ = ["Constants", "Gyrostat", "constants", "invariants", "rate", "tangent"]
+__all__ = ["Constants", "FreeBody", "Gyrostat", "constants", "invariants", "rate", "tangent"]
 
 #: The rigid body's fields (:data:`tumble.registry.RIGID_BODY`), ``h_j/I_i`` (1/s) and the rotor ``h``
 #: (N m s).
@@ -120,3 +120,31 @@ class Gyrostat(base.Model):
         weights = base.circular_weights(self.moments, k, finite_array(spin, "spin"), float(self.rotor[k]))
         pair = np.array([(k + 1) % 3, (k + 2) % 3], dtype=np.intp)
         return base.Transverse(pair, weights, pair.copy())
+
+
+@dataclass(frozen=True, eq=False)
+class FreeBody(base.Model):
+    """The torque-free rigid body: ``I w' = (I w) × w`` (Landau & Lifshitz §36), the gyrostat's equations with no rotor.
+    State ``w`` (3), rad/s.
+
+    Invariants: ``energy`` ``½ w·Iw`` (J) and ``momentum_squared`` ``|I w|²`` ((N m s)²). Its fused SIMD steps, which
+    ``tumble.integrate`` runs, are the kernels' own (:mod:`tumble.kernels.loops.free_body_parts`); as a model of studies
+    and of :func:`tumble.run_ensemble` it runs the gyrostat's generated steps with ``h = 0``.
+
+    Examples
+    --------
+    >>> FreeBody((1.0, 2.0, 3.0)).rhs([0.0, 1.0, 0.0])
+    array([0., 0., 0.])
+    """
+
+    kind: ClassVar[str] = "free"
+
+    def equilibrium(self, axis, spin=1.0):
+        """The steady spin ``w = spin e_axis``: shape (..., 3) for ``spin`` (...) rad/s; ``axis`` 1, 2 or 3."""
+        return base.spin_state(3, base.one_axis(axis), spin)
+
+    def transverse(self, axis, spin=1.0):
+        """The two components across ``axis`` (cyclic order), weighted so that a linear oscillation is circular."""
+        k = base.one_axis(axis)
+        pair = np.array([(k + 1) % 3, (k + 2) % 3], dtype=np.intp)
+        return base.Transverse(pair, base.circular_weights(self.moments, k, 1.0, 0.0), pair.copy())
