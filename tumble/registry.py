@@ -272,26 +272,6 @@ class ModelParameter(NamedTuple):
     study: str = ""  # what a study does with it, beyond the text (the docs of studies/defaults.toml)
 
 
-#: Every numeric parameter of the models, by study key (keys of the ``[model]`` table other than ``kind``).
-MODEL_PARAMETERS = (
-    ModelParameter("rotor", 3, "N m s", False, "gyrostat: rotor angular momentum relative to the body, body frame",
-                   "A 3-vector; for a steady spin it must lie along spin.axis. In a scan, scan.rotor lists "
-                   "3-vectors, or numbers: h along each scene's spin axis (so that scan.axis can be scanned with it)."),
-    ModelParameter("mgl", 1, "N m", True, "heavy_top: M g l, weight times the pivot-to-centre-of-mass distance",
-                   "body.moments are about the fixed point; spin.axis must be 3 (the sleeping top). The perturbation "
-                   "tilts the spin by perturbation.amplitude / 1000 and the up direction by perturbation.amplitude."),
-    ModelParameter("orbit_rate", 1, "rad/s", True, "gravity_gradient: orbital angular rate n of a circular orbit",
-                   "spin.axis and spin.rate are not used: the equilibrium follows the orbit (w = (0, -n, 0), body axes "
-                   "along the orbit's); the resolved study keeps them as given (defaults: 2, 1.0), scenes record "
-                   "spin = n, and scan.axis, scan.rate and spin.momentum are errors. The perturbation tilts the "
-                   "attitude by perturbation.amplitude about a uniformly random axis, w at the orbit frame's rate."),
-    ModelParameter("damper_inertia", 1, "kg m2", True, "damper: moment of inertia J of the damper sphere",
-                   "body.moments exclude the sphere. Any spin.axis: about the minor axis the nutation grows slowly "
-                   "(exponential), about the major one it decays (periodic: the least damped nutation frequency); "
-                   "the sphere starts moving with the body."),
-    ModelParameter("damping", 1, "N m s", True, "damper: viscous coupling c between the sphere and the body"),
-)
-_PARAMETER_BY_KEY = {p.key: p for p in MODEL_PARAMETERS}
 
 
 class Model(NamedTuple):
@@ -304,7 +284,7 @@ class Model(NamedTuple):
     """
 
     name: str
-    parameters: tuple  # study keys of its numeric parameters (MODEL_PARAMETERS), in order
+    parameter_rows: tuple  # its numeric parameters (ModelParameter rows: key, size, units, sign, texts), in order
     state: tuple  # names of the state components, in order (w1, w2, w3 first)
     invariants: tuple  # names of the quantities the motion conserves
     implemented: bool  # True: studies run it; False: reserved there (name, keys, state fixed; kernels.MODEL_CODES
@@ -313,6 +293,11 @@ class Model(NamedTuple):
     text: str
     scan_keys: tuple = ()  # scan keys of its own beyond its parameters (a grid of bodies in its own terms)
     equations: str = ""  # the module of tumble/physics/models/ that holds its equations ("": the one named as the kind)
+
+    @property
+    def parameters(self):
+        """The study keys of its numeric parameters, in order."""
+        return tuple(p.key for p in self.parameter_rows)
 
     @property
     def equations_module(self):
@@ -341,27 +326,53 @@ STATE_BLOCKS = (
     ("s", "angular velocity of an internal body (damper sphere), body frame", "rad/s"),
 )
 
-#: Every model, the default first.
+#: Every model, the default first: one row each, its parameters' rows inside it.
 MODELS = (
     Model("free", (), ("w1", "w2", "w3"), ("energy", "momentum_squared"), True, True,
           "torque-free rigid body: I w' = (I w) x w", equations="gyrostat"),  # the gyrostat with no rotor
-    Model("gyrostat", ("rotor",), ("w1", "w2", "w3"), ("energy", "momentum_squared"), True, True,
+    Model("gyrostat", (
+        ModelParameter("rotor", 3, "N m s", False,
+                       "gyrostat: rotor angular momentum relative to the body, body frame",
+                       "A 3-vector; for a steady spin it must lie along spin.axis. In a scan, scan.rotor lists "
+                       "3-vectors, or numbers: h along each scene's spin axis (so that scan.axis can be scanned with "
+                       "it)."),),
+          ("w1", "w2", "w3"), ("energy", "momentum_squared"), True, True,
           "rigid body with a rotor of constant relative angular momentum h: I w' = (I w + h) x w"),
-    Model("heavy_top", ("mgl",), ("w1", "w2", "w3", "g1", "g2", "g3"),
-          ("energy", "vertical_momentum", "up_squared"), True, True,
+    Model("heavy_top", (
+        ModelParameter("mgl", 1, "N m", True, "heavy_top: M g l, weight times the pivot-to-centre-of-mass distance",
+                       "body.moments are about the fixed point; spin.axis must be 3 (the sleeping top). The "
+                       "perturbation tilts the spin by perturbation.amplitude / 1000 and the up direction by "
+                       "perturbation.amplitude."),),
+          ("w1", "w2", "w3", "g1", "g2", "g3"), ("energy", "vertical_momentum", "up_squared"), True, True,
           "top on a fixed pivot, centre of mass on body axis 3 (Euler-Poisson): I w' = (I w) x w + mgl (g x e3), "
           "g' = g x w"),
-    Model("gravity_gradient", ("orbit_rate",), ("w1", "w2", "w3", "q0", "q1", "q2", "q3"),
-          ("jacobi_integral", "quaternion_squared"), True, True,
+    Model("gravity_gradient", (
+        ModelParameter("orbit_rate", 1, "rad/s", True, "gravity_gradient: orbital angular rate n of a circular orbit",
+                       "spin.axis and spin.rate are not used: the equilibrium follows the orbit (w = (0, -n, 0), body "
+                       "axes along the orbit's); the resolved study keeps them as given (defaults: 2, 1.0), scenes "
+                       "record spin = n, and scan.axis, scan.rate and spin.momentum are errors. The perturbation tilts "
+                       "the attitude by perturbation.amplitude about a uniformly random axis, w at the orbit frame's "
+                       "rate."),),
+          ("w1", "w2", "w3", "q0", "q1", "q2", "q3"), ("jacobi_integral", "quaternion_squared"), True, True,
           "satellite in a circular orbit under the gravity-gradient torque (axes: 1 roll, 2 pitch, 3 yaw): "
           "I w' = (I w) x w + 3 n^2 (c3 x I c3), q' = q (0, w + n c2) / 2, c2, c3 the orbit's pitch and nadir axes",
           ("k1", "k3")),
-    Model("damper", ("damper_inertia", "damping"), ("w1", "w2", "w3", "s1", "s2", "s3"),
-          ("momentum_squared",), True, True,
+    Model("damper", (
+        ModelParameter("damper_inertia", 1, "kg m2", True, "damper: moment of inertia J of the damper sphere",
+                       "body.moments exclude the sphere. Any spin.axis: about the minor axis the nutation grows "
+                       "slowly (exponential), about the major one it decays (periodic: the least damped nutation "
+                       "frequency); the sphere starts moving with the body."),
+        ModelParameter("damping", 1, "N m s", True, "damper: viscous coupling c between the sphere and the body")),
+          ("w1", "w2", "w3", "s1", "s2", "s3"), ("momentum_squared",), True, True,
           "rigid body with a viscously coupled spherical damper (energy dissipates, |L| is kept): "
           "I w' = (I w) x w + c (s - w), J (s' + w x s) = -c (s - w)"),
 )
 _MODEL_BY_NAME = {m.name: m for m in MODELS}
+
+#: Every numeric parameter of the models (keys of the ``[model]`` table other than ``kind``), from their rows.
+MODEL_PARAMETERS = tuple(p for m in MODELS for p in m.parameter_rows)
+_PARAMETER_BY_KEY = {p.key: p for p in MODEL_PARAMETERS}
+assert len(_PARAMETER_BY_KEY) == len(MODEL_PARAMETERS), "a study key names one model's parameter"
 
 #: Model kinds, in the order of :data:`MODELS`.
 MODEL_KINDS = tuple(_MODEL_BY_NAME)

@@ -359,6 +359,7 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         An argument that is not finite, of the wrong shape or out of range (named in the message), an unknown
         method, a method that cannot serve the request, a torque profile shorter than its steps.
     """
+    device = resolve_device(device)  # once, here at the door: the runs below trust it
     if added_tableau(method) and not is_system(body) and parameters is None:
         body = FreeBody(one_body(body))  # a tableau added at run time: the free body's rate in the per-sample loop
     if is_system(body):
@@ -377,12 +378,11 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
                                save_every=save_every, parameters=parameters, device=device)
         info = {"path": "system", "method": result.method, "dt": result.dt, "n_steps": result.n_steps,
                 "system": result.name, "parameters": result.parameters, "samples": len(result.final),
-                "device": device}  # resolved by run_system
+                "device": device}
         return EnsembleResult(result.final if final else None, result.times, result.trajectory, None, None, None,
                               None, None, result.status, result.steps_taken, info)
     if parameters is not None:
         raise ValueError("parameters are a model's or a System's; a free body has none (its moments are the body)")
-    device = resolve_device(device)
     moments = one_body(body)
     w0, t_end, dt, probe_times, norm_weights = _checked_arguments(
         w0, t_end, dt, axis, save_every, probe_times, norm_weights, max_flips, stop_norm, stop_flips, drift_limit,

@@ -69,12 +69,11 @@ def _bounded_step_plan(t_end, dt, w, save_every, *, exact_path, per_state=3, dev
 def _checked_run(w, t_end, dt, method, torque, save_every, device, *, per_state=3, attitude=False):
     # size: integrate's and propagate's arguments that the run's checks need, each checked once here
     """What :func:`integrate` and :func:`propagate` check of a free body's run, each once, before anything runs: the
-    device (:func:`tumble.engine.device.resolve_device`), the torque (:func:`tumble.engine.ensemble.checked_torque`),
+    device (resolved by the caller, :func:`tumble.engine.device.resolve_device`), the torque (:func:`tumble.engine.ensemble.checked_torque`),
     the method it allows (``registry.choose_method``: ``"exact"`` is torque-free), the cost bound
     (:func:`_bounded_step_plan`) and the torque profile's step rule at the step that runs. Returns ``(device,
     torque, chosen method, reason, n_steps, step)``, which the engine's run trusts
     (:func:`tumble.engine.ensemble.run_planned`)."""
-    device = resolve_device(device)
     torque = checked_torque(torque)
     chosen, reason = registry.choose_method(method, torque_free=torque.free)
     n_steps, step = _bounded_step_plan(t_end, dt, w, save_every, exact_path=chosen == "exact", per_state=per_state,
@@ -195,6 +194,7 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
         Invalid moments, spins, horizon, step, method, torque or save interval, or ``"exact"`` with a torque; a
         device that is unknown, missing, or cannot run this yet (``device 'cuda': ...``).
     """
+    device = resolve_device(device)  # once, here at the door: the runs below trust it
     if is_system(body) or (added_tableau(method) and parameters is None):
         result, single = (_system_run(body, w0, t_end, dt, method, torque, save_every, parameters, device)
                           if is_system(body) else
@@ -287,6 +287,7 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
     ValueError
         Invalid moments, spins, horizon, step, method, torque or save interval, or ``"exact"`` with a torque.
     """
+    device = resolve_device(device)  # once, here at the door: the runs below trust it
     if is_system(body):
         return _system_dataset(*_system_run(body, w0, t_end, dt, method, torque, save_every, parameters, device,
                                             attitude), t_end, device)
@@ -298,7 +299,7 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
         t_end = float(t_end)  # checked by the run
         computed = int(run.steps_taken.sum())
         info = {"path": "per-sample loop", "torque": "none", "sample_steps_computed": computed,
-                "sample_steps_skipped": len(run.final) * run.n_steps - computed, "device": resolve_device(device)}
+                "sample_steps_skipped": len(run.final) * run.n_steps - computed, "device": device}
         return _free_body_dataset(run.trajectory if save_every else run.final[:, None],
                                   run.times if save_every else np.array([t_end]), run.status, None, method, run.dt,
                                   run.n_steps, t_end, moments, info)

@@ -34,7 +34,6 @@ from ..kernels import sample_loop, system_steps
 from ..physics.models import Model
 from ..physics.system import System, with_parameters
 from . import cost
-from .device import resolve_device
 
 __all__ = ["PROBED", "SystemRun", "added_tableau", "block_code", "compiled", "initial_states", "is_system", "method_order", "probe",
            "run_system", "system_methods"]
@@ -239,6 +238,7 @@ def run_system(system, y0, t_end, n_steps, step, method="rk4", *, save_every=Non
     parameters : mapping, optional
         Values in place of the system's own parameters, by name.
     device : str
+        "cpu" or "cuda", resolved by the caller (the public call's door: :func:`tumble.engine.device.resolve_device`).
 
     Returns
     -------
@@ -251,7 +251,6 @@ def run_system(system, y0, t_end, n_steps, step, method="rk4", *, save_every=Non
         compile or that misbehaves at the initial states (one line naming the system), a run too large
         (:mod:`tumble.engine.cost`), a device that cannot run.
     """
-    device = resolve_device(device)
     system, values = with_parameters(system, parameters)
     name = _name(system)
     methods = system_methods(system)

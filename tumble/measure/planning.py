@@ -41,7 +41,6 @@ import numpy as np
 
 from .. import registry
 from ..engine import cost
-from ..engine.device import resolve_device
 from ..engine.ensemble import torque_spec
 from ..engine.sampling import CHUNK, drawn_spins, perturbed_spins, seed_entropy
 from ..physics import exact, theory
@@ -333,7 +332,7 @@ def scene_plan(body, axis, spin=1.0, amplitude=1e-3, samples=1024, seed=0, metho
     moments, axis, spin, amplitude, samples, flips = validate_scene(body, axis, spin, amplitude, samples,
                                                                      method, flips, distribution)
     options = scene_options(seed, dt=dt, distribution=distribution, torque=torque, horizon=horizon, curves=curves,
-                             device=resolve_device(device))
+                             device=device)  # resolved by measure, the door
     return planned_scene(moments, axis, spin, amplitude, samples, method, flips, options)
 
 

@@ -102,6 +102,7 @@ def measure(body, axis=None, spin=1.0, amplitude=1e-3, samples=1024, seed=0, met
     >>> str(ds.kind.values), bool(ds.rel_error < 5e-3)
     ('exponential', True)
     """
+    device = resolve_device(device)  # once, here at the door: the scene below trusts it
     if isinstance(body, Model) and state is None:
         return _measure_model(body, axis, spin, amplitude, samples, seed, method, dt=dt, horizon=horizon,
                               distribution=distribution, device=device, unused={"flips": flips != 3,
@@ -142,5 +143,5 @@ def _measure_model(model, axis, spin, amplitude, samples, seed, method, *, dt, h
         raise ValueError(f"axis is required for a {model.kind} (the spin axis of its steady state), or state= (an "
                          f"equilibrium of its {', '.join(model.spec.state)})")
     plan = model_scene_plan(model, axis, spin, amplitude, samples, seed, method, dt=dt, horizon=horizon,
-                            distribution=distribution, device=resolve_device(device))
+                            distribution=distribution, device=device)
     return scene_dataset(scene_batch([plan])[0])

@@ -36,7 +36,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import registry
-from ..engine.device import resolve_device
 from ..engine.sampling import seed_entropy
 from ..engine.system_runs import initial_states, method_order, run_system, system_methods
 from ..physics import theory
@@ -177,7 +176,6 @@ def system_scene_plan(system, state, amplitude=1e-3, samples=1024, seed=0, metho
         An invalid argument; a state that is not an equilibrium (its rate beyond round-off there); a neutral
         equilibrium (no growth or oscillation to measure); a plan past the cost bound.
     """
-    device = resolve_device(device)
     system, equilibrium, values, chosen = _checked(system, state, amplitude, samples, method, parameters)
     linear = theory.system_linearisation(system, equilibrium, values)
     rate = _rate(system, equilibrium, values)
