@@ -12,6 +12,7 @@ from tumble import registry
 from tumble.physics import models as physics_models
 from tumble.engine import cost, ensemble, integration, model_ensemble
 from tumble.measure import model_scenes, planning, running, scans
+from tumble.measure import scene as scene_module
 from tumble.pipeline import config, runner
 from tumble.pipeline.config import StudyError
 
@@ -99,7 +100,7 @@ def _counted(monkeypatch, module):
 
 def test_a_study_resolves_its_device_once_where_it_enters_and_its_scenes_trust_it(monkeypatch):
     calls = _counted(monkeypatch, runner)
-    for module in (planning, scans, ensemble):
+    for module in (scene_module, scans, ensemble):
         monkeypatch.setattr(module, "resolve_device", _refused)
     ds = tumble.run_study({"outputs": {"figures": []}, "perturbation": {"samples": 8},
                            "scan": {"axis": [1, 2], "method": ["rk4", "auto"]}})
@@ -108,7 +109,7 @@ def test_a_study_resolves_its_device_once_where_it_enters_and_its_scenes_trust_i
 
 def test_scan_resolves_its_device_once_for_all_its_scenes(monkeypatch):
     calls = _counted(monkeypatch, scans)
-    monkeypatch.setattr(planning, "resolve_device", _refused)
+    monkeypatch.setattr(scene_module, "resolve_device", _refused)
     monkeypatch.setattr(ensemble, "resolve_device", _refused)
     ds = tumble.scan(BODY, [1, 2], samples=8, method=["rk4", "auto"])
     assert calls == ["cpu"] and ds.rate.sizes["axis"] == ds.rate.sizes["method"] == 2
@@ -116,6 +117,30 @@ def test_scan_resolves_its_device_once_for_all_its_scenes(monkeypatch):
         tumble.scan(BODY, [1, 2], samples=8, device="gpu")
     with pytest.raises(ValueError, match="device must be one of"):
         scans.scan_scene(scans.scan_layout(BODY, [1, 2]), 0, samples=8, device="gpu")
+
+
+def _decay(t, y, p, dydt):
+    dydt[0] = -p[0] * y[0]
+
+
+@pytest.mark.parametrize("system, kwargs", [
+    (BODY, {"axis": 2}),
+    (physics_models.Gyrostat(BODY, (0.0, 0.5, 0.0)), {"axis": 2}),
+    (tumble.System(_decay, state=("x",), parameters={"k": -0.5}, name="growth"), {"state": [0.0]}),
+], ids=["body", "model", "system"])
+def test_measure_resolves_its_device_once_at_its_door_and_the_scene_trusts_it(monkeypatch, system, kwargs):
+    """The device is resolved once per call, where the public call enters: measure of a body, a built-in model and a
+    System; the planners (free body, model, System) and the runs below them (run_system) do not ask again."""
+    from tumble.engine import system_runs
+    from tumble.measure import system_scenes
+
+    for module in (planning, model_scenes, system_scenes, system_runs):
+        assert not hasattr(module, "resolve_device"), module.__name__
+    calls = _counted(monkeypatch, scene_module)
+    monkeypatch.setattr(ensemble, "resolve_device", _refused)
+    monkeypatch.setattr(model_ensemble, "resolve_device", _refused)
+    tumble.measure(system, samples=16, **kwargs)
+    assert calls == ["cpu"]
 
 
 def test_a_studys_estimate_asks_its_scene_kind_whether_every_scene_steps_and_grows():

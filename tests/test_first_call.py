@@ -321,7 +321,7 @@ class Listener(event.Listener):
 
 
 event.register("numba:compile", Listener())
-from tumble.kernels import block_loop, model_loop
+from tumble.kernels.loops import block_loop, model_loop
 from tumble.kernels.systems import N_CONSTANTS
 
 model, method = model_loop.MODEL_CODES["heavy_top"], model_loop.MODEL_METHODS["rk4"]

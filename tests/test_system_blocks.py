@@ -143,7 +143,8 @@ CACHED = textwrap.dedent('''
 
     system = tumble.System(decay, state=("x",), parameters={"k": 0.5}, name="decay")
     print(float(tumble.propagate(system, [[1.0]], 1.0, 0.01, method="rk4")[0, 0]))
-    from tumble.kernels import model_loop, system_steps
+    from tumble.kernels import system_steps
+    from tumble.kernels.loops import model_loop
     code = system_steps.system_code(decay, 1, 1)
     print(sum(model_loop._DRIVERS[code, 0].stats.cache_hits.values()))
 ''')
