@@ -33,6 +33,28 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
     numba.set_num_threads(1)
 
 
+@pytest.hookimpl(tryfirst=True)  # before -m 'not slow' deselects
+def pytest_collection_modifyitems(config, items):
+    """``@pytest.mark.default_cases(id, ...)`` on a parametrized test: the listed cases run by default, the others of
+    its combinations are marked ``slow`` (one case proves the path; CI's slow run keeps the breadth). An id that names
+    no case of the test is an error, so that a renamed case cannot drop out of both runs unseen."""
+    seen, listed = {}, {}
+    for item in items:
+        marker = item.get_closest_marker("default_cases")
+        if marker is None or not hasattr(item, "callspec"):
+            continue
+        seen.setdefault(item.originalname, set()).add(item.callspec.id)
+        listed[item.originalname] = set(marker.args)
+        if item.callspec.id not in marker.args:
+            item.add_marker(pytest.mark.slow)
+    whole = not config.option.keyword and not any("::" in arg for arg in config.args)  # every case collected
+    for name, ids in listed.items():
+        missing = ids - seen[name]
+        if missing and whole:
+            raise pytest.UsageError(f"default_cases of {name} names no case {sorted(missing)}; its cases: "
+                                    f"{sorted(seen[name])}")
+
+
 @pytest.fixture(scope="session")
 def warm_kernels():
     """Compile (or load from the cache) the torque-free and constant-torque kernels once per session."""

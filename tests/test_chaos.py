@@ -109,6 +109,7 @@ def test_the_implicit_midpoint_rules_exponents_are_those_of_its_own_map():
     assert abs(ds["exponent"].values.sum() - determinant) < 1e-12
 
 
+@pytest.mark.slow
 def test_the_implicit_midpoint_rule_gives_rk4s_exponents_and_megno_of_a_chaotic_top():
     states = [CHAOTIC, REGULAR]
     midpoint = tumble.lyapunov(TOP, states, 10.0, 0.002, method="implicit_midpoint")
@@ -490,6 +491,7 @@ def test_a_sample_that_becomes_non_finite_stops_with_a_status_not_a_silent_nan()
         tumble.lyapunov(LINEAR, [np.nan, 0.0, 0.0], 1.0, 0.01, parameters=_matrix(A))
 
 
+@pytest.mark.slow
 def test_a_tableau_replaced_under_the_same_name_is_a_new_method(monkeypatch):
     """The kernels are kept with the tableau they were made of: registering another tableau under a name already run
     runs the new coefficients (a System and a built-in model, the tangent loop and integrate's per-sample loop)."""
@@ -529,6 +531,7 @@ def test_gali_falls_exponentially_on_a_chaotic_orbit_and_stays_on_a_regular_one(
 
 # --- the device -----------------------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_the_device_gives_the_cpus_exponents_and_megno(cuda_device):
     states = [CHAOTIC, REGULAR]
     cpu = tumble.lyapunov(TOP, states, 5.0, 0.01, save_every=100, transient=1.0)

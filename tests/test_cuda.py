@@ -51,6 +51,7 @@ def _agree(device, cpu):
     assert np.max(np.abs(device - cpu)) <= RELATIVE * np.max(np.abs(cpu))
 
 
+@pytest.mark.default_cases("rk4-torque_free", "splitting4-constant_torque")
 @pytest.mark.parametrize("torque", [None, (0.05, -0.1, 0.2)], ids=["torque_free", "constant_torque"])
 @pytest.mark.parametrize("method", STEPPED)
 def test_every_method_on_the_device_gives_the_cpu_trajectory(cuda_device, spins, method, torque):
@@ -66,6 +67,7 @@ def test_every_method_on_the_device_gives_the_cpu_trajectory(cuda_device, spins,
     {"profile": "sine", "vector": (0.2, 0.0, -0.1), "period": 0.15},
     {"profile": "pulse", "vector": (0.1, 0.1, 0.1), "duration": 0.105},
 ], ids=lambda p: p["profile"])
+@pytest.mark.default_cases("rk4-sine", "splitting2-pulse")
 @pytest.mark.parametrize("method", ["rk4", "splitting2"])
 def test_each_torque_profile_on_the_device_gives_the_cpu_final_state(cuda_device, spins, method, profile):
     cpu = tumble.propagate(BODY, spins[:8], 0.3, 0.01, method=method, torque=profile)
@@ -128,6 +130,7 @@ def _same_records(device, cpu, names):
             np.testing.assert_allclose(d, c, rtol=1e-10, atol=1e-15, err_msg=name)
 
 
+@pytest.mark.default_cases("rk8-torque_free", "symplectic_euler-constant_torque", "implicit_midpoint-torque_free")
 @pytest.mark.parametrize("torque", [None, (0.02, -0.01, 0.03)], ids=["torque_free", "constant_torque"])
 @pytest.mark.parametrize("method", STEPPED)
 def test_probes_flips_and_drift_on_the_device_are_the_cpu_records(cuda_device, flipping, method, torque):
@@ -144,6 +147,7 @@ def test_probes_flips_and_drift_on_the_device_are_the_cpu_records(cuda_device, f
 
 @pytest.mark.parametrize("stop", [dict(stop_norm=0.2), dict(stop_flips=1), dict(stop_norm=0.2, stop_flips=2)],
                          ids=["norm", "flips", "both"])
+@pytest.mark.default_cases("rk4-both", "splitting4-flips")
 @pytest.mark.parametrize("method", ["rk4", "splitting4"])
 def test_early_stop_on_the_device_stops_each_sample_at_the_cpu_step(cuda_device, flipping, method, stop):
     """A sample stops once its norm reached stop_norm at a probe and it flipped stop_flips times; its later probes

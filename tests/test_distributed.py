@@ -158,6 +158,7 @@ def _http_server():
     return server.server_address[1], close
 
 
+@pytest.mark.default_cases("silent-tcp")
 @pytest.mark.parametrize("make", [_silent_tcp_server, _http_server], ids=["silent-tcp", "http"])
 def test_a_peer_that_is_not_a_dask_scheduler_ends_within_15_s_with_one_line(tmp_path, capsys, monkeypatch, make):
     """The probe gives up after its timeout: checked here with a 1 s timeout (the default's 5 s, twice, was a

@@ -65,6 +65,7 @@ def _cli_words(parser):
     return words
 
 
+@pytest.mark.slow
 def test_site_builds_without_warnings_and_lists_every_study_key_and_cli_option(tmp_path):
     """The site built as CI builds it (warnings are errors), within its CPU budget; then what a reader must find on
     it, each check a function below (one build for all: the suite's two workers would otherwise build it twice)."""

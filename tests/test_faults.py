@@ -147,6 +147,7 @@ def warm_cache(tmp_path_factory):
     return cache
 
 
+@pytest.mark.default_cases("flip_a_bit")
 @pytest.mark.parametrize("damage", [truncate_index, zero_a_block, flip_a_bit])
 def test_a_damaged_numba_cache_is_named_removed_and_compiled_again(tmp_path, warm_cache, damage):
     cache = tmp_path / "numba-cache"

@@ -12,6 +12,7 @@ MAP = {"title": "map", "perturbation": {"samples": 2048}, "scan": {"triangle": 6
        "outputs": {"figures": [], "arrays": []}}
 
 
+@pytest.mark.default_cases("sample-rate")
 @pytest.mark.parametrize("arrays, most", [([], 3.0), (["sample_rate"], 5.0)], ids=["no-arrays", "sample-rate"])
 def test_the_checkpoint_keeps_only_what_the_result_needs(tmp_path, capsys, monkeypatch, arrays, most):
     """The chunks kept every per-sample array (rate, status, flip times) whatever ``outputs.arrays`` asked for: a

@@ -69,6 +69,7 @@ def _kill_9_then_rerun(tmp_path, capsys, spec, stem, chunk_flag, chunks):
     assert sorted(p.name for p in out.iterdir()) == [f"{stem}.nc"]
 
 
+@pytest.mark.slow
 def test_kill_9_at_a_random_point_then_a_rerun_gives_the_uninterrupted_result(tmp_path, capsys):
     _kill_9_then_rerun(tmp_path, capsys, KILLED, "killed", ["--chunk-scenes", "2"], 150)
 
@@ -93,6 +94,7 @@ def _disk_full(*args, **kwargs):
     raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
 
+@pytest.mark.default_cases("result-in-figure-process")
 @pytest.mark.parametrize("where", ["result", "result-in-figure-process", "chunk"])
 def test_a_full_disk_exits_1_and_leaves_the_earlier_results_intact(earlier_result, monkeypatch, capsys, where):
     study, out, before = earlier_result
@@ -581,6 +583,7 @@ def test_plot_refuses_a_file_lacking_a_variable_its_figures_need(drawn_result, t
 
 # --- a result set appears whole or not at all ------------------------------------------------------------------
 
+@pytest.mark.default_cases("here-disk-full-while-drawing", "figure-process-ctrl-c-while-drawing")
 @pytest.mark.parametrize("failure", [OSError(errno.ENOSPC, os.strerror(errno.ENOSPC)), KeyboardInterrupt()],
                          ids=["disk-full-while-drawing", "ctrl-c-while-drawing"])
 @pytest.mark.parametrize("where", ["here", "figure-process"])

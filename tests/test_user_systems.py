@@ -123,6 +123,7 @@ def _observed_order(system, y0, reference, device, method):
     return np.polyfit(np.log([0.04, 0.02, 0.01]), np.log(errors), 1)[0]
 
 
+@pytest.mark.slow
 def test_a_tableau_registered_at_test_time_runs_at_its_order_on_the_cpu_and_the_device(monkeypatch, cuda_device):
     """A method is its coefficients: Ralston's third-order tableau, added at test time, runs on a user's System, on
     the built-in free body and on a built-in heavy top (whose generated SIMD steps know rk4 and rk8 only: they run it

@@ -41,8 +41,9 @@ MAX_SAMPLE_STEPS = 1e12
 MAX_DEVICE_SAMPLE_STEPS = 1e15
 
 #: Bytes a study's run holds whatever its size, above an idle ``import tumble``: the kernels loaded from numba's
-#: cache, netCDF and xarray at work (measured: 122 MB for studies of 64 samples, closed form or rk4).
-RUN_FOOTPRINT = 120e6
+#: cache, netCDF and xarray at work (measured with a warm cache: 51 MB for studies of 64 samples, closed form or rk4,
+#: 2 cores, 2026-12-06; ``tests/test_memory.py`` holds the estimate within 1.5x of five study shapes' peaks).
+RUN_FOOTPRINT = 52e6
 
 #: Bytes one local dask worker process holds before it runs anything (an ``import tumble`` and dask's own, measured
 #: ~200 MB), and the most such processes per core: more only compete for the cores.

@@ -231,8 +231,11 @@ def connect(address, *, workers=None):
         n = workers or os.cpu_count() or 1
         with dask.config.set(QUIET_LOCAL_CLUSTER), contextlib.ExitStack() as stack:
             with _ctrl_c_held():
+                # dashboard_address=None still binds the scheduler's HTTP server (health, metrics) to port 8787,
+                # and a second cluster on the machine then warns on stderr: any free port instead
                 cluster = stack.enter_context(LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                                            host="127.0.0.1", dashboard_address=None,
+                                                           scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
                                                            env={"NUMBA_NUM_THREADS": "1"}))
             client = stack.enter_context(Client(cluster))
             client.register_plugin(_plugin(local=True))
