@@ -70,6 +70,7 @@ LAGRANGE = tumble.models.HeavyTop((1.0, 1.0, 2.0), 1.0)
 
 # --- exact cases ----------------------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_a_symmetric_linear_system_gives_the_eigenvalues_of_its_matrix():
     rng = np.random.default_rng(7)
     Q, _ = np.linalg.qr(rng.standard_normal((3, 3)))
@@ -82,6 +83,7 @@ def test_a_symmetric_linear_system_gives_the_eigenvalues_of_its_matrix():
     assert ds.attrs["renormalise"] == 1.0 and ds["status"].values[0] == STATUS_OK
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("t_end", [0.5, 7.0])
 def test_the_exponents_of_a_non_normal_linear_system_sum_to_its_trace_at_any_horizon(t_end):
     A = np.array([[0.3, 5.0, -2.0], [0.0, -0.1, 4.0], [0.2, 0.0, -0.7]])
@@ -89,6 +91,7 @@ def test_the_exponents_of_a_non_normal_linear_system_sum_to_its_trace_at_any_hor
     assert abs(ds["exponent"].values.sum() - np.trace(A)) < 1e-6
 
 
+@pytest.mark.slow
 def test_the_implicit_midpoint_rules_exponents_are_those_of_its_own_map():
     """The rule's map of ``y' = A y`` is the Cayley transform ``(I - h A/2)^-1 (I + h A/2)``: with orthogonal
     eigenvectors its exponents are ``log |(1 + h λ/2) / (1 - h λ/2)| / h`` (λ to O(h²)), and for any A they sum to

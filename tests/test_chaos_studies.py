@@ -181,6 +181,7 @@ def test_a_map_cut_into_sample_ranges_gives_the_same_bits(tmp_path):
     np.testing.assert_array_equal(whole["megno"].values, cut["megno"].values)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(TINY))
 def test_a_bundled_chaos_map_on_the_device_is_the_cpu_map(name):
     """integration.device = "cuda" runs the map's tangent loops on the device (numba-cuda's simulator in CI)."""

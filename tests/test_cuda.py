@@ -51,7 +51,7 @@ def _agree(device, cpu):
     assert np.max(np.abs(device - cpu)) <= RELATIVE * np.max(np.abs(cpu))
 
 
-@pytest.mark.default_cases("rk4-torque_free", "splitting4-constant_torque")
+@pytest.mark.default_cases("rk4-torque_free")
 @pytest.mark.parametrize("torque", [None, (0.05, -0.1, 0.2)], ids=["torque_free", "constant_torque"])
 @pytest.mark.parametrize("method", STEPPED)
 def test_every_method_on_the_device_gives_the_cpu_trajectory(cuda_device, spins, method, torque):
@@ -67,7 +67,7 @@ def test_every_method_on_the_device_gives_the_cpu_trajectory(cuda_device, spins,
     {"profile": "sine", "vector": (0.2, 0.0, -0.1), "period": 0.15},
     {"profile": "pulse", "vector": (0.1, 0.1, 0.1), "duration": 0.105},
 ], ids=lambda p: p["profile"])
-@pytest.mark.default_cases("rk4-sine", "splitting2-pulse")
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["rk4", "splitting2"])
 def test_each_torque_profile_on_the_device_gives_the_cpu_final_state(cuda_device, spins, method, profile):
     cpu = tumble.propagate(BODY, spins[:8], 0.3, 0.01, method=method, torque=profile)
@@ -130,7 +130,7 @@ def _same_records(device, cpu, names):
             np.testing.assert_allclose(d, c, rtol=1e-10, atol=1e-15, err_msg=name)
 
 
-@pytest.mark.default_cases("rk8-torque_free", "symplectic_euler-constant_torque", "implicit_midpoint-torque_free")
+@pytest.mark.default_cases("symplectic_euler-constant_torque")
 @pytest.mark.parametrize("torque", [None, (0.02, -0.01, 0.03)], ids=["torque_free", "constant_torque"])
 @pytest.mark.parametrize("method", STEPPED)
 def test_probes_flips_and_drift_on_the_device_are_the_cpu_records(cuda_device, flipping, method, torque):
@@ -147,7 +147,7 @@ def test_probes_flips_and_drift_on_the_device_are_the_cpu_records(cuda_device, f
 
 @pytest.mark.parametrize("stop", [dict(stop_norm=0.2), dict(stop_flips=1), dict(stop_norm=0.2, stop_flips=2)],
                          ids=["norm", "flips", "both"])
-@pytest.mark.default_cases("rk4-both", "splitting4-flips")
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["rk4", "splitting4"])
 def test_early_stop_on_the_device_stops_each_sample_at_the_cpu_step(cuda_device, flipping, method, stop):
     """A sample stops once its norm reached stop_norm at a probe and it flipped stop_flips times; its later probes
@@ -162,6 +162,7 @@ def test_early_stop_on_the_device_stops_each_sample_at_the_cpu_step(cuda_device,
     assert device.info["sample_steps_skipped"] == cpu.info["sample_steps_skipped"] > 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["rk4", "splitting2"])
 def test_the_growth_fit_in_the_kernel_is_the_cpu_fit_of_the_probes(cuda_device, flipping, method):
     """growth_window: the device feeds each probe norm to the fit in registers (keep_probes=False: no norm comes back);
@@ -271,6 +272,7 @@ def test_a_periodic_closed_form_batch_is_fitted_on_the_device_and_only_its_fits_
         np.testing.assert_array_equal(d, c)
 
 
+@pytest.mark.default_cases("splitting2")
 @pytest.mark.parametrize("method", ["rk4", "splitting2"])
 def test_the_phase_fit_of_a_run_on_the_device_is_the_cpu_fit(cuda_device, method):
     """phase_window: the device fits the trajectory where its kernel stored it (keep_trajectory=False: it never comes
@@ -488,6 +490,7 @@ def test_the_device_counts_the_steps_of_each_warp_as_computed(cuda_device):
     assert result.info["sample_steps_computed"] < ensemble._block_steps(result.steps_taken)  # not a CPU block's
 
 
+@pytest.mark.slow
 def test_tumble_run_device_cuda_runs_the_default_closed_form_study_as_the_cpu_does(cuda_device, tmp_path):
     env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")  # the simulator: the device is there
     runs = {}
@@ -499,6 +502,7 @@ def test_tumble_run_device_cuda_runs_the_default_closed_form_study_as_the_cpu_do
     _same_scene(runs["cuda"], runs["cpu"])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["sleeping_top", "gravity_gradient_pitch"])
 def test_a_model_study_on_the_device_gives_the_cpu_results(cuda_device, name):
     """A heavy top's growth and precession, a gravity-gradient pitch libration: the model's samples step on the
@@ -552,6 +556,7 @@ def _same_scene(device, cpu):
     (1, "rk8", {}),
     (3, "auto", dict(torque={"profile": "constant", "vector": (0.0, 0.0, 0.05)}, horizon=20.0)),
 ], ids=["growth_rk4", "growth_splitting4_flips", "periodic_rk8", "periodic_torque_auto"])
+@pytest.mark.default_cases("growth_splitting4_flips")
 def test_a_stepping_scene_on_the_device_measures_the_cpu_rates(cuda_device, axis, method, kwargs):
     cpu = tumble.measure((1.0, 2.0, 3.0), axis, samples=12, method=method, **kwargs)
     device = tumble.measure((1.0, 2.0, 3.0), axis, samples=12, method=method, device="cuda", **kwargs)

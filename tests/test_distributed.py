@@ -52,7 +52,8 @@ def test_dask_workers_run_numba_with_one_thread(client):
     assert all("tumble-numba" in names for names in plugins.values())
 
 
-@pytest.mark.parametrize("name, study", [("scan", SCAN), ("stepped", STEPPED)])
+@pytest.mark.default_cases("stepped")
+@pytest.mark.parametrize("name, study", [("scan", SCAN), ("stepped", STEPPED)], ids=["scan", "stepped"])
 def test_the_cluster_gives_the_bits_of_an_in_process_run(client, in_process, tmp_path, name, study):
     tumble.run_study(study, out=tmp_path, scheduler=client, chunk_scenes=2)
     assert_same_result(in_process[name], next(tmp_path.glob("*.nc")))

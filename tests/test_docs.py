@@ -306,6 +306,7 @@ def _build(source):
     # a file that does not exist and a public name that does not exist: each one a warning of its own
     (["[nothing](../MISSING.md)", "{func}`tumble.integrat`"], True),
 ], ids=["links-that-resolve", "broken-links"])
+@pytest.mark.slow
 def test_a_broken_link_fails_the_build_and_a_link_out_of_the_site_does_not(tmp_path, links, fails):
     """One build for the links that must pass and one for those that must fail (a build is 8 s on 2 cores): the
     failing build names each broken link at its own line, so neither hides behind the other."""

@@ -147,7 +147,7 @@ def warm_cache(tmp_path_factory):
     return cache
 
 
-@pytest.mark.default_cases("flip_a_bit")
+@pytest.mark.slow
 @pytest.mark.parametrize("damage", [truncate_index, zero_a_block, flip_a_bit])
 def test_a_damaged_numba_cache_is_named_removed_and_compiled_again(tmp_path, warm_cache, damage):
     cache = tmp_path / "numba-cache"
@@ -242,6 +242,7 @@ def test_a_disk_full_at_the_first_chunk_is_named_and_loses_nothing(earlier_resul
     assert not [p for p in out.rglob("*") if p.name.endswith(".part")]
 
 
+@pytest.mark.default_cases("full-while-writing")
 @pytest.mark.parametrize("leave", [0, 40_000], ids=["full-at-create", "full-while-writing"])
 def test_a_disk_full_at_the_result_is_named_keeps_the_chunks_and_a_rerun_resumes(earlier_result, capsys,
                                                                                  monkeypatch, leave):

@@ -86,8 +86,8 @@ SHAPES = {
 }
 
 
-@pytest.mark.parametrize("name", [pytest.param(name, marks=() if name == "closed-form-exponential"
-                                               else pytest.mark.slow) for name in SHAPES])
+@pytest.mark.slow
+@pytest.mark.parametrize("name", SHAPES)
 def test_the_dry_run_memory_estimate_is_within_1_5x_of_the_measured_peak(tmp_path, name):
     """The estimate was about 5x too low (42 MB for 216 MB measured): it counted 640 B per sample, once, where a
     slice of samples holds its observed components at every time, and a study holds the run's fixed footprint."""
