@@ -52,6 +52,24 @@ LINEAR = tumble.System(linear, state=("x1", "x2", "x3"), jacobian=linear_jacobia
                        parameters={f"a{i}{j}": float(i == j) for i in range(1, 4) for j in range(1, 4)})
 
 
+def linear_scalar(t, y, p, dydt):
+    """:func:`linear` written out term by term: the scalar form that runs on the vectorised blocks (its kernels cached
+    on disk), where :data:`LINEAR`'s loops run one sample at a time, compiled in every process."""
+    dydt[0] = p[0] * y[0] + p[1] * y[1] + p[2] * y[2]
+    dydt[1] = p[3] * y[0] + p[4] * y[1] + p[5] * y[2]
+    dydt[2] = p[6] * y[0] + p[7] * y[1] + p[8] * y[2]
+
+
+def linear_jacobian_scalar(t, y, p, J):
+    J[0, 0], J[0, 1], J[0, 2] = p[0], p[1], p[2]
+    J[1, 0], J[1, 1], J[1, 2] = p[3], p[4], p[5]
+    J[2, 0], J[2, 1], J[2, 2] = p[6], p[7], p[8]
+
+
+LINEAR_BLOCKS = tumble.System(linear_scalar, state=("x1", "x2", "x3"), jacobian=linear_jacobian_scalar, name="linear",
+                              parameters=LINEAR.parameters)
+
+
 def _matrix(A):
     return {f"a{i + 1}{j + 1}": float(A[i, j]) for i in range(3) for j in range(3)}
 
@@ -439,13 +457,13 @@ def test_a_regular_orbit_from_a_symmetric_start_reads_megno_two_and_a_tangent_al
 
 
 def test_given_tangent_vectors_are_those_a_run_starts_from():
-    default = tumble.lyapunov(LINEAR, [1.0, 0.0, 0.0], 1.0, 0.01, exponents=2)
-    given = tumble.lyapunov(LINEAR, [1.0, 0.0, 0.0], 1.0, 0.01, tangent=2.0 * initial_tangents(3, 2))
+    default = tumble.lyapunov(LINEAR_BLOCKS, [1.0, 0.0, 0.0], 1.0, 0.01, exponents=2)
+    given = tumble.lyapunov(LINEAR_BLOCKS, [1.0, 0.0, 0.0], 1.0, 0.01, tangent=2.0 * initial_tangents(3, 2))
     np.testing.assert_allclose(given["exponent"].values, default["exponent"].values, rtol=1e-14)
     A = np.diag([0.5, 0.2, -1.0])  # a vector in the slow eigenspace reads the slow exponent only
-    slow = tumble.lyapunov(LINEAR, [0.0, 0.0, 0.0], 4.0, 0.01, tangent=[0.0, 1.0, 0.0], parameters=_matrix(A))
+    slow = tumble.lyapunov(LINEAR_BLOCKS, [0.0, 0.0, 0.0], 4.0, 0.01, tangent=[0.0, 1.0, 0.0], parameters=_matrix(A))
     assert slow["exponent"].values[0] == pytest.approx([0.2], rel=1e-9)
-    gali = tumble.gali(LINEAR, [0.0, 0.0, 0.0], 1.0, 0.01, tangent=[[1.0, 0.0, 0.0], [1.0, 1.0, 0.0]],
+    gali = tumble.gali(LINEAR_BLOCKS, [0.0, 0.0, 0.0], 1.0, 0.01, tangent=[[1.0, 0.0, 0.0], [1.0, 1.0, 0.0]],
                        parameters=_matrix(np.zeros((3, 3))))
     assert gali["gali"].values[0, -1] == pytest.approx(math.sqrt(0.5), rel=1e-12)  # unit, not orthogonalised
 
@@ -480,18 +498,18 @@ def test_megno_stops_a_sample_above_the_threshold_and_says_so():
 def test_a_sample_that_becomes_non_finite_stops_with_a_status_not_a_silent_nan():
     A = np.diag([800.0, 0.0, -1.0])  # rk4 steps the state by R(8) = 297 a step: it overflows at 1.25 s
     with pytest.warns(RuntimeWarning, match="1 of 2 samples of linear became non-finite"):
-        ds = tumble.lyapunov(LINEAR, [[1.0, 0.0, 0.0], [0.0, 0.0, 0.0]], 3.0, 0.01, renormalise=0.5,
+        ds = tumble.lyapunov(LINEAR_BLOCKS, [[1.0, 0.0, 0.0], [0.0, 0.0, 0.0]], 3.0, 0.01, renormalise=0.5,
                              parameters=_matrix(A))
     assert list(ds["status"].values) == [STATUS_NONFINITE, STATUS_OK]
-    first_second = tumble.lyapunov(LINEAR, [1.0, 0.0, 0.0], 1.0, 0.01, renormalise=0.5, parameters=_matrix(A))
+    first_second = tumble.lyapunov(LINEAR_BLOCKS, [1.0, 0.0, 0.0], 1.0, 0.01, renormalise=0.5, parameters=_matrix(A))
     # the stopped sample keeps the exponents of the time up to its last renormalisation (1 s)
     np.testing.assert_allclose(ds["exponent"].values[0], first_second["exponent"].values[0], rtol=1e-12)
     assert ds["exponent"].values[0, 0] > 500  # the discrete map's: log R(8) / h of rk4's stability function R
     with pytest.warns(RuntimeWarning, match="1 of 1 samples of linear"):  # exp(800) overflows before a renormalisation
-        overflow = tumble.lyapunov(LINEAR, [0.0, 0.0, 0.0], 3.0, 0.01, renormalise=1.0, parameters=_matrix(A))
+        overflow = tumble.lyapunov(LINEAR_BLOCKS, [0.0, 0.0, 0.0], 3.0, 0.01, renormalise=1.0, parameters=_matrix(A))
     assert overflow["status"].values[0] == STATUS_NONFINITE and np.all(np.isnan(overflow["exponent"].values))
     with pytest.raises(ValueError, match=r"y0 must be finite: sample 0 holds NaN or inf \(x1, x2, x3 = \[nan, 0.0"):
-        tumble.lyapunov(LINEAR, [np.nan, 0.0, 0.0], 1.0, 0.01, parameters=_matrix(A))
+        tumble.lyapunov(LINEAR_BLOCKS, [np.nan, 0.0, 0.0], 1.0, 0.01, parameters=_matrix(A))
 
 
 @pytest.mark.slow

@@ -84,6 +84,7 @@ def test_integrate_on_the_device_records_it_and_gives_the_cpu_dataset(cuda_devic
     assert (device.status.values == 0).all()
 
 
+@pytest.mark.default_cases("drift_limit")
 @pytest.mark.parametrize("torque, statuses", [(None, {0, 1, 2}), ((0.0, 0.0, 1e-3), {0, 1})],
                          ids=["drift_limit", "nonfinite"])
 def test_stopped_samples_keep_their_state_and_status_as_on_the_cpu(cuda_device, torque, statuses):
@@ -448,7 +449,9 @@ def test_a_closed_form_scan_on_the_device_launches_per_batch_of_scenes_not_per_s
                                                             ("splitting2", (2, 3), None, [3, 3]),
                                                             # a torque spins each body up at its own rate: each
                                                             # stores its own number of states, one launch each
-                                                            ("splitting2", (3,), (0.0, 0.0, 0.01), [1, 1, 1])])
+                                                            ("splitting2", (3,), (0.0, 0.0, 0.01), [1, 1, 1])],
+                         ids=["rk4", "splitting2", "splitting2-torque"])
+@pytest.mark.default_cases("splitting2-torque")
 def test_a_fixed_step_scan_on_the_device_launches_per_batch_of_scenes_with_the_bits_of_one_scene_a_launch(
         cuda_device, monkeypatch, method, axis, torque, launched):
     """Fixed-step scenes of a scan share launches (a row of the scene table each; splitting2 relabels each scene's axes

@@ -387,3 +387,17 @@ def test_examples_on_the_page_run(page, monkeypatch):
         runner.run(test, out=report.append, clear_globs=False)
         globs = test.globs  # the next block sees this one's names (DocTest copies the mapping it is given)
     assert runner.summarize(verbose=False).failed == 0, "".join(report)
+
+
+#: Words of a logbook, not of guidance: a page says what is true now; history is in git and the changelog.
+_LOGBOOK = re.compile(r"\b(today|yesterday|this (?:morning|session|afternoon)|issue \d+)\b", re.IGNORECASE)
+
+
+def test_no_page_of_guidance_reads_as_a_logbook():
+    """The README and every page of the docs but the changelog (the one place for history) say what is true now:
+    none says "today", "yesterday", "this morning", "this session" or "issue N"."""
+    pages = [ROOT / "README.md", *(p for p in DOCS.rglob("*.md") if p.name != "changelog.md"
+                                   and "_build" not in p.parts and "reference/api" not in p.as_posix())]
+    found = [f"{page.relative_to(ROOT)}:{text.count(chr(10), 0, m.start()) + 1}: {m.group(0)!r}"
+             for page in pages for text in [page.read_text(encoding="utf-8")] for m in _LOGBOOK.finditer(text)]
+    assert not found, "logbook words on pages of guidance:\n" + "\n".join(found)

@@ -85,7 +85,7 @@ def _compare(system, y0, method, other):
     _equal(_runs(system, y0, method), _runs(system, y0, other))
 
 
-@pytest.mark.default_cases("heavy_top")
+@pytest.mark.slow  # the per-sample loop compiles in every process
 @pytest.mark.parametrize("kind", ["heavy_top", "gravity_gradient"])
 def test_the_vectorised_rk4_is_the_per_sample_loop(kind, per_sample):
     system, y = MODELS[kind]
@@ -102,7 +102,7 @@ def test_every_model_and_method_vectorised_is_the_per_sample_loop(kind, method, 
     _compare(system, _unit(system, _states(y, 40)), method, per_sample(method))
 
 
-@pytest.mark.default_cases("heavy_top-splitting4")
+@pytest.mark.slow  # the per-sample loop compiles in every process
 @pytest.mark.parametrize("method", ["symplectic_euler", "splitting2", "splitting4"])
 @pytest.mark.parametrize("kind", ["free", "gyrostat", "heavy_top"])
 def test_the_vectorised_splittings_are_the_per_sample_loop(kind, method, monkeypatch):
