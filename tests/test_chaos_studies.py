@@ -69,12 +69,20 @@ def test_the_map_is_the_api_run_point_by_point():
     # the study also stores the finite-time exponents (save_every): the same sums, to round-off
     np.testing.assert_allclose(ds["exponent"].values.reshape(4, 6), tumble.lyapunov(top, y, 2.0, 0.01).exponent.values,
                                rtol=1e-12, atol=1e-14)
-    for method in ("implicit_midpoint", "splitting4"):  # the implicit rule and a splitting step maps as the API does
-        study = _top()
-        study["integration"]["method"] = method
-        ds = tumble.run_study(study, progress=False)
-        np.testing.assert_array_equal(ds["megno"].values.ravel(),
-                                      tumble.megno(top, y, 2.0, 0.01, method=method).megno.values)
+
+
+@pytest.mark.slow  # the implicit rule's per-sample tangent loop compiles in every process
+@pytest.mark.parametrize("method", ["implicit_midpoint", "splitting4"])
+def test_the_map_of_an_implicit_rule_or_a_splitting_is_the_api_run_point_by_point(method):
+    """The implicit rule and a splitting step a map's points as the API does."""
+    top = tumble.models.HeavyTop((1.0, 1.5, 2.0), 1.0, centre=(1.0, 0.5, 1.0))
+    _, _, points = chaos_scenes.map_grid("release", {"tilt": [0.5, 1.5], "rate": [0.5, 2.0]})
+    y = chaos_scenes.initial_states("release", points)
+    study = _top()
+    study["integration"]["method"] = method
+    ds = tumble.run_study(study, progress=False)
+    api = tumble.megno(top, y, 2.0, 0.01, method=method)
+    np.testing.assert_array_equal(ds["megno"].values.ravel(), api.megno.values)
 
 
 def test_a_scanned_parameter_is_a_dimension_before_the_map():

@@ -273,7 +273,7 @@ def test_a_periodic_closed_form_batch_is_fitted_on_the_device_and_only_its_fits_
         np.testing.assert_array_equal(d, c)
 
 
-@pytest.mark.default_cases("splitting2")
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["rk4", "splitting2"])
 def test_the_phase_fit_of_a_run_on_the_device_is_the_cpu_fit(cuda_device, method):
     """phase_window: the device fits the trajectory where its kernel stored it (keep_trajectory=False: it never comes
@@ -451,7 +451,7 @@ def test_a_closed_form_scan_on_the_device_launches_per_batch_of_scenes_not_per_s
                                                             # stores its own number of states, one launch each
                                                             ("splitting2", (3,), (0.0, 0.0, 0.01), [1, 1, 1])],
                          ids=["rk4", "splitting2", "splitting2-torque"])
-@pytest.mark.default_cases("splitting2-torque")
+@pytest.mark.slow
 def test_a_fixed_step_scan_on_the_device_launches_per_batch_of_scenes_with_the_bits_of_one_scene_a_launch(
         cuda_device, monkeypatch, method, axis, torque, launched):
     """Fixed-step scenes of a scan share launches (a row of the scene table each; splitting2 relabels each scene's axes
@@ -570,6 +570,7 @@ def test_a_stepping_scene_on_the_device_measures_the_cpu_rates(cuda_device, axis
             np.testing.assert_allclose(device[name].values, cpu[name].values, rtol=1e-10, err_msg=name)
 
 
+@pytest.mark.slow
 def test_a_scan_on_the_device_measures_the_cpu_rates(cuda_device):
     kwargs = dict(axis=(1, 2), method="splitting2", samples=8, flips=1)
     cpu = tumble.scan([(1.0, 2.0, 3.0), (1.0, 1.5, 2.2)], **kwargs)
@@ -578,6 +579,7 @@ def test_a_scan_on_the_device_measures_the_cpu_rates(cuda_device):
     _same_scene(device, cpu)
 
 
+@pytest.mark.slow
 def test_a_bundled_torque_study_on_the_device_gives_the_cpu_results(cuda_device):
     """space_station steps (a torque acts): the whole study, its flip_components trace included, runs on the device."""
     overrides = {"perturbation.samples": 8, "outputs.arrays": ["sample_rate", "sample_status"]}

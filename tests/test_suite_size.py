@@ -24,7 +24,7 @@ BUDGET = {
     "test_cli.py": 74,
     "test_codegen.py": 2,
     "test_config.py": 182,
-    "test_cuda.py": 33,
+    "test_cuda.py": 29,
     "test_cuda_models.py": 16,
     "test_distributed.py": 22,
     "test_docs.py": 20,
@@ -70,7 +70,7 @@ BUDGET = {
     "test_tangent_blocks.py": 2,
     "test_theory.py": 69,
     "test_trig.py": 28,
-    "test_user_systems.py": 44,
+    "test_user_systems.py": 43,
     "test_warm.py": 2,
 }
 

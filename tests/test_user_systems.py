@@ -144,6 +144,7 @@ def test_a_tableau_registered_at_test_time_runs_at_its_order_on_the_cpu_and_the_
         tumble.propagate(HEAVY_TOP, HEAVY_TOP_STATE, 1.0, 0.05, method="ralston3"), rtol=1e-13, atol=1e-15)
 
 
+@pytest.mark.slow  # a tableau added at run time compiles its loop in every process
 def test_a_body_steps_a_tableau_added_at_run_time_as_the_free_body_model_does(monkeypatch):
     """A tumble.Body with a tableau added at run time runs it through the per-sample loop (its fused steps know the
     built-in methods only): the free-body Dataset of integrate, the same bits as tumble.models.FreeBody, torque-free
