@@ -35,8 +35,8 @@ from ..physics.models import Model
 from ..physics.system import System, with_parameters
 from . import cost
 
-__all__ = ["PROBED", "SystemRun", "added_tableau", "block_code", "compiled", "initial_states", "is_system", "method_order", "probe",
-           "run_system", "system_methods"]
+__all__ = ["PROBED", "SystemRun", "added_tableau", "block_code", "compiled", "initial_states", "is_system",
+           "method_order", "probe", "run_system", "system_methods", "system_name"]
 
 #: Initial states at which a user's rate is called once before a run (the first with bounds checked): a NaN or an
 #: unset component there is refused with the sample named; later in the run a non-finite state is a sample status.
@@ -100,7 +100,8 @@ def _sample_loop_system(model):
     return _SAMPLE_LOOP_SYSTEMS[model.kind], p
 
 
-def _name(system):
+def system_name(system):
+    """What a message and a Dataset call ``system``: a System's name, a built-in model's kind."""
     return system.name if isinstance(system, System) else system.kind
 
 
@@ -112,13 +113,13 @@ def initial_states(system, y0, name="y0"):
         y = np.array(y0, dtype=float)
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be an array of numbers of shape (N, {len(names)}) ({', '.join(names)} of "
-                         f"{_name(system)!r}), got {y0!r}") from None
+                         f"{system_name(system)!r}), got {y0!r}") from None
     single = y.ndim == 1
     if single:
         y = y[None, :]
     if y.ndim != 2 or y.shape[1] != len(names) or len(y) == 0:
         raise ValueError(f"{name} must have shape (N, {len(names)}) with N >= 1 ({', '.join(names)} of "
-                         f"{_name(system)!r}), got shape {np.shape(y0)}")
+                         f"{system_name(system)!r}), got shape {np.shape(y0)}")
     bad = np.flatnonzero(~np.all(np.isfinite(y), axis=1))
     if len(bad):
         raise ValueError(f"{name} must be finite: sample {int(bad[0])} holds NaN or inf ({', '.join(names)} = "
@@ -252,7 +253,7 @@ def run_system(system, y0, t_end, n_steps, step, method="rk4", *, save_every=Non
         (:mod:`tumble.engine.cost`), a device that cannot run.
     """
     system, values = with_parameters(system, parameters)
-    name = _name(system)
+    name = system_name(system)
     methods = system_methods(system)
     if method == registry.AUTO:
         method = registry.AUTO_STEPPING

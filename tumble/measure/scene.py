@@ -104,9 +104,10 @@ def measure(body, axis=None, spin=1.0, amplitude=1e-3, samples=1024, seed=0, met
     """
     device = resolve_device(device)  # once, here at the door: the scene below trusts it
     if isinstance(body, Model) and state is None:
+        unused = {"flips": flips != 3, "torque": torque is not None, "curves": bool(curves),
+                  "parameters": parameters is not None}
         return _measure_model(body, axis, spin, amplitude, samples, seed, method, dt=dt, horizon=horizon,
-                              distribution=distribution, device=device, unused={"flips": flips != 3,
-                              "torque": torque is not None, "curves": bool(curves), "parameters": parameters is not None})
+                              distribution=distribution, device=device, unused=unused)
     if isinstance(body, (System, Model)) or state is not None:
         if not isinstance(body, (System, Model)):
             raise ValueError(f"state= measures a tumble.System about an equilibrium; a body is measured about an axis "

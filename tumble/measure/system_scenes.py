@@ -37,7 +37,7 @@ import numpy as np
 
 from .. import registry
 from ..engine.sampling import seed_entropy
-from ..engine.system_runs import initial_states, method_order, run_system, system_methods
+from ..engine.system_runs import initial_states, method_order, run_system, system_methods, system_name
 from ..physics import theory
 from ..physics.system import System, with_parameters
 from ..registry import STATUS_OK
@@ -96,15 +96,6 @@ def _order(method):
     return max(k for k in planning.STEPS_PER_RADIAN if k <= order)
 
 
-def _name(system):
-    """What a message and the Dataset call ``system``: a System's name, a built-in model's kind."""
-    return system.name if isinstance(system, System) else system.kind
-
-
-def _components(system):
-    return system.state if isinstance(system, System) else system.spec.state
-
-
 def _rate(system, y, values):
     """The rate of ``system`` at one state ``y`` (n,): a System's function, a built-in model's ``rhs``."""
     if not isinstance(system, System):
@@ -119,8 +110,8 @@ def _checked(system, state, amplitude, samples, method, parameters):
     (``system`` with ``parameters`` in place: a built-in model's own)."""
     y, _ = initial_states(system, state, "state")
     if len(y) != 1:
-        raise ValueError(f"state must be one equilibrium of shape ({len(_components(system))},) "
-                         f"({', '.join(_components(system))} of system {_name(system)!r}), got shape "
+        raise ValueError(f"state must be one equilibrium of shape ({len(system.spec.state)},) "
+                         f"({', '.join(system.spec.state)} of system {system_name(system)!r}), got shape "
                          f"{np.shape(state)}")
     if isinstance(amplitude, (bool, np.bool_)) or not isinstance(amplitude, (int, float, np.integer, np.floating)) \
             or not math.isfinite(amplitude) or amplitude <= 0:
@@ -132,8 +123,8 @@ def _checked(system, state, amplitude, samples, method, parameters):
     methods = system_methods(system)
     chosen = methods[0] if method == "auto" else method
     if chosen not in methods:
-        raise ValueError(f"method must be auto or one of {', '.join(methods)} for system {_name(system)!r}, got "
-                         f"{method!r}")
+        raise ValueError(f"method must be auto or one of {', '.join(methods)} for system {system_name(system)!r}, "
+                         f"got {method!r}")
     system, values = with_parameters(system, parameters)
     return system, y[0], values, chosen
 
@@ -181,12 +172,12 @@ def system_scene_plan(system, state, amplitude=1e-3, samples=1024, seed=0, metho
     rate = _rate(system, equilibrium, values)
     size = max(1.0, float(np.abs(equilibrium).max()))
     if not np.abs(rate).max() <= 1e-9 * max(1.0, float(np.abs(linear.jacobian).max())) * size:
-        raise ValueError(f"state is not an equilibrium of system {_name(system)!r}: its rate there is {rate.tolist()} "
-                         f"(measure perturbations of a state whose rate is 0)")
+        raise ValueError(f"state is not an equilibrium of system {system_name(system)!r}: its rate there is "
+                         f"{rate.tolist()} (measure perturbations of a state whose rate is 0)")
     if linear.kind == "neutral":
-        raise ValueError(f"the equilibrium {equilibrium.tolist()} of system {_name(system)!r} is neutral in linear theory "
-                         f"(eigenvalues {np.round(linear.eigenvalues, 12).tolist()}: no growth or oscillation to "
-                         f"measure)")
+        raise ValueError(f"the equilibrium {equilibrium.tolist()} of system {system_name(system)!r} is neutral in "
+                         f"linear theory (eigenvalues {np.round(linear.eigenvalues, 12).tolist()}: no growth or "
+                         f"oscillation to measure)")
     left, eigenvalue = _left_mode(linear.jacobian, linear.kind)
     amplitude, entropy = float(amplitude), seed_entropy(seed)
     scene = SystemScene(system, equilibrium, values, amplitude, int(samples), method, chosen, linear.kind,
@@ -253,11 +244,11 @@ def measure_system(system, state, amplitude=1e-3, samples=1024, seed=0, method="
     record = reduction.scene_records([scene], [[system_scene_samples(scene)]])[0]
     for name in ("I1", "I2", "I3", "axis", "spin"):
         del record[name]
-    record["system"] = np.asarray(_name(system))
-    record["@title"] = np.asarray(f"tumble measurement: system {_name(system)!r}, {scene.kind} rate about "
+    record["system"] = np.asarray(system_name(system))
+    record["@title"] = np.asarray(f"tumble measurement: system {system_name(system)!r}, {scene.kind} rate about "
                                   f"{scene.equilibrium.tolist()}")
     record["@equilibrium"] = scene.equilibrium
-    record["@state_components"] = np.asarray(" ".join(_components(system)))
+    record["@state_components"] = np.asarray(" ".join(system.spec.state))
     record["@eigenvalue"] = np.array([scene.eigenvalue.real, scene.eigenvalue.imag])
     record["@distribution"] = np.asarray("isotropic directions of the state, size amplitude")
     for name, value in scene.parameters.items():
