@@ -40,7 +40,7 @@ BUDGET = {
     "test_io.py": 26,
     "test_kind_names.py": 4,
     "test_latency.py": 37,
-    "test_layers.py": 136,
+    "test_layers.py": 137,
     "test_layout.py": 60,
     "test_memory.py": 1,
     "test_model_equations.py": 6,

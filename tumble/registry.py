@@ -293,6 +293,8 @@ class Model(NamedTuple):
     text: str
     scan_keys: tuple = ()  # scan keys of its own beyond its parameters (a grid of bodies in its own terms)
     equations: str = ""  # the module of tumble/physics/models/ that holds its equations ("": the one named as the kind)
+    splitting: str = ""  # the Lie–Poisson splitting that steps it (kernels.steps.model_splittings): "rotor" (the
+    # sub-flows turn L = I w + h), "gravity" (they turn L and g together, gravity kicks L); "": none
 
     @property
     def parameters(self):
@@ -328,8 +330,8 @@ STATE_BLOCKS = (
 
 #: Every model, the default first: one row each, its parameters' rows inside it.
 MODELS = (
-    Model("free", (), ("w1", "w2", "w3"), ("energy", "momentum_squared"), True, True,
-          "torque-free rigid body: I w' = (I w) x w", equations="gyrostat"),  # the gyrostat with no rotor
+    Model("free", (), ("w1", "w2", "w3"), ("energy", "momentum_squared"), True, True,  # the gyrostat with no rotor
+          "torque-free rigid body: I w' = (I w) x w", equations="gyrostat", splitting="rotor"),
     Model("gyrostat", (
         ModelParameter("rotor", 3, "N m s", False,
                        "gyrostat: rotor angular momentum relative to the body, body frame",
@@ -337,7 +339,7 @@ MODELS = (
                        "3-vectors, or numbers: h along each scene's spin axis (so that scan.axis can be scanned with "
                        "it)."),),
           ("w1", "w2", "w3"), ("energy", "momentum_squared"), True, True,
-          "rigid body with a rotor of constant relative angular momentum h: I w' = (I w + h) x w"),
+          "rigid body with a rotor of constant relative angular momentum h: I w' = (I w + h) x w", splitting="rotor"),
     Model("heavy_top", (
         ModelParameter("mgl", 1, "N m", True, "heavy_top: M g l, weight times the pivot-to-centre-of-mass distance",
                        "body.moments are about the fixed point; spin.axis must be 3 (the sleeping top). The "
@@ -345,7 +347,7 @@ MODELS = (
                        "perturbation.amplitude."),),
           ("w1", "w2", "w3", "g1", "g2", "g3"), ("energy", "vertical_momentum", "up_squared"), True, True,
           "top on a fixed pivot, centre of mass on body axis 3 (Euler-Poisson): I w' = (I w) x w + mgl (g x e3), "
-          "g' = g x w"),
+          "g' = g x w", splitting="gravity"),
     Model("gravity_gradient", (
         ModelParameter("orbit_rate", 1, "rad/s", True, "gravity_gradient: orbital angular rate n of a circular orbit",
                        "spin.axis and spin.rate are not used: the equilibrium follows the orbit (w = (0, -n, 0), body "
@@ -383,7 +385,7 @@ DEFAULT_MODEL = "free"
 #: The models the Lie–Poisson splittings (symplectic_euler, splitting2, splitting4) step: Lie–Poisson systems in the
 #: model kernels' variables (the free body as the gyrostat with h = 0). Not the damper (dissipative) nor the gravity
 #: gradient (w and a quaternion relative to the turning orbit frame). The others step with rk4 and rk8.
-LIE_POISSON_MODELS = ("free", "gyrostat", "heavy_top")
+LIE_POISSON_MODELS = tuple(m.name for m in MODELS if m.splitting)
 
 #: The fixed-step methods the models' kernels run: the explicit Runge–Kutta ones for every model, the splittings for
 #: :data:`LIE_POISSON_MODELS` (:func:`model_methods`); the implicit midpoint is the free body's own.

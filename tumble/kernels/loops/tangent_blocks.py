@@ -35,7 +35,7 @@ from numba.extending import overload
 
 from ...registry import LIE_POISSON_MODELS, MODEL_STEPPING, STATUS_ABOVE, STATUS_NONFINITE, STATUS_OK, STEPPING
 from ..jit import FASTMATH, jit
-from ..steps.model_splittings import HEAVY_TOP_CODE, SPLITTINGS, splitting_tangent_block
+from ..steps.model_splittings import GRAVITY_CODE, SPLITTINGS, splitting_tangent_block
 from ..steps.model_steps import TANGENT_STEPS
 from ..steps.system_steps import SYSTEM_CODES, cacheable, tangent_step
 from ..tableaux import TABLEAUX
@@ -72,7 +72,7 @@ def _tangent_step_of(model, method, Z, t, t0, h, a):
         return None
     code, method_id = model.literal_value, method.literal_value
     if method_id in SPLITTINGS.values():  # the sub-flows' loops over the block (model_splittings)
-        top = code == HEAVY_TOP_CODE
+        top = code == GRAVITY_CODE
 
         def splitting_step(model, method, Z, t, t0, h, a):
             splitting_tangent_block(method_id, top, Z, t, t0, h, a)

@@ -1,4 +1,8 @@
-"""Lie–Poisson splittings of the gyrostat and the heavy top: the free body's compositions, exact sub-flows per block.
+"""Lie–Poisson splittings, the free body's compositions with exact sub-flows per block, of two kinds of system.
+
+A model's registry row says which steps it (``registry.Model.splitting``): ``"rotor"`` (the gyrostat, the free body
+as its ``h = 0``) or ``"gravity"`` (the heavy top); each kind's functions are named after it and read the constants
+of the system that has it (``<kind>_splitting_block``, called by the generated dispatch).
 
 The compositions are the free body's (:data:`tumble.kernels.tableaux.SYMPLECTIC_EULER`, ``SPLITTING2``,
 ``SPLITTING4``), read here as data; every sub-flow is an exact flow, and each is one loop over a block's samples
@@ -12,7 +16,7 @@ the loops vectorise across samples and the compile stays small. ``c`` is the sys
 ``(L_b, L_c)`` turns by ``theta = w_a tau`` (:func:`tumble.kernels.steps.steppers.rotate`), made on ``L = I w + h``
 ``u = L / I = w + h / I`` turns with the free body's ratios ``I_c / I_b``, ``I_b / I_c``, and ``w = u − h / I``
 again. Every sub-flow turns ``L``, so ``|I w + h|`` is kept; to round-off, as the free body's, by a projection
-after each step onto its initial value (:func:`gyrostat_project_block`).
+after each step onto its initial value (:func:`rotor_project_block`).
 
 **Heavy top** (Euler–Poisson, :mod:`tumble.kernels.systems.heavy_top`): with ``H = T + V``, ``T = sum_a L_a² /
 (2 I_a)``, ``V = mgl g·c`` (``c`` the centre of mass's direction), the bracket ``L' = L × ∇_L H + g × ∇_g H``, ``g' =
@@ -33,13 +37,13 @@ import numpy as np
 
 from ...registry import MODELS, STEPPING
 from ..jit import jit
-from ..systems import gyrostat, heavy_top
+from ..systems import SYSTEMS
 from ..tableaux import SPLITTING2, SPLITTING4, SYMPLECTIC_EULER, TORQUE
 from ..trig import sincos
-from .steppers import rotate
+from .steppers import rescale_step, rotate
 
-__all__ = ["HEAVY_TOP_CODE", "SPLITTINGS", "gyrostat_project_block", "gyrostat_rotate_block",
-           "gyrostat_splitting_block", "heavy_top_gravity_block", "heavy_top_rotate_block", "heavy_top_splitting_block",
+__all__ = ["GRAVITY_CODE", "SPLITTINGS", "rotor_project_block", "rotor_turn_block",
+           "rotor_splitting_block", "gravity_kick_block", "gravity_turn_block", "gravity_splitting_block",
            "splitting_tangent_block", "splitting_tangent_sample"]
 
 #: The splittings the model kernels run, by name: kernel id (index in ``registry.STEPPING``).
@@ -66,7 +70,7 @@ _TOP_POSITION, _TOP_START, _TOP_FLOWS, _TOP_FRACTIONS = _tables([SYMPLECTIC_EULE
 
 
 @jit
-def gyrostat_rotate_block(axis, tau, y1, y2, y3, c):
+def rotor_turn_block(axis, tau, y1, y2, y3, c):
     """The exact flow of ``H_a = (L_a − h_a)² / (2 I_a)`` over ``tau`` for every sample: ``(L_b, L_c)`` turns by
     ``w_a tau``, ``a = axis`` (0-based), ``(a, b, c)`` cyclic; one loop per axis. In ``u = L / I = w + h / I``, with
     the free body's ratios (``h = 0``: the free body's bits)."""
@@ -90,7 +94,7 @@ def gyrostat_rotate_block(axis, tau, y1, y2, y3, c):
 
 
 @jit
-def gyrostat_project_block(y1, y2, y3, target, c):
+def rotor_project_block(y1, y2, y3, target, c):
     """Every sample's ``L = I w + h`` rescaled onto ``|L|² = target`` (a few-ulp correction, as the free body's
     :func:`tumble.kernels.steps.steppers.project_l_squared`, applied additively): the turns keep ``|L|`` only to the
     rounding of ``cos(theta)``, which is the same at every step of a steady or periodic motion and so would add up
@@ -98,25 +102,24 @@ def gyrostat_project_block(y1, y2, y3, target, c):
     u1, u2, u3 = c.h1 / c.i1, c.h2 / c.i2, c.h3 / c.i3
     for i in range(y1.shape[0]):
         l1, l2, l3 = c.i1 * y1[i] + c.h1, c.i2 * y2[i] + c.h2, c.i3 * y3[i] + c.h3
-        now = l1 * l1 + l2 * l2 + l3 * l3
-        d = (target[i] - now) / (now + math.sqrt(target[i] * now)) if now > 0.0 else 0.0
+        d = rescale_step(target[i], l1 * l1 + l2 * l2 + l3 * l3)
         y1[i] += (y1[i] + u1) * d
         y2[i] += (y2[i] + u2) * d
         y3[i] += (y3[i] + u3) * d
 
 
 @jit
-def gyrostat_splitting_block(method, y1, y2, y3, h, c, x0):
+def rotor_splitting_block(method, y1, y2, y3, h, c, x0):
     """One step of splitting ``method`` (kernel id) of the gyrostat for every sample of a block, then each sample's
     ``|I w + h|²`` put back on its value at the start (``x0[1]``, the samples' initial invariants)."""
     p = _FREE_POSITION[method]
     for s in range(_FREE_START[p], _FREE_START[p + 1]):
-        gyrostat_rotate_block(_FREE_FLOWS[s], _FREE_FRACTIONS[s] * h, y1, y2, y3, c)
-    gyrostat_project_block(y1, y2, y3, x0[1], c)
+        rotor_turn_block(_FREE_FLOWS[s], _FREE_FRACTIONS[s] * h, y1, y2, y3, c)
+    rotor_project_block(y1, y2, y3, x0[1], c)
 
 
 @jit
-def heavy_top_rotate_block(axis, tau, y1, y2, y3, y4, y5, y6, c):
+def gravity_turn_block(axis, tau, y1, y2, y3, y4, y5, y6, c):
     # size: one array per state component (the block's rows), the axis, the time and the constants
     """The exact flow of ``T_a = L_a² / (2 I_a)`` over ``tau`` for every sample: ``(L_b, L_c)`` and ``(g_b, g_c)``
     turn by ``w_a tau``, ``a = axis`` (0-based), ``(a, b, c)`` cyclic; one loop (one sincos) per axis."""
@@ -130,7 +133,7 @@ def heavy_top_rotate_block(axis, tau, y1, y2, y3, y4, y5, y6, c):
 
 @jit(inline=True)
 def _turn_about_axis(tau, wa, wb, wc, gb, gc, r_cb, r_bc):
-    """:func:`heavy_top_rotate_block` about the axis whose rows are ``wa`` (the others ``wb, wc`` and ``gb, gc``,
+    """:func:`gravity_turn_block` about the axis whose rows are ``wa`` (the others ``wb, wc`` and ``gb, gc``,
     cyclic order); ``r_cb = I_c/I_b``, ``r_bc = I_b/I_c``."""
     for i in range(wa.shape[0]):
         s, k = sincos(wa[i] * tau)
@@ -140,7 +143,7 @@ def _turn_about_axis(tau, wa, wb, wc, gb, gc, r_cb, r_bc):
 
 
 @jit
-def heavy_top_gravity_block(tau, y1, y2, y3, y4, y5, y6, c):
+def gravity_kick_block(tau, y1, y2, y3, y4, y5, y6, c):
     # size: one array per state component (the block's rows), the time and the constants
     """The exact flow of ``V = mgl g·c`` over ``tau`` for every sample: ``g`` fixed, ``w += tau I⁻¹ mgl (g × c)``;
     with ``c = e3`` only ``w1`` and ``w2`` move (the loop then skips ``w3``, whose increment is 0)."""
@@ -159,7 +162,7 @@ def heavy_top_gravity_block(tau, y1, y2, y3, y4, y5, y6, c):
 
 
 @jit
-def heavy_top_splitting_block(method, y1, y2, y3, y4, y5, y6, h, c, x0):
+def gravity_splitting_block(method, y1, y2, y3, y4, y5, y6, h, c, x0):
     # size: one array per state component (the block's rows), the method, the step, the constants, the invariants
     """One step of splitting ``method`` (kernel id) of the heavy top for every sample of a block (gravity as the
     composition's torque sub-flow); ``x0`` (the initial invariants) is not used: every sub-flow keeps ``|g|`` and
@@ -168,9 +171,9 @@ def heavy_top_splitting_block(method, y1, y2, y3, y4, y5, y6, h, c, x0):
     for s in range(_TOP_START[p], _TOP_START[p + 1]):
         tau = _TOP_FRACTIONS[s] * h
         if _TOP_FLOWS[s] == TORQUE:
-            heavy_top_gravity_block(tau, y1, y2, y3, y4, y5, y6, c)
+            gravity_kick_block(tau, y1, y2, y3, y4, y5, y6, c)
         else:
-            heavy_top_rotate_block(_TOP_FLOWS[s], tau, y1, y2, y3, y4, y5, y6, c)
+            gravity_turn_block(_TOP_FLOWS[s], tau, y1, y2, y3, y4, y5, y6, c)
 
 
 # --- the tangent map: each sub-flow with its derivative ---------------------------------------------------------------
@@ -198,13 +201,22 @@ def _slot(module, *names):
     return first
 
 
-_MOMENTS = _slot(gyrostat, "i1", "i2", "i3")
-assert _MOMENTS == _slot(heavy_top, "i1", "i2", "i3")
-_ROTOR = _slot(gyrostat, "h1", "h2", "h3")
-_M12, _M13, _M21, _M23, _M31, _M32 = (_slot(heavy_top, name) for name in ("m12", "m13", "m21", "m23", "m31", "m32"))
-#: The heavy top's model code (``registry.MODEL_KINDS``); the free body's and the gyrostat's share the gyrostat's flows.
-HEAVY_TOP_CODE = next(code for code, model in enumerate(MODELS)
-                      if model.equations_module == heavy_top.__name__.rpartition(".")[2])
+def _system(splitting):
+    """The equations module (:mod:`tumble.kernels.systems`) of the models that ``splitting`` steps (one)."""
+    modules = {SYSTEMS[model.name] for model in MODELS if model.splitting == splitting}
+    assert len(modules) == 1, f"one system has the {splitting!r} splitting"
+    return modules.pop()
+
+
+_ROTOR_SYSTEM, _GRAVITY_SYSTEM = _system("rotor"), _system("gravity")
+_MOMENTS = _slot(_ROTOR_SYSTEM, "i1", "i2", "i3")
+assert _MOMENTS == _slot(_GRAVITY_SYSTEM, "i1", "i2", "i3")
+_ROTOR = _slot(_ROTOR_SYSTEM, "h1", "h2", "h3")
+_M12, _M13, _M21, _M23, _M31, _M32 = (_slot(_GRAVITY_SYSTEM, name) for name in ("m12", "m13", "m21", "m23", "m31",
+                                                                                   "m32"))
+#: The model code (``registry.MODEL_KINDS``) of the system the gravity splitting steps; the others (the rotor
+#: splitting's) share the rotor's flows.
+GRAVITY_CODE = next(code for code, model in enumerate(MODELS) if model.splitting == "gravity")
 
 
 @jit(inline=True)
@@ -260,7 +272,7 @@ def splitting_tangent_sample(method, y, V, p, h):
     """One step of splitting ``method`` (kernel id) of one sample of a free body, gyrostat or heavy top (``p[0]`` its
     code, then its constants, as :func:`tumble.kernels.steps.model_steps.rate_sample`'s ``p``): the state ``y`` (n,) and,
     by the derivative of the same map, the tangent vectors ``V`` (k, n), in place (see the section's comment)."""
-    top = int(p[0]) == HEAVY_TOP_CODE
+    top = int(p[0]) == GRAVITY_CODE
     a = p[1:]
     first, end, flows, fractions = _composition(top, method)
     for s in range(first, end):

@@ -5,7 +5,7 @@ The systems' rk4 and rk8 steps, the loop over a block for each, and the dispatch
 """
 
 from ..jit import jit
-from .model_splittings import gyrostat_splitting_block, heavy_top_splitting_block
+from .model_splittings import gravity_splitting_block, rotor_splitting_block
 from .drift_screen import suspect
 from ..systems import damper, gravity_gradient, gyrostat, heavy_top
 
@@ -2075,7 +2075,7 @@ def step(model, method, ys, t, h, a, x0):
         elif method == 1:  # rk8
             gyrostat_rk8_block(t, ys[0], ys[1], ys[2], h, c_gyrostat)
         else:  # a Lie-Poisson splitting
-            gyrostat_splitting_block(method, ys[0], ys[1], ys[2], h, c_gyrostat, x0)
+            rotor_splitting_block(method, ys[0], ys[1], ys[2], h, c_gyrostat, x0)
     elif model == 2:  # heavy_top
         c_heavy_top = heavy_top.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14], a[15])
         if method == 0:  # rk4
@@ -2083,7 +2083,7 @@ def step(model, method, ys, t, h, a, x0):
         elif method == 1:  # rk8
             heavy_top_rk8_block(t, ys[0], ys[1], ys[2], ys[3], ys[4], ys[5], h, c_heavy_top)
         else:  # a Lie-Poisson splitting
-            heavy_top_splitting_block(method, ys[0], ys[1], ys[2], ys[3], ys[4], ys[5], h, c_heavy_top, x0)
+            gravity_splitting_block(method, ys[0], ys[1], ys[2], ys[3], ys[4], ys[5], h, c_heavy_top, x0)
     elif model == 3:  # gravity_gradient
         c_gravity_gradient = gravity_gradient.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10])
         if method == 0:  # rk4

@@ -18,8 +18,9 @@ import math
 
 import numpy as np
 
-from ...registry import TORQUE_USER, torque_profile  # noqa: F401  (TORQUE_USER re-exported)
+from ...registry import TORQUE_USER, rigid_body, torque_profile  # noqa: F401  (TORQUE_USER re-exported)
 from ..jit import jit
+from ..systems import SYSTEMS
 from ..tableaux import ROTATE_1, ROTATE_2, SPLITTING2, SPLITTING4, SYMPLECTIC_EULER, TORQUE
 from ..trig import sincos
 
@@ -28,6 +29,9 @@ from ..trig import sincos
 # Codes from the registry's table (a pulse: a fixed step across the jump errs O(h) once).
 TORQUE_CONSTANT, TORQUE_RAMP, TORQUE_SINE, TORQUE_PULSE = (torque_profile(name).code
                                                            for name in ("constant", "ramp", "sine", "pulse"))
+
+#: Euler's equations (``a_i w_j w_k``) as the free body's system writes them (the gyrostat's module, ``h = 0``).
+euler = SYSTEMS["free"].euler
 
 # Implicit midpoint: fixed-point iterations stop once the update is below this many ulps of the state.
 _MIDPOINT_ULPS = 4.0
@@ -38,12 +42,11 @@ _EPS = 2.220446049250313e-16
 def body_constants(moments):
     """``(I1, I2, I3, a1, a2, a3, I2/I1, I3/I1, I1/I2, I3/I2, I1/I3, I2/I3)`` for the kernels.
 
-    ``a1 = (I2 - I3)/I1`` and cyclic are the coefficients of Euler's equations; the ratios serve the exact
-    rotations of the splittings.
+    The first six are every system's (:func:`tumble.registry.rigid_body`: ``a1 = (I2 - I3)/I1`` and cyclic, the
+    coefficients of Euler's equations); the ratios serve the exact rotations of the splittings.
     """
     i1, i2, i3 = np.asarray(moments, dtype=float).tolist()
-    return (i1, i2, i3, (i2 - i3) / i1, (i3 - i1) / i2, (i1 - i2) / i3,
-            i2 / i1, i3 / i1, i1 / i2, i3 / i2, i1 / i3, i2 / i3)
+    return (*rigid_body((i1, i2, i3)), i2 / i1, i3 / i1, i1 / i2, i3 / i2, i1 / i3, i2 / i3)
 
 
 @jit(inline=True)
@@ -63,10 +66,9 @@ def body_torque(t, w1, w2, w3, torque_kind, torque_params, torque_fn):
 
 @jit(inline=True)
 def euler_rate(t, w1, w2, w3, body, torque_kind, torque_params, torque_fn):
-    """``w'`` from Euler's equations, rad/s²."""
-    d1 = body[3] * w2 * w3
-    d2 = body[4] * w3 * w1
-    d3 = body[5] * w1 * w2
+    """``w'`` (rad/s²): Euler's equations as the free body's system writes them
+    (:func:`tumble.kernels.systems.gyrostat.euler`, the gyrostat's ``h = 0``), plus the torque over ``I``."""
+    d1, d2, d3 = euler(w1, w2, w3, body[3], body[4], body[5])
     if torque_params is not None:
         n1, n2, n3 = body_torque(t, w1, w2, w3, torque_kind, torque_params, torque_fn)
         d1 += n1 / body[0]
@@ -219,9 +221,16 @@ def project_l_squared(w1, w2, w3, target, body):
     linearly, ~3e-18 per step). The correction is applied additively instead, ``w + w d`` with ``d =
     sqrt(target/now) - 1 = (target - now) / (now + sqrt(target now))`` formed without cancellation.
     """
-    now = l_squared(w1, w2, w3, body)
-    d = (target - now) / (now + math.sqrt(target * now)) if now > 0.0 else 0.0
+    d = rescale_step(target, l_squared(w1, w2, w3, body))
     return w1 + w1 * d, w2 + w2 * d, w3 + w3 * d
+
+
+@jit(inline=True)
+def rescale_step(target, now):
+    """``d = sqrt(target / now) − 1`` formed without cancellation, ``(target − now) / (now + sqrt(target now))``
+    (0 where ``now`` is 0): a state's additive correction ``y + y d`` onto a squared norm ``target``
+    (:func:`project_l_squared`)."""
+    return (target - now) / (now + math.sqrt(target * now)) if now > 0.0 else 0.0
 
 
 @jit(inline=True)

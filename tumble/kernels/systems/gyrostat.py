@@ -29,11 +29,20 @@ def constants(moments, rotor=(0.0, 0.0, 0.0)):
 
 
 @jit(inline=True)
+def euler(w1, w2, w3, a1, a2, a3):
+    """The free body's rate, Euler's equations ``w_i' = a_i w_j w_k`` (rad/s²; ``a_i = (I_j − I_k)/I_i``, ``(i, j, k)``
+    cyclic): the first terms of :func:`rate`, and the rate of the free body's own fused steps
+    (:func:`tumble.kernels.steps.steppers.euler_rate`, where a torque is added to it)."""
+    return a1 * w2 * w3, a2 * w3 * w1, a3 * w1 * w2
+
+
+@jit(inline=True)
 def rate(t, w1, w2, w3, c):
-    """``w'`` (rad/s²) at ``w`` (rad/s)."""
-    return (c.a1 * w2 * w3 + (c.h2_i1 * w3 - c.h3_i1 * w2),
-            c.a2 * w3 * w1 + (c.h3_i2 * w1 - c.h1_i2 * w3),
-            c.a3 * w1 * w2 + (c.h1_i3 * w2 - c.h2_i3 * w1))
+    """``w'`` (rad/s²) at ``w`` (rad/s): Euler's equations plus the rotor's terms ``(h × w) / I``."""
+    e1, e2, e3 = euler(w1, w2, w3, c.a1, c.a2, c.a3)
+    return (e1 + (c.h2_i1 * w3 - c.h3_i1 * w2),
+            e2 + (c.h3_i2 * w1 - c.h1_i2 * w3),
+            e3 + (c.h1_i3 * w2 - c.h2_i3 * w1))
 
 
 @jit(inline=True)

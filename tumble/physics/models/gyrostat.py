@@ -5,7 +5,7 @@ cyclic ``w_i' = (I_j − I_k)/I_i w_j w_k + (h_j/I_i) w_k − (h_k/I_i) w_j``. S
 ``rotor`` ``h`` (N m s, body frame). Kept: the energy ``½ w·I w`` and ``|I w + h|²``.
 
 The system in one module: its per-sample equations (:class:`Constants`, :func:`constants`, :func:`rate`,
-:func:`tangent`, :func:`invariants`: scalar code that numba compiles into the kernels' generated steps, and that
+:func:`tangent`, :func:`invariants`, and :func:`euler`, the free body's rate: scalar code that numba compiles into the kernels' generated steps, and that
 :class:`Gyrostat` evaluates on numpy arrays, :mod:`tumble.physics.models.base`) and the model with its scenes.
 """
 
@@ -22,7 +22,7 @@ from ... import registry
 from ..bodies import finite_array
 from . import base
 
-__all__ = ["Constants", "FreeBody", "Gyrostat", "constants", "invariants", "rate", "tangent"]
+__all__ = ["Constants", "FreeBody", "Gyrostat", "constants", "euler", "invariants", "rate", "tangent"]
 
 #: The rigid body's fields (:data:`tumble.registry.RIGID_BODY`), ``h_j/I_i`` (1/s) and the rotor ``h``
 #: (N m s).
@@ -38,11 +38,19 @@ def constants(moments, rotor=(0.0, 0.0, 0.0)):
     return Constants(*rigid, h2 / i1, h3 / i1, h3 / i2, h1 / i2, h1 / i3, h2 / i3, h1, h2, h3)
 
 
+def euler(w1, w2, w3, a1, a2, a3):
+    """The free body's rate, Euler's equations ``w_i' = a_i w_j w_k`` (rad/s²; ``a_i = (I_j − I_k)/I_i``, ``(i, j, k)``
+    cyclic): the first terms of :func:`rate`, and the rate of the free body's own fused steps
+    (:func:`tumble.kernels.steps.steppers.euler_rate`, where a torque is added to it)."""
+    return a1 * w2 * w3, a2 * w3 * w1, a3 * w1 * w2
+
+
 def rate(t, w1, w2, w3, c):
-    """``w'`` (rad/s²) at ``w`` (rad/s)."""
-    return (c.a1 * w2 * w3 + (c.h2_i1 * w3 - c.h3_i1 * w2),
-            c.a2 * w3 * w1 + (c.h3_i2 * w1 - c.h1_i2 * w3),
-            c.a3 * w1 * w2 + (c.h1_i3 * w2 - c.h2_i3 * w1))
+    """``w'`` (rad/s²) at ``w`` (rad/s): Euler's equations plus the rotor's terms ``(h × w) / I``."""
+    e1, e2, e3 = euler(w1, w2, w3, c.a1, c.a2, c.a3)
+    return (e1 + (c.h2_i1 * w3 - c.h3_i1 * w2),
+            e2 + (c.h3_i2 * w1 - c.h1_i2 * w3),
+            e3 + (c.h1_i3 * w2 - c.h2_i3 * w1))
 
 
 def tangent(t, w1, w2, w3, v1, v2, v3, c):
