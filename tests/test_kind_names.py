@@ -96,3 +96,47 @@ def test_the_exempt_generated_modules_are_the_models_steps_and_equations():
     generated = {path.relative_to(PACKAGE).as_posix() for path in PACKAGE.rglob("*.py") if _generated(path)}
     equations = {f"kernels/systems/{m.equations_module}.py" for m in registry.MODELS}
     assert generated == {"kernels/steps/fused.py", "kernels/steps/model_steps.py", *equations}
+
+
+def _named_in(path, names):
+    """The names of ``names`` that module ``path`` holds as an identifier (a variable, attribute, function, argument,
+    keyword or imported module) or as a string that is not a docstring."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    docstrings = {id(node.body[0].value) for node in ast.walk(tree)
+                  if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
+                  and node.body and isinstance(node.body[0], ast.Expr) and isinstance(node.body[0].value, ast.Constant)}
+    found = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Name):
+            words = [node.id]
+        elif isinstance(node, ast.Attribute):
+            words = [node.attr]
+        elif isinstance(node, (ast.FunctionDef, ast.ClassDef)):
+            words = [node.name]
+        elif isinstance(node, (ast.arg, ast.keyword)):
+            words = [node.arg]
+        elif isinstance(node, ast.alias):
+            words = [*node.name.split("."), node.asname]
+        elif isinstance(node, ast.ImportFrom):
+            words = (node.module or "").split(".")
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docstrings:
+            words = [node.value]
+        else:
+            continue
+        found.update(word for word in words if word in names)
+    return found
+
+
+def test_a_model_or_a_method_is_named_in_at_most_three_files():
+    """A built-in system is its file and its registry row (issue 55): each model kind and each method, the defaults
+    aside (``free``, ``rk4``: named where a default is chosen), stands in the code of at most 3 files of the package
+    (its own, the registry, and the generated dispatch for a model; the coefficient tables and the registry for a
+    method), never in a loop, a scene or a figure that must then learn it. Unlike the test above, this one reads
+    identifiers too (a variable, a function, an imported module named after a kind) and not docstrings."""
+    names = {*registry.MODEL_KINDS, *registry.STEPPING} - {registry.FREE_BODY, "rk4"}
+    files = {name: [] for name in names}
+    for path in sorted(PACKAGE.rglob("*.py")):
+        for name in _named_in(path, names):
+            files[name].append(path.relative_to(PACKAGE).as_posix())
+    assert {name: where for name, where in files.items() if len(where) > 3} == {}
+    assert all(files.values()), "each name is found somewhere (the search works)"

@@ -9,7 +9,7 @@ checks that the kernels' coefficient tables agree with them.
 from typing import NamedTuple
 
 __all__ = ["ATTITUDE_FIGURES", "ACCURATE_STEPPING", "AUTO", "AUTO_STEPPING", "CHAOS_FIGURES", "CHAOS_INDICATORS", "CHAOS_STARTS", "CHOICES",
-           "DEFAULT_MODEL", "FIGURES", "FIGURE_MODELS", "FIT_NAMES", "FORMATS", "FigureModel", "INDICATOR_STATUSES",
+           "DEFAULT_MODEL", "FIGURES", "FREE_BODY", "FIGURE_MODELS", "FIT_NAMES", "FORMATS", "FigureModel", "INDICATOR_STATUSES",
            "LIE_POISSON_MODELS", "METHODS", "MIN_AMPLITUDE", "MODELS",
            "MODEL_KINDS", "MODEL_PARAMETERS", "MODEL_STEPPING", "Method", "Model", "ModelParameter", "PER_SAMPLE_ARRAYS", "SAMPLE_STATUS_NAMES",
            "STATE_BLOCKS", "STATUSES", "STATUS_ABOVE", "STATUS_DRIFT", "STATUS_NAMES", "STATUS_NONFINITE", "STATUS_OK", "STEPPING",
@@ -379,8 +379,11 @@ assert len(_PARAMETER_BY_KEY) == len(MODEL_PARAMETERS), "a study key names one m
 #: Model kinds, in the order of :data:`MODELS`.
 MODEL_KINDS = tuple(_MODEL_BY_NAME)
 
+#: The kind of the torque-free body (the gyrostat's equations with no rotor: its fused steps use them too).
+FREE_BODY = MODELS[0].name
+
 #: The model of a study that names none.
-DEFAULT_MODEL = "free"
+DEFAULT_MODEL = FREE_BODY
 
 #: The models the Lie–Poisson splittings (symplectic_euler, splitting2, splitting4) step: Lie–Poisson systems in the
 #: model kernels' variables (the free body as the gyrostat with h = 0). Not the damper (dissipative) nor the gravity

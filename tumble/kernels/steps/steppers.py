@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from ...registry import TORQUE_USER, rigid_body, torque_profile  # noqa: F401  (TORQUE_USER re-exported)
+from ...registry import FREE_BODY, TORQUE_USER, rigid_body, torque_profile  # noqa: F401  (TORQUE_USER re-exported)
 from ..jit import jit
 from ..systems import SYSTEMS
 from ..tableaux import ROTATE_1, ROTATE_2, SPLITTING2, SPLITTING4, SYMPLECTIC_EULER, TORQUE
@@ -31,7 +31,7 @@ TORQUE_CONSTANT, TORQUE_RAMP, TORQUE_SINE, TORQUE_PULSE = (torque_profile(name).
                                                            for name in ("constant", "ramp", "sine", "pulse"))
 
 #: Euler's equations (``a_i w_j w_k``) as the free body's system writes them (the gyrostat's module, ``h = 0``).
-euler = SYSTEMS["free"].euler
+euler = SYSTEMS[FREE_BODY].euler
 
 # Implicit midpoint: fixed-point iterations stop once the update is below this many ulps of the state.
 _MIDPOINT_ULPS = 4.0
