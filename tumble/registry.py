@@ -8,11 +8,11 @@ checks that the kernels' coefficient tables agree with them.
 
 from typing import NamedTuple
 
-__all__ = ["ATTITUDE_FIGURES", "ACCURATE_STEPPING", "AUTO", "AUTO_STEPPING", "CHAOS_FIGURES", "CHAOS_INDICATORS", "CHAOS_STARTS", "CHOICES",
-           "DEFAULT_MODEL", "FIGURES", "FREE_BODY", "FIGURE_MODELS", "FIT_NAMES", "FORMATS", "FigureModel", "INDICATOR_STATUSES",
+__all__ = ["ADAPTIVE_STATUSES", "ATTITUDE_FIGURES", "ACCURATE_STEPPING", "AUTO", "AUTO_STEPPING", "CHAOS_FIGURES", "CHAOS_INDICATORS", "CHAOS_STARTS", "CHOICES",
+           "DEFAULT_MODEL", "ERROR_CONTROLLED", "FIGURES", "FREE_BODY", "FIGURE_MODELS", "FIT_NAMES", "FORMATS", "FigureModel", "INDICATOR_STATUSES",
            "LIE_POISSON_MODELS", "METHODS", "MIN_AMPLITUDE", "MODELS",
            "MODEL_KINDS", "MODEL_PARAMETERS", "MODEL_STEPPING", "Method", "Model", "ModelParameter", "PER_SAMPLE_ARRAYS", "SAMPLE_STATUS_NAMES",
-           "STATE_BLOCKS", "STATUSES", "STATUS_ABOVE", "STATUS_DRIFT", "STATUS_NAMES", "STATUS_NONFINITE", "STATUS_OK", "STEPPING",
+           "STATE_BLOCKS", "STATUSES", "STATUS_ABOVE", "STATUS_DRIFT", "STATUS_LIMIT", "STATUS_NAMES", "STATUS_NONFINITE", "STATUS_OK", "STATUS_UNDERFLOW", "STEPPING",
            "Status", "TORQUE_PROFILES", "TORQUE_USER", "TorqueProfile", "amplitude_problem", "choose_method", "method",
            "model_kind", "model_methods", "model_parameter", "state_blocks", "tangent_methods", "torque_profile"]
 
@@ -117,6 +117,16 @@ STATUS_OK, STATUS_NONFINITE, STATUS_DRIFT = (STATUS_NAMES.index(name) for name i
 INDICATOR_STATUSES = (*STATUSES, Status("megno above threshold", "its mean MEGNO <Y> passed stop_above (chaotic): "
                                                                 "stopped there (tumble.megno)"))
 STATUS_ABOVE = len(STATUSES)
+#: Per-sample statuses of an error-controlled run (:data:`ERROR_CONTROLLED`): the indicators', then the step
+#: control's two stops (codes apart from every other status's, so that a code means one thing wherever it is read).
+ADAPTIVE_STATUSES = (*INDICATOR_STATUSES,
+                     Status("step underflow", "the error control asked for a step too small to advance the time (a "
+                                              "singularity, or a tolerance the arithmetic cannot meet): stopped there"),
+                     Status("step limit", "max_steps steps (accepted and rejected) did not reach t_end: stopped there"))
+STATUS_UNDERFLOW, STATUS_LIMIT = len(INDICATOR_STATUSES), len(INDICATOR_STATUSES) + 1
+#: The error-controlled methods: each sample takes its own steps to a tolerance (rtol, atol), the outputs read off
+#: its dense output (:mod:`tumble.kernels.loops.adaptive_loop`).
+ERROR_CONTROLLED = ("dop853",)
 #: Outcomes of a sample's rate fit, by code (:mod:`tumble.kernels.fits` writes the codes).
 FIT_NAMES = ("ok", "fit window too short", "no signal", "undersampled")
 #: Per-sample status of a scene, as written in files: the engine's statuses, then the fit's failures.

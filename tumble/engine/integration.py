@@ -19,6 +19,7 @@ from ..registry import STATUS_NAMES, STATUS_OK
 from . import cost
 from .device import check_on_device, resolve_device, stepper
 from .ensemble import check_torque_step, checked_torque, run_planned
+from .adaptive_runs import FLAG_MEANINGS as ADAPTIVE_FLAG_MEANINGS, FLAG_VALUES as ADAPTIVE_FLAG_VALUES, run_adaptive
 from .system_runs import added_tableau, is_system, run_system
 
 __all__ = ["integrate", "propagate", "METHOD_NAMES"]
@@ -139,6 +140,40 @@ def _free_body_by_tableau(body, w0, t_end, dt, method, torque, save_every, attit
     return _system_run(FreeBody(one_body(body)), w0, t_end, dt, method, None, save_every, None, device)
 
 
+def _fixed_steps_only(method, dt, rtol, atol, times, max_steps):
+    """A fixed-step ``method`` takes ``dt`` (and ``save_every``), never a tolerance's arguments."""
+    given = [name for name, value in (("rtol", rtol), ("atol", atol), ("times", times), ("max_steps", max_steps))
+             if value is not None]
+    if given:
+        raise ValueError(f"{', '.join(given)}: for an error-controlled run (method='dop853'); method {method!r} takes a "
+                         f"fixed step dt and save_every")
+    if dt is None:
+        raise ValueError(f"dt (s) is required for the fixed-step method {method!r}; an error-controlled run names "
+                         f"method='dop853' and a tolerance (rtol, atol) instead")
+
+
+def _adaptive_run(body, w0, t_end, dt, torque, save_every, attitude, parameters, device, tolerance):
+    # size: integrate's and propagate's arguments, each checked or passed on once
+    """An error-controlled run (:func:`tumble.engine.adaptive_runs.run_adaptive`) of a system, or of a ``Body`` as
+    :class:`tumble.models.FreeBody`: ``(AdaptiveRun, single)``. ``tolerance``: ``(rtol, atol, times, max_steps)``."""
+    rtol, atol, times, max_steps = tolerance
+    if save_every is not None:
+        raise ValueError("save_every counts fixed steps; method 'dop853' gives its states at output times "
+                         "(integrate's times=[...]), read off its dense output")
+    if is_system(body):
+        _no_torque_or_attitude(body, torque, attitude)
+        system, name = body, "y0"
+    else:
+        if parameters is not None:
+            raise ValueError("parameters are a model's or a System's; a free body has none (its moments are the body)")
+        if attitude or _has_torque(torque):
+            raise ValueError("method 'dop853' steps a free body torque-free and without its attitude; a torque or "
+                             f"attitude=True needs a fixed-step method ({', '.join(m for m in METHOD_NAMES if m != 'exact')})")
+        system, name = FreeBody(one_body(body)), "w0"
+    return run_adaptive(system, w0, t_end, times=times, rtol=rtol, atol=atol, first_step=dt, max_steps=max_steps,
+                        parameters=parameters, device=device, y0_name=name)
+
+
 def _system_run(system, y0, t_end, dt, method, torque, save_every, parameters, device, attitude=False):
     # size: integrate's and propagate's arguments, passed on once for both
     _no_torque_or_attitude(system, torque, attitude)
@@ -148,8 +183,9 @@ def _system_run(system, y0, t_end, dt, method, torque, save_every, parameters, d
                       parameters=parameters, device=device)
 
 
-def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None, parameters=None, device="cpu"):
-    # size: the contract's arguments (DESIGN.md): the free body's, a system's parameters, the device
+def propagate(body, w0, t_end, dt=None, method="rk4", *, torque=None, save_every=None, parameters=None, device="cpu",
+              rtol=None, atol=None, max_steps=None):
+    # size: the contract's arguments (DESIGN.md): the free body's, a system's parameters, the device, a tolerance
     """Integrate Euler's equations and return the spins as an array: the lean path of :func:`integrate`.
 
     The same validation, step plan and kernels as :func:`integrate` (the results are the same bits), without
@@ -167,10 +203,12 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
         Initial body-frame angular velocities, rad/s; a system's states, shape (N, n) or (n,).
     t_end, dt : float
         Horizon (>= 0) and step (> 0), s; the step is shortened to ``t_end / ceil(t_end / dt)`` when
-        ``t_end / dt`` is not a whole number, so that the run ends exactly at ``t_end``.
+        ``t_end / dt`` is not a whole number, so that the run ends exactly at ``t_end``. With ``method="dop853"``
+        ``dt`` is the first step (None: chosen).
     method : str
         A fixed-step method, ``"exact"`` (:data:`tumble.registry.METHODS`) or ``"auto"`` (the closed form when
-        torque-free, else ``rk4``); or a tableau added at run time (as :func:`integrate`).
+        torque-free, else ``rk4``); or a tableau added at run time (as :func:`integrate`); or ``"dop853"``, error
+        controlled (as :func:`integrate`).
     torque : None, array_like (3,), mapping or callable
         As :func:`integrate` (``None`` or zero: torque-free).
     save_every : int, optional
@@ -180,6 +218,8 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
     device : str
         ``"cpu"`` or ``"cuda"`` (:func:`tumble.engine.device.resolve_device`; the closed form too, one thread per
         sample: :func:`tumble.physics.exact.omega_on_device`; not yet a torque function).
+    rtol, atol, max_steps
+        ``method="dop853"`` only: as :func:`integrate`.
 
     Returns
     -------
@@ -195,6 +235,11 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
         device that is unknown, missing, or cannot run this yet (``device 'cuda': ...``).
     """
     device = resolve_device(device)  # once, here at the door: the runs below trust it
+    if method in registry.ERROR_CONTROLLED:
+        run, single = _adaptive_run(body, w0, t_end, dt, torque, save_every, False, parameters, device,
+                                    (rtol, atol, None, max_steps))
+        return run.final[0] if single else run.final
+    _fixed_steps_only(method, dt, rtol, atol, None, max_steps)
     if is_system(body) or (added_tableau(method) and parameters is None):
         result, single = (_system_run(body, w0, t_end, dt, method, torque, save_every, parameters, device)
                           if is_system(body) else
@@ -227,8 +272,8 @@ def propagate(body, w0, t_end, dt, method="rk4", *, torque=None, save_every=None
     return out[0] if single else out
 
 
-def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=None, attitude=False, *, parameters=None,
-              device="cpu"):
+def integrate(body, w0, t_end, dt=None, method="rk4", torque=(0, 0, 0), save_every=None, attitude=False, *,
+              parameters=None, device="cpu", rtol=None, atol=None, times=None, max_steps=None):
     # size: the contract's eight arguments (DESIGN.md), a system's parameters and the device keyword every engine
     # call takes
     """Integrate Euler's equations for an ensemble of initial spins.
@@ -240,6 +285,10 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
     :class:`tumble.System` in place of the body integrates that system's equations instead, on the same fixed steps
     (rk4, rk8; the Lie–Poisson splittings for the models that have them): its states ``w0`` have shape (N, n), and
     the Dataset holds ``state(sample, time, component)`` with the component names of the system (``spec.state``).
+
+    ``method="dop853"`` takes a tolerance instead of a step, for any of them (a free body torque-free, without its
+    attitude): Dormand and Prince's eighth-order pair with Hairer's step-size control, each sample its own steps,
+    the states at ``times`` read off its dense output of order 7 (:mod:`tumble.kernels.loops.adaptive_loop`).
 
     Parameters
     ----------
@@ -253,11 +302,12 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
     dt : float
         Step, s (> 0). When ``t_end / dt`` is not an integer the step is shortened to
         ``t_end / ceil(t_end / dt)`` so the run ends exactly at ``t_end``; the step used is in
-        ``attrs["dt"]``.
+        ``attrs["dt"]``. With ``method="dop853"``: the first step (None: chosen).
     method : str
         One of ``"rk4"``, ``"rk8"``, ``"symplectic_euler"``, ``"splitting2"``, ``"splitting4"``,
         ``"implicit_midpoint"``, ``"exact"``; or a Butcher tableau added to :data:`tumble.kernels.TABLEAUX` at run
-        time (torque-free, without the attitude: the per-sample loop, as :class:`tumble.models.FreeBody`).
+        time (torque-free, without the attitude: the per-sample loop, as :class:`tumble.models.FreeBody`); or
+        ``"dop853"``, error-controlled.
     torque : array_like, shape (3,), or callable
         Body-frame torque, N m: three constants, or a function ``f(t, w1, w2, w3) -> (N1, N2, N3)``
         (numba-jitted, or jittable in nopython mode). Zero torque is compiled out of the kernel.
@@ -271,7 +321,16 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
     parameters : mapping, optional
         A model's or a System's parameters, by name, in place of its own (a free body has none).
     device : str
-        ``"cpu"`` or ``"cuda"`` (as :func:`propagate`; recorded in ``attrs["device"]``).
+        ``"cpu"`` or ``"cuda"`` (as :func:`propagate`; recorded in ``attrs["device"]``; ``"dop853"`` runs on the
+        CPU).
+    rtol, atol : float or array_like (n,), optional
+        ``method="dop853"``: the tolerance of each step's error estimate, ``|err_j| <= atol_j + rtol_j |y_j|`` in
+        Hairer's norm; scalars or one per state component (None: 1e-10 and 1e-12; ``rtol >= 1e-14``).
+    times : array_like, optional
+        ``method="dop853"``: the output times, s, increasing within ``[0, t_end]`` (None: ``t_end``).
+    max_steps : int, optional
+        ``method="dop853"``: the steps (accepted and rejected) a sample may take (None: 1 000 000); one that needs
+        more stops with status "step limit", one whose step underflows with "step underflow".
 
     Returns
     -------
@@ -280,7 +339,9 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
         and attributes recording the method, step, step count and torque; with ``attitude=True`` also
         ``quaternion(sample, time, component)`` (component 0 the scalar part). For a system:
         ``state(sample, time, component)``, ``component`` the names of its state, ``status(sample)``, and the
-        system's name and parameters in the attributes.
+        system's name and parameters in the attributes. With ``method="dop853"`` also ``steps(sample)`` and
+        ``rejected_steps(sample)``, ``rtol`` and ``atol`` in the attributes, and ``status`` with the step control's
+        stops (:data:`tumble.registry.ADAPTIVE_STATUSES`).
 
     Raises
     ------
@@ -288,6 +349,11 @@ def integrate(body, w0, t_end, dt, method="rk4", torque=(0, 0, 0), save_every=No
         Invalid moments, spins, horizon, step, method, torque or save interval, or ``"exact"`` with a torque.
     """
     device = resolve_device(device)  # once, here at the door: the runs below trust it
+    if method in registry.ERROR_CONTROLLED:
+        run, _ = _adaptive_run(body, w0, t_end, dt, torque, save_every, attitude, parameters, device,
+                               (rtol, atol, times, max_steps))
+        return _adaptive_dataset(run, None if is_system(body) else one_body(body), device)
+    _fixed_steps_only(method, dt, rtol, atol, times, max_steps)
     if is_system(body):
         return _system_dataset(*_system_run(body, w0, t_end, dt, method, torque, save_every, parameters, device,
                                             attitude), t_end, device)
@@ -395,6 +461,47 @@ def _system_dataset(result, single, t_end, device):
         "device": device,
         **{f"parameter_{key}": value for key, value in result.parameters.items()},
     }
+    return indexed_dataset(variables, attrs)
+
+
+def _adaptive_dataset(run, moments, device):
+    """:func:`integrate`'s Dataset of an error-controlled run: a free body's ``omega(sample, time, axis)`` (``moments``
+    not None) or a system's ``state(sample, time, component)``, with each sample's steps and rejected steps."""
+    stopped = run.status != STATUS_OK
+    if stopped.any():
+        counts = {registry.ADAPTIVE_STATUSES[code].name: int(np.count_nonzero(run.status == code))
+                  for code in np.unique(run.status[stopped])}
+        warnings.warn(f"{int(stopped.sum())} of {len(run.final)} samples of {run.name!r} stopped before t_end "
+                      f"({', '.join(f'{n} {name}' for name, n in counts.items())}; status says which, their later "
+                      f"states are the ones they stopped with)", RuntimeWarning, stacklevel=3)
+    if moments is not None:
+        variables = {
+            "omega": (("sample", "time", "axis"), run.states, {"units": "rad/s",
+                                                               "long_name": "body-frame angular velocity"}),
+            "axis": ("axis", np.array([1, 2, 3]), {"long_name": "principal axis (1-based)"}),
+        }
+        attrs = {"moments": moments}
+    else:
+        variables = {
+            "state": (("sample", "time", "component"), run.states,
+                      {"units": run.units[0] if len(set(run.units)) == 1 else "see component_units",
+                       "long_name": f"state of {run.name}"}),
+            "component": ("component", np.array(run.components), {"long_name": "state component"}),
+            "component_units": ("component", np.array(run.units), {"long_name": "units of each state component"}),
+        }
+        attrs = {"system": run.name, **{f"parameter_{key}": value for key, value in run.parameters.items()}}
+    variables.update({
+        "status": ("sample", run.status, {"long_name": "sample status", "flag_values": ADAPTIVE_FLAG_VALUES.copy(),
+                                          "flag_meanings": ADAPTIVE_FLAG_MEANINGS}),
+        "steps": ("sample", run.steps, {"long_name": "accepted steps"}),
+        "rejected_steps": ("sample", run.rejected, {"long_name": "rejected steps (error above the tolerance)"}),
+        "sample": ("sample", np.arange(len(run.final)), {"long_name": "ensemble member"}),
+        "time": ("time", run.times, {"units": "s", "long_name": "time"}),
+    })
+    tolerance = {key: (float(value[0]) if np.all(value == value[0]) else value.copy())
+                 for key, value in (("rtol", run.rtol), ("atol", run.atol))}
+    attrs.update({"method": "dop853", "order": 8, **tolerance, "t_end": run.t_end,
+                  "n_stopped": int(stopped.sum()), "path": "per-sample loop, error-controlled", "device": device})
     return indexed_dataset(variables, attrs)
 
 

@@ -19,7 +19,7 @@ from typing import NamedTuple
 import numpy as np
 
 __all__ = [
-    "ALL_METHODS", "ButcherTableau", "TABLEAUX", "IMPLICIT_MIDPOINT", "METHOD_ORDER", "RK4", "RK8", "SYMPLECTIC_EULER",
+    "ALL_METHODS", "ButcherTableau", "DOP853", "ErrorControl", "TABLEAUX", "IMPLICIT_MIDPOINT", "METHOD_ORDER", "RK4", "RK8", "SYMPLECTIC_EULER",
     "SPLITTING2", "SPLITTING4", "Splitting",
     "ROTATE_1", "ROTATE_2", "ROTATE_3", "TORQUE",
 ]
@@ -148,6 +148,45 @@ _DOP853_A = [
 ]
 
 RK8 = ButcherTableau.build("rk8", 8, _DOP853_A, _DOP853_B, _DOP853_C)
+
+
+class ErrorControl(NamedTuple):
+    """An explicit Runge–Kutta method with an embedded error estimate and a dense output: its tableau, whose last
+    stage is evaluated at ``y1`` (``c = 1``, ``A``'s last row ``b``), and then ``f(t + h, y1)`` (the next step's
+    first stage, "first same as last") as one more stage, ``k_s`` for ``s = 0 .. s``."""
+
+    name: str
+    order: int
+    tableau: ButcherTableau
+    error_order: int  # the order of the error estimate (the step-size control's exponent is 1 / (error_order + 1))
+    e5: np.ndarray  # (s + 1,): the fifth-order estimate's weights of the stages and f(t + h, y1)
+    e3: np.ndarray  # (s + 1,): the third-order estimate's
+    extra_a: np.ndarray  # (3, s + 4): the dense output's three more stages (rows of A, over every stage before them)
+    extra_c: np.ndarray  # (3,)
+    dense: np.ndarray  # (4, s + 4): the interpolant's coefficients of degree 4 to 7 (over every stage)
+
+
+# DOP853's error estimates and its dense output of order 7 (Hairer, Norsett & Wanner, sect. II.6 and II.10; the
+# coefficients of dop853.f, identical to SciPy's dop853_coefficients.py, which tests/test_adaptive.py compares).
+_DOP853_E5 = [0.01312004499419488, 0.0, 0.0, 0.0, 0.0, -1.2251564463762044, -0.4957589496572502, 1.6643771824549864, -0.35032884874997366, 0.3341791187130175, 0.08192320648511571, -0.022355307863886294, 0.0]
+_DOP853_E3 = [-0.18980075407240762, 0.0, 0.0, 0.0, 0.0, 4.450312892752409, 1.8915178993145003, -5.801203960010585, -0.4226823213237919, -0.1521609496625161, 0.20136540080403034, 0.02265179219836082, 0.0]
+_DOP853_EXTRA_C = [0.1, 0.2, 0.7777777777777778]
+_DOP853_EXTRA_A = [
+    [0.056167502283047954, 0.0, 0.0, 0.0, 0.0, 0.0, 0.25350021021662483, -0.2462390374708025, -0.12419142326381637, 0.15329179827876568, 0.00820105229563469, 0.007567897660545699, -0.008298],
+    [0.03183464816350214, 0.0, 0.0, 0.0, 0.0, 0.028300909672366776, 0.053541988307438566, -0.05492374857139099, 0.0, 0.0, -0.00010834732869724932, 0.0003825710908356584, -0.00034046500868740456, 0.1413124436746325],
+    [-0.42889630158379194, 0.0, 0.0, 0.0, 0.0, -4.697621415361164, 7.683421196062599, 4.06898981839711, 0.3567271874552811, 0.0, 0.0, 0.0, -0.0013990241651590145, 2.9475147891527724, -9.15095847217987],
+]
+_DOP853_DENSE = [
+    [-8.428938276109013, 0.0, 0.0, 0.0, 0.0, 0.5667149535193777, -3.0689499459498917, 2.38466765651207, 2.117034582445028, -0.871391583777973, 2.2404374302607883, 0.6315787787694688, -0.08899033645133331, 18.148505520854727, -9.194632392478356, -4.436036387594894],
+    [10.427508642579134, 0.0, 0.0, 0.0, 0.0, 242.28349177525817, 165.20045171727028, -374.5467547226902, -22.113666853125306, 7.733432668472264, -30.674084731089398, -9.332130526430229, 15.697238121770845, -31.139403219565178, -9.35292435884448, 35.81684148639408],
+    [19.985053242002433, 0.0, 0.0, 0.0, 0.0, -387.0373087493518, -189.17813819516758, 527.8081592054236, -11.57390253995963, 6.8812326946963, -1.0006050966910838, 0.7777137798053443, -2.778205752353508, -60.19669523126412, 84.32040550667716, 11.99229113618279],
+    [-25.69393346270375, 0.0, 0.0, 0.0, 0.0, -154.18974869023643, -231.5293791760455, 357.6391179106141, 93.40532418362432, -37.45832313645163, 104.0996495089623, 29.8402934266605, -43.53345659001114, 96.32455395918828, -39.17726167561544, -149.72683625798564],
+]
+
+DOP853 = ErrorControl("dop853", 8, RK8, 7, np.array(_DOP853_E5), np.array(_DOP853_E3),
+                      np.array([row + [0.0] * (16 - len(row)) for row in _DOP853_EXTRA_A]), np.array(_DOP853_EXTRA_C),
+                      np.array(_DOP853_DENSE))
+assert DOP853.e5.shape == DOP853.e3.shape == (13,) and DOP853.extra_a.shape == (3, 16) and DOP853.dense.shape == (4, 16)
 
 
 class ImplicitMidpoint(NamedTuple):

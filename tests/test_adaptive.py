@@ -1,0 +1,185 @@
+"""Error-controlled runs (method="dop853"): coefficients, accuracy against closed forms and SciPy, step counts, stops,
+bad input.
+
+One per-sample kernel per system is compiled per process (a closure over the rate), so the systems here are made once
+per module and shared.
+"""
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+from scipy.integrate._ivp import dop853_coefficients as reference
+
+import tumble
+from tumble import exact, registry
+from tumble.engine.adaptive_runs import MIN_RTOL
+from tumble.kernels.tableaux import DOP853
+
+BODY = (1.0, 2.0, 3.0)
+SPINS = np.array([[0.1, 1.0, 0.05], [0.3, 0.2, 1.0], [1.0, 0.05, 0.1]])
+
+
+def _euler(p, w):
+    i1, i2, i3 = p
+    return [(i2 - i3) / i1 * w[1] * w[2], (i3 - i1) / i2 * w[2] * w[0], (i1 - i2) / i3 * w[0] * w[1]]
+
+
+def _pendulum_rate(t, y, p, dydt):
+    dydt[0] = y[1]
+    dydt[1] = -p[0] * math.sin(y[0]) - p[1] * y[1]
+
+
+def _blow_up_rate(t, y, p, dydt):
+    dydt[0] = y[0] * y[0]  # y = 1 / (1 - t): a singularity at t = 1
+
+
+@pytest.fixture(scope="module")
+def pendulum():
+    return tumble.System(_pendulum_rate, state=("x", "v"), parameters={"k": 4.0, "c": 0.1}, name="pendulum")
+
+
+@pytest.fixture(scope="module")
+def blow_up():
+    return tumble.System(_blow_up_rate, state=("y",), name="blow_up")
+
+
+def test_the_coefficients_are_hairers_as_scipy_distributes_them():
+    n = DOP853.tableau.A.shape[0]
+    np.testing.assert_array_equal(DOP853.tableau.A, reference.A[:n, :n])
+    np.testing.assert_array_equal(DOP853.tableau.b, reference.B)
+    np.testing.assert_array_equal(DOP853.e5, reference.E5)
+    np.testing.assert_array_equal(DOP853.e3, reference.E3)
+    np.testing.assert_array_equal(DOP853.extra_a, reference.A[n + 1:])
+    np.testing.assert_array_equal(DOP853.extra_c, reference.C[n + 1:])
+    np.testing.assert_array_equal(DOP853.dense, reference.D)
+    # each extra stage is consistent (its row sums to its time), and the error weights of a constant rate vanish
+    np.testing.assert_allclose(DOP853.extra_a.sum(axis=1), DOP853.extra_c, atol=1e-14)
+    assert abs(DOP853.e5.sum()) < 1e-14 and abs(DOP853.e3.sum()) < 1e-14
+
+
+def test_a_free_body_meets_its_tolerance_against_the_closed_form_at_dense_output_times():
+    times = np.linspace(0.0, 40.0, 57)  # most of them inside steps: the dense output's
+    errors = {}
+    for rtol in (1e-6, 1e-9, 1e-12):
+        ds = tumble.integrate(BODY, SPINS, 40.0, method="dop853", rtol=rtol, atol=rtol * 1e-2, times=times)
+        errors[rtol] = np.abs(ds.omega.values - exact.omega(BODY, SPINS, times)).max()
+        assert (ds.status.values == registry.STATUS_OK).all()
+        assert errors[rtol] < 300 * rtol, (rtol, errors[rtol])  # a global error some steps' worth of the local one
+    assert errors[1e-6] > 30 * errors[1e-9] > 30 * 30 * errors[1e-12]  # it follows the tolerance
+
+
+def test_its_steps_are_scipys_dop853_steps_and_its_states_agree():
+    ds = tumble.integrate(BODY, SPINS, 50.0, method="dop853", rtol=1e-10, atol=1e-12)
+    for i, w0 in enumerate(SPINS):
+        sol = solve_ivp(lambda t, w: _euler(BODY, w), (0.0, 50.0), w0, method="DOP853", rtol=1e-10, atol=1e-12)
+        accepted = len(sol.t) - 1
+        assert abs(int(ds.steps[i]) - accepted) <= max(2, accepted // 50)  # the same control, to a step or two
+        assert abs(int(ds.steps[i] + ds.rejected_steps[i]) - (sol.nfev - 2) // 12) <= max(3, accepted // 25)
+        np.testing.assert_allclose(ds.omega.values[i, -1], sol.y[:, -1], rtol=0, atol=2e-9)
+
+
+def test_a_users_system_agrees_with_scipy_at_its_tightest_tolerance(pendulum):
+    y0 = np.array([[2.5, 0.0], [0.1, 1.0], [-3.0, 2.0]])
+    times = np.linspace(0.0, 20.0, 9)
+    ds = tumble.integrate(pendulum, y0, 20.0, method="dop853", rtol=1e-13, atol=1e-15, times=times)
+    assert ds.state.dims == ("sample", "time", "component") and list(ds.component.values) == ["x", "v"]
+    for i in range(len(y0)):
+        sol = solve_ivp(lambda t, y: [y[1], -4.0 * math.sin(y[0]) - 0.1 * y[1]], (0.0, 20.0), y0[i],
+                        method="DOP853", rtol=2.3e-14, atol=1e-16, t_eval=times)
+        np.testing.assert_allclose(ds.state.values[i], sol.y.T, rtol=0, atol=1e-10)
+
+
+@pytest.mark.slow  # its own kernel's compile (3 s)
+def test_a_built_in_model_agrees_with_its_fixed_step_rk8():
+    top = tumble.models.HeavyTop((1.0, 1.0, 0.5), 1.0)
+    g = np.array([0.05, 0.0, 1.0]) / math.hypot(0.05, 1.0)
+    y0 = np.array([[0.1, 0.0, 3.0, *g], [0.5, -0.2, 1.0, *g]])
+    adaptive = tumble.propagate(top, y0, 10.0, method="dop853", rtol=1e-12, atol=1e-14)
+    fixed = tumble.propagate(top, y0, 10.0, 2e-3, method="rk8")
+    np.testing.assert_allclose(adaptive, fixed, rtol=0, atol=1e-10)
+
+
+def test_propagate_gives_integrates_final_states_and_a_single_state_stays_single(pendulum):
+    y0 = np.array([[1.0, 0.0], [0.2, -0.3]])
+    ds = tumble.integrate(pendulum, y0, 5.0, method="dop853", rtol=1e-9)
+    np.testing.assert_array_equal(tumble.propagate(pendulum, y0, 5.0, method="dop853", rtol=1e-9),
+                                  ds.state.values[:, -1])
+    assert tumble.propagate(pendulum, y0[0], 5.0, method="dop853", rtol=1e-9).shape == (2,)
+
+
+def test_per_component_tolerances_and_a_given_first_step(pendulum):
+    y0 = np.array([[1.0, 0.0]])
+    loose = tumble.integrate(pendulum, y0, 5.0, method="dop853", rtol=[1e-4, 1e-12], atol=[1e-6, 1e-14])
+    assert isinstance(loose.attrs["rtol"], np.ndarray) and loose.attrs["rtol"].tolist() == [1e-4, 1e-12]
+    tight = tumble.integrate(pendulum, y0, 5.0, method="dop853", rtol=1e-12, atol=1e-14, dt=1e-3)
+    assert int(tight.steps[0]) > 10
+
+
+@pytest.mark.slow  # its own kernel's compile (3 s)
+def test_a_singularity_stops_its_sample_with_step_underflow_and_a_warning(blow_up):
+    with pytest.warns(RuntimeWarning, match=r"1 of 2 samples of 'blow_up' stopped before t_end \(1 step underflow"):
+        ds = tumble.integrate(blow_up, [[1.0], [-1.0]], 2.0, method="dop853", times=[0.5, 2.0])
+    assert ds.status.values.tolist() == [registry.STATUS_UNDERFLOW, registry.STATUS_OK]
+    assert "step_underflow" in ds.status.attrs["flag_meanings"].split()
+    assert ds.state.values[0, 0, 0] == pytest.approx(2.0, rel=1e-9)  # before the singularity: 1 / (1 - t)
+    assert np.isfinite(ds.state.values).all() and ds.state.values[0, 1, 0] > 1e6  # the state it stopped with
+    assert ds.state.values[1, 1, 0] == pytest.approx(-1.0 / 3.0, rel=1e-9)
+
+
+def test_too_few_steps_stop_with_step_limit(pendulum):
+    with pytest.warns(RuntimeWarning, match="step limit"):
+        ds = tumble.integrate(pendulum, [[1.0, 0.0]], 50.0, method="dop853", max_steps=5)
+    assert ds.status.values.tolist() == [registry.STATUS_LIMIT]
+    assert int(ds.steps[0] + ds.rejected_steps[0]) == 5
+
+
+@pytest.mark.parametrize("keywords, message", [
+    (dict(rtol=0.0), "rtol must be finite and > 0"),
+    (dict(atol=-1.0), "atol must be finite and > 0"),
+    (dict(rtol=[1e-8]), r"rtol must be a number or one number per state component \(2: x, v\)"),
+    (dict(rtol=1e-16), f"rtol must be >= {MIN_RTOL:g}"),
+    (dict(times=[1.0, 0.5]), "times must be increasing"),
+    (dict(times=[0.0, 9.0]), r"times must lie within \[0, t_end\]"),
+    (dict(save_every=10), "save_every counts fixed steps"),
+    (dict(dt=-1.0), "dt .the first step of an error-controlled run. must be finite and > 0"),
+    (dict(max_steps=0), "max_steps must be an integer >= 1"),
+    (dict(device="cuda"), "device"),
+])
+def test_bad_input_is_one_line_naming_the_argument(pendulum, keywords, message):
+    with pytest.raises(ValueError, match=message):
+        tumble.integrate(pendulum, [[1.0, 0.0]], 5.0, method="dop853", **keywords)
+
+
+def test_a_fixed_step_method_refuses_a_tolerance_and_needs_its_step(pendulum):
+    with pytest.raises(ValueError, match="rtol, times: for an error-controlled run"):
+        tumble.integrate(pendulum, [[1.0, 0.0]], 5.0, 0.01, method="rk4", rtol=1e-8, times=[1.0])
+    with pytest.raises(ValueError, match="dt .s. is required for the fixed-step method 'rk4'"):
+        tumble.propagate(BODY, SPINS, 5.0)
+
+
+def test_a_free_body_with_a_torque_or_its_attitude_needs_a_fixed_step():
+    with pytest.raises(ValueError, match="torque-free and without its attitude"):
+        tumble.integrate(BODY, SPINS, 5.0, method="dop853", torque=(0.0, 0.0, 1.0))
+    with pytest.raises(ValueError, match="torque-free and without its attitude"):
+        tumble.integrate(BODY, SPINS, 5.0, method="dop853", attitude=True)
+
+
+def test_a_non_finite_initial_state_is_refused_naming_it(pendulum):
+    with pytest.raises(ValueError, match="w0 must be finite: sample 1"):
+        tumble.propagate(BODY, [[0.1, 1.0, 0.0], [np.nan, 0.0, 0.0]], 5.0, method="dop853")
+
+
+def test_the_kernel_is_compiled_once_per_system_and_parameters_replace_its_own(pendulum):
+    from tumble.engine.system_runs import compiled
+
+    tumble.propagate(pendulum, [[1.0, 0.0]], 1.0, method="dop853")
+    driver = compiled(pendulum).methods["dop853"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        decay = tumble.propagate(pendulum, [[0.0, 1.0]], 1.0, method="dop853", rtol=1e-12, atol=1e-14,
+                                 parameters={"k": 0.0, "c": 1.0})  # v' = -v
+    assert compiled(pendulum).methods["dop853"] is driver
+    np.testing.assert_allclose(decay[0], [1.0 - math.exp(-1.0), math.exp(-1.0)], rtol=1e-11)

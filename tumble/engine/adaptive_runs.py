@@ -1,0 +1,205 @@
+"""Error-controlled runs: ``method="dop853"`` for the free body, a built-in model or a user's System.
+
+Each sample takes its own steps to the tolerance ``rtol``, ``atol`` (scalars, or one value per state component) and
+its states at the output times are read off the method's dense output of order 7
+(:mod:`tumble.kernels.loops.adaptive_loop`). :func:`run_adaptive` checks the arguments once and runs the kernel; a
+``Body`` runs as :class:`tumble.models.FreeBody` (the free body's rate in the per-sample loop), a built-in model with
+its kernels' own rate (:func:`tumble.kernels.rate_sample`), a System with its rate, probed first as every run probes
+it. The CPU runs one share of the samples per thread; the device does not run it yet.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from .. import registry
+from ..kernels import adaptive_loop
+from ..physics.system import System, with_parameters
+from . import cost
+from .system_runs import compiled, initial_states, probe, sample_loop_system, state_units, system_name
+
+__all__ = ["AdaptiveRun", "DEFAULT_ATOL", "DEFAULT_RTOL", "FLAG_MEANINGS", "FLAG_VALUES", "MAX_STEPS", "MIN_RTOL",
+           "output_times", "run_adaptive", "tolerances"]
+
+#: The tolerances of a run that names none: near the double's limit for the smooth motions tumble studies.
+DEFAULT_RTOL, DEFAULT_ATOL = 1e-10, 1e-12
+
+#: The smallest ``rtol`` a run takes: below it the error estimate is round-off (Hairer's dop853 asks rtol > 10 uround
+#: of its ``atol + rtol |y|``; SciPy raises rtol to 100 eps = 2.2e-14).
+MIN_RTOL = 1e-14
+
+#: Steps (accepted and rejected) a sample may take before it stops with "step limit" (Hairer's ``nmax`` is 1e5).
+MAX_STEPS = 1_000_000
+
+
+class AdaptiveRun(NamedTuple):
+    """What :func:`run_adaptive` returns (arrays per sample first)."""
+
+    final: np.ndarray  # (N, n): the final states (or the states the samples stopped with)
+    times: np.ndarray  # (T,), s: the output times
+    states: np.ndarray  # (N, T, n): the states at the output times
+    status: np.ndarray  # (N,) int8, codes of registry.ADAPTIVE_STATUSES
+    steps: np.ndarray  # (N,) int64: accepted steps
+    rejected: np.ndarray  # (N,) int64: rejected steps
+    rtol: np.ndarray  # (n,)
+    atol: np.ndarray  # (n,)
+    parameters: dict  # name -> value, as run
+    name: str  # the system's name (a model's kind)
+    components: tuple  # names of the state's components
+    units: tuple  # their units ("" where a System does not say)
+    t_end: float  # s
+
+
+def _tolerance(value, default, name, components):
+    """``value`` (None, a number, or one per component) as a float64 array (n,), each finite and > 0."""
+    n = len(components)
+    if value is None:
+        return np.full(n, default)
+    try:
+        array = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number or one number per state component ({', '.join(components)}), "
+                         f"got {value!r}") from None
+    if array.ndim == 0:
+        array = np.full(n, float(array))
+    if array.shape != (n,):
+        raise ValueError(f"{name} must be a number or one number per state component ({n}: {', '.join(components)}), "
+                         f"got shape {np.shape(value)}")
+    if not np.all(np.isfinite(array)) or np.any(array <= 0.0):
+        raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+    return np.ascontiguousarray(array)
+
+
+def tolerances(rtol, atol, components):
+    """``(rtol, atol)`` checked, as arrays (n,): positive, finite, ``rtol >= MIN_RTOL``."""
+    rtol = _tolerance(rtol, DEFAULT_RTOL, "rtol", components)
+    atol = _tolerance(atol, DEFAULT_ATOL, "atol", components)
+    if np.any(rtol < MIN_RTOL):
+        raise ValueError(f"rtol must be >= {MIN_RTOL:g}: below it a double's rounding is the error estimate (the "
+                         f"tolerance cannot be met, and the step underflows), got {float(rtol.min()):g}")
+    return rtol, atol
+
+
+def output_times(times, t_end):
+    """The output times (T,), s: ``[t_end]`` for None; else finite, increasing, within ``[0, t_end]``."""
+    if times is None:
+        return np.array([t_end])
+    try:
+        array = np.array(times, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise ValueError(f"times must be an array of numbers (s), got {times!r}") from None
+    if len(array) == 0 or not np.all(np.isfinite(array)):
+        raise ValueError(f"times must be one or more finite numbers (s), got {times!r}")
+    if np.any(np.diff(array) <= 0.0):
+        raise ValueError("times must be increasing")
+    if array[0] < 0.0 or array[-1] > t_end:
+        raise ValueError(f"times must lie within [0, t_end] = [0, {t_end:g}] s, got {array[0]:g} ... {array[-1]:g}")
+    return np.ascontiguousarray(array)
+
+
+def _checked_scalars(t_end, first_step, max_steps):
+    try:
+        t_end = float(t_end)
+    except (TypeError, ValueError):
+        raise ValueError(f"t_end must be a number (s), got {t_end!r}") from None
+    if not (math.isfinite(t_end) and t_end >= 0.0):
+        raise ValueError(f"t_end must be finite and >= 0, got {t_end!r}")
+    h0 = 0.0
+    if first_step is not None:
+        try:
+            h0 = float(first_step)
+        except (TypeError, ValueError):
+            raise ValueError(f"dt (the first step of an error-controlled run) must be a number (s), got "
+                             f"{first_step!r}") from None
+        if not (math.isfinite(h0) and h0 > 0.0):
+            raise ValueError(f"dt (the first step of an error-controlled run) must be finite and > 0, or None (chosen), "
+                             f"got {first_step!r}")
+    limit = MAX_STEPS if max_steps is None else max_steps
+    if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or limit < 1:
+        raise ValueError(f"max_steps must be an integer >= 1, got {max_steps!r}")
+    return t_end, h0, int(limit)
+
+
+def _kernel(system):
+    """``(drive, p)``: the CPU driver of ``system``'s error-controlled run and its parameter array, made once per
+    process and kept with the system (a model: with the System that runs its kernels' rate)."""
+    if isinstance(system, System):
+        loop_system, p = system, None
+    else:
+        loop_system, p = sample_loop_system(system)
+    made = compiled(loop_system).methods  # method name -> its kernels (no tableau is named dop853)
+    name = adaptive_loop.DOP853.name
+    if name not in made:
+        made[name] = adaptive_loop.make_dop853_driver(adaptive_loop.make_dop853_sample(compiled(loop_system).rate))
+    return made[name], p
+
+
+def run_adaptive(system, y0, t_end, *, times=None, rtol=None, atol=None, first_step=None, max_steps=None,
+                 parameters=None, device="cpu", y0_name="y0"):
+    # size: the run's arguments, each checked once, and the run
+    """Integrate an ensemble of ``system`` (a built-in model or a :class:`System`) with DOP853 to a tolerance.
+
+    Parameters
+    ----------
+    system : Model or System
+    y0 : array_like, shape (N, n) or (n,)
+        Initial states.
+    t_end : float
+        Horizon, s (>= 0).
+    times : array_like, optional
+        Output times, s, increasing within ``[0, t_end]`` (None: ``t_end`` alone).
+    rtol, atol : float or array_like (n,), optional
+        Relative and absolute tolerance of each step's error estimate (None: :data:`DEFAULT_RTOL`,
+        :data:`DEFAULT_ATOL`); ``rtol >= MIN_RTOL``.
+    first_step : float, optional
+        The first step, s (None: Hairer's choice).
+    max_steps : int, optional
+        Steps a sample may take (None: :data:`MAX_STEPS`).
+    parameters : mapping, optional
+        Values in place of the system's own parameters, by name.
+    device : str
+        Resolved by the caller; only ``"cpu"`` runs it.
+    y0_name : str
+        What a message calls ``y0`` (``"w0"``: a free body's spins).
+
+    Returns
+    -------
+    AdaptiveRun, and whether ``y0`` was a single state.
+
+    Raises
+    ------
+    ValueError
+        Any argument out of its range (one line naming it), a rate numba cannot compile or that misbehaves at the
+        initial states, a device other than the CPU.
+    """
+    if device != "cpu":
+        raise ValueError(f"device {device!r}: method 'dop853' runs on the CPU (device='cpu'); the device runs the "
+                         f"fixed-step methods")
+    system, values = with_parameters(system, parameters)
+    t_end, h0, limit = _checked_scalars(t_end, first_step, max_steps)
+    components = system.spec.state
+    rtol, atol = tolerances(rtol, atol, components)
+    marks = output_times(times, t_end)
+    y, single = initial_states(system, y0, y0_name)
+    cost.refuse(cost.run_cost(len(y), 0, len(marks) * y.shape[1] + 2 * y.shape[1]),
+                f"y0 ({len(y):,} states) at {len(marks):,} output times", device)
+    drive, p = _kernel(system)
+    if isinstance(system, System):
+        p = system.parameter_values(parameters)
+        probe(system, y, p, 0.0)
+    state = np.array(y, order="C")
+    out = np.empty((len(y), len(marks), y.shape[1]))
+    status = np.zeros(len(y), dtype=np.int8)
+    steps = np.zeros(len(y), dtype=np.int64)
+    rejected = np.zeros(len(y), dtype=np.int64)
+    drive(state, p, 0.0, t_end, h0, rtol, atol, limit, marks, out, status, steps, rejected)
+    return AdaptiveRun(state, marks, out, status, steps, rejected, rtol, atol, values, system_name(system), components,
+                       state_units(system), t_end), single
+
+
+#: Each status's name as a flag meaning (``status`` of an error-controlled run's Dataset).
+FLAG_VALUES = np.arange(len(registry.ADAPTIVE_STATUSES), dtype=np.int8)
+FLAG_MEANINGS = " ".join(s.name.replace(" ", "_") for s in registry.ADAPTIVE_STATUSES)
