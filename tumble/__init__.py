@@ -31,6 +31,7 @@ _FACE = {
     "run_ensemble": ("tumble.engine.ensemble", "run_ensemble"),
     "integrate": ("tumble.engine.integration", "integrate"),
     "propagate": ("tumble.engine.integration", "propagate"),
+    "section": ("tumble.engine.sections", "section"),
     "lyapunov": ("tumble.engine.chaos", "lyapunov"),
     "megno": ("tumble.engine.chaos", "megno"),
     "gali": ("tumble.engine.chaos", "gali"),
@@ -80,5 +81,5 @@ def __dir__():
 
 
 __all__ = ["Body", "System", "attitude_trace", "check", "exact", "flip_time_law", "gali", "inertia_triangle", "integrate", "io",
-           "lyapunov", "measure", "megno", "models", "propagate", "regress_scan", "rotations", "run_ensemble", "run_study", "sampling", "scan", "shapes",
-           "theory", "__version__"]
+           "lyapunov", "measure", "megno", "models", "propagate", "regress_scan", "rotations", "run_ensemble", "run_study", "sampling", "scan", "section",
+           "shapes", "theory", "__version__"]

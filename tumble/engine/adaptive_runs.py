@@ -21,8 +21,8 @@ from ..physics.system import System, with_parameters
 from . import cost
 from .system_runs import compiled, initial_states, probe, sample_loop_system, state_units, system_name
 
-__all__ = ["AdaptiveRun", "DEFAULT_ATOL", "DEFAULT_RTOL", "FLAG_MEANINGS", "FLAG_VALUES", "MAX_STEPS", "MIN_RTOL",
-           "output_times", "run_adaptive", "tolerances"]
+__all__ = ["AdaptiveRun", "Surface", "DEFAULT_ATOL", "DEFAULT_RTOL", "FLAG_MEANINGS", "FLAG_VALUES", "MAX_STEPS", "MIN_RTOL",
+           "checked_horizon", "output_times", "run_adaptive", "tolerances"]
 
 #: The tolerances of a run that names none: near the double's limit for the smooth motions tumble studies.
 DEFAULT_RTOL, DEFAULT_ATOL = 1e-10, 1e-12
@@ -51,6 +51,22 @@ class AdaptiveRun(NamedTuple):
     components: tuple  # names of the state's components
     units: tuple  # their units ("" where a System does not say)
     t_end: float  # s
+    stopped: np.ndarray  # (N,), s: the time each sample reached (t_end, unless it stopped)
+    crossing_times: np.ndarray  # (N, most), s: a section's crossings (most = 0: no section), NaN past each count
+    crossing_states: np.ndarray  # (N, most, n)
+    crossings: np.ndarray  # (N,) int64: each sample's count
+
+
+class Surface(NamedTuple):
+    """A section's surface, checked (:func:`tumble.engine.sections.section`): ``g = y[component] − value``, or a
+    user's ``g(t, y, p)`` (``function``, compiled); the crossings counted in ``direction`` (1 up, −1 down, 0 both),
+    at most ``most`` per sample."""
+
+    component: int
+    value: float
+    function: object  # None, or the user's g
+    direction: int
+    most: int
 
 
 def _tolerance(value, default, name, components):
@@ -100,13 +116,19 @@ def output_times(times, t_end):
     return np.ascontiguousarray(array)
 
 
-def _checked_scalars(t_end, first_step, max_steps):
+def checked_horizon(t_end):
+    """``t_end`` (s) as a float, finite and >= 0."""
     try:
-        t_end = float(t_end)
+        horizon = float(t_end)
     except (TypeError, ValueError):
         raise ValueError(f"t_end must be a number (s), got {t_end!r}") from None
-    if not (math.isfinite(t_end) and t_end >= 0.0):
+    if not (math.isfinite(horizon) and horizon >= 0.0):
         raise ValueError(f"t_end must be finite and >= 0, got {t_end!r}")
+    return horizon
+
+
+def _checked_scalars(t_end, first_step, max_steps):
+    t_end = checked_horizon(t_end)
     h0 = 0.0
     if first_step is not None:
         try:
@@ -123,22 +145,24 @@ def _checked_scalars(t_end, first_step, max_steps):
     return t_end, h0, int(limit)
 
 
-def _kernel(system):
-    """``(drive, p)``: the CPU driver of ``system``'s error-controlled run and its parameter array, made once per
-    process and kept with the system (a model: with the System that runs its kernels' rate)."""
+def _kernel(system, surface):
+    """``(drive, p)``: the CPU driver of ``system``'s error-controlled run (with the user's ``surface`` function, or
+    the component surface for None) and its parameter array, made once per process and kept with the system (a
+    model: with the System that runs its kernels' rate)."""
     if isinstance(system, System):
         loop_system, p = system, None
     else:
         loop_system, p = sample_loop_system(system)
     made = compiled(loop_system).methods  # method name -> its kernels (no tableau is named dop853)
-    name = adaptive_loop.DOP853.name
-    if name not in made:
-        made[name] = adaptive_loop.make_dop853_driver(adaptive_loop.make_dop853_sample(compiled(loop_system).rate))
-    return made[name], p
+    key = adaptive_loop.DOP853.name if surface is None else (adaptive_loop.DOP853.name, surface)
+    if key not in made:
+        made[key] = adaptive_loop.make_dop853_driver(adaptive_loop.make_dop853_sample(compiled(loop_system).rate,
+                                                                                      surface))
+    return made[key], p
 
 
 def run_adaptive(system, y0, t_end, *, times=None, rtol=None, atol=None, first_step=None, max_steps=None,
-                 parameters=None, device="cpu", y0_name="y0"):
+                 parameters=None, device="cpu", y0_name="y0", surface=None, compiled_surface=None):
     # size: the run's arguments, each checked once, and the run
     """Integrate an ensemble of ``system`` (a built-in model or a :class:`System`) with DOP853 to a tolerance.
 
@@ -164,6 +188,10 @@ def run_adaptive(system, y0, t_end, *, times=None, rtol=None, atol=None, first_s
         Resolved by the caller; only ``"cpu"`` runs it.
     y0_name : str
         What a message calls ``y0`` (``"w0"``: a free body's spins).
+    surface : Surface, optional
+        A section's surface, checked (None: no section).
+    compiled_surface : function, optional
+        The user's ``g`` as the kernel calls it (``surface(t, y, p, component, value)``), when ``surface`` has one.
 
     Returns
     -------
@@ -186,18 +214,28 @@ def run_adaptive(system, y0, t_end, *, times=None, rtol=None, atol=None, first_s
     y, single = initial_states(system, y0, y0_name)
     cost.refuse(cost.run_cost(len(y), 0, len(marks) * y.shape[1] + 2 * y.shape[1]),
                 f"y0 ({len(y):,} states) at {len(marks):,} output times", device)
-    drive, p = _kernel(system)
+    most = surface.most if surface is not None else 0
+    if most:
+        cost.refuse(cost.run_cost(len(y), 0, most * (y.shape[1] + 1)), f"y0 ({len(y):,} states) and max_crossings = "
+                    f"{most:,}", device)
+    drive, p = _kernel(system, compiled_surface)
     if isinstance(system, System):
         p = system.parameter_values(parameters)
         probe(system, y, p, 0.0)
     state = np.array(y, order="C")
-    out = np.empty((len(y), len(marks), y.shape[1]))
+    n = y.shape[1]
+    out = np.empty((len(y), len(marks), n))
+    section = np.array([surface.component, surface.value, surface.direction, most] if most else [0.0, 0.0, 0.0, 0.0])
+    crossing_times = np.full((len(y), most), np.nan)
+    crossing_states = np.full((len(y), most, n), np.nan)
     status = np.zeros(len(y), dtype=np.int8)
-    steps = np.zeros(len(y), dtype=np.int64)
-    rejected = np.zeros(len(y), dtype=np.int64)
-    drive(state, p, 0.0, t_end, h0, rtol, atol, limit, marks, out, status, steps, rejected)
-    return AdaptiveRun(state, marks, out, status, steps, rejected, rtol, atol, values, system_name(system), components,
-                       state_units(system), t_end), single
+    counts = np.zeros((len(y), 3), dtype=np.int64)
+    stopped = np.zeros(len(y))
+    drive(state, p, 0.0, t_end, h0, rtol, atol, limit, marks, out, section, crossing_times, crossing_states, status,
+          counts, stopped)
+    return AdaptiveRun(state, marks, out, status, counts[:, 0].copy(), counts[:, 1].copy(), rtol, atol, values,
+                       system_name(system), components, state_units(system), t_end, stopped, crossing_times,
+                       crossing_states, counts[:, 2].copy()), single
 
 
 #: Each status's name as a flag meaning (``status`` of an error-controlled run's Dataset).

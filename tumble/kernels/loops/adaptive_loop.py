@@ -31,7 +31,7 @@ from ..jit import jit
 from ..tableaux import DOP853
 from .sample_loop import in_shares
 
-__all__ = ["SCRATCH_ROWS", "make_dop853_driver", "make_dop853_sample"]
+__all__ = ["SCRATCH_ROWS", "component_surface", "make_dop853_driver", "make_dop853_sample", "make_user_surface"]
 
 _STAGES = len(DOP853.tableau.b)  # 12; k[12] = f(t + h, y1), k[13..15] the dense output's stages
 _A = np.zeros((16, 16))
@@ -62,17 +62,30 @@ def _stage(s, y, h, k, out):
         out[j] = y[j] + h * total
 
 
-def make_dop853_sample(rate):
-    """``run_sample(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, scratch) -> (status, accepted,
-    rejected)``: one sample's error-controlled run of ``rate(t, y, p, dydt)`` from ``t0`` to ``t_end``.
+def make_dop853_sample(rate, surface=None):
+    # size: the closure holds the whole run of a sample (its loop says why it is one piece)
+    """``run_sample(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, scratch)
+    -> (status, accepted, rejected, crossings, t)``: one sample's error-controlled run of ``rate(t, y, p, dydt)`` from
+    ``t0`` to ``t_end``.
 
-    ``y`` (n,) is advanced in place to ``t_end`` (or frozen where the sample stopped); ``rtol``, ``atol`` (n,);
-    ``h0`` the first step (0: chosen); ``times`` (T,) the output times, increasing, within ``[t0, t_end]``, whose states
-    go to ``out`` (T, n) (the state the sample stopped with after a stop); ``scratch`` (:data:`SCRATCH_ROWS`, n)."""
+    ``y`` (n,) is advanced in place to ``t_end`` (or frozen where the sample stopped, at the time ``t`` returned);
+    ``rtol``, ``atol`` (n,); ``h0`` the first step (0: chosen); ``times`` (T,) the output times, increasing, within
+    ``[t0, t_end]``, whose states go to ``out`` (T, n) (the state the sample stopped with after a stop); ``scratch``
+    (:data:`SCRATCH_ROWS`, n).
+
+    The crossings of a surface ``g = 0``: ``section`` (4,) holds ``(component, value, direction, most)``; ``g`` is
+    ``surface(t, y, p, component, value)``, by default (None) ``y[component] − value`` (:func:`component_surface`).
+    A crossing is a sign change of ``g`` over an accepted step, ``g0 < 0 <= g1`` upward (direction 1), ``g0 > 0 >= g1``
+    downward (−1), either (0); it is located on the dense output by a bracketing root finder (Illinois) to a few
+    ulps of ``t``, its time and state written to ``crossing_t`` (most,) and ``crossing_y`` (most, n). A sample stops
+    (status ok) once it has ``most`` crossings; ``most = 0``: no section (``g`` is never evaluated). A step that
+    crosses twice counts neither (as SciPy's events): the tolerance's steps are short against the motion."""
+    if surface is None:
+        surface = component_surface
 
     @jit(cache=False)
-    def run_sample(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, scratch):
-        # size: Hairer's loop written once: stages, error, step control, dense output, the stops
+    def run_sample(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, scratch):
+        # size: Hairer's loop written once: stages, error, step control, dense output, crossings, the stops
         n = y.shape[0]
         k = scratch[:16]
         stage = scratch[16]
@@ -90,11 +103,14 @@ def make_dop853_sample(rate):
             slot += 1
         accepted = 0
         rejected = 0
+        crossed = 0
+        component, value, direction, most = int(section[0]), section[1], section[2], int(section[3])
         if code != STATUS_OK or t_end <= t0:
             for s in range(slot, times.shape[0]):
                 for j in range(n):
                     out[s, j] = y[j]
-            return code, accepted, rejected
+            return code, accepted, rejected, crossed, t
+        g0 = surface(t, y, p, component, value) if most > 0 else 0.0
         rate(t, y, p, k[0])
         h = h0 if h0 > 0.0 else _first_step(rate, t, y, p, t_end - t, rtol, atol, k[0], stage, y1)
         last_rejected = False
@@ -136,8 +152,20 @@ def make_dop853_sample(rate):
             if err <= 1.0:
                 accepted += 1
                 t_new = t_end if final else t + h
+                built = False
+                if most > 0:
+                    g1 = surface(t_new, y1, p, component, value)
+                    if (direction >= 0.0 and g0 < 0.0 <= g1) or (direction <= 0.0 and g0 > 0.0 >= g1):
+                        _interpolant(rate, y, y1, p, t, h, k, stage, f)
+                        built = True
+                        x = _crossing(surface, f, y, p, t, h, g0, g1, component, value, stage)
+                        crossing_t[crossed] = t_new if x == 1.0 else t + x * h
+                        _dense(f, y, x, crossing_y[crossed])
+                        crossed += 1
+                    g0 = g1
                 if slot < times.shape[0] and times[slot] <= t_new:
-                    _interpolant(rate, y, y1, p, t, h, k, stage, f)
+                    if not built:
+                        _interpolant(rate, y, y1, p, t, h, k, stage, f)
                     while slot < times.shape[0] and times[slot] <= t_new:
                         if times[slot] == t_new:
                             for j in range(n):
@@ -155,6 +183,8 @@ def make_dop853_sample(rate):
                     h_new = min(h_new, h)
                 last_rejected = False
                 h = h_new
+                if most > 0 and crossed == most:
+                    break  # the section is complete
             else:
                 h /= min(1.0 / _FAC1, fac11 / _SAFE)
                 last_rejected = True
@@ -162,9 +192,49 @@ def make_dop853_sample(rate):
         for s in range(slot, times.shape[0]):  # a stopped sample: the state it stopped with
             for j in range(n):
                 out[s, j] = y[j]
-        return code, accepted, rejected
+        return code, accepted, rejected, crossed, t
 
     return run_sample
+
+
+@jit(inline=True)
+def component_surface(t, y, p, component, value):
+    """The default surface of a section, ``g = y[component] − value``."""
+    return y[component] - value
+
+
+@jit(inline=True)
+def _crossing(surface, f, y0, p, t, h, g0, g1, component, value, trial):
+    """Where in the step ``(t, t + h)`` the surface is crossed, as ``x = (t* − t) / h`` in ``(0, 1]``: ``g`` (``g0`` at
+    0, ``g1`` at 1, of opposite signs or ``g1 = 0``) on the dense output ``f`` (from ``y0``), by regula falsi with the
+    Illinois halving (Dahlquist & Björck, *Numerical Methods*, sect. 6.2.3), which keeps the root bracketed; until the
+    bracket is a few ulps of ``t`` wide. ``trial`` (n,): scratch for the interpolated state."""
+    if g1 == 0.0:
+        return 1.0
+    a, b, ga, gb = 0.0, 1.0, g0, g1
+    side = 0
+    width = 4.0 * _UROUND * max(abs(t), abs(t + h)) / h
+    for _ in range(200):
+        x = (a * gb - b * ga) / (gb - ga)
+        if not (a < x < b):
+            x = 0.5 * (a + b)
+        _dense(f, y0, x, trial)
+        gx = surface(t + x * h, trial, p, component, value)
+        if gx == 0.0:
+            return x
+        if (gx > 0.0) == (gb > 0.0):
+            b, gb = x, gx
+            if side == -1:
+                ga *= 0.5
+            side = -1
+        else:
+            a, ga = x, gx
+            if side == 1:
+                gb *= 0.5
+            side = 1
+        if b - a <= width:
+            break
+    return 0.5 * (a + b)
 
 
 @jit(inline=True)
@@ -233,26 +303,47 @@ def _dense(f, y0, x, out):
 
 
 def make_dop853_driver(run_sample):
-    """``drive(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, status, accepted, rejected)``: every sample of
-    ``y`` (N, n) run by ``run_sample`` (:func:`make_dop853_sample`), ``y`` overwritten with the final (or frozen)
-    states, ``out`` (N, T, n) with the states at ``times``, ``status`` (N,) int8 and the steps accepted and rejected
-    (N,) int64 written; one share of the samples per numba thread (:func:`tumble.kernels.loops.sample_loop.in_shares`)."""
+    """``drive(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
+    counts)``: every sample of ``y`` (N, n) run by ``run_sample`` (:func:`make_dop853_sample`), ``y`` overwritten with
+    the final (or frozen) states, ``out`` (N, T, n) with the states at ``times``, ``crossing_t`` (N, most) and
+    ``crossing_y`` (N, most, n) with the section's crossings (``section`` as the run's), ``status`` (N,) int8 and
+    ``counts`` (N, 3) int64 (the steps accepted, rejected, the crossings), ``stopped`` (N,) the time each sample
+    reached, written; one share of the samples per numba thread (:func:`tumble.kernels.loops.sample_loop.in_shares`)."""
 
     @jit(cache=False)
-    def run_share(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, status, accepted, rejected):
+    def run_share(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
+                  counts, stopped):
+        # size: the run's arguments and one output array each, for a share of the samples
         n_samples, n = y.shape
         state = np.empty(n)
         scratch = np.empty((SCRATCH_ROWS, n))
         for i in range(n_samples):
             state[:] = y[i]
-            code, good, bad = run_sample(state, p, t0, t_end, h0, rtol, atol, max_steps, times, out[i], scratch)
+            code, good, bad, crossed, t = run_sample(state, p, t0, t_end, h0, rtol, atol, max_steps, times, out[i],
+                                                     section, crossing_t[i], crossing_y[i], scratch)
             y[i] = state
             status[i] = code
-            accepted[i] = good
-            rejected[i] = bad
+            counts[i, 0] = good
+            counts[i, 1] = bad
+            counts[i, 2] = crossed
+            stopped[i] = t
 
-    def drive(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, status, accepted, rejected):
+    def drive(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status, counts,
+              stopped):
+        # size: as run_share
         in_shares(run_share, len(y), lambda lo, hi: (y[lo:hi], p, t0, t_end, h0, rtol, atol, max_steps, times,
-                                                     out[lo:hi], status[lo:hi], accepted[lo:hi], rejected[lo:hi]))
+                                                     out[lo:hi], section, crossing_t[lo:hi], crossing_y[lo:hi],
+                                                     status[lo:hi], counts[lo:hi], stopped[lo:hi]))
 
     return drive
+
+
+def make_user_surface(g):
+    """A user's surface ``g(t, y, p) -> float`` (compiled) as the run calls a surface,
+    ``surface(t, y, p, component, value)`` (the two last unused)."""
+
+    @jit(cache=False, inline=True)
+    def surface(t, y, p, component, value):
+        return float(g(t, y, p))
+
+    return surface
