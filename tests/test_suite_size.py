@@ -28,7 +28,7 @@ BUDGET = {
     "test_cuda.py": 29,
     "test_cuda_models.py": 16,
     "test_distributed.py": 22,
-    "test_docs.py": 20,
+    "test_docs.py": 21,
     "test_elliptic.py": 34,
     "test_elliptic_vectorised.py": 37,
     "test_engine.py": 19,
