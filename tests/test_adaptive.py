@@ -18,6 +18,10 @@ from tumble import exact, registry
 from tumble.engine.adaptive_runs import MIN_RTOL
 from tumble.kernels.tableaux import DOP853
 
+# One worker runs the error-controlled tests (--dist loadgroup): the built-in models' kernel (the free body's too) is
+# compiled once per process, a closure over the models' rate that numba's disk cache cannot keep.
+pytestmark = pytest.mark.xdist_group("dop853")
+
 BODY = (1.0, 2.0, 3.0)
 SPINS = np.array([[0.1, 1.0, 0.05], [0.3, 0.2, 1.0], [1.0, 0.05, 0.1]])
 
@@ -92,7 +96,6 @@ def test_a_users_system_agrees_with_scipy_at_its_tightest_tolerance(pendulum):
         np.testing.assert_allclose(ds.state.values[i], sol.y.T, rtol=0, atol=1e-10)
 
 
-@pytest.mark.slow  # its own kernel's compile (3 s)
 def test_a_built_in_model_agrees_with_its_fixed_step_rk8():
     top = tumble.models.HeavyTop((1.0, 1.0, 0.5), 1.0)
     g = np.array([0.05, 0.0, 1.0]) / math.hypot(0.05, 1.0)
@@ -118,7 +121,7 @@ def test_per_component_tolerances_and_a_given_first_step(pendulum):
     assert int(tight.steps[0]) > 10
 
 
-@pytest.mark.slow  # its own kernel's compile (3 s)
+@pytest.mark.slow  # its own System's kernel's compile (4 s)
 def test_a_singularity_stops_its_sample_with_step_underflow_and_a_warning(blow_up):
     with pytest.warns(RuntimeWarning, match=r"1 of 2 samples of 'blow_up' stopped before t_end \(1 step underflow"):
         ds = tumble.integrate(blow_up, [[1.0], [-1.0]], 2.0, method="dop853", times=[0.5, 2.0])

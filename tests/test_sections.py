@@ -10,6 +10,10 @@ from scipy.integrate import solve_ivp
 import tumble
 from tumble import exact, registry
 
+# One worker runs the error-controlled tests (--dist loadgroup): the built-in models' kernel (the free body's too) is
+# compiled once per process, a closure over the models' rate that numba's disk cache cannot keep.
+pytestmark = pytest.mark.xdist_group("dop853")
+
 BODY = (1.0, 2.0, 3.0)
 SPINS = np.array([[1.0, 0.1, 0.0], [0.2, 1.0, 0.3], [0.05, 0.2, 1.0]])
 
@@ -74,7 +78,6 @@ def test_a_sample_stops_once_it_has_max_crossings():
     assert three.status.values.tolist() == [registry.STATUS_OK]
 
 
-@pytest.mark.slow  # the heavy top's own kernel's compile (9 s)
 def test_a_built_in_models_section():
     top = tumble.models.HeavyTop((1.0, 1.2, 0.5), 1.0)
     g = np.array([0.3, 0.0, 1.0]) / math.hypot(0.3, 1.0)

@@ -16,10 +16,10 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import registry
-from ..kernels import adaptive_loop
+from ..kernels import adaptive_loop, rate_sample, rate_sample_parameters
 from ..physics.system import System, with_parameters
 from . import cost
-from .system_runs import compiled, initial_states, probe, sample_loop_system, state_units, system_name
+from .system_runs import compiled, initial_states, probe, state_units, system_name
 
 __all__ = ["AdaptiveRun", "Surface", "DEFAULT_ATOL", "DEFAULT_RTOL", "FLAG_MEANINGS", "FLAG_VALUES", "MAX_STEPS", "MIN_RTOL",
            "checked_horizon", "output_times", "run_adaptive", "tolerances"]
@@ -145,19 +145,24 @@ def _checked_scalars(t_end, first_step, max_steps):
     return t_end, h0, int(limit)
 
 
+#: Built-in models' error-controlled kernels, by surface (None: the component surface): the kernels' own rate
+#: (:func:`tumble.kernels.rate_sample`, cached on disk) serves every model, its code the first parameter.
+_MODEL_KERNELS = {}
+
+
 def _kernel(system, surface):
     """``(drive, p)``: the CPU driver of ``system``'s error-controlled run (with the user's ``surface`` function, or
-    the component surface for None) and its parameter array, made once per process and kept with the system (a
-    model: with the System that runs its kernels' rate)."""
+    the component surface for None) and its parameter array (None: a System's own values), made once per process
+    and kept with the system's compiled rate; a built-in model's with the models' rate, whose compiled code numba's
+    disk cache holds (compiling it again for a closure of its own cost seconds: every model's equations are in it)."""
     if isinstance(system, System):
-        loop_system, p = system, None
+        rate, made, p = compiled(system).rate, compiled(system).methods, None
     else:
-        loop_system, p = sample_loop_system(system)
-    made = compiled(loop_system).methods  # method name -> its kernels (no tableau is named dop853)
+        rate, made = rate_sample, _MODEL_KERNELS
+        p = rate_sample_parameters(system.kind, system.moments, system.parameters)
     key = adaptive_loop.DOP853.name if surface is None else (adaptive_loop.DOP853.name, surface)
     if key not in made:
-        made[key] = adaptive_loop.make_dop853_driver(adaptive_loop.make_dop853_sample(compiled(loop_system).rate,
-                                                                                      surface))
+        made[key] = adaptive_loop.make_dop853_driver(adaptive_loop.make_dop853_sample(rate, surface))
     return made[key], p
 
 

@@ -36,7 +36,7 @@ from ..physics.system import System, with_parameters
 from . import cost
 
 __all__ = ["PROBED", "SystemRun", "added_tableau", "block_code", "compiled", "initial_states", "is_system",
-           "method_order", "probe", "run_system", "sample_loop_system", "state_units", "system_methods", "system_name"]
+           "method_order", "probe", "run_system", "state_units", "system_methods", "system_name"]
 
 #: Initial states at which a user's rate is called once before a run (the first with bounds checked): a NaN or an
 #: unset component there is refused with the sample named; later in the run a non-finite state is a sample status.
@@ -91,7 +91,7 @@ def method_order(method):
 _SAMPLE_LOOP_SYSTEMS = {}
 
 
-def sample_loop_system(model):
+def _sample_loop_system(model):
     """``(System, p)``: ``model`` as the per-sample loop runs it (the kernels' rate of its kind, its parameters)."""
     p = rate_sample_parameters(model.kind, model.moments, model.parameters)
     if model.kind not in _SAMPLE_LOOP_SYSTEMS:
@@ -274,7 +274,7 @@ def run_system(system, y0, t_end, n_steps, step, method="rk4", *, save_every=Non
     if code is None and (isinstance(system, System) or method not in model_methods(system.kind)):
         loop_system = system
         if not isinstance(system, System):  # a tableau the model's generated steps do not have
-            loop_system, p = sample_loop_system(system)
+            loop_system, p = _sample_loop_system(system)
         kernels = _kernels(loop_system, method)
         n_saved = sample_loop.saved_count(n_steps, every)
         state = np.ascontiguousarray(y)
