@@ -80,7 +80,7 @@ from ..engine.integration import _step_plan, integrate, propagate
 from ..engine.sampling import perturbed_spins
 from ..physics import exact
 from ..physics.bodies import one_body
-from ..registry import STEPPING
+from ..registry import ERROR_CONTROLLED, STEPPING
 
 __all__ = ["ATOL_FACTOR", "DEFAULT_HEYOKA_TOLS", "DEFAULT_RTOLS", "SCIPY_METHODS", "default_steps", "euler_heyoka",
            "euler_rhs_stacked", "heyoka_reference", "speedups", "time_to_error", "work_precision"]
@@ -373,7 +373,8 @@ def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, sampl
     seed : int
         Seed of the ensemble.
     methods : sequence of str, optional
-        Fixed-step tumble methods (default: all of :data:`~tumble.registry.STEPPING`). The closed form
+        tumble's methods (default: all of :data:`~tumble.registry.STEPPING`, fixed steps, and of
+        :data:`~tumble.registry.ERROR_CONTROLLED`, run at ``rtols`` as SciPy). The closed form
         ``"exact"`` is always measured (one point); naming it here is allowed and changes nothing.
     steps : sequence of int, or dict {method: sequence of int}, optional
         Step counts ``n`` (``dt = t_end / n``). Default (and for methods a dict leaves out): a doubling
@@ -406,8 +407,8 @@ def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, sampl
         * ``wp_error(solver, wp_point)``: max over samples of ``|w - w_ref| / |w0|`` at ``t_end``;
         * ``wp_error_median(solver, wp_point)``: the median over samples;
         * ``wp_wall(solver, wp_point)``: wall time, s (median of ``repeats``, compile time excluded);
-        * ``wp_setting(solver, wp_point)``: ``dt`` (s) for tumble methods, ``rtol`` for SciPy, ``tol`` for
-          heyoka, NaN for exact;
+        * ``wp_setting(solver, wp_point)``: ``dt`` (s) for tumble's fixed steps, ``rtol`` for SciPy and dop853,
+          ``tol`` for heyoka, NaN for exact;
         * ``wp_steps(solver, wp_point)``: steps taken (accepted steps for SciPy, most steps of any sample for
           heyoka; NaN for exact);
         * ``wp_nfev(solver, wp_point)``: right-hand-side evaluations (SciPy only, else NaN);
@@ -457,7 +458,8 @@ def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, sampl
     # and gives each point its first wall time. Passes 2 … repeats then time every point again, all solvers
     # in turn, so that a change of machine load during the run hits all solvers alike; each point's wall
     # time is the median over the passes.
-    curves = {m: _tumble_curve(run, m, *ladders[m]) for m in methods}
+    curves = {m: (_adaptive_curve(run, m, rtols, ATOL_FACTOR * abs(float(spin))) if m in ERROR_CONTROLLED else
+                  _tumble_curve(run, m, *ladders[m])) for m in methods}
     curves[_EXACT], reference_vs_exact = _exact_curve(run, heyoka_tols.size > 0)
     # Beside the points (timed through the array API): the bare closed form, and what tumble.integrate (a
     # Dataset) costs on top of the kernels, measured on a one-step rk4 run of the same ensemble.
@@ -492,16 +494,17 @@ def work_precision(body=(1.0, 2.0, 3.0), axis=2, spin=1.0, amplitude=0.05, sampl
 
 def _check_solvers(methods, scipy_methods, rtols):
     """tumble's methods (without ``"exact"``, always measured), SciPy's and its tolerances (loose to tight)."""
-    methods = list(STEPPING) if methods is None else [m for m in dict.fromkeys(methods) if m != _EXACT]
-    unknown = [m for m in methods if m not in STEPPING]
+    known = (*STEPPING, *ERROR_CONTROLLED)
+    methods = list(known) if methods is None else [m for m in dict.fromkeys(methods) if m != _EXACT]
+    unknown = [m for m in methods if m not in known]
     if unknown:
-        raise ValueError(f"methods must be among {', '.join((*STEPPING, _EXACT))}; got {unknown}")
+        raise ValueError(f"methods must be among {', '.join((*known, _EXACT))}; got {unknown}")
     scipy_methods = list(dict.fromkeys(scipy_methods or ()))
     bad = [m for m in scipy_methods if m not in SCIPY_METHODS]
     if bad:
         raise ValueError(f"scipy_methods must be among {', '.join(SCIPY_METHODS)}; got {bad}")
     rtols = np.asarray(DEFAULT_RTOLS if rtols is None else rtols, dtype=float).reshape(-1)
-    if scipy_methods and (rtols.size == 0 or not np.all(np.isfinite(rtols)) or np.any(rtols <= 0)):
+    if (scipy_methods or set(methods) & set(ERROR_CONTROLLED)) and (rtols.size == 0 or not np.all(np.isfinite(rtols)) or np.any(rtols <= 0)):
         raise ValueError(f"rtols must be a non-empty sequence of finite numbers > 0, got {rtols!r}")
     return methods, scipy_methods, np.sort(rtols)[::-1]
 
@@ -595,6 +598,25 @@ def _tumble_curve(run, method, counts, adaptive):
     return _Curve(points, runs, compile_time)
 
 
+def _adaptive_curve(run, method, rtols, atol_scale):
+    """An error-controlled tumble method (``dop853``) at each relative tolerance, as SciPy's (``atol = rtol *
+    atol_scale``); its steps: the most any sample took."""
+    moments, w0, t_end = run.moments, run.w0, run.t_end
+    compile_time, _ = _timed(lambda: propagate(moments, w0[:2], t_end / 4, method=method))
+    points, runs = [], []
+    for rtol in rtols:
+        def one_run(rtol=rtol):
+            return propagate(moments, w0, t_end, method=method, rtol=rtol, atol=rtol * atol_scale)
+
+        wall, w_end = _timed_warm(one_run)
+        steps = int(integrate(moments, w0, t_end, method=method, rtol=rtol, atol=rtol * atol_scale)["steps"].max())
+        points.append(run.point(w_end, wall, float(rtol), steps))
+        runs.append((one_run, [wall]))
+        _say(run.progress, f"  {method:18s} rtol={rtol:.0e}  error {points[-1]['error']:.2e} "
+                           f"(median {points[-1]['error_median']:.2e})  {wall:.4f} s  ({steps} steps at most)")
+    return _Curve(points, runs, compile_time)
+
+
 def _exact_curve(run, heyoka_is_reference):
     """The closed form's one point, and its distance to the reference (NaN, NaN when it is the reference: its
     error is then estimated by the flow property over two halves of ``t_end``)."""
@@ -675,7 +697,7 @@ def _retime(curves, parts, repeats, progress):
 
 
 def _kind(solver):
-    if solver in STEPPING:
+    if solver in STEPPING or solver in ERROR_CONTROLLED:
         return "tumble"
     if solver in (_EXACT, _HEYOKA):
         return solver
@@ -694,7 +716,8 @@ def _dataset(curves, compile_time, methods, moments, axis, spin, amplitude, samp
             for f in fields:
                 table[f][i, j] = point[f]
     kind = [_kind(s) for s in solvers]
-    order = [float(registry.method(s).order) if s in STEPPING else np.nan for s in solvers]
+    order = [float(registry.method(s).order) if s in STEPPING else 8.0 if s in ERROR_CONTROLLED else np.nan
+             for s in solvers]
     dims = ("solver", "wp_point")
     data = {
         "wp_error": (dims, table["error"], {
