@@ -16,10 +16,10 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import registry
-from ..kernels import adaptive_loop, rate_sample, rate_sample_parameters
+from ..kernels import adaptive_loop, rate_sample, rate_sample_parameters, system_steps
 from ..physics.system import System, with_parameters
 from . import cost
-from .system_runs import compiled, initial_states, probe, state_units, system_name
+from .system_runs import block_code, compiled, initial_states, probe, state_units, system_name
 
 __all__ = ["AdaptiveRun", "Surface", "DEFAULT_ATOL", "DEFAULT_RTOL", "FLAG_MEANINGS", "FLAG_VALUES", "MAX_STEPS", "MIN_RTOL",
            "checked_horizon", "output_times", "run_adaptive", "tolerances"]
@@ -145,25 +145,35 @@ def _checked_scalars(t_end, first_step, max_steps):
     return t_end, h0, int(limit)
 
 
-#: Built-in models' error-controlled kernels, by surface (None: the component surface): the kernels' own rate
-#: (:func:`tumble.kernels.rate_sample`, cached on disk) serves every model, its code the first parameter.
+#: Built-in models' error-controlled drivers, by (kind, surface) (None: the component surface): each steps a block's
+#: lanes with its generated trial step and reads a lane's dense output with the models' rate
+#: (:func:`tumble.kernels.rate_sample`, cached on disk).
 _MODEL_KERNELS = {}
 
 
-def _kernel(system, surface):
-    """``(drive, p)``: the CPU driver of ``system``'s error-controlled run (with the user's ``surface`` function, or
-    the component surface for None) and its parameter array (None: a System's own values), made once per process
-    and kept with the system's compiled rate; a built-in model's with the models' rate, whose compiled code numba's
-    disk cache holds (compiling it again for a closure of its own cost seconds: every model's equations are in it)."""
+def _kernel(system, surface, parameters):
+    """``(drive, p, a)``: the CPU driver of ``system``'s error-controlled run (with the user's ``surface`` function,
+    or the component surface for None), its per-sample rate's parameter array (None: a System's own values) and the
+    block steps' constants, made once per process and kept with the system's compiled rate: a built-in model, and a
+    System whose rate has a scalar form (:func:`tumble.engine.system_runs.block_code`), step a block's lanes at once
+    (:func:`tumble.kernels.adaptive_loop.make_dop853_block_driver`), another System one sample at a time."""
     if isinstance(system, System):
-        rate, made, p = compiled(system).rate, compiled(system).methods, None
-    else:
-        rate, made = rate_sample, _MODEL_KERNELS
-        p = rate_sample_parameters(system.kind, system.moments, system.parameters)
-    key = adaptive_loop.DOP853.name if surface is None else (adaptive_loop.DOP853.name, surface)
-    if key not in made:
-        made[key] = adaptive_loop.make_dop853_driver(adaptive_loop.make_dop853_sample(rate, surface))
-    return made[key], p
+        made = compiled(system).methods
+        key = adaptive_loop.DOP853.name if surface is None else (adaptive_loop.DOP853.name, surface)
+        code = block_code(system, registry.AUTO_STEPPING)  # its scalar form (None: it has none, said once)
+        if key not in made:
+            rate = compiled(system).rate
+            made[key] = (adaptive_loop.make_dop853_driver(adaptive_loop.make_dop853_sample(rate, surface))
+                         if code is None else
+                         adaptive_loop.make_dop853_block_driver(system_steps.block_trial(code), rate, surface))
+        a = np.zeros(0) if code is None else system_steps.block_constants(system.parameter_values(parameters))
+        return made[key], None, a
+    p = rate_sample_parameters(system.kind, system.moments, system.parameters)
+    key = (system.kind, surface)
+    if key not in _MODEL_KERNELS:
+        _MODEL_KERNELS[key] = adaptive_loop.make_dop853_block_driver(adaptive_loop.model_trial(system.kind),
+                                                                     rate_sample, surface)
+    return _MODEL_KERNELS[key], p, np.ascontiguousarray(p[1:])
 
 
 def run_adaptive(system, y0, t_end, *, times=None, rtol=None, atol=None, first_step=None, max_steps=None,
@@ -223,7 +233,7 @@ def run_adaptive(system, y0, t_end, *, times=None, rtol=None, atol=None, first_s
     if most:
         cost.refuse(cost.run_cost(len(y), 0, most * (y.shape[1] + 1)), f"y0 ({len(y):,} states) and max_crossings = "
                     f"{most:,}", device)
-    drive, p = _kernel(system, compiled_surface)
+    drive, p, a = _kernel(system, compiled_surface, parameters)
     if isinstance(system, System):
         p = system.parameter_values(parameters)
         probe(system, y, p, 0.0)
@@ -236,8 +246,8 @@ def run_adaptive(system, y0, t_end, *, times=None, rtol=None, atol=None, first_s
     status = np.zeros(len(y), dtype=np.int8)
     counts = np.zeros((len(y), 3), dtype=np.int64)
     stopped = np.zeros(len(y))
-    drive(state, p, 0.0, t_end, h0, rtol, atol, limit, marks, out, section, crossing_times, crossing_states, status,
-          counts, stopped)
+    drive(state, p, a, 0.0, t_end, h0, rtol, atol, limit, marks, out, section, crossing_times, crossing_states,
+          status, counts, stopped)
     return AdaptiveRun(state, marks, out, status, counts[:, 0].copy(), counts[:, 1].copy(), rtol, atol, values,
                        system_name(system), components, state_units(system), t_end, stopped, crossing_times,
                        crossing_states, counts[:, 2].copy()), single

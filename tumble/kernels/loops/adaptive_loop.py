@@ -31,7 +31,8 @@ from ..jit import jit
 from ..tableaux import DOP853
 from .sample_loop import in_shares
 
-__all__ = ["SCRATCH_ROWS", "component_surface", "make_dop853_driver", "make_dop853_sample", "make_user_surface"]
+__all__ = ["BLOCK", "SCRATCH_ROWS", "component_surface", "make_dop853_block_driver", "make_dop853_driver",
+           "make_dop853_sample", "make_user_surface", "model_trial"]
 
 _STAGES = len(DOP853.tableau.b)  # 12; k[12] = f(t + h, y1), k[13..15] the dense output's stages
 _A = np.zeros((16, 16))
@@ -42,6 +43,7 @@ _C = np.concatenate([DOP853.tableau.c, [1.0], DOP853.extra_c])
 _B = DOP853.tableau.b.copy()
 _E5, _E3, _D = DOP853.e5.copy(), DOP853.e3.copy(), DOP853.dense.copy()
 _EXPONENT = 1.0 / (DOP853.error_order + 1)
+assert _EXPONENT == 0.125, "the step control's root is taken as three square roots"
 
 # Hairer's defaults (dop853.f): safety factor, the step's largest fall and rise per step, the rounding unit.
 _SAFE, _FAC1, _FAC2, _UROUND = 0.9, 0.333, 6.0, 2.3e-16
@@ -148,7 +150,7 @@ def make_dop853_sample(rate, surface=None):
                 last_rejected = True
                 rejected += 1
                 continue
-            fac11 = err ** _EXPONENT
+            fac11 = _root8(err)
             if err <= 1.0:
                 accepted += 1
                 t_new = t_end if final else t + h
@@ -238,6 +240,13 @@ def _crossing(surface, f, y0, p, t, h, g0, g1, component, value, trial):
 
 
 @jit(inline=True)
+def _root8(x):
+    """``x ** (1/8)``, the step control's root, as three square roots: a few cycles, and vectorised, where ``pow``
+    takes tens."""
+    return math.sqrt(math.sqrt(math.sqrt(x)))
+
+
+@jit(inline=True)
 def _first_step(rate, t, y, p, span, rtol, atol, f0, y_trial, f1):
     """Hairer's initial step (``hinit`` of dop853.f, as SciPy's ``select_initial_step``): from the sizes of ``y``,
     ``f(t, y)`` (``f0``) and an estimate of the second derivative (one more evaluation of the rate), within
@@ -303,8 +312,8 @@ def _dense(f, y0, x, out):
 
 
 def make_dop853_driver(run_sample):
-    """``drive(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
-    counts)``: every sample of ``y`` (N, n) run by ``run_sample`` (:func:`make_dop853_sample`), ``y`` overwritten with
+    """``drive(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
+    counts, stopped)``: every sample of ``y`` (N, n) run by ``run_sample`` (:func:`make_dop853_sample`), ``y`` overwritten with
     the final (or frozen) states, ``out`` (N, T, n) with the states at ``times``, ``crossing_t`` (N, most) and
     ``crossing_y`` (N, most, n) with the section's crossings (``section`` as the run's), ``status`` (N,) int8 and
     ``counts`` (N, 3) int64 (the steps accepted, rejected, the crossings), ``stopped`` (N,) the time each sample
@@ -328,9 +337,9 @@ def make_dop853_driver(run_sample):
             counts[i, 2] = crossed
             stopped[i] = t
 
-    def drive(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status, counts,
-              stopped):
-        # size: as run_share
+    def drive(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
+              counts, stopped):
+        # size: as run_share (``a``, the block driver's constants, unused)
         in_shares(run_share, len(y), lambda lo, hi: (y[lo:hi], p, t0, t_end, h0, rtol, atol, max_steps, times,
                                                      out[lo:hi], section, crossing_t[lo:hi], crossing_y[lo:hi],
                                                      status[lo:hi], counts[lo:hi], stopped[lo:hi]))
@@ -347,3 +356,186 @@ def make_user_surface(g):
         return float(g(t, y, p))
 
     return surface
+
+
+#: Lanes of a block of :func:`make_dop853_block_driver`: a block steps until its last lane is done, so a small block
+#: wastes less on lanes that finished early; a large one amortises the loop's bookkeeping.
+BLOCK = 32
+
+
+@jit(inline=True)
+def _stages(rate, y0, p, t, h, k, stage):
+    """The step's stages ``k[1..12]`` from ``y0`` at ``t`` over ``h`` (``k[0]`` given): what a lane's dense output
+    needs beyond the trial step, which keeps its stages in registers."""
+    for s in range(1, _STAGES + 1):
+        _stage(s, y0, h, k, stage)
+        rate(t + _C[s] * h, stage, p, k[s])
+
+
+def make_dop853_block_driver(trial, rate, surface=None):
+    # size: the closures hold a block's whole run and the share's loop over blocks
+    """``drive(...)`` as :func:`make_dop853_driver`'s, stepping the samples in blocks of :data:`BLOCK` lanes, each
+    lane its own time and step: ``trial(lane_t, lane_h, ys, ks, y1s, k1s, err, rtol, atol, a)`` (generated,
+    :func:`tumble.kernels.steps.model_codegen.trial_source`) makes every lane's trial step at once, vectorised across
+    the lanes; this loop then accepts or rejects each lane (Hairer's control, as :func:`make_dop853_sample`), masks the
+    lanes that are done (their trial step is 0), and reads the output times and a section's crossings off a lane's
+    dense output, its stages made again one sample at a time by ``rate(t, y, p, dydt)`` (where a step holds one)."""
+    if surface is None:
+        surface = component_surface
+
+    @jit(cache=False)
+    def run_block(ys, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
+                  counts, stopped, lanes, steps, rows, scratch, used):
+        # size: Hairer's control over a block's lanes, with the outputs, the crossings and the stops, in one loop
+        n, m = ys.shape  # m = BLOCK lanes, the first ``used`` of them samples (the others stay done)
+        component, value, direction, most = int(section[0]), section[1], section[2], int(section[3])
+        # the lanes' own numbers, in the share's scratch (made once per share, C-contiguous rows: the loops vectorise)
+        t, h, trial_h, active, last_rejected, accepted, t_new, next_out, g0, err = (
+            lanes[0], lanes[1], lanes[2], lanes[3], lanes[4], lanes[5], lanes[6], lanes[7], lanes[8], lanes[9])
+        t[:] = t0
+        h[:] = 0.0
+        active[:] = 0.0  # 1.0: the lane steps on; 0.0: done (the loops below vectorise on floats)
+        last_rejected[:] = 0.0
+        next_out[:] = np.inf  # the lane's next output time
+        g0[:] = 0.0
+        slot, taken = steps[0], steps[1]  # the next output; the steps accepted and rejected
+        slot[:] = 0
+        taken[:] = 0
+        ks, y1s, k1s = rows[0], rows[1], rows[2]
+        k, stage, y0, y1, f = scratch[:16], scratch[16], scratch[17], scratch[18], scratch[19:26]
+        for i in range(used):
+            for j in range(n):
+                y0[j] = ys[j, i]
+            code = STATUS_OK
+            for j in range(n):
+                if not math.isfinite(y0[j]):
+                    code = STATUS_NONFINITE
+            status[i] = code
+            while slot[i] < times.shape[0] and times[slot[i]] <= t0:
+                out[i, slot[i]] = y0
+                slot[i] += 1
+            if slot[i] < times.shape[0]:
+                next_out[i] = times[slot[i]]
+            if code != STATUS_OK or t_end <= t0:
+                continue
+            active[i] = 1.0
+            rate(t0, y0, p, k[0])
+            for j in range(n):
+                ks[j, i] = k[0, j]
+            h[i] = h0 if h0 > 0.0 else _first_step(rate, t0, y0, p, t_end - t0, rtol, atol, k[0], stage, y1)
+            if most > 0:
+                g0[i] = surface(t0, y0, p, component, value)
+        while active.any():
+            for i in range(m):  # the stops, rare: one branch each
+                if active[i] != 0.0 and (taken[i] >= max_steps or not 0.1 * h[i] > abs(t[i]) * _UROUND):
+                    status[i] = STATUS_LIMIT if taken[i] >= max_steps else STATUS_UNDERFLOW
+                    active[i] = 0.0
+            for i in range(m):  # each lane's step, the last one up to t_end; 0 for a lane that is done
+                last = t[i] + 1.01 * h[i] >= t_end
+                h[i] = t_end - t[i] if last else h[i]
+                trial_h[i] = h[i] * active[i]
+                t_new[i] = t_end if last else t[i] + h[i]
+            trial(t, trial_h, ys, ks, y1s, k1s, err, rtol, atol, a)
+            for i in range(m):  # accept or reject every lane, branch-free (Hairer's control)
+                e = err[i]
+                fac11 = _root8(e)
+                finite = e < np.inf
+                good = e <= 1.0
+                grow = h[i] / max(1.0 / _FAC2, min(1.0 / _FAC1, fac11 / _SAFE))
+                grow = min(grow, h[i]) if last_rejected[i] != 0.0 else grow
+                shrink = h[i] / min(1.0 / _FAC1, fac11 / _SAFE) if finite else h[i] * _FAC1
+                if active[i] != 0.0:
+                    h[i] = grow if good else shrink
+                    last_rejected[i] = 0.0 if good else 1.0
+                    taken[i] += 1
+                accepted[i] = active[i] if good else 0.0
+            for i in range(m):  # what an accepted step brings beyond its state: outputs, a crossing, the end
+                if accepted[i] == 0.0:
+                    continue
+                counts[i, 0] += 1
+                ti, hi, tn = t[i], trial_h[i], t_new[i]
+                before = g0[i]
+                g1 = 0.0
+                crossed = False
+                if most > 0:
+                    for j in range(n):
+                        y1[j] = y1s[j, i]
+                    g1 = surface(tn, y1, p, component, value)
+                    crossed = (direction >= 0.0 and before < 0.0 <= g1) or (direction <= 0.0 and before > 0.0 >= g1)
+                    g0[i] = g1
+                if next_out[i] <= tn or crossed:  # this lane's dense output: its stages again, one sample
+                    for j in range(n):
+                        y0[j] = ys[j, i]
+                        y1[j] = y1s[j, i]
+                        k[0, j] = ks[j, i]
+                    _stages(rate, y0, p, ti, hi, k, stage)
+                    _interpolant(rate, y0, y1, p, ti, hi, k, stage, f)
+                    if crossed:
+                        c = int(counts[i, 2])
+                        x = _crossing(surface, f, y0, p, ti, hi, before, g1, component, value, stage)
+                        crossing_t[i, c] = tn if x == 1.0 else ti + x * hi
+                        _dense(f, y0, x, crossing_y[i, c])
+                        counts[i, 2] += 1
+                    while slot[i] < times.shape[0] and times[slot[i]] <= tn:
+                        if times[slot[i]] == tn:
+                            out[i, slot[i]] = y1
+                        else:
+                            _dense(f, y0, (times[slot[i]] - ti) / hi, out[i, slot[i]])
+                        slot[i] += 1
+                    next_out[i] = times[slot[i]] if slot[i] < times.shape[0] else np.inf
+                t[i] = tn
+                if tn == t_end or (most > 0 and counts[i, 2] == most):
+                    active[i] = 0.0
+            for j in range(n):  # the accepted lanes take their new states and rates
+                for i in range(m):
+                    ys[j, i] = y1s[j, i] if accepted[i] != 0.0 else ys[j, i]
+                    ks[j, i] = k1s[j, i] if accepted[i] != 0.0 else ks[j, i]
+        for i in range(used):  # a stopped lane's later outputs: the state it stopped with
+            counts[i, 1] = taken[i] - counts[i, 0]
+            stopped[i] = t[i]
+            while slot[i] < times.shape[0]:
+                for j in range(n):
+                    out[i, slot[i], j] = ys[j, i]
+                slot[i] += 1
+
+    @jit(cache=False)
+    def run_share(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
+                  counts, stopped):
+        # size: the run's arguments and one output array each, for a share of the samples
+        n_samples, n = y.shape
+        lanes = np.empty((10, BLOCK))
+        steps = np.empty((2, BLOCK), dtype=np.int64)
+        rows = np.empty((3, n, BLOCK))
+        scratch = np.empty((SCRATCH_ROWS + 1, n))
+        ys = np.empty((n, BLOCK))
+        for lo in range(0, n_samples, BLOCK):
+            hi = min(lo + BLOCK, n_samples)
+            for j in range(n):
+                for i in range(BLOCK):  # a last block's lanes past the samples step the first one's state, masked
+                    ys[j, i] = y[lo + i, j] if lo + i < hi else y[lo, j]
+            counts[lo:hi] = 0
+            run_block(ys, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out[lo:hi], section, crossing_t[lo:hi],
+                      crossing_y[lo:hi], status[lo:hi], counts[lo:hi], stopped[lo:hi], lanes, steps, rows, scratch,
+                      hi - lo)
+            for j in range(n):
+                for i in range(lo, hi):
+                    y[i, j] = ys[j, i - lo]
+
+    def drive(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
+              counts, stopped):
+        # size: as run_share
+        in_shares(run_share, len(y), lambda lo, hi: (y[lo:hi], p, a, t0, t_end, h0, rtol, atol, max_steps, times,
+                                                     out[lo:hi], section, crossing_t[lo:hi], crossing_y[lo:hi],
+                                                     status[lo:hi], counts[lo:hi], stopped[lo:hi]))
+
+    return drive
+
+
+def model_trial(kind):
+    """The generated trial step over a block's lanes of built-in model ``kind`` (``<module>_dop853_trial`` of
+    :mod:`tumble.kernels.steps.model_steps`, its equations module's)."""
+    from ...registry import MODELS, MODEL_KINDS
+    from ..steps import model_steps
+
+    module = MODELS[MODEL_KINDS.index(kind)].equations_module
+    return getattr(model_steps, f"{module}_{DOP853.name}_trial")

@@ -31,6 +31,7 @@ import hashlib
 import inspect
 import itertools
 import linecache
+import math
 import textwrap
 import types
 from collections import namedtuple
@@ -39,10 +40,11 @@ import numpy as np
 
 from . import model_codegen
 from ..jit import jit
+from .. import tableaux
 from ..tableaux import TABLEAUX
 from ..loops.tangent_loop import DIFFERENCE_STEP
 
-__all__ = ["NotScalar", "SYSTEM_CODES", "block_constants", "block_step", "cacheable", "runs", "scalar_rate", "scalar_tangent",
+__all__ = ["NotScalar", "SYSTEM_CODES", "block_constants", "block_step", "block_trial", "cacheable", "runs", "scalar_rate", "scalar_tangent",
            "system_code", "tangent_code", "tangent_step"]
 
 #: The smallest code of a user's System (below: the built-in models' codes and the free body's).
@@ -337,11 +339,14 @@ def _steps(module, n, n_parameters, tangents):
                       f"def {method}_step(ys, t, h, a):",
                       f"    {_NAME}_{method}_block(t, {rows}, h, {record})", ""]
             made[method] = f"{method}_step"
-    scope = {"jit": _uncached_jit, _NAME: module}
+    if not tangents:  # the error-controlled trial step over a block's lanes (tumble.kernels.loops.adaptive_loop)
+        lines += [model_codegen.trial_source(_NAME, components, n_fields=2 * n_parameters), ""]
+        made[tableaux.DOP853.name] = f"{_NAME}_{tableaux.DOP853.name}_trial"
+    scope = {"jit": _uncached_jit, "math": math, _NAME: module}
     exec(compile("\n".join(lines), "<tumble System steps>", "exec"), scope)
     from ...registry import STEPPING
 
-    return {STEPPING.index(method): scope[name] for method, name in made.items()}
+    return {STEPPING.index(method) if method in STEPPING else method: scope[name] for method, name in made.items()}
 
 
 def system_code(rate, n, n_parameters):
@@ -398,6 +403,13 @@ def runs(method):
 def block_step(code, method):
     """The block step ``step(ys, t, h, a)`` of System ``code`` (:func:`system_code`) and method id ``method``."""
     return _MADE[code].steps[method]
+
+
+def block_trial(code):
+    """The error-controlled trial step over a block's lanes of System ``code`` (:func:`system_code`):
+    ``trial(lane_t, lane_h, ys, ks, y1s, k1s, err, rtol, atol, a)``
+    (:func:`tumble.kernels.steps.model_codegen.trial_source`)."""
+    return _MADE[code].steps[tableaux.DOP853.name]
 
 
 def tangent_step(code, method):
