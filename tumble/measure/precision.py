@@ -322,7 +322,8 @@ def _check_positive_int(value, name):
 
 
 def _step_ladders(methods, steps, t_end):
-    """Per method: (step counts, adaptive stop?)."""
+    """Per fixed-step method: (step counts, adaptive stop?); an error-controlled one runs at the tolerances."""
+    methods = [m for m in methods if m not in ERROR_CONTROLLED]
     if steps is None:
         return {m: (default_steps(m, t_end), True) for m in methods}
     if isinstance(steps, dict):

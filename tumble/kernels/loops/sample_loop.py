@@ -203,13 +203,24 @@ def make_cpu_driver(run_sample, stages):
 
 def in_shares(run_share, n, share):
     """``run_share(*share(lo, hi))`` for one contiguous share ``lo:hi`` of the ``n`` samples per numba thread, each on
-    a thread of its own (``run_share`` releases the GIL: ``nogil``); one share runs in this thread."""
+    a thread of its own (``run_share`` releases the GIL: ``nogil``): the last in this thread, the others on the
+    process's pool (:func:`_pool`, made once: starting threads for each call cost 0.4 ms, more than a small run)."""
     threads = max(1, min(numba.get_num_threads(), n))
     bounds = np.linspace(0, n, threads + 1).astype(int)
     shares = [share(lo, hi) for lo, hi in zip(bounds[:-1], bounds[1:])]
-    if threads == 1:
-        run_share(*shares[0])
-        return
-    with ThreadPoolExecutor(threads) as pool:
-        for done in [pool.submit(run_share, *arguments) for arguments in shares]:
+    others = [_pool().submit(run_share, *arguments) for arguments in shares[:-1]]
+    try:
+        run_share(*shares[-1])
+    finally:
+        for done in others:
             done.result()
+
+
+_POOL = []
+
+
+def _pool():
+    """The process's threads for :func:`in_shares` (one fewer than the machine's cores suffices; made on first use)."""
+    if not _POOL:
+        _POOL.append(ThreadPoolExecutor(max(1, numba.config.NUMBA_NUM_THREADS - 1), thread_name_prefix="tumble"))
+    return _POOL[0]
