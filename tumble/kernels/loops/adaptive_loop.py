@@ -383,24 +383,62 @@ def make_dop853_block_driver(trial, rate, surface=None):
     if surface is None:
         surface = component_surface
 
+    @jit(cache=False, inline=True)
+    def _lane_extras(i, ys, ks, y1s, p, ti, hi, tn, times, out, slot, next_out, g0, component, value, direction, most,
+                     crossing_t, crossing_y, counts, k, stage, y0, y1, f):
+        # size: one lane's accepted step's outputs and crossing, with the scratch they are made in
+        """Lane ``i``'s accepted step ``(ti, ti + hi = tn)``: the surface's crossing and the output times in it, from
+        the dense output (its stages made again, one sample); an output time at ``tn`` itself is ``y1``."""
+        n = ys.shape[0]
+        for j in range(n):
+            y0[j] = ys[j, i]
+            y1[j] = y1s[j, i]
+        before = g0[i]
+        g1 = 0.0
+        crossed = False
+        if most > 0:
+            g1 = surface(tn, y1, p, component, value)
+            crossed = (direction >= 0.0 and before < 0.0 <= g1) or (direction <= 0.0 and before > 0.0 >= g1)
+            g0[i] = g1
+        if crossed or next_out[i] < tn:
+            for j in range(n):
+                k[0, j] = ks[j, i]
+            _stages(rate, y0, p, ti, hi, k, stage)
+            _interpolant(rate, y0, y1, p, ti, hi, k, stage, f)
+        if crossed:
+            c = int(counts[i, 2])
+            x = _crossing(surface, f, y0, p, ti, hi, before, g1, component, value, stage)
+            crossing_t[i, c] = tn if x == 1.0 else ti + x * hi
+            _dense(f, y0, x, crossing_y[i, c])
+            counts[i, 2] += 1
+        while slot[i] < times.shape[0] and times[slot[i]] <= tn:
+            if times[slot[i]] == tn:
+                out[i, slot[i]] = y1
+            else:
+                _dense(f, y0, (times[slot[i]] - ti) / hi, out[i, slot[i]])
+            slot[i] += 1
+        next_out[i] = times[slot[i]] if slot[i] < times.shape[0] else np.inf
+
     @jit(cache=False)
     def run_block(ys, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
                   counts, stopped, lanes, steps, rows, scratch, used):
         # size: Hairer's control over a block's lanes, with the outputs, the crossings and the stops, in one loop
         n, m = ys.shape  # m = BLOCK lanes, the first ``used`` of them samples (the others stay done)
         component, value, direction, most = int(section[0]), section[1], section[2], int(section[3])
+        sectioned = 1.0 if most > 0 else 0.0
         # the lanes' own numbers, in the share's scratch (made once per share, C-contiguous rows: the loops vectorise)
-        t, h, trial_h, active, last_rejected, accepted, t_new, next_out, g0, err = (
-            lanes[0], lanes[1], lanes[2], lanes[3], lanes[4], lanes[5], lanes[6], lanes[7], lanes[8], lanes[9])
+        t, h, trial_h, active, last_rejected, accepted, t_new, next_out, g0, err, tries = (
+            lanes[0], lanes[1], lanes[2], lanes[3], lanes[4], lanes[5], lanes[6], lanes[7], lanes[8], lanes[9],
+            lanes[10])
         t[:] = t0
         h[:] = 0.0
         active[:] = 0.0  # 1.0: the lane steps on; 0.0: done (the loops below vectorise on floats)
         last_rejected[:] = 0.0
         next_out[:] = np.inf  # the lane's next output time
         g0[:] = 0.0
-        slot, taken = steps[0], steps[1]  # the next output; the steps accepted and rejected
+        tries[:] = 0.0  # the steps accepted and rejected
+        slot = steps[0]  # the next output
         slot[:] = 0
-        taken[:] = 0
         ks, y1s, k1s = rows[0], rows[1], rows[2]
         k, stage, y0, y1, f = scratch[:16], scratch[16], scratch[17], scratch[18], scratch[19:26]
         for i in range(used):
@@ -427,8 +465,8 @@ def make_dop853_block_driver(trial, rate, surface=None):
                 g0[i] = surface(t0, y0, p, component, value)
         while active.any():
             for i in range(m):  # the stops, rare: one branch each
-                if active[i] != 0.0 and (taken[i] >= max_steps or not 0.1 * h[i] > abs(t[i]) * _UROUND):
-                    status[i] = STATUS_LIMIT if taken[i] >= max_steps else STATUS_UNDERFLOW
+                if active[i] != 0.0 and (tries[i] >= max_steps or not 0.1 * h[i] > abs(t[i]) * _UROUND):
+                    status[i] = STATUS_LIMIT if tries[i] >= max_steps else STATUS_UNDERFLOW
                     active[i] = 0.0
             for i in range(m):  # each lane's step, the last one up to t_end; 0 for a lane that is done
                 last = t[i] + 1.01 * h[i] >= t_end
@@ -436,62 +474,39 @@ def make_dop853_block_driver(trial, rate, surface=None):
                 trial_h[i] = h[i] * active[i]
                 t_new[i] = t_end if last else t[i] + h[i]
             trial(t, trial_h, ys, ks, y1s, k1s, err, rtol, atol, a)
-            for i in range(m):  # accept or reject every lane, branch-free (Hairer's control)
+            extras = 0.0
+            for i in range(m):  # accept or reject every lane, branch-free (Hairer's control), in floats: vectorised
                 e = err[i]
-                fac11 = _root8(e)
-                finite = e < np.inf
-                good = e <= 1.0
-                grow = h[i] / max(1.0 / _FAC2, min(1.0 / _FAC1, fac11 / _SAFE))
+                good = 1.0 if e <= 1.0 else 0.0
+                # the step's factor, kept within [1/6, 1/0.333] (a non-finite error: the smallest, 0.333)
+                factor = min(1.0 / _FAC1, _root8(e) / _SAFE) if e < 1e300 else 1.0 / _FAC1
+                grow = h[i] / max(1.0 / _FAC2, factor)
                 grow = min(grow, h[i]) if last_rejected[i] != 0.0 else grow
-                shrink = h[i] / min(1.0 / _FAC1, fac11 / _SAFE) if finite else h[i] * _FAC1
-                if active[i] != 0.0:
-                    h[i] = grow if good else shrink
-                    last_rejected[i] = 0.0 if good else 1.0
-                    taken[i] += 1
-                accepted[i] = active[i] if good else 0.0
-            for i in range(m):  # what an accepted step brings beyond its state: outputs, a crossing, the end
-                if accepted[i] == 0.0:
-                    continue
-                counts[i, 0] += 1
-                ti, hi, tn = t[i], trial_h[i], t_new[i]
-                before = g0[i]
-                g1 = 0.0
-                crossed = False
-                if most > 0:
-                    for j in range(n):
-                        y1[j] = y1s[j, i]
-                    g1 = surface(tn, y1, p, component, value)
-                    crossed = (direction >= 0.0 and before < 0.0 <= g1) or (direction <= 0.0 and before > 0.0 >= g1)
-                    g0[i] = g1
-                if next_out[i] <= tn or crossed:  # this lane's dense output: its stages again, one sample
-                    for j in range(n):
-                        y0[j] = ys[j, i]
-                        y1[j] = y1s[j, i]
-                        k[0, j] = ks[j, i]
-                    _stages(rate, y0, p, ti, hi, k, stage)
-                    _interpolant(rate, y0, y1, p, ti, hi, k, stage, f)
-                    if crossed:
-                        c = int(counts[i, 2])
-                        x = _crossing(surface, f, y0, p, ti, hi, before, g1, component, value, stage)
-                        crossing_t[i, c] = tn if x == 1.0 else ti + x * hi
-                        _dense(f, y0, x, crossing_y[i, c])
-                        counts[i, 2] += 1
-                    while slot[i] < times.shape[0] and times[slot[i]] <= tn:
-                        if times[slot[i]] == tn:
-                            out[i, slot[i]] = y1
-                        else:
-                            _dense(f, y0, (times[slot[i]] - ti) / hi, out[i, slot[i]])
-                        slot[i] += 1
-                    next_out[i] = times[slot[i]] if slot[i] < times.shape[0] else np.inf
-                t[i] = tn
-                if tn == t_end or (most > 0 and counts[i, 2] == most):
-                    active[i] = 0.0
-            for j in range(n):  # the accepted lanes take their new states and rates
+                shrink = h[i] / factor
+                on = active[i]
+                h[i] = on * (good * grow + (1.0 - good) * shrink) + (1.0 - on) * h[i]
+                last_rejected[i] = on * (1.0 - good) + (1.0 - on) * last_rejected[i]
+                tries[i] += on
+                accepted[i] = on * good
+                # an accepted step that reaches an output time, or any of a section's
+                extras += accepted[i] * (1.0 if next_out[i] <= t_new[i] else sectioned)
+            if extras > 0.0:
+                for i in range(m):  # outputs and crossings: the lane's dense output, made again one sample
+                    if accepted[i] != 0.0 and (next_out[i] <= t_new[i] or most > 0):
+                        _lane_extras(i, ys, ks, y1s, p, t[i], trial_h[i], t_new[i], times, out, slot, next_out, g0,
+                                     component, value, direction, most, crossing_t, crossing_y, counts, k, stage, y0,
+                                     y1, f)
+            for i in range(m):  # the accepted lanes move on; done at t_end or with their crossings
+                counts[i, 0] += 1 if accepted[i] != 0.0 else 0
+                t[i] = t_new[i] if accepted[i] != 0.0 else t[i]
+                finished = t[i] == t_end or (most > 0 and counts[i, 2] == most)
+                active[i] = 0.0 if finished else active[i]
+            for j in range(n):  # their new states and rates
                 for i in range(m):
                     ys[j, i] = y1s[j, i] if accepted[i] != 0.0 else ys[j, i]
                     ks[j, i] = k1s[j, i] if accepted[i] != 0.0 else ks[j, i]
         for i in range(used):  # a stopped lane's later outputs: the state it stopped with
-            counts[i, 1] = taken[i] - counts[i, 0]
+            counts[i, 1] = int(tries[i]) - counts[i, 0]
             stopped[i] = t[i]
             while slot[i] < times.shape[0]:
                 for j in range(n):
@@ -503,7 +518,7 @@ def make_dop853_block_driver(trial, rate, surface=None):
                   counts, stopped):
         # size: the run's arguments and one output array each, for a share of the samples
         n_samples, n = y.shape
-        lanes = np.empty((10, BLOCK))
+        lanes = np.empty((11, BLOCK))
         steps = np.empty((2, BLOCK), dtype=np.int64)
         rows = np.empty((3, n, BLOCK))
         scratch = np.empty((SCRATCH_ROWS + 1, n))

@@ -268,9 +268,9 @@ def trial_source(name, components, n_fields=None, control=tableaux.DOP853):
         lines.append(f"        {stepped[j]} = {combination(y, enumerate(tableau.b), j + 1)}")
     lines += rate_call(names(stages + 1), "t + h", stepped)
     for j, y in enumerate(components):
-        lines += [f"        s{j + 1} = atol[{j}] + rtol[{j}] * max(abs({y}), abs({stepped[j]}))",
-                  f"        e5_{j + 1} = ({weighted(control.e5, j)}) / s{j + 1}",
-                  f"        e3_{j + 1} = ({weighted(control.e3, j)}) / s{j + 1}",
+        lines += [f"        s{j + 1} = 1.0 / (atol[{j}] + rtol[{j}] * max(abs({y}), abs({stepped[j]})))",
+                  f"        e5_{j + 1} = ({weighted(control.e5, j)}) * s{j + 1}",
+                  f"        e3_{j + 1} = ({weighted(control.e3, j)}) * s{j + 1}",
                   f"        y1s[{j}, i] = {stepped[j]}",
                   f"        k1s[{j}, i] = k{stages + 1}_{j + 1}"]
     lines += [f"        err5 = {' + '.join(f'e5_{j + 1} * e5_{j + 1}' for j in range(n))}",
