@@ -149,7 +149,6 @@ def test_too_few_steps_stop_with_step_limit(pendulum):
     (dict(save_every=10), "save_every counts fixed steps"),
     (dict(dt=-1.0), "dt .the first step of an error-controlled run. must be finite and > 0"),
     (dict(max_steps=0), "max_steps must be an integer >= 1"),
-    (dict(device="cuda"), "device"),
 ])
 def test_bad_input_is_one_line_naming_the_argument(pendulum, keywords, message):
     with pytest.raises(ValueError, match=message):
@@ -186,3 +185,26 @@ def test_the_kernel_is_compiled_once_per_system_and_parameters_replace_its_own(p
                                  parameters={"k": 0.0, "c": 1.0})  # v' = -v
     assert compiled(pendulum).methods["dop853"] is driver
     np.testing.assert_allclose(decay[0], [1.0 - math.exp(-1.0), math.exp(-1.0)], rtol=1e-11)
+
+
+@pytest.mark.slow  # the per-sample loop's compile for the device, twice (15 s)
+def test_the_device_runs_the_per_sample_loop_and_gives_the_cpus_states(pendulum):
+    """On numba-cuda's simulator (tests/conftest.py): one thread per sample, the CPU's per-sample loop compiled."""
+    pytest.importorskip("numba_cuda")
+    from tumble.engine.device import resolve_device
+
+    try:
+        resolve_device("cuda")
+    except ValueError as err:
+        pytest.skip(str(err))
+    y0 = np.array([[1.0, 0.0], [2.5, 0.3], [-0.5, 1.0]])
+    times = np.linspace(0.0, 8.0, 5)
+    cpu = tumble.integrate(pendulum, y0, 8.0, method="dop853", rtol=1e-12, atol=1e-14, times=times)
+    gpu = tumble.integrate(pendulum, y0, 8.0, method="dop853", rtol=1e-12, atol=1e-14, times=times, device="cuda")
+    assert gpu.attrs["device"] == "cuda" and (gpu.status.values == 0).all()
+    np.testing.assert_allclose(gpu.state.values, cpu.state.values, rtol=0, atol=1e-10)
+    assert np.abs(gpu.steps.values - cpu.steps.values).max() <= 2
+    section = tumble.section(pendulum, y0, 20.0, surface=("x", 0.0), direction=0, device="cuda", rtol=1e-12)
+    on_cpu = tumble.section(pendulum, y0, 20.0, surface=("x", 0.0), direction=0, rtol=1e-12)
+    assert section["count"].values.tolist() == on_cpu["count"].values.tolist()
+    np.testing.assert_allclose(section.time.values, on_cpu.time.values, rtol=0, atol=1e-9)

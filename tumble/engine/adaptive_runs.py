@@ -16,7 +16,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import registry
-from ..kernels import adaptive_loop, rate_sample, rate_sample_parameters, system_steps
+from ..kernels import adaptive_loop, device_adaptive_loop, rate_sample, rate_sample_parameters, system_steps
 from ..physics.system import System, with_parameters
 from . import cost
 from .system_runs import block_code, compiled, initial_states, probe, state_units, system_name
@@ -176,6 +176,27 @@ def _kernel(system, surface, parameters):
     return _MODEL_KERNELS[key], p, np.ascontiguousarray(p[1:])
 
 
+#: (rate, surface, state size, parameters) -> the device's driver of an error-controlled run (made once per process).
+_DEVICE_KERNELS = {}
+
+
+def _device_kernel(system, surface, n_state):
+    """``(drive, p, a)`` as :func:`_kernel`'s, for the device: one thread per sample running the per-sample loop
+    (:mod:`tumble.kernels.cuda.adaptive`), the rate a System's or the models' (:func:`tumble.kernels.rate_sample`)."""
+    if isinstance(system, System):
+        rate, p = compiled(system).rate, None
+        n_parameters = len(system.parameters)
+    else:
+        rate, p = rate_sample, rate_sample_parameters(system.kind, system.moments, system.parameters)
+        n_parameters = len(p)
+    key = (rate, surface, n_state, n_parameters)
+    if key not in _DEVICE_KERNELS:
+        cuda = device_adaptive_loop()
+        kernel = cuda.make_kernel(adaptive_loop.make_dop853_sample(rate, surface), n_state, n_parameters)
+        _DEVICE_KERNELS[key] = lambda *arguments: cuda.run(kernel, *arguments)
+    return (lambda y, p, a, *rest: _DEVICE_KERNELS[key](y, p, *rest)), p, np.zeros(0)
+
+
 def run_adaptive(system, y0, t_end, *, times=None, rtol=None, atol=None, first_step=None, max_steps=None,
                  parameters=None, device="cpu", y0_name="y0", surface=None, compiled_surface=None):
     # size: the run's arguments, each checked once, and the run
@@ -200,7 +221,7 @@ def run_adaptive(system, y0, t_end, *, times=None, rtol=None, atol=None, first_s
     parameters : mapping, optional
         Values in place of the system's own parameters, by name.
     device : str
-        Resolved by the caller; only ``"cpu"`` runs it.
+        Resolved by the caller: ``"cpu"``, or ``"cuda"`` (one thread per sample).
     y0_name : str
         What a message calls ``y0`` (``"w0"``: a free body's spins).
     surface : Surface, optional
@@ -218,9 +239,6 @@ def run_adaptive(system, y0, t_end, *, times=None, rtol=None, atol=None, first_s
         Any argument out of its range (one line naming it), a rate numba cannot compile or that misbehaves at the
         initial states, a device other than the CPU.
     """
-    if device != "cpu":
-        raise ValueError(f"device {device!r}: method 'dop853' runs on the CPU (device='cpu'); the device runs the "
-                         f"fixed-step methods")
     system, values = with_parameters(system, parameters)
     t_end, h0, limit = _checked_scalars(t_end, first_step, max_steps)
     components = system.spec.state
@@ -233,7 +251,8 @@ def run_adaptive(system, y0, t_end, *, times=None, rtol=None, atol=None, first_s
     if most:
         cost.refuse(cost.run_cost(len(y), 0, most * (y.shape[1] + 1)), f"y0 ({len(y):,} states) and max_crossings = "
                     f"{most:,}", device)
-    drive, p, a = _kernel(system, compiled_surface, parameters)
+    drive, p, a = (_kernel(system, compiled_surface, parameters) if device == "cpu" else
+                   _device_kernel(system, compiled_surface, y.shape[1]))
     if isinstance(system, System):
         p = system.parameter_values(parameters)
         probe(system, y, p, 0.0)

@@ -133,7 +133,7 @@ def section(system, y0, t_end, *, surface=None, period=None, phase=0.0, directio
     parameters : mapping, optional
         A model's or System's parameters, by name, in place of its own.
     device : str
-        ``"cpu"`` (the device does not run it yet).
+        ``"cpu"``, or ``"cuda"``: one thread per sample, the CPU's per-sample loop compiled for the device.
 
     Returns
     -------

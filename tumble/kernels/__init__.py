@@ -45,7 +45,7 @@ def __getattr__(name):
 
 __all__ = ["BLOCK", "METHODS", "adaptive_loop", "MODEL_BLOCK", "MODEL_CODES", "MODEL_METHODS", "TORQUE_CONSTANT", "TORQUE_PULSE",
            "TORQUE_RAMP", "TORQUE_SIGNATURE", "TORQUE_SINE", "TORQUE_USER", "device_attitude", "device_closed_form",
-           "device_fits", "device_kernels", "device_models", "device_sample_loop", "elliptic",
+           "device_adaptive_loop", "device_fits", "device_kernels", "device_models", "device_sample_loop", "elliptic",
            "elliptic_attitude", "fits",
            "Method", "TABLEAUX", "model_methods", "model_rhs", "model_tangent", "ModelObserved", "Observed", "parallel_block",
            "rate_sample", "rate_sample_parameters", "run", "run_attitude", "run_model", "run_system_blocks", "sample_loop",
@@ -92,6 +92,14 @@ def device_attitude():
     from .cuda import attitude_steps
 
     return attitude_steps
+
+
+def device_adaptive_loop():
+    """The CUDA launcher of an error-controlled run, :mod:`tumble.kernels.cuda.adaptive` (one thread per sample running
+    :func:`adaptive_loop.make_dop853_sample`'s loop), imported on the first call as :func:`device_kernels`."""
+    from .cuda import adaptive
+
+    return adaptive
 
 
 def device_sample_loop():
