@@ -164,6 +164,11 @@ class ErrorControl(NamedTuple):
     extra_a: np.ndarray  # (3, s + 4): the dense output's three more stages (rows of A, over every stage before them)
     extra_c: np.ndarray  # (3,)
     dense: np.ndarray  # (4, s + 4): the interpolant's coefficients of degree 4 to 7 (over every stage)
+    # Hairer's step-size control (dop853.f's defaults): the next step is h / fac, fac = err^(1/(error_order + 1)) /
+    # safety, within [1 / largest, 1 / smallest]
+    safety: float = 0.9
+    smallest: float = 0.333
+    largest: float = 6.0
 
 
 # DOP853's error estimates and its dense output of order 7 (Hairer, Norsett & Wanner, sect. II.6 and II.10; the

@@ -45,8 +45,9 @@ _E5, _E3, _D = DOP853.e5.copy(), DOP853.e3.copy(), DOP853.dense.copy()
 _EXPONENT = 1.0 / (DOP853.error_order + 1)
 assert _EXPONENT == 0.125, "the step control's root is taken as three square roots"
 
-# Hairer's defaults (dop853.f): safety factor, the step's largest fall and rise per step, the rounding unit.
-_SAFE, _FAC1, _FAC2, _UROUND = 0.9, 0.333, 6.0, 2.3e-16
+# Hairer's control (dop853.f's defaults, the method's data): safety factor, the step's largest fall and rise per
+# step; the rounding unit.
+_SAFE, _FAC1, _FAC2, _UROUND = DOP853.safety, DOP853.smallest, DOP853.largest, 2.3e-16
 
 #: Rows of the scratch a sample's run needs (its state has ``n`` components): 16 stages, the stage's state, ``y1``,
 #: the 7 rows of the interpolant.
