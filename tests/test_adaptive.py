@@ -96,6 +96,7 @@ def test_a_users_system_agrees_with_scipy_at_its_tightest_tolerance(pendulum):
         np.testing.assert_allclose(ds.state.values[i], sol.y.T, rtol=0, atol=1e-10)
 
 
+@pytest.mark.slow  # the heavy top's own kernel's compile (10 s)
 def test_a_built_in_model_agrees_with_its_fixed_step_rk8():
     top = tumble.models.HeavyTop((1.0, 1.0, 0.5), 1.0)
     g = np.array([0.05, 0.0, 1.0]) / math.hypot(0.05, 1.0)

@@ -78,6 +78,7 @@ def test_a_sample_stops_once_it_has_max_crossings():
     assert three.status.values.tolist() == [registry.STATUS_OK]
 
 
+@pytest.mark.slow  # the heavy top's own kernel's compile (10 s)
 def test_a_built_in_models_section():
     top = tumble.models.HeavyTop((1.0, 1.2, 0.5), 1.0)
     g = np.array([0.3, 0.0, 1.0]) / math.hypot(0.3, 1.0)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 #: Default-run test cases per file, at most.
 BUDGET = {
-    "test_adaptive.py": 21,
+    "test_adaptive.py": 20,
     "test_analysis.py": 91,
     "test_attitude.py": 43,
     "test_attitude_plots.py": 24,
@@ -62,7 +62,7 @@ BUDGET = {
     "test_sampling.py": 146,
     "test_scene_kinds.py": 4,
     "test_schema.py": 64,
-    "test_sections.py": 19,
+    "test_sections.py": 18,
     "test_shapes.py": 96,
     "test_stress.py": 38,
     "test_study.py": 54,
