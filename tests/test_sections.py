@@ -47,6 +47,7 @@ def test_component_crossings_are_scipys_events(direction):
     assert ds.attrs["surface"] == "w2 = 0" and ds.attrs["direction"] == direction
 
 
+@pytest.mark.slow  # a kernel of its own for the user's surface (10 s to compile)
 def test_a_users_surface_function_is_compiled_and_located_as_scipys_event():
     ds = tumble.section(BODY, SPINS, 40.0, surface=_pitch, direction=0, rtol=1e-13, atol=1e-15)
     for i, w0 in enumerate(SPINS):

@@ -62,7 +62,7 @@ BUDGET = {
     "test_sampling.py": 146,
     "test_scene_kinds.py": 4,
     "test_schema.py": 64,
-    "test_sections.py": 18,
+    "test_sections.py": 17,
     "test_shapes.py": 96,
     "test_stress.py": 38,
     "test_study.py": 54,
