@@ -206,7 +206,7 @@ def component_surface(t, y, p, component, value):
     return y[component] - value
 
 
-@jit(inline=True)
+@jit(cache=False)
 def _crossing(surface, f, y0, p, t, h, g0, g1, component, value, trial):
     """Where in the step ``(t, t + h)`` the surface is crossed, as ``x = (t* − t) / h`` in ``(0, 1]``: ``g`` (``g0`` at
     0, ``g1`` at 1, of opposite signs or ``g1 = 0``) on the dense output ``f`` (from ``y0``), by regula falsi with the
@@ -247,7 +247,7 @@ def _root8(x):
     return math.sqrt(math.sqrt(math.sqrt(x)))
 
 
-@jit(inline=True)
+@jit(cache=False)
 def _first_step(rate, t, y, p, span, rtol, atol, f0, y_trial, f1):
     """Hairer's initial step (``hinit`` of dop853.f, as SciPy's ``select_initial_step``): from the sizes of ``y``,
     ``f(t, y)`` (``f0``) and an estimate of the second derivative (one more evaluation of the rate), within
@@ -278,7 +278,7 @@ def _first_step(rate, t, y, p, span, rtol, atol, f0, y_trial, f1):
     return min(100.0 * h0, h1, span)
 
 
-@jit(inline=True)
+@jit(cache=False)
 def _interpolant(rate, y0, y1, p, t, h, k, stage, f):
     """The seven rows ``f`` of the order-7 interpolant of the step ``(t, y0) -> (t + h, y1)``: its three more stages
     (``k[13..15]``), then ``f[0] = y1 − y0``, ``f[1] = h k0 − f[0]``, ``f[2] = 2 f[0] − h (k12 + k0)``, ``f[3..6] =
@@ -364,7 +364,7 @@ def make_user_surface(g):
 BLOCK = 32
 
 
-@jit(inline=True)
+@jit(cache=False)
 def _stages(rate, y0, p, t, h, k, stage):
     """The step's stages ``k[1..12]`` from ``y0`` at ``t`` over ``h`` (``k[0]`` given): what a lane's dense output
     needs beyond the trial step, which keeps its stages in registers."""
@@ -384,7 +384,7 @@ def make_dop853_block_driver(trial, rate, surface=None):
     if surface is None:
         surface = component_surface
 
-    @jit(cache=False, inline=True)
+    @jit(cache=False)
     def _lane_extras(i, ys, ks, y1s, p, ti, hi, tn, times, out, slot, next_out, g0, component, value, direction, most,
                      crossing_t, crossing_y, counts, k, stage, y0, y1, f):
         # size: one lane's accepted step's outputs and crossing, with the scratch they are made in
