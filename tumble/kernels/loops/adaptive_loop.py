@@ -18,8 +18,11 @@ The method is Dormand & Prince's eighth-order pair as Hairer distributes it (``d
 
 :func:`make_dop853_sample` writes one sample's whole run; it is scalar code on one sample's arrays, so the CPU's driver
 (:func:`make_dop853_driver`, a share of the samples per thread, as :func:`tumble.kernels.loops.sample_loop.make_cpu_driver`)
-and a device's one thread per sample can call it alike. Like the fixed-step per-sample loop, it is a closure over the
-rate, compiled once per process.
+and a device's one thread per sample (:mod:`tumble.kernels.cuda.adaptive`) can call it alike.
+:func:`make_dop853_block_driver` steps blocks of :data:`BLOCK` samples at once instead, each lane at its own time and
+step, with a generated trial step vectorised across the lanes: the CPU's path for the built-in models and for a System
+with a scalar form. Like the fixed-step per-sample loop, each driver is a closure over the rate, compiled once per
+process (numba's disk cache cannot key a closure over another function).
 """
 
 import math
