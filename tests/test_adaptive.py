@@ -85,6 +85,7 @@ def test_its_steps_are_scipys_dop853_steps_and_its_states_agree():
         np.testing.assert_allclose(ds.omega.values[i, -1], sol.y[:, -1], rtol=0, atol=2e-9)
 
 
+@pytest.mark.slow  # a System's kernel's compile (12 s): the tolerance how-to's example runs one by default
 def test_a_users_system_agrees_with_scipy_at_its_tightest_tolerance(pendulum):
     y0 = np.array([[2.5, 0.0], [0.1, 1.0], [-3.0, 2.0]])
     times = np.linspace(0.0, 20.0, 9)
@@ -106,20 +107,20 @@ def test_a_built_in_model_agrees_with_its_fixed_step_rk8():
     np.testing.assert_allclose(adaptive, fixed, rtol=0, atol=1e-10)
 
 
-def test_propagate_gives_integrates_final_states_and_a_single_state_stays_single(pendulum):
-    y0 = np.array([[1.0, 0.0], [0.2, -0.3]])
-    ds = tumble.integrate(pendulum, y0, 5.0, method="dop853", rtol=1e-9)
-    np.testing.assert_array_equal(tumble.propagate(pendulum, y0, 5.0, method="dop853", rtol=1e-9),
-                                  ds.state.values[:, -1])
-    assert tumble.propagate(pendulum, y0[0], 5.0, method="dop853", rtol=1e-9).shape == (2,)
+def test_propagate_gives_integrates_final_states_and_a_single_state_stays_single():
+    ds = tumble.integrate(BODY, SPINS, 5.0, method="dop853", rtol=1e-9)
+    np.testing.assert_array_equal(tumble.propagate(BODY, SPINS, 5.0, method="dop853", rtol=1e-9),
+                                  ds.omega.values[:, -1])
+    assert tumble.propagate(BODY, SPINS[0], 5.0, method="dop853", rtol=1e-9).shape == (3,)
 
 
-def test_per_component_tolerances_and_a_given_first_step(pendulum):
-    y0 = np.array([[1.0, 0.0]])
-    loose = tumble.integrate(pendulum, y0, 5.0, method="dop853", rtol=[1e-4, 1e-12], atol=[1e-6, 1e-14])
-    assert isinstance(loose.attrs["rtol"], np.ndarray) and loose.attrs["rtol"].tolist() == [1e-4, 1e-12]
-    tight = tumble.integrate(pendulum, y0, 5.0, method="dop853", rtol=1e-12, atol=1e-14, dt=1e-3)
-    assert int(tight.steps[0]) > 10
+def test_per_component_tolerances_and_a_given_first_step():
+    loose = tumble.integrate(BODY, SPINS[:1], 5.0, method="dop853", rtol=[1e-4, 1e-12, 1e-12],
+                             atol=[1e-6, 1e-14, 1e-14])
+    assert isinstance(loose.attrs["rtol"], np.ndarray) and loose.attrs["rtol"].tolist() == [1e-4, 1e-12, 1e-12]
+    tight = tumble.integrate(BODY, SPINS[:1], 5.0, method="dop853", rtol=1e-12, atol=1e-14, dt=1e-3)
+    assert int(tight.steps[0]) > int(loose.steps[0]) > 0
+    assert tight.attrs["rtol"] == 1e-12
 
 
 @pytest.mark.slow  # its own System's kernel's compile (4 s)
@@ -133,9 +134,9 @@ def test_a_singularity_stops_its_sample_with_step_underflow_and_a_warning(blow_u
     assert ds.state.values[1, 1, 0] == pytest.approx(-1.0 / 3.0, rel=1e-9)
 
 
-def test_too_few_steps_stop_with_step_limit(pendulum):
+def test_too_few_steps_stop_with_step_limit():
     with pytest.warns(RuntimeWarning, match="step limit"):
-        ds = tumble.integrate(pendulum, [[1.0, 0.0]], 50.0, method="dop853", max_steps=5)
+        ds = tumble.integrate(BODY, SPINS[:1], 50.0, method="dop853", max_steps=5)
     assert ds.status.values.tolist() == [registry.STATUS_LIMIT]
     assert int(ds.steps[0] + ds.rejected_steps[0]) == 5
 
@@ -175,6 +176,7 @@ def test_a_non_finite_initial_state_is_refused_naming_it(pendulum):
         tumble.propagate(BODY, [[0.1, 1.0, 0.0], [np.nan, 0.0, 0.0]], 5.0, method="dop853")
 
 
+@pytest.mark.slow  # a System's kernel's compile (12 s)
 def test_the_kernel_is_compiled_once_per_system_and_parameters_replace_its_own(pendulum):
     from tumble.engine.system_runs import compiled
 
