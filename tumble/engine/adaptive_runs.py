@@ -22,7 +22,7 @@ from . import cost
 from .system_runs import block_code, compiled, initial_states, probe, state_units, system_name
 
 __all__ = ["AdaptiveRun", "Surface", "DEFAULT_ATOL", "DEFAULT_RTOL", "FLAG_MEANINGS", "FLAG_VALUES", "MAX_STEPS", "MIN_RTOL",
-           "checked_horizon", "output_times", "run_adaptive", "tolerances"]
+           "checked_horizon", "output_times", "run_adaptive", "run_attrs", "run_variables", "tolerances"]
 
 #: The tolerances of a run that names none: near the double's limit for the smooth motions tumble studies.
 DEFAULT_RTOL, DEFAULT_ATOL = 1e-10, 1e-12
@@ -275,3 +275,22 @@ def run_adaptive(system, y0, t_end, *, times=None, rtol=None, atol=None, first_s
 #: Each status's name as a flag meaning (``status`` of an error-controlled run's Dataset).
 FLAG_VALUES = np.arange(len(registry.ADAPTIVE_STATUSES), dtype=np.int8)
 FLAG_MEANINGS = " ".join(s.name.replace(" ", "_") for s in registry.ADAPTIVE_STATUSES)
+
+
+def run_variables(run):
+    """The Dataset variables every error-controlled run's result holds: each sample's ``status``, ``steps`` and
+    ``rejected_steps`` (:func:`tumble.engine.integration.indexed_dataset`'s form)."""
+    return {
+        "status": ("sample", run.status, {"long_name": "sample status", "flag_values": FLAG_VALUES.copy(),
+                                          "flag_meanings": FLAG_MEANINGS}),
+        "steps": ("sample", run.steps, {"long_name": "accepted steps"}),
+        "rejected_steps": ("sample", run.rejected, {"long_name": "rejected steps (error above the tolerance)"}),
+    }
+
+
+def run_attrs(run):
+    """The attributes every error-controlled run's result holds: the method, its order, ``rtol`` and ``atol`` (a
+    number where every component has the same), ``t_end``."""
+    tolerance = {key: (float(value[0]) if np.all(value == value[0]) else value.copy())
+                 for key, value in (("rtol", run.rtol), ("atol", run.atol))}
+    return {"method": adaptive_loop.DOP853.name, "order": adaptive_loop.DOP853.order, **tolerance, "t_end": run.t_end}

@@ -19,7 +19,7 @@ from ..registry import STATUS_NAMES, STATUS_OK
 from . import cost
 from .device import check_on_device, resolve_device, stepper
 from .ensemble import check_torque_step, checked_torque, run_planned
-from .adaptive_runs import FLAG_MEANINGS as ADAPTIVE_FLAG_MEANINGS, FLAG_VALUES as ADAPTIVE_FLAG_VALUES, run_adaptive
+from .adaptive_runs import run_adaptive, run_attrs, run_variables
 from .system_runs import added_tableau, is_system, run_system
 
 __all__ = ["integrate", "propagate", "METHOD_NAMES"]
@@ -491,17 +491,12 @@ def _adaptive_dataset(run, moments, device):
         }
         attrs = {"system": run.name, **{f"parameter_{key}": value for key, value in run.parameters.items()}}
     variables.update({
-        "status": ("sample", run.status, {"long_name": "sample status", "flag_values": ADAPTIVE_FLAG_VALUES.copy(),
-                                          "flag_meanings": ADAPTIVE_FLAG_MEANINGS}),
-        "steps": ("sample", run.steps, {"long_name": "accepted steps"}),
-        "rejected_steps": ("sample", run.rejected, {"long_name": "rejected steps (error above the tolerance)"}),
+        **run_variables(run),
         "sample": ("sample", np.arange(len(run.final)), {"long_name": "ensemble member"}),
         "time": ("time", run.times, {"units": "s", "long_name": "time"}),
     })
-    tolerance = {key: (float(value[0]) if np.all(value == value[0]) else value.copy())
-                 for key, value in (("rtol", run.rtol), ("atol", run.atol))}
-    attrs.update({"method": "dop853", "order": 8, **tolerance, "t_end": run.t_end,
-                  "n_stopped": int(stopped.sum()), "path": "per-sample loop, error-controlled", "device": device})
+    attrs.update({**run_attrs(run), "n_stopped": int(stopped.sum()), "path": "per-sample loop, error-controlled",
+                  "device": device})
     return indexed_dataset(variables, attrs)
 
 

@@ -25,8 +25,8 @@ from .. import registry
 from ..kernels import adaptive_loop, rate_sample_parameters, sample_loop
 from ..physics.bodies import one_body
 from ..physics.models import FreeBody
-from .adaptive_runs import (DEFAULT_ATOL, DEFAULT_RTOL, FLAG_MEANINGS, FLAG_VALUES, Surface, checked_horizon,
-                            run_adaptive)
+from .adaptive_runs import (DEFAULT_ATOL, DEFAULT_RTOL, Surface, checked_horizon, run_adaptive, run_attrs,
+                            run_variables)
 from .device import resolve_device
 from .system_runs import initial_states, is_system, system_name
 
@@ -81,8 +81,8 @@ def _surface(system, surface, direction, max_crossings):
 
 
 def _checked(direction, max_crossings, method, surface, period, phase):
-    if method != "dop853":
-        raise ValueError(f"method must be 'dop853' (a section reads its crossings off the dense output of an "
+    if method not in registry.ERROR_CONTROLLED:
+        raise ValueError(f"method must be one of {', '.join(map(repr, registry.ERROR_CONTROLLED))} (a section reads its crossings off the dense output of an "
                          f"error-controlled run), got {method!r}")
     if (surface is None) == (period is None):
         raise ValueError("give a surface (a component and a value, or g(t, y, p)) or a period (the stroboscopic "
@@ -102,7 +102,8 @@ def _checked(direction, max_crossings, method, surface, period, phase):
 
 
 def section(system, y0, t_end, *, surface=None, period=None, phase=0.0, direction=1, max_crossings=1000,
-            method="dop853", rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, dt=None, parameters=None, device="cpu"):
+            method=registry.ERROR_CONTROLLED[0], rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, dt=None, parameters=None,
+            device="cpu"):
     # size: the contract's arguments (DESIGN.md "Tolerance and sections"), each checked once
     """The Poincaré section of an ensemble: where each sample crosses a surface, or its states once per period.
 
@@ -197,23 +198,17 @@ def section(system, y0, t_end, *, surface=None, period=None, phase=0.0, directio
 def _dataset(run, times, states, count, attrs, device):
     from .integration import indexed_dataset
 
-    tolerance = {key: (float(value[0]) if np.all(value == value[0]) else value.copy())
-                 for key, value in (("rtol", run.rtol), ("atol", run.atol))}
     variables = {
         "time": (("sample", "crossing"), times, {"units": "s", "long_name": "time of the crossing"}),
         "state": (("sample", "crossing", "component"), states,
                   {"units": run.units[0] if len(set(run.units)) == 1 else "see component_units",
                    "long_name": f"state of {run.name} at the crossing"}),
         "count": ("sample", count, {"long_name": "crossings of the sample (NaN past them)"}),
-        "status": ("sample", run.status, {"long_name": "sample status", "flag_values": FLAG_VALUES.copy(),
-                                          "flag_meanings": FLAG_MEANINGS}),
-        "steps": ("sample", run.steps, {"long_name": "accepted steps"}),
-        "rejected_steps": ("sample", run.rejected, {"long_name": "rejected steps (error above the tolerance)"}),
+        **run_variables(run),
         "sample": ("sample", np.arange(len(count)), {"long_name": "ensemble member"}),
         "crossing": ("crossing", np.arange(times.shape[1]), {"long_name": "crossing, in time order"}),
         "component": ("component", np.array(run.components), {"long_name": "state component"}),
         "component_units": ("component", np.array(run.units), {"long_name": "units of each state component"}),
     }
-    return indexed_dataset(variables, {"system": run.name, "method": "dop853", **tolerance, "t_end": run.t_end,
-                                       **attrs, "device": device,
+    return indexed_dataset(variables, {"system": run.name, **run_attrs(run), **attrs, "device": device,
                                        **{f"parameter_{key}": value for key, value in run.parameters.items()}})
