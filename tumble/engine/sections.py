@@ -82,7 +82,8 @@ def _surface(system, surface, direction, max_crossings):
 
 def _checked(direction, max_crossings, method, surface, period, phase):
     if method not in registry.ERROR_CONTROLLED:
-        raise ValueError(f"method must be {' or '.join(map(repr, registry.ERROR_CONTROLLED))} (a section reads its crossings off the dense output of an "
+        raise ValueError(f"method must be {' or '.join(map(repr, registry.ERROR_CONTROLLED))} (a section reads its "
+                         f"crossings off the dense output of an "
                          f"error-controlled run), got {method!r}")
     if (surface is None) == (period is None):
         raise ValueError("give a surface (a component and a value, or g(t, y, p)) or a period (the stroboscopic "
