@@ -11,6 +11,7 @@ it. The CPU runs one share of the samples per thread; the device does not run it
 from __future__ import annotations
 
 import math
+import warnings
 from typing import NamedTuple
 
 import numpy as np
@@ -22,7 +23,8 @@ from . import cost
 from .system_runs import block_code, compiled, initial_states, probe, state_units, system_name
 
 __all__ = ["AdaptiveRun", "Surface", "DEFAULT_ATOL", "DEFAULT_RTOL", "FLAG_MEANINGS", "FLAG_VALUES", "MAX_STEPS", "MIN_RTOL",
-           "checked_horizon", "output_times", "run_adaptive", "run_attrs", "run_variables", "tolerances"]
+           "checked_horizon", "checked_scalars", "output_times", "run_adaptive", "run_attrs", "run_variables", "tolerances",
+           "warn_stops"]
 
 #: The tolerances of a run that names none: near the double's limit for the smooth motions tumble studies.
 DEFAULT_RTOL, DEFAULT_ATOL = 1e-10, 1e-12
@@ -127,7 +129,8 @@ def checked_horizon(t_end):
     return horizon
 
 
-def _checked_scalars(t_end, first_step, max_steps):
+def checked_scalars(t_end, first_step, max_steps):
+    """``(t_end, first step (0: chosen), max_steps)`` of an error-controlled run, checked (one line each)."""
     t_end = checked_horizon(t_end)
     h0 = 0.0
     if first_step is not None:
@@ -240,7 +243,7 @@ def run_adaptive(system, y0, t_end, *, times=None, rtol=None, atol=None, first_s
         initial states, a device other than the CPU.
     """
     system, values = with_parameters(system, parameters)
-    t_end, h0, limit = _checked_scalars(t_end, first_step, max_steps)
+    t_end, h0, limit = checked_scalars(t_end, first_step, max_steps)
     components = system.spec.state
     rtol, atol = tolerances(rtol, atol, components)
     marks = output_times(times, t_end)
@@ -275,6 +278,18 @@ def run_adaptive(system, y0, t_end, *, times=None, rtol=None, atol=None, first_s
 #: Each status's name as a flag meaning (``status`` of an error-controlled run's Dataset).
 FLAG_VALUES = np.arange(len(registry.ADAPTIVE_STATUSES), dtype=np.int8)
 FLAG_MEANINGS = " ".join(s.name.replace(" ", "_") for s in registry.ADAPTIVE_STATUSES)
+
+
+def warn_stops(status, total, name, stacklevel):
+    """One warning saying how many samples of ``name`` stopped before ``t_end``, by status (none when every sample
+    ran to the end)."""
+    stopped = status != registry.STATUS_OK
+    if stopped.any():
+        counts = {registry.ADAPTIVE_STATUSES[code].name: int(np.count_nonzero(status == code))
+                  for code in np.unique(status[stopped])}
+        warnings.warn(f"{int(stopped.sum())} of {total} samples of {name!r} stopped before t_end "
+                      f"({', '.join(f'{n} {what}' for what, n in counts.items())}; status says which, their later "
+                      f"states are the ones they stopped with)", RuntimeWarning, stacklevel=stacklevel + 1)
 
 
 def run_variables(run):

@@ -33,9 +33,10 @@ from ..kernels import sample_loop, system_steps, tangent_blocks, tangent_loop
 from ..physics.bodies import Body, one_body
 from ..physics.models import FreeBody, Model
 from ..physics.system import System, finite_number, with_parameters
-from . import cost
+from . import chaos_tolerance, cost
+from .adaptive_runs import checked_scalars, output_times
 from .device import resolve_device
-from .integration import checked_save_every
+from .integration import checked_save_every, fixed_steps_only
 from .system_runs import block_code, compiled, initial_states, probe
 
 __all__ = ["RESCALE_EVERY", "STATUS_ABOVE_NAME", "TANGENT_TURN", "TangentRun", "gali", "initial_tangents", "lyapunov",
@@ -428,13 +429,25 @@ def _saved_marks(n_steps, transient, save_every):
     return np.append(marks, n_steps) if not len(marks) or marks[-1] != n_steps else marks
 
 
-def _checked(system, y0, t_end, dt, method, parameters, device):
-    """What both indicators check first: ``(device, system, y, p, parameter values, method, t_end, n_steps, step)``."""
+def _checked(system, y0, t_end, dt, method, parameters, device, tolerance):
+    # size: every indicator's common arguments, checked once here
+    """What every indicator checks first: ``(device, system, y, p, parameter values, method, t_end, n_steps, step)``;
+    for an error-controlled ``method`` (``tolerance``: ``(rtol, atol, times, max_steps)``) ``n_steps`` is the most
+    steps a sample may take and ``step`` the first step (0: chosen)."""
     device = resolve_device(device)
     system = _as_system(system)
     system, p, values = _parameters(system, parameters)
-    method = _method(method, system)
-    t_end, n_steps, step = _plan(t_end, dt)
+    if method in registry.ERROR_CONTROLLED:
+        if device != "cpu":
+            raise ValueError(f"device {device!r}: the chaos indicators at a tolerance (method={method!r}) run on the "
+                             f"CPU; on the device use a fixed-step method (rk4, rk8)")
+        t_end, step, n_steps = checked_scalars(t_end, dt, tolerance[3])
+        if t_end <= 0:
+            raise ValueError(f"t_end must be > 0 s (the indicators are averages over time), got {t_end:g}")
+    else:
+        fixed_steps_only(method, dt, *tolerance)
+        method = _method(method, system)
+        t_end, n_steps, step = _plan(t_end, dt)
     y, _ = initial_states(system, y0)
     problem = system.state_problem(y) if isinstance(system, Model) else None
     if problem:
@@ -467,8 +480,58 @@ def _system_attrs(system, values, method, step, n_steps, t_end, device):
             **{f"parameter_{key}": value for key, value in values.items()}}
 
 
-def lyapunov(system, y0, t_end, dt, *, method="rk4", exponents=None, renormalise=1.0, transient=0.0, parameters=None,
-             save_every=None, tangent=None, device="cpu"):
+def _tangent_functions(system):
+    """``(rate, tangents)`` of ``system`` for the variational equations at a tolerance
+    (:func:`tumble.kernels.variational.make_variational_rate`), made once."""
+    if isinstance(system, System):
+        made = _SYSTEM_KERNELS.setdefault(system, {})
+        if "variational" not in made:
+            rate, jacobian, _ = _system_functions(system)
+            made["variational"] = (rate, tangent_loop.difference_tangents(rate) if jacobian is None
+                                   else tangent_loop.jacobian_tangents(jacobian))
+        return made["variational"]
+    if "variational" not in _MODEL_KERNELS:
+        _MODEL_KERNELS["variational"] = (rate_sample, tangent_loop.model_tangents())
+    return _MODEL_KERNELS["variational"]
+
+
+def _at_tolerance(system, y, p, vectors, run, **options):
+    """``run`` (:func:`tumble.engine.chaos_tolerance.run_unit` or ``run_spectrum``) of the checked samples ``y`` with
+    the tangent ``vectors``: a System probed first and, without its Jacobian, the components' scales after ``p`` and
+    the warnings where its differences cannot be vouched for."""
+    n, k = y.shape[1], len(vectors)
+    cost.refuse(cost.run_cost(len(y), 0, (k + 2) * n * (np.size(options["times"]) + 1)),
+                f"y0 ({len(y):,} states) with {k} tangent vector{'s' * (k > 1)}", "cpu")
+    if isinstance(system, System):
+        _probe(system, y, p)
+    differences = tangent_kind(system) == "differences"
+    if differences:
+        scales = system.difference_scales()
+        _warn_unsteady_difference(system, y, p, vectors, scales)
+        p = np.concatenate([p, scales])
+    result = run(_tangent_functions(system), y, p, vectors, components=system.spec.state, **options)
+    if differences:
+        _warn_beyond_scale(system, result.final[:, :n], scales)
+    return result
+
+
+def _tolerance_dataset(system, values, t_end, device, more, pieces):
+    """The Dataset of an indicator at a tolerance from its ``(variables, attributes)`` and ``more`` attributes."""
+    variables, attrs = pieces
+    return _dataset(variables, {"system": system.name if isinstance(system, System) else system.kind,
+                                "tangent": tangent_kind(system), **attrs, **more, "t_end": t_end, "device": device,
+                                **{f"parameter_{key}": value for key, value in values.items()}})
+
+
+def _no_save_every(save_every):
+    if save_every is not None:
+        raise ValueError("save_every counts fixed steps; method 'dop853' gives its values at output times (times=[...], "
+                         "s), read off its dense output")
+
+
+def lyapunov(system, y0, t_end, dt=None, *, method="rk4", exponents=None, renormalise=1.0, transient=0.0,
+             parameters=None, save_every=None, tangent=None, device="cpu", rtol=None, atol=None, times=None,
+             max_steps=None):
     # size: the contract's arguments (DESIGN.md, "Chaos indicators"); each checked once, then one run, one Dataset
     """The Lyapunov spectrum of an ensemble of initial states: the ``k`` largest exponents per sample.
 
@@ -510,7 +573,13 @@ def lyapunov(system, y0, t_end, dt, *, method="rk4", exponents=None, renormalise
         order, so the first keeps its direction). Default: :func:`initial_tangents`, a fixed orthonormal set whose
         every vector lies at least 33° from every coordinate axis (n ≤ 12).
     device : str
-        ``"cpu"`` or ``"cuda"`` (one thread per sample).
+        ``"cpu"`` or ``"cuda"`` (one thread per sample; the fixed steps only).
+    rtol, atol, times, max_steps
+        ``method="dop853"`` only (``dt``: the first step, None: chosen): the tolerance of the augmented state's steps
+        (as :func:`tumble.integrate`; :mod:`tumble.engine.chaos_tolerance` says what it controls), the times of the
+        finite-time exponents (s, after the transient, in place of ``save_every``) and the steps a sample may take.
+        The vectors are orthonormalised every ``renormalise`` seconds as with a fixed step, each segment between
+        started with a chosen first step.
 
     Returns
     -------
@@ -538,13 +607,31 @@ def lyapunov(system, y0, t_end, dt, *, method="rk4", exponents=None, renormalise
     >>> round(float(ds["exponent"][0, 0]), 2)  # a steady spin about the intermediate axis: its linear growth rate
     0.58
     """
+    tolerance = (rtol, atol, times, max_steps)
     device, system, y, p, values, method, t_end, n_steps, step = _checked(system, y0, t_end, dt, method, parameters,
-                                                                          device)
+                                                                          device, tolerance)
     n = y.shape[1]
     if exponents is None and tangent is not None:
         exponents = len(np.atleast_2d(np.asarray(tangent, dtype=object)))
     k = _exponents(exponents, system, n)
     vectors = _tangent_vectors(tangent, k, system, n, orthonormal=True)
+    if method in registry.ERROR_CONTROLLED:
+        _no_save_every(save_every)
+        start = finite_number(transient, "transient")
+        if not 0.0 <= start < t_end:
+            raise ValueError(f"transient must be >= 0 s and less than t_end = {t_end:g} s, got {transient!r}")
+        finite = np.zeros(0) if times is None else output_times(times, t_end)
+        if len(finite) and finite[0] <= start:
+            raise ValueError(f"times must lie after the transient ({start:g} s): the finite-time exponents average "
+                             f"over the time since it, got {finite[0]:g}")
+        every = finite_number(renormalise, "renormalise")
+        if every <= 0:
+            raise ValueError(f"renormalise must be > 0 s, got {renormalise!r}")
+        run = _at_tolerance(system, y, p, vectors, chaos_tolerance.run_spectrum, t_end=t_end, renormalise=every,
+                            transient=start, times=finite, tolerance=tolerance[:2], first_step=step,
+                            max_steps=n_steps)
+        return _tolerance_dataset(system, values, t_end, device, {"renormalise": every},
+                                  chaos_tolerance.lyapunov_variables(run, k, start, _name(system)))
     every = _renormalise_steps(renormalise, dt, step)
     first = _transient_steps(transient, t_end, step)
     save = _save_every(save_every)
@@ -577,7 +664,8 @@ def lyapunov(system, y0, t_end, dt, *, method="rk4", exponents=None, renormalise
     return _dataset(variables, attrs)
 
 
-def megno(system, y0, t_end, dt, *, method="rk4", stop_above=None, parameters=None, tangent=None, device="cpu"):
+def megno(system, y0, t_end, dt=None, *, method="rk4", stop_above=None, parameters=None, tangent=None, device="cpu",
+          rtol=None, atol=None, max_steps=None):
     # size: the contract's arguments (DESIGN.md, "Chaos indicators")
     """MEGNO, the mean exponential growth factor of nearby orbits (Cincotta & Simó 2000), of an ensemble of states.
 
@@ -597,6 +685,9 @@ def megno(system, y0, t_end, dt, *, method="rk4", stop_above=None, parameters=No
     tangent : array_like, shape (n,) or (1, n), optional
         The first tangent vector, the same for every sample (normalised). Default: the first of
         :func:`initial_tangents`.
+    rtol, atol, max_steps
+        ``method="dop853"`` only, as :func:`lyapunov` (the vector is kept at unit length continuously; ``<Y>``'s slope
+        is the least-squares line over the run's continuous ``<Y>(t)``; no ``stop_above``).
 
     Returns
     -------
@@ -610,8 +701,9 @@ def megno(system, y0, t_end, dt, *, method="rk4", stop_above=None, parameters=No
     ValueError
         As :func:`lyapunov`, and a ``stop_above`` that is not a number > 0.
     """
+    tolerance = (rtol, atol, None, max_steps)
     device, system, y, p, values, method, t_end, n_steps, step = _checked(system, y0, t_end, dt, method, parameters,
-                                                                          device)
+                                                                          device, tolerance)
     limit = math.inf
     if stop_above is not None:
         limit = finite_number(stop_above, "stop_above")
@@ -619,6 +711,14 @@ def megno(system, y0, t_end, dt, *, method="rk4", stop_above=None, parameters=No
             raise ValueError(f"stop_above must be None or a number > 0 (a threshold of <Y>, 2 on a regular orbit), "
                              f"got {stop_above!r}")
     vectors = _tangent_vectors(tangent, 1, system, y.shape[1], orthonormal=True)
+    if method in registry.ERROR_CONTROLLED:
+        if stop_above is not None:
+            raise ValueError("stop_above stops a fixed-step run (its loop checks <Y> after every step); method "
+                             "'dop853' runs every sample to t_end")
+        run = _at_tolerance(system, y, p, vectors, chaos_tolerance.run_unit, megno=True, t_end=t_end, times=None,
+                            tolerance=tolerance[:2], first_step=step, max_steps=n_steps)
+        return _tolerance_dataset(system, values, t_end, device, {},
+                                  chaos_tolerance.megno_variables(run, y.shape[1], _name(system)))
     _refuse_cost(y, n_steps, 1, 0, device)
     if isinstance(system, System):
         _probe(system, y, p)
@@ -636,7 +736,8 @@ def megno(system, y0, t_end, dt, *, method="rk4", stop_above=None, parameters=No
     return _dataset(variables, attrs)
 
 
-def gali(system, y0, t_end, dt, *, k=2, method="rk4", parameters=None, save_every=None, tangent=None, device="cpu"):
+def gali(system, y0, t_end, dt=None, *, k=2, method="rk4", parameters=None, save_every=None, tangent=None, device="cpu",
+         rtol=None, atol=None, times=None, max_steps=None):
     # size: the contract's arguments (DESIGN.md, "Chaos indicators")
     """GALI_k, the generalised alignment index (Skokos, Bountis & Antonopoulos 2007, Physica D 231, 30), over time.
 
@@ -658,6 +759,9 @@ def gali(system, y0, t_end, dt, *, k=2, method="rk4", parameters=None, save_ever
     tangent : array_like, shape (k, n), optional
         The first tangent vectors, the same for every sample (independent; each normalised, not orthogonalised: GALI
         then starts below 1). Default: the first k of :func:`initial_tangents`.
+    rtol, atol, times, max_steps
+        ``method="dop853"`` only, as :func:`lyapunov`: GALI at ``times`` (s; None: ``t_end``), each vector kept at
+        unit length continuously.
 
     Returns
     -------
@@ -671,13 +775,20 @@ def gali(system, y0, t_end, dt, *, k=2, method="rk4", parameters=None, save_ever
     ValueError
         As :func:`lyapunov`, and ``k`` not an integer from 2 to n.
     """
+    tolerance = (rtol, atol, times, max_steps)
     device, system, y, p, values, method, t_end, n_steps, step = _checked(system, y0, t_end, dt, method, parameters,
-                                                                          device)
+                                                                          device, tolerance)
     n = y.shape[1]
     if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)) or not 2 <= k <= n:
         raise ValueError(f"k must be an integer from 2 to {n} (GALI_k of k tangent vectors; the state of {_name(system)} "
                          f"has {n} components: {', '.join(system.spec.state)}), got {k!r}")
     vectors = _tangent_vectors(tangent, int(k), system, n, orthonormal=False)
+    if method in registry.ERROR_CONTROLLED:
+        _no_save_every(save_every)
+        run = _at_tolerance(system, y, p, vectors, chaos_tolerance.run_unit, megno=False, t_end=t_end, times=times,
+                            tolerance=tolerance[:2], first_step=step, max_steps=n_steps)
+        return _tolerance_dataset(system, values, t_end, device, {},
+                                  chaos_tolerance.gali_variables(run, n, int(k), _name(system)))
     save = _save_every(save_every) or n_steps
     marks = _saved_marks(n_steps, 0, save)
     _refuse_cost(y, n_steps, int(k), len(marks), device)

@@ -19,10 +19,10 @@ from ..registry import STATUS_NAMES, STATUS_OK
 from . import cost
 from .device import check_on_device, resolve_device, stepper
 from .ensemble import check_torque_step, checked_torque, run_planned
-from .adaptive_runs import run_adaptive, run_attrs, run_variables
+from .adaptive_runs import run_adaptive, run_attrs, run_variables, warn_stops
 from .system_runs import added_tableau, is_system, run_system
 
-__all__ = ["integrate", "propagate", "METHOD_NAMES"]
+__all__ = ["integrate", "propagate", "METHOD_NAMES", "fixed_steps_only"]
 
 METHOD_NAMES = tuple(m.name for m in registry.METHODS)
 
@@ -140,7 +140,7 @@ def _free_body_by_tableau(body, w0, t_end, dt, method, torque, save_every, attit
     return _system_run(FreeBody(one_body(body)), w0, t_end, dt, method, None, save_every, None, device)
 
 
-def _fixed_steps_only(method, dt, rtol, atol, times, max_steps):
+def fixed_steps_only(method, dt, rtol, atol, times, max_steps):
     """A fixed-step ``method`` takes ``dt`` (and ``save_every``), never a tolerance's arguments."""
     given = [name for name, value in (("rtol", rtol), ("atol", atol), ("times", times), ("max_steps", max_steps))
              if value is not None]
@@ -239,7 +239,7 @@ def propagate(body, w0, t_end, dt=None, method="rk4", *, torque=None, save_every
         run, single = _adaptive_run(body, w0, t_end, dt, torque, save_every, False, parameters, device,
                                     (rtol, atol, None, max_steps))
         return run.final[0] if single else run.final
-    _fixed_steps_only(method, dt, rtol, atol, None, max_steps)
+    fixed_steps_only(method, dt, rtol, atol, None, max_steps)
     if is_system(body) or (added_tableau(method) and parameters is None):
         result, single = (_system_run(body, w0, t_end, dt, method, torque, save_every, parameters, device)
                           if is_system(body) else
@@ -353,7 +353,7 @@ def integrate(body, w0, t_end, dt=None, method="rk4", torque=(0, 0, 0), save_eve
         run, _ = _adaptive_run(body, w0, t_end, dt, torque, save_every, attitude, parameters, device,
                                (rtol, atol, times, max_steps))
         return _adaptive_dataset(run, None if is_system(body) else one_body(body), device)
-    _fixed_steps_only(method, dt, rtol, atol, times, max_steps)
+    fixed_steps_only(method, dt, rtol, atol, times, max_steps)
     if is_system(body):
         return _system_dataset(*_system_run(body, w0, t_end, dt, method, torque, save_every, parameters, device,
                                             attitude), t_end, device)
@@ -468,12 +468,7 @@ def _adaptive_dataset(run, moments, device):
     """:func:`integrate`'s Dataset of an error-controlled run: a free body's ``omega(sample, time, axis)`` (``moments``
     not None) or a system's ``state(sample, time, component)``, with each sample's steps and rejected steps."""
     stopped = run.status != STATUS_OK
-    if stopped.any():
-        counts = {registry.ADAPTIVE_STATUSES[code].name: int(np.count_nonzero(run.status == code))
-                  for code in np.unique(run.status[stopped])}
-        warnings.warn(f"{int(stopped.sum())} of {len(run.final)} samples of {run.name!r} stopped before t_end "
-                      f"({', '.join(f'{n} {name}' for name, n in counts.items())}; status says which, their later "
-                      f"states are the ones they stopped with)", RuntimeWarning, stacklevel=3)
+    warn_stops(run.status, len(run.final), run.name, stacklevel=3)
     if moments is not None:
         variables = {
             "omega": (("sample", "time", "axis"), run.states, {"units": "rad/s",

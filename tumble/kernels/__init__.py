@@ -14,7 +14,8 @@ all use (``jit``, ``tableaux``, ``trig``) and the fits' inner loops.
 _DOOR = {
     **{name: (name, None) for name in ("fits", "side_by_side")},
     **{name: (f"closed_form.{name}", None) for name in ("elliptic", "elliptic_attitude")},
-    **{name: (f"loops.{name}", None) for name in ("adaptive_loop", "sample_loop", "tangent_blocks", "tangent_loop")},
+    **{name: (f"loops.{name}", None) for name in ("adaptive_loop", "sample_loop", "tangent_blocks", "tangent_loop",
+                                                             "variational")},
     "system_steps": ("steps.system_steps", None),
     "parallel_block": ("jit", "parallel_block"),
     "TABLEAUX": ("tableaux", "TABLEAUX"),
@@ -50,7 +51,7 @@ __all__ = ["BLOCK", "METHODS", "adaptive_loop", "MODEL_BLOCK", "MODEL_CODES", "M
            "Method", "TABLEAUX", "model_methods", "model_rhs", "model_tangent", "ModelObserved", "Observed", "parallel_block",
            "rate_sample", "rate_sample_parameters", "run", "run_attitude", "run_model", "run_system_blocks", "sample_loop",
            "side_by_side", "system_steps",
-           "device_tangent_loop", "tangent_blocks", "tangent_loop", "tangent_sample"]
+           "device_tangent_loop", "tangent_blocks", "tangent_loop", "tangent_sample", "variational"]
 
 
 def device_kernels():
