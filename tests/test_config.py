@@ -71,8 +71,9 @@ def test_defaults_load_and_validate(default_study):
     # nor a [chaos] table: chaos.indicators = [] (not a chaos map)
     assert "chaos" not in default_study and defaults["chaos"]["indicators"] == []
     assert defaults["model"]["kind"] == "free" and defaults["spin"]["momentum"] == []
+    assert "section" not in default_study and defaults["section"]["surface"] == ""  # nor a section
     for table in config._TABLES:
-        if table not in ("scan", "model", "chaos"):
+        if table not in ("scan", "model", "chaos", "section"):
             expected = {k: v for k, v in defaults[table].items() if not (table == "spin" and k == "momentum")}
             assert default_study[table] == expected
     assert default_study["scan"] == {}
@@ -86,7 +87,7 @@ def test_the_defaults_path_lives_in_the_studies_folder():
 def test_named_lists_match_the_packages_that_implement_them():
     from tumble.kernels.loops.methods import METHODS  # imported here: `tumble` imports its subpackages lazily
 
-    assert set(config.METHOD_NAMES) == {"auto", "exact", *METHODS}
+    assert set(config.METHOD_NAMES) == {"auto", "exact", *METHODS, *tumble.registry.ERROR_CONTROLLED}
     assert all(callable(getattr(tumble.shapes, name)) for name in config.SHAPES)
 
 

@@ -2,6 +2,7 @@
 dataset it cannot use with a message naming what is missing, and files are written atomically."""
 
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -133,7 +134,9 @@ def model_scans():
              for figure, study in studies.items()}
     chaos = tumble.run_study("chaos_map", overrides={"scan.tilt": [0.5, 2.0], "scan.rate": [0.5, 1.0, 3.0],
                                                      "integration.horizon": 4.0, "chaos.points": 8}, progress=False)
-    return {**scans, "megno_map": chaos, "finite_time": chaos, "spectrum": chaos}
+    # a section study's result, as tests/test_bundled_results.py stores it (no run: its kernels compile for seconds)
+    section = xr.load_dataset(Path(__file__).parent / "data" / "bundled" / "heavy_top_section.nc")
+    return {**scans, "megno_map": chaos, "finite_time": chaos, "spectrum": chaos, "section": section}
 
 
 def _assert_paper_axes(fig):
@@ -285,7 +288,7 @@ def test_can_draw_rejects_unknown_names(measured):
     assert plots.FIGURES == ("stability_map", "norm_growth", "flip_law", "flip_components", "invariant_drift",
                              "work_precision", "summary", "flip_strip", "flip_animation", "polhode", "herpolhode",
                              "gyrostat_map", "sleeping_top", "debra_delp_map", "pitch_libration", "flat_spin",
-                             "megno_map", "finite_time", "spectrum")
+                             "megno_map", "finite_time", "spectrum", "section")
     assert set(plots.ANIMATIONS) <= set(plots.FIGURES)
 
 

@@ -66,6 +66,9 @@ def _with(field, value):
     if field.table == "chaos" and field.key != "indicators":  # used by a chaos study only: a whole one
         study = {"model": {"kind": "heavy_top", "mgl": 1.0}, "integration": {"dt": 0.01, "horizon": 1.0},
                  "chaos": {"indicators": ["megno"], field.key: value}, "scan": {"tilt": [0.1, 0.2], "rate": [1.0]}}
+    if field.table == "section" and field.key not in ("surface", "period"):  # used by a section only: a whole one
+        study = {"model": {"kind": "heavy_top", "mgl": 1.0}, "integration": {"method": "dop853", "horizon": 1.0},
+                 "scan": {"tilt": [0.1, 0.2], "rate": [1.0]}, "section": {"surface": "g1", field.key: value}}
     return study
 
 

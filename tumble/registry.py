@@ -207,7 +207,7 @@ def torque_profile(name):
 #: Figures of a result, in the order a report shows them (``outputs.figures``).
 FIGURES = ("stability_map", "norm_growth", "flip_law", "flip_components", "invariant_drift", "work_precision",
            "summary", "flip_strip", "flip_animation", "polhode", "herpolhode", "gyrostat_map", "sleeping_top",
-           "debra_delp_map", "pitch_libration", "flat_spin", "megno_map", "finite_time", "spectrum")
+           "debra_delp_map", "pitch_libration", "flat_spin", "megno_map", "finite_time", "spectrum", "section")
 
 
 
@@ -234,7 +234,8 @@ FIGURE_MODELS = {
 CHAOS_INDICATORS = ("megno", "lyapunov", "gali")
 
 #: The figures of a chaos study (``chaos.indicators`` not empty), each with the indicator it reads.
-CHAOS_FIGURES = {"megno_map": "megno", "finite_time": "lyapunov", "spectrum": "lyapunov"}
+#: ``section`` reads a section study's crossings (a ``[section]`` table), not an indicator.
+CHAOS_FIGURES = {"megno_map": "megno", "finite_time": "lyapunov", "spectrum": "lyapunov", "section": "section"}
 
 
 class ChaosStart(NamedTuple):
@@ -253,6 +254,10 @@ CHAOS_STARTS = (
     ChaosStart("release", "heavy_top", ("tilt", "rate"),
                "a heavy top released with body axis 3 tilted by chaos.tilt from the vertical (about body axis 1) and "
                "spinning at spin.rate about body axis 3"),
+    ChaosStart("swing", "heavy_top", ("tilt",),
+               "a heavy top with the vertical in its body 2-3 plane at chaos.tilt from body axis 3 (turned about body "
+               "axis 1), turning about body axis 1 alone with the total energy chaos.energy: every orbit on one "
+               "energy level, with L.g = 0"),
     ChaosStart("spin_orbit", "gravity_gradient", ("angle", "rate"),
                "a satellite in the orbit plane at perigee, turned by chaos.angle about the orbit normal from the orbit "
                "frame and spinning at spin.rate (inertial) about it: the planar spin-orbit problem"),

@@ -5,7 +5,8 @@ its states at the output times are read off the method's dense output of order 7
 (:mod:`tumble.kernels.loops.adaptive_loop`). :func:`run_adaptive` checks the arguments once and runs the kernel; a
 ``Body`` runs as :class:`tumble.models.FreeBody` (the free body's rate in the per-sample loop), a built-in model with
 its kernels' own rate (:func:`tumble.kernels.rate_sample`), a System with its rate, probed first as every run probes
-it. The CPU runs one share of the samples per thread; the device does not run it yet.
+it. The CPU runs one share of the samples per thread (blocks of samples vectorised across them where the system has a
+block step); the device one thread per sample (:mod:`tumble.kernels.cuda.adaptive`).
 """
 
 from __future__ import annotations
@@ -240,7 +241,7 @@ def run_adaptive(system, y0, t_end, *, times=None, rtol=None, atol=None, first_s
     ------
     ValueError
         Any argument out of its range (one line naming it), a rate numba cannot compile or that misbehaves at the
-        initial states, a device other than the CPU.
+        initial states.
     """
     system, values = with_parameters(system, parameters)
     t_end, h0, limit = checked_scalars(t_end, first_step, max_steps)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..registry import MODEL_PARAMETERS, SAMPLE_STATUS_NAMES, STATE_BLOCKS, STATUS_NAMES
+from ..registry import ADAPTIVE_STATUSES, MODEL_PARAMETERS, SAMPLE_STATUS_NAMES, STATE_BLOCKS
 
 __all__ = ["CHAOS_VARIABLES", "CONFIDENCE", "COORDS", "INTERVAL_TEXT", "KIND_UNITS", "assemble_scan", "chaos_dataset", "record_variables", "scene_dataset",
            "stack_records", "unstack_records", "variable_metadata"]
@@ -244,10 +244,21 @@ CHAOS_VARIABLES = {
     "finite_time": ("1/s", "finite-time Lyapunov exponent since the transient, sorted descending",
                     ("time", "index")),
     "gali": ("1", "GALI_k, the generalised alignment index", ("gali_time",)),
-    "status": ("1", "worst status of the orbit over the indicators (0: ok; tumble.megno's flags)", ()),
+    "status": ("1", "worst status of the orbit over the indicators and the section (0: ok)", ()),
+    "crossings": ("1", "crossings of the orbit's section (NaN past them)", ()),
+    "steps": ("1", "steps of the orbit's section run, accepted and rejected", ()),
+    "section_time": ("s", "time of the crossing", ("crossing",)),
+    "section_state": ("see component_units", "state at the crossing", ("crossing", "component")),
+    "section_point": ("see section_axis", "the section figure's coordinates at the crossing (chaos.start's inverse "
+                                          "or a component)", ("crossing", "section_axis")),
     "finite_time_time": ("s", "time of the finite-time exponents", None),
     "gali_time": ("s", "time of GALI", None),
 }
+
+
+def _component_unit(name):
+    """The unit of a built-in model's state component (``w1``: rad/s), by its letter."""
+    return next((unit for letter, _, unit in STATE_BLOCKS if name[0] == letter and name[1:].isdigit()), "1")
 
 
 def chaos_dataset(layout, records, grid):
@@ -261,8 +272,7 @@ def chaos_dataset(layout, records, grid):
     scan_shape = tuple(len(v) for v in swept.values())
     map_shape = tuple(len(v) for v in grid.values())
     dims = (*swept, *grid)
-    units = {"tilt": "rad", "angle": "rad", "rate": "rad/s",
-             **{name: unit for letter, _, unit in STATE_BLOCKS for name in grid if name[0] == letter and name[1:].isdigit()}}
+    units = {"tilt": "rad", "angle": "rad", "rate": "rad/s", **{name: _component_unit(name) for name in grid}}
     names = {"tilt": "release tilt of body axis 3 from the vertical", "rate": "initial spin rate",
              "angle": "angle of the roll axis from the orbit frame about the orbit normal"}
     first = records[0]
@@ -278,8 +288,8 @@ def chaos_dataset(layout, records, grid):
         stacked = np.stack([np.asarray(r[name]) for r in records])
         stacked = stacked.reshape(scan_shape + map_shape + stacked.shape[2:])
         if name == "status":
-            attrs.update(flag_values=np.arange(len(STATUS_NAMES) + 1, dtype=np.int8),
-                         flag_meanings=" ".join(n.replace(" ", "_") for n in (*STATUS_NAMES, "megno above threshold")))
+            attrs.update(flag_values=np.arange(len(ADAPTIVE_STATUSES), dtype=np.int8),
+                         flag_meanings=" ".join(s.name.replace(" ", "_") for s in ADAPTIVE_STATUSES))
             stacked = stacked.astype(np.int8)
         data[name] = xr.Variable(dims + extra, stacked, attrs)
     for name, values in grid.items():
@@ -288,6 +298,15 @@ def chaos_dataset(layout, records, grid):
     for name, values in swept.items():
         meta = variable_metadata("periodic", 1.0).get(name, ((), {"units": "1", "long_name": name}))[1]
         coords[name] = xr.Variable((name,), np.asarray(values), meta)
+    if "section_time" in first:
+        names = str(first["@state"]).split()
+        coords["crossing"] = xr.Variable(("crossing",), np.arange(first["section_time"].shape[-1]),
+                                         {"long_name": "crossing, in time order"})
+        coords["component"] = xr.Variable(("component",), np.array(names), {"long_name": "state component"})
+        coords["component_units"] = xr.Variable(("component",), np.array([_component_unit(n) for n in names]),
+                                                {"long_name": "units of each state component"})
+        coords["section_axis"] = xr.Variable(("section_axis",), np.array(str(first["@section_axes"]).split()),
+                                             {"long_name": "coordinate of the section figure"})
     if "exponent" in first:
         coords["index"] = xr.Variable(("index",), np.arange(1, first["exponent"].shape[-1] + 1),
                                       {"units": "1", "long_name": "exponent index (1: the largest)"})

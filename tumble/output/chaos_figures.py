@@ -4,6 +4,8 @@
   value: blue below, towards 0 near stable periodic orbits; red above, chaotic);
 - :func:`finite_time`: the largest finite-time Lyapunov exponent against time on log axes for the map's most
   chaotic, median and most regular orbits, with ``ln t / t``, the decay of a regular orbit's, for reference;
+- :func:`section`: a section study's Poincaré section, each orbit's crossings in the two coordinates it asks for,
+  coloured by orbit or by the orbit's ``<Y>``;
 - :func:`spectrum`: the Lyapunov spectrum (exponent against its index) of the same orbits, and each index's range
   over the map.
 
@@ -18,7 +20,7 @@ from matplotlib.figure import Figure
 
 from . import layout
 
-__all__ = ["MAX_PANELS", "MEGNO_TOP", "finite_time", "megno_map", "picked_orbits", "spectrum"]
+__all__ = ["MAX_PANELS", "MEGNO_TOP", "finite_time", "megno_map", "picked_orbits", "section", "spectrum"]
 
 #: The top of the MEGNO colour scale at most (above: the darkest red): a chaotic orbit's <Y> grows like lambda t / 2
 #: without bound, and a scale stretched to it would wash out the regular side.
@@ -28,6 +30,10 @@ MEGNO_TOP = 8.0
 MAX_PANELS = 4
 
 _LABELS = {"tilt": "release tilt (rad)", "rate": "initial spin (rad/s)", "angle": "angle θ (rad)"}
+
+#: The section figure's axis labels: the coordinates at a crossing (not the initial ones); a state component by name.
+_SECTION_LABELS = {"tilt": "tilt of axis 3, atan2(g₂, g₃) (rad)", "rate": "spin rate θ̇ (rad/s)",
+                   "angle": "angle mod π (rad; about axis 2: −θ)"}
 
 
 def _scenes(ds, name):
@@ -49,8 +55,8 @@ def megno_map(ds, width=7.0):
     fig = Figure(figsize=(min(width, 2.6 * len(scenes) + 1.2), 2.9))
     axes = fig.subplots(1, len(scenes), squeeze=False)[0]
     values = np.asarray(ds["megno"].values, dtype=float)
-    top = min(max(4.0, float(np.nanpercentile(values, 98)) if np.isfinite(values).any() else 4.0), MEGNO_TOP)
-    norm = colors.TwoSlopeNorm(vmin=0.0, vcenter=2.0, vmax=top)
+    norm = _megno_norm(values)
+    top = norm.vmax
     mesh = None
     for ax, (label, where) in zip(axes, scenes):
         scene = ds["megno"].isel(where)
@@ -72,6 +78,52 @@ def megno_map(ds, width=7.0):
     if mesh is not None:
         bar = layout.colorbar(fig, mesh, label="MEGNO ⟨Y⟩ (2: regular)",
                               extend="max" if np.nanmax(values) > top else "neither")
+        bar.ax.axhline(2.0, color="k", lw=0.6)
+    return layout.fit(fig)
+
+
+def _megno_norm(values):
+    """The MEGNO colour scale: centred at 2, to the 98th percentile (within 4 ... :data:`MEGNO_TOP`)."""
+    top = min(max(4.0, float(np.nanpercentile(values, 98)) if np.isfinite(values).any() else 4.0), MEGNO_TOP)
+    return colors.TwoSlopeNorm(vmin=0.0, vcenter=2.0, vmax=top)
+
+
+def _section_label(ds, name):
+    """A section axis's label: a start's coordinate's, or a state component's name with its unit."""
+    if name in _SECTION_LABELS:
+        return _SECTION_LABELS[name]
+    units = dict(zip(ds["component"].values.tolist(), ds["component_units"].values.tolist()))
+    return f"{name} ({units[name]})" if name in units else name
+
+
+def section(ds, width=7.0):
+    """The crossings of every orbit of the map in the section's two coordinates (``section_axis``), one panel per
+    scene (:func:`_scenes`): each orbit its own colour, or its ``<Y>``'s on :func:`megno_map`'s scale."""
+    scenes = _scenes(ds, "crossings")
+    fig = Figure(figsize=(min(width, 3.4 * len(scenes) + 1.2), 3.4))
+    axes = fig.subplots(1, len(scenes), squeeze=False)[0]
+    by_megno = ds.attrs.get("section_colour") == "megno" and "megno" in ds
+    norm = _megno_norm(np.asarray(ds["megno"].values, dtype=float)) if by_megno else None
+    names = [str(name) for name in ds["section_axis"].values]
+    points = None
+    for ax, (label, where) in zip(axes, scenes):
+        scene = ds["section_point"].isel(where)
+        orbits = scene.stack(orbit=[d for d in scene.dims if d not in ("crossing", "section_axis")])
+        xy = np.asarray(orbits.transpose("orbit", "crossing", "section_axis").values, dtype=float)
+        if by_megno:
+            colour = np.repeat(np.asarray(ds["megno"].isel(where).stack(orbit=orbits.indexes["orbit"].names).values,
+                                          dtype=float), xy.shape[1])
+            points = ax.scatter(xy[..., 0].ravel(), xy[..., 1].ravel(), c=colour, cmap="RdBu_r", norm=norm, s=0.6,
+                                linewidths=0, rasterized=True)
+        else:
+            colour = np.repeat(np.arange(len(xy)) % 20, xy.shape[1])
+            ax.scatter(xy[..., 0].ravel(), xy[..., 1].ravel(), c=colour, cmap="tab20", vmin=0, vmax=19, s=0.6,
+                       linewidths=0, rasterized=True)
+        ax.set_xlabel(_section_label(ds, names[0]))
+        ax.set_ylabel(_section_label(ds, names[1]))
+        ax.set_title(label or f"{ds.attrs.get('model', '')}: section {ds.attrs.get('section', '')}")
+    if points is not None:
+        bar = layout.colorbar(fig, points, label="MEGNO ⟨Y⟩ of the orbit (2: regular)")
         bar.ax.axhline(2.0, color="k", lw=0.6)
     return layout.fit(fig)
 

@@ -43,7 +43,7 @@ from . import chaos_figures as chaos_plots
 from . import io, layout
 
 __all__ = ["ANIMATIONS", "DOUBLE", "FIGURES", "SINGLE", "can_draw", "check_request", "flip_animation",
-           "finite_time", "flip_components", "flip_law", "flip_strip", "gyrostat_map", "megno_map", "spectrum", "herpolhode", "sleeping_top", "debra_delp_map",
+           "finite_time", "flip_components", "flip_law", "flip_strip", "gyrostat_map", "megno_map", "section", "spectrum", "herpolhode", "sleeping_top", "debra_delp_map",
            "pitch_libration", "flat_spin", "invariant_drift", "norm_growth", "polhode", "save_figures",
            "stability_map", "summary", "work_precision"]
 
@@ -1040,6 +1040,16 @@ def spectrum(ds):
     return chaos_plots.spectrum(ds, width=SINGLE)
 
 
+def _check_section(ds):
+    return _missing(ds, "section_point", "crossings")
+
+
+@_figure(_check_section)
+def section(ds):
+    """A section study's Poincaré section (:func:`tumble.output.chaos_figures.section`)."""
+    return chaos_plots.section(ds, width=DOUBLE)
+
+
 # ------------------------------------------------------------------------------------------------ public
 
 
@@ -1048,7 +1058,7 @@ _DRAW = {"stability_map": stability_map, "norm_growth": norm_growth, "flip_law":
          "summary": summary, "flip_strip": flip_strip, "flip_animation": flip_animation, "polhode": polhode,
          "herpolhode": herpolhode, "gyrostat_map": gyrostat_map, "sleeping_top": sleeping_top,
          "debra_delp_map": debra_delp_map, "pitch_libration": pitch_libration, "flat_spin": flat_spin,
-         "megno_map": megno_map, "finite_time": finite_time, "spectrum": spectrum}
+         "megno_map": megno_map, "finite_time": finite_time, "spectrum": spectrum, "section": section}
 
 
 def _check_name(name):

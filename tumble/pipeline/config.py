@@ -86,8 +86,8 @@ DEFAULTS_PATH = STUDIES_DIR / "defaults.toml"
 #: Shape functions of :mod:`tumble.physics.shapes` a study may name in ``body.shape``.
 SHAPES = schema.SHAPES
 
-#: ``integration.method``: the planner's choice, the closed form, or a fixed-step method.
-METHOD_NAMES = registry.CHOICES
+#: ``integration.method``: the planner's choice, the closed form, a fixed-step method, or an error-controlled one.
+METHOD_NAMES = (*registry.CHOICES, *registry.ERROR_CONTROLLED)
 
 #: ``torque.profile``: named time dependences of the body-frame torque (see ``defaults.toml``).
 PROFILES = schema.PROFILES
@@ -460,6 +460,33 @@ def _method(value, field, profile):
         raise _Invalid(field, f"'exact' is the torque-free closed form, but torque.profile is {profile!r}; "
                               f"use 'auto' or a fixed-step method ({', '.join(registry.STEPPING)})")
     return name
+
+
+def _tolerance(value, field):
+    """``integration.rtol`` / ``atol``: a number > 0 (rtol at least the smallest a double's error estimate can meet)."""
+    from ..engine.adaptive_runs import MIN_RTOL
+
+    x = _number(value, field)
+    low = MIN_RTOL if field.endswith("rtol") else 0.0
+    if x <= 0.0 or x < low:
+        raise _Invalid(field, f"must be > 0{f' and >= {low:g} (below it a double rounds more than the error estimate)' if low else ''}, got {x!r}")
+    return x
+
+
+def _methods(resolved):
+    """``[(field, method)]``: the study's methods (``scan.method``'s, else ``integration.method``)."""
+    scan = resolved["scan"]
+    return ([(f"scan.method[{i}]", m) for i, m in enumerate(scan["method"])] if "method" in scan
+            else [("integration.method", resolved["integration"]["method"])])
+
+
+def _no_tolerance(resolved):
+    """An error-controlled method runs a chaos or a section study's orbits only."""
+    for field, method in _methods(resolved):
+        if method in registry.ERROR_CONTROLLED:
+            raise _Invalid(field, f"{method!r} (error-controlled) runs the orbits of a chaos or section study "
+                                  f"(chaos.indicators, or a [section] table with chaos.start's map); the stability "
+                                  f"scenes take the closed form or a fixed step ({', '.join(registry.STEPPING)})")
 
 
 def _shape_parameters(shape):
@@ -844,10 +871,22 @@ def _check_model_scenes(resolved, given):
 
 
 def _tilt(value, field):
+    """``chaos.tilt`` / ``scan.tilt``: in [0, 2 pi] rad (``release`` takes [0, pi]: :func:`_check_release`)."""
     x = _number(value, field)
-    if not 0.0 <= x <= math.pi:
-        raise _Invalid(field, f"must lie in [0, pi] rad (the tilt of body axis 3 from the vertical), got {x!r}")
+    if not 0.0 <= x <= 2.0 * math.pi:
+        raise _Invalid(field, f"must lie in [0, pi] rad (the tilt of body axis 3 from the vertical; [0, 2 pi] for "
+                              f"chaos.start = 'swing'), got {x!r}")
     return x
+
+
+def _check_release(resolved):
+    """chaos.start = "release": each tilt in [0, pi] (a tilt past pi is the release tilted the other way)."""
+    scan, chaos = resolved["scan"], resolved["chaos"]
+    tilts = scan.get("tilt", [chaos["tilt"]])
+    for i, x in enumerate(tilts):
+        if x > math.pi:
+            field = f"scan.tilt[{i}]" if "tilt" in scan else "chaos.tilt"
+            raise _Invalid(field, f"must lie in [0, pi] rad (the tilt of body axis 3 from the vertical), got {x!r}")
 
 
 #: The scan keys of a chaos study's initial states (chaos.indicators not empty).
@@ -877,7 +916,7 @@ def _chaos(study, given, resolved):
     """The ``[chaos]`` table (None when ``chaos.indicators`` is empty: not a chaos study, which then may give none of
     its keys nor scan.tilt / scan.angle)."""
     indicators = _described(study, schema.field("chaos.indicators"))
-    if not indicators:
+    if not indicators and resolved["section"] is None:
         for key in given.get("chaos", {}):
             if key != "indicators":
                 raise _Invalid(f"chaos.{key}", "is used by a chaos study only; set chaos.indicators (e.g. "
@@ -888,14 +927,20 @@ def _chaos(study, given, resolved):
                                               "[\"megno\"])")
         return None
     dt, horizon = resolved["integration"]["dt"], resolved["integration"]["horizon"]
-    if dt <= 0:
+    fixed = any(m not in registry.ERROR_CONTROLLED for _, m in _methods(resolved))
+    if dt <= 0 and fixed:
         raise _Invalid("integration.dt", "a chaos study steps its orbits and their tangents with a fixed step: give "
-                                         "one > 0 s (0, the planner's choice, is the stability scenes')")
+                                         "one > 0 s (0, the planner's choice, is the stability scenes'), or "
+                                         "integration.method = \"dop853\" and a tolerance")
     if horizon <= 0:
         raise _Invalid("integration.horizon", "a chaos study needs the time each orbit runs: give one > 0 s")
 
     def multiple(value, field):
         x = _number(value, field)
+        if not fixed:  # error-controlled: the segments between orthonormalisations end anywhere
+            if x <= 0:
+                raise _Invalid(field, f"must be > 0 s, got {x!r}")
+            return x
         ratio = x / dt
         if x <= 0 or round(ratio) < 1 or abs(ratio - round(ratio)) > 1e-9 * max(ratio, 1.0):
             raise _Invalid(field, f"must be a positive multiple of integration.dt = {dt:g} s, got {x!r}")
@@ -908,7 +953,8 @@ def _chaos(study, given, resolved):
         return x
 
     return _table(study, "chaos", {"indicators": lambda value, field: indicators, "tilt": _tilt, "angle": _number,
-                                   "state": _chaos_state, "renormalise": multiple, "transient": transient})
+                                   "state": _chaos_state, "renormalise": multiple, "transient": transient,
+                                   "energy": _number})
 
 
 def _check_chaos_study(resolved, given):
@@ -934,14 +980,16 @@ def _check_chaos_study(resolved, given):
                                           f"({', '.join(start.keys)}) and the model's parameters")
     if resolved["torque"]["profile"] != "none":
         raise _Invalid("torque.profile", "must be 'none' in a chaos study (the model's own forces act)")
-    methods = ([(f"scan.method[{i}]", m) for i, m in enumerate(scan["method"])] if "method" in scan
-               else [("integration.method", resolved["integration"]["method"])])
-    tangent_methods = registry.tangent_methods(kind)
-    for field, m in methods:
+    tangent_methods = (*registry.tangent_methods(kind), *registry.ERROR_CONTROLLED)
+    for field, m in _methods(resolved):
         if m not in ("auto", *tangent_methods):
             raise _Invalid(field, f"a chaos study of a {kind} steps its tangents with a method whose map tumble "
                                   f"differentiates, one of {', '.join(tangent_methods)} ('auto': rk4; the splittings "
                                   f"for {', '.join(registry.LIE_POISSON_MODELS)} only), got {m!r}")
+    if start.name == "swing":
+        _check_energy(resolved)
+    if start.name == "release":
+        _check_release(resolved)
     n = len(registry.model_kind(kind).state)
     if chaos["exponents"] > n:
         raise _Invalid("chaos.exponents", f"must be at most {n} (the state of a {kind}: "
@@ -950,19 +998,99 @@ def _check_chaos_study(resolved, given):
         raise _Invalid("chaos.gali_k", f"must be at most {n} (the state of a {kind} has {n} components), got "
                                        f"{chaos['gali_k']}")
     outputs = resolved["outputs"]
+    made = (*chaos["indicators"], *(["section"] if resolved["section"] is not None else []))
     if "figures" not in given.get("outputs", {}):
         drawn = [name for name, need in registry.CHAOS_FIGURES.items() if need in chaos["indicators"]]
-        outputs["figures"] = drawn[:1]  # megno_map, else finite_time, else none (GALI has no figure of its own)
+        # the section, and megno_map, else finite_time, else none (GALI has no figure of its own)
+        outputs["figures"] = (["section"] if "section" in made else []) + drawn[:1]
     for i, name in enumerate(outputs["figures"]):
         need = registry.CHAOS_FIGURES.get(name)
         if need is None:
             raise _Invalid(f"outputs.figures[{i}]", f"{name!r} is not a chaos study's figure; a chaos study draws "
                                                     f"{', '.join(registry.CHAOS_FIGURES)}")
-        if need not in chaos["indicators"]:
-            raise _Invalid(f"outputs.figures[{i}]", f"{name} needs {need!r} in chaos.indicators")
+        if need not in made:
+            raise _Invalid(f"outputs.figures[{i}]", "section needs a [section] table (section.surface or "
+                                                    "section.period)" if need == "section" else
+                                                    f"{name} needs {need!r} in chaos.indicators")
     if "megno_map" in outputs["figures"] and start.keys and not any(k in scan for k in start.keys):
         raise _Invalid(f"scan.{start.keys[0]}", f"megno_map needs a map: scan.{start.keys[0]} and/or "
                                                 f"scan.{start.keys[1]} (a list of values each)")
+
+
+def _section(study, given, resolved):
+    """The ``[section]`` table (None when it asks for no section: no surface and no period; then it may give none
+    of its keys). Checked against the model's state and the map by :func:`_check_section`."""
+    table = _table(study, "section", {
+        "surface": _string, "value": _number, "axes": lambda value, field: [
+            _string(x, f"{field}[{i}]") for i, x in enumerate(_array(value, field))],
+        "direction": lambda value, field: _choice_of(value, field, (1, -1, 0))})
+    if not table["surface"] and table["period"] == 0:
+        for key in given.get("section", {}):
+            if key not in ("surface", "period"):
+                raise _Invalid(f"section.{key}", "is used by a section only; give section.surface (a component of "
+                                                 "the state, e.g. \"g1\") or section.period (s), or remove it")
+        return None
+    if table["surface"] and table["period"] > 0:
+        raise _Invalid("section.period", "not with section.surface: a section is the crossings of a surface or the "
+                                         "states once per period, one of them")
+    return table
+
+
+def _choice_of(value, field, allowed):
+    """One of the integers ``allowed``."""
+    x = _integer(value, field)
+    if x not in allowed:
+        raise _Invalid(field, f"must be one of {', '.join(map(str, allowed))}, got {x}")
+    return x
+
+
+def _check_section(resolved):
+    """A section study's section: its surface a component of the model's state, an error-controlled method (its
+    crossings are read off the dense output), two plotted coordinates the map's start or the state has, and a MEGNO
+    colour only with MEGNO."""
+    section, chaos = resolved["section"], resolved["chaos"]
+    kind = resolved["model"]["kind"]
+    names = registry.model_kind(kind).state
+    if section["surface"] and section["surface"] not in names:
+        raise _Invalid("section.surface", f"must be a component of a {kind}'s state ({', '.join(names)}), got "
+                                          f"{section['surface']!r}")
+    for field, method in _methods(resolved):
+        if method not in registry.ERROR_CONTROLLED:
+            raise _Invalid(field, f"a section is read off the dense output of an error-controlled run: set "
+                                  f"integration.method = {registry.ERROR_CONTROLLED[0]!r} (and integration.rtol, "
+                                  f"atol), got {method!r}")
+    start = next(s for s in registry.CHAOS_STARTS if s.name == chaos["start"])
+    coordinates = (*start.keys, *names)
+    if not section["axes"]:
+        if len(start.keys) != 2:
+            raise _Invalid("section.axes", f"chaos.start = {start.name!r} has {len(start.keys)} coordinates: name the "
+                                           f"two the section plots, of {', '.join(coordinates)}")
+        section["axes"] = list(start.keys)
+    if len(section["axes"]) != 2:
+        raise _Invalid("section.axes", f"must name two coordinates, got {len(section['axes'])}")
+    for i, name in enumerate(section["axes"]):
+        if name not in coordinates:
+            raise _Invalid(f"section.axes[{i}]", f"must be a coordinate of chaos.start = {start.name!r} "
+                                                 f"({', '.join(start.keys) or 'none'}) or a component of the state "
+                                                 f"({', '.join(names)}), got {name!r}")
+    if section["colour"] == "megno" and "megno" not in chaos["indicators"]:
+        raise _Invalid("section.colour", "'megno' colours each orbit by its <Y>: add \"megno\" to chaos.indicators")
+
+
+def _check_energy(resolved):
+    """chaos.start = "swing": the energy at least the potential at every tilt of the map, for every M g l."""
+    from ..measure import chaos_scenes
+
+    model, scan, chaos = resolved["model"], resolved["scan"], resolved["chaos"]
+    tilts = np.atleast_1d(scan.get("tilt", chaos["tilt"]))
+    centre = np.asarray(model.get("centre", [0.0, 0.0, 1.0]), dtype=float)
+    for mgl in np.atleast_1d(scan.get("mgl", model["mgl"])):
+        potential = chaos_scenes.swing_potential(tilts, mgl, centre)
+        worst = int(np.argmax(potential))
+        if chaos["energy"] < potential[worst]:
+            raise _Invalid("chaos.energy", f"must be at least the potential mgl c.g = {potential[worst]:.6g} J at "
+                                           f"tilt {tilts[worst]:g} rad (mgl = {mgl:g} N m), where the top would be at "
+                                           f"rest; got {chaos['energy']:g} J")
 
 
 def _check_state_map(chaos, scan, kind, names):
@@ -1025,7 +1153,7 @@ def _resolve(study, given, title):
     resolved["torque"] = _torque(study["torque"], resolved["spin"]["axis"])
     profile = resolved["torque"]["profile"]
     resolved["integration"] = _table(study, "integration", {
-        "method": lambda value, field: _method(value, field, profile)})
+        "method": lambda value, field: _method(value, field, profile), "rtol": _tolerance, "atol": _tolerance})
     torque = resolved["torque"]
     if torque["profile"] in registry.RESOLVED_PROFILES:  # a given step must resolve a sine or a pulse
         key = _PROFILE_TIMES[torque["profile"]]
@@ -1036,11 +1164,16 @@ def _resolve(study, given, title):
     resolved["scan"] = _scan(study["scan"], resolved)
     resolved["scan"].update(_model_scan(study["scan"]))
     resolved["outputs"] = _table(study, "outputs")
+    resolved["section"] = _section(study, given, resolved)
     resolved["chaos"] = _chaos(study, given, resolved)
     if resolved["chaos"] is not None:
         _check_chaos_study(resolved, given)
-    elif resolved["model"] is not None:
-        _check_model_scenes(resolved, given)
+        if resolved["section"] is not None:
+            _check_section(resolved)
+    else:
+        _no_tolerance(resolved)
+        if resolved["model"] is not None:
+            _check_model_scenes(resolved, given)
     return {key: resolved[key] for key in _TOP if resolved[key] is not None}
 
 

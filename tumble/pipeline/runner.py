@@ -403,7 +403,8 @@ class ChaosScenes:
         values = {"method": scan.get("method", resolved["integration"]["method"]), **params}
         options = {**resolved["chaos"], "dt": resolved["integration"]["dt"],
                    "horizon": resolved["integration"]["horizon"], "device": resolved["integration"]["device"],
-                   "extras": extras, "points_of_map": points}
+                   "rtol": resolved["integration"]["rtol"], "atol": resolved["integration"]["atol"],
+                   "section": resolved.get("section"), "extras": extras, "points_of_map": points}
         scanned = [key for key in values if key in scan]
         n = len(next(iter(chaos_scenes.map_grid(self.start, points)[2].values())))
         moments = config.resolve_body(resolved).moments
@@ -452,8 +453,14 @@ class ChaosScenes:
         size = len(registry.model_kind(self.kind).state)
         vectors = 1 * ("megno" in chaos["indicators"]) + (chaos["exponents"] or size) * (
             "lyapunov" in chaos["indicators"]) + chaos["gali_k"] * ("gali" in chaos["indicators"])
-        steps = integ["horizon"] / integ["dt"] * (1 + vectors)
-        estimate = cost.run_cost(n_points * scenes, steps, stored=chaos["points"] * size)
+        section = resolved.get("section")
+        if integ["dt"] > 0:
+            steps = integ["horizon"] / integ["dt"] * (1 + vectors)
+        else:  # error-controlled, its steps unknown before it runs: an eighth-order method's at the fastest spin
+            rate = max(abs(r) for r in scan.get("rate", [resolved["spin"]["rate"]]))
+            steps = integ["horizon"] * rate * planning.STEPS_PER_RADIAN[8] * (1 + vectors + (section is not None))
+        stored = chaos["points"] * size + (section["crossings"] * (size + 3) if section is not None else 0)
+        estimate = cost.run_cost(n_points * scenes, steps, stored=stored)
         return estimate._replace(peak_bytes=estimate.peak_bytes + cost.RUN_FOOTPRINT)
 
     def result_shape(self, job):

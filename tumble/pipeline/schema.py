@@ -193,18 +193,22 @@ def _chaos_fields():
             "Chaos indicators to map, any of: megno (mean MEGNO <Y>: 2 regular, 0 near a stable periodic orbit,",
             "growing like lambda t / 2 when chaotic), lyapunov (the Lyapunov spectrum, and its finite-time",
             "exponents over time), gali (GALI_k over time). [] (the default): not a chaos study, every key below",
-            "unused. A chaos study needs a [model] with a chaos.start of its kind, a fixed integration.dt > 0 and",
-            "integration.horizon > 0 (the time each orbit runs), an integration.method whose map tumble",
-            "differentiates (rk4, rk8, implicit_midpoint; the splittings for free, gyrostat and heavy_top; \"auto\": rk4); it draws megno_map, finite_time, spectrum (default: megno_map",
-            "when megno is asked for, else finite_time when lyapunov is, else none). Each point of the map (scan.<coordinate> x scan.rate, see [scan]) is one",
-            "initial state, run with every other; the perturbation table is not used."),
+            "unused (but with a [section]). A chaos study needs a [model] with a chaos.start of its kind,",
+            "integration.horizon > 0 (the time each orbit runs) and either a fixed integration.dt > 0 with a method",
+            "whose map tumble differentiates (rk4, rk8, implicit_midpoint; the splittings for free, gyrostat and",
+            "heavy_top; \"auto\": rk4) or integration.method = \"dop853\" with integration.rtol and atol (dt then the",
+            "first step, 0: chosen; the finite-time curves at chaos.points evenly spaced times). It draws megno_map,",
+            "finite_time, spectrum and, with a [section], section (default: section, then megno_map when megno is",
+            "asked for, else finite_time when lyapunov is). Each point of the map (scan.<coordinate> x scan.rate, see",
+            "[scan]) is one initial state, run with every other; the perturbation table is not used."),
             choices=registry.CHAOS_INDICATORS, check="names"),
         Field("chaos", "start", starts[0].name, "How a point of the map becomes an initial state:\n" + "".join(
             _lines(f'  "{s.name}" ({s.kind or "any model"}; coordinates '
                    f'{", ".join(s.keys) or "the components scan.state names"}): {s.text}') for s in starts),
             choices=tuple(s.name for s in starts), check="choice"),
         Field("chaos", "tilt", 0.5, _lines(
-            'release: tilt of body axis 3 from the vertical, rad, in [0, pi] (scan.tilt scans it).'),
+            'release and swing: tilt of body axis 3 from the vertical, rad, in [0, pi] ([0, 2 pi] for swing: the',
+            'turn about body axis 1; scan.tilt scans it).'),
             units="rad", check="chaos_tilt"),
         Field("chaos", "angle", 0.0, _lines(
             "spin_orbit: angle of the body's roll axis from the orbit frame's about the orbit normal, rad, any finite",
@@ -217,9 +221,13 @@ def _chaos_fields():
             "model defines them, used as given: a g or q not of unit length is not normalised). scan.state names the",
             "components the map replaces, e.g. scan.state = {w3 = [0.5, 1.0], g2 = [0.1, 0.2]}."),
             units="state units", check="chaos_state"),
+        Field("chaos", "energy", 0.0, _lines(
+            "swing: the total energy of every orbit of the map, J (1/2 w.Iw + mgl c.g, c the centre's unit",
+            "direction), at least the potential mgl c.g at each tilt of the map (where the top would be at rest)."),
+            units="J", check="chaos_energy"),
         Field("chaos", "renormalise", 1.0, _lines(
             "lyapunov: seconds between two orthonormalisations of the tangent vectors, a positive multiple of",
-            "integration.dt (the exponents do not depend on it beyond round-off)."),
+            "integration.dt (any > 0 with dop853; the exponents do not depend on it beyond round-off)."),
             units="s", check="chaos_renormalise"),
         Field("chaos", "transient", 0.0, _lines(
             "lyapunov: seconds before the exponents' sums start, >= 0 and less than integration.horizon."),
@@ -233,6 +241,41 @@ def _chaos_fields():
             "lyapunov and gali: about how many times the finite-time exponents and GALI are stored, >= 1 (evenly in",
             "steps; the finite_time figure draws them on log axes)."),
             units="1 (count)", check="integer", minimum=1),
+    )
+
+
+def _section_fields():
+    """``[section]``: the Poincaré section of every orbit of a chaos study's map."""
+    return (
+        Field("section", "surface", "", _lines(
+            "A Poincaré section of every orbit of the map (chaos.start's initial states; chaos.indicators may be",
+            "empty): the crossings of a component of the model's state (model.kind's state, e.g. \"g1\") through",
+            "`value`, located on the dense output of integration.method = \"dop853\", which a section needs. \"\"",
+            "(the default) with period 0: not a section study, every key below unused."),
+            check="section_surface"),
+        Field("section", "value", 0.0, _lines("The value the surface's component crosses (its units)."),
+              units="state units", check="number_any"),
+        Field("section", "direction", 1, _lines(
+            "The crossings counted: 1 (the component rising through `value`), -1 (falling) or 0 (both)."),
+            units="1", check="section_direction"),
+        Field("section", "period", 0.0, _lines(
+            "> 0: the stroboscopic section instead of a surface, the states at phase + k period (k = 1, 2, ...),",
+            "s; 0: none. Not with `surface`."),
+            units="s", check="number", minimum=0),
+        Field("section", "phase", 0.0, _lines("The stroboscopic section's phase, s, >= 0."),
+              units="s", check="number", minimum=0),
+        Field("section", "crossings", 200, _lines(
+            "Crossings kept per orbit, >= 1; an orbit stops once it has them (or at integration.horizon)."),
+            units="1 (count)", check="integer", minimum=1),
+        Field("section", "axes", [], _lines(
+            "The two coordinates the section figure plots, each a coordinate of chaos.start (its inverse at the",
+            "crossing: spin_orbit's angle, mod pi, and rate; release's and swing's tilt; release's rate) or a",
+            "component of the state; [] (the default): the start's two coordinates."),
+            check="section_axes"),
+        Field("section", "colour", "orbit", _lines(
+            'Colour of the section\'s points: "orbit" (each orbit its own) or "megno" (its mean MEGNO <Y>; needs',
+            '"megno" in chaos.indicators).'),
+            choices=("orbit", "megno"), check="choice"),
     )
 
 
@@ -282,11 +325,22 @@ FIELDS = (
         choices=DISTRIBUTIONS, check="choice", option="distribution"),
     Field("integration", "method", "auto", _lines(
         '"auto" (the exact closed form when torque-free, else a fixed-step method picked by the planner),',
-        '"exact" (Jacobi elliptic functions; torque-free only) or a fixed-step method:')
-        + _wrapped("", registry.STEPPING, "."), choices=registry.CHOICES, check="method"),
+        '"exact" (Jacobi elliptic functions; torque-free only), a fixed-step method:')
+        + _wrapped("", registry.STEPPING, ",") + _lines(
+        'or "dop853" (error-controlled to integration.rtol and atol, each orbit its own steps; a chaos or section',
+        "study's only: see [chaos] and [section])."),
+        choices=(*registry.CHOICES, *registry.ERROR_CONTROLLED), check="method"),
     Field("integration", "dt", 0.0, _lines(
         "Time step, s, >= 0; 0 means chosen from the method's order and the body's time scales."),
         units="s", check="number", minimum=0, option="dt", zero_is_auto=True),
+    Field("integration", "rtol", 1e-10, _lines(
+        'method "dop853": the relative tolerance of each step\'s error estimate, >= 1e-14 (with atol: |err| <=',
+        "atol + rtol |y| per component, in Hairer's norm). integration.dt is then the first step (0: chosen)."),
+        units="1", check="tolerance"),
+    Field("integration", "atol", 1e-12, _lines(
+        'method "dop853": the absolute tolerance, > 0 (in the state\'s units; the tangent vectors, of unit size, take',
+        "the same rtol and atol)."),
+        units="state units", check="tolerance"),
     Field("integration", "horizon", 0.0, _lines(
         "Horizon of each scene, s, >= 0 and finite; 0 means chosen by the planner from the scene's time scales.",
         "For a periodic scene (spin about the largest or smallest axis) it is the span of the phase fit that",
@@ -305,6 +359,7 @@ FIELDS = (
         "back to the CPU silently. tumble run --device overrides it."),
         choices=registry.DEVICES, check="choice", option="device"),
     *_chaos_fields(),
+    *_section_fields(),
     Field("torque", "profile", "none", _lines(
         "Body-frame torque N(t), one of the named profiles (no code in studies):",
         '  "none"     N = 0 (torque-free; `vector` must then be zero)',
