@@ -27,7 +27,13 @@ reported apart), throughput in sample-steps per second:
 8. ``closed_form``: ``tumble.exact.omega_on_device`` at one time (also the kernel alone on device arrays, the
    target 3e9 evaluations/s) and on a grid of :data:`CLOSED_FORM_TIMES` times, against ``tumble.exact.omega`` on
    the cores, and their agreement (about 1e-13);
-9. the FP64 bound of each method (:data:`FP64_COUNTS`), against the chip's vector FP64 peak (:data:`FP64_PEAK`).
+9. ``maps``: the scans of issue 28's targets (:func:`part_maps`);
+10. ``adaptive``: the error-controlled path, ``method="dop853"`` at rtol 1e-10, atol 1e-12 (:func:`part_adaptive`):
+    ``tumble.integrate(..., device="cuda")`` of the models part's heavy top (N samples to ``--adaptive-t-end``, 100
+    s; the CPU on N/10) and ``tumble.section(..., device="cuda")`` of benchmarks/sections.py's scene (2000 releases
+    of its heavy top to T = 1000 s, g1 = 0 upward; both devices on the same releases), against ``device="cpu"``:
+    compile time apart, medians, the ratio, and the agreement (final states; crossing counts and times);
+11. the FP64 bound of each method (:data:`FP64_COUNTS`), against the chip's vector FP64 peak (:data:`FP64_PEAK`).
 
 Every engine's error is measured against ``tumble.exact.omega`` on the first 4096 samples. A part whose package is
 missing is reported as skipped, a part that raises as failed, and the run goes on; ``results/gpu.{json,md}`` are
@@ -297,8 +303,11 @@ def part_gpu(ctx):
 
         scene_table = (cuda.to_device(np.zeros(0, dtype=np.int64)), table_row(*constants), 0.0, one(float(dt)),
                        one(int(n_steps), np.int64), one(0, np.int64))
-        observers = (one(0, np.int64), table_row(1.0, 1.0, 1.0), cuda.to_device(np.zeros((1, 0), dtype=np.int64)),
-                     cuda.device_array((0, 1)), cuda.device_array((1, 0)), cuda.device_array(0, dtype=np.int64),
+        # axes, the transverse norm (column_rows, weight_rows, y_eq), probe steps, probes, flips, flip_count, drift
+        # (as tumble.kernels.cuda.rigid_body.run_scenes passes them when none is asked for)
+        observers = (one(0, np.int64), cuda.to_device(np.array([[1, 2]], dtype=np.int64)), table_row(1.0, 1.0),
+                     cuda.to_device(np.zeros(3)), cuda.to_device(np.zeros((1, 0), dtype=np.int64)),
+                     cuda.device_array((0, 1)), cuda.device_array((1, 0)), cuda.device_array(p.samples, dtype=np.int64),
                      cuda.device_array((0, 1)))
         no_fit = (one(0.0), 0, one(0.0), cuda.device_array((0, 1)), cuda.device_array(0, dtype=np.int64))
         status = cuda.device_array(p.samples, dtype=np.int8)
@@ -650,8 +659,156 @@ def part_maps(ctx):
     return dict(rows=rows)
 
 
+#: The error-controlled part's tolerance (the library's defaults, the sections benchmark's).
+ADAPTIVE_RTOL, ADAPTIVE_ATOL = 1e-10, 1e-12
+#: Seconds of timed runs per figure of the error-controlled part, after its first call: fewer than --repeats runs when
+#: one is slow (the part stays within about 90 s on a GPU).
+ADAPTIVE_TIMED_S = 12.0
+#: Two sections' crossings "agree" where their times are within this (s): sections.py measures tumble's crossing
+#: times within 1e-8 s of SciPy's at rtol 2.3e-14 over 100 s.
+AGREE_DT = 1e-6
+
+
+def timed_capped(fn, repeats, cap):
+    """As :func:`timed`, but the timed runs stop when the next would take their total past ``cap`` seconds, judged by
+    those before it (the first call for the first): (first call s, median s, the first call's result, timed runs).
+    A first call longer than ``cap`` is the figure itself (0 timed runs: the compile was a call before it)."""
+    started = time.perf_counter()
+    result = fn()
+    first = time.perf_counter() - started
+    times = []
+    while len(times) < repeats and sum(times) + (float(np.median(times)) if times else first) <= cap:
+        started = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - started)
+    return first, float(np.median(times)) if times else first, result, len(times)
+
+
+def _crossing_agreement(a, b, horizon):
+    """Two sections of the same releases (``a`` the CPU's): the crossing counts; the releases whose crossings agree
+    all through (the same count, every time within :data:`AGREE_DT`); and over the first ``horizon`` s (as
+    benchmarks/sections.py compares them; later a chaotic orbit's crossings part for any change of rounding), the
+    releases with the same count there and, on those, the largest time and state differences, crossing by crossing."""
+    ca, cb = a["count"].values, b["count"].values
+    k = min(a.time.shape[1], b.time.shape[1])
+    ta, tb = a.time.values[:, :k], b.time.values[:, :k]
+    dt = np.abs(ta - tb)  # NaN past either count
+    ds = np.max(np.abs(a.state.values[:, :k] - b.state.values[:, :k]), axis=2)
+    scale = max(float(np.nanmax(np.abs(a.state.values), initial=0.0)), 1e-300)
+    same = ca == cb
+    through = same & np.all(np.isnan(dt) | (dt <= AGREE_DT), axis=1)
+    early_a, early_b = ta < horizon, tb < horizon  # False past a count
+    aligned = early_a.sum(axis=1) == early_b.sum(axis=1)
+    early = early_a & early_b & aligned[:, None]
+    per_release = np.max(np.where(early, dt, 0.0), axis=1)[aligned]
+    return dict(samples=int(len(ca)), counts_equal=int(same.sum()),
+                max_count_difference=int(np.abs(ca - cb).max(initial=0)), agree_dt=AGREE_DT,
+                agree_throughout=int(through.sum()),
+                statuses_equal=bool(np.array_equal(a["status"].values, b["status"].values)), compared_s=float(horizon),
+                early_counts_equal=int(aligned.sum()), max_dt_early=float(np.max(dt[early], initial=0.0)),
+                median_release_max_dt_early=float(np.median(per_release)) if len(per_release) else 0.0,
+                max_rel_state_difference_early=float(np.max(ds[early], initial=0.0)) / scale)
+
+
+def part_adaptive(ctx):
+    """The error-controlled path on the device (``method="dop853"``, rtol 1e-10, atol 1e-12; one thread per sample
+    running the CPU's per-sample loop, with its host transfers) against the CPU (the built-in models' vectorised
+    blocks on this machine's cores): ``tumble.integrate`` of the models part's heavy top (N samples near its steady
+    spin, to ``--adaptive-t-end``; the CPU on N/10 of them), and ``tumble.section`` of the sections benchmark's
+    asymmetric heavy top (``benchmarks/sections.py``: 2000 releases to T = 1000 s, the surface g1 = 0 upward), both
+    devices on the same releases. Compile time (a first call on 2 samples, per device) apart; agreement: the final
+    states (integrate), the crossing counts and times (section; over the first 100 s, as sections.py compares them,
+    with the spread between the CPU at rtol 1e-10 and 1e-11 beside it: the releases include chaotic orbits)."""
+    import tumble
+    from tumble.engine.sampling import perturbed_states
+    from tumble.physics import models
+
+    import sections as scene  # benchmarks/sections.py: its heavy top and releases
+
+    p = ctx["problem"]
+    repeats, cap = ctx["repeats"], ADAPTIVE_TIMED_S
+    tol = dict(method="dop853", rtol=ADAPTIVE_RTOL, atol=ADAPTIVE_ATOL)
+    top = models.HeavyTop((2.0, 2.5, 3.0), 0.5)  # the models part's heavy top
+    section_top = models.HeavyTop(scene.MOMENTS, scene.MGL, centre=scene.CENTRE)
+    compile_s = {}
+    for device in ("cuda", "cpu"):  # both runs below share one kernel per device (rate and component surface)
+        started = time.perf_counter()
+        tumble.integrate(top, perturbed_states(top, 3, 1.0, EPS, 2, seed=0), 1.0, device=device, **tol)
+        compile_s[device] = time.perf_counter() - started
+        print(f"  adaptive: compile (first call on 2 samples) on {device}: {compile_s[device]:.1f} s", flush=True)
+    rows = []
+
+    # integrate: the final states of N samples
+    t_end = ctx["adaptive_t_end"]
+    y0 = perturbed_states(top, 3, 1.0, EPS, p.samples, seed=0)
+    cpu_y0 = y0[:ctx["cpu_samples"]]
+    first, seconds, gpu, runs = timed_capped(lambda: tumble.integrate(top, y0, t_end, device="cuda", **tol), repeats,
+                                             cap)
+    cpu_first, cpu_seconds, cpu, cpu_runs = timed_capped(
+        lambda: tumble.integrate(top, cpu_y0, t_end, device="cpu", **tol), repeats, cap)
+    steps, cpu_steps = int(gpu["steps"].sum()), int(cpu["steps"].sum())
+    a, b = cpu["state"].values[:, -1], gpu["state"].values[:len(cpu_y0), -1]
+    row = dict(run="integrate", model="heavy top (2, 2.5, 3), mgl 0.5, near its steady spin", samples=len(y0),
+               t_end=t_end, rtol=ADAPTIVE_RTOL, atol=ADAPTIVE_ATOL, sample_steps=steps,
+               rejected_steps=int(gpu["rejected_steps"].sum()), first_call_s=first, seconds_with_transfers=seconds,
+               runs=runs, rate_with_transfers=steps / seconds, samples_per_s=len(y0) / seconds,
+               not_ok=int(np.count_nonzero(gpu["status"].values)), cpu_samples=len(cpu_y0), cpu_sample_steps=cpu_steps,
+               cpu_first_call_s=cpu_first, cpu_seconds=cpu_seconds, cpu_runs=cpu_runs, cpu_rate=cpu_steps / cpu_seconds,
+               cpu_samples_per_s=len(cpu_y0) / cpu_seconds, cpu_not_ok=int(np.count_nonzero(cpu["status"].values)),
+               agreement=dict(samples=len(cpu_y0), max_rel_difference=float(np.max(np.abs(a - b)) / np.max(np.abs(a))),
+                              statuses_equal=bool(np.array_equal(cpu["status"].values,
+                                                                 gpu["status"].values[:len(cpu_y0)])),
+                              steps_equal=int(np.sum(cpu["steps"].values == gpu["steps"].values[:len(cpu_y0)]))))
+    row["speedup"] = row["samples_per_s"] / row["cpu_samples_per_s"]  # time per sample, CPU over GPU
+    rows.append(row)
+    print(f"  adaptive integrate: {len(y0):,} samples to {t_end:g} s on the GPU in {seconds:.3g} s ({steps / seconds:.3e} "
+          f"accepted sample-steps/s, first call {first:.2f} s), CPU {len(cpu_y0):,} in {cpu_seconds:.3g} s "
+          f"({cpu_steps / cpu_seconds:.3e}): {row['speedup']:.3g}x per sample; final |gpu - cpu| / max |y| = "
+          f"{row['agreement']['max_rel_difference']:.1e}", flush=True)
+
+    # section: the sections benchmark's scene, the same releases on both
+    elapsed = time.perf_counter() - ctx["began"]
+    if elapsed > ctx["budget"]:
+        rows.append(dict(run="section", skipped=f"time budget: {elapsed:.0f} s used of --budget {ctx['budget']:g}"))
+        return dict(rows=rows, compile_s=compile_s)
+    n, t_end = ctx["section_samples"], ctx["section_t_end"]
+    releases = scene.releases(n)
+    surface = ("g1", 0.0)
+
+    def section(device, rtol=ADAPTIVE_RTOL):
+        return tumble.section(section_top, releases, t_end, surface=surface, rtol=rtol, atol=ADAPTIVE_ATOL,
+                              device=device)
+
+    first, seconds, gpu, runs = timed_capped(lambda: section("cuda"), repeats, cap)
+    cpu_first, cpu_seconds, cpu, cpu_runs = timed_capped(lambda: section("cpu"), repeats, cap)
+    compared = min(scene.COMPARED, t_end)
+    # the scale of "agree": the CPU against itself at a tenth of the tolerance
+    spread = _crossing_agreement(cpu, section("cpu", rtol=ADAPTIVE_RTOL / 10), compared)
+    steps, cpu_steps = int(gpu["steps"].sum()), int(cpu["steps"].sum())
+    row = dict(run="section", model=f"heavy top {scene.MOMENTS}, mgl {scene.MGL}, centre {scene.CENTRE} "
+                                    "(benchmarks/sections.py)", surface="g1 = 0, upward", samples=n, t_end=t_end,
+               rtol=ADAPTIVE_RTOL, atol=ADAPTIVE_ATOL, crossings=int(gpu["count"].sum()), sample_steps=steps,
+               rejected_steps=int(gpu["rejected_steps"].sum()), first_call_s=first, seconds_with_transfers=seconds,
+               runs=runs, rate_with_transfers=steps / seconds, samples_per_s=n / seconds,
+               not_ok=int(np.count_nonzero(gpu["status"].values)), cpu_samples=n, cpu_crossings=int(cpu["count"].sum()),
+               cpu_sample_steps=cpu_steps, cpu_first_call_s=cpu_first, cpu_seconds=cpu_seconds, cpu_runs=cpu_runs,
+               cpu_rate=cpu_steps / cpu_seconds, cpu_samples_per_s=n / cpu_seconds,
+               cpu_not_ok=int(np.count_nonzero(cpu["status"].values)), speedup=cpu_seconds / seconds,
+               agreement=_crossing_agreement(cpu, gpu, compared), cpu_tolerance_spread=spread)
+    rows.append(row)
+    agree = row["agreement"]
+    print(f"  adaptive section: {n:,} releases to {t_end:g} s on the GPU in {seconds:.3g} s (first call {first:.2f} s), "
+          f"CPU {cpu_seconds:.3g} s: {row['speedup']:.3g}x; crossings {row['crossings']:,} / {row['cpu_crossings']:,}, "
+          f"counts equal on {agree['counts_equal']} of {n}, all crossings within {AGREE_DT:g} s on "
+          f"{agree['agree_throughout']} (CPU rtol 1e-10 against 1e-11: {spread['agree_throughout']}); first {compared:g}"
+          f" s: max |dt| {agree['max_dt_early']:.1e} s (CPU against itself: {spread['max_dt_early']:.1e} s)",
+          flush=True)
+    return dict(rows=rows, compile_s=compile_s)
+
+
 PARTS = {"gpu": part_gpu, "agreement": part_agreement, "scene": part_scene, "cpu": part_cpu, "models": part_models,
-         "closed_form": part_closed_form, "maps": part_maps, "jax": part_jax, "diffrax": part_diffrax}
+         "closed_form": part_closed_form, "maps": part_maps, "adaptive": part_adaptive, "jax": part_jax,
+         "diffrax": part_diffrax}
 
 
 # --------------------------------------------------------------------------------------------------------------
@@ -732,6 +889,54 @@ def targets(report):
         closed and closed["rate_kernel"] >= 3e9,
         closed and f"{closed['rate_kernel']:.2e} (with transfers {closed['rate_with_transfers']:.2e})")
     return out
+
+
+def _adaptive_markdown(part):
+    """The error-controlled part's table and agreement lines (none when it did not run)."""
+    rows = [r for r in part.get("rows", []) if "skipped" not in r]
+    if not rows:
+        return [f"- adaptive {r['run']} row: skipped: {r['skipped']}" for r in part.get("rows", [])]
+    compile_s = part.get("compile_s", {})
+    lines = ["", f"Error-controlled runs (`method=\"dop853\"`, rtol {rows[0]['rtol']:g}, atol {rows[0]['atol']:g}) on "
+             "the device (one thread per sample running the CPU's per-sample loop, with host transfers) against the "
+             "CPU (the models' vectorised blocks on this machine's cores). Compile (a first call on 2 samples, apart): "
+             f"GPU {compile_s.get('cuda', float('nan')):.1f} s, CPU {compile_s.get('cpu', float('nan')):.1f} s. "
+             "Medians of timed runs after a first call, at most about 12 s of them (their number, `runs`, in the json; 0: "
+             "the first call's time); × CPU: the CPU's time per sample over the GPU's.", "",
+             "| run | samples × horizon | GPU s (first call) | accepted sample-steps/s, GPU | CPU samples | "
+             "CPU s (first call) | accepted sample-steps/s, CPU | × CPU |", "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        what = ("`tumble.integrate`, final state" if r["run"] == "integrate" else
+                f"`tumble.section`, {r['surface']}") + f": {r['model']}"
+        lines.append(f"| {what} | {r['samples']:,} × {r['t_end']:g} s | {r['seconds_with_transfers']:.3g} "
+                     f"({r['first_call_s']:.3g}) | {r['rate_with_transfers']:.2e} | {r['cpu_samples']:,} | "
+                     f"{r['cpu_seconds']:.3g} ({r['cpu_first_call_s']:.3g}) | {r['cpu_rate']:.2e} | "
+                     f"{r['speedup']:.3g}× |")
+    lines.append("")
+    for r in rows:
+        a = r["agreement"]
+        stops = f"samples not ok: GPU {r['not_ok']}, CPU {r['cpu_not_ok']}"
+        if r["run"] == "integrate":
+            lines.append(f"- integrate, GPU against CPU on the first {a['samples']:,} samples: final states "
+                         f"max |gpu − cpu| / max |y| = {a['max_rel_difference']:.1e}; statuses equal: "
+                         f"{a['statuses_equal']}; the same accepted steps on {a['steps_equal']:,}; {stops}.")
+        else:
+            s = r["cpu_tolerance_spread"]
+            lines.append(f"- section, GPU against CPU on the {a['samples']:,} releases: {r['crossings']:,} crossings "
+                         f"against {r['cpu_crossings']:,}, the same count on {a['counts_equal']:,} releases (largest "
+                         f"difference {a['max_count_difference']}), every crossing time within {a['agree_dt']:g} s on "
+                         f"{a['agree_throughout']:,}; statuses equal: {a['statuses_equal']}; {stops}. Over the first "
+                         f"{a['compared_s']:g} s: the same count on {a['early_counts_equal']:,}, on those crossing times "
+                         f"max |Δt| = {a['max_dt_early']:.1e} s (median over releases "
+                         f"{a['median_release_max_dt_early']:.1e} s), states {a['max_rel_state_difference_early']:.1e} "
+                         f"of max |y|. For scale, the CPU at rtol {r['rtol']:g} against {r['rtol'] / 10:g}: the same "
+                         f"count on {s['counts_equal']:,}, every time within {s['agree_dt']:g} s on "
+                         f"{s['agree_throughout']:,}; over the first {s['compared_s']:g} s the same count on "
+                         f"{s['early_counts_equal']:,}, max |Δt| = {s['max_dt_early']:.1e} s (median "
+                         f"{s['median_release_max_dt_early']:.1e} s). The releases include chaotic orbits, whose "
+                         "crossings part for any change of rounding.")
+    lines += [f"- adaptive {r['run']} row: skipped: {r['skipped']}" for r in part.get("rows", []) if "skipped" in r]
+    return lines
 
 
 def _rate_or_dash(rate):
@@ -861,6 +1066,7 @@ def markdown(report):
         lines += [f"| {r['evaluation']} | {r['samples']:,} | {r['rate_with_transfers']:.2e} | "
                   f"{_rate_or_dash(r.get('rate_kernel'))} | {r['cpu_rate']:.2e} | {r['speedup']:.3g}× | "
                   f"{r['max_rel_difference']:.1e} |" for r in closed_rows]
+    lines += _adaptive_markdown(parts.get("adaptive", {}))
     lines += ["", "Issue 28's targets:", "", "| target | measured | status |", "|---|---|---|"]
     lines += [f"| {t['target']} | {t['measured']} | {t['status']} |" for t in report["targets"]]
     return "\n".join(lines) + "\n"
@@ -878,6 +1084,12 @@ def main(argv=None):
     parser.add_argument("--scene-samples", type=int, help="samples of the growth scene on the GPU (default 1048576; "
                                                           "--quick 64); on the CPU at most 16384 (--quick 32)")
     parser.add_argument("--repeats", type=int, help="timed runs per figure, median (default 5; --quick 2)")
+    parser.add_argument("--adaptive-t-end", type=float,
+                        help="horizon of the adaptive part's integrate row, s (default 100; --quick 2)")
+    parser.add_argument("--section-samples", type=int,
+                        help="releases of the adaptive part's section row (default 2000; --quick 4)")
+    parser.add_argument("--section-t-end", type=float,
+                        help="horizon of the adaptive part's section row, s (default 1000; --quick 20)")
     parser.add_argument("--quick", action="store_true", help="tiny sizes: a smoke run (also on the simulator)")
     parser.add_argument("--out", type=Path, help="report folder (default benchmarks/results; --quick or the "
                                                  "simulator: a new temporary folder)")
@@ -936,7 +1148,10 @@ def main(argv=None):
                cpu_samples=min(samples, args.cpu_samples or max(64, samples // 10)),
                cpu_steps=args.cpu_steps or max(8, steps // 5),
                scene_samples=args.scene_samples or (64 if quick else 1 << 20),
-               cpu_scene_samples=min(args.scene_samples or (1 << 20), 32 if quick else 1 << 14))
+               cpu_scene_samples=min(args.scene_samples or (1 << 20), 32 if quick else 1 << 14),
+               adaptive_t_end=args.adaptive_t_end or (2.0 if quick else 100.0),
+               section_samples=args.section_samples or (4 if quick else 2000),
+               section_t_end=args.section_t_end or (20.0 if quick else 1000.0), began=began, budget=args.budget)
     write(report, out)
     for name in args.parts:
         elapsed = time.perf_counter() - began
