@@ -114,6 +114,19 @@ def test_propagate_gives_integrates_final_states_and_a_single_state_stays_single
     assert tumble.propagate(BODY, SPINS[0], 5.0, method="dop853", rtol=1e-9).shape == (3,)
 
 
+def test_run_ensemble_gives_integrates_states_and_refuses_a_rigid_bodys_observers():
+    ds = tumble.integrate(BODY, SPINS, 5.0, method="dop853", rtol=1e-9, times=[2.5, 5.0])
+    run = tumble.run_ensemble(BODY, SPINS, 5.0, None, method="dop853", rtol=1e-9, times=[2.5, 5.0])
+    np.testing.assert_array_equal(run.trajectory, ds.omega.values)
+    np.testing.assert_array_equal(run.final, ds.omega.values[:, -1])
+    np.testing.assert_array_equal(run.steps_taken, ds.steps.values)
+    assert run.info["path"] == "error-controlled" and list(run.times) == [2.5, 5.0]
+    with pytest.raises(ValueError, match="max_flips observe a rigid body's scene"):
+        tumble.run_ensemble(BODY, SPINS, 5.0, None, method="dop853", max_flips=2)
+    with pytest.raises(ValueError, match="rtol: for an error-controlled run"):
+        tumble.run_ensemble(BODY, SPINS, 5.0, 0.1, method="rk4", rtol=1e-6)
+
+
 def test_per_component_tolerances_and_a_given_first_step():
     loose = tumble.integrate(BODY, SPINS[:1], 5.0, method="dop853", rtol=[1e-4, 1e-12, 1e-12],
                              atol=[1e-6, 1e-14, 1e-14])

@@ -24,7 +24,7 @@ from . import cost
 from .system_runs import block_code, compiled, initial_states, probe, state_units, system_name
 
 __all__ = ["AdaptiveRun", "Surface", "DEFAULT_ATOL", "DEFAULT_RTOL", "FLAG_MEANINGS", "FLAG_VALUES", "MAX_STEPS", "MIN_RTOL",
-           "checked_horizon", "checked_scalars", "output_times", "run_adaptive", "run_attrs", "run_variables", "tolerances",
+           "checked_horizon", "checked_scalars", "fixed_steps_only", "output_times", "run_adaptive", "run_attrs", "run_variables", "tolerances",
            "warn_stops"]
 
 #: The tolerances of a run that names none: near the double's limit for the smooth motions tumble studies.
@@ -128,6 +128,18 @@ def checked_horizon(t_end):
     if not (math.isfinite(horizon) and horizon >= 0.0):
         raise ValueError(f"t_end must be finite and >= 0, got {t_end!r}")
     return horizon
+
+
+def fixed_steps_only(method, dt, rtol, atol, times, max_steps):
+    """A fixed-step ``method`` takes ``dt`` (and ``save_every``), never a tolerance's arguments."""
+    given = [name for name, value in (("rtol", rtol), ("atol", atol), ("times", times), ("max_steps", max_steps))
+             if value is not None]
+    if given:
+        raise ValueError(f"{', '.join(given)}: for an error-controlled run (method='dop853'); method {method!r} takes a "
+                         f"fixed step dt and save_every")
+    if dt is None:
+        raise ValueError(f"dt (s) is required for the fixed-step method {method!r}; an error-controlled run names "
+                         f"method='dop853' and a tolerance (rtol, atol) instead")
 
 
 def checked_scalars(t_end, first_step, max_steps):

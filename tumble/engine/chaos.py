@@ -34,9 +34,9 @@ from ..physics.bodies import Body, one_body
 from ..physics.models import FreeBody, Model
 from ..physics.system import System, finite_number, with_parameters
 from . import chaos_tolerance, cost
-from .adaptive_runs import checked_scalars, output_times
+from .adaptive_runs import checked_scalars, fixed_steps_only, output_times
 from .device import resolve_device
-from .integration import checked_save_every, fixed_steps_only
+from .integration import checked_save_every
 from .system_runs import block_code, compiled, initial_states, probe
 
 __all__ = ["RESCALE_EVERY", "STATUS_ABOVE_NAME", "TANGENT_TURN", "TangentRun", "gali", "initial_tangents", "lyapunov",

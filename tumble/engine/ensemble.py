@@ -41,6 +41,7 @@ from . import cost
 from .device import LAUNCH_SAMPLES, WARP, check_on_device, resolve_device, stepper
 from .progress import tqdm
 from .sampling import CHUNK
+from .adaptive_runs import fixed_steps_only, run_adaptive
 from .system_runs import added_tableau, is_system, run_system
 
 __all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "Interrupted", "STATUS_NAMES", "check_torque_step", "checked_torque",
@@ -270,10 +271,37 @@ def _stored_per_sample(steps, save_every, probe_times, max_flips, drift, attitud
     return 3 + saved * (7 if attitude else 3) + (0 if probe_times is None else len(probe_times)) + max_flips + 2 * drift
 
 
+def _error_controlled(body, w0, t_end, dt, final, save_every, asked, parameters, device, tolerance):
+    # size: run_ensemble's arguments an error-controlled run reads, checked once
+    """:func:`run_ensemble` with ``method="dop853"`` (:func:`tumble.engine.adaptive_runs.run_adaptive`): the final
+    states and the states at ``times``; a rigid body's observers, a torque and ``save_every`` refused."""
+    if asked:
+        raise ValueError(f"method 'dop853' observes the final state and the states at times=[...]; {', '.join(asked)} "
+                         f"observe a rigid body's scene with the fixed steps or the closed form (remove them)")
+    if save_every is not None:
+        raise ValueError("save_every counts fixed steps; method 'dop853' gives its states at output times "
+                         "(times=[...], s), read off its dense output")
+    rtol, atol, times, max_steps = tolerance
+    if not is_system(body):
+        if parameters is not None:
+            raise ValueError("parameters are a model's or a System's; a free body has none (its moments are the body)")
+        body = FreeBody(one_body(body))
+    run, _ = run_adaptive(body, w0, t_end, times=times, rtol=rtol, atol=atol, first_step=dt, max_steps=max_steps,
+                          parameters=parameters, device=device, y0_name="w0" if isinstance(body, FreeBody) else "y0")
+    info = {"path": "error-controlled", "method": registry.ERROR_CONTROLLED[0], "rtol": run.rtol, "atol": run.atol,
+            "rejected_steps": run.rejected, "system": run.name, "parameters": run.parameters, "samples": len(run.final),
+            "device": device}
+    trajectory = times is not None
+    return EnsembleResult(run.final if final else None, run.times if trajectory else None,
+                          run.states if trajectory else None, None, None, None, None, None, run.status, run.steps,
+                          info)
+
+
 def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, final=True, save_every=None,
                  probe_times=None, norm_weights=None, max_flips=0, drift=False, stop_norm=0.0, stop_flips=0,
                  drift_limit=DEFAULT_DRIFT_LIMIT, chunk=CHUNK, progress=None, attitude=False, device="cpu",
-                 growth_window=None, keep_probes=True, phase_window=None, keep_trajectory=True, parameters=None):
+                 growth_window=None, keep_probes=True, phase_window=None, keep_trajectory=True, parameters=None,
+                 rtol=None, atol=None, times=None, max_steps=None):
     # size: 24 keywords, the engine's public call (tumble.run_ensemble); each is one observer or stop request a caller
     # may name, checked at once by _checked_arguments and passed on to run_planned (which packs them into _Observe).
     """Run an ensemble of spins and observe it on the fly.
@@ -341,6 +369,10 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         With ``phase_window``: also return the trajectory (False: on the device it never leaves it).
     parameters : mapping, optional
         A model's or System's parameters, by name, in place of its own.
+    rtol, atol, times, max_steps
+        ``method="dop853"`` only (``dt``: the first step, None: chosen), as :func:`tumble.integrate`: each sample its
+        own steps to the tolerance; the final state and, with ``times``, the states there (``times`` and
+        ``trajectory``) are what it observes; ``steps_taken`` counts the accepted steps, ``info`` the rejected ones.
     device : str
         ``"cpu"`` or ``"cuda"`` (:func:`tumble.engine.device.resolve_device`). On ``"cuda"`` today: every fixed-step
         method, a constant torque or a named profile, every observer (final state, trajectory, probe norms, flips,
@@ -360,14 +392,18 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
         method, a method that cannot serve the request, a torque profile shorter than its steps.
     """
     device = resolve_device(device)  # once, here at the door: the runs below trust it
+    asked = [name for name, value in (("probe_times", probe_times is not None), ("max_flips", max_flips),
+                                      ("drift", drift), ("stop_norm", stop_norm), ("stop_flips", stop_flips),
+                                      ("attitude", attitude), ("growth_window", growth_window is not None),
+                                      ("phase_window", phase_window is not None), ("torque", torque is not None))
+             if value]
+    if method in registry.ERROR_CONTROLLED:
+        return _error_controlled(body, w0, t_end, dt, final, save_every, asked, parameters, device,
+                                 (rtol, atol, times, max_steps))
+    fixed_steps_only(method, dt, rtol, atol, times, max_steps)
     if added_tableau(method) and not is_system(body) and parameters is None:
         body = FreeBody(one_body(body))  # a tableau added at run time: the free body's rate in the per-sample loop
     if is_system(body):
-        asked = [name for name, value in (("probe_times", probe_times is not None), ("max_flips", max_flips),
-                                          ("drift", drift), ("stop_norm", stop_norm), ("stop_flips", stop_flips),
-                                          ("attitude", attitude), ("growth_window", growth_window is not None),
-                                          ("phase_window", phase_window is not None), ("torque", torque is not None))
-                 if value]
         if asked:
             raise ValueError(f"run_ensemble of a model, a System or a tableau added at run time observes its final "
                              f"state and trajectory; {', '.join(asked)} observe a rigid body's scene with the built-in "

@@ -19,10 +19,10 @@ from ..registry import STATUS_NAMES, STATUS_OK
 from . import cost
 from .device import check_on_device, resolve_device, stepper
 from .ensemble import check_torque_step, checked_torque, run_planned
-from .adaptive_runs import run_adaptive, run_attrs, run_variables, warn_stops
+from .adaptive_runs import fixed_steps_only, run_adaptive, run_attrs, run_variables, warn_stops
 from .system_runs import added_tableau, is_system, run_system
 
-__all__ = ["integrate", "propagate", "METHOD_NAMES", "fixed_steps_only"]
+__all__ = ["integrate", "propagate", "METHOD_NAMES"]
 
 METHOD_NAMES = tuple(m.name for m in registry.METHODS)
 
@@ -138,18 +138,6 @@ def _free_body_by_tableau(body, w0, t_end, dt, method, torque, save_every, attit
                          f"its attitude (the per-sample loop of tumble.models.FreeBody); a torque or attitude=True "
                          f"needs one of {', '.join(m for m in METHOD_NAMES if m != 'exact')}")
     return _system_run(FreeBody(one_body(body)), w0, t_end, dt, method, None, save_every, None, device)
-
-
-def fixed_steps_only(method, dt, rtol, atol, times, max_steps):
-    """A fixed-step ``method`` takes ``dt`` (and ``save_every``), never a tolerance's arguments."""
-    given = [name for name, value in (("rtol", rtol), ("atol", atol), ("times", times), ("max_steps", max_steps))
-             if value is not None]
-    if given:
-        raise ValueError(f"{', '.join(given)}: for an error-controlled run (method='dop853'); method {method!r} takes a "
-                         f"fixed step dt and save_every")
-    if dt is None:
-        raise ValueError(f"dt (s) is required for the fixed-step method {method!r}; an error-controlled run names "
-                         f"method='dop853' and a tolerance (rtol, atol) instead")
 
 
 def _adaptive_run(body, w0, t_end, dt, torque, save_every, attitude, parameters, device, tolerance):
