@@ -377,100 +377,167 @@ def _stages(rate, y0, p, t, h, k, stage):
 
 
 def make_dop853_block_driver(trial, rate, surface=None):
-    # size: the closures hold a block's whole run and the share's loop over blocks
-    """``drive(...)`` as :func:`make_dop853_driver`'s, stepping the samples in blocks of :data:`BLOCK` lanes, each
-    lane its own time and step: ``trial(lane_t, lane_h, ys, ks, y1s, k1s, err, rtol, atol, a)`` (generated,
+    # size: the closures hold a block's whole run and the lanes' starts and ends
+    """``drive(...)`` as :func:`make_dop853_driver`'s, stepping the samples in a block of :data:`BLOCK` lanes, each
+    lane its own sample, time and step: ``trial(lane_t, lane_h, ys, ks, y1s, k1s, err, rtol, atol, a)`` (generated,
     :func:`tumble.kernels.steps.model_codegen.trial_source`) makes every lane's trial step at once, vectorised across
     the lanes; this loop then accepts or rejects each lane (Hairer's control, as :func:`make_dop853_sample`), masks the
     lanes that are done (their trial step is 0), and reads the output times and a section's crossings off a lane's
-    dense output, its stages made again one sample at a time by ``rate(t, y, p, dydt)`` (where a step holds one)."""
+    dense output, its stages made again one sample at a time by ``rate(t, y, p, dydt)`` (where a step holds one). A
+    lane whose sample is done takes the share's next sample at once, so that samples of few steps and of many share
+    the block's work (a block that waited for its slowest sample stepped a third of its lanes idle on an eccentric
+    orbit's ensemble); each sample's steps are the same whichever lane runs it."""
     if surface is None:
         surface = component_surface
 
     @jit(cache=False)
-    def _lane_extras(i, ys, ks, y1s, p, ti, hi, tn, times, out, slot, next_out, g0, component, value, direction, most,
-                     crossing_t, crossing_y, counts, k, stage, y0, y1, f):
+    def _lane_extras(i, s, ys, ks, y1s, p, ti, hi, tn, times, out, slot, next_out, g0, crossed, component, value,
+                     direction, most, crossing_t, crossing_y, k, stage, y0, y1, f):
         # size: one lane's accepted step's outputs and crossing, with the scratch they are made in
-        """Lane ``i``'s accepted step ``(ti, ti + hi = tn)``: the surface's crossing and the output times in it, from
-        the dense output (its stages made again, one sample); an output time at ``tn`` itself is ``y1``."""
+        """Lane ``i``'s (sample ``s``'s) accepted step ``(ti, ti + hi = tn)``: the surface's crossing and the output
+        times in it, from the dense output (its stages made again, one sample); an output time at ``tn`` itself is
+        ``y1``."""
         n = ys.shape[0]
         for j in range(n):
             y0[j] = ys[j, i]
             y1[j] = y1s[j, i]
         before = g0[i]
         g1 = 0.0
-        crossed = False
+        crossing = False
         if most > 0:
             g1 = surface(tn, y1, p, component, value)
-            crossed = (direction >= 0.0 and before < 0.0 <= g1) or (direction <= 0.0 and before > 0.0 >= g1)
+            crossing = (direction >= 0.0 and before < 0.0 <= g1) or (direction <= 0.0 and before > 0.0 >= g1)
             g0[i] = g1
-        if crossed or next_out[i] < tn:
+        if crossing or next_out[i] < tn:
             for j in range(n):
                 k[0, j] = ks[j, i]
             _stages(rate, y0, p, ti, hi, k, stage)
             _interpolant(rate, y0, y1, p, ti, hi, k, stage, f)
-        if crossed:
-            c = int(counts[i, 2])
+        if crossing:
+            c = crossed[i]
             x = _crossing(surface, f, y0, p, ti, hi, before, g1, component, value, stage)
-            crossing_t[i, c] = tn if x == 1.0 else ti + x * hi
-            _dense(f, y0, x, crossing_y[i, c])
-            counts[i, 2] += 1
+            crossing_t[s, c] = tn if x == 1.0 else ti + x * hi
+            _dense(f, y0, x, crossing_y[s, c])
+            crossed[i] += 1
         while slot[i] < times.shape[0] and times[slot[i]] <= tn:
             if times[slot[i]] == tn:
-                out[i, slot[i]] = y1
+                out[s, slot[i]] = y1
             else:
-                _dense(f, y0, (times[slot[i]] - ti) / hi, out[i, slot[i]])
+                _dense(f, y0, (times[slot[i]] - ti) / hi, out[s, slot[i]])
             slot[i] += 1
         next_out[i] = times[slot[i]] if slot[i] < times.shape[0] else np.inf
 
     @jit(cache=False)
-    def run_block(ys, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
-                  counts, stopped, lanes, steps, rows, scratch, used):
-        # size: Hairer's control over a block's lanes, with the outputs, the crossings and the stops, in one loop
-        n, m = ys.shape  # m = BLOCK lanes, the first ``used`` of them samples (the others stay done)
+    def _start(i, s, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, section, lanes, counters, k, stage,
+               y0, y1):
+        # size: one lane's start on a sample: its state, first outputs, rate, first step and surface value
+        """Put sample ``s`` into lane ``i``: True when it steps, False when it is done at once (not finite, or no time
+        to run)."""
+        t, h, active, last_rejected, next_out, g0, tries, accepted = (lanes[0], lanes[1], lanes[3], lanes[4],
+                                                                      lanes[7], lanes[8], lanes[10], lanes[11])
+        slot, owner, crossed = counters[0], counters[1], counters[2]
+        component, value, most = int(section[0]), section[1], int(section[3])
+        n = ys.shape[0]
+        owner[i] = s
+        code = STATUS_OK
+        for j in range(n):
+            y0[j] = y[s, j]
+            ys[j, i] = y0[j]
+            if not math.isfinite(y0[j]):
+                code = STATUS_NONFINITE
+        status[s] = code
+        t[i] = t0
+        h[i] = 0.0
+        last_rejected[i] = 0.0
+        tries[i] = 0.0
+        accepted[i] = 0.0
+        g0[i] = 0.0
+        slot[i] = 0
+        crossed[i] = 0
+        while slot[i] < times.shape[0] and times[slot[i]] <= t0:
+            out[s, slot[i]] = y0
+            slot[i] += 1
+        next_out[i] = times[slot[i]] if slot[i] < times.shape[0] else np.inf
+        if code != STATUS_OK or t_end <= t0:
+            active[i] = 0.0
+            return False
+        active[i] = 1.0
+        rate(t0, y0, p, k[0])
+        for j in range(n):
+            ks[j, i] = k[0, j]
+        h[i] = h0 if h0 > 0.0 else _first_step(rate, t0, y0, p, t_end - t0, rtol, atol, k[0], stage, y1)
+        if most > 0:
+            g0[i] = surface(t0, y0, p, component, value)
+        return True
+
+    @jit(cache=False)
+    def _finish(i, y, ys, times, out, counts, stopped, lanes, counters):
+        """Lane ``i``'s sample is done: its state, counts and time written back; a stopped sample's later outputs are
+        the state it stopped with."""
+        slot, owner, crossed = counters[0], counters[1], counters[2]
+        s = owner[i]
+        n = ys.shape[0]
+        for j in range(n):
+            y[s, j] = ys[j, i]
+        counts[s, 0] = int(lanes[11, i])
+        counts[s, 1] = int(lanes[10, i]) - counts[s, 0]
+        counts[s, 2] = crossed[i]
+        stopped[s] = lanes[0, i]
+        while slot[i] < times.shape[0]:
+            for j in range(n):
+                out[s, slot[i], j] = ys[j, i]
+            slot[i] += 1
+        owner[i] = -1
+
+    @jit(cache=False)
+    def _fill(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, counts, stopped, section, lanes,
+              counters, k, stage, y0, y1):
+        # size: the share's queue, handed to one lane
+        """Lane ``i`` takes the share's next samples from ``queued`` until one steps (those done at once are finished
+        here): the next ``queued``."""
+        while queued < y.shape[0]:
+            started = _start(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, section, lanes,
+                             counters, k, stage, y0, y1)
+            queued += 1
+            if started:
+                break
+            _finish(i, y, ys, times, out, counts, stopped, lanes, counters)
+        return queued
+
+    @jit(cache=False)
+    def run_share(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
+                  counts, stopped):
+        # size: Hairer's control over a block's lanes, with the outputs, the crossings, the stops and the lanes' refills
+        n_samples, n = y.shape
+        m = BLOCK
         component, value, direction, most = int(section[0]), section[1], section[2], int(section[3])
         sectioned = 1.0 if most > 0 else 0.0
-        # the lanes' own numbers, in the share's scratch (made once per share, C-contiguous rows: the loops vectorise)
-        t, h, trial_h, active, last_rejected, accepted, t_new, next_out, g0, err, tries = (
+        # the lanes' own numbers (C-contiguous rows: the loops over lanes vectorise)
+        lanes = np.zeros((12, m))
+        t, h, trial_h, active, last_rejected, accepted_now, t_new, next_out, g0, err, tries, accepted = (
             lanes[0], lanes[1], lanes[2], lanes[3], lanes[4], lanes[5], lanes[6], lanes[7], lanes[8], lanes[9],
-            lanes[10])
-        t[:] = t0
-        h[:] = 0.0
-        active[:] = 0.0  # 1.0: the lane steps on; 0.0: done (the loops below vectorise on floats)
-        last_rejected[:] = 0.0
-        next_out[:] = np.inf  # the lane's next output time
-        g0[:] = 0.0
-        tries[:] = 0.0  # the steps accepted and rejected
-        slot = steps[0]  # the next output
-        slot[:] = 0
+            lanes[10], lanes[11])
+        counters = np.zeros((3, m), dtype=np.int64)  # each lane's next output, its sample (-1: none), its crossings
+        slot, owner = counters[0], counters[1]
+        owner[:] = -1
+        rows = np.zeros((3, n, m))
         ks, y1s, k1s = rows[0], rows[1], rows[2]
+        ys = np.empty((n, m))
+        scratch = np.empty((SCRATCH_ROWS + 1, n))
         k, stage, y0, y1, f = scratch[:16], scratch[16], scratch[17], scratch[18], scratch[19:26]
-        for i in range(used):
-            for j in range(n):
-                y0[j] = ys[j, i]
-            code = STATUS_OK
-            for j in range(n):
-                if not math.isfinite(y0[j]):
-                    code = STATUS_NONFINITE
-            status[i] = code
-            while slot[i] < times.shape[0] and times[slot[i]] <= t0:
-                out[i, slot[i]] = y0
-                slot[i] += 1
-            if slot[i] < times.shape[0]:
-                next_out[i] = times[slot[i]]
-            if code != STATUS_OK or t_end <= t0:
-                continue
-            active[i] = 1.0
-            rate(t0, y0, p, k[0])
-            for j in range(n):
-                ks[j, i] = k[0, j]
-            h[i] = h0 if h0 > 0.0 else _first_step(rate, t0, y0, p, t_end - t0, rtol, atol, k[0], stage, y1)
-            if most > 0:
-                g0[i] = surface(t0, y0, p, component, value)
+        if n_samples == 0:
+            return
+        for j in range(n):  # a lane without a sample holds the first one's state, masked (its trial step is 0)
+            for i in range(m):
+                ys[j, i] = y[0, j]
+        queued = 0
+        for i in range(m):
+            queued = _fill(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, counts, stopped,
+                           section, lanes, counters, k, stage, y0, y1)
         while active.any():
             for i in range(m):  # the stops, rare: one branch each
                 if active[i] != 0.0 and (tries[i] >= max_steps or not 0.1 * h[i] > abs(t[i]) * _UROUND):
-                    status[i] = STATUS_LIMIT if tries[i] >= max_steps else STATUS_UNDERFLOW
+                    status[owner[i]] = STATUS_LIMIT if tries[i] >= max_steps else STATUS_UNDERFLOW
                     active[i] = 0.0
             for i in range(m):  # each lane's step, the last one up to t_end; 0 for a lane that is done
                 last = t[i] + 1.01 * h[i] >= t_end
@@ -491,54 +558,33 @@ def make_dop853_block_driver(trial, rate, surface=None):
                 h[i] = on * (good * grow + (1.0 - good) * shrink) + (1.0 - on) * h[i]
                 last_rejected[i] = on * (1.0 - good) + (1.0 - on) * last_rejected[i]
                 tries[i] += on
-                accepted[i] = on * good
+                accepted_now[i] = on * good
+                accepted[i] += on * good
                 # an accepted step that reaches an output time, or any of a section's
-                extras += accepted[i] * (1.0 if next_out[i] <= t_new[i] else sectioned)
+                extras += accepted_now[i] * (1.0 if next_out[i] <= t_new[i] else sectioned)
             if extras > 0.0:
                 for i in range(m):  # outputs and crossings: the lane's dense output, made again one sample
-                    if accepted[i] != 0.0 and (next_out[i] <= t_new[i] or most > 0):
-                        _lane_extras(i, ys, ks, y1s, p, t[i], trial_h[i], t_new[i], times, out, slot, next_out, g0,
-                                     component, value, direction, most, crossing_t, crossing_y, counts, k, stage, y0,
-                                     y1, f)
+                    if accepted_now[i] != 0.0 and (next_out[i] <= t_new[i] or most > 0):
+                        _lane_extras(i, owner[i], ys, ks, y1s, p, t[i], trial_h[i], t_new[i], times, out, slot,
+                                     next_out, g0, counters[2], component, value, direction, most, crossing_t,
+                                     crossing_y, k, stage, y0, y1, f)
+            done = 0.0
             for i in range(m):  # the accepted lanes move on; done at t_end or with their crossings
-                counts[i, 0] += 1 if accepted[i] != 0.0 else 0
-                t[i] = t_new[i] if accepted[i] != 0.0 else t[i]
-                finished = t[i] == t_end or (most > 0 and counts[i, 2] == most)
+                t[i] = t_new[i] if accepted_now[i] != 0.0 else t[i]
+                finished = t[i] == t_end or (most > 0 and counters[2, i] == most)
                 active[i] = 0.0 if finished else active[i]
             for j in range(n):  # their new states and rates
                 for i in range(m):
-                    ys[j, i] = y1s[j, i] if accepted[i] != 0.0 else ys[j, i]
-                    ks[j, i] = k1s[j, i] if accepted[i] != 0.0 else ks[j, i]
-        for i in range(used):  # a stopped lane's later outputs: the state it stopped with
-            counts[i, 1] = int(tries[i]) - counts[i, 0]
-            stopped[i] = t[i]
-            while slot[i] < times.shape[0]:
-                for j in range(n):
-                    out[i, slot[i], j] = ys[j, i]
-                slot[i] += 1
-
-    @jit(cache=False)
-    def run_share(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
-                  counts, stopped):
-        # size: the run's arguments and one output array each, for a share of the samples
-        n_samples, n = y.shape
-        lanes = np.empty((11, BLOCK))
-        steps = np.empty((2, BLOCK), dtype=np.int64)
-        rows = np.empty((3, n, BLOCK))
-        scratch = np.empty((SCRATCH_ROWS + 1, n))
-        ys = np.empty((n, BLOCK))
-        for lo in range(0, n_samples, BLOCK):
-            hi = min(lo + BLOCK, n_samples)
-            for j in range(n):
-                for i in range(BLOCK):  # a last block's lanes past the samples step the first one's state, masked
-                    ys[j, i] = y[lo + i, j] if lo + i < hi else y[lo, j]
-            counts[lo:hi] = 0
-            run_block(ys, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out[lo:hi], section, crossing_t[lo:hi],
-                      crossing_y[lo:hi], status[lo:hi], counts[lo:hi], stopped[lo:hi], lanes, steps, rows, scratch,
-                      hi - lo)
-            for j in range(n):
-                for i in range(lo, hi):
-                    y[i, j] = ys[j, i - lo]
+                    ys[j, i] = y1s[j, i] if accepted_now[i] != 0.0 else ys[j, i]
+                    ks[j, i] = k1s[j, i] if accepted_now[i] != 0.0 else ks[j, i]
+            for i in range(m):  # a lane whose sample is done hands it back and takes the next
+                done += 1.0 if active[i] == 0.0 and owner[i] >= 0 else 0.0
+            if done > 0.0:
+                for i in range(m):
+                    if active[i] == 0.0 and owner[i] >= 0:
+                        _finish(i, y, ys, times, out, counts, stopped, lanes, counters)
+                        queued = _fill(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, counts,
+                                       stopped, section, lanes, counters, k, stage, y0, y1)
 
     def drive(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
               counts, stopped):
