@@ -39,8 +39,7 @@ work_precision.py). Wall times: medians of ``repeats`` runs taken in interleaved
 that load from other processes falls on every method alike) after a first, untimed pass, each run right after a
 tiny call of the same method (thread pool awake); the first call of each method (compile or cache load) is timed
 apart. Target: dop853 >= 3x faster than tumble's faster fixed-step method at equal error. Also recorded: each
-method's sample-steps per second, and how much of the dop853 blocks' work is done by lanes still stepping (a block of
-32 samples steps until its last one is done).
+method's sample-steps per second.
 """
 
 from __future__ import annotations
@@ -187,17 +186,6 @@ def _fmt(x, spec=".3g", suffix=""):
     return "—" if x is None or not math.isfinite(x) else f"{x:{spec}}{suffix}"
 
 
-def _block_lane_steps(attempts):
-    """Lane-steps the CPU's dop853 blocks make: a block of ``BLOCK`` lanes (consecutive samples) steps until its
-    last lane is done, so each block costs ``BLOCK x`` its most attempted steps."""
-    try:
-        from tumble.kernels.loops.adaptive_loop import BLOCK
-    except ImportError:
-        BLOCK = 32
-    padded = np.concatenate([attempts, np.zeros(-len(attempts) % BLOCK, attempts.dtype)])
-    return int(BLOCK * padded.reshape(-1, BLOCK).max(axis=1).sum())
-
-
 def block_path_used(system):
     """Whether tumble runs ``system`` on the vectorised blocks (the rate has a scalar form); None if unknown."""
     try:
@@ -341,14 +329,12 @@ def main(argv=None):
     for k, (tol, _, ds) in enumerate(runs["dop853"]):
         wall = float(np.median(walls[("dop853", k)]))
         steps, rejected = ds["steps"].values, ds["rejected_steps"].values
-        lane_steps = _block_lane_steps(steps + rejected)
         point, _ = _point(tol, wall, walls[("dop853", k)], _final(ds), ref, subset,
                           steps_per_sample=float((steps + rejected).mean()),
                           accepted_per_sample=float(steps.mean()), rejected_per_sample=float(rejected.mean()),
                           most_steps=int((steps + rejected).max()),
                           subset_steps_per_sample=float((steps + rejected)[subset].mean()),
-                          failed=int((ds["status"].values != 0).sum()), block_lane_steps=lane_steps,
-                          block_efficiency=float((steps + rejected).sum() / lane_steps),
+                          failed=int((ds["status"].values != 0).sum()),
                           sample_steps_per_s=float((steps + rejected).sum() / wall))
         curves["dop853"].append(point)
         _say(f"dop853 rtol {tol:.2g}: {_fmt_s(wall)}, error {point['error_max']:.2g}, "
@@ -548,9 +534,9 @@ def _report(r):
               "dop853: " + ", ".join(f"rtol {p['setting']:.0e}: {p['steps_per_sample']:.1f} / "
                           f"{_fmt(p['tumble_dop853_subset_steps'], '.1f')}" for p in r["scipy"]["curve"]) + ".", "",
               "## Cost of a step", "",
-              "Sample-steps per second (dop853: accepted + rejected; the blocks' share of lane-steps that do work in "
-              "brackets, a block of 32 samples stepping until its last is done): "
-              + ", ".join(f"dop853 rtol {p['setting']:.2g}: {p['sample_steps_per_s']:.3g} ({p['block_efficiency']:.0%})"
+              "Sample-steps per second (dop853: accepted + rejected; each block's lanes take the next sample as "
+              "soon as theirs is done): "
+              + ", ".join(f"dop853 rtol {p['setting']:.2g}: {p['sample_steps_per_s']:.3g}"
                           for p in r["curves"]["dop853"][::4])
               + "; " + ", ".join(f"{m} N {p['setting']}: {p['sample_steps_per_s']:.3g}"
                                  for m in ("rk4", "rk8") for p in r["curves"][m][-1:]) + ".", "",
