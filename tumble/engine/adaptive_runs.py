@@ -18,7 +18,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import registry
-from ..kernels import adaptive_loop, device_adaptive_loop, rate_sample, rate_sample_parameters, system_steps
+from ..kernels import adaptive_blocks, adaptive_loop, device_adaptive_loop, rate_sample, rate_sample_parameters, system_steps
 from ..physics.system import System, with_parameters
 from . import cost
 from .system_runs import block_code, compiled, initial_states, probe, state_units, system_name
@@ -161,18 +161,18 @@ def checked_scalars(t_end, first_step, max_steps):
     return t_end, h0, int(limit)
 
 
-#: Built-in models' error-controlled drivers, by (kind, surface) (None: the component surface): each steps a block's
-#: lanes with its generated trial step and reads a lane's dense output with the models' rate
-#: (:func:`tumble.kernels.rate_sample`, cached on disk).
+#: Built-in models' error-controlled drivers over a user's surface, by the surface (the component surface's is
+#: :func:`tumble.kernels.adaptive_blocks.drive`, compiled once into numba's disk cache).
 _MODEL_KERNELS = {}
 
 
 def _kernel(system, surface, parameters):
     """``(drive, p, a)``: the CPU driver of ``system``'s error-controlled run (with the user's ``surface`` function,
     or the component surface for None), its per-sample rate's parameter array (None: a System's own values) and the
-    block steps' constants, made once per process and kept with the system's compiled rate: a built-in model, and a
-    System whose rate has a scalar form (:func:`tumble.engine.system_runs.block_code`), step a block's lanes at once
-    (:func:`tumble.kernels.adaptive_loop.make_dop853_block_driver`), another System one sample at a time."""
+    block steps' constants: a built-in model's block driver (:mod:`tumble.kernels.loops.adaptive_blocks`, cached on
+    disk but over a user's surface), a System's made once per process and kept with its compiled rate, stepping a
+    block's lanes at once where its rate has a scalar form (:func:`tumble.engine.system_runs.block_code`), else one
+    sample at a time."""
     if isinstance(system, System):
         made = compiled(system).methods
         key = adaptive_loop.DOP853.name if surface is None else (adaptive_loop.DOP853.name, surface)
@@ -181,15 +181,15 @@ def _kernel(system, surface, parameters):
             rate = compiled(system).rate
             made[key] = (adaptive_loop.make_dop853_driver(adaptive_loop.make_dop853_sample(rate, surface))
                          if code is None else
-                         adaptive_loop.make_dop853_block_driver(system_steps.block_trial(code), rate, surface))
+                         adaptive_blocks.specialised(system_steps.block_trial(code), rate, surface))
         a = np.zeros(0) if code is None else system_steps.block_constants(system.parameter_values(parameters))
         return made[key], None, a
     p = rate_sample_parameters(system.kind, system.moments, system.parameters)
-    key = (system.kind, surface)
-    if key not in _MODEL_KERNELS:
-        _MODEL_KERNELS[key] = adaptive_loop.make_dop853_block_driver(adaptive_loop.model_trial(system.kind),
-                                                                     rate_sample, surface)
-    return _MODEL_KERNELS[key], p, np.ascontiguousarray(p[1:])
+    if surface is None:
+        return adaptive_blocks.drive, p, p
+    if surface not in _MODEL_KERNELS:
+        _MODEL_KERNELS[surface] = adaptive_blocks.specialised(adaptive_blocks.trial, rate_sample, surface)
+    return _MODEL_KERNELS[surface], p, p  # the models' trial reads the model's code in a[0]
 
 
 #: (rate, surface, state size, parameters) -> the device's driver of an error-controlled run (made once per process).

@@ -14,8 +14,8 @@ all use (``jit``, ``tableaux``, ``trig``) and the fits' inner loops.
 _DOOR = {
     **{name: (name, None) for name in ("fits", "side_by_side")},
     **{name: (f"closed_form.{name}", None) for name in ("elliptic", "elliptic_attitude")},
-    **{name: (f"loops.{name}", None) for name in ("adaptive_loop", "sample_loop", "tangent_blocks", "tangent_loop",
-                                                             "variational")},
+    **{name: (f"loops.{name}", None) for name in ("adaptive_blocks", "adaptive_loop", "sample_loop",
+                                                             "tangent_blocks", "tangent_loop", "variational")},
     "system_steps": ("steps.system_steps", None),
     "parallel_block": ("jit", "parallel_block"),
     "TABLEAUX": ("tableaux", "TABLEAUX"),
@@ -44,7 +44,7 @@ def __getattr__(name):
     return value
 
 
-__all__ = ["BLOCK", "METHODS", "adaptive_loop", "MODEL_BLOCK", "MODEL_CODES", "MODEL_METHODS", "TORQUE_CONSTANT", "TORQUE_PULSE",
+__all__ = ["BLOCK", "METHODS", "adaptive_blocks", "adaptive_loop", "MODEL_BLOCK", "MODEL_CODES", "MODEL_METHODS", "TORQUE_CONSTANT", "TORQUE_PULSE",
            "TORQUE_RAMP", "TORQUE_SIGNATURE", "TORQUE_SINE", "TORQUE_USER", "device_attitude", "device_closed_form",
            "device_adaptive_loop", "device_fits", "device_kernels", "device_models", "device_sample_loop", "elliptic",
            "elliptic_attitude", "fits",

@@ -1,0 +1,288 @@
+"""The error-controlled run stepped in blocks of lanes: each lane its own sample, time and step, vectorised across them.
+
+:func:`run_share` steps a share of the samples in a block of :data:`BLOCK` lanes: ``trial(lane_t, lane_h, ys, ks, y1s,
+k1s, err, rtol, atol, a)`` (generated, :func:`tumble.kernels.steps.model_codegen.trial_source`) makes every lane's
+trial step at once, vectorised across the lanes; the loop then accepts or rejects each lane (Hairer's control, as
+:func:`tumble.kernels.loops.adaptive_loop.make_dop853_sample`), masks the lanes that are done (their trial step is 0),
+and reads the output times and a section's crossings off a lane's dense output, its stages made again one sample at a
+time by ``rate(t, y, p, dydt)`` (where a step holds one). A lane whose sample is done takes the share's next sample at
+once, so that samples of few steps and of many share the block's work (a block that waited for its slowest sample
+stepped a third of its lanes idle on an eccentric orbit's ensemble); each sample's steps are the same whichever lane
+runs it.
+
+The functions here are written once, over the module's globals ``trial``, ``rate`` and ``surface``: the built-in
+models' (their generated :func:`tumble.kernels.steps.model_steps.dop853_trial`, which dispatches on the model's code
+in ``a[0]``, their :func:`~tumble.kernels.steps.model_steps.rate_sample` and the component surface), so that their
+driver, :func:`drive`, is compiled once into numba's disk cache like every built-in kernel. :func:`specialised` gives
+the same driver over other functions (a System's generated trial and rate, a user's surface): copies of these
+functions with those in their globals, compiled in the process that asks (numba's cache cannot key a function by
+another it is handed).
+"""
+
+import math
+import types
+
+import numpy as np
+
+from ...registry import STATUS_LIMIT, STATUS_NONFINITE, STATUS_OK, STATUS_UNDERFLOW
+from ..jit import jit
+from ..steps.model_steps import dop853_trial as trial
+from ..steps.model_steps import rate_sample as rate
+from . import adaptive_loop
+from .adaptive_loop import _C, _FAC1, _FAC2, _SAFE, _STAGES, _UROUND, SCRATCH_ROWS, _dense, _root8, _stage
+from .adaptive_loop import component_surface as surface
+from .sample_loop import in_shares
+
+__all__ = ["BLOCK", "drive", "run_share", "specialised"]
+
+#: Lanes of a block: a sample's share steps in one block whose lanes take the next sample as theirs is done.
+BLOCK = 32
+
+
+# The per-sample loop's helpers that take the rate or the surface as an argument, inlined where they are called here:
+# a call of a function handed in as an argument keeps a pointer to it in the compiled code ("dynamic globals"), which
+# numba's disk cache cannot keep; inlined, the call is to the global itself.
+_first_step = jit(adaptive_loop._first_step.py_func, inline=True, cache=False, contract=False)
+_interpolant = jit(adaptive_loop._interpolant.py_func, inline=True, cache=False, contract=False)
+_crossing = jit(adaptive_loop._crossing.py_func, inline=True, cache=False, contract=False)
+
+
+@jit(inline=True, cache=False, contract=False)
+def _stages(rate, y0, p, t, h, k, stage):
+    """The step's stages ``k[1..12]`` from ``y0`` at ``t`` over ``h`` (``k[0]`` given): what a lane's dense output
+    needs beyond the trial step, which keeps its stages in registers."""
+    for s in range(1, _STAGES + 1):
+        _stage(s, y0, h, k, stage)
+        rate(t + _C[s] * h, stage, p, k[s])
+
+
+@jit(contract=False)
+def _lane_extras(i, s, ys, ks, y1s, p, ti, hi, tn, times, out, slot, next_out, g0, crossed, component, value,
+                 direction, most, crossing_t, crossing_y, k, stage, y0, y1, f):
+    # size: one lane's accepted step's outputs and crossing, with the scratch they are made in
+    """Lane ``i``'s (sample ``s``'s) accepted step ``(ti, ti + hi = tn)``: the surface's crossing and the output
+    times in it, from the dense output (its stages made again, one sample); an output time at ``tn`` itself is
+    ``y1``."""
+    n = ys.shape[0]
+    for j in range(n):
+        y0[j] = ys[j, i]
+        y1[j] = y1s[j, i]
+    before = g0[i]
+    g1 = 0.0
+    crossing = False
+    if most > 0:
+        g1 = surface(tn, y1, p, component, value)
+        crossing = (direction >= 0.0 and before < 0.0 <= g1) or (direction <= 0.0 and before > 0.0 >= g1)
+        g0[i] = g1
+    if crossing or next_out[i] < tn:
+        for j in range(n):
+            k[0, j] = ks[j, i]
+        _stages(rate, y0, p, ti, hi, k, stage)
+        _interpolant(rate, y0, y1, p, ti, hi, k, stage, f)
+    if crossing:
+        c = crossed[i]
+        x = _crossing(surface, f, y0, p, ti, hi, before, g1, component, value, stage)
+        crossing_t[s, c] = tn if x == 1.0 else ti + x * hi
+        _dense(f, y0, x, crossing_y[s, c])
+        crossed[i] += 1
+    while slot[i] < times.shape[0] and times[slot[i]] <= tn:
+        if times[slot[i]] == tn:
+            out[s, slot[i]] = y1
+        else:
+            _dense(f, y0, (times[slot[i]] - ti) / hi, out[s, slot[i]])
+        slot[i] += 1
+    next_out[i] = times[slot[i]] if slot[i] < times.shape[0] else np.inf
+
+@jit(contract=False)
+def _start(i, s, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, section, lanes, counters, k, stage,
+           y0, y1):
+    # size: one lane's start on a sample: its state, first outputs, rate, first step and surface value
+    """Put sample ``s`` into lane ``i``: True when it steps, False when it is done at once (not finite, or no time
+    to run)."""
+    t, h, active, last_rejected, next_out, g0, tries, accepted = (lanes[0], lanes[1], lanes[3], lanes[4],
+                                                                  lanes[7], lanes[8], lanes[10], lanes[11])
+    slot, owner, crossed = counters[0], counters[1], counters[2]
+    component, value, most = int(section[0]), section[1], int(section[3])
+    n = ys.shape[0]
+    owner[i] = s
+    code = STATUS_OK
+    for j in range(n):
+        y0[j] = y[s, j]
+        ys[j, i] = y0[j]
+        if not math.isfinite(y0[j]):
+            code = STATUS_NONFINITE
+    status[s] = code
+    t[i] = t0
+    h[i] = 0.0
+    last_rejected[i] = 0.0
+    tries[i] = 0.0
+    accepted[i] = 0.0
+    g0[i] = 0.0
+    slot[i] = 0
+    crossed[i] = 0
+    while slot[i] < times.shape[0] and times[slot[i]] <= t0:
+        out[s, slot[i]] = y0
+        slot[i] += 1
+    next_out[i] = times[slot[i]] if slot[i] < times.shape[0] else np.inf
+    if code != STATUS_OK or t_end <= t0:
+        active[i] = 0.0
+        return False
+    active[i] = 1.0
+    rate(t0, y0, p, k[0])
+    for j in range(n):
+        ks[j, i] = k[0, j]
+    h[i] = h0 if h0 > 0.0 else _first_step(rate, t0, y0, p, t_end - t0, rtol, atol, k[0], stage, y1)
+    if most > 0:
+        g0[i] = surface(t0, y0, p, component, value)
+    return True
+
+@jit(contract=False)
+def _finish(i, y, ys, times, out, counts, stopped, lanes, counters):
+    """Lane ``i``'s sample is done: its state, counts and time written back; a stopped sample's later outputs are
+    the state it stopped with."""
+    slot, owner, crossed = counters[0], counters[1], counters[2]
+    s = owner[i]
+    n = ys.shape[0]
+    for j in range(n):
+        y[s, j] = ys[j, i]
+    counts[s, 0] = int(lanes[11, i])
+    counts[s, 1] = int(lanes[10, i]) - counts[s, 0]
+    counts[s, 2] = crossed[i]
+    stopped[s] = lanes[0, i]
+    while slot[i] < times.shape[0]:
+        for j in range(n):
+            out[s, slot[i], j] = ys[j, i]
+        slot[i] += 1
+    owner[i] = -1
+
+@jit(contract=False)
+def _fill(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, counts, stopped, section, lanes,
+          counters, k, stage, y0, y1):
+    # size: the share's queue, handed to one lane
+    """Lane ``i`` takes the share's next samples from ``queued`` until one steps (those done at once are finished
+    here): the next ``queued``."""
+    while queued < y.shape[0]:
+        started = _start(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, section, lanes,
+                         counters, k, stage, y0, y1)
+        queued += 1
+        if started:
+            break
+        _finish(i, y, ys, times, out, counts, stopped, lanes, counters)
+    return queued
+
+@jit(contract=False)
+def run_share(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
+              counts, stopped):
+    # size: Hairer's control over a block's lanes, with the outputs, the crossings, the stops and the lanes' refills
+    n_samples, n = y.shape
+    m = BLOCK
+    component, value, direction, most = int(section[0]), section[1], section[2], int(section[3])
+    sectioned = 1.0 if most > 0 else 0.0
+    # the lanes' own numbers (C-contiguous rows: the loops over lanes vectorise)
+    lanes = np.zeros((12, m))
+    t, h, trial_h, active, last_rejected, accepted_now, t_new, next_out, g0, err, tries, accepted = (
+        lanes[0], lanes[1], lanes[2], lanes[3], lanes[4], lanes[5], lanes[6], lanes[7], lanes[8], lanes[9],
+        lanes[10], lanes[11])
+    counters = np.zeros((3, m), dtype=np.int64)  # each lane's next output, its sample (-1: none), its crossings
+    slot, owner = counters[0], counters[1]
+    owner[:] = -1
+    rows = np.zeros((3, n, m))
+    ks, y1s, k1s = rows[0], rows[1], rows[2]
+    ys = np.empty((n, m))
+    scratch = np.empty((SCRATCH_ROWS + 1, n))
+    k, stage, y0, y1, f = scratch[:16], scratch[16], scratch[17], scratch[18], scratch[19:26]
+    if n_samples == 0:
+        return
+    for j in range(n):  # a lane without a sample holds the first one's state, masked (its trial step is 0)
+        for i in range(m):
+            ys[j, i] = y[0, j]
+    queued = 0
+    for i in range(m):
+        queued = _fill(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, counts, stopped,
+                       section, lanes, counters, k, stage, y0, y1)
+    while active.any():
+        for i in range(m):  # the stops, rare: one branch each
+            if active[i] != 0.0 and (tries[i] >= max_steps or not 0.1 * h[i] > abs(t[i]) * _UROUND):
+                status[owner[i]] = STATUS_LIMIT if tries[i] >= max_steps else STATUS_UNDERFLOW
+                active[i] = 0.0
+        for i in range(m):  # each lane's step, the last one up to t_end; 0 for a lane that is done
+            last = t[i] + 1.01 * h[i] >= t_end
+            h[i] = t_end - t[i] if last else h[i]
+            trial_h[i] = h[i] * active[i]
+            t_new[i] = t_end if last else t[i] + h[i]
+        trial(t, trial_h, ys, ks, y1s, k1s, err, rtol, atol, a)
+        extras = 0.0
+        for i in range(m):  # accept or reject every lane, branch-free (Hairer's control), in floats: vectorised
+            e = err[i]
+            good = 1.0 if e <= 1.0 else 0.0
+            # the step's factor, kept within [1/6, 1/0.333] (a non-finite error: the smallest, 0.333)
+            factor = min(1.0 / _FAC1, _root8(e) / _SAFE) if e < 1e300 else 1.0 / _FAC1
+            grow = h[i] / max(1.0 / _FAC2, factor)
+            grow = min(grow, h[i]) if last_rejected[i] != 0.0 else grow
+            shrink = h[i] / factor
+            on = active[i]
+            h[i] = on * (good * grow + (1.0 - good) * shrink) + (1.0 - on) * h[i]
+            last_rejected[i] = on * (1.0 - good) + (1.0 - on) * last_rejected[i]
+            tries[i] += on
+            accepted_now[i] = on * good
+            accepted[i] += on * good
+            # an accepted step that reaches an output time, or any of a section's
+            extras += accepted_now[i] * (1.0 if next_out[i] <= t_new[i] else sectioned)
+        if extras > 0.0:
+            for i in range(m):  # outputs and crossings: the lane's dense output, made again one sample
+                if accepted_now[i] != 0.0 and (next_out[i] <= t_new[i] or most > 0):
+                    _lane_extras(i, owner[i], ys, ks, y1s, p, t[i], trial_h[i], t_new[i], times, out, slot,
+                                 next_out, g0, counters[2], component, value, direction, most, crossing_t,
+                                 crossing_y, k, stage, y0, y1, f)
+        done = 0.0
+        for i in range(m):  # the accepted lanes move on; done at t_end or with their crossings
+            t[i] = t_new[i] if accepted_now[i] != 0.0 else t[i]
+            finished = t[i] == t_end or (most > 0 and counters[2, i] == most)
+            active[i] = 0.0 if finished else active[i]
+        for j in range(n):  # their new states and rates
+            for i in range(m):
+                ys[j, i] = y1s[j, i] if accepted_now[i] != 0.0 else ys[j, i]
+                ks[j, i] = k1s[j, i] if accepted_now[i] != 0.0 else ks[j, i]
+        for i in range(m):  # a lane whose sample is done hands it back and takes the next
+            done += 1.0 if active[i] == 0.0 and owner[i] >= 0 else 0.0
+        if done > 0.0:
+            for i in range(m):
+                if active[i] == 0.0 and owner[i] >= 0:
+                    _finish(i, y, ys, times, out, counts, stopped, lanes, counters)
+                    queued = _fill(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, counts,
+                                   stopped, section, lanes, counters, k, stage, y0, y1)
+
+
+def drive(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
+          counts, stopped):
+    # size: as run_share
+    """The built-in models' error-controlled run of the samples ``y`` (N, n), as
+    :func:`tumble.kernels.loops.adaptive_loop.make_dop853_driver`'s ``drive`` (``p`` and ``a`` both the models'
+    parameters, their code first): one share of the samples per numba thread, each share in one block."""
+    in_shares(run_share, len(y), lambda lo, hi: (y[lo:hi], p, a, t0, t_end, h0, rtol, atol, max_steps, times,
+                                                 out[lo:hi], section, crossing_t[lo:hi], crossing_y[lo:hi],
+                                                 status[lo:hi], counts[lo:hi], stopped[lo:hi]))
+
+
+#: The functions :func:`specialised` copies, callees first.
+_FUNCTIONS = ("_lane_extras", "_start", "_finish", "_fill", "run_share")
+
+
+def specialised(trial, rate, surface=None):
+    """``drive(...)`` (as :func:`drive`) over ``trial``, ``rate`` and ``surface`` (None: the component surface):
+    this module's functions copied with those in their globals, compiled on first use, not cached."""
+    names = dict(globals(), trial=trial, rate=rate, surface=surface if surface is not None else globals()["surface"])
+    for name in _FUNCTIONS:
+        source = globals()[name].py_func
+        names[name] = jit(types.FunctionType(source.__code__, names, name, source.__defaults__), cache=False,
+                          contract=False)
+    share = names["run_share"]
+
+    def drive(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
+              counts, stopped):
+        # size: as run_share
+        in_shares(share, len(y), lambda lo, hi: (y[lo:hi], p, a, t0, t_end, h0, rtol, atol, max_steps, times,
+                                                 out[lo:hi], section, crossing_t[lo:hi], crossing_y[lo:hi],
+                                                 status[lo:hi], counts[lo:hi], stopped[lo:hi]))
+
+    return drive
