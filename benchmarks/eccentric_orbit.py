@@ -48,7 +48,6 @@ import argparse
 import json
 import math
 import os
-import subprocess
 import sys
 import time
 import warnings
@@ -65,7 +64,7 @@ from tumble.measure.precision import time_to_error
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import timing  # noqa: E402  (benchmarks/timing.py)
-from provenance import source_digest  # noqa: E402
+import provenance  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results"
@@ -128,14 +127,6 @@ def _num(x):
 
 def _say(*args):
     print("eccentric_orbit:", *args, file=sys.stderr, flush=True)
-
-
-def _commit():
-    try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=HERE, capture_output=True, text=True,
-                              check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
 
 
 def _quiet(fn):
@@ -376,7 +367,7 @@ def main(argv=None):
     load_after = os.getloadavg()
 
     result = {
-        "date": date.today().isoformat(), "commit": _commit(), "tumble_source_digest": source_digest(),
+        "date": date.today().isoformat(), "commit": provenance.commit(), "tumble_source_digest": provenance.source_digest(),
         "machine": timing.machine(), "vector_width": timing.vector_width(), "cores": os.cpu_count(),
         "numba_threads": numba.get_num_threads(),
         "versions": {"tumble": tumble.__version__, "numpy": np.__version__, "numba": numba.__version__,

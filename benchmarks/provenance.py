@@ -1,6 +1,7 @@
 """What the benchmarks record about the code they measured."""
 
 import hashlib
+import subprocess
 import sys
 from pathlib import Path
 
@@ -18,3 +19,12 @@ def source_digest():
         h.update(str(path.relative_to(PACKAGE)).encode())
         h.update(path.read_bytes())
     return h.hexdigest()[:16]
+
+
+def commit():
+    """The checkout's short commit hash ("unknown" outside a git checkout)."""
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=Path(__file__).parent, capture_output=True,
+                              text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"

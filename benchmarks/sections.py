@@ -18,7 +18,6 @@ Targets (the tolerance issue): the 2 000 releases within 5 s, and >= 100x SciPy 
 
 import json
 import math
-import subprocess
 import sys
 import time
 from datetime import date
@@ -29,7 +28,8 @@ from scipy.integrate import solve_ivp
 
 import tumble
 
-import timing  # benchmarks/timing.py (the script's folder is on sys.path)
+import provenance  # benchmarks/provenance.py (the script's folder is on sys.path)
+import timing  # benchmarks/timing.py
 
 HERE = Path(__file__).resolve().parent
 MOMENTS, MGL, CENTRE = (1.0, 1.6, 2.2), 1.0, (0.6, 0.3, 1.0)
@@ -69,14 +69,6 @@ def scipy_section(rate, y0, t_end, rtol, atol):
     return time.perf_counter() - started, sol.t_events[0]
 
 
-def _commit():
-    try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=HERE, capture_output=True, text=True,
-                              check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-
-
 def main(quick=False):
     n, t_end, subset, repeats = (200, 200.0, 2, 2) if quick else (2000, 1000.0, 4, 3)
     top = tumble.models.HeavyTop(MOMENTS, MGL, centre=CENTRE)
@@ -111,7 +103,7 @@ def main(quick=False):
         theirs_error = max(theirs_error, float(np.abs(theirs_t[:k] - reference[:k]).max(initial=0.0)))
 
     result = {
-        "date": date.today().isoformat(), "commit": _commit(), "machine": timing.machine(),
+        "date": date.today().isoformat(), "commit": provenance.commit(), "machine": timing.machine(),
         "vector_width": timing.vector_width(), "releases": n, "t_end_s": t_end, "rtol": RTOL, "atol": ATOL,
         "crossings": crossings, "tumble_s": ours, "tumble_compile_s": compile_s,
         "scipy_subset": int(subset), "scipy_s_scaled": scipy_s, "speedup": scipy_s / ours,
