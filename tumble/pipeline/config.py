@@ -467,9 +467,10 @@ def _tolerance(value, field):
     from ..engine.adaptive_runs import MIN_RTOL
 
     x = _number(value, field)
-    low = MIN_RTOL if field.endswith("rtol") else 0.0
-    if x <= 0.0 or x < low:
-        raise _Invalid(field, f"must be > 0{f' and >= {low:g} (below it a double rounds more than the error estimate)' if low else ''}, got {x!r}")
+    if field.endswith("rtol") and not x >= MIN_RTOL:
+        raise _Invalid(field, f"must be >= {MIN_RTOL:g} (below it a double's rounding is the error estimate), got {x!r}")
+    if x <= 0.0:
+        raise _Invalid(field, f"must be > 0, got {x!r}")
     return x
 
 
