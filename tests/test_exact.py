@@ -694,10 +694,14 @@ def test_the_one_call_grid_path_gives_the_bits_of_the_set_up_and_the_grid_kernel
     apart = exact.omega_rows(sol, t[None, :], np.zeros(len(w0), dtype=np.int64))
     out = np.empty((len(w0), len(t), 3))
     assert elliptic.torque_free_omega_grid(moments, w0, t, out) == (0, 0)
-    np.testing.assert_array_equal(out, apart)
-    np.testing.assert_array_equal(exact.omega(moments, w0, t), apart)
+    # The same arithmetic, to the bit when both kernels were compiled in one process; a prange kernel compiled in
+    # another process (an xdist worker, the disk cache) may fuse its multiply-adds otherwise (numba issue #10617):
+    # within 4 ulps of each sample's scale.
+    scale = np.abs(apart).max(axis=(1, 2), keepdims=True)
+    assert np.all(np.abs(out - apart) <= 4 * np.finfo(float).eps * scale)
+    np.testing.assert_array_equal(exact.omega(moments, w0, t), out)  # the grid path: the one-call kernel's bits
     for i in (0, 63, 64, 200, len(w0) - 1):
-        np.testing.assert_array_equal(exact.omega(moments, w0[i], t), apart[i])
+        np.testing.assert_array_equal(exact.omega(moments, w0[i], t), out[i])
 
 
 def test_the_one_call_grid_path_hands_spins_within_tiny_of_an_axis_to_the_two_kernels():

@@ -42,7 +42,7 @@ BUDGET = {
     "test_io.py": 26,
     "test_kind_names.py": 5,
     "test_latency.py": 37,
-    "test_layers.py": 142,
+    "test_layers.py": 143,
     "test_layout.py": 60,
     "test_memory.py": 1,
     "test_model_equations.py": 6,
