@@ -117,7 +117,10 @@ def test_a_bundled_study_gives_the_stored_numbers(name):
     assert sorted(got.variables) == sorted(stored.variables)
     for var in got.variables:
         a, b = got[var].values, stored[var].values
-        if a.dtype.kind in "fc" and not same_machine:
+        # an error against the closed form's reference: its prange kernels' bits depend on the process that compiled
+        # them (numba #10617: a CI run from an empty cache moved work_precision's errors by 2e-16), so across processes
+        # an error is held to the tolerance between vector widths, not the bit
+        if a.dtype.kind in "fc" and (not same_machine or var.startswith("wp_error")):
             np.testing.assert_allclose(a, b, equal_nan=True, err_msg=var, **across_vector_widths(var, stored))
         else:
             np.testing.assert_array_equal(a, b, err_msg=var)
