@@ -2,6 +2,8 @@
 directions, the stop at max_crossings, bad input."""
 
 import math
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -107,3 +109,28 @@ def test_a_built_in_models_section():
 def test_bad_input_is_one_line_naming_the_argument(keywords, message):
     with pytest.raises(ValueError, match=message):
         tumble.section(BODY, SPINS, 10.0, **keywords)
+
+
+_CACHED = """
+import numpy as np
+import tumble
+from tumble.kernels import adaptive_blocks
+top = tumble.models.HeavyTop((1.0, 1.5, 2.0), 1.0, centre=(1.0, 0.5, 1.0))
+ds = tumble.section(top, [[0.0, 0.0, 2.0, 0.0, 0.3, 0.95]], 20.0, surface=("g1", 0.0), max_crossings=3)
+print(repr(float(ds["time"][0, 0])), sum(adaptive_blocks.run_share.stats.cache_hits.values()))
+"""
+
+
+@pytest.mark.slow  # two new processes, the first may compile the block loop (15 s)
+def test_a_new_process_loads_the_models_block_loop_from_the_disk_cache(tmp_path):
+    """The built-in models' error-controlled block loop is kept in numba's disk cache (a function handed in as an
+    argument, or a closure, would be compiled again in every process), and gives the same bits loaded as compiled."""
+    script = tmp_path / "section.py"
+    script.write_text(_CACHED)
+    runs = [subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300)
+            for _ in range(2)]
+    for run in runs:
+        assert run.returncode == 0, run.stderr
+    (first, _), (second, hits) = (run.stdout.split() for run in runs)
+    assert first == second
+    assert int(hits) == 1
