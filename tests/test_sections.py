@@ -2,14 +2,13 @@
 directions, the stop at max_crossings, bad input."""
 
 import math
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
 import tumble
+from process_checks import run_twice
 from tumble import exact, registry
 
 # One worker runs the error-controlled tests (--dist loadgroup): the built-in models' kernel (the free body's too) is
@@ -125,12 +124,6 @@ print(repr(float(ds["time"][0, 0])), sum(adaptive_blocks.run_share.stats.cache_h
 def test_a_new_process_loads_the_models_block_loop_from_the_disk_cache(tmp_path):
     """The built-in models' error-controlled block loop is kept in numba's disk cache (a function handed in as an
     argument, or a closure, would be compiled again in every process), and gives the same bits loaded as compiled."""
-    script = tmp_path / "section.py"
-    script.write_text(_CACHED)
-    runs = [subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300)
-            for _ in range(2)]
-    for run in runs:
-        assert run.returncode == 0, run.stderr
-    (first, _), (second, hits) = (run.stdout.split() for run in runs)
+    (first, _), (second, hits) = run_twice(tmp_path, _CACHED, "section.py")
     assert first == second
     assert int(hits) == 1

@@ -3,8 +3,6 @@ the built-ins' scalar form, the same numbers as the built-in model it copies and
 scalar form said in one warning, and its kernels loaded from numba's disk cache by a new process."""
 
 import math
-import subprocess
-import sys
 import textwrap
 import warnings
 
@@ -12,6 +10,7 @@ import numpy as np
 import pytest
 
 import tumble
+from process_checks import run_twice
 from tumble.kernels.steps import system_steps
 from tumble.kernels.steps.system_steps import NotScalar
 
@@ -151,13 +150,7 @@ CACHED = textwrap.dedent('''
 
 
 def test_a_new_process_loads_a_systems_kernels_from_the_disk_cache(tmp_path):
-    script = tmp_path / "decay.py"
-    script.write_text(CACHED)
-    runs = [subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300)
-            for _ in range(2)]
-    for run in runs:
-        assert run.returncode == 0, run.stderr
-    (first, _), (second, hits) = (run.stdout.split() for run in runs)
+    (first, _), (second, hits) = run_twice(tmp_path, CACHED, "decay.py")
     assert first == second
     assert int(hits) == 1  # the second process compiled nothing of the driver
 

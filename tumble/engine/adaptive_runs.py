@@ -24,7 +24,7 @@ from . import cost
 from .system_runs import block_code, compiled, initial_states, probe, state_units, system_name
 
 __all__ = ["AdaptiveRun", "Surface", "DEFAULT_ATOL", "DEFAULT_RTOL", "FLAG_MEANINGS", "FLAG_VALUES", "MAX_STEPS", "MIN_RTOL",
-           "checked_horizon", "checked_scalars", "fixed_steps_only", "output_times", "run_adaptive", "run_attrs", "run_variables", "tolerances",
+           "checked_horizon", "checked_scalars", "fixed_steps_only", "no_save_every", "output_times", "run_adaptive", "run_attrs", "run_variables", "tolerance_attrs", "tolerances",
            "warn_stops"]
 
 #: The tolerances of a run that names none: near the double's limit for the smooth motions tumble studies.
@@ -140,6 +140,13 @@ def fixed_steps_only(method, dt, rtol, atol, times, max_steps):
     if dt is None:
         raise ValueError(f"dt (s) is required for the fixed-step method {method!r}; an error-controlled run names "
                          f"method='dop853' and a tolerance (rtol, atol) instead")
+
+
+def no_save_every(save_every):
+    """An error-controlled run gives its outputs at times, never every so many steps."""
+    if save_every is not None:
+        raise ValueError("save_every counts fixed steps; method 'dop853' gives its outputs at times=[...] (s), read "
+                         "off its dense output")
 
 
 def checked_scalars(t_end, first_step, max_steps):
@@ -319,6 +326,12 @@ def run_variables(run):
 def run_attrs(run):
     """The attributes every error-controlled run's result holds: the method, its order, ``rtol`` and ``atol`` (a
     number where every component has the same), ``t_end``."""
+    return {**tolerance_attrs(run), "t_end": run.t_end}
+
+
+def tolerance_attrs(run):
+    """The method, its order, ``rtol`` and ``atol`` (a number where every component has the same) of a run with
+    ``rtol`` and ``atol`` arrays."""
     tolerance = {key: (float(value[0]) if np.all(value == value[0]) else value.copy())
                  for key, value in (("rtol", run.rtol), ("atol", run.atol))}
-    return {"method": adaptive_loop.DOP853.name, "order": adaptive_loop.DOP853.order, **tolerance, "t_end": run.t_end}
+    return {"method": adaptive_loop.DOP853.name, "order": adaptive_loop.DOP853.order, **tolerance}

@@ -34,7 +34,7 @@ from ..physics.bodies import Body, one_body
 from ..physics.models import FreeBody, Model
 from ..physics.system import System, finite_number, with_parameters
 from . import chaos_tolerance, cost
-from .adaptive_runs import checked_scalars, fixed_steps_only, output_times
+from .adaptive_runs import checked_scalars, fixed_steps_only, no_save_every, output_times
 from .device import resolve_device
 from .integration import checked_save_every
 from .system_runs import block_code, compiled, initial_states, probe
@@ -523,12 +523,6 @@ def _tolerance_dataset(system, values, t_end, device, more, pieces):
                                 **{f"parameter_{key}": value for key, value in values.items()}})
 
 
-def _no_save_every(save_every):
-    if save_every is not None:
-        raise ValueError("save_every counts fixed steps; method 'dop853' gives its values at output times (times=[...], "
-                         "s), read off its dense output")
-
-
 def lyapunov(system, y0, t_end, dt=None, *, method="rk4", exponents=None, renormalise=1.0, transient=0.0,
              parameters=None, save_every=None, tangent=None, device="cpu", rtol=None, atol=None, times=None,
              max_steps=None):
@@ -616,7 +610,7 @@ def lyapunov(system, y0, t_end, dt=None, *, method="rk4", exponents=None, renorm
     k = _exponents(exponents, system, n)
     vectors = _tangent_vectors(tangent, k, system, n, orthonormal=True)
     if method in registry.ERROR_CONTROLLED:
-        _no_save_every(save_every)
+        no_save_every(save_every)
         start = finite_number(transient, "transient")
         if not 0.0 <= start < t_end:
             raise ValueError(f"transient must be >= 0 s and less than t_end = {t_end:g} s, got {transient!r}")
@@ -784,7 +778,7 @@ def gali(system, y0, t_end, dt=None, *, k=2, method="rk4", parameters=None, save
                          f"has {n} components: {', '.join(system.spec.state)}), got {k!r}")
     vectors = _tangent_vectors(tangent, int(k), system, n, orthonormal=False)
     if method in registry.ERROR_CONTROLLED:
-        _no_save_every(save_every)
+        no_save_every(save_every)
         run = _at_tolerance(system, y, p, vectors, chaos_tolerance.run_unit, megno=False, t_end=t_end, times=times,
                             tolerance=tolerance[:2], first_step=step, max_steps=n_steps)
         return _tolerance_dataset(system, values, t_end, device, {},

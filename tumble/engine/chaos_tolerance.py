@@ -29,7 +29,7 @@ import numpy as np
 
 from .. import registry
 from ..kernels import adaptive_loop, variational
-from .adaptive_runs import FLAG_MEANINGS, FLAG_VALUES, output_times, tolerances, warn_stops
+from .adaptive_runs import output_times, run_variables, tolerance_attrs, tolerances, warn_stops
 
 __all__ = ["SpectrumRun", "VariationalRun", "gali_variables", "lyapunov_variables", "megno_variables", "run_spectrum",
            "run_unit"]
@@ -175,16 +175,9 @@ def _common(run, name):
     """The variables and attributes every indicator's result at a tolerance holds (and the warning for samples that
     stopped)."""
     warn_stops(run.status, len(run.status), name, stacklevel=4)
-    variables = {
-        "status": ("sample", run.status, {"long_name": "sample status", "flag_values": FLAG_VALUES.copy(),
-                                          "flag_meanings": FLAG_MEANINGS}),
-        "steps": ("sample", run.steps, {"long_name": "accepted steps"}),
-        "rejected_steps": ("sample", run.rejected, {"long_name": "rejected steps (error above the tolerance)"}),
-        "sample": ("sample", np.arange(len(run.status)), {"long_name": "ensemble member"}),
-    }
-    attrs = {"method": adaptive_loop.DOP853.name, "order": adaptive_loop.DOP853.order,
-             **{key: (float(value[0]) if np.all(value == value[0]) else value.copy())
-                for key, value in (("rtol", run.rtol), ("atol", run.atol))}}
+    variables = {**run_variables(run),
+                 "sample": ("sample", np.arange(len(run.status)), {"long_name": "ensemble member"})}
+    attrs = tolerance_attrs(run)
     return variables, attrs
 
 

@@ -41,7 +41,7 @@ from . import cost
 from .device import LAUNCH_SAMPLES, WARP, check_on_device, resolve_device, stepper
 from .progress import tqdm
 from .sampling import CHUNK
-from .adaptive_runs import fixed_steps_only, run_adaptive
+from .adaptive_runs import fixed_steps_only, no_save_every, run_adaptive
 from .system_runs import added_tableau, is_system, run_system
 
 __all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "Interrupted", "STATUS_NAMES", "check_torque_step", "checked_torque",
@@ -278,9 +278,7 @@ def _error_controlled(body, w0, t_end, dt, final, save_every, asked, parameters,
     if asked:
         raise ValueError(f"method 'dop853' observes the final state and the states at times=[...]; {', '.join(asked)} "
                          f"observe a rigid body's scene with the fixed steps or the closed form (remove them)")
-    if save_every is not None:
-        raise ValueError("save_every counts fixed steps; method 'dop853' gives its states at output times "
-                         "(times=[...], s), read off its dense output")
+    no_save_every(save_every)
     rtol, atol, times, max_steps = tolerance
     if not is_system(body):
         if parameters is not None:

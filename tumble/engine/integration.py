@@ -19,7 +19,7 @@ from ..registry import STATUS_NAMES, STATUS_OK
 from . import cost
 from .device import check_on_device, resolve_device, stepper
 from .ensemble import check_torque_step, checked_torque, run_planned
-from .adaptive_runs import fixed_steps_only, run_adaptive, run_attrs, run_variables, warn_stops
+from .adaptive_runs import fixed_steps_only, no_save_every, run_adaptive, run_attrs, run_variables, warn_stops
 from .system_runs import added_tableau, is_system, run_system
 
 __all__ = ["integrate", "propagate", "METHOD_NAMES"]
@@ -145,9 +145,7 @@ def _adaptive_run(body, w0, t_end, dt, torque, save_every, attitude, parameters,
     """An error-controlled run (:func:`tumble.engine.adaptive_runs.run_adaptive`) of a system, or of a ``Body`` as
     :class:`tumble.models.FreeBody`: ``(AdaptiveRun, single)``. ``tolerance``: ``(rtol, atol, times, max_steps)``."""
     rtol, atol, times, max_steps = tolerance
-    if save_every is not None:
-        raise ValueError("save_every counts fixed steps; method 'dop853' gives its states at output times "
-                         "(integrate's times=[...]), read off its dense output")
+    no_save_every(save_every)
     if is_system(body):
         _no_torque_or_attitude(body, torque, attitude)
         system, name = body, "y0"
