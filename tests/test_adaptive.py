@@ -18,6 +18,8 @@ from tumble import exact, registry
 from tumble.engine.adaptive_runs import MIN_RTOL
 from tumble.kernels.tableaux import DOP853
 
+from process_checks import run_twice
+
 # One worker runs the error-controlled tests (--dist loadgroup): the built-in models' kernel (the free body's too) is
 # compiled once per process, a closure over the models' rate that numba's disk cache cannot keep.
 pytestmark = pytest.mark.xdist_group("dop853")
@@ -177,11 +179,60 @@ def test_a_fixed_step_method_refuses_a_tolerance_and_needs_its_step(pendulum):
         tumble.propagate(BODY, SPINS, 5.0)
 
 
-def test_a_free_body_with_a_torque_or_its_attitude_needs_a_fixed_step():
-    with pytest.raises(ValueError, match="torque-free and without its attitude"):
-        tumble.integrate(BODY, SPINS, 5.0, method="dop853", torque=(0.0, 0.0, 1.0))
-    with pytest.raises(ValueError, match="torque-free and without its attitude"):
-        tumble.integrate(BODY, SPINS, 5.0, method="dop853", attitude=True)
+def test_a_torque_follows_the_wobbly_space_stations_closed_form_to_the_tolerance():
+    # I1 = I2 and a constant torque about the symmetry axis: tumble.theory's closed form (DESIGN.md)
+    top, gamma, times = (2.0, 2.0, 1.0), 0.5, np.linspace(0.0, 8.0, 5)
+    expected = tumble.theory.constant_torque_symmetric_top(top, SPINS, gamma, times)
+    for rtol, bound in ((1e-7, 1e-5), (1e-11, 1e-9)):
+        ds = tumble.integrate(top, SPINS, 8.0, method="dop853", rtol=rtol, atol=rtol * 1e-2, times=times,
+                              torque=(0.0, 0.0, gamma))
+        assert ds.attrs["torque"] == "constant [0.0, 0.0, 0.5] N m" and ds.attrs["attitude"] == 0
+        error = np.abs(ds.omega.values - expected).max()
+        assert 0 < error < bound
+    sine = {"profile": "sine", "vector": (0.1, -0.2, 0.3), "period": 2.0}  # the same System, another profile
+    run = tumble.run_ensemble(top, SPINS, 5.0, None, method="dop853", torque=sine, rtol=1e-12, atol=1e-14)
+    fixed = tumble.propagate(top, SPINS, 5.0, 1e-3, method="rk8", torque=sine)
+    np.testing.assert_allclose(run.final, fixed, rtol=0, atol=1e-11)
+    np.testing.assert_array_equal(tumble.propagate(top, SPINS, 5.0, method="dop853", torque=sine, rtol=1e-12,
+                                                   atol=1e-14), run.final)
+
+
+def _no_torque(t, w1, w2, w3):
+    return 0.0 * w1, 0.0 * w2, 0.0 * t
+
+
+def test_the_attitude_follows_the_closed_form_and_its_quaternion_is_a_unit_one():
+    # a torque function (zero) with the attitude: the closed form's attitude is the reference
+    times = np.linspace(0.0, 6.0, 4)
+    ds = tumble.integrate(BODY, SPINS, 6.0, method="dop853", rtol=1e-11, atol=1e-13, times=times, attitude=True,
+                          torque=_no_torque)
+    exact_run = tumble.integrate(BODY, SPINS, 6.0, 2.0, method="exact", attitude=True, save_every=1)
+    assert ds.attrs["attitude"] == 1 and ds.quaternion.dims == ("sample", "time", "component")
+    np.testing.assert_allclose(ds.omega.values, exact_run.omega.values, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ds.quaternion.values, exact_run.quaternion.values, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(ds.quaternion.values, axis=-1), 1.0, rtol=0, atol=4e-16)
+    with pytest.raises(ValueError, match="dop853' observes the final state .*attitude observe"):
+        tumble.run_ensemble(BODY, SPINS, 5.0, None, method="dop853", attitude=True)
+
+
+_CACHED = """
+import numpy as np
+import tumble
+from tumble.engine import system_runs, torqued_body
+ds = tumble.integrate((1.0, 2.0, 3.0), [[0.1, 1.0, 0.05]], 3.0, method="dop853", attitude=True,
+                      torque={"profile": "ramp", "vector": (0.0, 0.1, 0.0), "duration": 1.0})
+drive = system_runs.compiled(torqued_body._PROFILE_SYSTEMS[True]).methods["dop853"]
+print(repr(float(ds.quaternion[0, -1, 1])), sum(drive.run_share.stats.cache_hits.values()))
+"""
+
+
+@pytest.mark.slow  # two new processes, the first may compile the block loop (15 s)
+def test_a_new_process_loads_a_systems_block_loop_from_the_disk_cache(tmp_path):
+    """A System's error-controlled block loop (here the free body's with a torque profile and its attitude) is kept
+    in numba's disk cache under its System's code, and gives the same bits loaded as compiled."""
+    (first, _), (second, hits) = run_twice(tmp_path, _CACHED, "torqued.py")
+    assert first == second
+    assert int(hits) == 1
 
 
 def test_a_non_finite_initial_state_is_refused_naming_it(pendulum):

@@ -12,7 +12,7 @@ from pathlib import Path
 
 #: Default-run test cases per file, at most.
 BUDGET = {
-    "test_adaptive.py": 19,
+    "test_adaptive.py": 20,
     "test_analysis.py": 91,
     "test_attitude.py": 43,
     "test_attitude_plots.py": 24,

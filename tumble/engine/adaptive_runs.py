@@ -188,7 +188,9 @@ def _kernel(system, surface, parameters):
             rate = compiled(system).rate
             made[key] = (adaptive_loop.make_dop853_driver(adaptive_loop.make_dop853_sample(rate, surface))
                          if code is None else
-                         adaptive_blocks.specialised(system_steps.block_trial(code), rate, surface))
+                         adaptive_blocks.specialised(system_steps.block_trial(code), rate, surface,
+                                                     f"{code:x}" if surface is None and system_steps.cacheable(code)
+                                                     else None))
         a = np.zeros(0) if code is None else system_steps.block_constants(system.parameter_values(parameters))
         return made[key], None, a
     p = rate_sample_parameters(system.kind, system.moments, system.parameters)

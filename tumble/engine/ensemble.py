@@ -43,6 +43,7 @@ from .progress import tqdm
 from .sampling import CHUNK
 from .adaptive_runs import fixed_steps_only, no_save_every, run_adaptive
 from .system_runs import added_tableau, is_system, run_system
+from .torqued_body import body_system
 
 __all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "Interrupted", "STATUS_NAMES", "check_torque_step", "checked_torque",
            "run_ensemble", "run_planned", "run_scene_table", "torque_spec"]
@@ -271,21 +272,26 @@ def _stored_per_sample(steps, save_every, probe_times, max_flips, drift, attitud
     return 3 + saved * (7 if attitude else 3) + (0 if probe_times is None else len(probe_times)) + max_flips + 2 * drift
 
 
-def _error_controlled(body, w0, t_end, dt, final, save_every, asked, parameters, device, tolerance):
+def _error_controlled(body, w0, t_end, dt, final, save_every, torque, asked, parameters, device, tolerance):
     # size: run_ensemble's arguments an error-controlled run reads, checked once
     """:func:`run_ensemble` with ``method="dop853"`` (:func:`tumble.engine.adaptive_runs.run_adaptive`): the final
-    states and the states at ``times``; a rigid body's observers, a torque and ``save_every`` refused."""
+    states and the states at ``times``, a free body's with its torque (:func:`tumble.engine.torqued_body.torqued_body`
+    on the CPU); a rigid body's observers and ``save_every`` refused."""
+    if not is_system(body):
+        asked = [name for name in asked if name != "torque"]
     if asked:
         raise ValueError(f"method 'dop853' observes the final state and the states at times=[...]; {', '.join(asked)} "
                          f"observe a rigid body's scene with the fixed steps or the closed form (remove them)")
     no_save_every(save_every)
     rtol, atol, times, max_steps = tolerance
+    name = "y0"
     if not is_system(body):
         if parameters is not None:
             raise ValueError("parameters are a model's or a System's; a free body has none (its moments are the body)")
-        body = FreeBody(one_body(body))
+        body, parameters = body_system(one_body(body), checked_torque(torque), False, device)
+        name = "w0"
     run, _ = run_adaptive(body, w0, t_end, times=times, rtol=rtol, atol=atol, first_step=dt, max_steps=max_steps,
-                          parameters=parameters, device=device, y0_name="w0" if isinstance(body, FreeBody) else "y0")
+                          parameters=parameters, device=device, y0_name=name)
     info = {"path": "error-controlled", "method": registry.ERROR_CONTROLLED[0], "rtol": run.rtol, "atol": run.atol,
             "rejected_steps": run.rejected, "system": run.name, "parameters": run.parameters, "samples": len(run.final),
             "device": device}
@@ -396,7 +402,7 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
                                       ("phase_window", phase_window is not None), ("torque", torque is not None))
              if value]
     if method in registry.ERROR_CONTROLLED:
-        return _error_controlled(body, w0, t_end, dt, final, save_every, asked, parameters, device,
+        return _error_controlled(body, w0, t_end, dt, final, save_every, torque, asked, parameters, device,
                                  (rtol, atol, times, max_steps))
     fixed_steps_only(method, dt, rtol, atol, times, max_steps)
     if added_tableau(method) and not is_system(body) and parameters is None:

@@ -21,6 +21,7 @@ from .device import check_on_device, resolve_device, stepper
 from .ensemble import check_torque_step, checked_torque, run_planned
 from .adaptive_runs import fixed_steps_only, no_save_every, run_adaptive, run_attrs, run_variables, warn_stops
 from .system_runs import added_tableau, is_system, run_system
+from .torqued_body import ATTITUDE, body_system, unit_quaternions
 
 __all__ = ["integrate", "propagate", "METHOD_NAMES"]
 
@@ -142,22 +143,28 @@ def _free_body_by_tableau(body, w0, t_end, dt, method, torque, save_every, attit
 
 def _adaptive_run(body, w0, t_end, dt, torque, save_every, attitude, parameters, device, tolerance):
     # size: integrate's and propagate's arguments, each checked or passed on once
-    """An error-controlled run (:func:`tumble.engine.adaptive_runs.run_adaptive`) of a system, or of a ``Body`` as
-    :class:`tumble.models.FreeBody`: ``(AdaptiveRun, single)``. ``tolerance``: ``(rtol, atol, times, max_steps)``."""
+    """An error-controlled run (:func:`tumble.engine.adaptive_runs.run_adaptive`) of a system, or of a ``Body``: as
+    :class:`tumble.models.FreeBody` torque-free, else with its torque and attitude as one System
+    (:func:`tumble.engine.torqued_body.torqued_body`). ``(AdaptiveRun, single, torque)``: ``torque`` the checked
+    torque of a ``Body`` (None: a system). ``tolerance``: ``(rtol, atol, times, max_steps)``."""
     rtol, atol, times, max_steps = tolerance
     no_save_every(save_every)
+    checked = None
     if is_system(body):
         _no_torque_or_attitude(body, torque, attitude)
         system, name = body, "y0"
     else:
         if parameters is not None:
             raise ValueError("parameters are a model's or a System's; a free body has none (its moments are the body)")
-        if attitude or _has_torque(torque):
-            raise ValueError("method 'dop853' steps a free body torque-free and without its attitude; a torque or "
-                             f"attitude=True needs a fixed-step method ({', '.join(m for m in METHOD_NAMES if m != 'exact')})")
-        system, name = FreeBody(one_body(body)), "w0"
-    return run_adaptive(system, w0, t_end, times=times, rtol=rtol, atol=atol, first_step=dt, max_steps=max_steps,
-                        parameters=parameters, device=device, y0_name=name)
+        checked = checked_torque(torque)
+        system, parameters = body_system(one_body(body), checked, attitude, device)
+        name = "w0"
+        if attitude:  # the body frame is the space frame at t = 0
+            w = _initial_spins(w0)
+            w0 = np.hstack([w, np.tile([1.0, 0.0, 0.0, 0.0], (len(w), 1))])
+    run, single = run_adaptive(system, w0, t_end, times=times, rtol=rtol, atol=atol, first_step=dt,
+                               max_steps=max_steps, parameters=parameters, device=device, y0_name=name)
+    return run, single, checked
 
 
 def _system_run(system, y0, t_end, dt, method, torque, save_every, parameters, device, attitude=False):
@@ -222,8 +229,8 @@ def propagate(body, w0, t_end, dt=None, method="rk4", *, torque=None, save_every
     """
     device = resolve_device(device)  # once, here at the door: the runs below trust it
     if method in registry.ERROR_CONTROLLED:
-        run, single = _adaptive_run(body, w0, t_end, dt, torque, save_every, False, parameters, device,
-                                    (rtol, atol, None, max_steps))
+        run, single, _ = _adaptive_run(body, w0, t_end, dt, torque, save_every, False, parameters, device,
+                                       (rtol, atol, None, max_steps))
         return run.final[0] if single else run.final
     fixed_steps_only(method, dt, rtol, atol, None, max_steps)
     if is_system(body) or (added_tableau(method) and parameters is None):
@@ -272,9 +279,10 @@ def integrate(body, w0, t_end, dt=None, method="rk4", torque=(0, 0, 0), save_eve
     (rk4, rk8; the Lie–Poisson splittings for the models that have them): its states ``w0`` have shape (N, n), and
     the Dataset holds ``state(sample, time, component)`` with the component names of the system (``spec.state``).
 
-    ``method="dop853"`` takes a tolerance instead of a step, for any of them (a free body torque-free, without its
-    attitude): Dormand and Prince's eighth-order pair with Hairer's step-size control, each sample its own steps,
-    the states at ``times`` read off its dense output of order 7 (:mod:`tumble.kernels.loops.adaptive_loop`).
+    ``method="dop853"`` takes a tolerance instead of a step, for any of them (a free body with a torque or its
+    attitude on the CPU, as one System: :mod:`tumble.engine.torqued_body`): Dormand and Prince's eighth-order pair
+    with Hairer's step-size control, each sample its own steps, the states at ``times`` read off its dense output of
+    order 7 (:mod:`tumble.kernels.loops.adaptive_loop`).
 
     Parameters
     ----------
@@ -303,7 +311,8 @@ def integrate(body, w0, t_end, dt=None, method="rk4", torque=(0, 0, 0), save_eve
         Also integrate the orientation: ``quaternion(sample, time, component)``, the unit quaternion (scalar
         first) of the body-to-space rotation, ``v_space = q v_body q*``, with the space frame equal to the body
         frame at ``t = 0``. Every method carries it in its own way (:mod:`tumble.kernels.steps.attitude`); ``"exact"``
-        gives it in closed form (:func:`tumble.physics.exact.attitude`). Without it no attitude code runs.
+        gives it in closed form (:func:`tumble.physics.exact.attitude`); ``"dop853"`` steps it with the spin, to the
+        tolerance, and scales the quaternions it returns to unit length. Without it no attitude code runs.
     parameters : mapping, optional
         A model's or a System's parameters, by name, in place of its own (a free body has none).
     device : str
@@ -336,9 +345,9 @@ def integrate(body, w0, t_end, dt=None, method="rk4", torque=(0, 0, 0), save_eve
     """
     device = resolve_device(device)  # once, here at the door: the runs below trust it
     if method in registry.ERROR_CONTROLLED:
-        run, _ = _adaptive_run(body, w0, t_end, dt, torque, save_every, attitude, parameters, device,
-                               (rtol, atol, times, max_steps))
-        return _adaptive_dataset(run, None if is_system(body) else one_body(body), device)
+        run, _, checked = _adaptive_run(body, w0, t_end, dt, torque, save_every, attitude, parameters, device,
+                                        (rtol, atol, times, max_steps))
+        return _adaptive_dataset(run, None if is_system(body) else (one_body(body), checked), device)
     fixed_steps_only(method, dt, rtol, atol, times, max_steps)
     if is_system(body):
         return _system_dataset(*_system_run(body, w0, t_end, dt, method, torque, save_every, parameters, device,
@@ -395,9 +404,7 @@ def _free_body_dataset(omega, times, status, quaternion, method, step, n_steps, 
         "axis": ("axis", np.array([1, 2, 3]), {"long_name": "principal axis (1-based)"}),
     }
     if quaternion is not None:
-        variables["quaternion"] = (("sample", "time", "component"), quaternion,
-                                   {"units": "1", "long_name": "body-to-space rotation, unit quaternion, scalar first"})
-        variables["component"] = ("component", np.arange(4), {"long_name": "quaternion component (0: scalar part)"})
+        variables.update(_quaternion_variables(quaternion))
     attrs = {
         "method": method,
         "order": _order(method),
@@ -414,6 +421,13 @@ def _free_body_dataset(omega, times, status, quaternion, method, step, n_steps, 
         "device": info["device"],
     }
     return indexed_dataset(variables, attrs)
+
+
+def _quaternion_variables(quaternion):
+    """The Dataset's ``quaternion(sample, time, component)`` and its ``component`` coordinate."""
+    return {"quaternion": (("sample", "time", "component"), quaternion,
+                           {"units": "1", "long_name": "body-to-space rotation, unit quaternion, scalar first"}),
+            "component": ("component", np.arange(4), {"long_name": "quaternion component (0: scalar part)"})}
 
 
 def _system_dataset(result, single, t_end, device):
@@ -450,18 +464,24 @@ def _system_dataset(result, single, t_end, device):
     return indexed_dataset(variables, attrs)
 
 
-def _adaptive_dataset(run, moments, device):
-    """:func:`integrate`'s Dataset of an error-controlled run: a free body's ``omega(sample, time, axis)`` (``moments``
-    not None) or a system's ``state(sample, time, component)``, with each sample's steps and rejected steps."""
+def _adaptive_dataset(run, body, device):
+    """:func:`integrate`'s Dataset of an error-controlled run: a free body's ``omega(sample, time, axis)`` (``body``
+    its moments and checked torque), with its ``quaternion`` where the run carried the attitude, or a system's
+    ``state(sample, time, component)``; with each sample's steps and rejected steps."""
     stopped = run.status != STATUS_OK
     warn_stops(run.status, len(run.final), run.name, stacklevel=3)
-    if moments is not None:
+    if body is not None:
+        moments, torque = body
+        attitude = run.states.shape[-1] == len(ATTITUDE)
+        omega, quaternion = unit_quaternions(run.states) if attitude else (run.states, None)
         variables = {
-            "omega": (("sample", "time", "axis"), run.states, {"units": "rad/s",
-                                                               "long_name": "body-frame angular velocity"}),
+            "omega": (("sample", "time", "axis"), omega, {"units": "rad/s",
+                                                          "long_name": "body-frame angular velocity"}),
             "axis": ("axis", np.array([1, 2, 3]), {"long_name": "principal axis (1-based)"}),
         }
-        attrs = {"moments": moments}
+        if attitude:
+            variables.update(_quaternion_variables(quaternion))
+        attrs = {"moments": moments, "torque": torque.text, "attitude": int(attitude)}
     else:
         variables = {
             "state": (("sample", "time", "component"), run.states,

@@ -26,7 +26,8 @@ _DOOR = {
         "MODEL_CODES", "MODEL_METHODS", "ModelObserved", "model_methods", "model_rhs", "model_tangent", "rate_sample",
         "rate_sample_parameters", "run_model", "run_system_blocks", "tangent_sample")},
     **{name: ("steps.steppers", name) for name in ("TORQUE_CONSTANT", "TORQUE_PULSE", "TORQUE_RAMP", "TORQUE_SINE",
-                                                    "TORQUE_USER")},
+                                                    "TORQUE_USER", "euler_rate")},
+    "attitude_rate": ("steps.attitude", "attitude_rate"),
 }
 
 
@@ -45,9 +46,9 @@ def __getattr__(name):
 
 
 __all__ = ["BLOCK", "METHODS", "adaptive_blocks", "adaptive_loop", "MODEL_BLOCK", "MODEL_CODES", "MODEL_METHODS", "TORQUE_CONSTANT", "TORQUE_PULSE",
-           "TORQUE_RAMP", "TORQUE_SIGNATURE", "TORQUE_SINE", "TORQUE_USER", "device_attitude", "device_closed_form",
+           "TORQUE_RAMP", "TORQUE_SIGNATURE", "TORQUE_SINE", "TORQUE_USER", "attitude_rate", "device_attitude", "device_closed_form",
            "device_adaptive_loop", "device_fits", "device_kernels", "device_models", "device_sample_loop", "elliptic",
-           "elliptic_attitude", "fits",
+           "elliptic_attitude", "euler_rate", "fits",
            "Method", "TABLEAUX", "model_methods", "model_rhs", "model_tangent", "ModelObserved", "Observed", "parallel_block",
            "rate_sample", "rate_sample_parameters", "run", "run_attitude", "run_model", "run_system_blocks", "sample_loop",
            "side_by_side", "system_steps",

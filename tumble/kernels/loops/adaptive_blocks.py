@@ -268,14 +268,19 @@ def drive(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, cr
 _FUNCTIONS = ("_lane_extras", "_start", "_finish", "_fill", "run_share")
 
 
-def specialised(trial, rate, surface=None):
+def specialised(trial, rate, surface=None, key=None):
     """``drive(...)`` (as :func:`drive`) over ``trial``, ``rate`` and ``surface`` (None: the component surface):
-    this module's functions copied with those in their globals, compiled on first use, not cached."""
+    this module's functions copied with those in their globals, compiled on first use. With ``key`` (a string that
+    names what ``trial``, ``rate`` and ``surface`` compute, the same in every process: a System's code) the copies
+    are cached on disk under their names with ``key`` appended (numba's cache files are named by a function's
+    qualified name, and a copy's globals are not part of its cache key); without it they are not cached."""
     names = dict(globals(), trial=trial, rate=rate, surface=surface if surface is not None else globals()["surface"])
     for name in _FUNCTIONS:
         source = globals()[name].py_func
-        names[name] = jit(types.FunctionType(source.__code__, names, name, source.__defaults__), cache=False,
-                          contract=False)
+        copy = types.FunctionType(source.__code__, names, name, source.__defaults__)
+        if key is not None:
+            copy.__qualname__ = f"{name}_{key}"
+        names[name] = jit(copy, cache=key is not None, contract=False)
     share = names["run_share"]
 
     def drive(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
@@ -285,4 +290,5 @@ def specialised(trial, rate, surface=None):
                                                  out[lo:hi], section, crossing_t[lo:hi], crossing_y[lo:hi],
                                                  status[lo:hi], counts[lo:hi], stopped[lo:hi]))
 
+    drive.run_share = share  # the compiled share, for its cache statistics
     return drive
