@@ -11,9 +11,10 @@ import tumble
 from tumble import registry
 
 import hand_written_systems
+from process_checks import run_twice
 
-# One worker runs the error-controlled tests (--dist loadgroup): the loop over the augmented state is compiled once per
-# process and system, a closure numba's disk cache cannot keep.
+# One worker runs the error-controlled tests (--dist loadgroup): the loop over the augmented state of a System whose
+# functions cannot be keyed is compiled once per process.
 pytestmark = pytest.mark.xdist_group("dop853")
 
 BODY = tumble.Body(1.0, 2.0, 3.0)
@@ -51,7 +52,7 @@ def test_the_spectrum_does_not_depend_on_renormalise():
     np.testing.assert_allclose(one["exponent"].values, four["exponent"].values, rtol=0, atol=1e-9)
 
 
-@pytest.mark.slow  # a loop of its own for each System (about 10 s to compile each)
+@pytest.mark.slow  # a loop of its own for each System (about 10 s to compile each, then kept in the disk cache)
 def test_a_systems_jacobian_and_its_differences_give_the_same_exponents_at_a_tolerance():
     rotor, parameters = hand_written_systems.rotor, hand_written_systems.ROTOR
     exact = tumble.System(rotor, state=("theta", "omega"), parameters=parameters,
@@ -63,6 +64,24 @@ def test_a_systems_jacobian_and_its_differences_give_the_same_exponents_at_a_tol
     np.testing.assert_allclose(b["exponent"].values, a["exponent"].values, rtol=0, atol=1e-8)
     np.testing.assert_allclose(a["exponent"].values, fixed["exponent"].values, rtol=0, atol=1e-8)
     assert a.attrs["tangent"] == "jacobian" and b.attrs["tangent"] == "differences"
+
+
+_CACHED = """
+import tumble
+from tumble.engine import chaos_tolerance
+ds = tumble.megno(tumble.Body(1.0, 2.0, 3.0), [[1.0, 0.1, 0.0]], 50.0, method="dop853")
+drive = next(iter(chaos_tolerance._DRIVERS.values()))
+print(repr(float(ds["megno"][0])), sum(drive.run_share.stats.cache_hits.values()))
+"""
+
+
+@pytest.mark.slow  # two new processes, the first may compile the loop (10 s)
+def test_a_new_process_loads_the_models_loop_at_a_tolerance_from_the_disk_cache(tmp_path):
+    """The built-in models' loop over the augmented state is kept in numba's disk cache (written over module-level
+    names and copied with the models' rate and tangent: no closure), and gives the same bits loaded as compiled."""
+    (first, _), (second, hits) = run_twice(tmp_path, _CACHED, "megno.py")
+    assert first == second
+    assert int(hits) == 1
 
 
 @pytest.mark.parametrize("call, message", [

@@ -186,7 +186,9 @@ def _kernel(system, surface, parameters):
         code = block_code(system, registry.AUTO_STEPPING)  # its scalar form (None: it has none, said once)
         if key not in made:
             rate = compiled(system).rate
-            made[key] = (adaptive_loop.make_dop853_driver(adaptive_loop.make_dop853_sample(rate, surface))
+            keyed = system_steps.functions_key(system.rate) if surface is None else None
+            keyed = None if keyed is None else f"sample_{keyed}"
+            made[key] = (adaptive_loop.make_dop853_driver(adaptive_loop.make_dop853_sample(rate, surface, keyed), keyed)
                          if code is None else
                          adaptive_blocks.specialised(system_steps.block_trial(code), rate, surface,
                                                      f"{code:x}" if surface is None and system_steps.cacheable(code)

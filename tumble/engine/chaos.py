@@ -481,17 +481,20 @@ def _system_attrs(system, values, method, step, n_steps, t_end, device):
 
 
 def _tangent_functions(system):
-    """``(rate, tangents)`` of ``system`` for the variational equations at a tolerance
-    (:func:`tumble.kernels.variational.make_variational_rate`), made once."""
+    """``(rate, tangents, key)`` of ``system`` for the variational equations at a tolerance
+    (:func:`tumble.kernels.variational.make_variational_rate`), made once; ``key`` names them for numba's disk cache
+    (:func:`tumble.kernels.system_steps.functions_key`; None: a System whose functions cannot be keyed, compiled in
+    each process)."""
     if isinstance(system, System):
         made = _SYSTEM_KERNELS.setdefault(system, {})
         if "variational" not in made:
             rate, jacobian, _ = _system_functions(system)
             made["variational"] = (rate, tangent_loop.difference_tangents(rate) if jacobian is None
-                                   else tangent_loop.jacobian_tangents(jacobian))
+                                   else tangent_loop.jacobian_tangents(jacobian),
+                                   system_steps.functions_key(system.rate, system.jacobian))
         return made["variational"]
     if "variational" not in _MODEL_KERNELS:
-        _MODEL_KERNELS["variational"] = (rate_sample, tangent_loop.model_tangents())
+        _MODEL_KERNELS["variational"] = (rate_sample, tangent_loop.model_tangents(), "models")
     return _MODEL_KERNELS["variational"]
 
 
@@ -527,7 +530,7 @@ def lyapunov(system, y0, t_end, dt=None, *, method="rk4", exponents=None, renorm
              parameters=None, save_every=None, tangent=None, device="cpu", rtol=None, atol=None, times=None,
              max_steps=None):
     # size: the contract's arguments (DESIGN.md, "Chaos indicators"); each checked once, then one run, one Dataset
-    """The Lyapunov spectrum of an ensemble of initial states: the ``k`` largest exponents per sample.
+    r"""The Lyapunov spectrum of an ensemble of initial states: the ``k`` largest exponents per sample.
 
     Each sample's state and ``k`` tangent vectors are stepped together by ``method`` (the tangent is the derivative of
     the method's map); every ``renormalise`` seconds the vectors are orthonormalised by modified Gram–Schmidt and, after
@@ -594,12 +597,40 @@ def lyapunov(system, y0, t_end, dt=None, *, method="rk4", exponents=None, renorm
         a System numba cannot compile or whose rate or Jacobian is not finite at the first initial state, a run too
         large, a device that cannot run.
 
+    See Also
+    --------
+    tumble.megno : A cheaper indicator: one tangent vector, its growth averaged.
+    tumble.gali : The alignment of several tangent vectors.
+    tumble.theory.eigenvalues_at : The exponents' linear theory at an equilibrium.
+
+    Notes
+    -----
+    Every :math:`\tau` = ``renormalise`` seconds the tangent vectors :math:`V = (\delta_1, \dots, \delta_k)` are
+    orthonormalised, :math:`V = Q R` (modified Gram–Schmidt), and the logarithms of the diagonal of :math:`R`
+    summed [1]_:
+
+    .. math::
+
+        \lambda_r = \frac{1}{t_\mathrm{end} - t_\mathrm{transient}} \sum_j \ln \left|R^{(j)}_{rr}\right|,
+        \qquad r = 1, \dots, k,
+
+    over the orthonormalisations :math:`j` after the transient. For a volume-preserving map the spectrum sums to
+    zero.
+
+    References
+    ----------
+    .. [1] G. Benettin, L. Galgani, A. Giorgilli and J.-M. Strelcyn, "Lyapunov characteristic exponents for
+       smooth dynamical systems and for Hamiltonian systems; a method for computing all of them",
+       Meccanica 15, 9 and 21 (1980).
+
     Examples
     --------
     >>> import tumble
     >>> ds = tumble.lyapunov(tumble.Body(1.0, 2.0, 3.0), [[0.0, 1.0, 0.0]], 15.0, 0.01, transient=5.0)
     >>> round(float(ds["exponent"][0, 0]), 2)  # a steady spin about the intermediate axis: its linear growth rate
     0.58
+    >>> bool(abs(ds["exponent"][0].sum()) < 1e-6)  # the free body's flow keeps volume
+    True
     """
     tolerance = (rtol, atol, times, max_steps)
     device, system, y, p, values, method, t_end, n_steps, step = _checked(system, y0, t_end, dt, method, parameters,
@@ -661,7 +692,7 @@ def lyapunov(system, y0, t_end, dt=None, *, method="rk4", exponents=None, renorm
 def megno(system, y0, t_end, dt=None, *, method="rk4", stop_above=None, parameters=None, tangent=None, device="cpu",
           rtol=None, atol=None, max_steps=None):
     # size: the contract's arguments (DESIGN.md, "Chaos indicators")
-    """MEGNO, the mean exponential growth factor of nearby orbits (Cincotta & Simó 2000), of an ensemble of states.
+    r"""MEGNO, the mean exponential growth factor of nearby orbits (Cincotta & Simó 2000), of an ensemble of states.
 
     One tangent vector ``δ`` rides with each sample (stepped by ``method``, the derivative of its map); with
     ``ρ = δ·δ'/|δ|²``, ``Y(t) = (2/t) ∫ s ρ(s) ds`` and its mean ``<Y>(t) = (1/t) ∫ Y``, integrated as two extra
@@ -694,6 +725,40 @@ def megno(system, y0, t_end, dt=None, *, method="rk4", stop_above=None, paramete
     ------
     ValueError
         As :func:`lyapunov`, and a ``stop_above`` that is not a number > 0.
+
+    See Also
+    --------
+    tumble.lyapunov : The whole spectrum.
+    tumble.gali : The alignment of several tangent vectors.
+
+    Notes
+    -----
+    With :math:`\delta` the tangent vector [1]_,
+
+    .. math::
+
+        Y(t) = \frac{2}{t} \int_0^t \frac{\dot\delta(s) \cdot \delta(s)}{|\delta(s)|^2}\, s \, ds, \qquad
+        \langle Y \rangle(t) = \frac{1}{t} \int_0^t Y(s)\, ds,
+
+    :math:`\langle Y \rangle \to 2` on a quasi-periodic orbit, :math:`\to 0` near a stable periodic one, and
+    :math:`\langle Y \rangle \approx \lambda t / 2` on a chaotic one.
+
+    References
+    ----------
+    .. [1] P. M. Cincotta and C. Simó, "Simple tools to study global dynamics in non-axisymmetric galactic
+       potentials – I", Astron. Astrophys. Suppl. Ser. 147, 205 (2000).
+
+    Examples
+    --------
+    Near the stable largest axis :math:`\langle Y \rangle` stays near 0; at the unstable intermediate axis it
+    grows as :math:`\lambda t / 2`, here :math:`\lambda = 1/\sqrt{3}`:
+
+    >>> import tumble
+    >>> ds = tumble.megno(tumble.Body(1.0, 2.0, 3.0), [[0.1, 0.0, 1.0], [0.0, 1.0, 0.0]], 20.0, 0.01)
+    >>> [round(float(y), 1) for y in ds["megno"]]
+    [0.3, 5.8]
+    >>> round(float(ds["lyapunov"][1]), 2)
+    0.58
     """
     tolerance = (rtol, atol, None, max_steps)
     device, system, y, p, values, method, t_end, n_steps, step = _checked(system, y0, t_end, dt, method, parameters,
@@ -733,7 +798,7 @@ def megno(system, y0, t_end, dt=None, *, method="rk4", stop_above=None, paramete
 def gali(system, y0, t_end, dt=None, *, k=2, method="rk4", parameters=None, save_every=None, tangent=None, device="cpu",
          rtol=None, atol=None, times=None, max_steps=None):
     # size: the contract's arguments (DESIGN.md, "Chaos indicators")
-    """GALI_k, the generalised alignment index (Skokos, Bountis & Antonopoulos 2007, Physica D 231, 30), over time.
+    r"""GALI_k, the generalised alignment index (Skokos, Bountis & Antonopoulos 2007, Physica D 231, 30), over time.
 
     ``k`` tangent vectors ride with each sample (stepped by ``method``, the derivative of its map), each normalised
     every :data:`RESCALE_EVERY` steps and at each saved time but never orthogonalised; GALI_k is the volume of the
@@ -768,6 +833,38 @@ def gali(system, y0, t_end, dt=None, *, k=2, method="rk4", parameters=None, save
     ------
     ValueError
         As :func:`lyapunov`, and ``k`` not an integer from 2 to n.
+
+    See Also
+    --------
+    tumble.lyapunov : The exponents whose differences set GALI's fall.
+    tumble.megno : A one-vector indicator.
+
+    Notes
+    -----
+    With :math:`\hat w_1, \dots, \hat w_k` the unit tangent vectors [1]_ (GALI_2 behaves as the SALI of [2]_),
+
+    .. math::
+
+        \mathrm{GALI}_k(t) = \left\| \hat w_1(t) \wedge \dots \wedge \hat w_k(t) \right\|
+        \propto e^{-[(\lambda_1 - \lambda_2) + \dots + (\lambda_1 - \lambda_k)]\, t}
+
+    on a chaotic orbit; on a regular one on an :math:`N`-torus it stays near a constant for :math:`k \le N`.
+
+    References
+    ----------
+    .. [1] Ch. Skokos, T. C. Bountis and C. Antonopoulos, "Geometrical properties of local dynamics in
+       Hamiltonian systems: the Generalized Alignment Index (GALI) method", Physica D 231, 30 (2007).
+    .. [2] Ch. Skokos, "Alignment indices: a new, simple method for determining the ordered or chaotic nature of
+       orbits", J. Phys. A 34, 10029 (2001).
+
+    Examples
+    --------
+    The vectors stay apart near the stable largest axis and align at the unstable intermediate one:
+
+    >>> import tumble
+    >>> ds = tumble.gali(tumble.Body(1.0, 2.0, 3.0), [[0.1, 0.0, 1.0], [0.0, 1.0, 0.0]], 20.0, 0.01)
+    >>> ds["gali"].shape, [bool(g > 0.5) for g in ds["gali"][:, -1]]
+    ((2, 1), [True, False])
     """
     tolerance = (rtol, atol, times, max_steps)
     device, system, y, p, values, method, t_end, n_steps, step = _checked(system, y0, t_end, dt, method, parameters,

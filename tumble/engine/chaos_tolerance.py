@@ -70,10 +70,11 @@ class SpectrumRun(NamedTuple):
 def _driver(functions, p, n, k, unit, megno):
     """``(driver, its parameters)``: the CPU driver of the augmented state
     (:func:`tumble.kernels.variational.make_variational_rate`), made once per system, and ``p`` with the layout."""
-    rate, tangents = functions
+    rate, tangents, key = functions
     if functions not in _DRIVERS:
+        key = None if key is None else f"variational_{key}"  # apart from the system's own loops under its key
         _DRIVERS[functions] = adaptive_loop.make_dop853_driver(
-            adaptive_loop.make_dop853_sample(variational.make_variational_rate(rate, tangents)))
+            adaptive_loop.make_dop853_sample(variational.make_variational_rate(rate, tangents, key), key=key), key)
     return _DRIVERS[functions], np.concatenate([p, variational.layout(n, k, unit, megno)])
 
 
@@ -108,7 +109,7 @@ def run_unit(functions, y, p, vectors, *, megno, t_end, times, tolerance, first_
     # size: the checked run's pieces, handed down as the kernel takes them
     """MEGNO's or GALI's run: the samples ``y`` (N, n), each with the unit vectors ``vectors`` (k, n) (and, with
     ``megno``, MEGNO's integrals), from 0 to ``t_end`` with outputs at ``times`` (checked here; None: ``t_end``).
-    ``functions``: the system's ``(rate, tangents)``; ``p`` the kernels' parameters; ``tolerance`` ``(rtol,
+    ``functions``: the system's ``(rate, tangents, key)``; ``p`` the kernels' parameters; ``tolerance`` ``(rtol,
     atol)`` as the user gave them (checked here against ``components``). Returns :class:`VariationalRun`."""
     marks = output_times(times, t_end)
     state, rtol, atol, rtol_state, atol_state = _augmented(y, vectors, megno, tolerance, components)

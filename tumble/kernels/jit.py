@@ -29,6 +29,7 @@ import io
 import os
 import pickle
 import re
+import types
 import warnings
 
 import numba
@@ -261,6 +262,28 @@ def jit(fn=None, *, parallel=False, inline=False, contract=True, cache=True, bou
         return _enable_cache(dispatcher) if cache else dispatcher
 
     return wrap if fn is None else wrap(fn)
+
+
+def rebound(names, namespace, key=None, **replaced):
+    """Copies of the functions ``names`` of ``namespace`` (a module's globals: :func:`jit` functions written over
+    module-level names, callees before their callers) that read ``replaced`` in place of those names: a loop written
+    once over the functions it calls (a rate, a surface), compiled for others without a closure. Each copy is compiled
+    with ``contract=False`` (the bits must not depend on the compile; numba issue #10617).
+
+    A closure over a function, or a function handed in as an argument, is never a hit of numba's disk cache (its key
+    pickles the closure's cells; an argument is a "dynamic global"). A copy reads ``replaced`` as globals instead, so
+    with ``key`` (a string that names what ``replaced`` compute, the same in every process) the copies are cached,
+    under their names with ``key`` appended: numba names a function's cache files by its qualified name and does not
+    key them by its globals. Without ``key`` they are not cached. Returns the copies' namespace (``namespace`` with
+    ``replaced`` and the copies)."""
+    scope = dict(namespace, **replaced)
+    for name in names:
+        source = namespace[name].py_func
+        copy = types.FunctionType(source.__code__, scope, name, source.__defaults__)
+        if key is not None:
+            copy.__qualname__ = f"{name}_{key}"
+        scope[name] = jit(copy, cache=key is not None, contract=False)
+    return scope
 
 
 def parallel_block(n, largest, smallest=64):

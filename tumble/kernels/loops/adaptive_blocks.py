@@ -20,16 +20,15 @@ another it is handed).
 """
 
 import math
-import types
 
 import numpy as np
 
 from ...registry import STATUS_LIMIT, STATUS_NONFINITE, STATUS_OK, STATUS_UNDERFLOW
-from ..jit import jit
+from ..jit import jit, rebound
 from ..steps.model_steps import dop853_trial as trial
 from ..steps.model_steps import rate_sample as rate
-from . import adaptive_loop
-from .adaptive_loop import _C, _FAC1, _FAC2, _SAFE, _STAGES, _UROUND, SCRATCH_ROWS, _dense, _root8, _stage
+from .adaptive_loop import (_C, _FAC1, _FAC2, _SAFE, _STAGES, _UROUND, SCRATCH_ROWS, _crossing, _dense, _first_step,
+                            _interpolant, _root8, _stage)
 from .adaptive_loop import component_surface as surface
 from .sample_loop import in_shares
 
@@ -37,14 +36,6 @@ __all__ = ["BLOCK", "drive", "run_share", "specialised"]
 
 #: Lanes of a block: a sample's share steps in one block whose lanes take the next sample as theirs is done.
 BLOCK = 32
-
-
-# The per-sample loop's helpers that take the rate or the surface as an argument, inlined where they are called here:
-# a call of a function handed in as an argument keeps a pointer to it in the compiled code ("dynamic globals"), which
-# numba's disk cache cannot keep; inlined, the call is to the global itself.
-_first_step = jit(adaptive_loop._first_step.py_func, inline=True, cache=False, contract=False)
-_interpolant = jit(adaptive_loop._interpolant.py_func, inline=True, cache=False, contract=False)
-_crossing = jit(adaptive_loop._crossing.py_func, inline=True, cache=False, contract=False)
 
 
 @jit(inline=True, cache=False, contract=False)
@@ -270,18 +261,11 @@ _FUNCTIONS = ("_lane_extras", "_start", "_finish", "_fill", "run_share")
 
 def specialised(trial, rate, surface=None, key=None):
     """``drive(...)`` (as :func:`drive`) over ``trial``, ``rate`` and ``surface`` (None: the component surface):
-    this module's functions copied with those in their globals, compiled on first use. With ``key`` (a string that
-    names what ``trial``, ``rate`` and ``surface`` compute, the same in every process: a System's code) the copies
-    are cached on disk under their names with ``key`` appended (numba's cache files are named by a function's
-    qualified name, and a copy's globals are not part of its cache key); without it they are not cached."""
-    names = dict(globals(), trial=trial, rate=rate, surface=surface if surface is not None else globals()["surface"])
-    for name in _FUNCTIONS:
-        source = globals()[name].py_func
-        copy = types.FunctionType(source.__code__, names, name, source.__defaults__)
-        if key is not None:
-            copy.__qualname__ = f"{name}_{key}"
-        names[name] = jit(copy, cache=key is not None, contract=False)
-    share = names["run_share"]
+    this module's functions copied with those in their globals (:func:`tumble.kernels.jit.rebound`), compiled on first
+    use; cached on disk under ``key`` (a string that names what they compute in every process: a System's code), not
+    cached without it."""
+    share = rebound(_FUNCTIONS, globals(), key, trial=trial, rate=rate,
+                    surface=surface if surface is not None else globals()["surface"])["run_share"]
 
     def drive(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
               counts, stopped):

@@ -21,8 +21,9 @@ The method is Dormand & Prince's eighth-order pair as Hairer distributes it (``d
 and a device's one thread per sample (:mod:`tumble.kernels.cuda.adaptive`) can call it alike.
 :mod:`tumble.kernels.loops.adaptive_blocks` steps blocks of samples at once instead, each lane at its own time and
 step, with a generated trial step vectorised across the lanes: the CPU's path for the built-in models and for a System
-with a scalar form. Like the fixed-step per-sample loop, the per-sample driver is a closure over the rate, compiled
-once per process (numba's disk cache cannot key a closure over another function).
+with a scalar form. The per-sample loop is written once over module-level names (``rate``, ``surface``) and copied for each
+system with its own (:func:`tumble.kernels.jit.rebound`): a copy with a key that names its functions is cached on disk,
+as the chaos indicators' augmented rate of the built-in models is (:mod:`tumble.kernels.loops.variational`).
 """
 
 import math
@@ -30,7 +31,7 @@ import math
 import numpy as np
 
 from ...registry import STATUS_LIMIT, STATUS_NONFINITE, STATUS_OK, STATUS_UNDERFLOW
-from ..jit import jit
+from ..jit import jit, rebound
 from ..tableaux import DOP853
 from .sample_loop import in_shares
 
@@ -67,11 +68,19 @@ def _stage(s, y, h, k, out):
         out[j] = y[j] + h * total
 
 
-def make_dop853_sample(rate, surface=None):
-    # size: the closure holds the whole run of a sample (its loop says why it is one piece)
-    """``run_sample(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, scratch)
-    -> (status, accepted, rejected, crossings, t)``: one sample's error-controlled run of ``rate(t, y, p, dydt)`` from
-    ``t0`` to ``t_end``.
+def make_dop853_sample(rate, surface=None, key=None):
+    """:func:`run_sample` over ``rate(t, y, p, dydt)`` and ``surface`` (None: :func:`component_surface`), a copy that
+    reads them as its globals (:func:`tumble.kernels.jit.rebound`): cached on disk under ``key`` (a string naming what
+    they compute in every process), compiled in each process without it."""
+    return rebound(("run_sample",), globals(), key, rate=rate,
+                   surface=component_surface if surface is None else surface)["run_sample"]
+
+
+@jit(cache=False, contract=False)  # a template over the globals rate, surface: its copies run
+def run_sample(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, scratch):
+    # size: Hairer's loop written once: stages, error, step control, dense output, crossings, the stops
+    """One sample's error-controlled run of ``rate(t, y, p, dydt)`` from ``t0`` to ``t_end``: ``(status, accepted,
+    rejected, crossings, t)``.
 
     ``y`` (n,) is advanced in place to ``t_end`` (or frozen where the sample stopped, at the time ``t`` returned);
     ``rtol``, ``atol`` (n,); ``h0`` the first step (0: chosen); ``times`` (T,) the output times, increasing, within
@@ -79,127 +88,120 @@ def make_dop853_sample(rate, surface=None):
     (:data:`SCRATCH_ROWS`, n).
 
     The crossings of a surface ``g = 0``: ``section`` (4,) holds ``(component, value, direction, most)``; ``g`` is
-    ``surface(t, y, p, component, value)``, by default (None) ``y[component] − value`` (:func:`component_surface`).
+    ``surface(t, y, p, component, value)``, by default ``y[component] − value`` (:func:`component_surface`).
     A crossing is a sign change of ``g`` over an accepted step, ``g0 < 0 <= g1`` upward (direction 1), ``g0 > 0 >= g1``
     downward (−1), either (0); it is located on the dense output by a bracketing root finder (Illinois) to a few
     ulps of ``t``, its time and state written to ``crossing_t`` (most,) and ``crossing_y`` (most, n). A sample stops
     (status ok) once it has ``most`` crossings; ``most = 0``: no section (``g`` is never evaluated). A step that
     crosses twice counts neither (as SciPy's events): the tolerance's steps are short against the motion."""
-    if surface is None:
-        surface = component_surface
-
-    @jit(cache=False)
-    def run_sample(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, scratch):
-        # size: Hairer's loop written once: stages, error, step control, dense output, crossings, the stops
-        n = y.shape[0]
-        k = scratch[:16]
-        stage = scratch[16]
-        y1 = scratch[17]
-        f = scratch[18:25]
-        code = STATUS_OK
+    n = y.shape[0]
+    k = scratch[:16]
+    stage = scratch[16]
+    y1 = scratch[17]
+    f = scratch[18:25]
+    code = STATUS_OK
+    for j in range(n):
+        if not math.isfinite(y[j]):
+            code = STATUS_NONFINITE
+    t = t0
+    slot = 0
+    while slot < times.shape[0] and times[slot] <= t0:
         for j in range(n):
-            if not math.isfinite(y[j]):
-                code = STATUS_NONFINITE
-        t = t0
-        slot = 0
-        while slot < times.shape[0] and times[slot] <= t0:
-            for j in range(n):
-                out[slot, j] = y[j]
-            slot += 1
-        accepted = 0
-        rejected = 0
-        crossed = 0
-        component, value, direction, most = int(section[0]), section[1], section[2], int(section[3])
-        if code != STATUS_OK or t_end <= t0:
-            for s in range(slot, times.shape[0]):
-                for j in range(n):
-                    out[s, j] = y[j]
-            return code, accepted, rejected, crossed, t
-        g0 = surface(t, y, p, component, value) if most > 0 else 0.0
-        rate(t, y, p, k[0])
-        h = h0 if h0 > 0.0 else _first_step(rate, t, y, p, t_end - t, rtol, atol, k[0], stage, y1)
-        last_rejected = False
-        while t < t_end:
-            if accepted + rejected >= max_steps:
-                code = STATUS_LIMIT
-                break
-            if 0.1 * h <= abs(t) * _UROUND or not h > 0.0:
-                code = STATUS_UNDERFLOW
-                break
-            final = t + 1.01 * h >= t_end
-            if final:
-                h = t_end - t
-            for s in range(1, _STAGES + 1):  # the stages, then f(t + h, y1): y1 is the last stage's state
-                _stage(s, y, h, k, stage)
-                if s == _STAGES:
-                    for j in range(n):
-                        y1[j] = stage[j]
-                rate(t + _C[s] * h, stage, p, k[s])
-            err5 = 0.0
-            err3 = 0.0
-            for j in range(n):
-                sk = atol[j] + rtol[j] * max(abs(y[j]), abs(y1[j]))
-                e5 = 0.0
-                e3 = 0.0
-                for s in range(_STAGES + 1):
-                    e5 += _E5[s] * k[s, j]
-                    e3 += _E3[s] * k[s, j]
-                err5 += (e5 / sk) ** 2
-                err3 += (e3 / sk) ** 2
-            deno = err5 + 0.01 * err3
-            err = h * err5 / math.sqrt(n * deno) if deno > 0.0 else 0.0
-            if not math.isfinite(err):  # a stage overflowed: a much shorter step
-                h /= 1.0 / _FAC1
-                last_rejected = True
-                rejected += 1
-                continue
-            fac11 = _root8(err)
-            if err <= 1.0:
-                accepted += 1
-                t_new = t_end if final else t + h
-                built = False
-                if most > 0:
-                    g1 = surface(t_new, y1, p, component, value)
-                    if (direction >= 0.0 and g0 < 0.0 <= g1) or (direction <= 0.0 and g0 > 0.0 >= g1):
-                        _interpolant(rate, y, y1, p, t, h, k, stage, f)
-                        built = True
-                        x = _crossing(surface, f, y, p, t, h, g0, g1, component, value, stage)
-                        crossing_t[crossed] = t_new if x == 1.0 else t + x * h
-                        _dense(f, y, x, crossing_y[crossed])
-                        crossed += 1
-                    g0 = g1
-                if slot < times.shape[0] and times[slot] <= t_new:
-                    if not built:
-                        _interpolant(rate, y, y1, p, t, h, k, stage, f)
-                    while slot < times.shape[0] and times[slot] <= t_new:
-                        if times[slot] == t_new:
-                            for j in range(n):
-                                out[slot, j] = y1[j]
-                        else:
-                            _dense(f, y, (times[slot] - t) / h, out[slot])
-                        slot += 1
-                for j in range(n):
-                    y[j] = y1[j]
-                    k[0, j] = k[_STAGES, j]
-                t = t_new
-                grow = max(1.0 / _FAC2, min(1.0 / _FAC1, fac11 / _SAFE))
-                h_new = h / grow
-                if last_rejected:
-                    h_new = min(h_new, h)
-                last_rejected = False
-                h = h_new
-                if most > 0 and crossed == most:
-                    break  # the section is complete
-            else:
-                h /= min(1.0 / _FAC1, fac11 / _SAFE)
-                last_rejected = True
-                rejected += 1
-        for s in range(slot, times.shape[0]):  # a stopped sample: the state it stopped with
+            out[slot, j] = y[j]
+        slot += 1
+    accepted = 0
+    rejected = 0
+    crossed = 0
+    component, value, direction, most = int(section[0]), section[1], section[2], int(section[3])
+    if code != STATUS_OK or t_end <= t0:
+        for s in range(slot, times.shape[0]):
             for j in range(n):
                 out[s, j] = y[j]
         return code, accepted, rejected, crossed, t
+    g0 = surface(t, y, p, component, value) if most > 0 else 0.0
+    rate(t, y, p, k[0])
+    h = h0 if h0 > 0.0 else _first_step(rate, t, y, p, t_end - t, rtol, atol, k[0], stage, y1)
+    last_rejected = False
+    while t < t_end:
+        if accepted + rejected >= max_steps:
+            code = STATUS_LIMIT
+            break
+        if 0.1 * h <= abs(t) * _UROUND or not h > 0.0:
+            code = STATUS_UNDERFLOW
+            break
+        final = t + 1.01 * h >= t_end
+        if final:
+            h = t_end - t
+        for s in range(1, _STAGES + 1):  # the stages, then f(t + h, y1): y1 is the last stage's state
+            _stage(s, y, h, k, stage)
+            if s == _STAGES:
+                for j in range(n):
+                    y1[j] = stage[j]
+            rate(t + _C[s] * h, stage, p, k[s])
+        err5 = 0.0
+        err3 = 0.0
+        for j in range(n):
+            sk = atol[j] + rtol[j] * max(abs(y[j]), abs(y1[j]))
+            e5 = 0.0
+            e3 = 0.0
+            for s in range(_STAGES + 1):
+                e5 += _E5[s] * k[s, j]
+                e3 += _E3[s] * k[s, j]
+            err5 += (e5 / sk) ** 2
+            err3 += (e3 / sk) ** 2
+        deno = err5 + 0.01 * err3
+        err = h * err5 / math.sqrt(n * deno) if deno > 0.0 else 0.0
+        if not math.isfinite(err):  # a stage overflowed: a much shorter step
+            h /= 1.0 / _FAC1
+            last_rejected = True
+            rejected += 1
+            continue
+        fac11 = _root8(err)
+        if err <= 1.0:
+            accepted += 1
+            t_new = t_end if final else t + h
+            built = False
+            if most > 0:
+                g1 = surface(t_new, y1, p, component, value)
+                if (direction >= 0.0 and g0 < 0.0 <= g1) or (direction <= 0.0 and g0 > 0.0 >= g1):
+                    _interpolant(rate, y, y1, p, t, h, k, stage, f)
+                    built = True
+                    x = _crossing(surface, f, y, p, t, h, g0, g1, component, value, stage)
+                    crossing_t[crossed] = t_new if x == 1.0 else t + x * h
+                    _dense(f, y, x, crossing_y[crossed])
+                    crossed += 1
+                g0 = g1
+            if slot < times.shape[0] and times[slot] <= t_new:
+                if not built:
+                    _interpolant(rate, y, y1, p, t, h, k, stage, f)
+                while slot < times.shape[0] and times[slot] <= t_new:
+                    if times[slot] == t_new:
+                        for j in range(n):
+                            out[slot, j] = y1[j]
+                    else:
+                        _dense(f, y, (times[slot] - t) / h, out[slot])
+                    slot += 1
+            for j in range(n):
+                y[j] = y1[j]
+                k[0, j] = k[_STAGES, j]
+            t = t_new
+            grow = max(1.0 / _FAC2, min(1.0 / _FAC1, fac11 / _SAFE))
+            h_new = h / grow
+            if last_rejected:
+                h_new = min(h_new, h)
+            last_rejected = False
+            h = h_new
+            if most > 0 and crossed == most:
+                break  # the section is complete
+        else:
+            h /= min(1.0 / _FAC1, fac11 / _SAFE)
+            last_rejected = True
+            rejected += 1
+    for s in range(slot, times.shape[0]):  # a stopped sample: the state it stopped with
+        for j in range(n):
+            out[s, j] = y[j]
+    return code, accepted, rejected, crossed, t
 
-    return run_sample
 
 
 @jit(inline=True)
@@ -208,7 +210,12 @@ def component_surface(t, y, p, component, value):
     return y[component] - value
 
 
-@jit(cache=False)
+# What the templates run_sample and run_share read, until a copy reads its own (rebound): the rate is always the copy's.
+rate = None
+surface = component_surface
+
+
+@jit(inline=True, cache=False, contract=False)
 def _crossing(surface, f, y0, p, t, h, g0, g1, component, value, trial):
     """Where in the step ``(t, t + h)`` the surface is crossed, as ``x = (t* − t) / h`` in ``(0, 1]``: ``g`` (``g0`` at
     0, ``g1`` at 1, of opposite signs or ``g1 = 0``) on the dense output ``f`` (from ``y0``), by regula falsi with the
@@ -249,7 +256,7 @@ def _root8(x):
     return math.sqrt(math.sqrt(math.sqrt(x)))
 
 
-@jit(cache=False)
+@jit(inline=True, cache=False, contract=False)
 def _first_step(rate, t, y, p, span, rtol, atol, f0, y_trial, f1):
     """Hairer's initial step (``hinit`` of dop853.f, as SciPy's ``select_initial_step``): from the sizes of ``y``,
     ``f(t, y)`` (``f0``) and an estimate of the second derivative (one more evaluation of the rate), within
@@ -280,7 +287,7 @@ def _first_step(rate, t, y, p, span, rtol, atol, f0, y_trial, f1):
     return min(100.0 * h0, h1, span)
 
 
-@jit(cache=False)
+@jit(inline=True, cache=False, contract=False)
 def _interpolant(rate, y0, y1, p, t, h, k, stage, f):
     """The seven rows ``f`` of the order-7 interpolant of the step ``(t, y0) -> (t + h, y1)``: its three more stages
     (``k[13..15]``), then ``f[0] = y1 − y0``, ``f[1] = h k0 − f[0]``, ``f[2] = 2 f[0] − h (k12 + k0)``, ``f[3..6] =
@@ -314,40 +321,44 @@ def _dense(f, y0, x, out):
         out[j] = y0[j] + acc
 
 
-def make_dop853_driver(run_sample):
+def make_dop853_driver(run_sample, key=None):
     """``drive(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
     counts, stopped)``: every sample of ``y`` (N, n) run by ``run_sample`` (:func:`make_dop853_sample`), ``y`` overwritten with
     the final (or frozen) states, ``out`` (N, T, n) with the states at ``times``, ``crossing_t`` (N, most) and
     ``crossing_y`` (N, most, n) with the section's crossings (``section`` as the run's), ``status`` (N,) int8 and
     ``counts`` (N, 3) int64 (the steps accepted, rejected, the crossings), ``stopped`` (N,) the time each sample
-    reached, written; one share of the samples per numba thread (:func:`tumble.kernels.loops.sample_loop.in_shares`)."""
-
-    @jit(cache=False)
-    def run_share(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
-                  counts, stopped):
-        # size: the run's arguments and one output array each, for a share of the samples
-        n_samples, n = y.shape
-        state = np.empty(n)
-        scratch = np.empty((SCRATCH_ROWS, n))
-        for i in range(n_samples):
-            state[:] = y[i]
-            code, good, bad, crossed, t = run_sample(state, p, t0, t_end, h0, rtol, atol, max_steps, times, out[i],
-                                                     section, crossing_t[i], crossing_y[i], scratch)
-            y[i] = state
-            status[i] = code
-            counts[i, 0] = good
-            counts[i, 1] = bad
-            counts[i, 2] = crossed
-            stopped[i] = t
+    reached, written; one share of the samples per numba thread (:func:`tumble.kernels.loops.sample_loop.in_shares`).
+    Cached on disk under ``key`` (as ``run_sample``'s), compiled in each process without it."""
+    share = rebound(("run_share",), globals(), key, run_sample=run_sample)["run_share"]
 
     def drive(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
               counts, stopped):
         # size: as run_share (``a``, the block driver's constants, unused)
-        in_shares(run_share, len(y), lambda lo, hi: (y[lo:hi], p, t0, t_end, h0, rtol, atol, max_steps, times,
-                                                     out[lo:hi], section, crossing_t[lo:hi], crossing_y[lo:hi],
-                                                     status[lo:hi], counts[lo:hi], stopped[lo:hi]))
+        in_shares(share, len(y), lambda lo, hi: (y[lo:hi], p, t0, t_end, h0, rtol, atol, max_steps, times,
+                                                 out[lo:hi], section, crossing_t[lo:hi], crossing_y[lo:hi],
+                                                 status[lo:hi], counts[lo:hi], stopped[lo:hi]))
 
+    drive.run_share = share  # the compiled share, for its cache statistics
     return drive
+
+
+@jit(cache=False, contract=False)  # a template over the global run_sample: its copies run
+def run_share(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status, counts,
+              stopped):
+    # size: the run's arguments and one output array each, for a share of the samples
+    n_samples, n = y.shape
+    state = np.empty(n)
+    scratch = np.empty((SCRATCH_ROWS, n))
+    for i in range(n_samples):
+        state[:] = y[i]
+        code, good, bad, crossed, t = run_sample(state, p, t0, t_end, h0, rtol, atol, max_steps, times, out[i],
+                                                 section, crossing_t[i], crossing_y[i], scratch)
+        y[i] = state
+        status[i] = code
+        counts[i, 0] = good
+        counts[i, 1] = bad
+        counts[i, 2] = crossed
+        stopped[i] = t
 
 
 def make_user_surface(g):

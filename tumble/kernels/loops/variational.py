@@ -22,10 +22,13 @@ System's Jacobian or its differences: :mod:`tumble.kernels.loops.tangent_loop`).
 
 import numpy as np
 
-from ..jit import jit
+from ..jit import jit, rebound
 from .tangent_loop import WORK_EXTRA
 
-__all__ = ["LAYOUT", "MEGNO_SCALARS", "augmented_size", "layout", "make_variational_rate"]
+__all__ = ["LAYOUT", "MEGNO_SCALARS", "augmented_size", "layout", "make_variational_rate", "variational"]
+
+# What the template variational reads, until a copy reads its own (rebound).
+rate = tangents = None
 
 #: The MEGNO scalars after the log-growths: ``Ys``, ``Yss``, ``∫ Yss dt`` (= ``∫ t <Y> dt``) and ``∫ <Y> dt``.
 MEGNO_SCALARS = 4
@@ -46,37 +49,39 @@ def layout(n, k, unit, megno):
     return np.array([n, k, 1.0 if unit else 0.0, 1.0 if megno else 0.0])
 
 
-def make_variational_rate(rate, tangents):
+def make_variational_rate(rate, tangents, key=None):
     """``variational(t, Y, p, dYdt)``: the rate of the augmented state (the module docstring) of a system given by
     ``rate(t, y, p, dydt)`` and ``tangents(t, y, V, p, out, work)``; ``p`` is the system's parameters followed by
-    :func:`layout`'s numbers."""
+    :func:`layout`'s numbers. A copy of :func:`variational` that reads them as its globals
+    (:func:`tumble.kernels.jit.rebound`): cached on disk under ``key``, compiled in each process without it."""
+    return rebound(("variational",), globals(), key, rate=rate, tangents=tangents)["variational"]
 
-    @jit(cache=False)
-    def variational(t, Y, p, dY):
-        last = p.shape[0] - LAYOUT
-        n, k, unit, megno = int(p[last]), int(p[last + 1]), p[last + 2] != 0.0, p[last + 3] != 0.0
-        q = p[:last]
-        vectors = n + k * n
-        rate(t, Y[:n], q, dY[:n])
-        V = Y[n:vectors].reshape((k, n))
-        JV = dY[n:vectors].reshape((k, n))
-        tangents(t, Y[:n], V, q, JV, np.empty((n + WORK_EXTRA, n)))
-        for r in range(k):
-            growth = 0.0
-            if unit:
-                size = 0.0
-                for j in range(n):
-                    growth += V[r, j] * JV[r, j]
-                    size += V[r, j] * V[r, j]
-                growth /= size
-                for j in range(n):
-                    JV[r, j] -= growth * V[r, j]
-            dY[vectors + r] = growth
-        if megno:
-            m = vectors + k
-            dY[m] = 2.0 * t * dY[vectors]
-            dY[m + 1] = Y[m] / t if t != 0.0 else 0.0
-            dY[m + 2] = Y[m + 1]
-            dY[m + 3] = Y[m + 1] / t if t != 0.0 else 0.0
 
-    return variational
+@jit(cache=False, contract=False)  # a template over the globals rate, tangents: its copies run
+def variational(t, Y, p, dY):
+    last = p.shape[0] - LAYOUT
+    n, k, unit, megno = int(p[last]), int(p[last + 1]), p[last + 2] != 0.0, p[last + 3] != 0.0
+    q = p[:last]
+    vectors = n + k * n
+    rate(t, Y[:n], q, dY[:n])
+    V = Y[n:vectors].reshape((k, n))
+    JV = dY[n:vectors].reshape((k, n))
+    tangents(t, Y[:n], V, q, JV, np.empty((n + WORK_EXTRA, n)))
+    for r in range(k):
+        growth = 0.0
+        if unit:
+            size = 0.0
+            for j in range(n):
+                growth += V[r, j] * JV[r, j]
+                size += V[r, j] * V[r, j]
+            growth /= size
+            for j in range(n):
+                JV[r, j] -= growth * V[r, j]
+        dY[vectors + r] = growth
+    if megno:
+        m = vectors + k
+        dY[m] = 2.0 * t * dY[vectors]
+        dY[m + 1] = Y[m] / t if t != 0.0 else 0.0
+        dY[m + 2] = Y[m + 1]
+        dY[m + 3] = Y[m + 1] / t if t != 0.0 else 0.0
+

@@ -44,7 +44,8 @@ from .. import tableaux
 from ..tableaux import TABLEAUX
 from ..loops.tangent_loop import DIFFERENCE_STEP
 
-__all__ = ["NotScalar", "SYSTEM_CODES", "block_constants", "block_step", "block_trial", "cacheable", "runs", "scalar_rate", "scalar_tangent",
+__all__ = ["NotScalar", "SYSTEM_CODES", "block_constants", "block_step", "block_trial", "cacheable", "functions_key", "runs",
+           "scalar_rate", "scalar_tangent",
            "system_code", "tangent_code", "tangent_step"]
 
 #: The smallest code of a user's System (below: the built-in models' codes and the free body's).
@@ -295,6 +296,29 @@ def _code(texts, reads):
         return SYSTEM_CODES + (1 << 60) + next(_UNCACHED)
     digest = hashlib.sha256("\n".join([str(GENERATOR_VERSION), *texts, reads]).encode()).hexdigest()
     return SYSTEM_CODES + int(digest[:12], 16)
+
+
+def functions_key(*functions):
+    """A string naming what ``functions`` (a user's rate and Jacobian; None for one it has not) compute, the same in
+    every process: a hash of their source and of what they read (:func:`_reads`), for the loops compiled over them
+    (:func:`tumble.kernels.jit.rebound`); None when one cannot be keyed (its file edited since it was imported, a lambda
+    or a notebook cell without source, a read of an object of another kind)."""
+    texts = [str(GENERATOR_VERSION)]
+    for fn in functions:
+        fn = getattr(fn, "py_func", fn)
+        if fn is None:
+            texts.append("None")
+            continue
+        reads = _reads(fn)
+        try:
+            current = _source_is_current(fn)
+            source = inspect.getsource(fn)
+        except (OSError, TypeError, AttributeError):
+            return None
+        if reads is None or not current:
+            return None
+        texts.append(source + reads)
+    return hashlib.sha256("\n".join(texts).encode()).hexdigest()[:16]
 
 
 def cacheable(code):
