@@ -30,13 +30,12 @@ import platform
 import sys
 import time
 import warnings
-from datetime import date
 from pathlib import Path
 
 import numba
 import numpy as np
 import xarray as xr
-from provenance import source_digest  # benchmarks/provenance.py
+from provenance import source_digest, stamp  # benchmarks/provenance.py
 
 import tumble
 from tumble.engine.sampling import perturbed_spins, seed_entropy
@@ -568,7 +567,7 @@ def main(argv=None):
     started = time.perf_counter()
     digest = source_digest()
     report = dict(
-        date=str(date.today()), source_digest=digest,
+        stamp(), source_digest=digest,  # machine, vector width, date, commit; machine in detail below
         machine=dict(platform=platform.platform(), processor=platform.processor() or platform.machine(),
                      cpu_count=os.cpu_count(), vector_width=timing.vector_width(),
                      numba_threads=numba.get_num_threads()),

@@ -31,7 +31,7 @@ from tumble.kernels.loops.methods import METHODS
 from tumble.physics import exact
 
 sys.path.insert(0, str(Path(__file__).parent))
-from provenance import source_digest  # noqa: E402
+from provenance import source_digest, stamp as provenance_stamp  # noqa: E402
 import timing  # noqa: E402  (benchmarks/timing.py)
 
 RESULTS = Path(__file__).with_name("results")
@@ -90,7 +90,7 @@ def main():
             "numba": numba.__version__, "python": platform.python_version(), "tumble_sources": source_digest(),
             "samples": SAMPLES, "t_end": T_END, "dt": DT, "save_every": SAVE_EVERY, "repeats": REPEATS}
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "attitude.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=1))
+    (RESULTS / "attitude.json").write_text(json.dumps({**provenance_stamp(), "meta": meta, "rows": rows}, indent=1))
     lines = [
         "# Attitude: cost when not asked, and when asked",
         "",

@@ -39,7 +39,7 @@ import tumble
 from tumble.measure.chaos_scenes import initial_states, map_grid
 
 import chaos_peers
-from provenance import source_digest
+from provenance import source_digest, stamp
 from timing import machine, median_seconds, vector_width
 
 #: ``<Y>`` above this is chaotic.
@@ -193,7 +193,7 @@ def main():
     keep = ("tool", "settings", "seconds", "setup_seconds", "measured", "agreement", "lyapunov_mean", "lyapunov_error",
             "equal_accuracy")
     (args.out / "chaos.json").write_text(json.dumps({
-        "date": str(datetime.date.today()), "machine": machine(), "sources": source_digest(),
+        **stamp(), "sources": source_digest(),
         "grid": args.grid, "horizon": args.horizon, "copies": args.copies,
         "reference": {"settings": reference["settings"], "seconds": reference["seconds"],
                       "chaotic_fraction": float(np.mean(reference["megno"] > CHAOTIC_ABOVE)),

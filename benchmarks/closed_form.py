@@ -17,7 +17,6 @@ slowest thread): the load average at the start is recorded with the results.
 import json
 import os
 import time
-from datetime import date
 from pathlib import Path
 
 import numba
@@ -26,7 +25,8 @@ import numpy as np
 from tumble.kernels.closed_form import elliptic as ell
 from tumble.physics import exact
 
-import timing  # benchmarks/timing.py (the script's folder is on sys.path)
+import provenance  # benchmarks/provenance.py (the script's folder is on sys.path)
+import timing  # benchmarks/timing.py
 
 RESULTS = Path(__file__).with_name("results")
 MOMENTS = (1.0, 2.0, 3.0)
@@ -116,7 +116,7 @@ def main():
     load = os.getloadavg()[0]
     rng = np.random.default_rng(0)
     t = np.linspace(0.0, 40.0, TIMES)
-    report = {"date": str(date.today()), "machine": machine, "threads": numba.config.NUMBA_NUM_THREADS,
+    report = {**provenance.stamp(), "machine": machine, "threads": numba.config.NUMBA_NUM_THREADS,
               "load_average": load, "samples": SAMPLES, "times": TIMES, "regimes": {}}
     report["one_time"] = {}
     for label, w0 in regimes(rng).items():

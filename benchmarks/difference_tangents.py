@@ -17,14 +17,12 @@ Writes ``benchmarks/results/difference_tangents.md`` and ``.json``. Accuracy onl
 
 import json
 import math
-import platform
 import sys
 import warnings
-from datetime import date
 from pathlib import Path
 
 import numpy as np
-from provenance import source_digest  # benchmarks/provenance.py
+from provenance import source_digest, stamp  # benchmarks/provenance.py
 
 import tumble
 from tumble.kernels.loops import sample_loop
@@ -94,8 +92,8 @@ def main():
     parameters = dict(zip(("I1", "I2", "I3", "mgl", "c1", "c2", "c3"), top_p.tolist()))
     exponents, error, said = exponent_error(top, hand_written_systems.HEAVY_TOP, chaotic, 30.0, 0.01, parameters)
     results = {
-        "date": date.today().isoformat(), "machine": f"{platform.processor() or platform.machine()}",
-        "source": source_digest(), "numpy": np.__version__, "angle_like": angle_rows, "unit_scale": unit_rows,
+        **stamp(), "source": source_digest(), "numpy": np.__version__, "angle_like": angle_rows,
+        "unit_scale": unit_rows,
         "heavy_top_chaotic": {"exponents": exponents, "exponent_error": error, "warnings": said},
     }
     RESULTS.mkdir(exist_ok=True)

@@ -63,7 +63,6 @@ import tumble
 from tumble.measure.precision import time_to_error
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import timing  # noqa: E402  (benchmarks/timing.py)
 import provenance  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
@@ -367,8 +366,7 @@ def main(argv=None):
     load_after = os.getloadavg()
 
     result = {
-        "date": date.today().isoformat(), "commit": provenance.commit(), "tumble_source_digest": provenance.source_digest(),
-        "machine": timing.machine(), "vector_width": timing.vector_width(), "cores": os.cpu_count(),
+        **provenance.stamp(), "tumble_source_digest": provenance.source_digest(), "cores": os.cpu_count(),
         "numba_threads": numba.get_num_threads(),
         "versions": {"tumble": tumble.__version__, "numpy": np.__version__, "numba": numba.__version__,
                      "scipy": scipy.__version__, "python": sys.version.split()[0]},

@@ -13,7 +13,6 @@ import json
 import subprocess
 import sys
 import time
-from datetime import date
 from pathlib import Path
 
 import numba
@@ -27,7 +26,8 @@ from tumble.kernels.steps.codegen import multiplies_per_sample_step
 from tumble.kernels.jit import jit
 from tumble.kernels.loops.methods import METHODS, run
 
-import timing  # benchmarks/timing.py (the script's folder is on sys.path)
+import provenance  # benchmarks/provenance.py (the script's folder is on sys.path)
+import timing  # benchmarks/timing.py
 
 RESULTS = Path(__file__).with_name("results")
 MOMENTS = np.array([1.0, 2.0, 3.0])
@@ -260,7 +260,7 @@ def main(parts=None):
     machine = timing.machine()
     store = RESULTS / "engine.json"
     report = json.loads(store.read_text()) if parts and store.exists() else {}
-    report.update(date=str(date.today()), machine=machine, threads=numba.get_num_threads())
+    report.update(provenance.stamp(), machine=machine, threads=numba.get_num_threads())
     for name in parts or PARTS:
         report[name] = PARTS[name]()
     store.write_text(json.dumps(report, indent=1))

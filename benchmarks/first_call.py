@@ -352,8 +352,11 @@ def _seconds(value):
 def report(rows, runs, repeats, warm, load, out, quiet=False):
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%MZ")
     box = machine()
+    import provenance  # benchmarks/provenance.py (imports tumble: here, not in the probes)
+
     (out / "first_call.json").write_text(json.dumps(
-        {"date": stamp, "machine": box, "load_average": load, "repeats_empty": repeats, "repeats_warm": warm,
+        {**provenance.stamp(), "date": stamp, "machine": box, "load_average": load, "repeats_empty": repeats,
+         "repeats_warm": warm,
          "targets_seconds": TARGETS, "rows": rows, "runs": runs}, indent=1) + "\n")
     lines = [f"# First call of each entry point — {stamp}", "",
              f"Machine: {box['processor']}, {box['cores']} cores, {box['vector_width']}, numba {box['numba']}, "

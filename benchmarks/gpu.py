@@ -1130,6 +1130,7 @@ def main(argv=None):
         return 1
 
     sys.path.insert(0, str(Path(__file__).parent))
+    import provenance
     import timing
 
     out.mkdir(parents=True, exist_ok=True)
@@ -1139,7 +1140,8 @@ def main(argv=None):
     print(f"GPU: {info['name']}; FP64 peak {info.get('fp64_peak') or 0:.3g} FLOP/s ({info['peak_source']})",
           flush=True)
     problem = Problem(samples, steps)
-    report = dict(date=datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"), quick=quick, simulator=simulator,
+    report = dict(provenance.stamp(), date=datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"), quick=quick,
+                  simulator=simulator,
                   gpu_info=info, machine=timing.machine(), load_average=os.getloadavg()[0], versions=versions(),
                   row_stack_patched=patched, repeats=repeats, tumble=tumble.__version__,
                   problem=dict(samples=samples, steps=steps, t_end=problem.t_end, dt=DT, eps=EPS),

@@ -35,7 +35,8 @@ import numpy as np
 import tumble
 from tumble.pipeline import runner
 
-import timing  # benchmarks/timing.py (the script's folder is on sys.path)
+import provenance  # benchmarks/provenance.py (the script's folder is on sys.path)
+import timing  # benchmarks/timing.py
 
 RESULTS = Path(__file__).with_name("results")
 TUMBLE = [sys.executable, "-m", "tumble"]  # `python -m tumble` is the console script's code without its wrapper
@@ -119,7 +120,7 @@ def in_process_rows(repeats, out):
 def report(shell, inside, repeats, load):
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%MZ")
     machine = timing.machine()
-    data = {"date": stamp, "machine": machine, "vector_width": timing.vector_width(), "load_average": load,
+    data = {**provenance.stamp(), "date": stamp, "machine": machine, "load_average": load,
             "repeats": repeats, "shell_seconds": {k: {"median": v[0], "runs": v[1]} for k, v in shell.items()},
             "in_process_seconds": inside, "targets_seconds": TARGETS}
     (RESULTS / "latency.json").write_text(json.dumps(data, indent=1) + "\n")

@@ -15,7 +15,6 @@ import json
 import os
 import sys
 import time
-from datetime import date
 from pathlib import Path
 
 import numba
@@ -25,7 +24,8 @@ import tumble
 from tumble.measure import model_scenes
 from tumble.pipeline import config, runner
 
-import timing  # benchmarks/timing.py (the script's folder is on sys.path)
+import provenance  # benchmarks/provenance.py (the script's folder is on sys.path)
+import timing  # benchmarks/timing.py
 
 RESULTS = Path(__file__).with_name("results")
 REPEATS = 3
@@ -58,7 +58,7 @@ def main():
     kinds, counts = np.unique(ds.kind.values, return_counts=True)
     sample_steps = sum(p.plan.n_steps for p in plans) * job.samples
     load_after = " ".join(Path("/proc/loadavg").read_text().split()[:3])
-    report = {"date": str(date.today()), "machine": machine, "threads": numba.get_num_threads(), "scenes": n,
+    report = {**provenance.stamp(), "machine": machine, "threads": numba.get_num_threads(), "scenes": n,
               "samples": job.samples, "first": first, "study": whole, "planning": planning, "measuring": t_batched,
               "chunk": step, "same_bits": same, "sample_steps": sample_steps,
               "kinds": dict(zip(kinds.astype(str).tolist(), counts.tolist())),

@@ -18,7 +18,6 @@ import sys
 import tempfile
 import textwrap
 import time
-from datetime import date
 from pathlib import Path
 
 import numba
@@ -29,7 +28,8 @@ from tumble.kernels import METHODS, model_methods, run, run_model, tableaux
 from tumble.kernels.jit import jit
 from tumble.kernels.systems import heavy_top
 
-import timing  # benchmarks/timing.py (the script's folder is on sys.path)
+import provenance  # benchmarks/provenance.py (the script's folder is on sys.path)
+import timing  # benchmarks/timing.py
 
 RESULTS = Path(__file__).with_name("results")
 MOMENTS = np.array([1.0, 2.0, 3.0])
@@ -181,7 +181,7 @@ def main():
     load_after = _load_average()
     cold = cold_compile_seconds()
     machine = timing.machine()
-    result = dict(date=str(date.today()), machine=machine, threads=numba.get_num_threads(), samples=SAMPLES,
+    result = dict(provenance.stamp(), machine=machine, threads=numba.get_num_threads(), samples=SAMPLES,
                   steps=STEPS, repeats=REPEATS, quick=quick, load_before=load_before, load_after=load_after,
                   cold_compile_seconds=cold, rows=rows, generic=generic_rows, generic_compile_seconds=generic_compile)
     RESULTS.mkdir(exist_ok=True)

@@ -1,8 +1,11 @@
 """What the benchmarks record about the code they measured."""
 
 import hashlib
+import os
+import platform
 import subprocess
 import sys
+from datetime import datetime, timezone
 from pathlib import Path
 
 import tumble
@@ -28,3 +31,60 @@ def commit():
                               text=True, check=True).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
+
+
+def _cpu_flags():
+    """The CPU's feature flags: /proc/cpuinfo's ``flags`` line, else LLVM's view of the host (what numba compiles
+    for)."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("flags"):
+                return set(line.split(":", 1)[1].split())
+    except OSError:
+        pass
+    try:
+        import llvmlite.binding as llvm
+
+        return {name for name, on in llvm.get_host_cpu_features().items() if on}
+    except Exception:  # noqa: BLE001 - no flags to be had: the width is unknown
+        return set()
+
+
+def vector_width():
+    """``"AVX-512"`` (8 doubles a register), ``"AVX2"`` (4) or ``"unknown"``: the widest x86 SIMD the CPU offers."""
+    flags = _cpu_flags()
+    return "AVX-512" if "avx512f" in flags else "AVX2" if "avx2" in flags else "unknown"
+
+
+def machine():
+    """``"<processor>, <cores> cores, <vector width>, numba <version>"``: the processor's model name where
+    /proc/cpuinfo gives it."""
+    import numba
+
+    try:
+        model = next((line.split(":", 1)[1].strip() for line in Path("/proc/cpuinfo").read_text().splitlines()
+                      if line.startswith("model name")), "")
+    except OSError:
+        model = ""
+    return (f"{model or platform.processor() or platform.machine()}, {os.cpu_count()} cores, {vector_width()}, "
+            f"numba {numba.__version__}")
+
+
+def _edited():
+    """Whether the checkout's tracked files under tumble/ differ from its commit."""
+    try:
+        return bool(subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", str(PACKAGE)],
+                                   cwd=Path(__file__).parent, capture_output=True, text=True,
+                                   check=True).stdout.strip())
+    except (OSError, subprocess.CalledProcessError):
+        return False
+
+
+def stamp():
+    """What every results file of the benchmarks holds about its run: ``{"machine", "vector_width", "date",
+    "commit"}`` (date in UTC, ``YYYY-MM-DD``; the commit marked when tumble/ had uncommitted edits).
+    ``benchmarks/tables.py`` states them under every table it renders from the file."""
+    measured = commit()
+    return {"machine": machine(), "vector_width": vector_width(),
+            "date": datetime.now(timezone.utc).date().isoformat(),
+            "commit": measured + (" (tumble/ edited, uncommitted)" if measured != "unknown" and _edited() else "")}

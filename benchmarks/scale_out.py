@@ -32,7 +32,8 @@ import numba
 import tumble
 from tumble.pipeline import config, distributed, runner
 
-import timing  # benchmarks/timing.py (the script's folder is on sys.path)
+import provenance  # benchmarks/provenance.py (the script's folder is on sys.path)
+import timing  # benchmarks/timing.py
 
 RESULTS = Path(__file__).with_name("results")
 REPEATS = 3
@@ -139,7 +140,8 @@ def main():
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "scale_out.md").write_text("\n".join(lines) + "\n")
     (folder / "scale_out.json").write_text(json.dumps(
-        {"date": stamp, "machine": machine, "scenes": scenes, "samples": samples, "chunk_scenes": chunk,
+        {**provenance.stamp(), "date": stamp, "machine": machine, "scenes": scenes, "samples": samples,
+         "chunk_scenes": chunk,
          "timings_s": timings, "medians_s": medians, "client_cpu_s": client_cpu, "speedup_2_over_1_worker": speedup,
          "resume_read_s": read, "resume_rerun_s": rerun}, indent=2) + "\n")
     print("\n".join(lines))

@@ -22,7 +22,6 @@ import resource
 import subprocess
 import sys
 import time
-from datetime import date
 from pathlib import Path
 
 import numba
@@ -33,7 +32,8 @@ from tumble.measure import scans
 from tumble.measure.records import assemble_scan
 from tumble.pipeline import config, runner
 
-import timing  # benchmarks/timing.py (the script's folder is on sys.path)
+import provenance  # benchmarks/provenance.py (the script's folder is on sys.path)
+import timing  # benchmarks/timing.py
 
 RESULTS = Path(__file__).with_name("results")
 REPEATS = 3
@@ -87,7 +87,7 @@ def main(parts=()):
     assemble = median_seconds(lambda: assemble_scan(job.layout, records, job.body_coords))
 
     big = big_map() if "big" in parts else None
-    report = {"date": str(date.today()), "machine": machine, "threads": numba.get_num_threads(), "scenes": n,
+    report = {**provenance.stamp(), "machine": machine, "threads": numba.get_num_threads(), "scenes": n,
               "samples": job.samples, "study_first": first, "study": whole, "planning": planning,
               "batched": t_batched, "one_by_one": t_single, "assemble": assemble, "same_bits": same, "big": big}
     (RESULTS / "scan.json").write_text(json.dumps(report, indent=1))

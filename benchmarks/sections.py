@@ -20,7 +20,6 @@ import json
 import math
 import sys
 import time
-from datetime import date
 from pathlib import Path
 
 import numpy as np
@@ -103,8 +102,7 @@ def main(quick=False):
         theirs_error = max(theirs_error, float(np.abs(theirs_t[:k] - reference[:k]).max(initial=0.0)))
 
     result = {
-        "date": date.today().isoformat(), "commit": provenance.commit(), "machine": timing.machine(),
-        "vector_width": timing.vector_width(), "releases": n, "t_end_s": t_end, "rtol": RTOL, "atol": ATOL,
+        **provenance.stamp(), "releases": n, "t_end_s": t_end, "rtol": RTOL, "atol": ATOL,
         "crossings": crossings, "tumble_s": ours, "tumble_compile_s": compile_s,
         "scipy_subset": int(subset), "scipy_s_scaled": scipy_s, "speedup": scipy_s / ours,
         "crossing_time_error_tumble_s": ours_error, "crossing_time_error_scipy_s": theirs_error,

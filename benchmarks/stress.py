@@ -45,13 +45,12 @@ import platform
 import sys
 import time
 import warnings
-from datetime import date
 from pathlib import Path
 
 import numba
 import numpy as np
 import xarray as xr
-from provenance import source_digest  # benchmarks/provenance.py
+from provenance import source_digest, stamp  # benchmarks/provenance.py
 
 import tumble
 from tumble.engine.ensemble import DEFAULT_DRIFT_LIMIT, run_ensemble
@@ -1216,7 +1215,7 @@ def main(argv=None):
     started = time.perf_counter()
     digest = source_digest()
     report = dict(
-        date=str(date.today()), quick=bool(args.quick), settings=settings, source_digest=digest,
+        stamp(), quick=bool(args.quick), settings=settings, source_digest=digest,  # machine in detail below
         machine=dict(platform=platform.platform(), cpu_count=os.cpu_count(), vector_width=timing.vector_width(),
                      numba_threads=numba.get_num_threads()),
         versions=dict(tumble=tumble.__version__, numpy=np.__version__, numba=numba.__version__,

@@ -23,7 +23,6 @@ import tempfile
 import textwrap
 import time
 import warnings
-from datetime import date
 from pathlib import Path
 
 import numpy as np
@@ -31,7 +30,8 @@ import numpy as np
 import tumble
 from tumble.engine import system_runs
 
-import timing  # benchmarks/timing.py (the script's folder is on sys.path)
+import provenance  # benchmarks/provenance.py (the script's folder is on sys.path)
+import timing  # benchmarks/timing.py
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
@@ -134,7 +134,7 @@ def main(quick=False):
                      "sample_steps_per_s": len(y) * steps / seconds,
                      "vs_built_in": seconds / megno["built-in HeavyTop"]})
     empty, warm = first_calls()
-    result = {"date": date.today().isoformat(), "machine": timing.machine(), "vector_width": timing.vector_width(),
+    result = {**provenance.stamp(),
               "quick": quick, "repeats": repeats, "rows": rows,
               "first_call": {"empty_cache_s": empty, "warm_cache_s": warm}}
     RESULTS.mkdir(exist_ok=True)

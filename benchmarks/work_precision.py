@@ -30,12 +30,12 @@ import math
 import os
 import sys
 import time
-from datetime import date
 from pathlib import Path
 
 import numba
 import numpy as np
 
+import provenance  # benchmarks/provenance.py (the script's folder is on sys.path)
 from tumble.measure.precision import WARM_UP_SECONDS, speedups, time_to_error, work_precision
 from tumble.output.io import write_dataset
 
@@ -238,7 +238,7 @@ def main(argv=None):
     report = _report(ds, table, rows, load_before, load_after, elapsed, settings)
     solvers = [str(s) for s in ds.solver.values]
     numbers = {
-        "date": str(date.today()), "attrs": {k: (v if isinstance(v, (str, int, float)) else str(v))
+        **provenance.stamp(), "attrs": {k: (v if isinstance(v, (str, int, float)) else str(v))
                                              for k, v in ds.attrs.items()},
         "settings": {k: v for k, v in settings.items()}, "elapsed_s": elapsed,
         "targets": {"best_tumble_x_dop853": TARGET_BEST_TUMBLE, "exact_x_dop853": TARGET_EXACT,

@@ -3,8 +3,9 @@
 Directives (used from the Markdown pages under ``docs/reference/``), each writing Markdown that MyST parses:
 
 ``tumble-api``
-    The Python API: every name of ``tumble.__all__``, a function or class by autodoc, a module (``tumble.exact``,
-    ...) with the members of its ``__all__``.
+    The Python API, grouped by task (:data:`API_GROUPS`): every name of ``tumble.__all__``, a function or class by
+    autodoc, a module (``tumble.exact``, ...) with the members of its ``__all__`` but the internals
+    (:data:`INTERNAL`).
 ``tumble-study-keys``
     Every field of a study with its default, units, allowed values and doc, and every ``[scan]`` key with the field it
     replaces: all from the one description of a study, :data:`tumble.pipeline.schema.FIELDS` (which also writes
@@ -259,20 +260,70 @@ API_FOLDER = "reference/api"
 _CONSTANT = re.compile(r"[A-Z][A-Z0-9_]*")
 
 
-def api_sections():
-    """``[(title, public module name or None, [public dotted names])]``: ``tumble.__all__``'s functions and classes,
-    then each public module (``tumble.exact``, ...) with the functions and classes of its ``__all__`` (its constants
-    are documented on the module's page)."""
+#: The API index's groups, by task: (title, what the group is for, public names of ``tumble.__all__``: functions and
+#: classes, and modules whose public members follow in a subsection each). Every public name of ``tumble.__all__`` is
+#: in one group; one that is not fails the build (:func:`api_groups`).
+API_GROUPS = (
+    ("Bodies and models", "What spins: a rigid body from its moments or its shape, the models beyond the free body, a "
+     "user's own system, and the quaternions of an attitude.", ("Body", "System", "shapes", "models", "rotations")),
+    ("Integrate", "Step an ensemble of initial states, or evaluate it in closed form, and draw the ensemble.",
+     ("integrate", "propagate", "run_ensemble", "section", "sampling")),
+    ("Measure and scan", "Growth rates and frequencies of perturbed spins against linear theory: one scene, a scan of "
+     "scenes, the laws fitted over a scan, and one spin's orientation for the figures.",
+     ("measure", "scan", "inertia_triangle", "regress_scan", "flip_time_law", "attitude_trace")),
+    ("Exact solution", "The torque-free motion in closed form (Jacobi elliptic functions), and the linear theory of "
+     "steady spins that the measurements are compared with.", ("exact", "theory")),
+    ("Chaos", "Indicators of chaos for any system: Lyapunov spectra, MEGNO and GALI.", ("lyapunov", "megno", "gali")),
+    ("Check", "Another simulator's trajectory against the exact solution.", ("check",)),
+    ("Studies", "A study file (or mapping) run from end to end, as `tumble run` runs it.", ("run_study",)),
+    ("I/O", "Result files: written atomically with their provenance, read back checked.", ("io",)),
+)
+
+#: Members of the public modules' ``__all__`` that are internals, left out of the API index and without pages: the
+#: closed form's device and row-level entry points (below the checks of :func:`tumble.exact.omega`), the sampling's
+#: unchecked draw, the helpers of :func:`tumble.io.write_dataset`, and the plain-array record the kernels read.
+INTERNAL = re.compile(r"tumble\.(exact\.(\w+_on_device|attitude_rows)|sampling\.drawn_spins"
+                      r"|io\.(assume_no_dask_arrays|netcdf_safe_attrs|stored_form|provenance)|models\.Transverse)")
+
+
+def api_groups():
+    """``[(title, what it is for, [(public module name or None, [public dotted names])])]``, in the order of
+    :data:`API_GROUPS`: per group, its functions and classes of ``tumble.__all__`` (module None), then each of its
+    public modules (``tumble.exact``, ...) with the functions and classes of its ``__all__`` but :data:`INTERNAL`
+    (its constants are documented on the module's page). A public name in no group is a warning (the build with
+    ``-W`` fails)."""
     import tumble
 
     modules = _public_modules()
-    top = [f"tumble.{name}" for name in tumble.__all__ if not name.startswith("_") and name not in modules]
-    sections = [("Functions and classes", None, top)]
-    for name, module in modules.items():
-        members = [f"tumble.{name}.{member}" for member in getattr(module, "__all__", ())
-                   if not _CONSTANT.fullmatch(member)]
-        sections.append((f"tumble.{name}", f"tumble.{name}", members))
-    return sections
+    public = [name for name in tumble.__all__ if not name.startswith("_")]
+    grouped = {name for _, _, names in API_GROUPS for name in names}
+    for name in public:
+        if name not in grouped:
+            logger.warning(f"tumble.{name} is in no group of the API index: add it to API_GROUPS in {__file__}")
+    groups = []
+    for title, intro, names in API_GROUPS:
+        parts = []
+        top = [f"tumble.{name}" for name in names if name in public and name not in modules]
+        if top:
+            parts.append((None, top))
+        for name in names:
+            if name in modules:
+                members = [f"tumble.{name}.{member}" for member in getattr(modules[name], "__all__", ())
+                           if not _CONSTANT.fullmatch(member) and not INTERNAL.fullmatch(f"tumble.{name}.{member}")]
+                parts.append((f"tumble.{name}", members))
+        groups.append((title, intro, parts))
+    return groups
+
+
+def api_sections():
+    """``[(title, public module name or None, [public dotted names])]``: the parts of :func:`api_groups` in order, a
+    group's functions and classes under the group's title, a module's members under the module's name."""
+    return [(module or title, module, names) for title, _, parts in api_groups() for module, names in parts]
+
+
+def public_objects():
+    """``{public dotted name: object}`` of every function and class the API index lists (:func:`api_sections`)."""
+    return {name: _resolve(name) for _, _, names in api_sections() for name in names}
 
 
 def _resolve(dotted):
@@ -372,17 +423,18 @@ def write_api_pages(app):
 
 
 def api_reference():
-    """Markdown of the API's index page: per section a summary table of its public names, linked to their pages
-    (``write_api_pages``); each module's heading links its page."""
+    """Markdown of the API's index page: per group of :data:`API_GROUPS` (by task) what it is for and a summary table
+    of its functions and classes, then a subsection per public module of the group, whose heading links the module's
+    page, with a summary table of its members; all linked to their pages (``write_api_pages``)."""
     folder = API_FOLDER.rsplit("/", 1)[-1]
     lines, modules = [], []
-    for title, module, names in api_sections():
-        if module:
-            modules.append(module)
-            lines += [f"## [`{title}`]({folder}/{module}.md)", "", summary(_resolve(module)), ""]
-        else:
-            lines += [f"## {title}", ""]
-        lines += [summary_table(names), ""]
+    for title, intro, parts in api_groups():
+        lines += [f"## {title}", "", intro, ""]
+        for module, names in parts:
+            if module:
+                modules.append(module)
+                lines += [f"### [`{module}`]({folder}/{module}.md)", "", summary(_resolve(module)), ""]
+            lines += [summary_table(names), ""]
     lines += ["```{toctree}", ":hidden:", "", *(f"{folder}/{module}" for module in modules), "```", ""]
     return "\n".join(lines)
 

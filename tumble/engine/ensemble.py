@@ -394,6 +394,18 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
     ValueError
         An argument that is not finite, of the wrong shape or out of range (named in the message), an unknown
         method, a method that cannot serve the request, a torque profile shorter than its steps.
+
+    See Also
+    --------
+    tumble.integrate : The states at stored times, as a Dataset.
+    tumble.measure : A scene: an ensemble run with the observers its fits need.
+
+    Examples
+    --------
+    >>> import tumble
+    >>> res = tumble.run_ensemble(tumble.Body(1.0, 2.0, 3.0), [[0.01, 1.0, 0.0]], 2.0, 0.01, method="rk4")
+    >>> type(res).__name__, res.final.shape
+    ('EnsembleResult', (1, 3))
     """
     device = resolve_device(device)  # once, here at the door: the runs below trust it
     asked = [name for name, value in (("probe_times", probe_times is not None), ("max_flips", max_flips),

@@ -103,6 +103,11 @@ def transverse_axes(axis):
     (int, int)
         ``(b, c) = (a+1, a+2)`` cyclically, 1-based, so that ``(e_a, e_b, e_c)`` is right-handed.
 
+    See Also
+    --------
+    tumble.sampling.perturbed_spins : Spins tilted from ``axis`` towards these two.
+    tumble.theory.stability_exponent : ``q`` from the moments of ``a``, ``b`` and ``c``.
+
     Examples
     --------
     >>> transverse_axes(1), transverse_axes(2), transverse_axes(3)
@@ -114,7 +119,20 @@ def transverse_axes(axis):
 
 def chunk_count(samples):
     """The number of :data:`CHUNK`-row chunks that hold an ensemble of ``samples`` (an int >= 1) spins, as an int:
-    ``ceil(samples / CHUNK)``, the length of :func:`chunk_ranges`."""
+    ``ceil(samples / CHUNK)``, the length of :func:`chunk_ranges`.
+
+    See Also
+    --------
+    tumble.sampling.chunk_ranges : The chunks' row ranges.
+
+    Examples
+    --------
+    >>> from tumble import sampling
+    >>> sampling.CHUNK
+    4096
+    >>> sampling.chunk_count(1), sampling.chunk_count(sampling.CHUNK + 1)
+    (1, 2)
+    """
     n = _samples(samples)
     return -(-n // CHUNK)
 
@@ -134,6 +152,17 @@ def chunk_ranges(samples):
     -------
     list of (int, int)
         ``chunk_count(samples)`` ranges; all but possibly the last are ``CHUNK`` long.
+
+    See Also
+    --------
+    tumble.sampling.chunk_count : How many.
+    tumble.sampling.perturbed_spins : Its ``start`` and ``stop``.
+
+    Examples
+    --------
+    >>> from tumble import sampling
+    >>> sampling.chunk_ranges(2 * sampling.CHUNK + 5)
+    [(0, 4096), (4096, 8192), (8192, 8197)]
     """
     n = _samples(samples)
     return [(lo, min(lo + CHUNK, n)) for lo in range(0, n, CHUNK)]
@@ -166,6 +195,23 @@ def seed_entropy(seed=None):
     ------
     ValueError
         If ``seed`` is not None or a non-negative integer.
+
+    See Also
+    --------
+    tumble.sampling.perturbed_spins : The ensemble a seed draws.
+    tumble.io.write_dataset : Stores the entropy (``seed_entropy=``) with a result.
+
+    Examples
+    --------
+    Fresh entropy, stored, draws the same ensemble again:
+
+    >>> from tumble import sampling
+    >>> sampling.seed_entropy(42)
+    42
+    >>> fresh = sampling.seed_entropy()
+    >>> w = sampling.perturbed_spins((1.0, 2.0, 3.0), 2, samples=4, seed=fresh)
+    >>> bool((sampling.perturbed_spins((1.0, 2.0, 3.0), 2, samples=4, seed=fresh) == w).all())
+    True
     """
     if seed is None:
         return int(np.random.SeedSequence().entropy)
@@ -292,6 +338,12 @@ def perturbed_spins(body, axis, spin=1.0, amplitude=1e-3, samples=1024, *, seed=
         Invalid body, an axis other than 1, 2, 3, a zero or non-finite spin, an amplitude out of range,
         ``samples < 1`` or not an integer, an unknown distribution or constraint, ``start``/``stop`` out of
         range, or a seed that is not a non-negative integer or None.
+
+    See Also
+    --------
+    tumble.sampling.perturbed_states : The same for a model's whole state.
+    tumble.sampling.chunk_ranges : Slices that split the ensemble between workers.
+    tumble.measure : A scene measured on such an ensemble.
 
     Examples
     --------
@@ -503,6 +555,24 @@ def perturbed_states(model, axis, spin=1.0, amplitude=1e-3, samples=1024, *, up_
     ValueError
         ``model`` is not a model; an axis the model has no steady spin about; any argument
         :func:`perturbed_spins` refuses (named in the message).
+
+    See Also
+    --------
+    tumble.sampling.perturbed_spins : The spins alone, of a free body.
+    tumble.models.HeavyTop : A model whose state goes beyond the spin.
+
+    Examples
+    --------
+    A sleeping top's states, its spin and its up vector tilted by about 1 mrad:
+
+    >>> import tumble
+    >>> from tumble import sampling
+    >>> top = tumble.models.HeavyTop((1.0, 1.0, 0.5), 0.1)
+    >>> y0 = sampling.perturbed_states(top, 3, spin=5.0, samples=4)
+    >>> y0.shape, top.spec.state
+    ((4, 6), ('w1', 'w2', 'w3', 'g1', 'g2', 'g3'))
+    >>> bool(abs(y0[:, 2] - 5.0).max() < 1e-5)
+    True
     """
     if not isinstance(model, Model):
         raise ValueError(f"model must be a tumble.physics.models model (FreeBody, Gyrostat, HeavyTop, "

@@ -150,6 +150,11 @@ def section(system, y0, t_end, *, surface=None, period=None, phase=0.0, directio
         Surface and period both or neither; a direction other than -1, 0, 1; ``max_crossings`` < 1; a surface
         numba cannot compile or that returns no number; a tolerance out of range (as :func:`tumble.integrate`).
 
+    See Also
+    --------
+    tumble.integrate : The whole trajectory, ``method="dop853"`` with its dense output at ``times``.
+    tumble.lyapunov : Whether the orbits a section shows are chaotic.
+
     Examples
     --------
     The free body's spins cross ``w2 = 0`` twice a period (once each way):

@@ -249,6 +249,25 @@ def check(t, omega=None, quaternion=None, *, moments=None, inertia=None, omega_f
     ------
     ValueError
         Invalid arrays (:func:`validate_trajectory`), body, option or tolerance; a zero initial spin.
+
+    See Also
+    --------
+    tumble.exact.omega : The exact solution it compares with.
+    tumble.rotations.angle_between : The attitude error.
+
+    Examples
+    --------
+    The exact solution passes; a trajectory that loses energy fails and says how:
+
+    >>> import numpy as np, tumble
+    >>> body, t = tumble.Body(1.0, 2.0, 3.0), np.linspace(0.0, 20.0, 201)
+    >>> w = tumble.exact.omega(body, [0.01, 1.0, 0.0], t)
+    >>> ds = tumble.check(t, w, moments=body.moments)
+    >>> ds.attrs["verdict"], ds.attrs["diagnosis"]
+    ('pass', '')
+    >>> bad = tumble.check(t, w * np.exp(-0.01 * t)[:, None], moments=body.moments)
+    >>> bad.attrs["verdict"], "energy_decay" in bad.attrs["diagnosis"]
+    ('fail', True)
     """
     thresholds = resolve_tolerances(tolerances)
     t, moments, omega, quaternion, recording = _on_principal_axes(t, omega, quaternion, moments, inertia, omega_frame,

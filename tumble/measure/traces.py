@@ -152,6 +152,18 @@ def attitude_trace(body, axis=2, spin=1.0, amplitude=1e-3, method="auto", *, hor
         space frame is the body frame at t = 0), ``attitude_omega(attitude_time, component)`` (rad/s) and
         ``attitude_moments(component)`` (kg m²); ``component`` is the principal axis (1, 2, 3), as in
         ``trace_omega``.
+
+    See Also
+    --------
+    tumble.exact.attitude : The closed-form attitude it reads.
+    tumble.integrate : ``attitude=True``: the attitude of a whole ensemble.
+
+    Examples
+    --------
+    >>> import tumble
+    >>> trace = tumble.attitude_trace((1.0, 2.0, 3.0), axis=2, points=50)
+    >>> sorted(trace.data_vars)
+    ['attitude_moments', 'attitude_omega', 'attitude_quaternion']
     """
     import xarray as xr
 

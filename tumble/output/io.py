@@ -357,6 +357,23 @@ def write_dataset(ds, path, *, compression=4, stored=False, **provenance_kwargs)
     OSError
         If the file cannot be written; for a full disk (which netCDF4 reports as "Permission denied" or
         ``RuntimeError: NetCDF: HDF error``) the message says so: ``the disk holding <folder> is full (...)``.
+
+    See Also
+    --------
+    tumble.io.read_dataset : Reads the file back.
+    tumble.run_study : Writes its result with this (``out=``).
+
+    Examples
+    --------
+    What is returned is what a reader gets back:
+
+    >>> import os, tempfile, tumble
+    >>> ds = tumble.measure((1.0, 2.0, 3.0), axis=2, samples=16)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     stored = tumble.io.write_dataset(ds, os.path.join(folder, "scene.nc"), title="one scene")
+    ...     back = tumble.io.read_dataset(os.path.join(folder, "scene.nc"), require_tumble=True)
+    >>> back.identical(stored), back.attrs["title"], back.attrs["source"].split()[0]
+    (True, 'one scene', 'tumble')
     """
     if (
         isinstance(compression, (bool, np.bool_))
@@ -545,6 +562,21 @@ def read_dataset(path, *, require_tumble=False):
     ValueError
         ``"<path> is not a netCDF file: ..."`` for a directory, an empty, foreign or damaged file;
         ``"<path> is not a tumble result: ..."`` with ``require_tumble``.
+
+    See Also
+    --------
+    tumble.io.write_dataset : Writes the files it reads (an example there reads one back).
+    tumble.io.check_tumble_result : The check of ``require_tumble``.
+
+    Examples
+    --------
+    >>> import os, tempfile, tumble
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = os.path.join(folder, "body.nc")
+    ...     _ = tumble.io.write_dataset(tumble.integrate((1.0, 2.0, 3.0), [0.0, 0.0, 1.0], 1.0, 0.1), path)
+    ...     ds = tumble.io.read_dataset(path, require_tumble=True)
+    >>> ds["omega"].dtype, ds["time"].dtype
+    (dtype('float64'), dtype('float64'))
     """
     import xarray as xr
 
@@ -591,6 +623,18 @@ def check_tumble_result(ds, path):
     ValueError
         ``"<path> is not a tumble result: ..."`` when the global ``source`` attribute is missing or does
         not start with ``"tumble"``.
+
+    See Also
+    --------
+    tumble.io.read_dataset : ``require_tumble=True`` reads and checks.
+
+    Examples
+    --------
+    >>> import xarray as xr, tumble
+    >>> tumble.io.check_tumble_result(xr.Dataset(attrs={"source": "elsewhere"}), "other.nc")
+    Traceback (most recent call last):
+        ...
+    ValueError: other.nc is not a tumble result: ...
     """
     source = ds.attrs.get("source")
     if not isinstance(source, str) or not source.startswith("tumble"):

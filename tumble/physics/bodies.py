@@ -89,9 +89,21 @@ class Body:
     name : str, optional
         A label used in reprs and datasets.
 
+    See Also
+    --------
+    tumble.shapes.cuboid : A body from a shape (also ``rod``, ``disc``, ``cone``, ...).
+    tumble.models : The models beyond the free body.
+    tumble.integrate : Integrate Euler's equations for an ensemble of spins.
+
     Examples
     --------
     >>> Body(1.0, 2.0, 3.0).moments
+    array([1., 2., 3.])
+
+    From an inertia tensor: the principal moments, ascending, and their axes:
+
+    >>> import numpy as np
+    >>> Body.from_tensor(np.diag([3.0, 1.0, 2.0])).moments
     array([1., 2., 3.])
     """
 

@@ -124,6 +124,17 @@ class EllipticParameters(NamedTuple):
     dn_axis : ndarray of int
         0-based index (caller's order) of the axis whose component is ``∝ dn`` (never changes sign);
         the largest-moment axis on the separatrix and for stationary spins.
+
+    See Also
+    --------
+    tumble.exact.parameters : What returns it.
+
+    Examples
+    --------
+    >>> import tumble
+    >>> p = tumble.exact.parameters((1.0, 2.0, 3.0), [0.01, 1.0, 0.0])
+    >>> isinstance(p, tumble.exact.EllipticParameters), round(float(p.K), 4), round(float(p.energy), 6)
+    (True, 5.9916, 1.00005)
     """
 
     m: np.ndarray
@@ -370,7 +381,7 @@ def first_flips(sol):
 
 
 def omega(body, w0, t):
-    """Body-frame angular velocity of the torque-free rigid body, in closed form.
+    r"""Body-frame angular velocity of the torque-free rigid body, in closed form.
 
     Landau & Lifshitz, *Mechanics*, §37 (Jacobi elliptic functions); see the module docstring for the
     formulas, the regimes and how accuracy is kept near the separatrix.
@@ -396,13 +407,55 @@ def omega(body, w0, t):
         If the moments are invalid, ``w0`` is not ``(..., 3)`` or not finite, or ``t`` is not a finite
         scalar or 1-d array.
 
+    See Also
+    --------
+    tumble.exact.period : The period of this motion.
+    tumble.exact.attitude : The orientation in space, in closed form.
+    tumble.integrate : ``method="exact"``: this solution as a Dataset.
+    tumble.check : Another simulator's trajectory against this solution.
+
     Notes
     -----
+    With the moments sorted, :math:`I_1 \le I_2 \le I_3`, the kinetic energy :math:`E` and
+    :math:`L^2 = \sum_i I_i^2 \omega_i^2`, a spin with :math:`L^2 > 2 E I_2` (nearer the axis of the largest
+    moment) moves as [1]_
+
+    .. math::
+
+        \omega_1 = A_1 \operatorname{cn} u, \qquad \omega_2 = A_2 \operatorname{sn} u, \qquad
+        \omega_3 = \pm A_3 \operatorname{dn} u, \qquad u = u_0 + \nu t,
+
+    .. math::
+
+        m = k^2 = \frac{(I_2 - I_1)(2 E I_3 - L^2)}{(I_3 - I_2)(L^2 - 2 E I_1)}, \qquad
+        \nu^2 = \frac{(I_3 - I_2)(L^2 - 2 E I_1)}{I_1 I_2 I_3},
+
+    with :math:`A_1^2 = (2 E I_3 - L^2) / (I_1 (I_3 - I_1))`, :math:`A_2^2 = (2 E I_3 - L^2) / (I_2 (I_3 - I_2))`
+    and :math:`A_3^2 = (L^2 - 2 E I_1) / (I_3 (I_3 - I_1))`; for :math:`L^2 < 2 E I_2` axes 1 and 3 exchange their
+    roles. The module docstring gives the separatrix, the symmetric top and how accuracy is kept near
+    :math:`m = 1`.
+
     One time (a scalar ``t`` or an array of one) takes the fused one-time kernel (:func:`omega_at`; for 2000 spins
     about 9x faster than the grid's set-up), which agrees with a time grid holding ``t`` to a few ulps of ``|w|``,
     not bit for bit. A grid of two or more times is set up and evaluated in one kernel call
     (:func:`tumble.kernels.closed_form.elliptic.torque_free_omega_grid`), with the bits of the set-up and the grid kernel the
     scenes call apart.
+
+    References
+    ----------
+    .. [1] L. D. Landau and E. M. Lifshitz, *Mechanics*, 3rd ed. (Pergamon, 1976), §37.
+
+    Examples
+    --------
+    A spin 0.01 rad/s off the intermediate axis flips and returns after one period:
+
+    >>> import numpy as np, tumble
+    >>> body, w0 = tumble.Body(1.0, 2.0, 3.0), [0.01, 1.0, 0.0]
+    >>> tumble.exact.omega(body, w0, np.linspace(0.0, 10.0, 5)).shape
+    (5, 3)
+    >>> T = tumble.exact.period(body, w0)
+    >>> bool(np.allclose(tumble.exact.omega(body, w0, float(T)), w0, atol=1e-9))
+    True
     """
     tt = _check_t(t)
     if tt.size == 1:
@@ -516,6 +569,23 @@ def parameters(body, w0):
     -------
     EllipticParameters
         Fields shaped ``w0.shape[:-1]`` (see :class:`EllipticParameters`).
+
+    See Also
+    --------
+    tumble.exact.omega : The motion these parameters describe.
+    tumble.exact.period : ``4 K / |nu|``.
+
+    Examples
+    --------
+    Near the intermediate axis (regime ``-1``: the smallest-moment component keeps its sign) and on it
+    (a steady spin):
+
+    >>> import tumble
+    >>> p = tumble.exact.parameters((1.0, 2.0, 3.0), [[0.01, 1.0, 0.0], [0.0, 1.0, 0.0]])
+    >>> p.regime.tolist(), p.stationary.tolist(), p.mid_axis
+    ([-1, 0], [False, True], 1)
+    >>> round(float(p.m[0]), 6), round(float(p.kc[0]), 6)
+    (0.9999, 0.01)
     """
     sol = _solve(body, w0)
     n = sol.kind.shape[0]
@@ -550,7 +620,7 @@ def parameters(body, w0):
 
 
 def period(body, w0):
-    """Period of the body-frame motion, ``4 K(m) / |nu|`` (Landau & Lifshitz §37).
+    r"""Period of the body-frame motion, ``4 K(m) / |nu|`` (Landau & Lifshitz §37).
 
     Parameters
     ----------
@@ -564,6 +634,32 @@ def period(body, w0):
     ndarray, shape (...)
         Period, s. ``2 pi / |Omega|`` for a symmetric top; ``inf`` for a stationary spin (steady rotation
         about a principal axis, any spin of a sphere, zero spin) and exactly on the separatrix.
+
+    See Also
+    --------
+    tumble.exact.flip_spacing : Half of it.
+    tumble.exact.parameters : ``K``, ``nu`` and ``m``.
+
+    Notes
+    -----
+    :math:`\operatorname{sn}` and :math:`\operatorname{cn}` have the period :math:`4K(m)` in their argument
+    :math:`u = u_0 + \nu t` (:func:`omega`), so [1]_
+
+    .. math::
+
+        T = \frac{4 K(m)}{|\nu|}, \qquad K(m) = \int_0^{\pi/2} \frac{d\theta}{\sqrt{1 - m \sin^2\theta}}.
+
+    References
+    ----------
+    .. [1] L. D. Landau and E. M. Lifshitz, *Mechanics*, 3rd ed. (Pergamon, 1976), §37.
+
+    Examples
+    --------
+    >>> import tumble
+    >>> round(float(tumble.exact.period((1.0, 2.0, 3.0), [0.01, 1.0, 0.0])), 4)
+    41.5092
+    >>> float(tumble.exact.period((1.0, 2.0, 3.0), [0.0, 1.0, 0.0]))  # a steady spin
+    inf
     """
     sol = _solve(body, w0)
     with np.errstate(divide="ignore"):
@@ -572,7 +668,7 @@ def period(body, w0):
 
 
 def flip_spacing(body, w0):
-    """Time between successive sign changes of the intermediate-axis component, ``2 K / |nu|``.
+    r"""Time between successive sign changes of the intermediate-axis component, ``2 K / |nu|``.
 
     In both regimes ``w_mid ∝ sn(u)``, which changes sign at every ``u = 2K j`` (Landau & Lifshitz §37).
 
@@ -588,13 +684,42 @@ def flip_spacing(body, w0):
     ndarray, shape (...)
         Flip spacing, s; ``inf`` where ``w_mid`` never or only once changes sign (stationary spins, the
         separatrix).
+
+    See Also
+    --------
+    tumble.exact.first_flip_time : The first flip.
+    tumble.exact.period : Twice the spacing.
+
+    Notes
+    -----
+    :math:`\omega_\mathrm{mid} \propto \operatorname{sn} u` vanishes at every :math:`u = 2Kj` [1]_, so successive flips
+    are
+
+    .. math::
+
+        \Delta t = \frac{2 K(m)}{|\nu|}
+
+    apart, half the period of the body-frame motion.
+
+    References
+    ----------
+    .. [1] L. D. Landau and E. M. Lifshitz, *Mechanics*, 3rd ed. (Pergamon, 1976), §37.
+
+    Examples
+    --------
+    >>> import tumble
+    >>> body, w0 = (1.0, 2.0, 3.0), [1e-3, 1.0, 0.0]
+    >>> round(float(tumble.exact.flip_spacing(body, w0)), 3)
+    28.731
+    >>> round(float(2 * tumble.exact.flip_spacing(body, w0) / tumble.exact.period(body, w0)), 12)
+    1.0
     """
     sol = _solve(body, w0)
     return flip_spacings(sol).reshape(sol.shape)
 
 
 def first_flip_time(body, w0):
-    """Time of the first sign change of the intermediate-axis component ``w_mid`` after ``t = 0``.
+    r"""Time of the first sign change of the intermediate-axis component ``w_mid`` after ``t = 0``.
 
     ``w_mid ∝ sn(u)`` in both regimes (Landau & Lifshitz §37), so it changes sign at the first zero of
     ``sn`` after ``u0`` in the direction of ``nu``: at ``(K - sign(nu) (u0 - K)) / |nu|`` with ``u0 - K``
@@ -614,6 +739,32 @@ def first_flip_time(body, w0):
     ndarray, shape (...)
         First flip time, s (> 0); ``inf`` where ``w_mid`` never changes sign for ``t > 0`` (stationary
         spins; separatrix spins already past their flip).
+
+    See Also
+    --------
+    tumble.exact.flip_spacing : The time between later flips.
+    tumble.theory.flip_time_asymptote : Its linear-theory estimate near the separatrix.
+
+    Notes
+    -----
+    With :math:`\omega_\mathrm{mid} \propto \operatorname{sn}(u_0 + \nu t)` [1]_ and :math:`u_0 - K` reduced into
+    :math:`(-K, K]`,
+
+    .. math::
+
+        t_1 = \frac{K - \operatorname{sign}(\nu)\,(u_0 - K)}{|\nu|}.
+
+    References
+    ----------
+    .. [1] L. D. Landau and E. M. Lifshitz, *Mechanics*, 3rd ed. (Pergamon, 1976), §37.
+
+    Examples
+    --------
+    >>> import tumble
+    >>> round(float(tumble.exact.first_flip_time((1.0, 2.0, 3.0), [1e-3, 1.0, 0.0])), 3)
+    14.366
+    >>> float(tumble.exact.first_flip_time((1.0, 2.0, 3.0), [0.0, 0.0, 1.0]))  # a steady spin never flips
+    inf
     """
     sol = _solve(body, w0)
     return first_flips(sol).reshape(sol.shape)
@@ -622,7 +773,7 @@ def first_flip_time(body, w0):
 # ---------------------------------------------------------------------------------------------------
 # The attitude: body-to-space rotation in closed form
 def attitude(body, w0, t):
-    """Orientation of the torque-free rigid body in closed form: the body-to-space rotation.
+    r"""Orientation of the torque-free rigid body in closed form: the body-to-space rotation.
 
     The space frame is the body frame at ``t = 0`` (``q(0) = 1``). In the frame where the angular momentum
     ``L`` is along ``Z``, the rotation is ``R_z(φ) R_x(θ) R_z(ψ)`` in the body axes ``(a, b, p)`` (Landau &
@@ -654,11 +805,49 @@ def attitude(body, w0, t):
     ndarray, shape (..., T, 4)
         Unit quaternions, scalar first (``v_space = q v_body q*``); shape ``(..., 4)`` for a scalar ``t``.
 
+    See Also
+    --------
+    tumble.exact.omega : The body-frame angular velocity.
+    tumble.exact.rotation_per_period : The turn per period about ``L``, by Montgomery's formula.
+    tumble.integrate : ``attitude=True``: the attitude stepped by any method.
+    tumble.rotations.rotate : Turn vectors by the quaternions.
+
     Notes
     -----
+    The precession angle about :math:`\mathbf L` obeys
+    :math:`\dot\varphi = |L| (2E - I_p \omega_p^2) / (L^2 - I_p^2 \omega_p^2)` [1]_, which with
+    :math:`\omega_p \propto \operatorname{dn} u` integrates to
+
+    .. math::
+
+        \varphi(t) = \frac{|L|\,t}{I_p} + \frac{|L|\,(I_p - I_q)}{I_q I_p \nu} \left[\Pi(u) - \Pi(u_0)\right],
+        \qquad \Pi(u) = \int_0^u \frac{du'}{1 - n \operatorname{sn}^2 u'},
+
+    an elliptic integral of the third kind, evaluated with Carlson's :math:`R_F` and :math:`R_J` [2]_.
+
     Evaluated by :mod:`tumble.kernels.closed_form.elliptic_attitude`, one sample and one time at a time, in parallel over both:
     the per-sample code the CUDA device runs too (:func:`attitude_on_device`). Carlson's ``R_J`` there agrees with
     ``scipy.special.elliprj`` to a few ulps.
+
+    References
+    ----------
+    .. [1] L. D. Landau and E. M. Lifshitz, *Mechanics*, 3rd ed. (Pergamon, 1976), §35 and §37.
+    .. [2] B. C. Carlson, "Numerical computation of real or complex elliptic integrals", Numer. Algorithms 10,
+       13 (1995).
+
+    Examples
+    --------
+    The angular momentum turned into space stays where it was at ``t = 0``:
+
+    >>> import numpy as np, tumble
+    >>> from tumble import rotations
+    >>> body, w0, t = tumble.Body(1.0, 2.0, 3.0), [0.2, 0.0, 1.0], np.linspace(0.0, 5.0, 3)
+    >>> q = tumble.exact.attitude(body, w0, t)
+    >>> q.shape, bool(np.allclose(np.linalg.norm(q, axis=-1), 1.0))
+    ((3, 4), True)
+    >>> L = rotations.rotate(q, body.moments * tumble.exact.omega(body, w0, t))
+    >>> bool(np.allclose(L, body.moments * w0))
+    True
     """
     tt = _check_t(t)
     moments = one_body(body)
@@ -707,7 +896,7 @@ def attitude_on_device(moments, w, times):
 
 
 def rotation_per_period(body, w0, *, nodes=256, max_nodes=1 << 16, tol=1e-13):
-    """Montgomery's formula for how far the body turns about ``L`` in one period of its body-frame motion.
+    r"""Montgomery's formula for how far the body turns about ``L`` in one period of its body-frame motion.
 
     After one period ``T`` (:func:`period`) the body-frame motion repeats and the body has turned about the
     fixed angular momentum by ``Δθ = 2 E T / |L| - S`` (mod 2π) (R. Montgomery, "How much does the rigid
@@ -736,6 +925,33 @@ def rotation_per_period(body, w0, *, nodes=256, max_nodes=1 << 16, tol=1e-13):
         the separatrix, a symmetric top's motion is periodic and included).
     solid_angle : ndarray, shape (...)
         ``S``, sr.
+
+    See Also
+    --------
+    tumble.exact.attitude : The same angle from the closed-form attitude.
+    tumble.exact.period : The period ``T``.
+
+    Notes
+    -----
+    After one period :math:`T` the body has turned about the fixed angular momentum by [1]_
+
+    .. math::
+
+        \Delta\theta = \frac{2 E T}{|L|} - S \pmod{2\pi},
+
+    :math:`S` the solid angle the path of :math:`\mathbf L / |L|` encloses in the body frame.
+
+    References
+    ----------
+    .. [1] R. Montgomery, "How much does the rigid body rotate? A Berry's phase from the 18th century",
+       Am. J. Phys. 59, 394 (1991).
+
+    Examples
+    --------
+    >>> import tumble
+    >>> delta, solid_angle = tumble.exact.rotation_per_period((1.0, 2.0, 3.0), [0.2, 0.0, 1.0])
+    >>> round(float(delta), 4), round(float(solid_angle), 4)
+    (6.3463, 0.0279)
     """
     moments = one_body(body)
     for name, value, low in (("nodes", nodes, 2), ("max_nodes", max_nodes, nodes)):

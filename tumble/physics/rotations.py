@@ -11,7 +11,24 @@ __all__ = ["about_axis", "angle_between", "conjugate", "product", "rotate"]
 
 
 def product(a, b):
-    """Hamilton product ``a ⊗ b`` (the rotation ``b`` first, then ``a``), shapes broadcast, last axis 4."""
+    """Hamilton product ``a ⊗ b`` (the rotation ``b`` first, then ``a``), shapes broadcast, last axis 4.
+
+    See Also
+    --------
+    tumble.rotations.conjugate : The inverse rotation.
+    tumble.rotations.about_axis : A rotation by an angle about an axis.
+
+    Examples
+    --------
+    Two quarter turns about ``x`` make a half turn:
+
+    >>> import numpy as np
+    >>> from tumble import rotations
+    >>> quarter = rotations.about_axis(np.pi / 2, 0)
+    >>> half = rotations.product(quarter, quarter)
+    >>> round(float(rotations.angle_between(half, rotations.about_axis(np.pi, 0))), 12)
+    0.0
+    """
     a0, a1, a2, a3 = np.moveaxis(np.asarray(a, dtype=float), -1, 0)
     b0, b1, b2, b3 = np.moveaxis(np.asarray(b, dtype=float), -1, 0)
     return np.stack([a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
@@ -21,14 +38,43 @@ def product(a, b):
 
 
 def conjugate(q):
-    """``q*``: the inverse rotation of a unit quaternion."""
+    """``q*``: the inverse rotation of a unit quaternion.
+
+    See Also
+    --------
+    tumble.rotations.product : ``q ⊗ q*`` is the identity.
+
+    Examples
+    --------
+    >>> from tumble import rotations
+    >>> q = rotations.about_axis(0.7, (0.0, 1.0, 1.0))
+    >>> rotations.product(q, rotations.conjugate(q)).round(12)
+    array([1., 0., 0., 0.])
+    """
     q = np.array(q, dtype=float)
     q[..., 1:] *= -1.0
     return q
 
 
 def rotate(q, v):
-    """``q v q*`` for vectors ``v`` (last axis 3), shapes broadcast."""
+    """``q v q*`` for vectors ``v`` (last axis 3), shapes broadcast.
+
+    See Also
+    --------
+    tumble.rotations.about_axis : The quaternion of a rotation.
+    tumble.integrate : ``attitude=True``: the body-to-space quaternion over time.
+
+    Examples
+    --------
+    A quarter turn about ``x`` takes ``y`` to ``z`` and ``z`` to ``−y``:
+
+    >>> import numpy as np
+    >>> from tumble import rotations
+    >>> q = rotations.about_axis(np.pi / 2, 0)
+    >>> rotations.rotate(q, [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]).round(12)
+    array([[ 0.,  0.,  1.],
+           [ 0., -1.,  0.]])
+    """
     q = np.asarray(q, dtype=float)
     v = np.asarray(v, dtype=float)
     s, u = q[..., :1], q[..., 1:]
@@ -37,7 +83,25 @@ def rotate(q, v):
 
 
 def about_axis(angle, axis):
-    """Quaternion of the rotation by ``angle`` (rad) about ``axis`` (a vector, normalised here, or 0, 1, 2)."""
+    """Quaternion of the rotation by ``angle`` (rad) about ``axis`` (a vector, normalised here, or 0, 1, 2).
+
+    See Also
+    --------
+    tumble.rotations.rotate : Turn vectors by it.
+    tumble.rotations.product : Compose rotations.
+
+    Examples
+    --------
+    A quarter turn about ``z`` (index 2) takes ``x`` to ``y``:
+
+    >>> import numpy as np
+    >>> from tumble import rotations
+    >>> q = rotations.about_axis(np.pi / 2, 2)
+    >>> q.round(4)
+    array([0.7071, 0.    , 0.    , 0.7071])
+    >>> rotations.rotate(q, (1.0, 0.0, 0.0)).round(12)
+    array([0., 1., 0.])
+    """
     angle = np.asarray(angle, dtype=float)
     if isinstance(axis, (int, np.integer)):
         n = np.zeros(3)
@@ -54,6 +118,19 @@ def about_axis(angle, axis):
 
 def angle_between(a, b):
     """Angle (rad, in [0, pi]) of the rotation that takes attitude ``b`` to attitude ``a``; 0 when they
-    are the same rotation (``a = ±b``)."""
+    are the same rotation (``a = ±b``).
+
+    See Also
+    --------
+    tumble.check : Compares a recorded attitude with the exact one by this angle.
+    tumble.exact.attitude : The exact attitude.
+
+    Examples
+    --------
+    >>> from tumble import rotations
+    >>> a, b = rotations.about_axis(0.3, (1.0, 1.0, 0.0)), rotations.about_axis(0.1, (1.0, 1.0, 0.0))
+    >>> round(float(rotations.angle_between(a, b)), 12), round(float(rotations.angle_between(a, -a)), 12)
+    (0.2, 0.0)
+    """
     d = product(a, conjugate(b))
     return 2.0 * np.arctan2(np.linalg.norm(d[..., 1:], axis=-1), np.abs(d[..., 0]))

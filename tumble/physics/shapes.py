@@ -80,6 +80,21 @@ def parallel_axis(tensor, mass, displacement):
     -------
     ndarray, shape (3, 3)
         Inertia tensor about the new point, kg m².
+
+    See Also
+    --------
+    tumble.shapes.composite : Parts joined into one body, each shifted by this theorem.
+    tumble.Body.from_tensor : Principal moments and axes of a tensor.
+
+    Examples
+    --------
+    A rod of 3 kg and 2 m along ``z``, from its centre to one end (``ML²/3 = 4`` kg m² across it):
+
+    >>> import numpy as np
+    >>> from tumble import shapes
+    >>> rod = shapes.rod(3.0, 2.0, radius=1e-3).tensor()
+    >>> np.round(np.diag(shapes.parallel_axis(rod, 3.0, (0.0, 0.0, 1.0))), 4)
+    array([4., 4., 0.])
     """
     t = np.asarray(tensor, dtype=float)
     d = np.asarray(displacement, dtype=float)
@@ -111,6 +126,24 @@ def composite(parts):
         Centre of mass of the whole, m.
     tensor : ndarray, shape (3, 3)
         Inertia tensor of the whole about ``centre``, kg m²; pass it to :meth:`Body.from_tensor`.
+
+    See Also
+    --------
+    tumble.shapes.parallel_axis : The shift of one part's tensor.
+    tumble.Body.from_tensor : The body of the whole, from its tensor.
+
+    Examples
+    --------
+    Two balls of 1 kg and radius 0.1 m, 1 m apart along ``x`` (a dumbbell):
+
+    >>> import numpy as np
+    >>> from tumble import shapes
+    >>> ball = shapes.sphere(1.0, 0.1).tensor()
+    >>> mass, centre, tensor = shapes.composite([(1.0, (-0.5, 0.0, 0.0), ball), (1.0, (0.5, 0.0, 0.0), ball)])
+    >>> mass, centre.tolist()
+    (2.0, [0.0, 0.0, 0.0])
+    >>> np.round(np.diag(tensor), 4)
+    array([0.008, 0.508, 0.508])
     """
     parts = [(_positive(m, "part mass"), np.asarray(c, dtype=float), np.asarray(t, dtype=float))
              for m, c, t in parts]
@@ -150,6 +183,22 @@ def rod(mass, length, *, about="centre", radius=None):
     -------
     Body
         Moments ``(I_perp, I_perp, I_axis)``, kg m², symmetry axis along ``z`` (axis 3).
+
+    See Also
+    --------
+    tumble.shapes.cylinder : A solid cylinder of any proportions.
+    tumble.shapes.t_handle : A bar and a stem joined: the Dzhanibekov nut.
+
+    Examples
+    --------
+    A rod of 3 kg and 2 m: ``ML²/12 = 1`` kg m² about its centre, ``ML²/3 = 4`` about an end:
+
+    >>> from tumble import shapes
+    >>> I_perp, _, I_axis = shapes.rod(3.0, 2.0).moments
+    >>> round(float(I_perp), 4), round(float(I_axis), 4)
+    (1.0003, 0.0006)
+    >>> round(float(shapes.rod(3.0, 2.0, about="end").moments[0]), 4)
+    4.0003
     """
     m = _positive(mass, "mass")
     length = _positive(length, "length")
@@ -175,6 +224,16 @@ def disc(mass, radius):
     -------
     Body
         ``(MR²/4, MR²/4, MR²/2)``, kg m²; a flat lamina, so ``I3 = I1 + I2`` exactly.
+
+    See Also
+    --------
+    tumble.shapes.cylinder : A disc of finite thickness.
+
+    Examples
+    --------
+    >>> from tumble import shapes
+    >>> shapes.disc(4.0, 1.0).moments
+    array([1., 1., 2.])
     """
     m = _positive(mass, "mass")
     r = _positive(radius, "radius")
@@ -197,6 +256,17 @@ def cylinder(mass, radius, height):
     -------
     Body
         ``(M(3R² + h²)/12, M(3R² + h²)/12, MR²/2)``, kg m².
+
+    See Also
+    --------
+    tumble.shapes.disc : The thin limit, ``h → 0``.
+    tumble.shapes.rod : The slender limit, ``R → 0``.
+
+    Examples
+    --------
+    >>> from tumble import shapes
+    >>> shapes.cylinder(12.0, 1.0, 2.0).moments
+    array([7., 7., 6.])
     """
     m = _positive(mass, "mass")
     r = _positive(radius, "radius")
@@ -228,6 +298,19 @@ def cone(mass, radius, height, *, about="apex"):
     -------
     Body
         ``(I_perp, I_perp, I_axis)``, kg m².
+
+    See Also
+    --------
+    tumble.models.HeavyTop : A top spinning on its point under gravity.
+    tumble.shapes.cylinder : A solid cylinder.
+
+    Examples
+    --------
+    >>> from tumble import shapes
+    >>> shapes.cone(1.0, 0.5, 2.0).moments.round(4)
+    array([2.4375, 2.4375, 0.075 ])
+    >>> shapes.cone(1.0, 0.5, 2.0, about="centre_of_mass").moments.round(4)
+    array([0.1875, 0.1875, 0.075 ])
     """
     m = _positive(mass, "mass")
     r = _positive(radius, "radius")
@@ -254,6 +337,18 @@ def sphere(mass, radius):
     Returns
     -------
     Body
+
+    See Also
+    --------
+    tumble.shapes.ellipsoid : A solid ellipsoid, of which the sphere is the round case.
+
+    Examples
+    --------
+    Every spin of a sphere is steady (its three moments are equal):
+
+    >>> from tumble import shapes
+    >>> shapes.sphere(5.0, 1.0).moments
+    array([2., 2., 2.])
     """
     m = _positive(mass, "mass")
     r = _positive(radius, "radius")
@@ -275,6 +370,17 @@ def ellipsoid(mass, a, b, c):
     -------
     Body
         ``(M(b² + c²)/5, M(a² + c²)/5, M(a² + b²)/5)``, kg m².
+
+    See Also
+    --------
+    tumble.shapes.sphere : The round case.
+    tumble.shapes.cuboid : A box of the same edges' proportions.
+
+    Examples
+    --------
+    >>> from tumble import shapes
+    >>> shapes.ellipsoid(5.0, 1.0, 2.0, 3.0).moments
+    array([13., 10.,  5.])
     """
     m = _positive(mass, "mass")
     a, b, c = (_positive(v, n) for v, n in ((a, "a"), (b, "b"), (c, "c")))
@@ -295,6 +401,19 @@ def cuboid(mass, a, b, c):
     -------
     Body
         ``(M(b² + c²)/12, M(a² + c²)/12, M(a² + b²)/12)``, kg m², about the centre of mass.
+
+    See Also
+    --------
+    tumble.shapes.cube_about_edge : A cube about one of its edges.
+    tumble.shapes.ellipsoid : A solid ellipsoid.
+
+    Examples
+    --------
+    A box of 12 kg with edges 1, 2 and 3 m; its intermediate axis is ``y`` (axis 2):
+
+    >>> from tumble import shapes
+    >>> shapes.cuboid(12.0, 1.0, 2.0, 3.0).moments
+    array([13., 10.,  5.])
     """
     m = _positive(mass, "mass")
     a, b, c = (_positive(v, n) for v, n in ((a, "a"), (b, "b"), (c, "c")))
@@ -323,6 +442,17 @@ def cube_about_edge(mass, a):
     -------
     Body
         Ascending moments with principal ``axes`` in the cube's frame.
+
+    See Also
+    --------
+    tumble.shapes.cuboid : A box about its centre of mass.
+    tumble.shapes.parallel_axis : The shift from the centre of mass to the edge.
+
+    Examples
+    --------
+    >>> from tumble import shapes
+    >>> shapes.cube_about_edge(6.0, 1.0).moments.round(4)
+    array([1., 4., 4.])
     """
     m = _positive(mass, "mass")
     a = _positive(a, "a")
@@ -377,6 +507,19 @@ def loaded_die(mass, half_side, *, load=0.5):
     -------
     Body
         Moments about the centre of mass, kg m²; a symmetric top about ``z`` (axis 3).
+
+    See Also
+    --------
+    tumble.shapes.cuboid : The fair die (uniform density), ``load = 0``.
+    tumble.theory.symmetric_top_precession : How a symmetric top's spin precesses.
+
+    Examples
+    --------
+    The default load gives the problem sheet's ``M b² (23/36, 23/36, 2/3)``:
+
+    >>> from tumble import shapes
+    >>> shapes.loaded_die(36.0, 1.0).moments.round(6)
+    array([23., 23., 24.])
     """
     m = _positive(mass, "mass")
     b = _positive(half_side, "half_side")
@@ -429,6 +572,20 @@ def t_handle(mass=0.05, *, bar_length=0.08, bar_radius=0.005, stem_length=0.04, 
     -------
     Body
         Ascending moments about the centre of mass, kg m², with principal ``axes`` in the frame above.
+
+    See Also
+    --------
+    tumble.shapes.composite : How the bar and the stem are joined.
+    tumble.attitude_trace : The flipping handle's orientation in space.
+
+    Examples
+    --------
+    A spin about the handle's intermediate axis flips:
+
+    >>> from tumble import shapes, theory
+    >>> handle = shapes.t_handle()
+    >>> handle.name, theory.linear(handle, 2)[0]
+    ('T-handle', 'exponential')
     """
     m = _positive(mass, "mass")
     lb = _positive(bar_length, "bar_length")

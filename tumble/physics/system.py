@@ -104,6 +104,12 @@ class System:
         A rate or Jacobian that is not callable, names that are not identifiers or repeat, a parameter that is not
         a finite number; the message names the system.
 
+    See Also
+    --------
+    tumble.models.Model : The built-in systems.
+    tumble.propagate : Step a System's states.
+    tumble.theory.eigenvalues_at : Its Jacobian's eigenvalues at a state.
+
     Examples
     --------
     >>> import math, tumble

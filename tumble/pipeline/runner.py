@@ -1153,6 +1153,22 @@ def run_study(source, *, overrides=None, out=None, progress=None, scheduler=None
         Invalid study (the message names the file, the field path and what is wrong); nothing is written.
     tumble.pipeline.checkpoint.OutputError
         The output folder cannot be written; earlier results there are left as they were.
+
+    See Also
+    --------
+    tumble.scan : The scans a study runs, from Python.
+    tumble.io.read_dataset : A written result read back.
+
+    Examples
+    --------
+    A study as a mapping, with no figures and no ``out``: nothing is written:
+
+    >>> import tumble
+    >>> study = {"body": {"moments": [1.0, 2.0, 3.0]}, "spin": {"axis": 2}, "perturbation": {"samples": 64},
+    ...          "outputs": {"figures": []}}
+    >>> ds = tumble.run_study(study)
+    >>> str(ds["kind"].values), bool(ds["rel_error"] < 5e-3)
+    ('exponential', True)
     """
     if device is not None:
         overrides = {**(overrides or {}), "integration.device": device}

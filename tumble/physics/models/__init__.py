@@ -98,6 +98,11 @@ def from_kind(kind, body, **parameters):
         not have, or lacks;
         an invalid parameter or body. The message names the kind or the key.
 
+    See Also
+    --------
+    tumble.models.Model : What every model offers.
+    tumble.run_study : A study's ``[model]`` table, run.
+
     Examples
     --------
     >>> top = from_kind(HeavyTop.kind, (1.0, 1.0, 0.5), mgl=2.0)

@@ -105,6 +105,25 @@ class Model:
     moments : Body or array_like, shape (3,)
         Principal moments ``(I1, I2, I3)``, kg m², validated as :func:`tumble.physics.bodies.validate_moments`
         does (finite, > 0, triangle inequality). Stored as a read-only float64 array.
+
+    See Also
+    --------
+    tumble.models.from_kind : A model by the name a study gives it.
+    tumble.System : A user's own system, which the engine runs the same way.
+    tumble.theory.linearisation : A model's linear theory at a steady spin.
+
+    Examples
+    --------
+    Every model has a state size, a steady spin to expand about and invariants by name:
+
+    >>> import tumble
+    >>> top = tumble.models.HeavyTop((1.0, 1.0, 0.5), 0.1)
+    >>> isinstance(top, tumble.models.Model), top.state_size
+    (True, 6)
+    >>> top.equilibrium(3, 5.0)
+    array([0., 0., 5., 0., 0., 1.])
+    >>> sorted(top.invariants(top.equilibrium(3, 5.0)))
+    ['energy', 'up_squared', 'vertical_momentum']
     """
 
     moments: np.ndarray

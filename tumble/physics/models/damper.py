@@ -99,6 +99,22 @@ class Damper(base.Model):
     ValueError
         Invalid moments, or a parameter not a finite number > 0 (the message names ``damper_inertia`` or
         ``damping``).
+
+    See Also
+    --------
+    tumble.theory.damper_nutation_rate : The nutation's growth rate, weak damping.
+    tumble.models.FreeBody : The body without the damper.
+
+    Examples
+    --------
+    The major-axis rule: a spin about the major axis (3 here) is stable, about the minor one it is not:
+
+    >>> import tumble
+    >>> damper = tumble.models.Damper((1.0, 2.0, 3.0), damper_inertia=0.1, damping=0.05)
+    >>> damper.spec.state
+    ('w1', 'w2', 'w3', 's1', 's2', 's3')
+    >>> tumble.theory.linear(damper, 3, 1.0)[0], tumble.theory.linear(damper, 1, 1.0)[0]
+    ('periodic', 'exponential')
     """
 
     damper_inertia: float

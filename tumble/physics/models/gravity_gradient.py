@@ -207,6 +207,22 @@ class GravityGradient(base.Model):
     ValueError
         Invalid moments, ``orbit_rate`` not a finite number > 0, or ``eccentricity`` outside [0, 1) (the message names
         the parameter).
+
+    See Also
+    --------
+    tumble.theory.gravity_gradient_stable : Whether the orbit-following attitude is stable.
+    tumble.theory.gravity_gradient_roll_yaw : Its roll-yaw exponents.
+
+    Examples
+    --------
+    The equilibrium turns once per orbit about the pitch axis:
+
+    >>> import tumble
+    >>> sat = tumble.models.GravityGradient((2.0, 2.5, 1.0), orbit_rate=1e-3)
+    >>> sat.spec.state
+    ('w1', 'w2', 'w3', 'q0', 'q1', 'q2', 'q3')
+    >>> sat.equilibrium(2, 0.0)
+    array([ 0.   , -0.001,  0.   ,  1.   ,  0.   ,  0.   ,  0.   ])
     """
 
     orbit_rate: float

@@ -94,6 +94,21 @@ class Gyrostat(base.Model):
     ------
     ValueError
         Invalid moments, or a rotor that is not a finite 3-vector (the message names ``rotor``).
+
+    See Also
+    --------
+    tumble.theory.gyrostat_linear : Linear theory, rotor along the spin axis.
+    tumble.models.FreeBody : The gyrostat without a rotor.
+
+    Examples
+    --------
+    A fast enough rotor along the intermediate axis keeps a spin about it steady:
+
+    >>> import tumble
+    >>> slow = tumble.models.Gyrostat((1.0, 2.0, 3.0), rotor=(0.0, 0.1, 0.0))
+    >>> fast = tumble.models.Gyrostat((1.0, 2.0, 3.0), rotor=(0.0, 5.0, 0.0))
+    >>> tumble.theory.linear(slow, 2, 1.0)[0], tumble.theory.linear(fast, 2, 1.0)[0]
+    ('exponential', 'periodic')
     """
 
     rotor: np.ndarray
@@ -138,6 +153,11 @@ class FreeBody(base.Model):
     Invariants: ``energy`` ``½ w·Iw`` (J) and ``momentum_squared`` ``|I w|²`` ((N m s)²). Its fused SIMD steps, which
     ``tumble.integrate`` runs, are the kernels' own (:mod:`tumble.kernels.loops.free_body_parts`); as a model of studies
     and of :func:`tumble.run_ensemble` it runs the gyrostat's generated steps with ``h = 0``.
+
+    See Also
+    --------
+    tumble.Body : The free body as the engine takes it most often.
+    tumble.models.Gyrostat : With a rotor.
 
     Examples
     --------

@@ -112,6 +112,23 @@ class HeavyTop(base.Model):
     ValueError
         Invalid moments, ``mgl`` not a finite number > 0, or ``centre`` not a finite non-zero 3-vector (the message
         names the parameter).
+
+    See Also
+    --------
+    tumble.theory.sleeping_top_linear : Whether an upright symmetric top sleeps.
+    tumble.lyapunov : Chaos of an asymmetric top.
+    tumble.shapes.cone : The moments of a cone about its apex.
+
+    Examples
+    --------
+    A sleeping top: stable when it spins fast, it falls when it spins slowly:
+
+    >>> import tumble
+    >>> top = tumble.models.HeavyTop((1.0, 1.0, 0.5), mgl=0.1)
+    >>> top.spec.state
+    ('w1', 'w2', 'w3', 'g1', 'g2', 'g3')
+    >>> tumble.theory.linear(top, 3, 5.0)[0], tumble.theory.linear(top, 3, 0.1)[0]
+    ('periodic', 'exponential')
     """
 
     mgl: float
