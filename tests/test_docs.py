@@ -356,8 +356,9 @@ def _gallery_thumbnails_open_the_figure_and_name_study_and_command(html_dir):
 def _copy_buttons_install_cite_and_changelog_pages(html_dir):
     assert (html_dir / "_static" / "copybutton.js").is_file()
     install = _text(html_dir / "install.html")
-    # the first compile's cost (the integrator-check tutorial's first block) and how to pay it ahead
-    assert "NUMBA_CACHE_DIR" in install and "40 s" in install and "tumble warm" in install and "gpu" in install
+    # the first compile's cost (linked to the generated first-call table: no figure by hand) and how to pay it ahead
+    assert "NUMBA_CACHE_DIR" in install and "first-call table" in install and "tumble warm" in install
+    assert "gpu" in install
     assert "Changelog" in _text(html_dir / "changelog.html")
     assert re.search(rf"@software\s*{{\s*tumble.*version\s*=\s*{{\s*{re.escape(tumble.__version__)}\s*}}",
                      _text(html_dir / "cite.html"))
