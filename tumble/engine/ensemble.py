@@ -42,7 +42,7 @@ from .device import LAUNCH_SAMPLES, WARP, check_on_device, resolve_device, stepp
 from .progress import tqdm
 from .sampling import CHUNK
 from .adaptive_runs import fixed_steps_only, no_save_every, run_adaptive
-from .system_runs import added_tableau, is_system, run_system
+from .system_runs import added_tableau, is_system, no_body_parameters, run_system
 from .torqued_body import body_system
 
 __all__ = ["EnsembleResult", "DEFAULT_DRIFT_LIMIT", "Interrupted", "STATUS_NAMES", "check_torque_step", "checked_torque",
@@ -286,8 +286,7 @@ def _error_controlled(body, w0, t_end, dt, final, save_every, torque, asked, par
     rtol, atol, times, max_steps = tolerance
     name = "y0"
     if not is_system(body):
-        if parameters is not None:
-            raise ValueError("parameters are a model's or a System's; a free body has none (its moments are the body)")
+        no_body_parameters(parameters)
         body, parameters = body_system(one_body(body), checked_torque(torque), False, device)
         name = "w0"
     run, _ = run_adaptive(body, w0, t_end, times=times, rtol=rtol, atol=atol, first_step=dt, max_steps=max_steps,
@@ -433,8 +432,7 @@ def run_ensemble(body, w0, t_end, dt, *, method="auto", torque=None, axis=1, fin
                 "device": device}
         return EnsembleResult(result.final if final else None, result.times, result.trajectory, None, None, None,
                               None, None, result.status, result.steps_taken, info)
-    if parameters is not None:
-        raise ValueError("parameters are a model's or a System's; a free body has none (its moments are the body)")
+    no_body_parameters(parameters)
     moments = one_body(body)
     w0, t_end, dt, probe_times, norm_weights = _checked_arguments(
         w0, t_end, dt, axis, save_every, probe_times, norm_weights, max_flips, stop_norm, stop_flips, drift_limit,

@@ -20,7 +20,7 @@ from . import cost
 from .device import check_on_device, resolve_device, stepper
 from .ensemble import check_torque_step, checked_torque, run_planned
 from .adaptive_runs import fixed_steps_only, no_save_every, run_adaptive, run_attrs, run_variables, warn_stops
-from .system_runs import added_tableau, is_system, run_system
+from .system_runs import added_tableau, is_system, no_body_parameters, run_system
 from .torqued_body import ATTITUDE, body_system, unit_quaternions
 
 __all__ = ["integrate", "propagate", "METHOD_NAMES"]
@@ -154,8 +154,7 @@ def _adaptive_run(body, w0, t_end, dt, torque, save_every, attitude, parameters,
         _no_torque_or_attitude(body, torque, attitude)
         system, name = body, "y0"
     else:
-        if parameters is not None:
-            raise ValueError("parameters are a model's or a System's; a free body has none (its moments are the body)")
+        no_body_parameters(parameters)
         checked = checked_torque(torque)
         system, parameters = body_system(one_body(body), checked, attitude, device)
         name = "w0"
@@ -254,8 +253,7 @@ def propagate(body, w0, t_end, dt=None, method="rk4", *, torque=None, save_every
                           _free_body_by_tableau(body, w0, t_end, dt, method, torque, save_every, False, device))
         out = result.trajectory if save_every else result.final
         return out[0] if single else out
-    if parameters is not None:
-        raise ValueError("parameters are a model's or a System's; a free body has none (its moments are the body)")
+    no_body_parameters(parameters)
     moments = one_body(body)
     single = np.ndim(w0) == 1
     w = _initial_spins(w0)
@@ -410,8 +408,7 @@ def integrate(body, w0, t_end, dt=None, method="rk4", torque=(0, 0, 0), save_eve
     if is_system(body):
         return _system_dataset(*_system_run(body, w0, t_end, dt, method, torque, save_every, parameters, device,
                                             attitude), t_end, device)
-    if parameters is not None:
-        raise ValueError("parameters are a model's or a System's; a free body has none (its moments are the body)")
+    no_body_parameters(parameters)
     moments = one_body(body)
     if added_tableau(method):
         run, _ = _free_body_by_tableau(moments, w0, t_end, dt, method, torque, save_every, attitude, device)

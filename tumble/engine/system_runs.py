@@ -35,7 +35,7 @@ from ..physics.models import Model
 from ..physics.system import System, with_parameters
 from . import cost
 
-__all__ = ["PROBED", "SystemRun", "added_tableau", "block_code", "compiled", "initial_states", "is_system",
+__all__ = ["PROBED", "SystemRun", "added_tableau", "no_body_parameters", "block_code", "compiled", "initial_states", "is_system",
            "method_order", "probe", "run_system", "state_units", "system_methods", "system_name"]
 
 #: Initial states at which a user's rate is called once before a run (the first with bounds checked): a NaN or an
@@ -63,6 +63,12 @@ class SystemRun(NamedTuple):
 def is_system(value):
     """Whether ``value`` is a built-in model or a user's :class:`System` (not a ``Body``: the free-body path)."""
     return isinstance(value, (System, Model))
+
+
+def no_body_parameters(parameters):
+    """Refuse ``parameters`` (not None) for a ``Body``: its moments are the body, it has no parameters to replace."""
+    if parameters is not None:
+        raise ValueError("parameters are a model's or a System's; a free body has none (its moments are the body)")
 
 
 def added_tableau(method):
