@@ -10,7 +10,7 @@ per-sample set-up with Carlson's R_F and the evaluation, one kernel call: what i
 One evaluation is one sample at one time (three components). Both kernels get the same per-sample inputs
 (from ``tumble.physics.exact``) and run in the same process; compile time (or the load from numba's cache)
 is excluded and reported separately; each rate is the median of several runs, with 1 numba thread and with
-all of them. Other processes on the machine slow the multi-thread runs most (a prange call waits for its
+all of them. Other processes on the machine slow the multi-thread runs most (a parallel call waits for its
 slowest thread): the load average at the start is recorded with the results.
 """
 
@@ -23,6 +23,7 @@ import numba
 import numpy as np
 
 from tumble.kernels.closed_form import elliptic as ell
+from tumble.kernels.threads import in_parallel
 from tumble.physics import exact
 
 import provenance  # benchmarks/provenance.py (the script's folder is on sys.path)
@@ -61,7 +62,7 @@ def measure(w0, t):
         ell.torque_free_omega(*args_new, times, row, out)
 
     def old():
-        ell._torque_free_omega_reference(*args, t, out)
+        in_parallel(ell._torque_free_omega_reference, SAMPLES, *args, t, out)
 
     row_ = {"kc_min": float(sol.kc.min()), "kc_max": float(sol.kc.max())}
     for name, fn in (("new", new), ("old", old)):
@@ -70,7 +71,7 @@ def measure(w0, t):
         row_[f"compile_{name}"] = time.perf_counter() - started
     check_new, check_old = np.empty_like(out), np.empty_like(out)
     ell.torque_free_omega(*args_new, times, row, check_new)
-    ell._torque_free_omega_reference(*args, t, check_old)
+    in_parallel(ell._torque_free_omega_reference, SAMPLES, *args, t, check_old)
     row_["max_rel_diff_vs_old"] = float(np.max(np.abs(check_new - check_old) / np.max(np.abs(check_old), axis=1,
                                                                                         keepdims=True)))
     for threads in sorted({1, numba.config.NUMBA_NUM_THREADS}):
@@ -131,7 +132,7 @@ def main():
               "(old: 3), compile time excluded. *new*: the vectorised `torque_free_omega`; *old*: the scalar "
               "kernel it replaced (`_torque_free_omega_reference`), same inputs, same process. A load "
               "average above about 1 means other processes shared the cores: the multi-thread columns are "
-              "then lower bounds (a prange call waits for its slowest thread)."), "",
+              "then lower bounds (a parallel call waits for its slowest thread)."), "",
              (f"| spins | k' | new, 1 thread | old, 1 thread | speed-up | new, {nt} threads | old, {nt} threads "
               "| speed-up | compile new / old, s |"), "|---|---|---|---|---|---|---|---|---|"]
     for label, r in report["regimes"].items():

@@ -23,7 +23,7 @@ import tumble
 from tumble import measure
 from tumble.kernels.steps import fused, steppers
 from tumble.kernels.steps.codegen import multiplies_per_sample_step
-from tumble.kernels.jit import jit
+from tumble.kernels.jit import FASTMATH
 from tumble.kernels.loops.methods import METHODS, run
 
 import provenance  # benchmarks/provenance.py (the script's folder is on sys.path)
@@ -38,7 +38,7 @@ REPEATS = 5
 def _naive(sample):
     """The loop a user would write: one sample at a time, its time loop inside (scalar code)."""
 
-    @jit(parallel=True)
+    @numba.njit(parallel=True, fastmath=set(FASTMATH), error_model="numpy")
     def naive(w, body, h, n_steps):
         for i in prange(w.shape[0]):
             w1, w2, w3 = w[i, 0], w[i, 1], w[i, 2]

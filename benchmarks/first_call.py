@@ -58,8 +58,14 @@ RESULTS = Path(__file__).with_name("results")
 #: Suffixes of numba's cache files: tumble's checked cache, and numba's own.
 CACHE_SUFFIXES = (".tbi", ".tbc", ".nbi", ".nbc")
 
-#: The issue's targets, seconds of the first call: (empty cache, warm cache in a new process).
-TARGETS = {"integrate rk4": (5.0, 0.3), "exact.omega": (3.0, 0.3), "measure": (5.0, 0.3)}
+#: The issue's targets, seconds of the first call: (empty cache, warm cache in a new process). A warm call is held to
+#: :data:`WARM_ABOVE_FLOOR` above the floor's row measured in the same run, the floor's figure when none was run.
+TARGETS = {"integrate rk4": (5.0, 0.53), "exact.omega": (3.0, 0.53), "measure": (5.0, 0.53),
+           "integrate System": (5.0, 0.53)}
+
+#: Issue 58: a warm first call within this many seconds of the floor (a cached one-line numba kernel, new process).
+WARM_ABOVE_FLOOR = 0.25
+FLOOR = "floor: one numba kernel"
 
 #: The third-party packages whose import the report names when a warm first call pays for it (0.1-0.8 s each).
 HEAVY_PACKAGES = ("numba", "scipy", "pandas", "xarray", "dask", "distributed", "netCDF4", "cftime", "matplotlib",
@@ -75,6 +81,8 @@ TOP_PASSES = 25
 _BODY = "body = tumble.shapes.t_handle()\nW = np.array([[0.01, 10.0, 0.01]])\n"
 _TOP = ("top = tumble.models.HeavyTop((1.0, 1.6, 2.2), mgl=1.0, centre=(0.6, 0.3, 1.0))\n"
         "y0 = np.array([[0.5, 0.3, 2.0, 0.1, 0.2, np.sqrt(0.95)]])\n")  # w1 w2 w3, then the unit vector up
+_SYSTEM = (f"import sys\nsys.path.insert(0, {str(ROOT / 'tests')!r})\nfrom hand_written_systems import HEAVY_TOP\n"
+           "integrate = tumble.integrate\ny0 = np.array([[0.5, 0.3, 2.0, 0.1, 0.2, np.sqrt(0.95)]])\n")
 _CHECK = (f"rec = np.loadtxt({str(ROOT / 'data' / 'check_t_handle_rk4.csv')!r}, delimiter=',', skiprows=1)\n"
           "t, omega, quaternion = rec[:, 0], rec[:, 1:4], rec[:, 4:8]\n"
           "moments = (9.6875e-06, 1.8194444444444445e-05, 2.7256944444444445e-05)\n")
@@ -95,6 +103,9 @@ ENTRY_POINTS = {
     "measure": (_BODY + "measure = tumble.measure", "measure(body, axis=2, spin=10.0, samples=256)"),
     "scan": ("scan = tumble.scan", "scan([(1.0, 2.0, 3.0), (1.0, 1.5, 1.7)], axis=[1, 2, 3], spin=10.0, samples=64)"),
     "check": (_CHECK + "check = tumble.check", "check(t, omega, quaternion, moments=moments)"),
+    # a user's System (the heavy top written by hand, tests/hand_written_systems.py): its kernels are cached, keyed by
+    # what its rate computes
+    "integrate System": (_SYSTEM, "integrate(HEAVY_TOP, y0, 10.0, 0.005)"),
     "run_ensemble HeavyTop": (_TOP + "run_ensemble = tumble.run_ensemble", "run_ensemble(top, y0, 10.0, 0.005)"),
     "megno HeavyTop": (_TOP + "megno = tumble.megno", "megno(top, y0, t_end=20.0, dt=0.01)"),
     "lyapunov HeavyTop": (_TOP + "lyapunov = tumble.lyapunov", "lyapunov(top, y0, t_end=20.0, dt=0.01)"),
@@ -334,10 +345,16 @@ def machine():
             "commit": commit.stdout.strip() + (" (tumble/ edited, uncommitted)" if dirty else "")}
 
 
-def _verdict(name, column, value):
-    if name not in TARGETS:
+def targets(rows):
+    """:data:`TARGETS`, the warm ones :data:`WARM_ABOVE_FLOOR` above the floor's warm call among ``rows``."""
+    floor = [r["warm_s"] for r in rows if r["name"] == FLOOR]
+    return {name: (empty, floor[0] + WARM_ABOVE_FLOOR if floor else warm) for name, (empty, warm) in TARGETS.items()}
+
+
+def _verdict(goals, name, column, value):
+    if name not in goals:
         return ""
-    target = TARGETS[name][column]
+    target = goals[name][column]
     return f" (<= {target:g} s: met)" if value <= target else f" (<= {target:g} s: missed by {value - target:.2f} s)"
 
 
@@ -352,12 +369,13 @@ def _seconds(value):
 def report(rows, runs, repeats, warm, load, out, quiet=False):
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%MZ")
     box = machine()
+    goals = targets(rows)
     import provenance  # benchmarks/provenance.py (imports tumble: here, not in the probes)
 
     (out / "first_call.json").write_text(json.dumps(
         {**provenance.stamp(), "date": stamp, "machine": box, "load_average": load, "repeats_empty": repeats,
          "repeats_warm": warm,
-         "targets_seconds": TARGETS, "rows": rows, "runs": runs}, indent=1) + "\n")
+         "targets_seconds": goals, "warm_above_floor": WARM_ABOVE_FLOOR, "rows": rows, "runs": runs}, indent=1) + "\n")
     lines = [f"# First call of each entry point — {stamp}", "",
              f"Machine: {box['processor']}, {box['cores']} cores, {box['vector_width']}, numba {box['numba']}, "
              f"Python {box['python']}; commit {box['commit']}; load average at start {load:.2f}. Each call in fresh "
@@ -369,8 +387,8 @@ def report(rows, runs, repeats, warm, load, out, quiet=False):
              "signatures) | warm: compiled signatures |", "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| `{r['name']}` | {_seconds(r['import_s'])} | {_seconds(r['layer_import_s'])} | "
-                     f"{_seconds(r['empty_s'])}{_verdict(r['name'], 0, r['empty_s'])} | "
-                     f"{_seconds(r['warm_s'])}{_verdict(r['name'], 1, r['warm_s'])} | {_seconds(r['steady_s'])} | "
+                     f"{_seconds(r['empty_s'])}{_verdict(goals, r['name'], 0, r['empty_s'])} | "
+                     f"{_seconds(r['warm_s'])}{_verdict(goals, r['name'], 1, r['warm_s'])} | {_seconds(r['steady_s'])} | "
                      f"{r['compiled_dispatchers']} / {r['compiled_signatures']}"
                      f"{_side_by_side(r['empty_loaded_signatures'])} | {r['written_files']} | "
                      f"{r['warm_loaded_dispatchers']} / {r['warm_loaded_signatures']} | "

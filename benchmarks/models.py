@@ -25,7 +25,7 @@ import numpy as np
 from numba import prange
 
 from tumble.kernels import METHODS, model_methods, run, run_model, tableaux
-from tumble.kernels.jit import jit
+from tumble.kernels.jit import FASTMATH
 from tumble.kernels.systems import heavy_top
 
 import provenance  # benchmarks/provenance.py (the script's folder is on sys.path)
@@ -104,7 +104,7 @@ def throughput():
     return rows
 
 
-@jit(parallel=True)
+@numba.njit(parallel=True, fastmath=set(FASTMATH), error_model="numpy")
 def _generic_heavy_top(y, A, b, constants, h, n_steps, block):
     """The alternative to generated steps: a stage loop over the tableau as data (stages in a (s, 6, m) buffer per
     block, each stage's combination and rate as loops over the block's samples)."""

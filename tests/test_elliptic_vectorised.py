@@ -10,6 +10,7 @@ import pytest
 
 from tumble.kernels.closed_form import elliptic as ell
 from tumble.kernels.jit import FASTMATH
+from tumble.kernels.threads import in_parallel
 from tumble.physics import exact
 
 mpmath = pytest.importorskip("mpmath")
@@ -71,7 +72,7 @@ def synthetic(kcs, phases, rates):
 
 def reference(args, t):
     out = np.empty((args[0].shape[0], t.shape[0], 3))
-    ell._torque_free_omega_reference(*args, np.ascontiguousarray(t), out)
+    in_parallel(ell._torque_free_omega_reference, len(out), *args, np.ascontiguousarray(t), out)
     return out
 
 

@@ -17,7 +17,7 @@ _DOOR = {
     **{name: (f"loops.{name}", None) for name in ("adaptive_blocks", "adaptive_loop", "sample_loop",
                                                              "tangent_blocks", "tangent_loop", "variational")},
     "system_steps": ("steps.system_steps", None),
-    "parallel_block": ("jit", "parallel_block"),
+    "parallel_block": ("threads", "parallel_block"),
     "TABLEAUX": ("tableaux", "TABLEAUX"),
     "TORQUE_SIGNATURE": ("loops.drivers", "TORQUE_SIGNATURE"),
     **{name: ("loops.methods", name) for name in ("BLOCK", "METHODS", "Method", "Observed", "run", "run_attitude")},

@@ -16,10 +16,10 @@ Kernels take plain float64 arrays and scalars and write into arrays they are giv
 
 import math
 
-import numba
 import numpy as np
 
 from .jit import jit
+from .threads import in_parallel
 from .trig import atan2
 
 __all__ = ["FIT_NO_SIGNAL", "FIT_OK", "FIT_SHORT_WINDOW", "FIT_UNDERSAMPLED", "GROWTH_WINDOW_START", "growth_fit",
@@ -112,7 +112,7 @@ def _median_in_place(a):
 @jit(contract=False)
 def phase_fit_sample(t, x, y, floor, max_step):
     # size: the fit's passes over one sample (radius and phase, unwrapping, slope), the CPU's and the device's
-    """The phase fit of one sample (:func:`phase_fit`), written once: the CPU's ``prange`` body and a device thread
+    """The phase fit of one sample (:func:`phase_fit`), written once: the CPU's loop over samples and a device thread
     (:mod:`tumble.kernels.cuda.phase_fit`) call it.
 
     Parameters
@@ -212,10 +212,7 @@ def phase_fit_sample(t, x, y, floor, max_step):
     return frequency, median, code
 
 
-@jit(parallel=True, contract=False)
 def phase_fit(times, row, states, columns, weights, floor, max_step, frequency, radius, code):
-    # size: flat arrays (numba); the gather of one sample's components, then its fit (phase_fit_sample) in one prange
-    # body, so a sample's scratch stays in cache
     """Angular frequency of each sample's transverse oscillation from its unwrapped phase.
 
     Parameters
@@ -245,18 +242,26 @@ def phase_fit(times, row, states, columns, weights, floor, max_step, frequency, 
     (:func:`tumble.kernels.cuda.phase_fit.phase_fit`): the two components are gathered first (a strided read, which AVX2
     cannot pack cheaply) into the scratch the fit works in.
     """
-    n, t_count = states.shape[0], states.shape[1]
+    in_parallel(phase_fit_share, states.shape[0], times, row, states, columns, weights, floor, max_step, frequency,
+                radius, code)
+
+
+@jit(contract=False)
+def phase_fit_share(times, row, states, columns, weights, floor, max_step, frequency, radius, code, start, stop):
+    """The samples ``start:stop`` of :func:`phase_fit` (one share of :func:`tumble.kernels.threads.in_parallel`): each
+    sample's gather and fit in one pass, so that its scratch stays in cache."""
+    t_count = states.shape[1]
     unsigned = np.ones(1)
-    for i in numba.prange(n):
-        # np.int64(i): the parallel loop's index is unsigned in its body's own compile; one variant of fit_sample
-        frequency[i], radius[i], code[i] = fit_sample(np.int64(i), times, row, states, columns, weights, unsigned,
-                                                      floor, max_step, False, np.empty(t_count), np.empty(t_count))
+    x, y = np.empty(t_count), np.empty(t_count)
+    for i in range(start, stop):
+        frequency[i], radius[i], code[i] = fit_sample(i, times, row, states, columns, weights, unsigned, floor,
+                                                      max_step, False, x, y)
 
 
 @jit(contract=False)
 def fit_sample(i, times, row, states, columns, weights, signs, floor, max_step, time_major, x, y):
     # size: one sample's gather and fit, the CPU's and the device's (flat arrays, the scratch owned by the caller)
-    """Sample ``i``'s phase fit, for the CPU (:func:`phase_fit`'s ``prange`` body) and the device
+    """Sample ``i``'s phase fit, for the CPU (:func:`phase_fit_share`'s loop) and the device
     (:mod:`tumble.kernels.cuda.phase_fit`, one thread per sample): its transverse components gathered into ``x`` and ``y``
     (the scratch, (T,) each, owned by the caller), scaled by ``sqrt(g)`` and by the sign ``signs[i]`` (``signs`` of
     one element: the same for every sample), then :func:`phase_fit_sample` at its times ``times[row[i]]`` (``row`` of
@@ -278,7 +283,6 @@ def fit_sample(i, times, row, states, columns, weights, signs, floor, max_step, 
     return phase_fit_sample(times[r], x, y, floor[i], max_step)
 
 
-@jit(parallel=True, contract=False)
 def transverse_norms(states, columns, weights, out):
     """Weighted transverse norm ``sqrt(g_b w_b² + g_c w_c²)`` of each sample at each stored time, in one pass.
 
@@ -296,7 +300,13 @@ def transverse_norms(states, columns, weights, out):
     out : ndarray, shape (n, T)
         Receives the norms, rad/s.
     """
-    for i in numba.prange(states.shape[0]):
+    in_parallel(transverse_norms_share, states.shape[0], states, columns, weights, out)
+
+
+@jit(contract=False)
+def transverse_norms_share(states, columns, weights, out, start, stop):
+    """The samples ``start:stop`` of :func:`transverse_norms` (one share of :func:`tumble.kernels.threads.in_parallel`)."""
+    for i in range(start, stop):
         b, c = columns[i, 0], columns[i, 1]
         gb, gc = weights[i, 0], weights[i, 1]
         for j in range(states.shape[1]):
@@ -350,7 +360,6 @@ def growth_window_rate(window, p, h, min_points):
     return np.nan, 0, first, last
 
 
-@jit(parallel=True, contract=False)
 def growth_fit(times, row, norms, saturation, min_points, rate, points, code):
     """Exponential growth rate of each sample's norm by linear prediction inside its linear regime.
 
@@ -378,8 +387,14 @@ def growth_fit(times, row, norms, saturation, min_points, rate, points, code):
     code : ndarray of int8, shape (n,)
         Receives ``FIT_OK`` or ``FIT_SHORT_WINDOW``.
     """
-    n, p = norms.shape
-    for i in numba.prange(n):
+    in_parallel(growth_fit_share, norms.shape[0], times, row, norms, saturation, min_points, rate, points, code)
+
+
+@jit(contract=False)
+def growth_fit_share(times, row, norms, saturation, min_points, rate, points, code, start, stop):
+    """The samples ``start:stop`` of :func:`growth_fit` (one share of :func:`tumble.kernels.threads.in_parallel`)."""
+    p = norms.shape[1]
+    for i in range(start, stop):
         t = times[row[i]]
         h = (t[p - 1] - t[0]) / (p - 1)
         window = GROWTH_WINDOW_START

@@ -228,20 +228,19 @@ def _enable_cache(dispatcher):
     return dispatcher
 
 
-def jit(fn=None, *, parallel=False, inline=False, contract=True, cache=True, boundscheck=False):
+def jit(fn=None, *, inline=False, contract=True, cache=True, boundscheck=False):
     """Compile ``fn`` with tumble's numba options.
 
     Parameters
     ----------
-    parallel : bool
-        Enable ``prange`` (only for ensemble drivers).
     inline : bool
         Inline at the numba IR level (for tiny helpers called in inner loops).
     contract : bool
         Allow fused multiply-adds. ``False`` for kernels whose bits must not depend on how the compiler
-        happened to fuse: numba optimises a ``parallel=True`` kernel differently when it compiles it than
-        when it loads it from the cache (numba issue #10617), and with contraction allowed the two fuse
-        different products, so a cold and a warm run would disagree in the last bits.
+        happened to fuse (numba optimised its ``parallel=True`` kernels differently when it compiled them than
+        when it loaded them from the cache, numba issue #10617, and with contraction allowed the two fused
+        different products; tumble's parallelism is now :mod:`tumble.kernels.threads`, and these kernels keep
+        their bits).
     cache : bool
         Keep the compiled code in the disk cache (:class:`CheckedCache`). ``False`` for a user's function and
         the closures over it (:mod:`tumble.kernels.loops.sample_loop`): numba's cache cannot key a closure over another
@@ -249,7 +248,7 @@ def jit(fn=None, *, parallel=False, inline=False, contract=True, cache=True, bou
     boundscheck : bool
         Raise ``IndexError`` on an index out of bounds (slow: only for a first call that checks a user's function).
     """
-    options = dict(_OPTIONS, parallel=parallel)
+    options = dict(_OPTIONS)
     if not contract:
         options["fastmath"] = set(FASTMATH - {"contract"})
     if inline and _NUMBA_IR_INLINE:
@@ -284,18 +283,6 @@ def rebound(names, namespace, key=None, **replaced):
             copy.__qualname__ = f"{name}_{key}"
         scope[name] = jit(copy, cache=key is not None, contract=False)
     return scope
-
-
-def parallel_block(n, largest, smallest=64):
-    """Samples per block of a ``prange`` driver for ``n`` samples: ``largest``, or fewer so that the blocks are at
-    least as many as numba's threads (a scene of 256 samples in blocks of 256 would run on one thread), never fewer
-    than ``smallest`` (a block's SIMD loop keeps its lanes full) and a multiple of 8.
-
-    Results do not depend on the block size (the drivers' samples never interact): this is speed only.
-    """
-    threads = max(1, numba.get_num_threads())
-    share = -(-int(n) // threads)
-    return int(max(smallest, min(largest, -(-share // 8) * 8)))
 
 
 # CUDA kernels: fastmath off, which on the device means IEEE division and square root and no flush of subnormals to

@@ -29,28 +29,29 @@ def _array(dtype, ndim, readonly=False):
 _F1, _F2, _F3 = (_array(types.float64, n) for n in (1, 2, 3))
 _I1, _I2 = (_array(types.int64, n) for n in (1, 2))
 _CODES = _array(types.int8, 1)
+_SHARE = (types.int64, types.int64)  # start, stop: the share of samples (tumble.kernels.threads.in_parallel)
 
-_SET_UP = ("elliptic.torque_free_solve", (_F2, _F2, _F2, _I2, _F1, _F2, _I1, _F2, _I2, _F2, _F2))
-_EVALUATE = ("elliptic.torque_free_omega", (_I1, _F2, _I2, _F1, _F1, _F2, _F1, _F1, _F2, _I1, _F3))
+_SET_UP = ("elliptic.torque_free_solve_share", (_F2, _F2, _F2, _I2, _F1, _F2, _I1, _F2, _I2, _F2, _F2, *_SHARE))
+_EVALUATE = ("elliptic.torque_free_omega_share", (_I1, _F2, _I2, _F1, _F1, _F2, _F1, _F1, _F2, _I1, _F3, *_SHARE))
 
 #: Kernel and the signature a closed-form scene calls it with (``tumble.physics.exact``, ``tumble.measure``), by the
 #: scene's kind; in the order they are dealt out to the processes (the longest first: on two cores, omega and the
 #: norms in one, the set-up and the growth fit in the other, about 6 s each).
 CLOSED_FORM = {
-    "exponential": (_EVALUATE, _SET_UP, ("fits.transverse_norms", (_F3, _I2, _F2, _F2)),
-                    ("fits.growth_fit", (_F2, _I1, _F2, _array(types.float64, 1, readonly=True), types.int64, _F1,
-                                         _I1, _CODES))),
-    "periodic": (_EVALUATE, _SET_UP, ("fits.phase_fit", (_F2, _I1, _F3, _I2, _array(types.float64, 2, readonly=True),
-                                                         _F1, types.float64, _F1, _F1, _CODES))),
+    "exponential": (_EVALUATE, _SET_UP, ("fits.transverse_norms_share", (_F3, _I2, _F2, _F2, *_SHARE)),
+                    ("fits.growth_fit_share", (_F2, _I1, _F2, _array(types.float64, 1, readonly=True), types.int64, _F1,
+                                         _I1, _CODES, *_SHARE))),
+    "periodic": (_EVALUATE, _SET_UP, ("fits.phase_fit_share", (_F2, _I1, _F3, _I2, _array(types.float64, 2, readonly=True),
+                                                         _F1, types.float64, _F1, _F1, _CODES, *_SHARE))),
     "neutral": (_EVALUATE, _SET_UP),  # a degenerate axis: no rate to fit
     # tumble check: the closed form on a recording's times (the grid kernel, about 10 s to compile; the set-up 3.5 s);
     # with ATTITUDE dealt out on two cores as grid and attitude rows, set-up and attitude set-up
-    "grid": (("elliptic.torque_free_omega_grid", (_F1, _F2, _F1, _F3)), _SET_UP),
+    "grid": (("elliptic.torque_free_omega_grid_share", (_F1, _F2, _F1, _F3, *_SHARE)), _SET_UP),
 }
 
 #: The closed form's attitude (:func:`tumble.physics.exact.attitude`): its rows, then its set-up (3.7 s and 0.9 s to
 #: compile), appended to a list of :data:`CLOSED_FORM` where a run draws an attitude.
-ATTITUDE = (("elliptic_attitude.attitude_rows", (_F2, _F2, _F2, _F1, _F3, _F3)),
+ATTITUDE = (("elliptic_attitude.attitude_rows_share", (_F2, _F2, _F2, _F1, _F3, _F3, *_SHARE)),
             ("elliptic_attitude.attitude_setup", (_F2, _F2, _I1, _F2, _I2, _F1, _F1, _F1, _F1, _F2, _F2, _F2, _F2)))
 
 _MODULES = {"elliptic": elliptic, "elliptic_attitude": elliptic_attitude, "fits": fits}

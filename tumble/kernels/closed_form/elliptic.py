@@ -76,13 +76,13 @@ Kernels take plain float64 arrays and scalars and write into arrays they are giv
 
 import math
 
-import numba
 import numpy as np
 from llvmlite import ir
 from numba.core import types
 from numba.extending import intrinsic
 
 from ..jit import jit
+from ..threads import in_parallel
 from ..trig import _C1, _C2, _C3, _C4, _C5, _C6, _S1, _S2, _S3, _S4, _S5, _S6, _floor, _fma
 
 __all__ = ["KC_HYPERBOLIC", "TINY_TRANSVERSE", "agm", "carlson_rf", "complete_integrals", "hyperbolic_nome", "jacobi_sncndn", "torque_free_omega",
@@ -421,10 +421,7 @@ def _elliptic_integrals(kind, k_c, sn_r, cn_r):
     return K, phase0, h, q
 
 
-@jit(parallel=True)
 def torque_free_solve(moments, w, I, perm, parity, scaled, kind, amp, cols, params, nome):
-    # size: flat per-sample arrays in and out (numba); the invariants and the four regimes (elliptic, separatrix,
-    # symmetric, stationary) set up in one pass per sample in one prange body
     """Per-sample parameters of the torque-free motion (Landau & Lifshitz §37) for :func:`torque_free_omega`, from
     bodies and spins given one per row: the invariants, then the set-up, in one pass (one kernel call).
 
@@ -475,8 +472,18 @@ def torque_free_solve(moments, w, I, perm, parity, scaled, kind, amp, cols, para
         not both zero: their ``L² - 2E I2`` has lost its accuracy to underflow (the caller lifts them and calls
         again).
     """
+    return in_parallel(torque_free_solve_share, w.shape[0], moments, w, I, perm, parity, scaled, kind, amp, cols, params,
+                       nome)
+
+
+@jit
+def torque_free_solve_share(moments, w, I, perm, parity, scaled, kind, amp, cols, params, nome, start, stop):
+    # size: flat per-sample arrays in and out (numba); the invariants and the four regimes (elliptic, separatrix,
+    # symmetric, stationary) set up in one pass per sample
+    """The samples ``start:stop`` of :func:`torque_free_solve` (one share of
+    :func:`tumble.kernels.threads.in_parallel`)."""
     tiny = 0
-    for i in numba.prange(w.shape[0]):
+    for i in range(start, stop):
         tiny += _solve_sample(i, moments[i, 0], moments[i, 1], moments[i, 2], w[i], I, perm, parity, scaled, kind, amp,
                               cols, params, nome)
     return tiny
@@ -536,21 +543,22 @@ def _setup_row(I1, I2, I3, p0, p1, p2, parity, sc, wa, wb, wc, d):
             s_p * parity * nu_abs * sc, sn_r / norm, cn_r / norm, e2, L2)
 
 
-@jit(parallel=True)
-def _torque_free_omega_reference(kind, amp, cols, kc, phase0, nu, t, out):
+@jit
+def _torque_free_omega_reference(kind, amp, cols, kc, phase0, nu, t, out, start, stop):
     """The scalar kernel :func:`torque_free_omega` replaced: one time grid, libm calls, per-sample arrays.
 
     Kept as the reference the vectorised kernel is tested and benchmarked against (same arguments but a
     single time grid ``t``, shape (T,), of times in s, and no ``K``, ``nome`` nor ``row``: ``kind``, ``amp``, ``cols``,
     ``kc``, ``phase0`` and ``nu`` as :func:`torque_free_omega` takes them); it evaluates ``sn, cn, dn`` with
-    :func:`_sncndn_shifted` into ``out`` (n, T, 3), rad/s.
+    :func:`_sncndn_shifted` into ``out`` (n, T, 3), rad/s; the samples ``start:stop`` (one share of
+    :func:`tumble.kernels.threads.in_parallel`).
     """
-    for i in numba.prange(kind.shape[0]):
+    a = np.empty(_LANDEN_MAX)
+    c = np.empty(_LANDEN_MAX)
+    for i in range(start, stop):
         cq, cm, cp = cols[i, 0], cols[i, 1], cols[i, 2]
         aq, am, ap = amp[i, 0], amp[i, 1], amp[i, 2]
         if kind[i] == KIND_ELLIPTIC:
-            a = np.empty(_LANDEN_MAX)  # per sample: samples run in parallel
-            c = np.empty(_LANDEN_MAX)
             K, k, h, q, nterms, nlanden = _setup(kc[i], a, c)
             for j in range(t.shape[0]):
                 s = phase0[i] + nu[i] * t[j]
@@ -985,7 +993,6 @@ def _count_non_finite(o):
 _GRID_CHUNK = 64
 
 
-@jit(parallel=True)
 def torque_free_omega_grid(moments, w, times, out):
     """:func:`torque_free_solve` and :func:`torque_free_omega` in one kernel call, for spins ``w`` (n, 3) of one
     body ``moments`` (3,) at the times ``times`` (T,): the lean path of :func:`tumble.physics.exact.omega` on a time
@@ -996,13 +1003,18 @@ def torque_free_omega_grid(moments, w, times, out):
     :data:`TINY_TRANSVERSE`; the caller takes the two kernels apart, which lift them) and of samples with a
     non-finite value.
     """
-    n = w.shape[0]
-    rows = out.reshape(n, 3 * out.shape[1])  # (n, T, 3) -> (n, 3T), a view
+    return in_parallel(torque_free_omega_grid_share, w.shape[0], moments, w, times, out, granule=_GRID_CHUNK)
+
+
+@jit
+def torque_free_omega_grid_share(moments, w, times, out, start, stop):
+    """The samples ``start:stop`` of :func:`torque_free_omega_grid` (one share of
+    :func:`tumble.kernels.threads.in_parallel`): ``(tiny, non_finite)`` counts."""
+    rows = out.reshape(w.shape[0], 3 * out.shape[1])  # (n, T, 3) -> (n, 3T), a view
     tiny = 0
     non_finite = 0
-    for c in numba.prange((n + _GRID_CHUNK - 1) // _GRID_CHUNK):
-        lo = c * _GRID_CHUNK
-        m = min(n - lo, _GRID_CHUNK)
+    for lo in range(start, stop, _GRID_CHUNK):
+        m = min(stop - lo, _GRID_CHUNK)
         I, perm, parity, scaled = np.empty((m, 3)), np.empty((m, 3), dtype=np.int64), np.empty(m), np.empty((5, m))
         kind, amp, cols = np.empty(m, dtype=np.int64), np.empty((m, 3)), np.empty((m, 3), dtype=np.int64)
         params, nome = np.empty((5, m)), np.empty((2, m))
@@ -1018,7 +1030,6 @@ def torque_free_omega_grid(moments, w, times, out):
     return tiny, non_finite
 
 
-@jit(parallel=True)
 def torque_free_omega(kind, amp, cols, kc, K, nome, phase0, nu, times, row, out):
     """Body-frame angular velocity of the free rigid body, sample by sample (Landau & Lifshitz §37).
 
@@ -1057,9 +1068,17 @@ def torque_free_omega(kind, amp, cols, kc, K, nome, phase0, nu, times, row, out)
     int
         The number of samples with a non-finite value (0 unless something is wrong).
     """
+    return in_parallel(torque_free_omega_share, kind.shape[0], kind, amp, cols, kc, K, nome, phase0, nu, times, row,
+                       out)
+
+
+@jit
+def torque_free_omega_share(kind, amp, cols, kc, K, nome, phase0, nu, times, row, out, start, stop):
+    """The samples ``start:stop`` of :func:`torque_free_omega` (one share of :func:`tumble.kernels.threads.in_parallel`):
+    the count of samples with a non-finite value."""
     rows = out.reshape(out.shape[0], 3 * out.shape[1])  # (n, T, 3) -> (n, 3T), a view
     non_finite = 0
-    for i in numba.prange(kind.shape[0]):
+    for i in range(start, stop):
         t = times[row[i]]
         o = rows[i]
         W = _column_weights(cols[i, 0], cols[i, 1], cols[i, 2], amp[i, 0], amp[i, 1], amp[i, 2])
@@ -1122,7 +1141,6 @@ _CHUNK = 256
 _AQ, _AM, _AP, _KC, _M, _NU, _X, _Y, _NEG, _SPECIAL, _K, _Q, _SN, _CN, _DN, _A, _B, _WA, _WB, _WC = range(20)
 
 
-@jit(parallel=True)
 def torque_free_omega_at(moments, w, t, out):
     """Angular velocity of the free rigid body at one time ``t``, straight from the initial spins: the invariants,
     the set-up and one evaluation of :func:`torque_free_omega`, fused, with samples in SIMD lanes and without the
@@ -1162,12 +1180,17 @@ def torque_free_omega_at(moments, w, t, out):
         The samples too close to a principal axis for the invariants (``TINY_TRANSVERSE``: the caller must take
         the general path for them) and the samples with a non-finite value.
     """
-    n = w.shape[0]
+    return in_parallel(torque_free_omega_at_share, w.shape[0], moments, w, t, out, granule=_CHUNK)
+
+
+@jit
+def torque_free_omega_at_share(moments, w, t, out, start, stop):
+    """The samples ``start:stop`` of :func:`torque_free_omega_at` (one share of
+    :func:`tumble.kernels.threads.in_parallel`): ``(tiny, non_finite)`` counts."""
     tiny = 0
     non_finite = 0
-    for ch in numba.prange((n + _CHUNK - 1) // _CHUNK):
-        lo = ch * _CHUNK
-        tiny_chunk, non_finite_chunk = _omega_at_chunk(moments, w, t, out, lo, min(_CHUNK, n - lo))
+    for lo in range(start, stop, _CHUNK):
+        tiny_chunk, non_finite_chunk = _omega_at_chunk(moments, w, t, out, lo, min(_CHUNK, stop - lo))
         tiny += tiny_chunk
         non_finite += non_finite_chunk
     return tiny, non_finite

@@ -28,12 +28,12 @@ Kernels take plain float64 arrays and scalars and write into arrays they are giv
 
 import math
 
-import numba
 import numpy as np
 
 from .elliptic import (KIND_SEPARATRIX, KIND_STATIONARY, _LANDEN_MAX, _sech, _setup, _sncndn_core, _sncndn_shifted,
                        carlson_rf)
 from ..jit import jit
+from ..threads import in_parallel
 
 __all__ = ["CONSTANTS", "LANDEN", "attitude_at", "attitude_constants", "attitude_rows", "attitude_setup", "carlson_rj"]
 
@@ -268,7 +268,7 @@ def attitude_at(cst, landen_a, landen_c, t, w0, w1, w2):
 def attitude_setup(moments, w, kind, amp, cols, kc, K, phase0, nu, start, cst, landen_a, landen_c):
     # size: the closed form's per-sample set-up arrays (flat, as its kernels take them), and the three it fills
     """:func:`attitude_constants` of every sample (one loop: a few microseconds a sample, against the times' work;
-    a ``prange`` here cost 2 s more to compile): ``moments`` and ``w`` (n, 3), the set-up arrays of
+    a parallel loop here is not worth its threads): ``moments`` and ``w`` (n, 3), the set-up arrays of
     :func:`tumble.physics.exact.solve_rows` (``kind`` (n,), ``amp`` and ``cols`` (n, 3), ``kc``, ``K``, ``phase0``,
     ``nu`` (n,)), ``start`` (n, 3) the angular velocity at ``t = 0``; fills ``cst`` (n, CONSTANTS) and ``landen_a``,
     ``landen_c`` (n, LANDEN)."""
@@ -278,13 +278,19 @@ def attitude_setup(moments, w, kind, amp, cols, kc, K, phase0, nu, start, cst, l
                            start[i, 0], start[i, 1], start[i, 2], cst[i], landen_a[i], landen_c[i])
 
 
-@jit(parallel=True, contract=False)
 def attitude_rows(cst, landen_a, landen_c, times, omega, out):
     """:func:`attitude_at` of every sample at every time, in parallel over (sample, time) pairs (a long trajectory of
     one sample uses every core): ``times`` (T,), ``omega`` (n, T, 3) the angular velocity there; ``out`` (n, T, 4)
     receives the quaternions."""
-    n, t_count = omega.shape[0], omega.shape[1]
-    for k in numba.prange(n * t_count):
+    in_parallel(attitude_rows_share, omega.shape[0] * omega.shape[1], cst, landen_a, landen_c, times, omega, out)
+
+
+@jit(contract=False)
+def attitude_rows_share(cst, landen_a, landen_c, times, omega, out, start, stop):
+    """The (sample, time) pairs ``start:stop`` of :func:`attitude_rows`, sample-major (one share of
+    :func:`tumble.kernels.threads.in_parallel`)."""
+    t_count = omega.shape[1]
+    for k in range(start, stop):
         i = k // t_count
         j = k - i * t_count
         out[i, j, 0], out[i, j, 1], out[i, j, 2], out[i, j, 3] = attitude_at(

@@ -2,7 +2,7 @@
 on the fly, on the CPU and on the device.
 
 :func:`run_block` is written once; its callers are thin. The CPU's drivers run blocks of samples in parallel
-(``prange``: the free body's :func:`tumble.kernels.loops.drivers.make_propagate`, the models'
+(a share of whole blocks per thread, :mod:`tumble.kernels.threads`: the free body's :func:`tumble.kernels.loops.drivers.make_propagate`, the models'
 :func:`tumble.kernels.loops.model_loop.make_propagate_model`), where each block is a structure of arrays ``ys`` (n_state, m),
 one row per component and one column per sample, so that the per-sample steps vectorise across samples (SIMD lanes);
 the device's kernels (:mod:`tumble.kernels.cuda.rigid_body`, :mod:`tumble.kernels.cuda.models`) run a block of one sample per

@@ -1,7 +1,8 @@
 """The free body's CPU driver: blocks of samples in parallel through the one time loop
 (:func:`tumble.kernels.loops.block_loop.run_block`), one compiled driver per method and torque type.
 
-Samples are cut into blocks of ``block`` samples; blocks run in parallel (``prange``) and each block is copied into
+Samples are cut into blocks of ``block`` samples; blocks run in parallel (a share of whole blocks per thread,
+:func:`tumble.kernels.threads.in_parallel`) and each block is copied into
 three contiguous component arrays (structure of arrays) so that the per-sample step (:mod:`tumble.kernels.steps.fused`)
 vectorises across samples. Samples never interact, so the results do not depend on the number of threads or on the
 block size. The device's kernel (:mod:`tumble.kernels.cuda.rigid_body`) runs the same loop, one sample per thread.
@@ -20,7 +21,7 @@ measurement is complete (early stop, see ``stop_norm`` and ``stop_flips``).
 """
 
 import numpy as np
-from numba import prange, types
+from numba import types
 
 from ...registry import STATUS_DRIFT, STATUS_NAMES, STATUS_NONFINITE, STATUS_OK  # noqa: F401
 from .block_loop import CHECK_EVERY, FREE_BODY, block_scratch, run_block  # noqa: F401
@@ -34,7 +35,7 @@ def make_propagate(torque_free, kernel):
     which the loop takes as literals, so that it compiles the one step it runs. numba's disk cache tells the closures
     apart by their constants (its index key hashes a closure's cell contents)."""
 
-    @jit(parallel=True)
+    @jit
     def propagate(w, body, t0, h, n_steps, block,
                   save_every, saved,
                   axis, norm_weights, probe_steps, probes,
@@ -42,11 +43,13 @@ def make_propagate(torque_free, kernel):
                   drift,
                   status, steps_taken,
                   stop_norm, stop_flips, drift_limit,
-                  torque_kind, torque_params, torque_fn):
+                  torque_kind, torque_params, torque_fn,
+                  start, stop):
         # size: the driver's flat arguments (kernels.loops.methods.run packs them), documented once here
         """Advance every sample ``n_steps`` fixed steps of size ``h`` of the closure's method, observing as asked: the
         CPU's wrapper of the one time loop (:func:`tumble.kernels.loops.block_loop.run_block`), blocks of ``block`` samples in
-        parallel.
+        parallel: the samples ``start:stop`` (``start`` a multiple of ``block``), one share of
+        :func:`tumble.kernels.threads.in_parallel`.
 
         Parameters
         ----------
@@ -83,15 +86,15 @@ def make_propagate(torque_free, kernel):
             Torque-free invariant drift that marks a sample ``STATUS_DRIFT`` (<= 0: off).
         torque_kind, torque_params, torque_fn
             See :func:`tumble.kernels.steps.steppers.body_torque`; ``torque_params=None`` compiles the torque out.
+        start, stop : int
+            The share of samples this call runs.
         """
-        n = w.shape[1]
         # the transverse norm's two terms: the components off the axis, none subtracted
         b, c = (axis + 1) % 3, (axis + 2) % 3
         norm = (np.array([b, c], dtype=np.int64), np.array([norm_weights[b], norm_weights[c]]), np.zeros(3))
         no_fit, no_fit_points = np.empty((0, 1)), np.empty(0, dtype=np.int64)  # the growth fit is the caller's
-        for ib in prange((n + block - 1) // block):
-            lo = ib * block
-            m = min(block, n - lo)
+        for lo in range(start, stop, block):
+            m = min(block, stop - lo)
             run_block(FREE_BODY, kernel, torque_free, w, lo, block_scratch(3, m), body, t0, h, n_steps, save_every,
                       saved, norm, probe_steps, probes, (axis, flips, flip_count), drift, drift_limit, status, steps_taken,
                       (stop_norm, stop_flips), (torque_kind, torque_params, torque_fn),
@@ -137,4 +140,4 @@ def _user_torque_types():
     f8, i8 = types.float64, types.int64
     return (f8[:, ::1], types.UniTuple(f8, 12), f8, f8, i8, i8, i8, f8[:, :, ::1], i8, f8[::1], i8[::1],
             f8[:, ::1], f8[:, ::1], i8[::1], f8[:, ::1], types.int8[::1], i8[::1], f8, i8, f8, i8, f8[::1],
-            types.FunctionType(TORQUE_SIGNATURE))
+            types.FunctionType(TORQUE_SIGNATURE), i8, i8)

@@ -9,6 +9,7 @@ from ...registry import STEPPING
 from .. import tableaux
 from ..steps.attitude import FAMILY_MIDPOINT, FAMILY_RUNGE_KUTTA, FAMILY_SPLITTING, propagate_attitude
 from .drivers import driver
+from ..threads import in_parallel
 from ..steps.steppers import TORQUE_CONSTANT, body_constants
 
 __all__ = ["BLOCK", "METHODS", "Method", "Observed", "from_kernel_frame", "kernel_frame", "kernel_observed_axis", "run",
@@ -244,7 +245,7 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
             int(save_every), saved, int(kernel_axis), weights, probe_steps, probes, flips, flip_count, drifts, status,
             steps_taken, float(stop_norm), int(stop_flips), float(drift_limit), int(torque_kind), torque_params,
             torque_fn)
-    driver(method.kernel_id, torque_free, torque_fn)(*args)
+    in_parallel(driver(method.kernel_id, torque_free, torque_fn), n, *args, granule=int(block))
     if relabel is not None:
         w[:] = from_kernel_frame(relabel, kernel_w)
         saved = from_kernel_frame(relabel, saved, axis=1)
@@ -285,10 +286,10 @@ def run_attitude(method, w, q, moments, t0, h, n_steps, *, save_every, torque_ki
     saved_q = np.empty((frame.n_saved, n, 4))
     status = np.zeros(n, dtype=np.int8)
     kernel_q = np.array(q, dtype=float)
-    propagate_attitude(frame.family, frame.A, frame.b, frame.c, frame.flows, frame.fractions,
-                       np.asarray(frame.axes, dtype=np.int64), frame.sign, frame.w, kernel_q, frame.body, float(t0),
-                       float(h), int(n_steps), int(save_every), saved_w, saved_q, status, int(torque_kind),
-                       frame.torque_params, torque_fn)
+    in_parallel(propagate_attitude, n, frame.family, frame.A, frame.b, frame.c, frame.flows, frame.fractions,
+                np.asarray(frame.axes, dtype=np.int64), frame.sign, frame.w, kernel_q, frame.body, float(t0),
+                float(h), int(n_steps), int(save_every), saved_w, saved_q, status, int(torque_kind),
+                frame.torque_params, torque_fn)
     return from_attitude_frame(frame, saved_w), saved_q.transpose(1, 0, 2), status
 
 

@@ -3,7 +3,7 @@ kernels' door for the models (:func:`run_model`, :func:`model_rhs`, :func:`model
 
 The state of every sample is a column of ``y`` (shape ``(n_state, N)``, ``n_state`` up to 7: the model's components
 as ``registry.MODELS`` lists them, ``w1 w2 w3`` first, then the heavy top's ``g1 g2 g3``, the gravity gradient's
-``q0 q1 q2 q3`` or the damper's ``s1 s2 s3``). The samples are cut into blocks that run in parallel (``prange``)
+``q0 q1 q2 q3`` or the damper's ``s1 s2 s3``). The samples are cut into blocks that run in parallel (a share of whole blocks per thread)
 through the one time loop (:func:`tumble.kernels.loops.block_loop.run_block`, the free body's too), where the generated
 per-sample step (:mod:`tumble.kernels.steps.model_steps`, from each system's module of :mod:`tumble.kernels.systems` and the
 Butcher tableaux of :mod:`tumble.kernels.tableaux`) runs over a block's samples vectorised across them (SIMD lanes).
@@ -36,12 +36,12 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import prange
 
 from ...registry import LIE_POISSON_MODELS, MODEL_KINDS, MODEL_PARAMETERS, MODEL_STEPPING, STEPPING, model_kind
 from ...registry import model_methods  # the names the model kernels run for a kind (re-exported)
 from .block_loop import N_INVARIANTS, block_scratch, run_block
 from ..jit import jit
+from ..threads import in_parallel
 from ..steps.model_splittings import SPLITTINGS
 from .sample_loop import saved_count
 from ..steps.model_steps import rate_columns, rate_sample, tangent_columns, tangent_sample
@@ -75,16 +75,15 @@ def make_propagate_model(model, method):
     and that method's step only. numba's disk cache tells the closures apart by their constants (a user's System's code
     that keys nothing is not cached: :func:`tumble.kernels.steps.system_steps.cacheable`)."""
 
-    @jit(parallel=True, cache=cacheable(model))
+    @jit(cache=cacheable(model))
     def propagate(y, constants, h, n_steps, block, save_every, saved, columns, weights, y_eq, probe_steps, probes,
-                  drift, drift_limit, status, steps_taken):
+                  drift, drift_limit, status, steps_taken, start, stop):
         n_state, n = y.shape
         no_flips, no_count = np.empty((n, 0)), np.empty(0, dtype=np.int64)  # a model's flips are not observed
         no_fit = np.empty((0, 1))
-        no_stops = (0.0, np.int64(0))  # (not the literal 0: the parallel loop's body would compile a second variant)
-        for ib in prange((n + block - 1) // block):
-            lo = ib * block
-            m = min(block, n - lo)
+        no_stops = (0.0, np.int64(0))  # (not the literal 0: the free body's drivers pass an int64)
+        for lo in range(start, stop, block):
+            m = min(block, stop - lo)
             run_block(model, method, True, y, lo, block_scratch(n_state, m), constants, 0.0, h, n_steps, save_every,
                       saved, (columns, weights, y_eq), probe_steps, probes, (0, no_flips, no_count), drift, drift_limit,
                       status, steps_taken, no_stops, (0, None, None), (0.0, 0, 0.0, no_fit, no_count))
@@ -103,7 +102,7 @@ def propagate_model(model, method, y, constants, h, n_steps, block,
                     status, steps_taken):
     """Advance every sample ``n_steps`` steps of size ``h`` of ``method`` on ``model``, observing as asked: the CPU's
     wrapper of the one time loop (:func:`tumble.kernels.loops.block_loop.run_block`), blocks of ``block`` samples in parallel
-    (``prange``).
+    (a share of whole blocks per thread, :func:`tumble.kernels.threads.in_parallel`).
 
     Parameters
     ----------
@@ -135,8 +134,8 @@ def propagate_model(model, method, y, constants, h, n_steps, block,
     driver = _DRIVERS.get(key)
     if driver is None:
         driver = _DRIVERS[key] = make_propagate_model(*key)
-    driver(y, constants, h, n_steps, block, save_every, saved, columns, weights, y_eq, probe_steps, probes, drift,
-           drift_limit, status, steps_taken)
+    in_parallel(driver, y.shape[1], y, constants, h, n_steps, block, save_every, saved, columns, weights, y_eq,
+                probe_steps, probes, drift, drift_limit, status, steps_taken, granule=int(block))
 
 
 def run_system_blocks(code, method, y, constants, h, n_steps, save_every=0, block=BLOCK):

@@ -20,15 +20,13 @@ cannot key a closure over another function: numba issue #6264) — a few seconds
 import math
 import re
 
-from concurrent.futures import ThreadPoolExecutor
-
-import numba
 import numpy as np
 from numba import types
 from numba.core.errors import NumbaError
 
 from ...registry import STATUS_NONFINITE, STATUS_OK
 from ..jit import jit
+from ..threads import in_shares
 
 __all__ = ["JACOBIAN_SIGNATURE", "RATE_SIGNATURE", "combine", "compile_function", "make_cpu_driver", "make_sample_loop",
            "in_shares", "make_step", "saved_count"]
@@ -178,9 +176,7 @@ def make_cpu_driver(run_sample, stages):
     (N,) int64 written. ``stages``: the method's number of stages (the scratch has two rows more).
 
     The samples are cut into one contiguous share per numba thread, each run by a serial loop that releases the GIL
-    (``nogil``) on a thread of its own: the same parallelism as a ``prange`` over samples (a user's rate is scalar
-    code on one sample's arrays, nothing to vectorise across samples) without numba's parallel compilation pass,
-    which took 6 of the 13 s of CPU a pendulum's first rk4 run compiled (2 cores, numba 0.68)."""
+    on a thread of its own (:func:`tumble.kernels.threads.in_shares`, the parallelism of every CPU driver)."""
 
     @jit(cache=False)
     def run_share(y, p, t0, h, n_steps, save_every, saved, status, steps_taken):
@@ -199,28 +195,3 @@ def make_cpu_driver(run_sample, stages):
                                                      status[lo:hi], steps_taken[lo:hi]))
 
     return drive
-
-
-def in_shares(run_share, n, share):
-    """``run_share(*share(lo, hi))`` for one contiguous share ``lo:hi`` of the ``n`` samples per numba thread, each on
-    a thread of its own (``run_share`` releases the GIL: ``nogil``): the last in this thread, the others on the
-    process's pool (:func:`_pool`, made once: starting threads for each call cost 0.4 ms, more than a small run)."""
-    threads = max(1, min(numba.get_num_threads(), n))
-    bounds = np.linspace(0, n, threads + 1).astype(int)
-    shares = [share(lo, hi) for lo, hi in zip(bounds[:-1], bounds[1:])]
-    others = [_pool().submit(run_share, *arguments) for arguments in shares[:-1]]
-    try:
-        run_share(*shares[-1])
-    finally:
-        for done in others:
-            done.result()
-
-
-_POOL = []
-
-
-def _pool():
-    """The process's threads for :func:`in_shares` (one fewer than the machine's cores suffices; made on first use)."""
-    if not _POOL:
-        _POOL.append(ThreadPoolExecutor(max(1, numba.config.NUMBA_NUM_THREADS - 1), thread_name_prefix="tumble"))
-    return _POOL[0]

@@ -30,11 +30,12 @@ arithmetic is the per-sample loop's, so results match it to round-off (``tests/t
 import math
 
 import numpy as np
-from numba import prange, types
+from numba import types
 from numba.extending import overload
 
 from ...registry import LIE_POISSON_MODELS, MODEL_STEPPING, STATUS_ABOVE, STATUS_NONFINITE, STATUS_OK, STEPPING
 from ..jit import FASTMATH, jit
+from ..threads import in_parallel
 from ..steps.model_splittings import GRAVITY_CODE, SPLITTINGS, splitting_tangent_block
 from ..steps.model_steps import TANGENT_STEPS
 from ..steps.system_steps import SYSTEM_CODES, cacheable, tangent_step
@@ -337,19 +338,17 @@ def make_propagate_tangents(model, method):
     compiled: :func:`_tangent_step`); numba's disk cache tells the closures apart by their constants (a user's System's
     code that keys nothing is not cached: :func:`tumble.kernels.steps.system_steps.cacheable`)."""
 
-    @jit(parallel=True, cache=cacheable(model))
+    @jit(cache=cacheable(model))
     def propagate_tangents(a, y, V, t0, h, n_steps, every, transient, save_every, stop_above, orthogonalise, logs,
-                           saved, megno, status, steps_taken):
+                           saved, megno, status, steps_taken, start, stop):
         # size: tangent_loop's driver's arguments, with the model's constants first
         """Every sample of ``y`` (N, n) with its tangent vectors ``V`` (N, k, n) through the whole run, blocks of
-        :data:`BLOCK` samples in parallel (``prange``): ``y`` and ``V`` overwritten with the final (or stopped) values,
+        :data:`BLOCK` samples, the share ``start:stop`` of :func:`tumble.kernels.threads.in_parallel`: ``y`` and ``V`` overwritten with the final (or stopped) values,
         ``logs`` (N, k) (zeros in), ``saved`` (N, n_saved, k), ``megno`` (N, 4), ``status`` (N,) int8 and
         ``steps_taken`` (N,) int64 written, as :func:`tumble.kernels.loops.tangent_loop.make_cpu_driver`'s driver. ``a``:
         the model's constants (:func:`tumble.kernels.systems.constants`)."""
-        n_samples = y.shape[0]
-        for b in prange((n_samples + BLOCK - 1) // BLOCK):
-            lo = b * BLOCK
-            _run_block(model, method, a, y, V, lo, min(BLOCK, n_samples - lo), t0, h, n_steps, every, transient,
+        for lo in range(start, stop, BLOCK):
+            _run_block(model, method, a, y, V, lo, min(BLOCK, stop - lo), t0, h, n_steps, every, transient,
                        save_every, stop_above, orthogonalise, logs, saved, megno, status, steps_taken)
 
     return propagate_tangents
@@ -365,4 +364,4 @@ def run(model, method, *arguments):
     driver = _DRIVERS.get((model, method))
     if driver is None:
         driver = _DRIVERS[model, method] = make_propagate_tangents(model, method)
-    driver(*arguments)
+    in_parallel(driver, len(arguments[1]), *arguments, granule=BLOCK)

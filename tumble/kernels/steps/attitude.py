@@ -15,7 +15,7 @@ Each method family carries it in the way that keeps its own structure:
   the Cayley rotation ``cay(h ẑ)``. The midpoint rule maps ``L`` by ``cay(-h ẑ)`` (its linear algebra is
   ``(1 + h ẑ/2) L1 = (1 - h ẑ/2) L0``), so ``q L q*`` is again kept to round-off.
 
-These are per-sample scalar loops (``prange`` over samples), separate from the SIMD ensemble drivers of
+These are per-sample scalar loops (a share of the samples per thread), separate from the SIMD ensemble drivers of
 :mod:`tumble.kernels.loops.drivers`: a run that does not ask for the attitude never compiles or runs this code.
 The coefficients are the same tables (:mod:`tumble.kernels.tableaux`); the angular velocity of an attitude
 run follows the same arithmetic as the SIMD kernels up to rounding.
@@ -24,8 +24,6 @@ run follows the same arithmetic as the SIMD kernels up to rounding.
 import math
 
 import numpy as np
-from numba import prange
-
 from ..jit import jit
 from .steppers import (_EPS, _MIDPOINT_MAX_ITERATIONS, _MIDPOINT_ULPS, euler_rate, l_squared, project_l_squared, rotate,
                        torque_subflow)
@@ -170,7 +168,7 @@ def run_sample(i, family, A, b, c, flows, fractions, axes, sign, w, q, body, t0,
     # size: the attitude's one time loop, on either device: flat arrays and scalars, the sample's scratch owned by the
     # caller
     """Sample ``i`` through the whole run: the attitude's one time loop, for the CPU (:func:`propagate_attitude`, a
-    ``prange`` over samples) and the device (:mod:`tumble.kernels.cuda.attitude_steps`, one thread per sample). The scratch,
+    loop over a share of the samples) and the device (:mod:`tumble.kernels.cuda.attitude_steps`, one thread per sample). The scratch,
     owned by the caller: ``y`` (7,) the state ``(w, q)``, ``k`` (stages, 7) and ``stage`` (7,) the Runge–Kutta
     stages; the other arguments are :func:`propagate_attitude`'s."""
     y[0], y[1], y[2] = w[i, 0], w[i, 1], w[i, 2]
@@ -212,12 +210,13 @@ def _store(saved_w, saved_q, slot, i, y):
         saved_q[slot, i, j] = y[3 + j]
 
 
-@jit(parallel=True)
+@jit
 def propagate_attitude(family, A, b, c, flows, fractions, axes, sign, w, q, body, t0, h, n_steps, save_every, saved_w,
-                       saved_q, status, torque_kind, torque_params, torque_fn):
+                       saved_q, status, torque_kind, torque_params, torque_fn, start, stop):
     # size: flat arrays and scalars (numba): the method's tableau, the state, the torque
     """Advance every sample's angular velocity and attitude ``n_steps`` fixed steps of size ``h``: the CPU's wrapper of
-    the one time loop (:func:`run_sample`), samples in parallel.
+    the one time loop (:func:`run_sample`) for the samples ``start:stop`` (one share of
+    :func:`tumble.kernels.threads.in_parallel`).
 
     Parameters
     ----------
@@ -238,8 +237,7 @@ def propagate_attitude(family, A, b, c, flows, fractions, axes, sign, w, q, body
     status : ndarray (N,) int8
         Output: ``STATUS_NONFINITE`` where a sample became NaN or inf; such a sample stops stepping.
     """
-    n_stages = max(1, b.shape[0])
-    for i in prange(w.shape[0]):
+    y, k, stage = np.empty(7), np.empty((max(1, b.shape[0]), 7)), np.empty(7)
+    for i in range(start, stop):
         run_sample(i, family, A, b, c, flows, fractions, axes, sign, w, q, body, t0, h, n_steps, save_every, saved_w,
-                   saved_q, status, torque_kind, torque_params, torque_fn, np.empty(7), np.empty((n_stages, 7)),
-                   np.empty(7))
+                   saved_q, status, torque_kind, torque_params, torque_fn, y, k, stage)
