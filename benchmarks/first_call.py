@@ -355,7 +355,7 @@ def _verdict(goals, name, column, value):
     if name not in goals:
         return ""
     target = goals[name][column]
-    return f" (<= {target:g} s: met)" if value <= target else f" (<= {target:g} s: missed by {value - target:.2f} s)"
+    return f" (<= {target:.2f} s: met)" if value <= target else f" (<= {target:.2f} s: missed by {value - target:.2f} s)"
 
 
 def _side_by_side(loaded):

@@ -19,6 +19,7 @@ cannot key a closure over another function: numba issue #6264) — a few seconds
 
 import math
 import re
+import types as types_
 
 import numpy as np
 from numba import types
@@ -55,8 +56,13 @@ def _reason(err):
 
 def compile_function(fn, signature, owner, what, boundscheck=False):
     """``fn`` (plain Python, or a numba function: its Python source is compiled again with tumble's options)
-    compiled in nopython mode for ``signature``, not cached (:func:`tumble.kernels.jit.jit`); with ``boundscheck``
-    an index out of bounds raises ``IndexError`` (for one checking call).
+    compiled in nopython mode for ``signature``; with ``boundscheck`` an index out of bounds raises ``IndexError`` (for
+    one checking call).
+
+    Kept in numba's disk cache (beside ``fn``'s file, or in ``NUMBA_CACHE_DIR``) where what it computes can be keyed
+    (:func:`tumble.kernels.steps.system_steps.functions_key`: its source and what it reads), under its name with that
+    key appended (a copy of ``fn``: numba names its cache files by the qualified name and does not key them by the
+    globals read), so that a new process loads it; else compiled in each process.
 
     Raises
     ------
@@ -64,7 +70,15 @@ def compile_function(fn, signature, owner, what, boundscheck=False):
         numba cannot compile it: one line, ``"{owner}: numba cannot compile {what} in nopython mode: {reason}
         ({file}, line {n})"``, never numba's traceback.
     """
-    dispatcher = jit(getattr(fn, "py_func", fn), cache=False, boundscheck=boundscheck)
+    from ..steps.system_steps import functions_key  # (system_steps imports the loops)
+
+    source = getattr(fn, "py_func", fn)
+    key = functions_key(source)
+    if key is not None:
+        source = types_.FunctionType(source.__code__, source.__globals__, source.__name__, source.__defaults__,
+                                     source.__closure__)
+        source.__qualname__ = f"{source.__qualname__}_{key}{'_checked' if boundscheck else ''}"
+    dispatcher = jit(source, cache=key is not None, boundscheck=boundscheck)
     try:
         dispatcher.compile(signature)
     except NumbaError as err:
