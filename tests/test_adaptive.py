@@ -201,6 +201,7 @@ def _no_torque(t, w1, w2, w3):
     return 0.0 * w1, 0.0 * w2, 0.0 * t
 
 
+@pytest.mark.slow  # the attitude's own System's kernels' compile (30 s on an empty cache): the torque's case runs by default
 def test_the_attitude_follows_the_closed_form_and_its_quaternion_is_a_unit_one():
     # a torque function (zero) with the attitude: the closed form's attitude is the reference
     times = np.linspace(0.0, 6.0, 4)
