@@ -18,6 +18,7 @@ cannot key a closure over another function: numba issue #6264) — a few seconds
 """
 
 import math
+import os
 import re
 import types as types_
 
@@ -59,7 +60,8 @@ def compile_function(fn, signature, owner, what, boundscheck=False):
     compiled in nopython mode for ``signature``; with ``boundscheck`` an index out of bounds raises ``IndexError`` (for
     one checking call).
 
-    Kept in numba's disk cache (beside ``fn``'s file, or in ``NUMBA_CACHE_DIR``) where what it computes can be keyed
+    Kept in numba's disk cache (beside ``fn``'s file, or in ``NUMBA_CACHE_DIR``) where ``fn`` comes from a file and what
+    it computes can be keyed
     (:func:`tumble.kernels.steps.system_steps.functions_key`: its source and what it reads), under its name with that
     key appended (a copy of ``fn``: numba names its cache files by the qualified name and does not key them by the
     globals read), so that a new process loads it; else compiled in each process.
@@ -73,7 +75,8 @@ def compile_function(fn, signature, owner, what, boundscheck=False):
     from ..steps.system_steps import functions_key  # (system_steps imports the loops)
 
     source = getattr(fn, "py_func", fn)
-    key = functions_key(source)
+    # numba keeps a function's cache beside its file: one typed at a prompt or in a doctest has none
+    key = functions_key(source) if os.path.isfile(source.__code__.co_filename) else None
     if key is not None:
         source = types_.FunctionType(source.__code__, source.__globals__, source.__name__, source.__defaults__,
                                      source.__closure__)
