@@ -54,6 +54,7 @@ def hidden(folder):
 
 # --- cause 1: two runs into one folder ---------------------------------------------------------------------------
 
+@pytest.mark.slow  # two runs in new processes at once (1.7 s)
 def test_two_runs_started_together_into_one_folder_leave_one_complete_result(tmp_path):
     study, out = write_study(tmp_path), tmp_path / "out"
     runs = [tumble_command("run", study, "--out", out) for _ in range(2)]
@@ -80,6 +81,7 @@ def hold_lock(out, stem="small"):
     return holder
 
 
+@pytest.mark.slow  # a holder process, a refused run, a killed holder and a run after it (2.4 s)
 def test_a_second_run_into_a_busy_folder_is_refused_at_once_and_a_killed_holder_blocks_nothing(tmp_path):
     study, out = write_study(tmp_path), tmp_path / "out"
     holder = hold_lock(out)
@@ -367,6 +369,7 @@ for fraction in (0.05, 0.2, 0.4, 0.6, 0.8):
 """
 
 
+@pytest.mark.slow  # a run in a new process interrupted while it writes (1.7 s)
 def test_ctrl_c_while_a_result_file_is_written_never_hangs_or_speaks_and_leaves_no_half_file(tmp_path):
     done = subprocess.run([sys.executable, "-c", _WRITE_INTERRUPTED, str(tmp_path)], capture_output=True, text=True,
                           timeout=120, preexec_fn=_from_a_shell)

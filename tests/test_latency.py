@@ -254,6 +254,7 @@ def curves_result(warm_kernels):
 FIGURES = ["norm_growth", "flip_components", "summary"]
 
 
+@pytest.mark.slow  # a forked figure process drawing three figures, then the same here (2.1 s)
 def test_several_figures_are_shared_with_a_forked_child_and_are_the_files_this_process_would_write(curves_result,
                                                                                                      tmp_path):
     from tumble.output import figures

@@ -949,6 +949,7 @@ def test_sigterm_while_the_command_imports_prints_one_line_and_exits_143(tmp_pat
     assert len(err) == 1 and err[0].startswith("tumble: terminated (SIGTERM)") and "Traceback" not in err[0], err
 
 
+@pytest.mark.slow  # two runs in new processes, one killed by SIGTERM part way (3 s)
 def test_sigterm_during_a_run_keeps_the_finished_chunks_and_a_rerun_resumes(tmp_path):
     out = tmp_path / "out"
     argv = [sys.executable, "-m", "tumble", "run", "stability_map", "--samples", "64", "--chunk-scenes", "20",
