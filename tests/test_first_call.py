@@ -65,6 +65,29 @@ def free_body_driver(*step_kernels):
     return {**FREE_BODY_LOOP, **{kernel: 1 for kernel in step_kernels}}
 
 
+#: What the models' and a System's block driver compiles for any system (run_ensemble, integrate): the one time loop,
+#: its observers and the models' CPU driver; each system adds its own step, invariants and drift screen.
+MODEL_LOOP = {kernel: 1 for kernel in (
+    "kernels.loops.block_loop._observe_drift",
+    "kernels.loops.block_loop._observe_flips_of.<locals>.no_flips",
+    "kernels.loops.block_loop._observe_norm",
+    "kernels.loops.block_loop._stop_complete",
+    "kernels.loops.block_loop.run_block",
+    "kernels.loops.block_parts.check_finite",
+    "kernels.loops.block_parts.freeze",
+    "kernels.loops.block_parts.restore_frozen",
+    "kernels.loops.block_parts.store",
+    "kernels.loops.block_parts.store_initial",
+    "kernels.loops.block_parts.store_rest",
+    "kernels.loops.model_loop.make_propagate_model.<locals>.propagate",
+)}
+
+
+def model_driver(*system_kernels):
+    """:data:`MODEL_LOOP` with one system's kernels."""
+    return {**MODEL_LOOP, **{kernel: 1 for kernel in system_kernels}}
+
+
 #: What the chaos indicators' first call compiles for a heavy top stepped by rk4 (megno and lyapunov alike): the
 #: driver of that system and method, with its one tangent step.
 HEAVY_TOP_TANGENTS = {
@@ -193,42 +216,14 @@ EXPECTED = {
     },
     # A user's System (the heavy top written by hand) on the vectorised block path: the loop with the System's own
     # step (generated from its rate, in a module of its own, not listed) and no invariants
-    "integrate System": {
-        "kernels.loops.block_loop._drift_suspects_of.<locals>.non_finite": 1,
-        "kernels.loops.block_loop._invariants_of.<locals>.none_known": 1,
-        "kernels.loops.block_loop._observe_drift": 1,
-        "kernels.loops.block_loop._observe_flips_of.<locals>.no_flips": 1,
-        "kernels.loops.block_loop._observe_norm": 1,
-        "kernels.loops.block_loop._step_of.<locals>.users_step": 1,
-        "kernels.loops.block_loop._stop_complete": 1,
-        "kernels.loops.block_loop.run_block": 1,
-        "kernels.loops.block_parts.check_finite": 1,
-        "kernels.loops.block_parts.freeze": 1,
-        "kernels.loops.block_parts.restore_frozen": 1,
-        "kernels.loops.block_parts.store": 1,
-        "kernels.loops.block_parts.store_initial": 1,
-        "kernels.loops.block_parts.store_rest": 1,
-        "kernels.loops.model_loop.make_propagate_model.<locals>.propagate": 1,
-    },
+    "integrate System": model_driver("kernels.loops.block_loop._drift_suspects_of.<locals>.non_finite",
+                                     "kernels.loops.block_loop._invariants_of.<locals>.none_known",
+                                     "kernels.loops.block_loop._step_of.<locals>.users_step"),
     # The heavy top's driver for rk4: that system's and that method's step only, its invariants and drift screen
-    "run_ensemble HeavyTop": {
-        "kernels.loops.block_loop._drift_suspects_of.<locals>.system_drift_suspects": 1,
-        "kernels.loops.block_loop._invariants_of.<locals>.system_invariants": 1,
-        "kernels.loops.block_loop._observe_drift": 1,
-        "kernels.loops.block_loop._observe_flips_of.<locals>.no_flips": 1,
-        "kernels.loops.block_loop._observe_norm": 1,
-        "kernels.loops.block_loop._step_of.<locals>.system_step": 1,
-        "kernels.loops.block_loop._stop_complete": 1,
-        "kernels.loops.block_loop.run_block": 1,
-        "kernels.loops.block_parts.check_finite": 1,
-        "kernels.loops.block_parts.freeze": 1,
-        "kernels.loops.block_parts.restore_frozen": 1,
-        "kernels.loops.block_parts.store": 1,
-        "kernels.loops.block_parts.store_initial": 1,
-        "kernels.loops.block_parts.store_rest": 1,
-        "kernels.loops.model_loop.make_propagate_model.<locals>.propagate": 1,
-        "kernels.steps.model_steps.heavy_top_rk4_block": 1,
-    },
+    "run_ensemble HeavyTop": model_driver("kernels.loops.block_loop._drift_suspects_of.<locals>.system_drift_suspects",
+                                          "kernels.loops.block_loop._invariants_of.<locals>.system_invariants",
+                                          "kernels.loops.block_loop._step_of.<locals>.system_step",
+                                          "kernels.steps.model_steps.heavy_top_rk4_block"),
     "megno HeavyTop": HEAVY_TOP_TANGENTS,
     "lyapunov HeavyTop": HEAVY_TOP_TANGENTS,
     # the floors: no tumble kernel (benchmarks/numba_floor.py)
