@@ -39,12 +39,14 @@ def test_each_public_name_loads_only_its_own_layers():
     assert not {"matplotlib", "netCDF4"} & set(loaded_after("import tumble\ntumble.integrate"))
 
 
-def test_integrate_and_its_dataset_leave_dask_unloaded():
+def test_integrate_megno_measure_and_their_datasets_leave_dask_unloaded():
     # xarray's duck-array checks import dask.array (0.8 s in a new process: more than a warm first call's kernels
     # take) unless the Dataset is built from numpy arrays directly (engine.integration.indexed_dataset). The user's
     # first selection on the result still imports it: xarray's own checks, which tumble cannot skip
     code = ("import numpy as np, tumble\n"
-            "tumble.integrate(tumble.Body(1, 2, 3), np.array([0.01, 1.0, 0.01]), 0.01, 0.001, attitude=True)")
+            "tumble.integrate(tumble.Body(1, 2, 3), np.array([0.01, 1.0, 0.01]), 0.01, 0.001, attitude=True)\n"
+            "tumble.megno(tumble.Body(1, 2, 3), np.array([0.01, 1.0, 0.01]), 0.1, 0.01)\n"  # the indicators' too
+            "tumble.measure(tumble.Body(1, 2, 3), axis=2, spin=1.0, samples=16)")  # and a scene's
     assert "dask" not in loaded_after(code)
 
 

@@ -36,7 +36,7 @@ from ..physics.system import System, finite_number, with_parameters
 from . import chaos_tolerance, cost
 from .adaptive_runs import checked_scalars, fixed_steps_only, no_save_every, output_times
 from .device import resolve_device
-from .integration import checked_save_every
+from .integration import checked_save_every, indexed_dataset
 from .system_runs import block_code, compiled, initial_states, probe
 
 __all__ = ["RESCALE_EVERY", "STATUS_ABOVE_NAME", "TANGENT_TURN", "TangentRun", "gali", "initial_tangents", "lyapunov",
@@ -901,9 +901,8 @@ def gali(system, y0, t_end, dt=None, *, k=2, method="rk4", parameters=None, save
 
 
 def _dataset(variables, attrs):
-    """The indicators' Dataset (xarray imported here: the engine's other paths run without it)."""
-    import xarray as xr
-
-    coords = {name: spec for name, spec in variables.items() if spec[0] in (name, (name,))}
-    data = {name: spec for name, spec in variables.items() if name not in coords}
-    return xr.Dataset(data, coords=coords, attrs=attrs)
+    """The indicators' Dataset, built as :func:`integrate`'s (:func:`tumble.engine.integration.indexed_dataset`: from
+    numpy arrays directly, so that xarray does not import dask to look for its arrays in a new process)."""
+    coords = [name for name, spec in variables.items() if spec[0] in (name, (name,))]
+    data = [name for name in variables if name not in coords]
+    return indexed_dataset({name: variables[name] for name in data + coords}, attrs)  # xr.Dataset's order

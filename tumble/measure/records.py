@@ -101,10 +101,8 @@ COORDS = ("I1", "I2", "I3", "axis", "spin", "amplitude", "method", "sample", "co
           "orbit_rate", "damper_inertia", "damping", "system")
 
 
-def record_variables(record):
-    """``(data variables, coordinates, attributes)`` of a scene record, as xarray Variables and a dict."""
-    import xarray as xr
-
+def _record_entries(record):
+    """``(data variables, coordinates, attributes)`` of a scene record: ``name -> (dims, ndarray, attrs)`` and a dict."""
     meta = variable_metadata(str(record["kind"]), float(record["rate_theory"]))
     data, coords, attrs = {}, {}, {}
     for name, value in record.items():
@@ -112,17 +110,28 @@ def record_variables(record):
             attrs[name[1:]] = value.item() if value.ndim == 0 else value
             continue
         dims, var_attrs = meta[name]
-        (coords if name in COORDS else data)[name] = xr.Variable(dims, value, var_attrs)
+        (coords if name in COORDS else data)[name] = (dims, value, var_attrs)
     return data, coords, attrs
+
+
+def record_variables(record):
+    """``(data variables, coordinates, attributes)`` of a scene record, as xarray Variables and a dict."""
+    import xarray as xr
+
+    data, coords, attrs = _record_entries(record)
+    return ({name: xr.Variable(*entry) for name, entry in data.items()},
+            {name: xr.Variable(*entry) for name, entry in coords.items()}, attrs)
 
 
 def scene_dataset(record):
     """The dataset of one scene (:func:`tumble.measure`) from its record
-    (:func:`~tumble.measure.reduction.scene_records`)."""
-    import xarray as xr
+    (:func:`~tumble.measure.reduction.scene_records`): what ``xr.Dataset(data, coords, attrs)`` builds, from the
+    record's numpy arrays directly (:func:`tumble.engine.integration.indexed_dataset`), so that xarray does not import
+    dask to look for its arrays in a new process."""
+    from ..engine.integration import indexed_dataset
 
-    data, coords, attrs = record_variables(record)
-    return xr.Dataset(data, coords=coords, attrs=attrs)
+    data, coords, attrs = _record_entries(record)
+    return indexed_dataset({**data, **coords}, attrs, coords=list(coords))
 
 
 def assemble_scan(layout, records, body_coords=None):
