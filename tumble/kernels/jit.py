@@ -277,12 +277,18 @@ def rebound(names, namespace, key=None, **replaced):
     ``replaced`` and the copies)."""
     scope = dict(namespace, **replaced)
     for name in names:
-        source = namespace[name].py_func
-        copy = types.FunctionType(source.__code__, scope, name, source.__defaults__)
-        if key is not None:
-            copy.__qualname__ = f"{name}_{key}"
-        scope[name] = jit(copy, cache=key is not None, contract=False)
+        scope[name] = jit(keyed_copy(namespace[name].py_func, scope, key), cache=key is not None, contract=False)
     return scope
+
+
+def keyed_copy(fn, scope, key=None):
+    """A copy of the Python function ``fn`` that reads ``scope`` as its globals, named ``<qualname>_<key>`` where a
+    ``key`` is given: numba names a function's cache files by its qualified name and does not key them by the globals
+    it reads, so copies with different keys keep apart in the cache (:func:`rebound`, a user's compiled function)."""
+    copy = types.FunctionType(fn.__code__, scope, fn.__name__, fn.__defaults__, fn.__closure__)
+    if key is not None:
+        copy.__qualname__ = f"{fn.__qualname__}_{key}"
+    return copy
 
 
 # CUDA kernels: fastmath off, which on the device means IEEE division and square root and no flush of subnormals to

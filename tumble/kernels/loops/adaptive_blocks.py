@@ -30,7 +30,7 @@ from ..steps.model_steps import rate_sample as rate
 from .adaptive_loop import (_C, _FAC1, _FAC2, _SAFE, _STAGES, _UROUND, SCRATCH_ROWS, _crossing, _dense, _first_step,
                             _interpolant, _root8, _stage)
 from .adaptive_loop import component_surface as surface
-from .sample_loop import in_shares
+from ..threads import in_shares
 
 __all__ = ["BLOCK", "drive", "run_share", "specialised"]
 

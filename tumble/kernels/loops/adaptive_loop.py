@@ -33,7 +33,7 @@ import numpy as np
 from ...registry import STATUS_LIMIT, STATUS_NONFINITE, STATUS_OK, STATUS_UNDERFLOW
 from ..jit import jit, rebound
 from ..tableaux import DOP853
-from .sample_loop import in_shares
+from ..threads import in_shares
 
 __all__ = ["SCRATCH_ROWS", "component_surface", "make_dop853_driver", "make_dop853_sample", "make_user_surface"]
 
@@ -327,7 +327,7 @@ def make_dop853_driver(run_sample, key=None):
     the final (or frozen) states, ``out`` (N, T, n) with the states at ``times``, ``crossing_t`` (N, most) and
     ``crossing_y`` (N, most, n) with the section's crossings (``section`` as the run's), ``status`` (N,) int8 and
     ``counts`` (N, 3) int64 (the steps accepted, rejected, the crossings), ``stopped`` (N,) the time each sample
-    reached, written; one share of the samples per numba thread (:func:`tumble.kernels.loops.sample_loop.in_shares`).
+    reached, written; one share of the samples per numba thread (:func:`tumble.kernels.threads.in_shares`).
     Cached on disk under ``key`` (as ``run_sample``'s), compiled in each process without it."""
     share = rebound(("run_share",), globals(), key, run_sample=run_sample)["run_share"]
 

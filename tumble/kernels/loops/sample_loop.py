@@ -20,18 +20,17 @@ cannot key a closure over another function: numba issue #6264) — a few seconds
 import math
 import os
 import re
-import types as types_
 
 import numpy as np
 from numba import types
 from numba.core.errors import NumbaError
 
 from ...registry import STATUS_NONFINITE, STATUS_OK
-from ..jit import jit
+from ..jit import jit, keyed_copy
 from ..threads import in_shares
 
 __all__ = ["JACOBIAN_SIGNATURE", "RATE_SIGNATURE", "combine", "compile_function", "make_cpu_driver", "make_sample_loop",
-           "in_shares", "make_step", "saved_count"]
+           "make_step", "saved_count"]
 
 _VECTOR = types.Array(types.float64, 1, "C")
 
@@ -78,9 +77,7 @@ def compile_function(fn, signature, owner, what, boundscheck=False):
     # numba keeps a function's cache beside its file: one typed at a prompt or in a doctest has none
     key = functions_key(source) if os.path.isfile(source.__code__.co_filename) else None
     if key is not None:
-        source = types_.FunctionType(source.__code__, source.__globals__, source.__name__, source.__defaults__,
-                                     source.__closure__)
-        source.__qualname__ = f"{source.__qualname__}_{key}{'_checked' if boundscheck else ''}"
+        source = keyed_copy(source, source.__globals__, f"{key}{'_checked' if boundscheck else ''}")
     dispatcher = jit(source, cache=key is not None, boundscheck=boundscheck)
     try:
         dispatcher.compile(signature)

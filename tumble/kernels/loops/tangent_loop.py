@@ -44,7 +44,8 @@ from ...registry import STATUS_ABOVE, STATUS_NONFINITE, STATUS_OK
 from ..jit import jit
 from ..steps.model_splittings import splitting_tangent_sample
 from ..steps.model_steps import tangent_sample
-from .sample_loop import combine, in_shares
+from ..threads import in_shares
+from .sample_loop import combine
 from ..steps.steppers import _EPS, _MIDPOINT_MAX_ITERATIONS, _MIDPOINT_ULPS
 
 __all__ = ["DIFFERENCE_STEP", "SCALARS", "difference_tangents", "jacobian_tangents", "make_cpu_driver",
