@@ -228,7 +228,7 @@ def _enable_cache(dispatcher):
     return dispatcher
 
 
-def jit(fn=None, *, inline=False, contract=True, cache=True, boundscheck=False):
+def jit(fn=None, *, inline=False, contract=True, cache=True, boundscheck=False, refcounts=True):
     """Compile ``fn`` with tumble's numba options.
 
     Parameters
@@ -247,8 +247,15 @@ def jit(fn=None, *, inline=False, contract=True, cache=True, boundscheck=False):
         function (issue #6264: a new entry every process, never a hit) nor a function typed in a notebook.
     boundscheck : bool
         Raise ``IndexError`` on an index out of bounds (slow: only for a first call that checks a user's function).
+    refcounts : bool
+        ``False`` for a loop that allocates nothing and hands its arrays to helpers many times (numba's runtime off,
+        ``_nrt=False``): numba counts references to every array a function is handed, two atomic operations each, and
+        in the error-controlled block loop, whose helpers take twenty arrays for each sample started, that was 40% of
+        the run (measured by ``perf``). Such a function cannot make an array; its callers do.
     """
     options = dict(_OPTIONS)
+    if not refcounts:
+        options["_nrt"] = False
     if not contract:
         options["fastmath"] = set(FASTMATH - {"contract"})
     if inline and _NUMBA_IR_INLINE:
@@ -277,7 +284,9 @@ def rebound(names, namespace, key=None, **replaced):
     ``replaced`` and the copies)."""
     scope = dict(namespace, **replaced)
     for name in names:
-        scope[name] = jit(keyed_copy(namespace[name].py_func, scope, key), cache=key is not None, contract=False)
+        refcounts = namespace[name].targetoptions.get("_nrt", True)
+        scope[name] = jit(keyed_copy(namespace[name].py_func, scope, key), cache=key is not None, contract=False,
+                          refcounts=refcounts)
     return scope
 
 

@@ -37,6 +37,13 @@ __all__ = ["BLOCK", "drive", "run_share", "specialised"]
 #: Lanes of a block: a sample's share steps in one block whose lanes take the next sample as theirs is done.
 BLOCK = 32
 
+# The rows of a block's lane numbers (``lanes``, float): each lane's time, step, trial step (0: done), whether it steps,
+# whether its last step was rejected, whether this one was accepted, the time it reaches, its next output time, its
+# surface's value, its error, its steps tried and accepted; and of its counters (int): its next output, its sample (-1:
+# none), its crossings. Helpers index the rows (a row's view would cost reference counts on every call).
+_T, _H, _TRIAL_H, _ACTIVE, _LAST_REJECTED, _ACCEPTED_NOW, _T_NEW, _NEXT_OUT, _G0, _ERR, _TRIES, _ACCEPTED = range(12)
+_SLOT, _OWNER, _CROSSED = range(3)
+
 
 @jit(inline=True, cache=False, contract=False)
 def _stages(rate, y0, p, t, h, k, stage):
@@ -47,7 +54,7 @@ def _stages(rate, y0, p, t, h, k, stage):
         rate(t + _C[s] * h, stage, p, k[s])
 
 
-@jit(contract=False)
+@jit(contract=False, refcounts=False)
 def _lane_extras(i, s, ys, ks, y1s, p, ti, hi, tn, times, out, slot, next_out, g0, crossed, component, value,
                  direction, most, crossing_t, crossing_y, k, stage, y0, y1, f):
     # size: one lane's accepted step's outputs and crossing, with the scratch they are made in
@@ -78,24 +85,23 @@ def _lane_extras(i, s, ys, ks, y1s, p, ti, hi, tn, times, out, slot, next_out, g
         crossed[i] += 1
     while slot[i] < times.shape[0] and times[slot[i]] <= tn:
         if times[slot[i]] == tn:
-            out[s, slot[i]] = y1
+            for j in range(n):
+                out[s, slot[i], j] = y1[j]
         else:
             _dense(f, y0, (times[slot[i]] - ti) / hi, out[s, slot[i]])
         slot[i] += 1
     next_out[i] = times[slot[i]] if slot[i] < times.shape[0] else np.inf
 
-@jit(contract=False)
+
+@jit(contract=False, refcounts=False)
 def _start(i, s, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, section, lanes, counters, k, stage,
            y0, y1):
     # size: one lane's start on a sample: its state, first outputs, rate, first step and surface value
     """Put sample ``s`` into lane ``i``: True when it steps, False when it is done at once (not finite, or no time
     to run)."""
-    t, h, active, last_rejected, next_out, g0, tries, accepted = (lanes[0], lanes[1], lanes[3], lanes[4],
-                                                                  lanes[7], lanes[8], lanes[10], lanes[11])
-    slot, owner, crossed = counters[0], counters[1], counters[2]
     component, value, most = int(section[0]), section[1], int(section[3])
     n = ys.shape[0]
-    owner[i] = s
+    counters[_OWNER, i] = s
     code = STATUS_OK
     for j in range(n):
         y0[j] = y[s, j]
@@ -103,50 +109,50 @@ def _start(i, s, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, se
         if not math.isfinite(y0[j]):
             code = STATUS_NONFINITE
     status[s] = code
-    t[i] = t0
-    h[i] = 0.0
-    last_rejected[i] = 0.0
-    tries[i] = 0.0
-    accepted[i] = 0.0
-    g0[i] = 0.0
-    slot[i] = 0
-    crossed[i] = 0
-    while slot[i] < times.shape[0] and times[slot[i]] <= t0:
-        out[s, slot[i]] = y0
-        slot[i] += 1
-    next_out[i] = times[slot[i]] if slot[i] < times.shape[0] else np.inf
+    for row in (_T, _H, _LAST_REJECTED, _TRIES, _ACCEPTED, _G0):
+        lanes[row, i] = 0.0
+    lanes[_T, i] = t0
+    slot = 0
+    while slot < times.shape[0] and times[slot] <= t0:
+        for j in range(n):
+            out[s, slot, j] = y0[j]
+        slot += 1
+    counters[_SLOT, i] = slot
+    counters[_CROSSED, i] = 0
+    lanes[_NEXT_OUT, i] = times[slot] if slot < times.shape[0] else np.inf
     if code != STATUS_OK or t_end <= t0:
-        active[i] = 0.0
+        lanes[_ACTIVE, i] = 0.0
         return False
-    active[i] = 1.0
+    lanes[_ACTIVE, i] = 1.0
     rate(t0, y0, p, k[0])
     for j in range(n):
         ks[j, i] = k[0, j]
-    h[i] = h0 if h0 > 0.0 else _first_step(rate, t0, y0, p, t_end - t0, rtol, atol, k[0], stage, y1)
+    lanes[_H, i] = h0 if h0 > 0.0 else _first_step(rate, t0, y0, p, t_end - t0, rtol, atol, k[0], stage, y1)
     if most > 0:
-        g0[i] = surface(t0, y0, p, component, value)
+        lanes[_G0, i] = surface(t0, y0, p, component, value)
     return True
 
-@jit(contract=False)
+
+@jit(contract=False, refcounts=False)
 def _finish(i, y, ys, times, out, counts, stopped, lanes, counters):
     """Lane ``i``'s sample is done: its state, counts and time written back; a stopped sample's later outputs are
     the state it stopped with."""
-    slot, owner, crossed = counters[0], counters[1], counters[2]
-    s = owner[i]
+    s = counters[_OWNER, i]
     n = ys.shape[0]
     for j in range(n):
         y[s, j] = ys[j, i]
-    counts[s, 0] = int(lanes[11, i])
-    counts[s, 1] = int(lanes[10, i]) - counts[s, 0]
-    counts[s, 2] = crossed[i]
-    stopped[s] = lanes[0, i]
-    while slot[i] < times.shape[0]:
+    counts[s, 0] = int(lanes[_ACCEPTED, i])
+    counts[s, 1] = int(lanes[_TRIES, i]) - counts[s, 0]
+    counts[s, 2] = counters[_CROSSED, i]
+    stopped[s] = lanes[_T, i]
+    for slot in range(counters[_SLOT, i], times.shape[0]):
         for j in range(n):
-            out[s, slot[i], j] = ys[j, i]
-        slot[i] += 1
-    owner[i] = -1
+            out[s, slot, j] = ys[j, i]
+    counters[_SLOT, i] = times.shape[0]
+    counters[_OWNER, i] = -1
 
-@jit(contract=False)
+
+@jit(contract=False, refcounts=False)
 def _fill(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, counts, stopped, section, lanes,
           counters, k, stage, y0, y1):
     # size: the share's queue, handed to one lane
@@ -164,26 +170,33 @@ def _fill(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status
 @jit(contract=False)
 def run_share(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
               counts, stopped):
+    # size: as _run_block
+    """The samples ``y`` of one share in one block (:func:`_run_block`), with the block's arrays made here."""
+    n = y.shape[1]
+    lanes = np.zeros((12, BLOCK))  # the lanes' own numbers (C-contiguous rows: the loops over lanes vectorise)
+    counters = np.zeros((3, BLOCK), dtype=np.int64)
+    rows = np.zeros((4, n, BLOCK))
+    scratch = np.empty((SCRATCH_ROWS + 1, n))
+    if y.shape[0] > 0:
+        _run_block(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
+                   counts, stopped, lanes, counters, rows, scratch)
+
+
+@jit(contract=False, refcounts=False)
+def _run_block(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
+               counts, stopped, lanes, counters, rows, scratch):
     # size: Hairer's control over a block's lanes, with the outputs, the crossings, the stops and the lanes' refills
-    n_samples, n = y.shape
+    n = y.shape[1]
     m = BLOCK
     component, value, direction, most = int(section[0]), section[1], section[2], int(section[3])
-    sectioned = 1.0 if most > 0 else 0.0
-    # the lanes' own numbers (C-contiguous rows: the loops over lanes vectorise)
-    lanes = np.zeros((12, m))
     t, h, trial_h, active, last_rejected, accepted_now, t_new, next_out, g0, err, tries, accepted = (
-        lanes[0], lanes[1], lanes[2], lanes[3], lanes[4], lanes[5], lanes[6], lanes[7], lanes[8], lanes[9],
-        lanes[10], lanes[11])
-    counters = np.zeros((3, m), dtype=np.int64)  # each lane's next output, its sample (-1: none), its crossings
-    slot, owner = counters[0], counters[1]
-    owner[:] = -1
-    rows = np.zeros((3, n, m))
-    ks, y1s, k1s = rows[0], rows[1], rows[2]
-    ys = np.empty((n, m))
-    scratch = np.empty((SCRATCH_ROWS + 1, n))
+        lanes[_T], lanes[_H], lanes[_TRIAL_H], lanes[_ACTIVE], lanes[_LAST_REJECTED], lanes[_ACCEPTED_NOW],
+        lanes[_T_NEW], lanes[_NEXT_OUT], lanes[_G0], lanes[_ERR], lanes[_TRIES], lanes[_ACCEPTED])
+    slot, owner, crossed = counters[_SLOT], counters[_OWNER], counters[_CROSSED]
+    for i in range(m):
+        owner[i] = -1
+    ys, ks, y1s, k1s = rows[0], rows[1], rows[2], rows[3]
     k, stage, y0, y1, f = scratch[:16], scratch[16], scratch[17], scratch[18], scratch[19:26]
-    if n_samples == 0:
-        return
     for j in range(n):  # a lane without a sample holds the first one's state, masked (its trial step is 0)
         for i in range(m):
             ys[j, i] = y[0, j]
@@ -192,17 +205,21 @@ def run_share(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section
         queued = _fill(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, counts, stopped,
                        section, lanes, counters, k, stage, y0, y1)
     while active.any():
-        for i in range(m):  # the stops, rare: one branch each
-            if active[i] != 0.0 and (tries[i] >= max_steps or not 0.1 * h[i] > abs(t[i]) * _UROUND):
-                status[owner[i]] = STATUS_LIMIT if tries[i] >= max_steps else STATUS_UNDERFLOW
-                active[i] = 0.0
+        stops = 0  # counted without a branch (an integer sum vectorises, a float one does not)
+        for i in range(m):
+            stops += 1 if active[i] != 0.0 and (tries[i] >= max_steps or not 0.1 * h[i] > abs(t[i]) * _UROUND) else 0
+        if stops > 0:  # rare
+            for i in range(m):
+                if active[i] != 0.0 and (tries[i] >= max_steps or not 0.1 * h[i] > abs(t[i]) * _UROUND):
+                    status[owner[i]] = STATUS_LIMIT if tries[i] >= max_steps else STATUS_UNDERFLOW
+                    active[i] = 0.0
         for i in range(m):  # each lane's step, the last one up to t_end; 0 for a lane that is done
             last = t[i] + 1.01 * h[i] >= t_end
             h[i] = t_end - t[i] if last else h[i]
             trial_h[i] = h[i] * active[i]
             t_new[i] = t_end if last else t[i] + h[i]
         trial(t, trial_h, ys, ks, y1s, k1s, err, rtol, atol, a)
-        extras = 0.0
+        extras = 0
         for i in range(m):  # accept or reject every lane, branch-free (Hairer's control), in floats: vectorised
             e = err[i]
             good = 1.0 if e <= 1.0 else 0.0
@@ -218,25 +235,25 @@ def run_share(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section
             accepted_now[i] = on * good
             accepted[i] += on * good
             # an accepted step that reaches an output time, or any of a section's
-            extras += accepted_now[i] * (1.0 if next_out[i] <= t_new[i] else sectioned)
-        if extras > 0.0:
+            extras += 1 if accepted_now[i] != 0.0 and (next_out[i] <= t_new[i] or most > 0) else 0
+        if extras > 0:
             for i in range(m):  # outputs and crossings: the lane's dense output, made again one sample
                 if accepted_now[i] != 0.0 and (next_out[i] <= t_new[i] or most > 0):
                     _lane_extras(i, owner[i], ys, ks, y1s, p, t[i], trial_h[i], t_new[i], times, out, slot,
-                                 next_out, g0, counters[2], component, value, direction, most, crossing_t,
+                                 next_out, g0, crossed, component, value, direction, most, crossing_t,
                                  crossing_y, k, stage, y0, y1, f)
-        done = 0.0
+        done = 0
         for i in range(m):  # the accepted lanes move on; done at t_end or with their crossings
             t[i] = t_new[i] if accepted_now[i] != 0.0 else t[i]
-            finished = t[i] == t_end or (most > 0 and counters[2, i] == most)
+            finished = t[i] == t_end or (most > 0 and crossed[i] == most)
             active[i] = 0.0 if finished else active[i]
         for j in range(n):  # their new states and rates
             for i in range(m):
                 ys[j, i] = y1s[j, i] if accepted_now[i] != 0.0 else ys[j, i]
                 ks[j, i] = k1s[j, i] if accepted_now[i] != 0.0 else ks[j, i]
         for i in range(m):  # a lane whose sample is done hands it back and takes the next
-            done += 1.0 if active[i] == 0.0 and owner[i] >= 0 else 0.0
-        if done > 0.0:
+            done += 1 if active[i] == 0.0 and owner[i] >= 0 else 0
+        if done > 0:
             for i in range(m):
                 if active[i] == 0.0 and owner[i] >= 0:
                     _finish(i, y, ys, times, out, counts, stopped, lanes, counters)
@@ -256,7 +273,7 @@ def drive(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, cr
 
 
 #: The functions :func:`specialised` copies, callees first.
-_FUNCTIONS = ("_lane_extras", "_start", "_finish", "_fill", "run_share")
+_FUNCTIONS = ("_lane_extras", "_start", "_finish", "_fill", "_run_block", "run_share")
 
 
 def specialised(trial, rate, surface=None, key=None):
