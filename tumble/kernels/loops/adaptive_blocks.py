@@ -266,10 +266,11 @@ def drive(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, cr
     # size: as run_share
     """The built-in models' error-controlled run of the samples ``y`` (N, n), as
     :func:`tumble.kernels.loops.adaptive_loop.make_dop853_driver`'s ``drive`` (``p`` and ``a`` both the models'
-    parameters, their code first): one share of the samples per numba thread, each share in one block."""
+    parameters, their code first): one share of the samples per numba thread, each share in one block (a share is
+    whole blocks: a run of one block's samples or fewer stays in this thread)."""
     in_shares(run_share, len(y), lambda lo, hi: (y[lo:hi], p, a, t0, t_end, h0, rtol, atol, max_steps, times,
                                                  out[lo:hi], section, crossing_t[lo:hi], crossing_y[lo:hi],
-                                                 status[lo:hi], counts[lo:hi], stopped[lo:hi]))
+                                                 status[lo:hi], counts[lo:hi], stopped[lo:hi]), BLOCK)
 
 
 #: The functions :func:`specialised` copies, callees first.
@@ -289,7 +290,7 @@ def specialised(trial, rate, surface=None, key=None):
         # size: as run_share
         in_shares(share, len(y), lambda lo, hi: (y[lo:hi], p, a, t0, t_end, h0, rtol, atol, max_steps, times,
                                                  out[lo:hi], section, crossing_t[lo:hi], crossing_y[lo:hi],
-                                                 status[lo:hi], counts[lo:hi], stopped[lo:hi]))
+                                                 status[lo:hi], counts[lo:hi], stopped[lo:hi]), BLOCK)
 
     drive.run_share = share  # the compiled share, for its cache statistics
     return drive

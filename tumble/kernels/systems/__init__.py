@@ -14,6 +14,7 @@ is its module in :mod:`tumble.physics.models` and its row in the registry (then 
 tumble.kernels.steps.model_codegen``): the modules here are found by the registry's rows, not a list of imports.
 """
 
+import functools
 import inspect
 from importlib import import_module
 
@@ -38,8 +39,14 @@ def constants(kind, moments, parameters):
     module's ``Constants`` fields first, zeros after. ``parameters``: the model's keywords (its own, by name; a key
     the system does not have is ignored)."""
     module = SYSTEMS[kind]
-    names = list(inspect.signature(module.constants).parameters)[1:]
-    fields = module.constants(moments, **{key: parameters[key] for key in names if key in parameters})
+    fields = module.constants(moments, **{key: parameters[key] for key in _parameter_names(kind) if key in parameters})
     out = np.zeros(N_CONSTANTS)
     out[:len(fields)] = fields
     return out
+
+
+@functools.cache
+def _parameter_names(kind):
+    """The keywords of system ``kind``'s ``constants`` after the moments (read once: ``inspect.signature`` takes
+    tens of microseconds, a noticeable part of a small run)."""
+    return tuple(inspect.signature(SYSTEMS[kind].constants).parameters)[1:]
