@@ -243,16 +243,20 @@ def _run_block(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, sectio
                                  next_out, g0, crossed, component, value, direction, most, crossing_t,
                                  crossing_y, k, stage, y0, y1, f)
         done = 0
-        for i in range(m):  # the accepted lanes move on; done at t_end or with their crossings
-            t[i] = t_new[i] if accepted_now[i] != 0.0 else t[i]
-            finished = t[i] == t_end or (most > 0 and crossed[i] == most)
+        # the accepted lanes move on, done at t_end or with their crossings; their new states and rates (both values
+        # read before the choice, and no short-circuit: so that the loops vectorise)
+        for i in range(m):
+            moved, stayed = t_new[i], t[i]
+            t[i] = moved if accepted_now[i] != 0.0 else stayed
+            finished = (t[i] == t_end) | ((most > 0) & (crossed[i] == most))
             active[i] = 0.0 if finished else active[i]
-        for j in range(n):  # their new states and rates
+            done += 1 if (active[i] == 0.0) & (owner[i] >= 0) else 0
+        for j in range(n):
             for i in range(m):
-                ys[j, i] = y1s[j, i] if accepted_now[i] != 0.0 else ys[j, i]
-                ks[j, i] = k1s[j, i] if accepted_now[i] != 0.0 else ks[j, i]
-        for i in range(m):  # a lane whose sample is done hands it back and takes the next
-            done += 1 if active[i] == 0.0 and owner[i] >= 0 else 0
+                moved, stayed = y1s[j, i], ys[j, i]
+                ys[j, i] = moved if accepted_now[i] != 0.0 else stayed
+                moved, stayed = k1s[j, i], ks[j, i]
+                ks[j, i] = moved if accepted_now[i] != 0.0 else stayed
         if done > 0:
             for i in range(m):
                 if active[i] == 0.0 and owner[i] >= 0:
