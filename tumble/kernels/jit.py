@@ -284,9 +284,9 @@ def rebound(names, namespace, key=None, **replaced):
     ``replaced`` and the copies)."""
     scope = dict(namespace, **replaced)
     for name in names:
-        refcounts = namespace[name].targetoptions.get("_nrt", True)
+        options = namespace[name].targetoptions
         scope[name] = jit(keyed_copy(namespace[name].py_func, scope, key), cache=key is not None, contract=False,
-                          refcounts=refcounts)
+                          inline=options.get("inline") == "always", refcounts=options.get("_nrt", True))
     return scope
 
 

@@ -93,7 +93,7 @@ def _lane_extras(i, s, ys, ks, y1s, p, ti, hi, tn, times, out, slot, next_out, g
     next_out[i] = times[slot[i]] if slot[i] < times.shape[0] else np.inf
 
 
-@jit(contract=False, refcounts=False)
+@jit(inline=True, contract=False, refcounts=False)
 def _start(i, s, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, section, lanes, counters, k, stage,
            y0, y1):
     # size: one lane's start on a sample: its state, first outputs, rate, first step and surface value
@@ -133,7 +133,7 @@ def _start(i, s, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, se
     return True
 
 
-@jit(contract=False, refcounts=False)
+@jit(inline=True, contract=False, refcounts=False)
 def _finish(i, y, ys, times, out, counts, stopped, lanes, counters):
     """Lane ``i``'s sample is done: its state, counts and time written back; a stopped sample's later outputs are
     the state it stopped with."""
@@ -152,7 +152,7 @@ def _finish(i, y, ys, times, out, counts, stopped, lanes, counters):
     counters[_OWNER, i] = -1
 
 
-@jit(contract=False, refcounts=False)
+@jit(inline=True, contract=False, refcounts=False)
 def _fill(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, counts, stopped, section, lanes,
           counters, k, stage, y0, y1):
     # size: the share's queue, handed to one lane
