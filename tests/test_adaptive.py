@@ -149,6 +149,18 @@ def test_a_singularity_stops_its_sample_with_step_underflow_and_a_warning(blow_u
     assert ds.state.values[1, 1, 0] == pytest.approx(-1.0 / 3.0, rel=1e-9)
 
 
+def test_a_steady_spin_is_kept_exactly_to_the_end():
+    # its rate is 0, so is every step's error: the step grows by the largest factor, never to a NaN (a steady spin
+    # stopped with "step underflow" until 2026-12-07: the block loop blended the rejected step's h / 0 into its step)
+    steady = np.array([[2.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -3.0], [0.0, 0.0, 0.0]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ds = tumble.integrate(BODY, steady, 20.0, method="dop853", times=[1.0, 20.0])
+    assert ds.status.values.tolist() == [registry.STATUS_OK] * 4
+    np.testing.assert_array_equal(ds.omega.values, np.repeat(steady[:, None, :], 2, axis=1))
+    assert (ds.rejected_steps.values == 0).all() and (ds.steps.values < 20).all()
+
+
 def test_too_few_steps_stop_with_step_limit():
     with pytest.warns(RuntimeWarning, match="step limit"):
         ds = tumble.integrate(BODY, SPINS[:1], 50.0, method="dop853", max_steps=5)

@@ -223,13 +223,13 @@ def _run_block(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, sectio
         for i in range(m):  # accept or reject every lane, branch-free (Hairer's control), in floats: vectorised
             e = err[i]
             good = 1.0 if e <= 1.0 else 0.0
-            # the step's factor, kept within [1/6, 1/0.333] (a non-finite error: the smallest, 0.333)
+            # the step's factor, kept within [1/6, 1/0.333] (a non-finite error: the smallest, 0.333); an accepted
+            # step grows by at most 6 (an error of 0, a steady spin's: 6), a rejected one shrinks by its factor
             factor = min(1.0 / _FAC1, _root8(e) / _SAFE) if e < 1e300 else 1.0 / _FAC1
-            grow = h[i] / max(1.0 / _FAC2, factor)
-            grow = min(grow, h[i]) if last_rejected[i] != 0.0 else grow
-            shrink = h[i] / factor
+            h_new = h[i] / (max(1.0 / _FAC2, factor) if good != 0.0 else factor)
+            h_new = min(h_new, h[i]) if good != 0.0 and last_rejected[i] != 0.0 else h_new
             on = active[i]
-            h[i] = on * (good * grow + (1.0 - good) * shrink) + (1.0 - on) * h[i]
+            h[i] = h_new if on != 0.0 else h[i]
             last_rejected[i] = on * (1.0 - good) + (1.0 - on) * last_rejected[i]
             tries[i] += on
             accepted_now[i] = on * good
