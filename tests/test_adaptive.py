@@ -159,6 +159,7 @@ def test_a_steady_spin_is_kept_exactly_to_the_end():
     assert ds.status.values.tolist() == [registry.STATUS_OK] * 4
     np.testing.assert_array_equal(ds.omega.values, np.repeat(steady[:, None, :], 2, axis=1))
     assert (ds.rejected_steps.values == 0).all() and (ds.steps.values < 20).all()
+    assert ds.attrs["path"] == "error-controlled, vectorised blocks"
 
 
 def test_too_few_steps_stop_with_step_limit():

@@ -58,6 +58,8 @@ class AdaptiveRun(NamedTuple):
     crossing_times: np.ndarray  # (N, most), s: a section's crossings (most = 0: no section), NaN past each count
     crossing_states: np.ndarray  # (N, most, n)
     crossings: np.ndarray  # (N,) int64: each sample's count
+    path: str = "vectorised blocks"  # how the samples ran: "vectorised blocks", "per-sample loop", "one sample per
+    # device thread"
 
 
 class Surface(NamedTuple):
@@ -174,7 +176,7 @@ _MODEL_KERNELS = {}
 
 
 def _kernel(system, surface, parameters):
-    """``(drive, p, a)``: the CPU driver of ``system``'s error-controlled run (with the user's ``surface`` function,
+    """``(drive, p, a, path)``: the CPU driver of ``system``'s error-controlled run (with the user's ``surface`` function,
     or the component surface for None), its per-sample rate's parameter array (None: a System's own values) and the
     block steps' constants: a built-in model's block driver (:mod:`tumble.kernels.loops.adaptive_blocks`, cached on
     disk but over a user's surface), a System's made once per process and kept with its compiled rate, stepping a
@@ -194,13 +196,13 @@ def _kernel(system, surface, parameters):
                                                      f"{code:x}" if surface is None and system_steps.cacheable(code)
                                                      else None))
         a = np.zeros(0) if code is None else system_steps.block_constants(system.parameter_values(parameters))
-        return made[key], None, a
+        return made[key], None, a, "per-sample loop" if code is None else "vectorised blocks"
     p = rate_sample_parameters(system.kind, system.moments, system.parameters)
     if surface is None:
-        return adaptive_blocks.drive, p, p
+        return adaptive_blocks.drive, p, p, "vectorised blocks"
     if surface not in _MODEL_KERNELS:
         _MODEL_KERNELS[surface] = adaptive_blocks.specialised(adaptive_blocks.trial, rate_sample, surface)
-    return _MODEL_KERNELS[surface], p, p  # the models' trial reads the model's code in a[0]
+    return _MODEL_KERNELS[surface], p, p, "vectorised blocks"  # the models' trial reads the model's code in a[0]
 
 
 #: (rate, surface, state size, parameters) -> the device's driver of an error-controlled run (made once per process).
@@ -278,8 +280,8 @@ def run_adaptive(system, y0, t_end, *, times=None, rtol=None, atol=None, first_s
     if most:
         cost.refuse(cost.run_cost(len(y), 0, most * (y.shape[1] + 1)), f"y0 ({len(y):,} states) and max_crossings = "
                     f"{most:,}", device)
-    drive, p, a = (_kernel(system, compiled_surface, parameters) if device == "cpu" else
-                   _device_kernel(system, compiled_surface, y.shape[1]))
+    drive, p, a, path = (_kernel(system, compiled_surface, parameters) if device == "cpu" else
+                         (*_device_kernel(system, compiled_surface, y.shape[1]), "one sample per device thread"))
     if isinstance(system, System):
         p = system.parameter_values(parameters)
         probe(system, y, p, 0.0)
@@ -296,7 +298,7 @@ def run_adaptive(system, y0, t_end, *, times=None, rtol=None, atol=None, first_s
           status, counts, stopped)
     return AdaptiveRun(state, marks, out, status, counts[:, 0].copy(), counts[:, 1].copy(), rtol, atol, values,
                        system_name(system), components, state_units(system), t_end, stopped, crossing_times,
-                       crossing_states, counts[:, 2].copy()), single
+                       crossing_states, counts[:, 2].copy(), path), single
 
 
 #: Each status's name as a flag meaning (``status`` of an error-controlled run's Dataset).

@@ -551,7 +551,7 @@ def _adaptive_dataset(run, body, device):
         "sample": ("sample", np.arange(len(run.final)), {"long_name": "ensemble member"}),
         "time": ("time", run.times, {"units": "s", "long_name": "time"}),
     })
-    attrs.update({**run_attrs(run), "n_stopped": int(stopped.sum()), "path": "per-sample loop, error-controlled",
+    attrs.update({**run_attrs(run), "n_stopped": int(stopped.sum()), "path": f"error-controlled, {run.path}",
                   "device": device})
     return indexed_dataset(variables, attrs)
 
