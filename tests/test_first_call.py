@@ -38,16 +38,13 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
 import first_call  # noqa: E402 - benchmarks/first_call.py, on the path above
 
-#: What the free body's fixed-step driver compiles for any method (integrate, propagate): the one time loop, its
-#: observers and the CPU's driver; each method adds its own step (:func:`free_body_driver`), and only its own.
+#: What the free body's fixed-step driver compiles for a plain integration with any method (integrate, propagate:
+#: no observer asked for, so the loop's observers are compiled out, each a stand-in that skips): the one time loop and
+#: the CPU's driver; each method adds its own step (:func:`free_body_driver`), and only its own.
 FREE_BODY_LOOP = {
-    "kernels.loops.block_loop._drift_suspects_of.<locals>.free_body": 1,
+    "kernels.loops.block_loop._if_observing.<locals>.stand_in_of.<locals>.skip": 5,
     "kernels.loops.block_loop._invariants_of.<locals>.free_body": 1,
-    "kernels.loops.block_loop._observe_drift": 1,
-    "kernels.loops.block_loop._observe_flips_of.<locals>.free_body": 1,
-    "kernels.loops.block_loop._observe_norm": 1,
     "kernels.loops.block_loop._step_of.<locals>.fused_step": 1,
-    "kernels.loops.block_loop._stop_complete": 1,
     "kernels.loops.block_loop.run_block": 1,
     "kernels.loops.block_parts.check_finite": 1,
     "kernels.loops.block_parts.freeze": 1,
@@ -56,7 +53,6 @@ FREE_BODY_LOOP = {
     "kernels.loops.block_parts.store_initial": 1,
     "kernels.loops.block_parts.store_rest": 1,
     "kernels.loops.drivers.make_propagate.<locals>.propagate": 1,
-    "kernels.loops.free_body_parts.observe_flips": 1,
 }
 
 
@@ -65,22 +61,22 @@ def free_body_driver(*step_kernels):
     return {**FREE_BODY_LOOP, **{kernel: 1 for kernel in step_kernels}}
 
 
-#: What the models' and a System's block driver compiles for any system (run_ensemble, integrate): the one time loop,
-#: its observers and the models' CPU driver; each system adds its own step, invariants and drift screen.
-MODEL_LOOP = {kernel: 1 for kernel in (
-    "kernels.loops.block_loop._observe_drift",
-    "kernels.loops.block_loop._observe_flips_of.<locals>.no_flips",
-    "kernels.loops.block_loop._observe_norm",
-    "kernels.loops.block_loop._stop_complete",
-    "kernels.loops.block_loop.run_block",
-    "kernels.loops.block_parts.check_finite",
-    "kernels.loops.block_parts.freeze",
-    "kernels.loops.block_parts.restore_frozen",
-    "kernels.loops.block_parts.store",
-    "kernels.loops.block_parts.store_initial",
-    "kernels.loops.block_parts.store_rest",
-    "kernels.loops.model_loop.make_propagate_model.<locals>.propagate",
-)}
+#: What the models' and a System's block driver compiles for a run that asks for no observer (run_ensemble,
+#: integrate): the one time loop, its observers compiled out, and the models' CPU driver; each system adds its own step
+#: and invariants.
+MODEL_LOOP = {
+    "kernels.loops.block_loop._if_observing.<locals>.stand_in_of.<locals>.skip": 5,
+    **{kernel: 1 for kernel in (
+        "kernels.loops.block_loop.run_block",
+        "kernels.loops.block_parts.check_finite",
+        "kernels.loops.block_parts.freeze",
+        "kernels.loops.block_parts.restore_frozen",
+        "kernels.loops.block_parts.store",
+        "kernels.loops.block_parts.store_initial",
+        "kernels.loops.block_parts.store_rest",
+        "kernels.loops.model_loop.make_propagate_model.<locals>.propagate",
+    )},
+}
 
 
 def model_driver(*system_kernels):
@@ -216,12 +212,10 @@ EXPECTED = {
     },
     # A user's System (the heavy top written by hand) on the vectorised block path: the loop with the System's own
     # step (generated from its rate, in a module of its own, not listed) and no invariants
-    "integrate System": model_driver("kernels.loops.block_loop._drift_suspects_of.<locals>.non_finite",
-                                     "kernels.loops.block_loop._invariants_of.<locals>.none_known",
+    "integrate System": model_driver("kernels.loops.block_loop._invariants_of.<locals>.none_known",
                                      "kernels.loops.block_loop._step_of.<locals>.users_step"),
-    # The heavy top's driver for rk4: that system's and that method's step only, its invariants and drift screen
-    "run_ensemble HeavyTop": model_driver("kernels.loops.block_loop._drift_suspects_of.<locals>.system_drift_suspects",
-                                          "kernels.loops.block_loop._invariants_of.<locals>.system_invariants",
+    # The heavy top's driver for rk4, no observer asked for: that system's and that method's step only, its invariants
+    "run_ensemble HeavyTop": model_driver("kernels.loops.block_loop._invariants_of.<locals>.system_invariants",
                                           "kernels.loops.block_loop._step_of.<locals>.system_step",
                                           "kernels.steps.model_steps.heavy_top_rk4_block"),
     "megno HeavyTop": HEAVY_TOP_TANGENTS,

@@ -145,7 +145,7 @@ CACHED = textwrap.dedent('''
     from tumble.kernels import system_steps
     from tumble.kernels.loops import model_loop
     code = system_steps.system_code(decay, 1, 1)
-    print(sum(model_loop._DRIVERS[code, 0].stats.cache_hits.values()))
+    print(sum(model_loop._DRIVERS[code, 0, False].stats.cache_hits.values()))  # propagate observes nothing
 ''')
 
 

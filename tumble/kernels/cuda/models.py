@@ -35,7 +35,7 @@ def make_kernel(model, method, n_state):
     memory. The codes are constants of the closure, handed to the loop as literals (on the simulator through
     :func:`tumble.kernels.cuda.launch.loop_with_codes`: the CPU's compiled loop of that system and method), so that
     the kernel compiles that system's and that method's step only."""
-    loop = loop_with_codes(run_block, model, method, True)
+    loop = loop_with_codes(run_block, model, method, True, True)
 
     @cuda_jit
     def propagate(y, c, h, n_steps, save_every, saved, columns, weights, y_eq, probe_steps, probes, drift,
@@ -56,7 +56,7 @@ def make_kernel(model, method, n_state):
                    cuda.local.array((N_INVARIANTS, 1), float64), cuda.local.array((PROBE_ROWS, 1), float64),
                    cuda.local.array((2, 1), boolean), cuda.local.array(1, int64))
         no_flips, no_count = loop_array(probes)[:, :0], loop_array(steps_taken)[:0]  # a model's flips: not observed
-        loop(model, method, True, loop_array(y), i, scratch, constants, 0.0, h, n_steps, save_every, loop_array(saved),
+        loop(model, method, True, True, loop_array(y), i, scratch, constants, 0.0, h, n_steps, save_every, loop_array(saved),
              (loop_array(columns), loop_array(weights), loop_array(y_eq)), loop_array(probe_steps), loop_array(probes),
              (0, no_flips, no_count), loop_array(drift), drift_limit, loop_array(status), loop_array(steps_taken),
              (0.0, 0), (0, None, None), (0.0, 0, 0.0, no_flips, no_count))

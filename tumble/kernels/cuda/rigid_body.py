@@ -47,7 +47,7 @@ def make_kernel(method, torque_free):
     literals, so that the kernel compiles that method's step only, torque-free or with a torque (on the simulator
     through :func:`tumble.kernels.cuda.launch.loop_with_codes`: the CPU's compiled loop of those codes)."""
     kernel_id = method.kernel_id
-    loop = loop_with_codes(run_block, FREE_BODY, kernel_id, torque_free)
+    loop = loop_with_codes(run_block, FREE_BODY, kernel_id, torque_free, True)
 
     @cuda_jit
     def propagate(w, scene, bodies, t0, hs, step_counts, saves, saved, axes, column_rows, weight_rows, y_eq,
@@ -81,7 +81,7 @@ def make_kernel(method, torque_free):
                    cuda.local.array((2, 1), boolean), cuda.local.array(1, int64))
         norm = (loop_array(column_rows)[s], loop_array(weight_rows)[s], loop_array(y_eq))
         growth = (fit_saturations[s], fit_min_points, fit_hs[s], loop_array(fit), loop_array(fit_points))
-        loop(FREE_BODY, kernel_id, torque_free, loop_array(w), i, scratch, body, t0, hs[s], step_counts[s], saves[s],
+        loop(FREE_BODY, kernel_id, torque_free, True, loop_array(w), i, scratch, body, t0, hs[s], step_counts[s], saves[s],
              loop_array(saved), norm, loop_array(probe_step_rows)[s], loop_array(probes),
              (axes[s], loop_array(flips), loop_array(flip_count)), loop_array(drift), drift_limit, loop_array(status),
              loop_array(steps_taken), (stop_norms[s], stop_flips), (torque_kind, torque_params, None), growth)

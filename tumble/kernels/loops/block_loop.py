@@ -21,7 +21,8 @@ compile every system's and method's step into the loop: 40 s of a first rk4 ``in
 heavy-top ensemble, ``benchmarks/first_call.py``).
 
 **Observers** are runtime switches: an output not asked for is an empty array and its branch, outside the loop over a
-block's samples, is skipped. They come in one order after each step: flips (the free body's spin-axis component
+block's samples, is skipped. A caller whose run asks for none passes the literal ``observing = False``, and the
+observers are not compiled at all (:func:`_if_observing`: a plain integration's first call compiles 2 s less). They come in one order after each step: flips (the free body's spin-axis component
 changing sign, timed by cubic Hermite interpolation), the invariants' drifts, the non-finite check, the stored state,
 the probes of the transverse norm ``sqrt(sum_j weights[j] (y[columns[j]] − y_eq[columns[j]])²)`` (each feeding the
 sample's growth window, :func:`tumble.kernels.fits.growth_window_add`, when the growth fit runs in the loop), and the
@@ -302,6 +303,40 @@ def _stop_complete(ys, active, reached, stop_norm, stop_flips, flip_count, lo, k
     return remaining
 
 
+def _if_observing(observer, otherwise):
+    """A stand-in for ``observer`` that takes the literal ``observing`` first: ``observer(*rest)`` when it is True,
+    ``otherwise`` when it is False, and then ``observer`` is never typed nor compiled into the loop (numba types both
+    arms of an ``if`` on a literal, so a branch would not keep it out)."""
+
+    def stand_in(observing, *arguments):
+        """``observer(*arguments)`` when ``observing`` (a literal), else a constant."""
+
+    @overload(stand_in, **_OPTIONS)
+    def stand_in_of(observing, *arguments):
+        _literal(observing)
+        if observing.literal_value:
+            def observe(observing, *arguments):
+                return observer(*arguments)
+
+            return observe
+
+        def skip(observing, *arguments):
+            return otherwise
+
+        return skip
+
+    return stand_in
+
+
+# The observers of a run that asks for some (its driver's ``observing``): a run that asks for none (a plain integration:
+# ``tumble.integrate``, ``tumble.propagate``) compiles a loop without them, about half of a first call's compile.
+_observe_flips_if = _if_observing(_observe_flips, None)
+_drift_suspects_if = _if_observing(_drift_suspects, False)
+_observe_drift_if = _if_observing(_observe_drift, 0)
+_observe_norm_if = _if_observing(_observe_norm, None)
+_stop_complete_if = _if_observing(_stop_complete, 0)
+
+
 @jit(inline=True)
 def block_scratch(n_state, m):
     """The scratch of :func:`run_block` for a block of ``m`` samples of ``n_state`` components, on the CPU (a device
@@ -312,7 +347,7 @@ def block_scratch(n_state, m):
 
 
 @jit
-def run_block(system, method, torque_free, y, lo, scratch, params, t0, h, n_steps, save_every, saved, norm,
+def run_block(system, method, torque_free, observing, y, lo, scratch, params, t0, h, n_steps, save_every, saved, norm,
               probe_steps, probes, flips, drift, drift_limit, status, steps_taken, stops, torque, growth):
     # size: the one time loop of every system, method and observer, on either device: flat arrays, scalars and small
     # tuples of them (DESIGN.md: arrays and scalars below the kernels' door), the block's scratch owned by the caller
@@ -324,6 +359,9 @@ def run_block(system, method, torque_free, y, lo, scratch, params, t0, h, n_step
         :data:`FREE_BODY` or a model's code; the method's index in :data:`tumble.registry.STEPPING`.
     torque_free : bool, literal
         The free body without a torque (compiles the torque out; models: True).
+    observing : bool, literal
+        Whether the run may ask for an observer (the probes and the growth fit, flips, drifts, a drift limit, the
+        early stop); False compiles them out, and the run must then ask for none (empty outputs, limits off).
     y : ndarray (n_state, N)
         The states, read at the start and overwritten with the final (or frozen) ones.
     lo : int
@@ -398,13 +436,14 @@ def run_block(system, method, torque_free, y, lo, scratch, params, t0, h, n_step
             flip_times[lo + i, j] = np.nan
         for j in range(drift.shape[0]):
             drift[j, lo + i] = 0.0
-    _initial_invariants(system, ys, params, x0, inverse_scale)
+    _initial_invariants(system, ys, params, x0, inverse_scale)  # the splittings' and projections' too
     ran = np.int64(0)  # (not the literal 0: a literal argument would compile a second variant of the check)
     n_frozen = check_finite(ys, active, ran, frozen, block_status, last)
     slot = store_initial(saved, ys, lo)
     probe = np.int64(0)  # (as ``ran``)
     while probe < n_probes and probe_steps[probe] == 0:
-        _observe_norm(ys, active, columns, weights, y_eq, probes, lo, probe, stop_norm, reached, window, fit_saturation)
+        _observe_norm_if(observing, ys, active, columns, weights, y_eq, probes, lo, probe, stop_norm, reached, window,
+                         fit_saturation)
         probe += 1
     for k in range(n_steps):
         if n_frozen == m:
@@ -419,25 +458,27 @@ def run_block(system, method, torque_free, y, lo, scratch, params, t0, h, n_step
             restore_frozen(ys, active, frozen)
         ran = k + 1
         if track_flips:
-            _observe_flips(system, ys, previous, active, flip_axis, t, h, params, flip_times, flip_count, lo, torque)
+            _observe_flips_if(observing, system, ys, previous, active, flip_axis, t, h, params, flip_times, flip_count,
+                              lo, torque)
         # with drifts tracked, the exact observer runs only for a block with a suspect (or whose drifts are recorded):
         # the screen's "nothing to stop" is exact (a non-finite state is a suspect: the exact observer stops it with
         # its status), its suspects are checked exactly
-        if track_drift and (record_drift or _drift_suspects(system, ys, active, params, x0, inverse_scale, screen)):
-            n_frozen += _observe_drift(system, ys, active, params, x0, inverse_scale, drift, lo, limit, ran, frozen,
-                                       block_status, last)
+        if track_drift and (record_drift or _drift_suspects_if(observing, system, ys, active, params, x0,
+                                                               inverse_scale, screen)):
+            n_frozen += _observe_drift_if(observing, system, ys, active, params, x0, inverse_scale, drift, lo, limit,
+                                          ran, frozen, block_status, last)
         if track_flips or ran % CHECK_EVERY == 0 or ran == n_steps:
             n_frozen += check_finite(ys, active, ran, frozen, block_status, last)
         if storing and (ran % save_every == 0 or ran == n_steps):
             store(saved, slot, ys, lo)
             slot += 1
         while probe < n_probes and probe_steps[probe] == ran:
-            _observe_norm(ys, active, columns, weights, y_eq, probes, lo, probe, stop_norm, reached, window,
-                          fit_saturation)
+            _observe_norm_if(observing, ys, active, columns, weights, y_eq, probes, lo, probe, stop_norm, reached,
+                             window, fit_saturation)
             probe += 1
         if early_stop:
-            remaining = _stop_complete(ys, active, reached, stop_norm, stop_flips, flip_count, lo, ran, frozen,
-                                       block_status, last)
+            remaining = _stop_complete_if(observing, ys, active, reached, stop_norm, stop_flips, flip_count, lo, ran,
+                                          frozen, block_status, last)
             n_frozen = m - remaining
             if remaining == 0:
                 break
@@ -447,7 +488,8 @@ def run_block(system, method, torque_free, y, lo, scratch, params, t0, h, n_step
     for i in range(m):
         active[i] = False
     while probe < n_probes:
-        _observe_norm(ys, active, columns, weights, y_eq, probes, lo, probe, 0.0, reached, window, fit_saturation)
+        _observe_norm_if(observing, ys, active, columns, weights, y_eq, probes, lo, probe, 0.0, reached, window,
+                         fit_saturation)
         probe += 1
     for i in range(m):
         for j in range(n_state):

@@ -241,11 +241,12 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
     status = np.zeros(n, dtype=np.int8)
     steps_taken = np.zeros(n, dtype=np.int64)
     torque_free = torque_params is None and torque_fn is None
+    observing = len(probe_steps) > 0 or max_flips > 0 or drift or stop_norm > 0.0 or stop_flips > 0 or drift_limit > 0.0
     args = (kernel_w, constants, float(t0), float(h), int(n_steps), int(block),
             int(save_every), saved, int(kernel_axis), weights, probe_steps, probes, flips, flip_count, drifts, status,
             steps_taken, float(stop_norm), int(stop_flips), float(drift_limit), int(torque_kind), torque_params,
             torque_fn)
-    in_parallel(driver(method.kernel_id, torque_free, torque_fn), n, *args, granule=int(block))
+    in_parallel(driver(method.kernel_id, torque_free, torque_fn, observing), n, *args, granule=int(block))
     if relabel is not None:
         w[:] = from_kernel_frame(relabel, kernel_w)
         saved = from_kernel_frame(relabel, saved, axis=1)

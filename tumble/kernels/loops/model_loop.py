@@ -69,10 +69,11 @@ SPLITTING_KINDS = LIE_POISSON_MODELS
 BLOCK = 256
 
 
-def make_propagate_model(model, method):
+def make_propagate_model(model, method, observing=True):
     """The CPU's driver of the one time loop (:func:`tumble.kernels.loops.block_loop.run_block`) for ``model`` and ``method``
-    (codes of :data:`MODEL_CODES` and :data:`MODEL_METHODS`), constants of the closure: the loop compiles that system's
-    and that method's step only. numba's disk cache tells the closures apart by their constants (a user's System's code
+    (codes of :data:`MODEL_CODES` and :data:`MODEL_METHODS`), with its observers or without (``observing``: a plain
+    integration asks for none), constants of the closure: the loop compiles that system's and that method's step only,
+    and the observers only where a run may ask for them. numba's disk cache tells the closures apart by their constants (a user's System's code
     that keys nothing is not cached: :func:`tumble.kernels.steps.system_steps.cacheable`)."""
 
     @jit(cache=cacheable(model))
@@ -84,14 +85,14 @@ def make_propagate_model(model, method):
         no_stops = (0.0, np.int64(0))  # (not the literal 0: the free body's drivers pass an int64)
         for lo in range(start, stop, block):
             m = min(block, stop - lo)
-            run_block(model, method, True, y, lo, block_scratch(n_state, m), constants, 0.0, h, n_steps, save_every,
+            run_block(model, method, True, observing, y, lo, block_scratch(n_state, m), constants, 0.0, h, n_steps, save_every,
                       saved, (columns, weights, y_eq), probe_steps, probes, (0, no_flips, no_count), drift, drift_limit,
                       status, steps_taken, no_stops, (0, None, None), (0.0, 0, 0.0, no_fit, no_count))
 
     return propagate
 
 
-#: The CPU drivers made so far, by (model code, method code); each compiles (or loads) on its first call.
+#: The CPU drivers made so far, by (model code, method code, observing); each compiles (or loads) on its first call.
 _DRIVERS = {}
 
 
@@ -130,7 +131,8 @@ def propagate_model(model, method, y, constants, h, n_steps, block,
     status, steps_taken : ndarray (N,) int8, ndarray (N,) int64
         Outputs: per-sample status and the number of steps each sample took.
     """
-    key = (int(model), int(method))
+    observing = len(probe_steps) > 0 or drift.shape[0] > 0 or drift_limit > 0.0
+    key = (int(model), int(method), bool(observing))
     driver = _DRIVERS.get(key)
     if driver is None:
         driver = _DRIVERS[key] = make_propagate_model(*key)
