@@ -287,7 +287,7 @@ def first_call(link):
     d = results("first_call")
     targets = d["targets_seconds"]
     rows = [(r["name"], seconds(r["empty_s"]), seconds(r["warm_s"]),
-             " / ".join(f"{t:g} s" for t in targets[r["name"]]) if r["name"] in targets else "")
+             " / ".join(f"{t:.3g} s" for t in targets[r["name"]]) if r["name"] in targets else "")
             for r in d["rows"]]
     return table(("first call", f"empty numba cache (median of {d['repeats_empty']})",
                   f"warm cache, new process (median of {d['repeats_warm']})", "target (empty / warm)"), rows) + [
