@@ -186,6 +186,10 @@ def run_share(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section
 def _run_block(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
                counts, stopped, lanes, counters, rows, scratch):
     # size: Hairer's control over a block's lanes, with the outputs, the crossings, the stops and the lanes' refills
+    """:func:`run_share`'s loop over the block's lanes, with the arrays it made: ``lanes`` (12, BLOCK) and ``counters``
+    (3, BLOCK), rows named by ``_T`` ... and ``_SLOT`` ...; ``rows`` (4, n, BLOCK) the lanes' states, rates, trial
+    states and their rates; ``scratch`` (:data:`SCRATCH_ROWS` + 1, n) one sample's dense output. It makes no array, so
+    it runs without numba's reference counts (:func:`tumble.kernels.jit.jit`'s ``refcounts``)."""
     n = y.shape[1]
     m = BLOCK
     component, value, direction, most = int(section[0]), section[1], section[2], int(section[3])
@@ -243,20 +247,18 @@ def _run_block(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, sectio
                                  next_out, g0, crossed, component, value, direction, most, crossing_t,
                                  crossing_y, k, stage, y0, y1, f)
         done = 0
-        # the accepted lanes move on, done at t_end or with their crossings; their new states and rates (both values
-        # read before the choice, and no short-circuit: so that the loops vectorise)
+        # the accepted lanes move on, done at t_end or with their crossings (both times read before the choice, and no
+        # short-circuit: so that the pass vectorises), and the lanes whose sample is done are counted
         for i in range(m):
             moved, stayed = t_new[i], t[i]
             t[i] = moved if accepted_now[i] != 0.0 else stayed
             finished = (t[i] == t_end) | ((most > 0) & (crossed[i] == most))
             active[i] = 0.0 if finished else active[i]
             done += 1 if (active[i] == 0.0) & (owner[i] >= 0) else 0
-        for j in range(n):
+        for j in range(n):  # their new states and rates
             for i in range(m):
-                moved, stayed = y1s[j, i], ys[j, i]
-                ys[j, i] = moved if accepted_now[i] != 0.0 else stayed
-                moved, stayed = k1s[j, i], ks[j, i]
-                ks[j, i] = moved if accepted_now[i] != 0.0 else stayed
+                ys[j, i] = y1s[j, i] if accepted_now[i] != 0.0 else ys[j, i]
+                ks[j, i] = k1s[j, i] if accepted_now[i] != 0.0 else ks[j, i]
         if done > 0:
             for i in range(m):
                 if active[i] == 0.0 and owner[i] >= 0:
