@@ -113,10 +113,11 @@ def test_bad_input_is_one_line_naming_the_argument(keywords, message):
 _CACHED = """
 import numpy as np
 import tumble
-from tumble.kernels import adaptive_blocks
+from tumble.engine import adaptive_runs
 top = tumble.models.HeavyTop((1.0, 1.5, 2.0), 1.0, centre=(1.0, 0.5, 1.0))
 ds = tumble.section(top, [[0.0, 0.0, 2.0, 0.0, 0.3, 0.95]], 20.0, surface=("g1", 0.0), max_crossings=3)
-print(repr(float(ds["time"][0, 0])), sum(adaptive_blocks.run_share.stats.cache_hits.values()))
+drive = adaptive_runs._MODEL_KERNELS["heavy_top", None]
+print(repr(float(ds["time"][0, 0])), sum(drive.run_share.stats.cache_hits.values()))
 """
 
 

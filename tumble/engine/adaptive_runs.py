@@ -170,8 +170,8 @@ def checked_scalars(t_end, first_step, max_steps):
     return t_end, h0, int(limit)
 
 
-#: Built-in models' error-controlled drivers over a user's surface, by the surface (the component surface's is
-#: :func:`tumble.kernels.adaptive_blocks.drive`, compiled once into numba's disk cache).
+#: Built-in models' error-controlled drivers, by (system module, the user's surface or None): each a driver of its
+#: model's own trial step (:func:`tumble.kernels.adaptive_blocks.for_model`, cached on disk with the component surface).
 _MODEL_KERNELS = {}
 
 
@@ -198,11 +198,10 @@ def _kernel(system, surface, parameters):
         a = np.zeros(0) if code is None else system_steps.block_constants(system.parameter_values(parameters))
         return made[key], None, a, "per-sample loop" if code is None else "vectorised blocks"
     p = rate_sample_parameters(system.kind, system.moments, system.parameters)
-    if surface is None:
-        return adaptive_blocks.drive, p, p, "vectorised blocks"
-    if surface not in _MODEL_KERNELS:
-        _MODEL_KERNELS[surface] = adaptive_blocks.specialised(adaptive_blocks.trial, rate_sample, surface)
-    return _MODEL_KERNELS[surface], p, p, "vectorised blocks"  # the models' trial reads the model's code in a[0]
+    key = (registry.model_kind(system.kind).equations_module, surface)
+    if key not in _MODEL_KERNELS:
+        _MODEL_KERNELS[key] = adaptive_blocks.for_model(*key)
+    return _MODEL_KERNELS[key], p, p[1:], "vectorised blocks"  # the trial's constants: the parameters after the code
 
 
 #: (rate, surface, state size, parameters) -> the device's driver of an error-controlled run (made once per process).

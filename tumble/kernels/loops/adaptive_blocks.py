@@ -10,13 +10,12 @@ once, so that samples of few steps and of many share the block's work (a block t
 stepped a third of its lanes idle on an eccentric orbit's ensemble); each sample's steps are the same whichever lane
 runs it.
 
-The functions here are written once, over the module's globals ``trial``, ``rate`` and ``surface``: the built-in
-models' (their generated :func:`tumble.kernels.steps.model_steps.dop853_trial`, which dispatches on the model's code
-in ``a[0]``, their :func:`~tumble.kernels.steps.model_steps.rate_sample` and the component surface), so that their
-driver, :func:`drive`, is compiled once into numba's disk cache like every built-in kernel. :func:`specialised` gives
-the same driver over other functions (a System's generated trial and rate, a user's surface): copies of these
-functions with those in their globals, compiled in the process that asks (numba's cache cannot key a function by
-another it is handed).
+The functions here are written once, over the module's globals ``trial``, ``rate`` and ``surface``, and run as copies
+with those in their globals (:func:`specialised`, :func:`tumble.kernels.jit.rebound`; numba's cache cannot key a
+function by another it is handed): a built-in model's (:func:`for_model`: its own generated trial step, the models'
+:func:`~tumble.kernels.steps.model_steps.rate_sample` and the component surface, cached on disk under the model's
+system module, so that a model compiles its own trial step and no other), a System's (its generated trial and rate),
+or either with a user's surface (compiled in the process that asks).
 """
 
 import math
@@ -25,14 +24,18 @@ import numpy as np
 
 from ...registry import STATUS_LIMIT, STATUS_NONFINITE, STATUS_OK, STATUS_UNDERFLOW
 from ..jit import jit, rebound
-from ..steps.model_steps import dop853_trial as trial
-from ..steps.model_steps import rate_sample as rate
+from ..steps import model_steps
 from .adaptive_loop import (_C, _FAC1, _FAC2, _SAFE, _STAGES, _UROUND, SCRATCH_ROWS, _crossing, _dense, _first_step,
                             _interpolant, _root8, _stage)
 from .adaptive_loop import component_surface as surface
+from ..tableaux import DOP853
 from ..threads import in_shares
 
-__all__ = ["BLOCK", "drive", "run_share", "specialised"]
+__all__ = ["BLOCK", "for_model", "specialised"]
+
+# What the templates read, until a copy reads its own (specialised): the trial and the rate are always the copy's.
+trial = None
+rate = None
 
 #: Lanes of a block: a sample's share steps in one block whose lanes take the next sample as theirs is done.
 BLOCK = 32
@@ -267,27 +270,18 @@ def _run_block(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, sectio
                                    stopped, section, lanes, counters, k, stage, y0, y1)
 
 
-def drive(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
-          counts, stopped):
-    # size: as run_share
-    """The built-in models' error-controlled run of the samples ``y`` (N, n), as
-    :func:`tumble.kernels.loops.adaptive_loop.make_dop853_driver`'s ``drive`` (``p`` and ``a`` both the models'
-    parameters, their code first): one share of the samples per numba thread, each share in one block (a share is
-    whole blocks: a run of one block's samples or fewer stays in this thread)."""
-    in_shares(run_share, len(y), lambda lo, hi: (y[lo:hi], p, a, t0, t_end, h0, rtol, atol, max_steps, times,
-                                                 out[lo:hi], section, crossing_t[lo:hi], crossing_y[lo:hi],
-                                                 status[lo:hi], counts[lo:hi], stopped[lo:hi]), BLOCK)
-
-
 #: The functions :func:`specialised` copies, callees first.
 _FUNCTIONS = ("_lane_extras", "_start", "_finish", "_fill", "_run_block", "run_share")
 
 
 def specialised(trial, rate, surface=None, key=None):
-    """``drive(...)`` (as :func:`drive`) over ``trial``, ``rate`` and ``surface`` (None: the component surface):
+    """``drive(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
+    counts, stopped)``, as :func:`tumble.kernels.loops.adaptive_loop.make_dop853_driver`'s (``p`` the rate's
+    parameters, ``a`` the trial's constants), over ``trial``, ``rate`` and ``surface`` (None: the component surface):
     this module's functions copied with those in their globals (:func:`tumble.kernels.jit.rebound`), compiled on first
-    use; cached on disk under ``key`` (a string that names what they compute in every process: a System's code), not
-    cached without it."""
+    use; one share of the samples per numba thread, each share in one block (a share is whole blocks: a run of one
+    block's samples or fewer stays in the calling thread). Cached on disk under ``key`` (a string that names what they
+    compute in every process: a model's system module, a System's code), not cached without it."""
     share = rebound(_FUNCTIONS, globals(), key, trial=trial, rate=rate,
                     surface=surface if surface is not None else globals()["surface"])["run_share"]
 
@@ -300,3 +294,14 @@ def specialised(trial, rate, surface=None, key=None):
 
     drive.run_share = share  # the compiled share, for its cache statistics
     return drive
+
+
+def for_model(module, surface=None):
+    """:func:`specialised`'s driver of the built-in models whose equations are in system module ``module`` (the
+    registry's ``equations_module``: the free body's are the gyrostat's): its own generated trial step
+    (``model_steps.<module>_dop853_trial``, whose constants ``a`` are the models' parameters after their code), the
+    models' rate (``p``: the parameters, code first) and ``surface`` (None: the component surface, cached on disk under
+    ``module``). A first run compiles that model's trial alone: one trial for every model made a first free-body run
+    compile all four (24 s to 12 s on 2 cores)."""
+    return specialised(getattr(model_steps, f"{module}_{DOP853.name}_trial"), model_steps.rate_sample, surface,
+                       module if surface is None else None)

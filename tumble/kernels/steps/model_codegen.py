@@ -522,24 +522,8 @@ def module_source():
                        tangent_step_source(tableau, name, components), "", "",
                        tangent_block_source(tableau, name, components)]
         blocks += ["", "", trial_source(name, components)]
-    blocks += ["", "", dispatch_source(modules), "", "", tangent_table_source(modules), "", "",
-               trial_dispatch_source(modules), ""]
+    blocks += ["", "", dispatch_source(modules), "", "", tangent_table_source(modules), ""]
     return "\n".join(blocks)
-
-
-def trial_dispatch_source(modules, control=tableaux.DOP853):
-    """Source of ``<control>_trial``: the built-in models' trial step over a block's lanes
-    (:func:`trial_source`'s, chosen by the model's code in ``a[0]``, its constants after it), the one trial the
-    models' cached error-controlled driver calls (:mod:`tumble.kernels.loops.adaptive_blocks`)."""
-    arguments = "lane_t, lane_h, ys, ks, y1s, k1s, err, rtol, atol"
-    return "\n".join([
-        "@jit",
-        f"def {control.name}_trial({arguments}, a):",
-        f'    """The built-in models\' {control.name} trial step over a block\'s lanes: ``a`` holds the model\'s code, '
-        'then its\n    constants (:func:`tumble.kernels.loops.model_loop.rate_sample_parameters`)."""',
-        "    model = int(a[0])",
-        *_chain(modules, lambda name, components, kinds: [f"{name}_{control.name}_trial({arguments}, a[1:])"]),
-    ])
 
 
 def write_all():

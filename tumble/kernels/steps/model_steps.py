@@ -2865,18 +2865,3 @@ TANGENT_STEPS = {
     (4, 0): damper_rk4_tangent_step,  # damper, rk4
     (4, 1): damper_rk8_tangent_step,  # damper, rk8
 }
-
-
-@jit
-def dop853_trial(lane_t, lane_h, ys, ks, y1s, k1s, err, rtol, atol, a):
-    """The built-in models' dop853 trial step over a block's lanes: ``a`` holds the model's code, then its
-    constants (:func:`tumble.kernels.loops.model_loop.rate_sample_parameters`)."""
-    model = int(a[0])
-    if model == 0 or model == 1:  # free, gyrostat
-        gyrostat_dop853_trial(lane_t, lane_h, ys, ks, y1s, k1s, err, rtol, atol, a[1:])
-    elif model == 2:  # heavy_top
-        heavy_top_dop853_trial(lane_t, lane_h, ys, ks, y1s, k1s, err, rtol, atol, a[1:])
-    elif model == 3:  # gravity_gradient
-        gravity_gradient_dop853_trial(lane_t, lane_h, ys, ks, y1s, k1s, err, rtol, atol, a[1:])
-    else:  # damper
-        damper_dop853_trial(lane_t, lane_h, ys, ks, y1s, k1s, err, rtol, atol, a[1:])
