@@ -176,12 +176,12 @@ _MODEL_KERNELS = {}
 
 
 def _kernel(system, surface, parameters):
-    """``(drive, p, a, path)``: the CPU driver of ``system``'s error-controlled run (with the user's ``surface`` function,
-    or the component surface for None), its per-sample rate's parameter array (None: a System's own values) and the
-    block steps' constants: a built-in model's block driver (:mod:`tumble.kernels.loops.adaptive_blocks`, cached on
-    disk but over a user's surface), a System's made once per process and kept with its compiled rate, stepping a
-    block's lanes at once where its rate has a scalar form (:func:`tumble.engine.system_runs.block_code`), else one
-    sample at a time."""
+    """``(drive, p, a, path)``: the CPU driver of ``system``'s error-controlled run (with the user's ``surface``
+    function, or the component surface for None), its per-sample rate's parameter array (None: a System's own values),
+    the block steps' constants and how its samples run: a built-in model's block driver of its own trial step
+    (:func:`tumble.kernels.adaptive_blocks.for_model`, cached on disk but over a user's surface), a System's made once
+    per process and kept with its compiled rate, stepping a block's lanes at once where its rate has a scalar form
+    (:func:`tumble.engine.system_runs.block_code`), else one sample at a time."""
     if isinstance(system, System):
         made = compiled(system).methods
         key = adaptive_loop.DOP853.name if surface is None else (adaptive_loop.DOP853.name, surface)

@@ -22,7 +22,7 @@ heavy-top ensemble, ``benchmarks/first_call.py``).
 
 **Observers** are runtime switches: an output not asked for is an empty array and its branch, outside the loop over a
 block's samples, is skipped. A caller whose run asks for none passes the literal ``observing = False``, and the
-observers are not compiled at all (:func:`_if_observing`: a plain integration's first call compiles 2 s less). They
+observers are not compiled at all (:func:`_if_observing`: a plain integration's first call compiles 3 s less). They
 come in one order after each step: flips (the free body's spin-axis component changing sign, timed by cubic Hermite
 interpolation), the invariants' drifts, the non-finite check, the stored state, the probes of the transverse norm
 ``sqrt(sum_j weights[j] (y[columns[j]] − y_eq[columns[j]])²)`` (each feeding the sample's growth window,
@@ -330,7 +330,7 @@ def _if_observing(observer, otherwise):
 
 
 # The observers of a run that asks for some (its driver's ``observing``): a run that asks for none (a plain integration:
-# ``tumble.integrate``, ``tumble.propagate``) compiles a loop without them, 2 of a first call's 7 s (2 cores).
+# ``tumble.integrate``, ``tumble.propagate``) compiles a loop without them, 3 of a first call's 8 s (2 cores).
 _observe_flips_if = _if_observing(_observe_flips, None)
 _drift_suspects_if = _if_observing(_drift_suspects, False)
 _observe_drift_if = _if_observing(_observe_drift, 0)

@@ -13,8 +13,8 @@ branch, outside the loop over the samples of a block, is skipped; the branches c
 device kernel, and the loop compiles its one step. So one compiled driver per method and torque type (none, a built-in
 profile, a user's function) serves every combination of observers, and a run compiles (or loads) only the driver of
 the method it runs; a run that asks for no observer at all (``tumble.integrate``, ``tumble.propagate``) has a driver of
-its own with the observers compiled out (``observing``), which halves a first integration's compile (7 s to 5 s for
-rk4, 2 cores). Memory is O(samples) unless a trajectory is stored.
+its own with the observers compiled out (``observing``), which cuts a first integration's compile by a third (8 s to
+5 s for rk4, 2 cores). Memory is O(samples) unless a trajectory is stored.
 
 Per-sample status (:mod:`tumble.kernels.loops.block_loop`): ``STATUS_OK``, ``STATUS_NONFINITE`` (a component became NaN or
 inf) or ``STATUS_DRIFT`` (torque-free only: the energy or ``|L|**2`` drifted by more than ``drift_limit``, relative).
@@ -98,9 +98,9 @@ def make_propagate(torque_free, kernel, observing=True):
         no_fit, no_fit_points = np.empty((0, 1)), np.empty(0, dtype=np.int64)  # the growth fit is the caller's
         for lo in range(start, stop, block):
             m = min(block, stop - lo)
-            run_block(FREE_BODY, kernel, torque_free, observing, w, lo, block_scratch(3, m), body, t0, h, n_steps, save_every,
-                      saved, norm, probe_steps, probes, (axis, flips, flip_count), drift, drift_limit, status, steps_taken,
-                      (stop_norm, stop_flips), (torque_kind, torque_params, torque_fn),
+            run_block(FREE_BODY, kernel, torque_free, observing, w, lo, block_scratch(3, m), body, t0, h, n_steps,
+                      save_every, saved, norm, probe_steps, probes, (axis, flips, flip_count), drift, drift_limit,
+                      status, steps_taken, (stop_norm, stop_flips), (torque_kind, torque_params, torque_fn),
                       (0.0, 0, 0.0, no_fit, no_fit_points))
 
     return propagate

@@ -73,8 +73,9 @@ def make_propagate_model(model, method, observing=True):
     """The CPU's driver of the one time loop (:func:`tumble.kernels.loops.block_loop.run_block`) for ``model`` and ``method``
     (codes of :data:`MODEL_CODES` and :data:`MODEL_METHODS`), with its observers or without (``observing``: a plain
     integration asks for none), constants of the closure: the loop compiles that system's and that method's step only,
-    and the observers only where a run may ask for them. numba's disk cache tells the closures apart by their constants (a user's System's code
-    that keys nothing is not cached: :func:`tumble.kernels.steps.system_steps.cacheable`)."""
+    and the observers only where a run may ask for them. numba's disk cache tells the closures apart by their
+    constants (a user's System's code that keys nothing is not cached:
+    :func:`tumble.kernels.steps.system_steps.cacheable`)."""
 
     @jit(cache=cacheable(model))
     def propagate(y, constants, h, n_steps, block, save_every, saved, columns, weights, y_eq, probe_steps, probes,
@@ -85,9 +86,9 @@ def make_propagate_model(model, method, observing=True):
         no_stops = (0.0, np.int64(0))  # (not the literal 0: the free body's drivers pass an int64)
         for lo in range(start, stop, block):
             m = min(block, stop - lo)
-            run_block(model, method, True, observing, y, lo, block_scratch(n_state, m), constants, 0.0, h, n_steps, save_every,
-                      saved, (columns, weights, y_eq), probe_steps, probes, (0, no_flips, no_count), drift, drift_limit,
-                      status, steps_taken, no_stops, (0, None, None), (0.0, 0, 0.0, no_fit, no_count))
+            run_block(model, method, True, observing, y, lo, block_scratch(n_state, m), constants, 0.0, h, n_steps,
+                      save_every, saved, (columns, weights, y_eq), probe_steps, probes, (0, no_flips, no_count), drift,
+                      drift_limit, status, steps_taken, no_stops, (0, None, None), (0.0, 0, 0.0, no_fit, no_count))
 
     return propagate
 
