@@ -302,6 +302,6 @@ def for_model(module, surface=None):
     (``model_steps.<module>_dop853_trial``, whose constants ``a`` are the models' parameters after their code), the
     models' rate (``p``: the parameters, code first) and ``surface`` (None: the component surface, cached on disk under
     ``module``). A first run compiles that model's trial alone: one trial for every model made a first free-body run
-    compile all four (24 s to 12 s on 2 cores)."""
+    compile all four (24 s to 14 s on 2 cores)."""
     return specialised(getattr(model_steps, f"{module}_{DOP853.name}_trial"), model_steps.rate_sample, surface,
                        module if surface is None else None)
