@@ -231,12 +231,14 @@ def _run_block(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, sectio
             e = err[i]
             good = 1.0 if e <= 1.0 else 0.0
             # the step's factor, kept within [1/6, 1/0.333] (a non-finite error: the smallest, 0.333); an accepted
-            # step grows by at most 6 (an error of 0, a steady spin's: 6), a rejected one shrinks by its factor
+            # step grows by at most 6 (an error of 0, a steady spin's: 6), a rejected one shrinks by its factor; the
+            # step is chosen, not blended (an error of 0 makes the shrunk step h / 0), both made first: vectorised
             factor = min(1.0 / _FAC1, _root8(e) / _SAFE) if e < 1e300 else 1.0 / _FAC1
-            h_new = h[i] / (max(1.0 / _FAC2, factor) if good != 0.0 else factor)
-            h_new = min(h_new, h[i]) if good != 0.0 and last_rejected[i] != 0.0 else h_new
+            grow = h[i] / max(1.0 / _FAC2, factor)
+            grow = min(grow, h[i]) if last_rejected[i] != 0.0 else grow
+            shrink = h[i] / factor
             on = active[i]
-            h[i] = h_new if on != 0.0 else h[i]
+            h[i] = (grow if good != 0.0 else shrink) if on != 0.0 else h[i]
             last_rejected[i] = on * (1.0 - good) + (1.0 - on) * last_rejected[i]
             tries[i] += on
             accepted_now[i] = on * good
