@@ -57,6 +57,12 @@ def _stages(rate, y0, p, t, h, k, stage):
         rate(t + _C[s] * h, stage, p, k[s])
 
 
+@jit(inline=True)
+def _stops(active, tries, h, t, max_steps):
+    """Whether an active lane stops before its next try: its steps are used up, or its step cannot advance ``t``."""
+    return active != 0.0 and (tries >= max_steps or not 0.1 * h > abs(t) * _UROUND)
+
+
 @jit(contract=False, refcounts=False)
 def _lane_extras(i, s, ys, ks, y1s, p, ti, hi, tn, times, out, slot, next_out, g0, crossed, component, value,
                  direction, most, crossing_t, crossing_y, k, stage, y0, y1, f):
@@ -214,10 +220,10 @@ def _run_block(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, sectio
     while active.any():
         stops = 0  # counted without a branch (an integer sum vectorises, a float one does not)
         for i in range(m):
-            stops += 1 if active[i] != 0.0 and (tries[i] >= max_steps or not 0.1 * h[i] > abs(t[i]) * _UROUND) else 0
+            stops += 1 if _stops(active[i], tries[i], h[i], t[i], max_steps) else 0
         if stops > 0:  # rare
             for i in range(m):
-                if active[i] != 0.0 and (tries[i] >= max_steps or not 0.1 * h[i] > abs(t[i]) * _UROUND):
+                if _stops(active[i], tries[i], h[i], t[i], max_steps):
                     status[owner[i]] = STATUS_LIMIT if tries[i] >= max_steps else STATUS_UNDERFLOW
                     active[i] = 0.0
         for i in range(m):  # each lane's step, the last one up to t_end; 0 for a lane that is done
