@@ -666,17 +666,14 @@ def test_one_time_path_gives_a_sample_the_same_bits_alone_or_in_any_batch():
 
 
 # --------------------------------------------------------------------------------------------------
-# a time grid in one kernel call (exact.omega: kernels.closed_form.elliptic.torque_free_omega_grid)
+# a time grid (exact.omega: the set-up and the evaluation the scenes call)
 
 
 @pytest.mark.parametrize("moments", [(1.0, 2.0, 3.0), (3.0, 1.0, 2.0), (1.0, 1.0, 1.8), (2.0, 2.0, 2.0),
                                      (1e-170, 2e-170, 2.5e-170), (1.0, 1 + 1e-12, 1.5)])
-def test_the_one_call_grid_path_gives_the_bits_of_the_set_up_and_the_grid_kernel_apart(moments):
-    """exact.omega on a time grid sets up and evaluates in one kernel call; every sample (near each axis, on both
-    sides of the separatrix, zeros, tiny and huge scales) gets the bits of solve_rows + omega_rows, which the
-    scenes use, alone or in any batch (chunks of 64 samples)."""
-    from tumble.kernels.closed_form import elliptic
-
+def test_the_grid_path_gives_the_scenes_bits_for_each_sample_alone_or_in_any_batch(moments):
+    """exact.omega on a time grid: every sample (near each axis, on both sides of the separatrix, zeros, tiny and huge
+    scales) gets the bits of solve_rows + omega_rows, which the scenes use, alone or in any batch."""
     rng = np.random.default_rng(12)
     moments = np.asarray(moments)
     spins = [rng.normal(size=(150, 3)), 1e-150 * rng.normal(size=(20, 3)), 1e150 * rng.normal(size=(20, 3))]
@@ -692,25 +689,18 @@ def test_the_one_call_grid_path_gives_the_bits_of_the_set_up_and_the_grid_kernel
     t = np.array([0.0, 0.37, -5.0, 20.0, 1e3])
     sol = exact.solve_rows(np.broadcast_to(moments, w0.shape), w0)
     apart = exact.omega_rows(sol, t[None, :], np.zeros(len(w0), dtype=np.int64))
-    out = np.empty((len(w0), len(t), 3))
-    assert elliptic.torque_free_omega_grid(moments, w0, t, out) == (0, 0)
-    # The same arithmetic, to the bit when both kernels were compiled in one process; a prange kernel compiled in
-    # another process (an xdist worker, the disk cache) may fuse its multiply-adds otherwise (numba issue #10617):
-    # within 4 ulps of each sample's scale.
-    scale = np.abs(apart).max(axis=(1, 2), keepdims=True)
-    assert np.all(np.abs(out - apart) <= 4 * np.finfo(float).eps * scale)
-    np.testing.assert_array_equal(exact.omega(moments, w0, t), out)  # the grid path: the one-call kernel's bits
+    out = exact.omega(moments, w0, t)
+    np.testing.assert_array_equal(out, apart)
     for i in (0, 63, 64, 200, len(w0) - 1):
         np.testing.assert_array_equal(exact.omega(moments, w0[i], t), out[i])
+    np.testing.assert_array_equal(exact.omega(moments, w0[100:300], t), out[100:300])
 
 
-def test_the_one_call_grid_path_hands_spins_within_tiny_of_an_axis_to_the_two_kernels():
-    from tumble.kernels.closed_form import elliptic
-
+def test_the_grid_path_lifts_spins_within_tiny_of_an_axis():
     moments = np.array([1.0, 2.0, 3.0])
     w0 = np.array([[1e-200, 1.0, 3e-201], [0.1, 1.0, 0.2]])  # the first below TINY_TRANSVERSE: lifted
     t = np.array([0.0, 30.0])
-    assert elliptic.torque_free_omega_grid(moments, w0, t, np.empty((2, 2, 3)))[0] == 1
     sol = exact._solve(moments, w0)
     apart = exact.omega_rows(sol, t[None, :], np.zeros(2, dtype=np.int64))
     np.testing.assert_array_equal(exact.omega(moments, w0, t), apart)
+    np.testing.assert_array_equal(exact.omega(moments, w0[0], t), apart[0])

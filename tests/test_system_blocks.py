@@ -21,8 +21,8 @@ pytestmark = pytest.mark.xdist_group(hand_written_systems.GROUP)
 
 
 def _evaluate(source, name, *arguments):
-    """The rewritten function run as plain Python."""
-    scope = {"math": math}
+    """The rewritten function run as plain Python (``_tumble_max``, the generated code's ``max``, as Python's)."""
+    scope = {"math": math, "_tumble_max": max}
     exec(source, scope)
     return scope[name](*arguments)
 

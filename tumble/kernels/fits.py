@@ -20,7 +20,7 @@ import numpy as np
 
 from .jit import jit
 from .threads import in_parallel
-from .trig import atan2
+from .trig import _max, _min, atan2
 
 __all__ = ["FIT_NO_SIGNAL", "FIT_OK", "FIT_SHORT_WINDOW", "FIT_UNDERSAMPLED", "GROWTH_WINDOW_START", "growth_fit",
            "fit_sample", "growth_window_add", "growth_window_rate", "modal_rows", "phase_fit", "phase_fit_sample",
@@ -42,7 +42,7 @@ _SQUARE_MIN = 1e-150
 def _radius(x, y):
     """``sqrt(x² + y²)``: one square root where the squares are safe (a scaled perturbation's usual range),
     ``math.hypot`` (a libm call, ten times the cost) outside it."""
-    m = max(abs(x), abs(y))
+    m = _max(abs(x), abs(y))
     if _SQUARE_MIN < m < _SQUARE_MAX:
         return math.sqrt(x * x + y * y)
     return math.hypot(x, y)
@@ -105,7 +105,7 @@ def _median_in_place(a):
         return middle
     upper = a[k + 1]
     for j in range(k + 2, n):  # the next order statistic: the smallest above position k
-        upper = min(upper, a[j])
+        upper = _min(upper, a[j])
     return 0.5 * middle + 0.5 * upper
 
 
@@ -144,7 +144,7 @@ def phase_fit_sample(t, x, y, floor, max_step):
     #    branch-free atan2, the square root) that packs the times of a sample into SIMD lanes on the CPU
     unsafe = 0
     for j in range(t_count):
-        unsafe |= 0 if _SQUARE_MIN < max(abs(x[j]), abs(y[j])) < _SQUARE_MAX else 1
+        unsafe |= 0 if _SQUARE_MIN < _max(abs(x[j]), abs(y[j])) < _SQUARE_MAX else 1
     if unsafe:
         for j in range(t_count):
             xj = x[j]

@@ -1,14 +1,16 @@
 """Compile the kernels a run needs side by side, one process per core, when numba's cache does not hold them yet.
 
-numba compiles one function at a time in one process (its compiler lock), and the closed form's two big kernels take
-about 5 s each on the first run after an install; on two cores they compile in the time of one. Each job below
-compiles one kernel for the exact signature a run calls it with, in a worker process that writes numba's on-disk
-cache; the run itself then loads them from the cache. With a warm cache nothing is started: whether a kernel is
-cached is read off the cache's index file (numba's own locator, ``NUMBA_CACHE_DIR`` included), a file test per kernel.
+numba compiles one function at a time in one process (its compiler lock). The closed form's set-up and the rows of its
+evaluation (one kernel per regime) take about 3.3 s to compile on the first run after an install; on two cores they
+compile in the time of about half, and the run compiles the evaluation over the rows, loaded from the cache, after
+them. Each job below compiles one kernel for the exact signature a run calls it with, in this process or in a worker
+process that writes numba's on-disk cache; the run itself then loads them from the cache. With a warm cache nothing is
+started: whether a kernel is cached is read off the cache's index file (numba's own locator, ``NUMBA_CACHE_DIR``
+included), a file test per kernel.
 
 Nothing here changes a result: a kernel a job did not compile (a signature that drifted from the run's, a cache
-that cannot be written, a worker that failed) is compiled by the run as it would have been, only later. A test
-(``tests/test_latency.py``) holds that the default study compiles nothing more after :func:`compile_side_by_side`.
+that cannot be written, a worker that failed) is compiled by the run as it would have been, only later.
+``tests/test_latency.py`` holds that the jobs' signatures are those the runs call.
 """
 
 import os
@@ -31,28 +33,37 @@ _I1, _I2 = (_array(types.int64, n) for n in (1, 2))
 _CODES = _array(types.int8, 1)
 _SHARE = (types.int64, types.int64)  # start, stop: the share of samples (tumble.kernels.threads.in_parallel)
 
-_SET_UP = ("elliptic.torque_free_solve_share", (_F2, _F2, _F2, _I2, _F1, _F2, _I1, _F2, _I2, _F2, _F2, *_SHARE))
-_EVALUATE = ("elliptic.torque_free_omega_share", (_I1, _F2, _I2, _F1, _F1, _F2, _F1, _F1, _F2, _I1, _F3, *_SHARE))
+_F = types.float64
+_WEIGHTS = types.UniTuple(_F, 9)  # elliptic._column_weights
 
-#: Kernel and the signature a closed-form scene calls it with (``tumble.physics.exact``, ``tumble.measure``), by the
-#: scene's kind; in the order they are dealt out to the processes (the longest first: on two cores, omega and the
-#: norms in one, the set-up and the growth fit in the other, about 6 s each).
+# Each job: a kernel, the signature a run calls it with, and about how many seconds it takes to compile alone (2 cores,
+# AVX-512, an empty cache: what compile_side_by_side balances the processes by).
+_SET_UP = ("elliptic.torque_free_solve_share", (_F2, _F2, _F2, _I2, _F1, _F2, _I1, _F2, _I2, _F2, _F2, *_SHARE), 1.7)
+# The evaluation's rows and their per-modulus constants, which torque_free_omega_share (compiled by the run after them,
+# about 0.8 s more) calls by regime.
+_ROWS = (("elliptic._omega_row_hyperbolic", (_F, _F, _F1, _F, _F, _F, _F, _F, types.UniTuple(_F, 7),
+                                             types.UniTuple(_F, 7), types.UniTuple(_F, 6), _F1, _WEIGHTS, types.boolean),
+          0.95),
+         ("elliptic._omega_row_landen", (_F, _F, _F1, _F, _F, types.UniTuple(_F, 4), _F, _F, _F1, _WEIGHTS), 0.4),
+         ("elliptic._omega_row_separatrix", (_F, _F, _F1, _F1, _WEIGHTS), 0.25),
+         ("elliptic._landen_constants", (_F,), 0.1), ("elliptic._series_constants", (_F,), 0.1))
+
+#: The kernels a closed-form scene's run compiles (``tumble.physics.exact``, ``tumble.measure``), by the scene's kind:
+#: name, signature and seconds (see above).
 CLOSED_FORM = {
-    "exponential": (_EVALUATE, _SET_UP, ("fits.transverse_norms_share", (_F3, _I2, _F2, _F2, *_SHARE)),
+    "exponential": (_SET_UP, *_ROWS, ("fits.transverse_norms_share", (_F3, _I2, _F2, _F2, *_SHARE), 0.15),
                     ("fits.growth_fit_share", (_F2, _I1, _F2, _array(types.float64, 1, readonly=True), types.int64, _F1,
-                                         _I1, _CODES, *_SHARE))),
-    "periodic": (_EVALUATE, _SET_UP, ("fits.phase_fit_share", (_F2, _I1, _F3, _I2, _array(types.float64, 2, readonly=True),
-                                                         _F1, types.float64, _F1, _F1, _CODES, *_SHARE))),
-    "neutral": (_EVALUATE, _SET_UP),  # a degenerate axis: no rate to fit
-    # tumble check: the closed form on a recording's times (the grid kernel, about 10 s to compile; the set-up 3.5 s);
-    # with ATTITUDE dealt out on two cores as grid and attitude rows, set-up and attitude set-up
-    "grid": (("elliptic.torque_free_omega_grid_share", (_F1, _F2, _F1, _F3, *_SHARE)), _SET_UP),
+                                               _I1, _CODES, *_SHARE), 0.3)),
+    "periodic": (_SET_UP, *_ROWS, ("fits.phase_fit_share", (_F2, _I1, _F3, _I2, _array(types.float64, 2, readonly=True),
+                                                            _F1, types.float64, _F1, _F1, _CODES, *_SHARE), 2.1)),
+    "neutral": (_SET_UP, *_ROWS),  # a degenerate axis: no rate to fit
+    "grid": (_SET_UP, *_ROWS),  # exact.omega on a time grid, tumble check
 }
 
-#: The closed form's attitude (:func:`tumble.physics.exact.attitude`): its rows, then its set-up (3.7 s and 0.9 s to
-#: compile), appended to a list of :data:`CLOSED_FORM` where a run draws an attitude.
-ATTITUDE = (("elliptic_attitude.attitude_rows_share", (_F2, _F2, _F2, _F1, _F3, _F3, *_SHARE)),
-            ("elliptic_attitude.attitude_setup", (_F2, _F2, _I1, _F2, _I2, _F1, _F1, _F1, _F1, _F2, _F2, _F2, _F2)))
+#: The closed form's attitude (:func:`tumble.physics.exact.attitude`): its rows and its set-up, added to a list of
+#: :data:`CLOSED_FORM` where a run draws an attitude.
+ATTITUDE = (("elliptic_attitude.attitude_rows_share", (_F2, _F2, _F2, _F1, _F3, _F3, *_SHARE), 2.4),
+            ("elliptic_attitude.attitude_setup", (_F2, _F2, _I1, _F2, _I2, _F1, _F1, _F1, _F1, _F2, _F2, _F2, _F2), 3.3))
 
 _MODULES = {"elliptic": elliptic, "elliptic_attitude": elliptic_attitude, "fits": fits}
 
@@ -78,27 +89,44 @@ def is_cached(name, signature=None):
         return True
 
 
+#: About how many seconds later than this process a worker starts compiling: a new interpreter, its imports and
+#: numba's target set-up.
+WORKER_START = 0.7
+
+
+def deal(jobs, workers):
+    """The names of ``jobs`` (as in :data:`CLOSED_FORM`) dealt out to ``workers`` processes, this one first: the
+    longest first, each to the process that would finish it soonest (a worker starts :data:`WORKER_START` late)."""
+    ends = [0.0] + [WORKER_START] * (workers - 1)
+    shares = [[] for _ in range(workers)]
+    for name, _, seconds in sorted(jobs, key=lambda job: -job[2]):
+        k = min(range(workers), key=lambda k: ends[k] + seconds)
+        ends[k] += seconds
+        shares[k].append(name)
+    return shares
+
+
 def compile_side_by_side(jobs, workers=None):
-    """Compile the kernels of ``jobs`` (a list of :data:`CLOSED_FORM`, perhaps with :data:`ATTITUDE`: names and
-    signatures) that are not cached,
-    this process and worker processes at once; returns the names compiled.
+    """Compile the kernels of ``jobs`` (a list of :data:`CLOSED_FORM`, perhaps with :data:`ATTITUDE`: names,
+    signatures and seconds) that are not cached, this process and worker processes at once; returns the names
+    compiled.
 
     ``workers`` defaults to numba's thread count: the cores tumble may use (1 where a user or the test suite limits
-    numba to one thread, and then nothing is started). Does nothing when fewer than two are cold. The cold kernels are dealt out in turn
-    (the longest first) to this process and to ``workers - 1`` new interpreters (``python -m
-    tumble.kernels.side_by_side NAME ...``: a plain subprocess, so a user's script is never imported again, as
-    ``multiprocessing`` would, and no thread of this process is forked); this process compiles its share, then waits
-    for the workers, whose kernels the run loads from the cache. A worker that fails leaves its kernels to the run.
+    numba to one thread, and then nothing is started). Does nothing when fewer than two are cold. The cold kernels are
+    dealt out (:func:`deal`) to this process and to new interpreters (``python -m tumble.kernels.side_by_side NAME
+    ...``: a plain subprocess, so a user's script is never imported again, as ``multiprocessing`` would, and no thread
+    of this process is forked); this process compiles its share, then waits for the workers, whose kernels the run
+    loads from the cache. A worker that fails leaves its kernels to the run.
     """
-    cold = [name for name, signature in jobs if not is_cached(name, signature)]
+    cold = [job for job in jobs if not is_cached(*job[:2])]
     workers = min(len(cold), workers or numba.get_num_threads())
     if len(cold) < 2 or workers < 2:
         return []
-    shares = [cold[k::workers] for k in range(workers)]
+    mine, *theirs = deal(cold, workers)
     started = [subprocess.Popen([sys.executable, "-m", __name__, *share], stdin=subprocess.DEVNULL,
-                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for share in shares[1:]]
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for share in theirs if share]
     try:
-        _compile(shares[0])
+        _compile(mine)
         for process in started:
             process.wait()
     finally:
@@ -106,7 +134,7 @@ def compile_side_by_side(jobs, workers=None):
             if process.poll() is None:
                 process.kill()
                 process.wait()
-    return [name for name in cold if is_cached(name, _SIGNATURES[name]) or name in shares[0]]
+    return [name for name, signature, _ in cold if name in mine or is_cached(name, signature)]
 
 
 def _compile(names):
@@ -114,7 +142,9 @@ def _compile(names):
         _dispatcher(name).compile(_SIGNATURES[name])  # cache=True: numba writes it to its cache
 
 
-_SIGNATURES = {name: signature for jobs in (*CLOSED_FORM.values(), ATTITUDE) for name, signature in jobs}
+_EVALUATE = ("elliptic.torque_free_omega_share", (_I1, _F2, _I2, _F1, _F1, _F2, _F1, _F1, _F2, _I1, _F3, *_SHARE))
+_SIGNATURES = {name: signature for jobs in (*CLOSED_FORM.values(), ATTITUDE) for name, signature, _ in jobs}
+_SIGNATURES[_EVALUATE[0]] = _EVALUATE[1]
 
 if __name__ == "__main__":
     _compile(sys.argv[1:])

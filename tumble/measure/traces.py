@@ -35,8 +35,7 @@ TRACE_POINTS = 1500
 def sample_trace(moments, w0, plan, method, torque, device="cpu"):
     """``(times, omega (T, 3))`` of one sample over the scene's horizon, about :data:`TRACE_POINTS` points."""
     if method == "exact":
-        # The set-up and the grid kernel apart, which the scene's samples have loaded already: the fused one-call
-        # kernel of exact.omega (the same bits) would be one more to compile, 7 s on the first run after an install.
+        # exact.omega's time grid path, without its side-by-side check: the scene's samples have loaded its kernels
         times = np.linspace(0.0, plan.t_end, TRACE_POINTS)
         return times, exact.omega_apart(moments, w0, times)[0]
     every = max(1, -(-plan.n_steps // TRACE_POINTS))

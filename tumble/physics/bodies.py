@@ -226,7 +226,7 @@ def finite_array(value, name):
 
     A read-only array (an xarray coordinate's ``.values``, a memory map) is copied: numba types a read-only array
     apart from a writable one, and a kernel handed one would compile a second variant of itself (measured: the
-    integrator-check tutorial's ``exact.omega(body, w0, ds.time.values)`` compiled the closed form's grid kernel
+    integrator-check tutorial's ``exact.omega(body, w0, ds.time.values)`` compiled the closed form's kernels
     again, 16 s on 2 cores, after ``tumble warm``)."""
     try:
         arr = np.asarray(value, dtype=float)

@@ -333,7 +333,7 @@ def omega_at(moments, w, t):
 
     One fused kernel (:func:`tumble.kernels.closed_form.elliptic.torque_free_omega_at`: no initial argument, Jacobi's
     addition theorem instead); agrees with :func:`omega` to a few ulps of ``|w|``. A call with a spin within
-    ``TINY_TRANSVERSE`` of an axis takes the set-up and the grid kernel apart, for all its spins.
+    ``TINY_TRANSVERSE`` of an axis takes the time grid's path (:func:`omega_apart`), for all its spins.
     """
     moments = np.ascontiguousarray(moments, dtype=float)
     w = np.ascontiguousarray(w, dtype=float)
@@ -437,9 +437,8 @@ def omega(body, w0, t):
 
     One time (a scalar ``t`` or an array of one) takes the fused one-time kernel (:func:`omega_at`; for 2000 spins
     about 9x faster than the grid's set-up), which agrees with a time grid holding ``t`` to a few ulps of ``|w|``,
-    not bit for bit. A grid of two or more times is set up and evaluated in one kernel call
-    (:func:`tumble.kernels.closed_form.elliptic.torque_free_omega_grid`), with the bits of the set-up and the grid kernel the
-    scenes call apart.
+    not bit for bit. A grid of two or more times is set up once per spin, then evaluated (:func:`omega_apart`: the
+    kernels the scenes call, so the same bits as theirs).
 
     References
     ----------
@@ -467,8 +466,8 @@ def omega(body, w0, t):
 
 def omega_apart(moments, w, times):
     """Angular velocity (n, T, 3) of spins ``w`` (n, 3) of one body ``moments`` (3,) at ``times`` (T,), all validated:
-    the set-up (:func:`solve_rows`, which lifts spins within ``TINY_TRANSVERSE`` of an axis) and the grid kernel apart,
-    the kernels a scene's samples use: the same bits as :func:`omega` on a grid, without compiling its fused kernel."""
+    the set-up (:func:`solve_rows`, which lifts spins within ``TINY_TRANSVERSE`` of an axis), then the evaluation
+    (:func:`omega_rows`), the kernels a scene's samples use; :func:`omega` on a grid."""
     sol = solve_rows(np.broadcast_to(moments, w.shape), w)
     return omega_rows(sol, times.reshape(1, -1), np.zeros(w.shape[0], dtype=np.int64))
 
@@ -536,23 +535,12 @@ def omega_on_device(moments, w, times):
 
 
 def _omega_grid(body, w0, tt):
-    """:func:`omega` on the time grid ``tt`` (validated, scalar or 1-d): one kernel call,
-    :func:`tumble.kernels.closed_form.elliptic.torque_free_omega_grid` (set-up and evaluation in one pass), the same bits as the
-    set-up and the grid kernel apart; a call with a spin within ``TINY_TRANSVERSE`` of an axis takes those two
-    apart (:func:`omega_apart`), for all its spins."""
-    moments = one_body(body)
+    """:func:`omega` on the time grid ``tt`` (validated, 1-d): :func:`omega_apart`, its kernels compiled side by side
+    where numba's cache lacks them (:func:`compile_kernels_side_by_side`)."""
     w = spin_vectors(w0)
-    shape = w.shape[:-1]
-    w = np.ascontiguousarray(w.reshape(-1, 3))
-    times = np.ascontiguousarray(tt.reshape(-1))
-    out = np.empty((w.shape[0], times.shape[0], 3))
-    tiny, non_finite = _ell.torque_free_omega_grid(moments, w, times, out)
-    if tiny:
-        out = omega_apart(moments, w, times)
-    elif non_finite:
-        raise FloatingPointError("exact.omega produced non-finite values; please report this spin")
-    out = out.reshape(shape + (times.shape[0], 3))
-    return out[..., 0, :] if tt.ndim == 0 else out
+    compile_kernels_side_by_side("grid")
+    out = omega_apart(one_body(body), np.ascontiguousarray(w.reshape(-1, 3)), np.ascontiguousarray(tt))
+    return out.reshape(w.shape[:-1] + out.shape[1:])
 
 
 def parameters(body, w0):
@@ -851,9 +839,10 @@ def attitude(body, w0, t):
     """
     tt = _check_t(t)
     moments = one_body(body)
+    w = np.ascontiguousarray(spin_vectors(w0).reshape(-1, 3))
+    compile_kernels_side_by_side("grid", attitude=True)
     sol = _solve(body, w0)
     times = np.ascontiguousarray(np.atleast_1d(tt))
-    w = np.ascontiguousarray(spin_vectors(w0).reshape(-1, 3))
     out = attitude_rows(np.broadcast_to(moments, w.shape), w, sol, times)
     out = out.reshape(sol.shape + (times.shape[0], 4))
     return out[..., 0, :] if tt.ndim == 0 else out

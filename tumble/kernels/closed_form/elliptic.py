@@ -83,11 +83,10 @@ from numba.extending import intrinsic
 
 from ..jit import jit
 from ..threads import in_parallel
-from ..trig import _C1, _C2, _C3, _C4, _C5, _C6, _S1, _S2, _S3, _S4, _S5, _S6, _floor, _fma
+from ..trig import _C1, _C2, _C3, _C4, _C5, _C6, _S1, _S2, _S3, _S4, _S5, _S6, _floor, _fma, _max, _min
 
 __all__ = ["KC_HYPERBOLIC", "TINY_TRANSVERSE", "agm", "carlson_rf", "complete_integrals", "hyperbolic_nome", "jacobi_sncndn", "torque_free_omega",
-           "torque_free_omega_at", "torque_free_omega_grid",
-           "torque_free_solve"]
+           "torque_free_omega_at", "torque_free_solve"]
 
 #: Below this complementary modulus the hyperbolic series is used (11 terms a side just below 0.5, 3 at
 #: k' = 1e-3, 2 at 1e-8); above it the Landen/AGM recursion (<= 6 steps), whose ``cn`` on
@@ -103,8 +102,8 @@ _AGM_MAXITER = 64
 _LANDEN_MAX = 16
 
 #: A spin whose two smaller components are both below this fraction of the largest (and not both zero) is
-#: too close to a principal axis for the invariants: their squares underflow. torque_free_solve,
-#: torque_free_omega_grid and torque_free_omega_at count such samples; :mod:`tumble.physics.exact` moves them where the squares are safe (its ``_lift_tiny``).
+#: too close to a principal axis for the invariants: their squares underflow. torque_free_solve
+#: and torque_free_omega_at count such samples; :mod:`tumble.physics.exact` moves them where the squares are safe (its ``_lift_tiny``).
 TINY_TRANSVERSE = 2.0**-500
 # torque_free_omega_at's lanes take spins whose smallest non-zero component is above 2^-100 of the largest (their
 # squares and products stay far from underflow); the rest go one by one through the scalar path.
@@ -171,7 +170,7 @@ def carlson_rf(x, y, z):
         dx = (ave - x) / ave
         dy = (ave - y) / ave
         dz = (ave - z) / ave
-        if max(abs(dx), abs(dy), abs(dz)) < _RF_TOL:
+        if _max(abs(dx), abs(dy), abs(dz)) < _RF_TOL:
             break
     e2 = dx * dy - dz * dz
     e3 = dx * dy * dz
@@ -373,7 +372,7 @@ def _invariants_row(m0, m1, m2, w0, w1, w2):
         a, b = b, a
     even = (a, b, c) == (0, 1, 2) or (a, b, c) == (1, 2, 0) or (a, b, c) == (2, 0, 1)
     ms = math.ldexp(1.0, math.frexp(moments[c])[1])
-    ss = math.ldexp(1.0, math.frexp(max(abs(w0), abs(w1), abs(w2)))[1])
+    ss = math.ldexp(1.0, math.frexp(_max(abs(w0), abs(w1), abs(w2)))[1])
     I1, I2, I3 = moments[a] / ms, moments[b] / ms, moments[c] / ms
     w1s, w3s = w[a] / ss, w[c] / ss
     d32h, d32l = _two_sum(I3, -I2)
@@ -383,8 +382,8 @@ def _invariants_row(m0, m1, m2, w0, w1, w2):
     s, e = _two_sum(ah, -bh)
     dh, dl = _two_sum(s, e + (al - bl))
     x, y, z = abs(w0), abs(w1), abs(w2)
-    second = max(min(x, y), min(max(x, y), z))  # the middle of the three
-    return a, b, c, even, ms, ss, I1, I2, I3, dh + dl, 0.0 < second < TINY_TRANSVERSE * max(x, y, z)
+    second = _max(_min(x, y), _min(_max(x, y), z))  # the middle of the three
+    return a, b, c, even, ms, ss, I1, I2, I3, dh + dl, 0.0 < second < TINY_TRANSVERSE * _max(x, y, z)
 
 
 @jit(inline=True)
@@ -989,47 +988,6 @@ def _count_non_finite(o):
     return bad
 
 
-# Samples a chunk of torque_free_omega_grid sets up before it evaluates them.
-_GRID_CHUNK = 64
-
-
-def torque_free_omega_grid(moments, w, times, out):
-    """:func:`torque_free_solve` and :func:`torque_free_omega` in one kernel call, for spins ``w`` (n, 3) of one
-    body ``moments`` (3,) at the times ``times`` (T,): the lean path of :func:`tumble.physics.exact.omega` on a time
-    grid. Each chunk of :data:`_GRID_CHUNK` samples is set up into arrays of its own, then evaluated from them: the
-    same code and the same memory round trip as the two kernels apart, so the same bits.
-
-    Returns ``(tiny, non_finite)``: the number of spins too close to an axis for the invariants (see
-    :data:`TINY_TRANSVERSE`; the caller takes the two kernels apart, which lift them) and of samples with a
-    non-finite value.
-    """
-    return in_parallel(torque_free_omega_grid_share, w.shape[0], moments, w, times, out, granule=_GRID_CHUNK)
-
-
-@jit
-def torque_free_omega_grid_share(moments, w, times, out, start, stop):
-    """The samples ``start:stop`` of :func:`torque_free_omega_grid` (one share of
-    :func:`tumble.kernels.threads.in_parallel`): ``(tiny, non_finite)`` counts."""
-    rows = out.reshape(w.shape[0], 3 * out.shape[1])  # (n, T, 3) -> (n, 3T), a view
-    tiny = 0
-    non_finite = 0
-    for lo in range(start, stop, _GRID_CHUNK):
-        m = min(stop - lo, _GRID_CHUNK)
-        I, perm, parity, scaled = np.empty((m, 3)), np.empty((m, 3), dtype=np.int64), np.empty(m), np.empty((5, m))
-        kind, amp, cols = np.empty(m, dtype=np.int64), np.empty((m, 3)), np.empty((m, 3), dtype=np.int64)
-        params, nome = np.empty((5, m)), np.empty((2, m))
-        for j in range(m):
-            tiny += _solve_sample(j, moments[0], moments[1], moments[2], w[lo + j], I, perm, parity, scaled, kind, amp,
-                                  cols, params, nome)
-        for j in range(m):
-            o = rows[lo + j]
-            W = _column_weights(cols[j, 0], cols[j, 1], cols[j, 2], amp[j, 0], amp[j, 1], amp[j, 2])
-            _omega_row(kind[j], params[0, j], params[2, j], nome[0, j], nome[1, j], params[3, j], params[4, j], times,
-                       o, W)
-            non_finite += _count_non_finite(o)
-    return tiny, non_finite
-
-
 def torque_free_omega(kind, amp, cols, kc, K, nome, phase0, nu, times, row, out):
     """Body-frame angular velocity of the free rigid body, sample by sample (Landau & Lifshitz §37).
 
@@ -1190,7 +1148,7 @@ def torque_free_omega_at_share(moments, w, t, out, start, stop):
     tiny = 0
     non_finite = 0
     for lo in range(start, stop, _CHUNK):
-        tiny_chunk, non_finite_chunk = _omega_at_chunk(moments, w, t, out, lo, min(_CHUNK, stop - lo))
+        tiny_chunk, non_finite_chunk = _omega_at_chunk(moments, w, t, out, lo, _min(_CHUNK, stop - lo))
         tiny += tiny_chunk
         non_finite += non_finite_chunk
     return tiny, non_finite
@@ -1217,7 +1175,7 @@ def _omega_at_chunk(moments, w, t, out, lo, m):
         z[_WA, j], z[_WB, j], z[_WC, j] = w[lo + j, a], w[lo + j, b], w[lo + j, c]
     for j in range(m):  # set-up (_invariants_row, _setup_row), branch-free
         wa, wb, wc = z[_WA, j], z[_WB, j], z[_WC, j]
-        big = max(abs(wa), abs(wb), abs(wc))
+        big = _max(abs(wa), abs(wb), abs(wc))
         ss = 2.0 * _bits_float64(_float64_bits(big) & _EXPONENT_BITS)  # math.frexp's power of two for normal big
         special = (ss == 0.0) | (ss == math.inf)
         ss = 1.0 if special else ss
@@ -1253,7 +1211,7 @@ def _omega_at_chunk(moments, w, t, out, lo, m):
         # zeros of the spin (steady spins, symmetric tops' axes), the separatrix, and ratios whose squares
         # would leave the safe range (math.hypot's work) go to the scalar path
         special = special | (wa == 0.0) | (wb == 0.0) | (wc == 0.0) | (d == 0.0) | (I1 == I2) | (I2 == I3)
-        special = special | ~(norm2 > 1e-300) | ~(norm2 < 1e300) | ~(big < TINY_TRANSVERSE_SAFE * min(
+        special = special | ~(norm2 > 1e-300) | ~(norm2 < 1e300) | ~(big < TINY_TRANSVERSE_SAFE * _min(
             abs(wa), abs(wb), abs(wc)))
         z[_AQ, j] = sigma * a_q * ss
         z[_AM, j] = sigma * a_mid * ss

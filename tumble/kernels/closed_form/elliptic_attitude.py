@@ -34,6 +34,7 @@ from .elliptic import (KIND_SEPARATRIX, KIND_STATIONARY, _LANDEN_MAX, _sech, _se
                        carlson_rf)
 from ..jit import jit
 from ..threads import in_parallel
+from ..trig import _max
 
 __all__ = ["CONSTANTS", "LANDEN", "attitude_at", "attitude_constants", "attitude_rows", "attitude_setup", "carlson_rj"]
 
@@ -74,7 +75,7 @@ def carlson_rj(x, y, z, p):
     Boost), to about one ulp."""
     a0 = (x + y + z + p + p) / 5.0
     delta = (p - x) * (p - y) * (p - z)
-    big = _RJ_Q * max(abs(a0 - x), abs(a0 - y), abs(a0 - z), abs(a0 - p))
+    big = _RJ_Q * _max(abs(a0 - x), abs(a0 - y), abs(a0 - z), abs(a0 - p))
     a = a0
     xm, ym, zm, pm = x, y, z, p
     fourm = 1.0  # 4^-m

@@ -7,8 +7,8 @@ Written once: a thread runs the CPU's own per-sample functions of :mod:`tumble.k
   one-time kernel (the invariants, the set-up and ``sn, cn, dn`` of ``nu t`` moved to the spin by Jacobi's addition
   theorem; no initial argument). The CPU's :func:`~tumble.kernels.closed_form.elliptic.torque_free_omega_at` runs the same
   formulas in SIMD lanes; the two agree to a few ulps of ``|w|``.
-* :func:`omega_grid`, a time grid: the CPU grid kernel's per-sample code
-  (:func:`~tumble.kernels.closed_form.elliptic.torque_free_omega_grid`): the set-up of the thread's sample
+* :func:`omega_grid`, a time grid: the per-sample code of the CPU's set-up and evaluation
+  (:func:`~tumble.kernels.closed_form.elliptic.torque_free_solve`, :func:`~tumble.kernels.closed_form.elliptic.torque_free_omega`): the set-up of the thread's sample
   (:func:`~tumble.kernels.closed_form.elliptic._solve_sample`, into local arrays of one sample), then its row of values at every
   time (:func:`~tumble.kernels.closed_form.elliptic._omega_row`: the descending Landen transformations, or the hyperbolic series
   near the separatrix, with the per-modulus constants computed once per sample; ``sech, tanh`` on it).
@@ -160,7 +160,7 @@ def omega_at(moments, w, t):
 
 
 def omega_grid(moments, w, times):
-    """:func:`tumble.kernels.closed_form.elliptic.torque_free_omega_grid` on the device: as :func:`omega_at` at the times
+    """:func:`tumble.physics.exact.omega` on a time grid, on the device: as :func:`omega_at` at the times
     ``times`` (T,), ``out`` of shape (n, T, 3)."""
     return omega_rows(np.reshape(moments, (1, 3)), w, np.reshape(times, (1, -1)), np.zeros(1, dtype=np.int64))
 

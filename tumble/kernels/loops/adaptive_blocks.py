@@ -30,6 +30,7 @@ from .adaptive_loop import (_C, _FAC1, _FAC2, _SAFE, _STAGES, _UROUND, SCRATCH_R
 from .adaptive_loop import component_surface as surface
 from ..tableaux import DOP853
 from ..threads import in_shares
+from ..trig import _max, _min
 
 __all__ = ["BLOCK", "for_model", "specialised"]
 
@@ -239,9 +240,9 @@ def _run_block(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, sectio
             # the step's factor, kept within [1/6, 1/0.333] (a non-finite error: the smallest, 0.333); an accepted
             # step grows by at most 6 (an error of 0, a steady spin's: 6), a rejected one shrinks by its factor; the
             # step is chosen, not blended (an error of 0 makes the shrunk step h / 0), both made first: vectorised
-            factor = min(1.0 / _FAC1, _root8(e) / _SAFE) if e < 1e300 else 1.0 / _FAC1
-            grow = h[i] / max(1.0 / _FAC2, factor)
-            grow = min(grow, h[i]) if last_rejected[i] != 0.0 else grow
+            factor = _min(1.0 / _FAC1, _root8(e) / _SAFE) if e < 1e300 else 1.0 / _FAC1
+            grow = h[i] / _max(1.0 / _FAC2, factor)
+            grow = _min(grow, h[i]) if last_rejected[i] != 0.0 else grow
             shrink = h[i] / factor
             on = active[i]
             h[i] = (grow if good != 0.0 else shrink) if on != 0.0 else h[i]

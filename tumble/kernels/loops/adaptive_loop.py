@@ -34,6 +34,7 @@ from ...registry import STATUS_LIMIT, STATUS_NONFINITE, STATUS_OK, STATUS_UNDERF
 from ..jit import jit, rebound
 from ..tableaux import DOP853
 from ..threads import in_shares
+from ..trig import _max, _min
 
 __all__ = ["SCRATCH_ROWS", "component_surface", "make_dop853_driver", "make_dop853_sample", "make_user_surface"]
 
@@ -141,7 +142,7 @@ def run_sample(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, section, 
         err5 = 0.0
         err3 = 0.0
         for j in range(n):
-            sk = atol[j] + rtol[j] * max(abs(y[j]), abs(y1[j]))
+            sk = atol[j] + rtol[j] * _max(abs(y[j]), abs(y1[j]))
             e5 = 0.0
             e3 = 0.0
             for s in range(_STAGES + 1):
@@ -185,16 +186,16 @@ def run_sample(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, section, 
                 y[j] = y1[j]
                 k[0, j] = k[_STAGES, j]
             t = t_new
-            grow = max(1.0 / _FAC2, min(1.0 / _FAC1, fac11 / _SAFE))
+            grow = _max(1.0 / _FAC2, _min(1.0 / _FAC1, fac11 / _SAFE))
             h_new = h / grow
             if last_rejected:
-                h_new = min(h_new, h)
+                h_new = _min(h_new, h)
             last_rejected = False
             h = h_new
             if most > 0 and crossed == most:
                 break  # the section is complete
         else:
-            h /= min(1.0 / _FAC1, fac11 / _SAFE)
+            h /= _min(1.0 / _FAC1, fac11 / _SAFE)
             last_rejected = True
             rejected += 1
     for s in range(slot, times.shape[0]):  # a stopped sample: the state it stopped with
@@ -225,7 +226,7 @@ def _crossing(surface, f, y0, p, t, h, g0, g1, component, value, trial):
         return 1.0
     a, b, ga, gb = 0.0, 1.0, g0, g1
     side = 0
-    width = 4.0 * _UROUND * max(abs(t), abs(t + h)) / h
+    width = 4.0 * _UROUND * _max(abs(t), abs(t + h)) / h
     for _ in range(200):
         x = (a * gb - b * ga) / (gb - ga)
         if not (a < x < b):
@@ -271,7 +272,7 @@ def _first_step(rate, t, y, p, span, rtol, atol, f0, y_trial, f1):
     d0 = math.sqrt(d0 / n)
     d1 = math.sqrt(d1 / n)
     h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
-    h0 = min(h0, span)
+    h0 = _min(h0, span)
     for j in range(n):
         y_trial[j] = y[j] + h0 * f0[j]
     rate(t + h0, y_trial, p, f1)
@@ -281,10 +282,10 @@ def _first_step(rate, t, y, p, span, rtol, atol, f0, y_trial, f1):
         d2 += ((f1[j] - f0[j]) / sk) ** 2
     d2 = math.sqrt(d2 / n) / h0
     if d1 <= 1e-15 and d2 <= 1e-15:
-        h1 = max(1e-6, h0 * 1e-3)
+        h1 = _max(1e-6, h0 * 1e-3)
     else:
-        h1 = (0.01 / max(d1, d2)) ** _EXPONENT
-    return min(100.0 * h0, h1, span)
+        h1 = (0.01 / _max(d1, d2)) ** _EXPONENT
+    return _min(100.0 * h0, h1, span)
 
 
 @jit(inline=True, cache=False, contract=False)

@@ -60,6 +60,7 @@ from ..jit import FASTMATH, jit
 from ..steps.model_steps import drift_suspects, invariants, step
 from ..steps.system_steps import SYSTEM_CODES, block_step
 from ..systems import N_INVARIANTS
+from ..trig import _max
 
 __all__ = ["CHECK_EVERY", "FREE_BODY", "N_INVARIANTS", "PROBE_ROWS", "WINDOW_ROWS", "block_scratch", "run_block"]
 
@@ -217,9 +218,9 @@ def _initial_invariants(system, ys, params, x0, inverse_scale):
     for i in range(ys.shape[1]):
         x1, x2, x3, s1, s2, s3 = _invariants(system, ys, i, params)
         x0[0, i], x0[1, i], x0[2, i] = x1, x2, x3
-        inverse_scale[0, i] = 1.0 / max(s1, _TINY)
-        inverse_scale[1, i] = 1.0 / max(s2, _TINY)
-        inverse_scale[2, i] = 1.0 / max(s3, _TINY)
+        inverse_scale[0, i] = 1.0 / _max(s1, _TINY)
+        inverse_scale[1, i] = 1.0 / _max(s2, _TINY)
+        inverse_scale[2, i] = 1.0 / _max(s3, _TINY)
 
 
 @jit
@@ -237,10 +238,10 @@ def _observe_drift(system, ys, active, params, x0, inverse_scale, drift, lo, dri
         d2 = abs(x2 - x0[1, i]) * inverse_scale[1, i]
         d3 = abs(x3 - x0[2, i]) * inverse_scale[2, i]
         if rows > 0:
-            drift[0, lo + i] = max(drift[0, lo + i], d1)
-            drift[1, lo + i] = max(drift[1, lo + i], d2)
+            drift[0, lo + i] = _max(drift[0, lo + i], d1)
+            drift[1, lo + i] = _max(drift[1, lo + i], d2)
         if rows > 2:
-            drift[2, lo + i] = max(drift[2, lo + i], d3)
+            drift[2, lo + i] = _max(drift[2, lo + i], d3)
         if drift_limit > 0.0 and not (d1 <= drift_limit and d2 <= drift_limit and d3 <= drift_limit):
             finite = True
             for j in range(ys.shape[0]):

@@ -16,6 +16,7 @@ from ..steps.drift_screen import suspect
 from ..jit import jit
 from ..steps.steppers import energy, euler_rate, implicit_midpoint_block, l_squared
 from ..tableaux import ALL_METHODS, IMPLICIT_MIDPOINT, Splitting
+from ..trig import _max, _min
 
 __all__ = ["TORQUE_SPLITTINGS", "drift_suspects", "invariants", "method_step", "observe_flips"]
 
@@ -95,7 +96,7 @@ def _hermite_root(y0, d0, y1, d1, h):
               + (3 * s2 - 2 * s) * h * d1)
         if dp != 0.0:
             s = s - p / dp
-        s = min(1.0, max(0.0, s))
+        s = _min(1.0, _max(0.0, s))
     return s
 
 

@@ -47,6 +47,7 @@ from .sample_loop import saved_count
 from ..steps.model_steps import rate_columns, rate_sample, tangent_columns, tangent_sample
 from ..steps.system_steps import cacheable
 from ..systems import constants
+from ..trig import _min
 
 __all__ = ["MODEL_CODES", "MODEL_METHODS", "ModelObserved", "SPLITTING_KINDS", "make_propagate_model",
            "model_arguments", "model_methods", "model_rhs", "model_tangent", "propagate_model", "rate_sample",
@@ -85,7 +86,7 @@ def make_propagate_model(model, method, observing=True):
         no_fit = np.empty((0, 1))
         no_stops = (0.0, np.int64(0))  # (not the literal 0: the free body's drivers pass an int64)
         for lo in range(start, stop, block):
-            m = min(block, stop - lo)
+            m = _min(block, stop - lo)
             run_block(model, method, True, observing, y, lo, block_scratch(n_state, m), constants, 0.0, h, n_steps,
                       save_every, saved, (columns, weights, y_eq), probe_steps, probes, (0, no_flips, no_count), drift,
                       drift_limit, status, steps_taken, no_stops, (0, None, None), (0.0, 0, 0.0, no_fit, no_count))

@@ -41,6 +41,7 @@ from ..steps.model_steps import TANGENT_STEPS
 from ..steps.system_steps import SYSTEM_CODES, cacheable, tangent_step
 from ..tableaux import TABLEAUX
 from .tangent_loop import orthonormalise_row
+from ..trig import _min
 
 __all__ = ["BLOCK", "CHECK_EVERY", "METHODS", "make_propagate_tangents", "run", "runs"]
 
@@ -348,7 +349,7 @@ def make_propagate_tangents(model, method):
         ``steps_taken`` (N,) int64 written, as :func:`tumble.kernels.loops.tangent_loop.make_cpu_driver`'s driver. ``a``:
         the model's constants (:func:`tumble.kernels.systems.constants`)."""
         for lo in range(start, stop, BLOCK):
-            _run_block(model, method, a, y, V, lo, min(BLOCK, stop - lo), t0, h, n_steps, every, transient,
+            _run_block(model, method, a, y, V, lo, _min(BLOCK, stop - lo), t0, h, n_steps, every, transient,
                        save_every, stop_above, orthogonalise, logs, saved, megno, status, steps_taken)
 
     return propagate_tangents

@@ -47,6 +47,7 @@ from ..steps.model_steps import tangent_sample
 from ..threads import in_shares
 from .sample_loop import combine
 from ..steps.steppers import _EPS, _MIDPOINT_MAX_ITERATIONS, _MIDPOINT_ULPS
+from ..trig import _max
 
 __all__ = ["DIFFERENCE_STEP", "SCALARS", "difference_tangents", "jacobian_tangents", "make_cpu_driver",
            "make_midpoint_tangent_step", "make_splitting_tangent_step", "make_tangent_loop", "make_tangent_step",
@@ -130,7 +131,7 @@ def difference_tangents(rate):
         for r in range(V.shape[0]):
             size = 0.0
             for j in range(n):
-                size = max(size, abs(V[r, j]) / scales[j])
+                size = _max(size, abs(V[r, j]) / scales[j])
             if size == 0.0:
                 for j in range(n):
                     out[r, j] = 0.0

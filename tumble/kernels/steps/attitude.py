@@ -28,7 +28,7 @@ from ..jit import jit
 from .steppers import (_EPS, _MIDPOINT_MAX_ITERATIONS, _MIDPOINT_ULPS, euler_rate, l_squared, project_l_squared, rotate,
                        torque_subflow)
 from ..tableaux import ROTATE_1, ROTATE_2, ROTATE_3
-from ..trig import sincos
+from ..trig import _max, sincos
 
 FAMILY_RUNGE_KUTTA = 0
 FAMILY_SPLITTING = 1
@@ -237,7 +237,7 @@ def propagate_attitude(family, A, b, c, flows, fractions, axes, sign, w, q, body
     status : ndarray (N,) int8
         Output: ``STATUS_NONFINITE`` where a sample became NaN or inf; such a sample stops stepping.
     """
-    y, k, stage = np.empty(7), np.empty((max(1, b.shape[0]), 7)), np.empty(7)
+    y, k, stage = np.empty(7), np.empty((_max(1, b.shape[0]), 7)), np.empty(7)
     for i in range(start, stop):
         run_sample(i, family, A, b, c, flows, fractions, axes, sign, w, q, body, t0, h, n_steps, save_every, saved_w,
                    saved_q, status, torque_kind, torque_params, torque_fn, y, k, stage)

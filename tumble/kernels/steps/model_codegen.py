@@ -268,7 +268,7 @@ def trial_source(name, components, n_fields=None, control=tableaux.DOP853):
         lines.append(f"        {stepped[j]} = {combination(y, enumerate(tableau.b), j + 1)}")
     lines += rate_call(names(stages + 1), "t + h", stepped)
     for j, y in enumerate(components):
-        lines += [f"        s{j + 1} = 1.0 / (atol[{j}] + rtol[{j}] * max(abs({y}), abs({stepped[j]})))",
+        lines += [f"        s{j + 1} = 1.0 / (atol[{j}] + rtol[{j}] * _max(abs({y}), abs({stepped[j]})))",
                   f"        e5_{j + 1} = ({weighted(control.e5, j)}) * s{j + 1}",
                   f"        e3_{j + 1} = ({weighted(control.e3, j)}) * s{j + 1}",
                   f"        y1s[{j}, i] = {stepped[j]}",
@@ -514,6 +514,7 @@ def module_source():
         f"from .model_splittings import {', '.join(splittings)}",
         "from .drift_screen import suspect",
         f"from ..systems import {', '.join(sorted(name for name, _, _ in modules))}",
+        "from ..trig import _max",
     ]
     for name, components, _ in modules:
         for tableau in METHODS:

@@ -22,7 +22,7 @@ from ...registry import FREE_BODY, TORQUE_USER, rigid_body, torque_profile  # no
 from ..jit import jit
 from ..systems import SYSTEMS
 from ..tableaux import ROTATE_1, ROTATE_2, SPLITTING2, SPLITTING4, SYMPLECTIC_EULER, TORQUE
-from ..trig import sincos
+from ..trig import _min, sincos
 
 # Built-in torque profiles (numeric parameters only, so that studies stay data). params = (N1, N2, N3, tau):
 # the vector (N m, body frame) and the profile's time scale tau (s; unused by the constant profile).
@@ -56,7 +56,7 @@ def body_torque(t, w1, w2, w3, torque_kind, torque_params, torque_fn):
         return torque_fn(t, w1, w2, w3)
     scale = 1.0
     if torque_kind == TORQUE_RAMP:
-        scale = min(t / torque_params[3], 1.0)
+        scale = _min(t / torque_params[3], 1.0)
     elif torque_kind == TORQUE_SINE:
         scale = math.sin(2.0 * math.pi * t / torque_params[3])
     elif torque_kind == TORQUE_PULSE:

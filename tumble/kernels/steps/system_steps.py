@@ -42,6 +42,7 @@ from . import model_codegen
 from ..jit import jit
 from .. import tableaux
 from ..tableaux import TABLEAUX
+from ..trig import _max
 from ..loops.tangent_loop import DIFFERENCE_STEP
 
 __all__ = ["NotScalar", "SYSTEM_CODES", "block_constants", "block_step", "block_trial", "cacheable", "functions_key", "runs",
@@ -228,8 +229,8 @@ def scalar_tangent(n, n_parameters, jacobian=None, scales=None):
     if jacobian is None:
         sizes = [f"abs(_v{j}) / {float(s)!r}" for j, s in enumerate(scales)]
         lines = [f"def _tumble_tangent(t, {', '.join(_state(n))}, {', '.join(along)}, p):",
-                 f"    size = {sizes[0] if n == 1 else 'max(' + ', '.join(sizes) + ')'}",
-                 f"    e = {DIFFERENCE_STEP!r} / max(size, 2.2250738585072014e-308)  # v = 0: a zero difference"]
+                 f"    size = {sizes[0] if n == 1 else '_tumble_max(' + ', '.join(sizes) + ')'}",
+                 f"    e = {DIFFERENCE_STEP!r} / _tumble_max(size, 2.2250738585072014e-308)  # v = 0: a zero difference"]
         for label, shift in (("a", "e"), ("b", "-e"), ("c", "2.0 * e"), ("d", "-2.0 * e")):
             lines.append(f"    {', '.join(f'{label}{j}' for j in range(n))}, = _tumble_rate(t, "
                          f"{', '.join(f'_y{j} + ({shift}) * _v{j}' for j in range(n))}, p)")
@@ -333,6 +334,7 @@ def _namespace(fn, sources, n_parameters):
     scope = dict(original.__globals__)
     scope.update(inspect.getclosurevars(original).nonlocals)
     scope["jit"] = _uncached_jit
+    scope["_tumble_max"] = _max  # numba's max() would compile an overload per signature
     module = types.ModuleType(f"tumble_system_{id(scope)}")
     for source in sources:
         exec(compile("@jit(inline=True)\n" + source, f"<tumble System {original.__name__}>", "exec"), scope)
@@ -366,7 +368,7 @@ def _steps(module, n, n_parameters, tangents):
     if not tangents:  # the error-controlled trial step over a block's lanes (tumble.kernels.loops.adaptive_loop)
         lines += [model_codegen.trial_source(_NAME, components, n_fields=2 * n_parameters), ""]
         made[tableaux.DOP853.name] = f"{_NAME}_{tableaux.DOP853.name}_trial"
-    scope = {"jit": _uncached_jit, "math": math, _NAME: module}
+    scope = {"jit": _uncached_jit, "math": math, "_max": _max, _NAME: module}
     exec(compile("\n".join(lines), "<tumble System steps>", "exec"), scope)
     from ...registry import STEPPING
 
