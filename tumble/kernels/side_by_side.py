@@ -1,12 +1,11 @@
 """Compile the kernels a run needs side by side, one process per core, when numba's cache does not hold them yet.
 
-numba compiles one function at a time in one process (its compiler lock). The closed form's set-up and the rows of its
-evaluation (one kernel per regime) take about 3.3 s to compile on the first run after an install; on two cores they
-compile in the time of about half, and the run compiles the evaluation over the rows, loaded from the cache, after
-them. Each job below compiles one kernel for the exact signature a run calls it with, in this process or in a worker
-process that writes numba's on-disk cache; the run itself then loads them from the cache. With a warm cache nothing is
-started: whether a kernel is cached is read off the cache's index file (numba's own locator, ``NUMBA_CACHE_DIR``
-included), a file test per kernel.
+numba compiles one function at a time in one process (its compiler lock), and the closed form's set-up and evaluation
+take about 1.7 and 2.7 s to compile on the first run after an install (2 cores, AVX-512); on two cores they compile in
+the time of the longer. Each job below compiles one kernel for the exact signature a run calls it with, in this
+process or in a worker process that writes numba's on-disk cache; the run itself then loads them from the cache. With
+a warm cache nothing is started: whether a kernel is cached is read off the cache's index file (numba's own locator,
+``NUMBA_CACHE_DIR`` included), a file test per kernel.
 
 Nothing here changes a result: a kernel a job did not compile (a signature that drifted from the run's, a cache
 that cannot be written, a worker that failed) is compiled by the run as it would have been, only later.
@@ -33,31 +32,22 @@ _I1, _I2 = (_array(types.int64, n) for n in (1, 2))
 _CODES = _array(types.int8, 1)
 _SHARE = (types.int64, types.int64)  # start, stop: the share of samples (tumble.kernels.threads.in_parallel)
 
-_F = types.float64
-_WEIGHTS = types.UniTuple(_F, 9)  # elliptic._column_weights
-
 # Each job: a kernel, the signature a run calls it with, and about how many seconds it takes to compile alone (2 cores,
 # AVX-512, an empty cache: what compile_side_by_side balances the processes by).
 _SET_UP = ("elliptic.torque_free_solve_share", (_F2, _F2, _F2, _I2, _F1, _F2, _I1, _F2, _I2, _F2, _F2, *_SHARE), 1.7)
-# The evaluation's rows and their per-modulus constants, which torque_free_omega_share (compiled by the run after them,
-# about 0.8 s more) calls by regime.
-_ROWS = (("elliptic._omega_row_hyperbolic", (_F, _F, _F1, _F, _F, _F, _F, _F, types.UniTuple(_F, 7),
-                                             types.UniTuple(_F, 7), types.UniTuple(_F, 6), _F1, _WEIGHTS, types.boolean),
-          0.95),
-         ("elliptic._omega_row_landen", (_F, _F, _F1, _F, _F, types.UniTuple(_F, 4), _F, _F, _F1, _WEIGHTS), 0.4),
-         ("elliptic._omega_row_separatrix", (_F, _F, _F1, _F1, _WEIGHTS), 0.25),
-         ("elliptic._landen_constants", (_F,), 0.1), ("elliptic._series_constants", (_F,), 0.1))
+# The evaluation, with the rows of its three regimes (kernels of their own it calls, compiled in the same process).
+_EVALUATE = ("elliptic.torque_free_omega_share", (_I1, _F2, _I2, _F1, _F1, _F2, _F1, _F1, _F2, _I1, _F3, *_SHARE), 2.7)
 
 #: The kernels a closed-form scene's run compiles (``tumble.physics.exact``, ``tumble.measure``), by the scene's kind:
 #: name, signature and seconds (see above).
 CLOSED_FORM = {
-    "exponential": (_SET_UP, *_ROWS, ("fits.transverse_norms_share", (_F3, _I2, _F2, _F2, *_SHARE), 0.15),
+    "exponential": (_EVALUATE, _SET_UP, ("fits.transverse_norms_share", (_F3, _I2, _F2, _F2, *_SHARE), 0.15),
                     ("fits.growth_fit_share", (_F2, _I1, _F2, _array(types.float64, 1, readonly=True), types.int64, _F1,
                                                _I1, _CODES, *_SHARE), 0.3)),
-    "periodic": (_SET_UP, *_ROWS, ("fits.phase_fit_share", (_F2, _I1, _F3, _I2, _array(types.float64, 2, readonly=True),
+    "periodic": (_EVALUATE, _SET_UP, ("fits.phase_fit_share", (_F2, _I1, _F3, _I2, _array(types.float64, 2, readonly=True),
                                                             _F1, types.float64, _F1, _F1, _CODES, *_SHARE), 2.1)),
-    "neutral": (_SET_UP, *_ROWS),  # a degenerate axis: no rate to fit
-    "grid": (_SET_UP, *_ROWS),  # exact.omega on a time grid, tumble check
+    "neutral": (_EVALUATE, _SET_UP),  # a degenerate axis: no rate to fit
+    "grid": (_EVALUATE, _SET_UP),  # exact.omega on a time grid, tumble check
 }
 
 #: The closed form's attitude (:func:`tumble.physics.exact.attitude`): its rows and its set-up, added to a list of
@@ -142,9 +132,7 @@ def _compile(names):
         _dispatcher(name).compile(_SIGNATURES[name])  # cache=True: numba writes it to its cache
 
 
-_EVALUATE = ("elliptic.torque_free_omega_share", (_I1, _F2, _I2, _F1, _F1, _F2, _F1, _F1, _F2, _I1, _F3, *_SHARE))
 _SIGNATURES = {name: signature for jobs in (*CLOSED_FORM.values(), ATTITUDE) for name, signature, _ in jobs}
-_SIGNATURES[_EVALUATE[0]] = _EVALUATE[1]
 
 if __name__ == "__main__":
     _compile(sys.argv[1:])
