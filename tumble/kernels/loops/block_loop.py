@@ -290,6 +290,24 @@ def _feed_window(window, i, row, norm, fit_saturation):
         stop, older, old, total, count, first)
 
 
+@jit(inline=True)
+def _open_window(window, i):
+    """Open sample ``i``'s growth window (:func:`_feed_window` of row -1)."""
+    window[0, i], window[1, i], window[2, i], window[3, i], window[4, i], window[5, i] = GROWTH_WINDOW_START
+
+
+@jit
+def _fit_rates(window, lo, m, fit_saturation, n_probes, fit_h, fit_min_points, fit, fit_points):
+    """The growth rate of each sample of the block from its window (when ``fit_saturation > 0``), into ``fit``
+    ((3, N): rate, first and last norm) and ``fit_points`` (the window's length) at ``lo:lo + m``."""
+    if fit_saturation > 0.0:
+        for i in range(m):
+            stop, older, old, total, count, first = (int(window[0, i]), window[1, i], window[2, i], window[3, i],
+                                                     int(window[4, i]), window[5, i])
+            fit[0, lo + i], fit_points[lo + i], fit[1, lo + i], fit[2, lo + i] = growth_window_rate(
+                (stop, older, old, total, count, first), n_probes, fit_h, fit_min_points)
+
+
 @jit
 def _stop_complete(ys, active, reached, stop_norm, stop_flips, flip_count, lo, k, frozen, status, last):
     """Stop the samples whose measurement is complete: their norm reached ``stop_norm`` and they flipped
@@ -337,6 +355,7 @@ _drift_suspects_if = _if_observing(_drift_suspects, False)
 _observe_drift_if = _if_observing(_observe_drift, 0)
 _observe_norm_if = _if_observing(_observe_norm, None)
 _stop_complete_if = _if_observing(_stop_complete, 0)
+_fit_rates_if = _if_observing(_fit_rates, None)
 
 
 @jit(inline=True)
@@ -431,7 +450,7 @@ def run_block(system, method, torque_free, observing, y, lo, scratch, params, t0
         active[i], reached[i] = True, False
         last[i] = n_steps
         block_status[i] = STATUS_OK
-        _feed_window(window, i, -1, 0.0, 0.0)
+        _open_window(window, i)
         if flip_count.shape[0] > 0:
             flip_count[lo + i] = 0
         for j in range(flip_times.shape[1]):
@@ -497,8 +516,4 @@ def run_block(system, method, torque_free, observing, y, lo, scratch, params, t0
         for j in range(n_state):
             y[j, lo + i] = ys[j, i]
         steps_taken[lo + i] = last[i]
-        if fit_saturation > 0.0:
-            stop, older, old, total, count, first = (int(window[0, i]), window[1, i], window[2, i], window[3, i],
-                                                     int(window[4, i]), window[5, i])
-            fit[0, lo + i], fit_points[lo + i], fit[1, lo + i], fit[2, lo + i] = growth_window_rate(
-                (stop, older, old, total, count, first), n_probes, fit_h, fit_min_points)
+    _fit_rates_if(observing, window, lo, m, fit_saturation, n_probes, fit_h, fit_min_points, fit, fit_points)

@@ -93,9 +93,13 @@ def make_propagate(torque_free, kernel, observing=True):
         start, stop : int
             The share of samples this call runs.
         """
-        # the transverse norm's two terms: the components off the axis, none subtracted
-        b, c = (axis + 1) % 3, (axis + 2) % 3
-        norm = (np.array([b, c], dtype=np.int64), np.array([norm_weights[b], norm_weights[c]]), np.zeros(3))
+        # the transverse norm's two terms: the components off the axis, none subtracted (made with the np.empty
+        # variants the blocks' scratch needs: each other numpy constructor is one more to compile)
+        columns, rows = np.empty(2, dtype=np.int64), np.empty((2, 3))
+        columns[0], columns[1] = (axis + 1) % 3, (axis + 2) % 3
+        rows[0, 0], rows[0, 1], rows[0, 2] = norm_weights[columns[0]], norm_weights[columns[1]], 0.0
+        rows[1, 0], rows[1, 1], rows[1, 2] = 0.0, 0.0, 0.0
+        norm = (columns, rows[0], rows[1])
         no_fit, no_fit_points = np.empty((0, 1)), np.empty(0, dtype=np.int64)  # the growth fit is the caller's
         for lo in range(start, stop, block):
             m = _min(block, stop - lo)
