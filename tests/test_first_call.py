@@ -40,9 +40,10 @@ import first_call  # noqa: E402 - benchmarks/first_call.py, on the path above
 
 #: What the free body's fixed-step driver compiles for a plain integration with any method (integrate, propagate:
 #: no observer asked for, so the loop's observers are compiled out, each a stand-in that skips): the one time loop and
-#: the CPU's driver; each method adds its own step (:func:`free_body_driver`), and only its own.
+#: the CPU's driver; each method adds its own step (:func:`free_body_driver`), and only its own (those that call Euler's
+#: rate, its torque-free stand-in: the torque is chosen by type, tumble.kernels.steps.steppers._plus_torque).
 FREE_BODY_LOOP = {
-    "kernels.loops.block_loop._if_observing.<locals>.stand_in_of.<locals>.skip": 5,
+    "kernels.loops.block_loop._if_observing.<locals>.stand_in_of.<locals>.skip": 6,
     "kernels.loops.block_loop._invariants_of.<locals>.free_body": 1,
     "kernels.loops.block_loop._step_of.<locals>.fused_step": 1,
     "kernels.loops.block_loop.run_block": 1,
@@ -65,7 +66,7 @@ def free_body_driver(*step_kernels):
 #: integrate): the one time loop, its observers compiled out, and the models' CPU driver; each system adds its own step
 #: and invariants.
 MODEL_LOOP = {
-    "kernels.loops.block_loop._if_observing.<locals>.stand_in_of.<locals>.skip": 5,
+    "kernels.loops.block_loop._if_observing.<locals>.stand_in_of.<locals>.skip": 6,
     **{kernel: 1 for kernel in (
         "kernels.loops.block_loop.run_block",
         "kernels.loops.block_parts.check_finite",
@@ -115,7 +116,7 @@ CLOSED_FORM_ROWS = {
 #: Entry point (a name of ``first_call.ENTRY_POINTS``) -> the kernels its first call compiles on an empty cache:
 #: ``module.qualname`` (below ``tumble.``) -> number of signatures.
 EXPECTED = {
-    "integrate rk4": free_body_driver("kernels.steps.fused.rk4_block"),
+    "integrate rk4": free_body_driver("kernels.steps.fused.rk4_block", "kernels.steps.steppers._plus_torque_of.<locals>.torque_free"),
     "exact.omega": {
         **CLOSED_FORM_ROWS,
         "kernels.closed_form.elliptic.torque_free_omega_share": 1,
@@ -128,18 +129,18 @@ EXPECTED = {
         "kernels.fits.growth_fit_share": 1,
         "kernels.fits.transverse_norms_share": 1,
     },
-    "integrate rk8": free_body_driver("kernels.steps.fused.rk8_block"),
+    "integrate rk8": free_body_driver("kernels.steps.fused.rk8_block", "kernels.steps.steppers._plus_torque_of.<locals>.torque_free"),
     # the splittings' torque-free steps turn the state about an axis through rotate_block
     "integrate symplectic_euler": free_body_driver("kernels.steps.fused.symplectic_euler_block", "kernels.steps.steppers.rotate_block"),
     "integrate splitting2": free_body_driver("kernels.steps.fused.splitting2_block", "kernels.steps.steppers.rotate_block"),
     "integrate splitting4": free_body_driver("kernels.steps.fused.splitting4_block", "kernels.steps.steppers.rotate_block"),
-    "integrate implicit_midpoint": free_body_driver("kernels.steps.steppers.implicit_midpoint_block"),
+    "integrate implicit_midpoint": free_body_driver("kernels.steps.steppers.implicit_midpoint_block", "kernels.steps.steppers._plus_torque_of.<locals>.torque_free"),
     "integrate exact": {
         **CLOSED_FORM_ROWS,
         "kernels.closed_form.elliptic.torque_free_omega_share": 1,
         "kernels.closed_form.elliptic.torque_free_solve_share": 1,
     },
-    "propagate": free_body_driver("kernels.steps.fused.rk4_block"),
+    "propagate": free_body_driver("kernels.steps.fused.rk4_block", "kernels.steps.steppers._plus_torque_of.<locals>.torque_free"),
     "exact.attitude": {
         "kernels.closed_form.elliptic._landen_constants": 1,
         "kernels.closed_form.elliptic._landen_table": 1,
