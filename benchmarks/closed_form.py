@@ -146,7 +146,7 @@ def main():
               (f"Samples per second, {SAMPLES} spins, medians of {3 * REPEATS} runs. *new*: `exact.omega_at` (the "
                "fused kernel, samples in SIMD lanes, Jacobi's addition theorem instead of the initial argument); "
                "*old*: the time-grid path at that one time (`exact._omega_grid`: the per-sample set-up with "
-               "Carlson's R_F and the evaluation, in one kernel call, `torque_free_omega_grid`)."), "",
+               "Carlson's R_F, then the evaluation: `torque_free_solve`, `torque_free_omega`)."), "",
               (f"| spins | new, 1 thread | old, 1 thread | speed-up | new, {nt} threads | old, {nt} threads | "
                "speed-up | largest difference, × |ω| |"), "|---|---|---|---|---|---|---|---|"]
     for label, r in report["one_time"].items():
