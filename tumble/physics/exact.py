@@ -348,11 +348,12 @@ def omega_at(moments, w, t):
 
 @functools.cache
 def compile_kernels_side_by_side(kind, attitude=False):
-    """Compile the closed form's kernels, and those of the estimators that scenes of ``kind`` (``"exponential"`` or
-    ``"periodic"``; ``"grid"``: the closed form on a time grid, as ``tumble check`` runs it) run on its samples, side by side where numba's cache lacks them
-    (:func:`tumble.kernels.side_by_side.compile_side_by_side`: on two cores the first run of the default study after
-    an install compiles in about 6 s instead of 11); with ``attitude``, the attitude's kernels too (a study drawing
-    one spin's attitude, as ``dzhanibekov_flip``); checked once per process, kind and ``attitude``."""
+    """Compile the closed form's kernels, and those of the estimators that scenes of ``kind`` (``"exponential"``,
+    ``"periodic"`` or ``"neutral"``; ``"grid"``: the closed form on a time grid, as :func:`omega` and ``tumble check``
+    run it) run on its samples, side by side where numba's cache lacks them
+    (:func:`tumble.kernels.side_by_side.compile_side_by_side`: on two cores :func:`omega`'s first call on a grid after
+    an install takes about half as long); with ``attitude``, the attitude's kernels too (:func:`attitude`, a study
+    drawing one spin's attitude, as ``dzhanibekov_flip``); checked once per process, kind and ``attitude``."""
     return tuple(_side_by_side.compile_side_by_side(_side_by_side.CLOSED_FORM[kind]
                                                     + (_side_by_side.ATTITUDE if attitude else ())))
 
