@@ -277,23 +277,20 @@ def _observe_norm(ys, active, columns, weights, y_eq, probes, lo, row, stop_norm
 
 
 @jit(inline=True)
-def _feed_window(window, i, row, norm, fit_saturation):
-    """Probe ``row``'s norm into sample ``i``'s growth window, kept as column ``i`` of ``window`` (6, m); ``row < 0``
-    opens the window (:data:`tumble.kernels.fits.GROWTH_WINDOW_START`)."""
-    if row < 0:
-        stop, older, old, total, count, first = GROWTH_WINDOW_START
-    else:
-        stop, older, old, total, count, first = growth_window_add(
-            row, norm, fit_saturation, (int(window[0, i]), window[1, i], window[2, i], window[3, i],
-                                        int(window[4, i]), window[5, i]))
-    window[0, i], window[1, i], window[2, i], window[3, i], window[4, i], window[5, i] = (
-        stop, older, old, total, count, first)
+def _window(window, i):
+    """Sample ``i``'s growth window, column ``i`` of ``window`` (6, m), as :mod:`tumble.kernels.fits` takes it."""
+    return int(window[0, i]), window[1, i], window[2, i], window[3, i], int(window[4, i]), window[5, i]
 
 
 @jit(inline=True)
-def _open_window(window, i):
-    """Open sample ``i``'s growth window (:func:`_feed_window` of row -1)."""
-    window[0, i], window[1, i], window[2, i], window[3, i], window[4, i], window[5, i] = GROWTH_WINDOW_START
+def _set_window(window, i, values):
+    window[0, i], window[1, i], window[2, i], window[3, i], window[4, i], window[5, i] = values
+
+
+@jit(inline=True)
+def _feed_window(window, i, row, norm, fit_saturation):
+    """Probe ``row``'s norm into sample ``i``'s growth window."""
+    _set_window(window, i, growth_window_add(row, norm, fit_saturation, _window(window, i)))
 
 
 @jit
@@ -302,10 +299,8 @@ def _fit_rates(window, lo, m, fit_saturation, n_probes, fit_h, fit_min_points, f
     ((3, N): rate, first and last norm) and ``fit_points`` (the window's length) at ``lo:lo + m``."""
     if fit_saturation > 0.0:
         for i in range(m):
-            stop, older, old, total, count, first = (int(window[0, i]), window[1, i], window[2, i], window[3, i],
-                                                     int(window[4, i]), window[5, i])
             fit[0, lo + i], fit_points[lo + i], fit[1, lo + i], fit[2, lo + i] = growth_window_rate(
-                (stop, older, old, total, count, first), n_probes, fit_h, fit_min_points)
+                _window(window, i), n_probes, fit_h, fit_min_points)
 
 
 @jit
@@ -450,7 +445,7 @@ def run_block(system, method, torque_free, observing, y, lo, scratch, params, t0
         active[i], reached[i] = True, False
         last[i] = n_steps
         block_status[i] = STATUS_OK
-        _open_window(window, i)
+        _set_window(window, i, GROWTH_WINDOW_START)
         if flip_count.shape[0] > 0:
             flip_count[lo + i] = 0
         for j in range(flip_times.shape[1]):
