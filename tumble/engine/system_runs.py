@@ -21,6 +21,7 @@ Both run on ``device="cpu"`` or ``"cuda"`` (one thread per sample, the same per-
 
 from __future__ import annotations
 
+import functools
 import warnings
 import weakref
 from typing import NamedTuple
@@ -139,10 +140,24 @@ class _Kernels(NamedTuple):
     stages: int
 
 
-class _Compiled(NamedTuple):
-    rate: object  # the rate, compiled
-    checked: object  # the rate compiled with bounds checked (for the first call at the initial states)
-    methods: dict  # method -> _Kernels
+class _Compiled:
+    """A System's rate compiled for the engine: with bounds checked at once (the first call's :func:`probe`, and the
+    one line naming the system when numba cannot compile it), plain when a run first asks for it (a per-sample loop,
+    an error-controlled run; the vectorised blocks compile the rate's source into their own step and never do)."""
+
+    def __init__(self, system):
+        self._rate, self._owner = system.rate, f"system {system.name!r}"
+        self.checked = self._compile(boundscheck=True)
+        self.methods = {}  # method -> the kernels made of it (:func:`_kernels`, the error-controlled runs')
+
+    def _compile(self, boundscheck=False):
+        return sample_loop.compile_function(self._rate, sample_loop.RATE_SIGNATURE, self._owner, "rate(t, y, p, dydt)",
+                                            boundscheck=boundscheck)
+
+    @functools.cached_property
+    def rate(self):
+        """The rate compiled, as every engine call runs it."""
+        return self._compile()
 
 
 #: System -> its compiled rate and kernels: made once per process (they go with the system).
@@ -150,13 +165,10 @@ _COMPILED = weakref.WeakKeyDictionary()
 
 
 def compiled(system):
-    """A System's rate compiled once per process, as every engine call runs it, and once more with bounds checked
-    (for :func:`probe`): one line naming the system when numba cannot compile it."""
+    """A System's rate compiled once per process (:class:`_Compiled`): one line naming the system when numba cannot
+    compile it."""
     if system not in _COMPILED:
-        owner, what = f"system {system.name!r}", "rate(t, y, p, dydt)"
-        _COMPILED[system] = _Compiled(
-            sample_loop.compile_function(system.rate, sample_loop.RATE_SIGNATURE, owner, what),
-            sample_loop.compile_function(system.rate, sample_loop.RATE_SIGNATURE, owner, what, boundscheck=True), {})
+        _COMPILED[system] = _Compiled(system)
     return _COMPILED[system]
 
 
@@ -198,12 +210,11 @@ def block_code(system, method, tangents=False):
 
 
 def probe(system, y, p, t0):
-    """Call the rate at the first :data:`PROBED` finite initial states (the first with bounds checked): ValueError
-    naming the system when it reads or writes beyond the state, or leaves a component unset or not finite."""
-    functions = compiled(system)
+    """Call the rate, with bounds checked, at the first :data:`PROBED` finite initial states: ValueError naming the
+    system when it reads or writes beyond the state, or leaves a component unset or not finite."""
+    rate = compiled(system).checked
     n = y.shape[1]
     dydt = np.empty(n)
-    rate = functions.checked
     for i in range(min(len(y), PROBED)):
         state = np.ascontiguousarray(y[i])
         if not np.all(np.isfinite(state)):
@@ -215,7 +226,6 @@ def probe(system, y, p, t0):
             raise ValueError(f"system {system.name!r}: its rate indexes beyond the state or the parameters (state has "
                              f"{n} components: {', '.join(system.state)}; parameters {len(p)}: "
                              f"{', '.join(system.parameters) or 'none'})") from None
-        rate = functions.rate
         bad = np.flatnonzero(~np.isfinite(dydt))
         if len(bad):
             j = int(bad[0])
