@@ -46,7 +46,6 @@ FREE_BODY_LOOP = {
     "kernels.loops.block_loop._if_observing.<locals>.stand_in_of.<locals>.skip": 6,
     "kernels.loops.block_loop._invariants_of.<locals>.free_body": 1,
     "kernels.loops.block_loop._step_of.<locals>.fused_step": 1,
-    "kernels.loops.block_loop.run_block": 1,
     "kernels.loops.block_parts.check_finite": 1,
     "kernels.loops.block_parts.freeze": 1,
     "kernels.loops.block_parts.restore_frozen": 1,
@@ -68,7 +67,6 @@ def free_body_driver(*step_kernels):
 MODEL_LOOP = {
     "kernels.loops.block_loop._if_observing.<locals>.stand_in_of.<locals>.skip": 6,
     **{kernel: 1 for kernel in (
-        "kernels.loops.block_loop.run_block",
         "kernels.loops.block_parts.check_finite",
         "kernels.loops.block_parts.freeze",
         "kernels.loops.block_parts.restore_frozen",
@@ -93,7 +91,6 @@ HEAVY_TOP_TANGENTS = {
     "kernels.loops.tangent_blocks._finish": 1,
     "kernels.loops.tangent_blocks._gali": 1,
     "kernels.loops.tangent_blocks._orthonormalise": 1,
-    "kernels.loops.tangent_blocks._run_block": 1,
     "kernels.loops.tangent_blocks._screen": 1,
     "kernels.loops.tangent_blocks._share_state": 1,
     "kernels.loops.tangent_blocks._tangent_step_of.<locals>.generated_step": 1,

@@ -26,7 +26,7 @@ import numpy as np
 from numba import types
 
 from ...registry import STATUS_DRIFT, STATUS_NAMES, STATUS_NONFINITE, STATUS_OK  # noqa: F401
-from .block_loop import CHECK_EVERY, FREE_BODY, block_scratch, run_block  # noqa: F401
+from .block_loop import CHECK_EVERY, FREE_BODY, block_scratch, run_block_inlined  # noqa: F401
 from ..jit import jit
 from ..trig import _min
 
@@ -103,10 +103,10 @@ def make_propagate(torque_free, kernel, observing=True):
         no_fit, no_fit_points = np.empty((0, 1)), np.empty(0, dtype=np.int64)  # the growth fit is the caller's
         for lo in range(start, stop, block):
             m = _min(block, stop - lo)
-            run_block(FREE_BODY, kernel, torque_free, observing, w, lo, block_scratch(3, m), body, t0, h, n_steps,
-                      save_every, saved, norm, probe_steps, probes, (axis, flips, flip_count), drift, drift_limit,
-                      status, steps_taken, (stop_norm, stop_flips), (torque_kind, torque_params, torque_fn),
-                      (0.0, 0, 0.0, no_fit, no_fit_points))
+            run_block_inlined(FREE_BODY, kernel, torque_free, observing, w, lo, block_scratch(3, m), body, t0, h,
+                              n_steps, save_every, saved, norm, probe_steps, probes, (axis, flips, flip_count), drift,
+                              drift_limit, status, steps_taken, (stop_norm, stop_flips),
+                              (torque_kind, torque_params, torque_fn), (0.0, 0, 0.0, no_fit, no_fit_points))
 
     return propagate
 

@@ -39,7 +39,7 @@ import numpy as np
 
 from ...registry import LIE_POISSON_MODELS, MODEL_KINDS, MODEL_PARAMETERS, MODEL_STEPPING, STEPPING, model_kind
 from ...registry import model_methods  # the names the model kernels run for a kind (re-exported)
-from .block_loop import N_INVARIANTS, block_scratch, run_block
+from .block_loop import N_INVARIANTS, block_scratch, run_block_inlined
 from ..jit import jit
 from ..threads import in_parallel
 from ..steps.model_splittings import SPLITTINGS
@@ -87,9 +87,10 @@ def make_propagate_model(model, method, observing=True):
         no_stops = (0.0, np.int64(0))  # (not the literal 0: the free body's drivers pass an int64)
         for lo in range(start, stop, block):
             m = _min(block, stop - lo)
-            run_block(model, method, True, observing, y, lo, block_scratch(n_state, m), constants, 0.0, h, n_steps,
-                      save_every, saved, (columns, weights, y_eq), probe_steps, probes, (0, no_flips, no_count), drift,
-                      drift_limit, status, steps_taken, no_stops, (0, None, None), (0.0, 0, 0.0, no_fit, no_count))
+            run_block_inlined(model, method, True, observing, y, lo, block_scratch(n_state, m), constants, 0.0, h,
+                              n_steps, save_every, saved, (columns, weights, y_eq), probe_steps, probes,
+                              (0, no_flips, no_count), drift, drift_limit, status, steps_taken, no_stops,
+                              (0, None, None), (0.0, 0, 0.0, no_fit, no_count))
 
     return propagate
 

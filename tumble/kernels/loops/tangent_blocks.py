@@ -205,7 +205,7 @@ def _finish(i, lo, Z, code, ran, h, average, slope, covered, block_logs, y, V, l
     steps_taken[lo + i] = ran
 
 
-@jit
+@jit(inline=True)  # into its driver at numba's IR level: its code is generated once, not alone and again there
 def _run_block(model, method, a, y, V, lo, m, t0, h, n_steps, every, transient, save_every, stop_above,
                orthogonalise, logs, saved, megno, status, steps_taken):
     # size: the whole run of one block: the model, the plan, the outputs (tangent_loop.make_tangent_loop's arguments)
