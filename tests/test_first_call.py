@@ -39,8 +39,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
 import first_call  # noqa: E402 - benchmarks/first_call.py, on the path above
 
 #: What the free body's fixed-step driver compiles for a plain integration with any method (integrate, propagate:
-#: no observer asked for, so the loop's observers are compiled out, each a stand-in that skips): the one time loop and
-#: the CPU's driver; each method adds its own step (:func:`free_body_driver`), and only its own (those that call Euler's
+#: no observer asked for, so the loop's observers are compiled out, each a stand-in that skips): the CPU's driver, with
+#: the one time loop inlined into it, and the loop's parts (subroutines of it: tumble.kernels.jit.subroutine); each
+#: method adds its own step (:func:`free_body_driver`), and only its own (those that call Euler's
 #: rate, its torque-free stand-in: the torque is chosen by type, tumble.kernels.steps.steppers._plus_torque).
 FREE_BODY_LOOP = {
     "kernels.loops.block_loop._if_observing.<locals>.stand_in_of.<locals>.skip": 6,
@@ -49,7 +50,6 @@ FREE_BODY_LOOP = {
     "kernels.loops.block_parts.check_finite": 1,
     "kernels.loops.block_parts.freeze": 1,
     "kernels.loops.block_parts.restore_frozen": 1,
-    "kernels.loops.block_parts.store": 1,
     "kernels.loops.block_parts.store_initial": 1,
     "kernels.loops.block_parts.store_rest": 1,
     "kernels.loops.drivers.make_propagate.<locals>.propagate": 1,
@@ -62,15 +62,14 @@ def free_body_driver(*step_kernels):
 
 
 #: What the models' and a System's block driver compiles for a run that asks for no observer (run_ensemble,
-#: integrate): the one time loop, its observers compiled out, and the models' CPU driver; each system adds its own step
-#: and invariants.
+#: integrate): the models' CPU driver with the one time loop inlined, its observers compiled out, and the loop's parts;
+#: each system adds its own step and invariants.
 MODEL_LOOP = {
     "kernels.loops.block_loop._if_observing.<locals>.stand_in_of.<locals>.skip": 6,
     **{kernel: 1 for kernel in (
         "kernels.loops.block_parts.check_finite",
         "kernels.loops.block_parts.freeze",
         "kernels.loops.block_parts.restore_frozen",
-        "kernels.loops.block_parts.store",
         "kernels.loops.block_parts.store_initial",
         "kernels.loops.block_parts.store_rest",
         "kernels.loops.model_loop.make_propagate_model.<locals>.propagate",

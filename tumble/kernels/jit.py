@@ -33,6 +33,7 @@ import types
 import warnings
 
 import numba
+import numba.extending
 from numba.core import caching
 
 from .. import _disk
@@ -268,6 +269,15 @@ def jit(fn=None, *, inline=False, contract=True, cache=True, boundscheck=False, 
         return _enable_cache(dispatcher) if cache else dispatcher
 
     return wrap if fn is None else wrap(fn)
+
+
+def subroutine(fn):
+    """Compile ``fn`` only where a kernel calls it, as part of that kernel (an overload: numba's ``register_jitable``),
+    with tumble's options: numba types and lowers it once per process and signature and makes no machine code of it
+    alone, where a :func:`jit` function that a kernel calls has its machine code made for itself and again in every
+    caller. From Python it is the plain function."""
+    # tumble's options, all of them: numba keys an overload's compiled code by its caller's options too
+    return numba.extending.register_jitable(**_OPTIONS)(fn)
 
 
 def rebound(names, namespace, key=None, **replaced):

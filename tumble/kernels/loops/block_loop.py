@@ -56,7 +56,7 @@ from ..fits import GROWTH_WINDOW_START, growth_window_add, growth_window_rate
 from .free_body_parts import drift_suspects as free_body_drift_suspects
 from .free_body_parts import invariants as free_body_invariants
 from .free_body_parts import method_step, observe_flips
-from ..jit import FASTMATH, jit
+from ..jit import FASTMATH, jit, subroutine
 from ..steps.model_steps import drift_suspects, invariants, step
 from ..steps.system_steps import SYSTEM_CODES, block_step
 from ..systems import N_INVARIANTS
@@ -223,7 +223,7 @@ def _initial_invariants(system, ys, params, x0, inverse_scale):
         inverse_scale[2, i] = 1.0 / _max(s3, _TINY)
 
 
-@jit
+@subroutine
 def _observe_drift(system, ys, active, params, x0, inverse_scale, drift, lo, drift_limit, k, frozen, status, last):
     """Running maximum of each invariant's drift ``|x − x0| / scale`` into ``drift`` (its rows; not recorded when
     empty); samples past ``drift_limit`` (<= 0: never; NaN counts as past) stop, with ``STATUS_DRIFT``, or
@@ -251,7 +251,7 @@ def _observe_drift(system, ys, active, params, x0, inverse_scale, drift, lo, dri
     return stopped
 
 
-@jit
+@subroutine
 def _observe_norm(ys, active, columns, weights, y_eq, probes, lo, row, stop_norm, reached, window, fit_saturation):
     """The weighted transverse norm ``sqrt(sum_j weights[j] (y[columns[j]] − y_eq[columns[j]])²)`` of each sample
     into ``probes[row]`` (NaN for stopped samples; not kept when ``probes`` is empty) and into its growth window
@@ -293,7 +293,7 @@ def _feed_window(window, i, row, norm, fit_saturation):
     _set_window(window, i, growth_window_add(row, norm, fit_saturation, _window(window, i)))
 
 
-@jit
+@subroutine
 def _fit_rates(window, lo, m, fit_saturation, n_probes, fit_h, fit_min_points, fit, fit_points):
     """The growth rate of each sample of the block from its window (when ``fit_saturation > 0``), into ``fit``
     ((3, N): rate, first and last norm) and ``fit_points`` (the window's length) at ``lo:lo + m``."""
@@ -303,7 +303,7 @@ def _fit_rates(window, lo, m, fit_saturation, n_probes, fit_h, fit_min_points, f
                 _window(window, i), n_probes, fit_h, fit_min_points)
 
 
-@jit
+@subroutine
 def _stop_complete(ys, active, reached, stop_norm, stop_flips, flip_count, lo, k, frozen, status, last):
     """Stop the samples whose measurement is complete: their norm reached ``stop_norm`` and they flipped
     ``stop_flips`` times (a criterion <= 0 is met). Returns how many are still running."""

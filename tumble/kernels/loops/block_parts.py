@@ -12,12 +12,12 @@ import math
 import numpy as np
 
 from ...registry import STATUS_NONFINITE, STATUS_OK
-from ..jit import jit
+from ..jit import jit, subroutine
 
 __all__ = ["check_finite", "freeze", "restore_frozen", "store", "store_initial", "store_rest"]
 
 
-@jit
+@subroutine
 def freeze(i, k, code, ys, active, frozen, status, last):
     """Stop sample ``i`` of a block after step ``k``: keep its state, record why (``code``, kept unless
     ``STATUS_OK``) and when."""
@@ -29,7 +29,7 @@ def freeze(i, k, code, ys, active, frozen, status, last):
     last[i] = k
 
 
-@jit
+@subroutine
 def restore_frozen(ys, active, frozen):
     """The step moved every sample of the block; put the stopped ones back."""
     for i in range(ys.shape[1]):
@@ -38,7 +38,7 @@ def restore_frozen(ys, active, frozen):
                 ys[j, i] = frozen[j, i]
 
 
-@jit
+@subroutine
 def check_finite(ys, active, k, frozen, status, last):
     """Stop the running samples with a non-finite component after step ``k``; returns how many.
 
@@ -67,7 +67,7 @@ def check_finite(ys, active, k, frozen, status, last):
     return stopped
 
 
-@jit
+@jit(inline=True)  # (a subroutine called by both subroutines and kernels is compiled twice: numba keys it by its caller's options)
 def store(saved, slot, ys, lo):
     """The block's states into ``saved[slot]`` (its columns ``lo``, ...)."""
     for j in range(ys.shape[0]):
@@ -75,7 +75,7 @@ def store(saved, slot, ys, lo):
             saved[slot, j, lo + i] = ys[j, i]
 
 
-@jit
+@subroutine
 def store_initial(saved, ys, lo):
     """The block's initial states into ``saved[0]``; returns the next slot (0 when ``saved`` is empty)."""
     if saved.shape[0] == 0:
@@ -84,7 +84,7 @@ def store_initial(saved, ys, lo):
     return 1
 
 
-@jit
+@subroutine
 def store_rest(saved, slot, ys, lo, ran, n_steps, save_every):
     """The stores a block that stopped after ``ran`` steps still owes (the ``save_every``-th steps and the last one
     after it): its frozen states. ``saved`` empty: nothing."""

@@ -34,7 +34,7 @@ from numba import types
 from numba.extending import overload
 
 from ...registry import LIE_POISSON_MODELS, MODEL_STEPPING, STATUS_ABOVE, STATUS_NONFINITE, STATUS_OK, STEPPING
-from ..jit import FASTMATH, jit
+from ..jit import FASTMATH, jit, subroutine
 from ..threads import in_parallel
 from ..steps.model_splittings import GRAVITY_CODE, SPLITTINGS, splitting_tangent_block
 from ..steps.model_steps import TANGENT_STEPS
@@ -96,7 +96,7 @@ def runs(method, kind):
     return method in METHODS and TABLEAUX[method] is METHODS[method][0]
 
 
-@jit
+@subroutine
 def _screen(Z, live, flags):
     """How many running samples of a block hold a value that is not finite (the state and MEGNO's scalars of ``Z[0]``,
     every tangent vector): ``flags`` (m,) gets ``0 × value`` summed over each sample's values (NaN where one is not
@@ -116,7 +116,7 @@ def _screen(Z, live, flags):
     return bad
 
 
-@jit
+@subroutine
 def _share_state(Z):
     """The sample's state (``Z[0]``'s) into the rows that the step of each further tangent vector reads."""
     n = (Z.shape[1] - 2) // 2
@@ -126,7 +126,7 @@ def _share_state(Z):
                 Z[r, j, i] = Z[0, j, i]
 
 
-@jit
+@subroutine
 def _copy(Z, to):
     for r in range(Z.shape[0]):
         for j in range(Z.shape[1]):
@@ -134,7 +134,7 @@ def _copy(Z, to):
                 to[r, j, i] = Z[r, j, i]
 
 
-@jit
+@subroutine
 def _orthonormalise(Z, orthogonalise, norms, proj):
     """Modified Gram–Schmidt of every sample's tangent vectors at once (``V = Q R``; without ``orthogonalise`` each
     vector only normalised): ``norms`` (k, m) gets ``R_rr``; a norm that is 0 or not finite leaves its vector as it
@@ -165,7 +165,7 @@ def _orthonormalise(Z, orthogonalise, norms, proj):
                 Z[r, j, i] *= proj[i]
 
 
-@jit
+@subroutine
 def _gali(Z, i, vectors):
     """GALI_k of sample ``i``: the volume its k unit tangent vectors span (the product of ``R_rr`` of a Gram–Schmidt of
     a copy, ``vectors`` (k, n))."""
@@ -183,7 +183,7 @@ def _gali(Z, i, vectors):
     return volume
 
 
-@jit
+@subroutine
 def _finish(i, lo, Z, code, ran, h, average, slope, covered, block_logs, y, V, logs, megno, status, steps_taken):
     # size: one sample's outputs, each from where the loop holds it
     """Write sample ``lo + i``'s outputs from the block ``Z`` (the values after its last step): its state and tangent
