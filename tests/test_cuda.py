@@ -19,6 +19,9 @@ import pytest
 import tumble
 from tumble.engine.device import resolve_device
 
+# the device's tests on the simulator share its loops, compiled as CPU code, and the closed form: one worker compiles them
+pytestmark = pytest.mark.xdist_group("cuda")
+
 HAS_NUMBA_CUDA = importlib.util.find_spec("numba_cuda") is not None
 NO_NUMBA_CUDA = 'numba-cuda is not installed (pip install -e ".[test]")'
 needs_numba_cuda = pytest.mark.skipif(not HAS_NUMBA_CUDA, reason=NO_NUMBA_CUDA)

@@ -21,6 +21,9 @@ from tumble.engine.model_ensemble import run_model_ensemble
 from tumble.engine.sampling import perturbed_states
 from tumble.physics import models
 
+# the device's tests on the simulator share its loops, compiled as CPU code, and the closed form: one worker compiles them
+pytestmark = pytest.mark.xdist_group("cuda")
+
 RELATIVE = 1e-12  # device against CPU, relative to the largest value compared
 
 

@@ -16,6 +16,9 @@ from tumble.physics import theory
 from tumble.physics.models import Damper, GravityGradient, HeavyTop
 from tumble.registry import STATUS_DRIFT, STATUS_OK
 
+# one worker: the cases share the models' drivers (each compiled once, not by both workers at once)
+pytestmark = pytest.mark.xdist_group("model_fast_paths")
+
 MODELS = {
     "gravity_gradient": GravityGradient((2.0, 2.5, 1.0), 1.0),
     "damper": Damper((2.0, 2.5, 1.0), 1.0, 0.5),

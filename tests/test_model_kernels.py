@@ -27,6 +27,9 @@ from tumble.kernels.steps import model_codegen
 from tumble.kernels import model_rhs, tableaux
 from tumble.physics.models import FreeBody, Gyrostat, HeavyTop
 
+# one worker: the cases share the models' drivers (each compiled once, not by both workers at once)
+pytestmark = pytest.mark.xdist_group("model_kernels")
+
 MODELS = {
     "free": FreeBody((1.0, 2.0, 3.0)),
     "gyrostat": Gyrostat((1.0, 2.0, 3.0), (0.3, -0.2, 0.5)),

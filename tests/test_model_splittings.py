@@ -17,6 +17,9 @@ from tumble.kernels import model_methods, tableaux
 from tumble.kernels.steps import model_splittings
 from tumble.physics.models import Damper, FreeBody, GravityGradient, Gyrostat, HeavyTop
 
+# one worker: the cases share the models' drivers (each compiled once, not by both workers at once)
+pytestmark = pytest.mark.xdist_group("model_splittings")
+
 MODELS = {
     "free": FreeBody((1.0, 2.0, 3.0)),
     "gyrostat": Gyrostat((1.0, 2.0, 3.0), (0.3, -0.2, 0.5)),
