@@ -81,7 +81,7 @@ from llvmlite import ir
 from numba.core import types
 from numba.extending import intrinsic
 
-from ..jit import jit
+from ..jit import jit, subroutine
 from ..threads import in_parallel
 from ..trig import _C1, _C2, _C3, _C4, _C5, _C6, _S1, _S2, _S3, _S4, _S5, _S6, _floor, _fma, _max, _min
 
@@ -717,7 +717,7 @@ def _store(out, j, W, fq, fm, fp):
     out[3 * j + 2] = W[6] * fq + W[7] * fm + W[8] * fp
 
 
-@jit
+@subroutine
 def _landen_constants(kc):
     """Per-modulus constants of the descending Gauss transformation (DLMF 22.7.1-3) from ``k' >= 1/2``.
 
@@ -740,7 +740,7 @@ def _landen_constants(kc):
     return kap, 0.25 * k4 * k4, (1.0 + k1) * f2
 
 
-@jit
+@subroutine
 def _series_constants(q):
     """Coefficients of the hyperbolic series regrouped as power series in ``z = q e^(+-y)`` (see
     :func:`_omega_row_hyperbolic`): ``(-1)^i/(1 -+ q^(2i+1))`` for dn and cn, ``(-1)^(j-1)/(1 + q^(2j))``
@@ -792,7 +792,7 @@ def _gauss_level(s_b, f, g, d, e, kap):
     return f + d + f * d, g + e + g * e, dd + t, dd - t
 
 
-@jit
+@subroutine
 def _omega_row_landen(ph, nu, t, K, kc, kap, quarter_m, P, out, W):
     """One elliptic sample with ``k' >= KC_HYPERBOLIC`` at the times ``t`` into ``out`` (3T,).
 
@@ -871,7 +871,7 @@ def _hyperbolic_unreduce(em, om, den, zp, zm, dser, cser, hsum, h, hk, kc, near,
     return _unreduce(S, C, E, den, 1.0, kc, near, par, sg)
 
 
-@jit
+@subroutine
 def _omega_row_hyperbolic(ph, nu, t, K, kc, h, hk, q, dcoef, ccoef, scoef, out, W, short):
     """One elliptic sample with ``k' < KC_HYPERBOLIC`` at the times ``t`` into ``out`` (3T,).
 
@@ -940,7 +940,7 @@ def _hyperbolic_short_at(s, K, two_k, inv_two_k, kc, h, hk, q, dcoef, ccoef, sco
     return _hyperbolic_unreduce(em, om, den, zp, zm, dser, cser, hsum, h, hk, kc, near, par, sg)
 
 
-@jit
+@subroutine
 def _omega_row_separatrix(ph, nu, t, out, W):
     """One separatrix sample: ``(sech, tanh, sech)(u0 + nu t)`` into ``out`` (3T,), branch-free:
     ``tanh|v| = (1 - e^-2|v|)/(1 + e^-2|v|)``, ``sech v = 2 e^-|v|/(1 + e^-2|v|)``."""
@@ -1282,8 +1282,8 @@ def _omega_at_chunk(moments, w, t, out, lo, m):
 
 
 # The lanes' copies of the per-modulus constants (inlined, so that the loops over lanes vectorise).
-_series_constants_inline = jit(inline=True)(_series_constants.py_func)
-_landen_constants_inline = jit(inline=True)(_landen_constants.py_func)
+_series_constants_inline = jit(inline=True)(_series_constants)
+_landen_constants_inline = jit(inline=True)(_landen_constants)
 
 
 @jit(inline=True)
