@@ -1,7 +1,7 @@
 """Compile the kernels a run needs side by side, one process per core, when numba's cache does not hold them yet.
 
 numba compiles one function at a time in one process (its compiler lock), and the closed form's set-up and evaluation
-take about 1.7 and 2.7 s to compile on the first run after an install (2 cores, AVX-512); on two cores they compile in
+take about 1.7 and 2.3 s to compile on the first run after an install (2 cores, AVX-512); on two cores they compile in
 the time of the longer. Each job below compiles one kernel for the exact signature a run calls it with, in this
 process or in a worker process that writes numba's on-disk cache; the run itself then loads them from the cache. With
 a warm cache nothing is started: whether a kernel is cached is read off the cache's index file (numba's own locator,
@@ -36,7 +36,7 @@ _SHARE = (types.int64, types.int64)  # start, stop: the share of samples (tumble
 # AVX-512, an empty cache: what compile_side_by_side balances the processes by).
 _SET_UP = ("elliptic.torque_free_solve_share", (_F2, _F2, _F2, _I2, _F1, _F2, _I1, _F2, _I2, _F2, _F2, *_SHARE), 1.7)
 # The evaluation, with the rows of its three regimes (kernels of their own it calls, compiled in the same process).
-_EVALUATE = ("elliptic.torque_free_omega_share", (_I1, _F2, _I2, _F1, _F1, _F2, _F1, _F1, _F2, _I1, _F3, *_SHARE), 2.7)
+_EVALUATE = ("elliptic.torque_free_omega_share", (_I1, _F2, _I2, _F1, _F1, _F2, _F1, _F1, _F2, _I1, _F3, *_SHARE), 2.3)
 
 #: The kernels a closed-form scene's run compiles (``tumble.physics.exact``, ``tumble.measure``), by the scene's kind:
 #: name, signature and seconds (see above).
