@@ -229,9 +229,10 @@ LIBM_CALL = re.compile(r"(call\w*|jmp\w*|movabsq)\s+\$?_*(sin|cos|sincos|asin|ex
 
 
 def _row_asm(name):
-    """Assembly of the row function ``name`` compiled uncached, after one call (``_omega_row_hyperbolic``'s long and
-    short series each in a loop of its own, both in the assembly)."""
-    f = _njit(getattr(ell, name).py_func)
+    """Assembly of the row function ``name`` (a subroutine of the evaluation: its Python function) compiled alone and
+    uncached, after one call (``_omega_row_hyperbolic``'s long and short series each in a loop of its own, both in the
+    assembly)."""
+    f = _njit(getattr(ell, name))
     t = np.linspace(0.0, 1.0, 16)
     out = np.empty(48)
     W = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
