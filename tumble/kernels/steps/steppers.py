@@ -58,7 +58,9 @@ def body_torque(t, w1, w2, w3, torque_kind, torque_params, torque_fn):
     given, else the profile ``torque_kind`` of ``torque_params``; chosen by type (:func:`_body_torque_of`)."""
 
 
-_STAND_IN = dict(inline="always", jit_options=dict(fastmath=set(FASTMATH), error_model="numpy"))
+# Not inline="always": numba-cuda could not type the inlined stand-ins (eq of two omitted arguments), so no device
+# kernel compiled for a GPU; compiled out of line, a torque run's results moved by ulps.
+_STAND_IN = dict(jit_options=dict(fastmath=set(FASTMATH), error_model="numpy"))
 # numba's pedantic check of the profile's branches once inlined (a phi's variable "not in scope"): the compiled step
 # is right (its results are the bits of the profile inlined as a plain function), the warning only noise to a user
 warnings.filterwarnings("ignore", message="variable '_body_torque_of__locals__profile",
