@@ -596,17 +596,19 @@ sys.modules[cuda.jit.__module__.rsplit(".", 1)[0] + ".dispatcher"].get_current_d
     lambda: pytypes.SimpleNamespace(compute_capability=(9, 0)))
 sys.path.insert(0, "tests")
 from tumble.engine import chaos
-from tumble.kernels import cuda_tangent_loop
+from tumble.kernels import device_tangent_loop
 from test_chaos import TOP, LINEAR
 f, i = types.float64, types.int64
 A1, A2, A3 = (types.Array(f, d, "C") for d in (1, 2, 3))
+# (y, V, p, t0, h, n_steps, every, transient, save_every, stop_above, orthogonalise, logs, saved, megno, status,
+#  steps_taken), as tumble.kernels.cuda.tangent_flow.run launches it
 signature = (A2, A3, A1, f, f, i, i, i, i, f, types.boolean, A2, A3, A2, types.Array(types.int8, 1, "C"),
              types.Array(i, 1, "C"))
 for system, method in ((TOP, "rk4"), (LINEAR, "rk4"), (TOP, "splitting4")):
     _, p, _ = chaos._parameters(system, None)
     n, n_p = len(system.spec.state), len(p)
     kernels = chaos._kernels(system, method)
-    kernel = cuda_tangent_loop.make_kernel(kernels.run_sample, n, n, kernels.stages, n_p)
+    kernel = device_tangent_loop().make_kernel(kernels.run_sample, n, n, kernels.stages, n_p)
     ptx, _ = cuda.compile_ptx(kernel.py_func, signature, cc=(9, 0))
     assert ".entry" in ptx
 print("compiled")
