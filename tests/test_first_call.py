@@ -96,32 +96,56 @@ HEAVY_TOP_TANGENTS = {
     "kernels.loops.tangent_blocks.make_propagate_tangents.<locals>.propagate_tangents": 1,
 }
 
-#: The closed form's per-sample set-up and rows, which every closed-form entry point compiles.
-CLOSED_FORM_ROWS = {
-    "kernels.closed_form.elliptic._landen_constants": 1,
-    "kernels.closed_form.elliptic._omega_row_hyperbolic": 1,
-    "kernels.closed_form.elliptic._omega_row_landen": 1,
-    "kernels.closed_form.elliptic._omega_row_separatrix": 1,
-    "kernels.closed_form.elliptic._series_constants": 1,
+#: The closed form's per-sample set-up, which every closed-form entry point compiles.
+CLOSED_FORM_SET_UP = {
     "kernels.closed_form.elliptic.agm": 1,
     "kernels.closed_form.elliptic.carlson_rf": 1,
     "kernels.closed_form.elliptic.complete_integrals": 1,
     "kernels.closed_form.elliptic.hyperbolic_nome": 1,
+    "kernels.closed_form.elliptic.torque_free_solve_share": 1,
+}
+
+#: The evaluation's rows of the regimes the entry points' spins meet: near the separatrix (the hyperbolic core), far
+#: from it (Landen's); a call compiles those of the regimes its samples meet, no other.
+HYPERBOLIC_ROWS = {
+    "kernels.closed_form.elliptic._omega_row_hyperbolic": 1,
+    "kernels.closed_form.elliptic._series_constants": 1,
+    "kernels.closed_form.elliptic.omega_hyperbolic_share": 1,
+}
+LANDEN_ROWS = {
+    "kernels.closed_form.elliptic._landen_constants": 1,
+    "kernels.closed_form.elliptic._omega_row_landen": 1,
+    "kernels.closed_form.elliptic.omega_landen_share": 1,
+}
+
+#: The closed form's attitude beside its angular velocity (exact.attitude, tumble check of a recorded attitude).
+CLOSED_FORM_ATTITUDE = {
+    "kernels.closed_form.elliptic._landen_table": 1,
+    "kernels.closed_form.elliptic._sech": 1,
+    "kernels.closed_form.elliptic._setup": 1,
+    "kernels.closed_form.elliptic._sncndn_core": 1,
+    "kernels.closed_form.elliptic._sncndn_shifted": 1,
+    "kernels.closed_form.elliptic_attitude._local": 1,
+    "kernels.closed_form.elliptic_attitude._pi_integral": 1,
+    "kernels.closed_form.elliptic_attitude._rc_one": 1,
+    "kernels.closed_form.elliptic_attitude._round_half_even": 1,
+    "kernels.closed_form.elliptic_attitude._sncndn": 1,
+    "kernels.closed_form.elliptic_attitude._tangent": 1,
+    "kernels.closed_form.elliptic_attitude.attitude_at": 1,
+    "kernels.closed_form.elliptic_attitude.attitude_constants": 1,
+    "kernels.closed_form.elliptic_attitude.attitude_rows_share": 1,
+    "kernels.closed_form.elliptic_attitude.attitude_setup": 1,
+    "kernels.closed_form.elliptic_attitude.carlson_rj": 1,
 }
 
 #: Entry point (a name of ``first_call.ENTRY_POINTS``) -> the kernels its first call compiles on an empty cache:
 #: ``module.qualname`` (below ``tumble.``) -> number of signatures.
 EXPECTED = {
     "integrate rk4": free_body_driver("kernels.steps.fused.rk4_block", "kernels.steps.steppers._plus_torque_of.<locals>.torque_free"),
-    "exact.omega": {
-        **CLOSED_FORM_ROWS,
-        "kernels.closed_form.elliptic.torque_free_omega_share": 1,
-        "kernels.closed_form.elliptic.torque_free_solve_share": 1,
-    },
+    "exact.omega": {**CLOSED_FORM_SET_UP, **HYPERBOLIC_ROWS},
     "measure": {
-        **CLOSED_FORM_ROWS,
-        "kernels.closed_form.elliptic.torque_free_omega_share": 1,
-        "kernels.closed_form.elliptic.torque_free_solve_share": 1,
+        **CLOSED_FORM_SET_UP,
+        **HYPERBOLIC_ROWS,
         "kernels.fits.growth_fit_share": 1,
         "kernels.fits.transverse_norms_share": 1,
     },
@@ -131,82 +155,22 @@ EXPECTED = {
     "integrate splitting2": free_body_driver("kernels.steps.fused.splitting2_block", "kernels.steps.steppers.rotate_block"),
     "integrate splitting4": free_body_driver("kernels.steps.fused.splitting4_block", "kernels.steps.steppers.rotate_block"),
     "integrate implicit_midpoint": free_body_driver("kernels.steps.steppers.implicit_midpoint_block", "kernels.steps.steppers._plus_torque_of.<locals>.torque_free"),
-    "integrate exact": {
-        **CLOSED_FORM_ROWS,
-        "kernels.closed_form.elliptic.torque_free_omega_share": 1,
-        "kernels.closed_form.elliptic.torque_free_solve_share": 1,
-    },
+    "integrate exact": {**CLOSED_FORM_SET_UP, **HYPERBOLIC_ROWS},
     "propagate": free_body_driver("kernels.steps.fused.rk4_block", "kernels.steps.steppers._plus_torque_of.<locals>.torque_free"),
-    "exact.attitude": {
-        "kernels.closed_form.elliptic._landen_constants": 1,
-        "kernels.closed_form.elliptic._landen_table": 1,
-        "kernels.closed_form.elliptic._omega_row_hyperbolic": 1,
-        "kernels.closed_form.elliptic._omega_row_landen": 1,
-        "kernels.closed_form.elliptic._omega_row_separatrix": 1,
-        "kernels.closed_form.elliptic._sech": 1,
-        "kernels.closed_form.elliptic._series_constants": 1,
-        "kernels.closed_form.elliptic._setup": 1,
-        "kernels.closed_form.elliptic._sncndn_core": 1,
-        "kernels.closed_form.elliptic._sncndn_shifted": 1,
-        "kernels.closed_form.elliptic.agm": 1,
-        "kernels.closed_form.elliptic.carlson_rf": 1,
-        "kernels.closed_form.elliptic.complete_integrals": 1,
-        "kernels.closed_form.elliptic.hyperbolic_nome": 1,
-        "kernels.closed_form.elliptic.torque_free_omega_share": 1,
-        "kernels.closed_form.elliptic.torque_free_solve_share": 1,
-        "kernels.closed_form.elliptic_attitude._local": 1,
-        "kernels.closed_form.elliptic_attitude._pi_integral": 1,
-        "kernels.closed_form.elliptic_attitude._rc_one": 1,
-        "kernels.closed_form.elliptic_attitude._round_half_even": 1,
-        "kernels.closed_form.elliptic_attitude._sncndn": 1,
-        "kernels.closed_form.elliptic_attitude._tangent": 1,
-        "kernels.closed_form.elliptic_attitude.attitude_at": 1,
-        "kernels.closed_form.elliptic_attitude.attitude_constants": 1,
-        "kernels.closed_form.elliptic_attitude.attitude_rows_share": 1,
-        "kernels.closed_form.elliptic_attitude.attitude_setup": 1,
-        "kernels.closed_form.elliptic_attitude.carlson_rj": 1,
-    },
+    "exact.attitude": {**CLOSED_FORM_SET_UP, **HYPERBOLIC_ROWS, **CLOSED_FORM_ATTITUDE},
     "scan": {
-        **CLOSED_FORM_ROWS,
-        "kernels.closed_form.elliptic.torque_free_omega_share": 1,
-        "kernels.closed_form.elliptic.torque_free_solve_share": 1,
+        **CLOSED_FORM_SET_UP,
+        **HYPERBOLIC_ROWS,
+        **LANDEN_ROWS,
         "kernels.fits._median_in_place": 1,
         "kernels.fits._select_in_place": 1,
         "kernels.fits.fit_sample": 1,
         "kernels.fits.growth_fit_share": 1,
-        "kernels.fits.phase_fit_share": 1,
         "kernels.fits.phase_fit_sample": 1,
+        "kernels.fits.phase_fit_share": 1,
         "kernels.fits.transverse_norms_share": 1,
     },
-    "check": {
-        "kernels.closed_form.elliptic._landen_constants": 1,
-        "kernels.closed_form.elliptic._landen_table": 1,
-        "kernels.closed_form.elliptic._omega_row_hyperbolic": 1,
-        "kernels.closed_form.elliptic._omega_row_landen": 1,
-        "kernels.closed_form.elliptic._omega_row_separatrix": 1,
-        "kernels.closed_form.elliptic._sech": 1,
-        "kernels.closed_form.elliptic._series_constants": 1,
-        "kernels.closed_form.elliptic._setup": 1,
-        "kernels.closed_form.elliptic._sncndn_core": 1,
-        "kernels.closed_form.elliptic._sncndn_shifted": 1,
-        "kernels.closed_form.elliptic.agm": 1,
-        "kernels.closed_form.elliptic.carlson_rf": 1,
-        "kernels.closed_form.elliptic.complete_integrals": 1,
-        "kernels.closed_form.elliptic.hyperbolic_nome": 1,
-        "kernels.closed_form.elliptic.torque_free_omega_share": 1,
-        "kernels.closed_form.elliptic.torque_free_solve_share": 1,
-        "kernels.closed_form.elliptic_attitude._local": 1,
-        "kernels.closed_form.elliptic_attitude._pi_integral": 1,
-        "kernels.closed_form.elliptic_attitude._rc_one": 1,
-        "kernels.closed_form.elliptic_attitude._round_half_even": 1,
-        "kernels.closed_form.elliptic_attitude._sncndn": 1,
-        "kernels.closed_form.elliptic_attitude._tangent": 1,
-        "kernels.closed_form.elliptic_attitude.attitude_at": 1,
-        "kernels.closed_form.elliptic_attitude.attitude_constants": 1,
-        "kernels.closed_form.elliptic_attitude.attitude_rows_share": 1,
-        "kernels.closed_form.elliptic_attitude.attitude_setup": 1,
-        "kernels.closed_form.elliptic_attitude.carlson_rj": 1,
-    },
+    "check": {**CLOSED_FORM_SET_UP, **HYPERBOLIC_ROWS, **CLOSED_FORM_ATTITUDE},
     # A user's System (the heavy top written by hand) on the vectorised block path: the loop with the System's own
     # step (generated from its rate, in a module of its own, not listed) and no invariants
     "integrate System": model_driver("kernels.loops.block_loop._invariants_of.<locals>.none_known",

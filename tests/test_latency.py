@@ -124,8 +124,9 @@ def test_the_side_by_side_signatures_are_those_the_closed_form_scenes_call(warm_
 
     tumble.measure((1.0, 2.0, 3.0), 2, samples=16)  # exponential
     tumble.measure((1.0, 2.0, 3.0), 1, samples=16)  # periodic
-    for kind in ("exponential", "periodic"):  # the "grid" jobs are tumble check's (test_check calls them)
-        for name, signature, _ in side_by_side.CLOSED_FORM[kind]:
+    # the "grid" jobs are tumble check's (test_check calls them); the rows, those each kind's scenes meet
+    for kind, regime in (("exponential", "hyperbolic"), ("periodic", "landen")):
+        for name, signature, _ in side_by_side.CLOSED_FORM[kind] + (side_by_side.ROWS[regime],):
             assert tuple(signature) in compiled_or_cached(side_by_side._dispatcher(name)), name
 
 
@@ -421,6 +422,30 @@ def test_jobs_are_dealt_to_the_process_that_finishes_them_soonest():
         name for name, _, _ in s.CLOSED_FORM["grid"] + s.ATTITUDE)
 
 
+def test_the_rows_compiled_ahead_are_those_of_the_regimes_the_set_up_meets():
+    # the estimate before the set-up (exact.regimes_met) holds every regime the set-up then finds, spin by spin
+    import numpy as np
+
+    from tumble.kernels import elliptic
+    from tumble.physics import exact
+
+    rng = np.random.default_rng(5)
+    near = rng.normal(size=(60, 3)) * 10.0 ** rng.uniform(-13, 0, (60, 1))
+    near[:, 1] = rng.choice([-1.0, 1.0], 60)  # about the intermediate axis, at every distance
+    w = np.concatenate([rng.normal(size=(60, 3)), near, np.eye(3), [[0.0, 0.0, 0.0], [0.2, 0.5, 0.1],
+                                                                    [1.0, np.sqrt(2.0), 0.0]]])
+    for body in ((1.0, 2.0, 3.0), (3.0, 1.0, 2.0), (2.0, 2.0, 3.0), (1.0, 3.0, 3.0), (2.0, 2.0, 2.0)):
+        sol = exact._solve(body, w)
+        for i in range(w.shape[0]):
+            found = [name for name, samples in zip(elliptic.REGIMES, elliptic.regimes(sol.kind[i:i + 1],
+                                                                                      sol.kc[i:i + 1])) if samples.size]
+            assert set(found) <= set(exact.regimes_met(body, w[i:i + 1])), (body, w[i], found)
+    # a scene's spins about the intermediate axis, and about the largest one
+    off = near[:, 0] ** 2 + near[:, 2] ** 2  # a spin within 1e-9 of the separatrix may be on it: that row too
+    assert exact.regimes_met((1.0, 2.0, 3.0), near[(off > 1e-7) & (off < 1e-4)]) == ("hyperbolic",)
+    assert exact.regimes_met((1.0, 2.0, 3.0), [[0.01, 0.02, 1.0], [-0.03, 0.01, 2.0]]) == ("landen",)
+
+
 def test_tumble_checks_kernels_compile_side_by_side_in_the_variants_it_calls(monkeypatch):
     # the jobs' signatures are those check() calls: after a check here, each is among the compiled ones (a drifted
     # signature would have the worker compile a variant the run never loads)
@@ -438,9 +463,11 @@ def test_tumble_checks_kernels_compile_side_by_side_in_the_variants_it_calls(mon
     exact.compile_kernels_side_by_side.cache_clear()
     tumble.check(t, omega, quaternion, moments=(1, 2, 3))
     exact.compile_kernels_side_by_side.cache_clear()
-    check_jobs = side_by_side.CLOSED_FORM["grid"] + side_by_side.ATTITUDE
+    # the spin is near the separatrix: the evaluation's hyperbolic rows only
+    grid_jobs = side_by_side.CLOSED_FORM["grid"] + (side_by_side.ROWS["hyperbolic"],)
+    check_jobs = grid_jobs + side_by_side.ATTITUDE
     assert asked[0] == check_jobs  # first, its own; then exact.omega's on a grid, a subset of it, cached by then
-    assert all(jobs == side_by_side.CLOSED_FORM["grid"] for jobs in asked[1:])
+    assert all(jobs == grid_jobs for jobs in asked[1:])
     for name, signature, _ in check_jobs:
         assert tuple(signature) in compiled_or_cached(side_by_side._dispatcher(name)), name
 

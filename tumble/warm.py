@@ -37,7 +37,11 @@ CALLS = {
     "integrate": _integrate(AUTO_STEPPING),
     "measure": ("tumble.measure and tumble.scan (the closed form and the growth fit)",
                 _BODY + "tumble.measure(body, axis=2, spin=1.0, samples=16)"),
-    "exact": ("tumble.exact.omega on a grid of times", _BODY + "tumble.exact.omega(body, W, np.linspace(0.0, 1.0, 3))"),
+    # a spin of each regime of the evaluation, which compiles a kernel per regime met: near the intermediate axis, near
+    # the largest one, and on the separatrix (exactly, for the moments (3, 5, 6): 6 (6 - 5) w3^2 = 3 (5 - 3) w1^2)
+    "exact": ("tumble.exact.omega on a grid of times",
+              _BODY + "t = np.linspace(0.0, 1.0, 3)\ntumble.exact.omega(body, [[0.01, 1.0, 0.01], [0.01, 0.02, 1.0]], t)\n"
+              "tumble.exact.omega((3.0, 5.0, 6.0), [0.5, 1.0, 0.5], t)"),
     "attitude": ("tumble.exact.attitude", _BODY + "tumble.exact.attitude(body, W, np.linspace(0.0, 1.0, 3))"),
     **{f"integrate-{method}": _integrate(method)
        for method in CHOICES if method not in (AUTO, AUTO_STEPPING)},

@@ -1,8 +1,8 @@
 """Compile the kernels a run needs side by side, one process per core, when numba's cache does not hold them yet.
 
-numba compiles one function at a time in one process (its compiler lock), and the closed form's set-up and evaluation
-take about 1.7 and 2.3 s to compile on the first run after an install (2 cores, AVX-512); on two cores they compile in
-the time of the longer. Each job below compiles one kernel for the exact signature a run calls it with, in this
+numba compiles one function at a time in one process (its compiler lock), and the closed form's set-up and its evaluation's
+rows take about 1.7 s and 0.5-1.3 s a regime to compile on the first run after an install (2 cores, AVX-512); on two
+cores they compile in the time of the longer. Each job below compiles one kernel for the exact signature a run calls it with, in this
 process or in a worker process that writes numba's on-disk cache; the run itself then loads them from the cache. With
 a warm cache nothing is started: whether a kernel is cached is read off the cache's index file (numba's own locator,
 ``NUMBA_CACHE_DIR`` included), a file test per kernel.
@@ -35,19 +35,25 @@ _SHARE = (types.int64, types.int64)  # start, stop: the share of samples (tumble
 # Each job: a kernel, the signature a run calls it with, and about how many seconds it takes to compile alone (2 cores,
 # AVX-512, an empty cache: what compile_side_by_side balances the processes by).
 _SET_UP = ("elliptic.torque_free_solve_share", (_F2, _F2, _F2, _I2, _F1, _F2, _I1, _F2, _I2, _F2, _F2, *_SHARE), 1.7)
-# The evaluation, with the rows of its three regimes (kernels of their own it calls, compiled in the same process).
-_EVALUATE = ("elliptic.torque_free_omega_share", (_I1, _F2, _I2, _F1, _F1, _F2, _F1, _F1, _F2, _I1, _F3, *_SHARE), 2.3)
+#: The evaluation, a kernel per regime (:func:`tumble.kernels.closed_form.elliptic.torque_free_omega`): a run compiles
+#: those of the regimes its samples meet.
+ROWS = {
+    "landen": ("elliptic.omega_landen_share", (_I1, _F2, _I2, _F1, _F1, _F1, _F1, _F2, _I1, _F3, *_SHARE), 0.9),
+    "hyperbolic": ("elliptic.omega_hyperbolic_share", (_I1, _F2, _I2, _F1, _F1, _F2, _F1, _F1, _F2, _I1, _F3, *_SHARE),
+                   1.3),
+    "separatrix": ("elliptic.omega_separatrix_share", (_I1, _F2, _I2, _F1, _F1, _F2, _I1, _F3, *_SHARE), 0.5),
+}
 
-#: The kernels a closed-form scene's run compiles (``tumble.physics.exact``, ``tumble.measure``), by the scene's kind:
-#: name, signature and seconds (see above).
+#: The kernels a closed-form scene's run compiles (``tumble.physics.exact``, ``tumble.measure``) beside the rows, by the
+#: scene's kind: name, signature and seconds (see above).
 CLOSED_FORM = {
-    "exponential": (_EVALUATE, _SET_UP, ("fits.transverse_norms_share", (_F3, _I2, _F2, _F2, *_SHARE), 0.15),
+    "exponential": (_SET_UP, ("fits.transverse_norms_share", (_F3, _I2, _F2, _F2, *_SHARE), 0.15),
                     ("fits.growth_fit_share", (_F2, _I1, _F2, _array(types.float64, 1, readonly=True), types.int64, _F1,
                                                _I1, _CODES, *_SHARE), 0.3)),
-    "periodic": (_EVALUATE, _SET_UP, ("fits.phase_fit_share", (_F2, _I1, _F3, _I2, _array(types.float64, 2, readonly=True),
-                                                            _F1, types.float64, _F1, _F1, _CODES, *_SHARE), 2.1)),
-    "neutral": (_EVALUATE, _SET_UP),  # a degenerate axis: no rate to fit
-    "grid": (_EVALUATE, _SET_UP),  # exact.omega on a time grid, tumble check
+    "periodic": (_SET_UP, ("fits.phase_fit_share", (_F2, _I1, _F3, _I2, _array(types.float64, 2, readonly=True),
+                                                   _F1, types.float64, _F1, _F1, _CODES, *_SHARE), 2.1)),
+    "neutral": (_SET_UP,),  # a degenerate axis: no rate to fit
+    "grid": (_SET_UP,),  # exact.omega on a time grid, tumble check
 }
 
 #: The closed form's attitude (:func:`tumble.physics.exact.attitude`): its rows and its set-up, added to a list of
@@ -132,7 +138,8 @@ def _compile(names):
         _dispatcher(name).compile(_SIGNATURES[name])  # cache=True: numba writes it to its cache
 
 
-_SIGNATURES = {name: signature for jobs in (*CLOSED_FORM.values(), ATTITUDE) for name, signature, _ in jobs}
+_SIGNATURES = {name: signature for jobs in (*CLOSED_FORM.values(), ATTITUDE, ROWS.values())
+               for name, signature, _ in jobs}
 
 if __name__ == "__main__":
     _compile(sys.argv[1:])

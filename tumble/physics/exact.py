@@ -346,16 +346,49 @@ def omega_at(moments, w, t):
     return out
 
 
+#: The regimes of the evaluation (:data:`tumble.kernels.closed_form.elliptic.REGIMES`) a scene's samples meet, by
+#: linear theory's kind: spins perturbed about the intermediate axis lie near the separatrix (the hyperbolic core),
+#: those about the largest or the smallest axis far from it (Landen's). A guess: a regime it leaves out compiles in the
+#: run, later, and changes no result.
+_KIND_REGIMES = {"exponential": ("hyperbolic",), "periodic": ("landen",)}
+
+
 @functools.cache
-def compile_kernels_side_by_side(kind, attitude=False):
+def compile_kernels_side_by_side(kind, attitude=False, regimes=None):
     """Compile the closed form's kernels, and those of the estimators that scenes of ``kind`` (``"exponential"``,
     ``"periodic"`` or ``"neutral"``; ``"grid"``: the closed form on a time grid, as :func:`omega` and ``tumble check``
     run it) run on its samples, side by side where numba's cache lacks them
     (:func:`tumble.kernels.side_by_side.compile_side_by_side`: on two cores :func:`omega`'s first call on a grid after
-    an install takes about half as long); with ``attitude``, the attitude's kernels too (:func:`attitude`, a study
-    drawing one spin's attitude, as ``dzhanibekov_flip``); checked once per process, kind and ``attitude``."""
-    return tuple(_side_by_side.compile_side_by_side(_side_by_side.CLOSED_FORM[kind]
+    an install takes about half as long); the evaluation's rows of ``regimes`` (:func:`regimes_met`; None: those
+    :data:`_KIND_REGIMES` expects of ``kind``, every one for the others); with ``attitude``, the attitude's kernels
+    too (:func:`attitude`, a study drawing one spin's attitude, as ``dzhanibekov_flip``); checked once per process
+    and arguments."""
+    rows = tuple(_side_by_side.ROWS[r] for r in (regimes or _KIND_REGIMES.get(kind, _ell.REGIMES)))
+    return tuple(_side_by_side.compile_side_by_side(_side_by_side.CLOSED_FORM[kind] + rows
                                                     + (_side_by_side.ATTITUDE if attitude else ())))
+
+
+def regimes_met(moments, w):
+    """The regimes of the evaluation (:data:`tumble.kernels.closed_form.elliptic.REGIMES`) that spins ``w`` (n, 3) of
+    the body ``moments`` (3,) meet, estimated in plain floating point before the set-up runs (what
+    :func:`compile_kernels_side_by_side` compiles ahead): ``k'^2`` of :func:`~tumble.kernels.closed_form.elliptic.
+    torque_free_solve`'s set-up from ``L^2 - 2E I2`` without its double-double care, so both sides of a boundary
+    where the estimate is near one (a symmetric body, or a spin on an axis, meets every regime)."""
+    order = np.argsort(moments, kind="stable")
+    I = np.asarray(moments, dtype=float)[order]
+    ws = np.asarray(w, dtype=float).reshape(-1, 3)[:, order]
+    e2 = (I * ws**2).sum(axis=1)
+    L2 = ((I * ws) ** 2).sum(axis=1)
+    d = L2 - e2 * I[1]
+    with np.errstate(all="ignore"):
+        Ip, Iq = np.where(d >= 0.0, I[2], I[0]), np.where(d >= 0.0, I[0], I[2])
+        kc2 = np.abs(Ip - Iq) * np.abs(d) / (np.abs(Ip - I[1]) * np.abs(L2 - e2 * Iq))
+    unsure = ~np.isfinite(kc2)
+    near = _ell.KC_HYPERBOLIC**2
+    met = (("landen", bool(np.any(unsure | (kc2 >= 0.8 * near)))),
+           ("hyperbolic", bool(np.any(unsure | (kc2 < 1.25 * near)))),
+           ("separatrix", bool(np.any(unsure | (np.abs(d) <= 1e-9 * L2)))))
+    return tuple(name for name, meets in met if meets)
 
 
 
@@ -539,8 +572,9 @@ def _omega_grid(body, w0, tt):
     """:func:`omega` on the time grid ``tt`` (validated, 1-d): :func:`omega_apart`, its kernels compiled side by side
     where numba's cache lacks them (:func:`compile_kernels_side_by_side`)."""
     w = spin_vectors(w0)
-    compile_kernels_side_by_side("grid")
-    out = omega_apart(one_body(body), np.ascontiguousarray(w.reshape(-1, 3)), np.ascontiguousarray(tt))
+    moments = one_body(body)
+    compile_kernels_side_by_side("grid", regimes=regimes_met(moments, w))
+    out = omega_apart(moments, np.ascontiguousarray(w.reshape(-1, 3)), np.ascontiguousarray(tt))
     return out.reshape(w.shape[:-1] + out.shape[1:])
 
 
@@ -841,7 +875,7 @@ def attitude(body, w0, t):
     tt = _check_t(t)
     moments = one_body(body)
     w = np.ascontiguousarray(spin_vectors(w0).reshape(-1, 3))
-    compile_kernels_side_by_side("grid", attitude=True)
+    compile_kernels_side_by_side("grid", attitude=True, regimes=regimes_met(moments, w))
     sol = _solve(body, w0)
     times = np.ascontiguousarray(np.atleast_1d(tt))
     out = attitude_rows(np.broadcast_to(moments, w.shape), w, sol, times)

@@ -85,8 +85,8 @@ from ..jit import jit, subroutine
 from ..threads import in_parallel
 from ..trig import _C1, _C2, _C3, _C4, _C5, _C6, _S1, _S2, _S3, _S4, _S5, _S6, _floor, _fma, _max, _min
 
-__all__ = ["KC_HYPERBOLIC", "TINY_TRANSVERSE", "agm", "carlson_rf", "complete_integrals", "hyperbolic_nome", "jacobi_sncndn", "torque_free_omega",
-           "torque_free_omega_at", "torque_free_solve"]
+__all__ = ["KC_HYPERBOLIC", "TINY_TRANSVERSE", "agm", "carlson_rf", "complete_integrals", "hyperbolic_nome", "jacobi_sncndn", "regimes",
+           "torque_free_omega", "torque_free_omega_at", "torque_free_solve"]
 
 #: Below this complementary modulus the hyperbolic series is used (11 terms a side just below 0.5, 3 at
 #: k' = 1e-3, 2 at 1e-8); above it the Landen/AGM recursion (<= 6 steps), whose ``cn`` on
@@ -961,22 +961,33 @@ def _sech_tanh(v):
 @jit(inline=True)
 def _omega_row(kind, k_c, K, h, q, phase0, nu, t, o, W):
     """One sample of :func:`torque_free_omega` at the times ``t``, into its flattened row ``o`` (``W``: its
-    :func:`_column_weights`)."""
+    :func:`_column_weights`), whatever its regime (the device's kernels; the CPU runs one kernel per regime)."""
     if kind == KIND_ELLIPTIC:
         if k_c >= KC_HYPERBOLIC:
-            kap, quarter_m, P = _landen_constants(k_c)
-            _omega_row_landen(phase0, nu, t, K, k_c, kap, quarter_m, P, o, W)
+            _landen_row(k_c, K, phase0, nu, t, o, W)
         else:
-            k = math.sqrt((1.0 - k_c) * (1.0 + k_c))
-            beta = 2.0 * K * h  # = pi K / K'
-            dcoef, ccoef, scoef = _series_constants(q)
-            _omega_row_hyperbolic(phase0, nu, t, K, k_c, h, h / k, q, dcoef, ccoef, scoef, o, W,
-                                  beta >= BETA_SHORT_SERIES)
+            _hyperbolic_row(k_c, K, h, q, phase0, nu, t, o, W)
     elif kind == KIND_SEPARATRIX:
         _omega_row_separatrix(phase0, nu, t, o, W)
     else:
         for j in range(t.shape[0]):
             _store(o, j, W, 1.0, 1.0, 1.0)
+
+
+@jit(inline=True)
+def _landen_row(k_c, K, phase0, nu, t, o, W):
+    """An elliptic sample with ``k' >= KC_HYPERBOLIC``: its constants, then :func:`_omega_row_landen`."""
+    kap, quarter_m, P = _landen_constants(k_c)
+    _omega_row_landen(phase0, nu, t, K, k_c, kap, quarter_m, P, o, W)
+
+
+@jit(inline=True)
+def _hyperbolic_row(k_c, K, h, q, phase0, nu, t, o, W):
+    """An elliptic sample with ``k' < KC_HYPERBOLIC``: its constants, then :func:`_omega_row_hyperbolic`."""
+    k = math.sqrt((1.0 - k_c) * (1.0 + k_c))
+    beta = 2.0 * K * h  # = pi K / K'
+    dcoef, ccoef, scoef = _series_constants(q)
+    _omega_row_hyperbolic(phase0, nu, t, K, k_c, h, h / k, q, dcoef, ccoef, scoef, o, W, beta >= BETA_SHORT_SERIES)
 
 
 @jit(inline=True)
@@ -991,9 +1002,11 @@ def _count_non_finite(o):
 def torque_free_omega(kind, amp, cols, kc, K, nome, phase0, nu, times, row, out):
     """Body-frame angular velocity of the free rigid body, sample by sample (Landau & Lifshitz §37).
 
-    Samples run in parallel; each sample's time loop is straight-line code that LLVM vectorises across
-    times (module docstring, "Vectorised evaluation"). The value at one (sample, time) does not depend on
-    the other samples, rows or times of the call.
+    Samples run in parallel, one kernel per regime met (:func:`regimes`: the Landen and hyperbolic cores, the
+    separatrix; a stationary sample's constant components are written here): a first call compiles the rows of the
+    regimes its samples meet, no other. Each sample's time loop is straight-line code that LLVM vectorises across
+    times (module docstring, "Vectorised evaluation"). The value at one (sample, time) does not depend on the other
+    samples, rows or times of the call.
 
     Parameters
     ----------
@@ -1026,22 +1039,76 @@ def torque_free_omega(kind, amp, cols, kc, K, nome, phase0, nu, times, row, out)
     int
         The number of samples with a non-finite value (0 unless something is wrong).
     """
-    return in_parallel(torque_free_omega_share, kind.shape[0], kind, amp, cols, kc, K, nome, phase0, nu, times, row,
-                       out)
+    landen, hyperbolic, separatrix, stationary = regimes(kind, kc)
+    non_finite = 0
+    if landen.shape[0]:
+        non_finite += in_parallel(omega_landen_share, landen.shape[0], landen, amp, cols, kc, K, phase0, nu, times,
+                                  row, out)
+    if hyperbolic.shape[0]:
+        non_finite += in_parallel(omega_hyperbolic_share, hyperbolic.shape[0], hyperbolic, amp, cols, kc, K, nome,
+                                  phase0, nu, times, row, out)
+    if separatrix.shape[0]:
+        non_finite += in_parallel(omega_separatrix_share, separatrix.shape[0], separatrix, amp, cols, phase0, nu,
+                                  times, row, out)
+    if stationary.shape[0]:  # the constant components, each in its column: _store's sum with the functions all 1
+        values = np.zeros((stationary.shape[0], 3))
+        values[np.arange(stationary.shape[0])[:, None], cols[stationary]] = amp[stationary]
+        values += 0.0  # as the kernels' sums of the amplitude and two zero products (-0.0 -> 0.0)
+        out[stationary] = values[:, None, :]
+        non_finite += int(np.count_nonzero(~np.isfinite(values).all(axis=1)))
+    return non_finite
+
+
+#: The regimes of :func:`torque_free_omega`, each evaluated by a kernel of its own (:func:`regimes`' order).
+REGIMES = ("landen", "hyperbolic", "separatrix")
+
+
+def regimes(kind, kc):
+    """The samples of each regime: ``(landen, hyperbolic, separatrix, stationary)`` index arrays (int64), elliptic
+    samples by ``k'`` (:data:`KC_HYPERBOLIC`), as :func:`_omega_row` chooses."""
+    elliptic = kind == KIND_ELLIPTIC
+    landen = elliptic & (kc >= KC_HYPERBOLIC)
+    return (np.flatnonzero(landen), np.flatnonzero(elliptic & ~landen), np.flatnonzero(kind == KIND_SEPARATRIX),
+            np.flatnonzero((kind != KIND_ELLIPTIC) & (kind != KIND_SEPARATRIX)))
 
 
 @jit
-def torque_free_omega_share(kind, amp, cols, kc, K, nome, phase0, nu, times, row, out, start, stop):
-    """The samples ``start:stop`` of :func:`torque_free_omega` (one share of :func:`tumble.kernels.threads.in_parallel`):
-    the count of samples with a non-finite value."""
+def omega_landen_share(index, amp, cols, kc, K, phase0, nu, times, row, out, start, stop):
+    """The samples ``index[start:stop]`` of :func:`torque_free_omega` in the Landen regime (one share of
+    :func:`tumble.kernels.threads.in_parallel`): the count of samples with a non-finite value."""
     rows = out.reshape(out.shape[0], 3 * out.shape[1])  # (n, T, 3) -> (n, 3T), a view
     non_finite = 0
-    for i in range(start, stop):
-        t = times[row[i]]
-        o = rows[i]
+    for n in range(start, stop):
+        i = index[n]
         W = _column_weights(cols[i, 0], cols[i, 1], cols[i, 2], amp[i, 0], amp[i, 1], amp[i, 2])
-        _omega_row(kind[i], kc[i], K[i], nome[0, i], nome[1, i], phase0[i], nu[i], t, o, W)
-        non_finite += _count_non_finite(o)
+        _landen_row(kc[i], K[i], phase0[i], nu[i], times[row[i]], rows[i], W)
+        non_finite += _count_non_finite(rows[i])
+    return non_finite
+
+
+@jit
+def omega_hyperbolic_share(index, amp, cols, kc, K, nome, phase0, nu, times, row, out, start, stop):
+    """As :func:`omega_landen_share`, the samples in the hyperbolic regime (elliptic, ``k' < KC_HYPERBOLIC``)."""
+    rows = out.reshape(out.shape[0], 3 * out.shape[1])
+    non_finite = 0
+    for n in range(start, stop):
+        i = index[n]
+        W = _column_weights(cols[i, 0], cols[i, 1], cols[i, 2], amp[i, 0], amp[i, 1], amp[i, 2])
+        _hyperbolic_row(kc[i], K[i], nome[0, i], nome[1, i], phase0[i], nu[i], times[row[i]], rows[i], W)
+        non_finite += _count_non_finite(rows[i])
+    return non_finite
+
+
+@jit
+def omega_separatrix_share(index, amp, cols, phase0, nu, times, row, out, start, stop):
+    """As :func:`omega_landen_share`, the samples on the separatrix."""
+    rows = out.reshape(out.shape[0], 3 * out.shape[1])
+    non_finite = 0
+    for n in range(start, stop):
+        i = index[n]
+        W = _column_weights(cols[i, 0], cols[i, 1], cols[i, 2], amp[i, 0], amp[i, 1], amp[i, 2])
+        _omega_row_separatrix(phase0[i], nu[i], times[row[i]], rows[i], W)
+        non_finite += _count_non_finite(rows[i])
     return non_finite
 
 
