@@ -294,6 +294,20 @@ def first_call(link):
         "", sources(["first_call"], link)]
 
 
+def first_call_targets(link):
+    """The README's short form of :func:`first_call`: the calls the targets hold, and the floor under them."""
+    d = results("first_call")
+    targets = d["targets_seconds"]
+    names = {"integrate rk4": "`integrate` (rk4)", "integrate System": "`integrate` of your own `System`",
+             "floor: one numba kernel": "floor: one cached numba kernel, no tumble"}
+    rows = [(names.get(r["name"], f"`{r['name']}`"), seconds(r["empty_s"]), seconds(r["warm_s"]),
+             " / ".join(f"{t:.3g} s" for t in targets[r["name"]]) if r["name"] in targets else "")
+            for r in d["rows"] if r["name"] in targets or r["name"] in names]
+    return table(("first call in a new process", "empty numba cache", "warm cache", "target (empty / warm)"),
+                 rows) + ["", "The warm target is the floor plus a quarter of a second. "
+                          + sources(["first_call"], link)]
+
+
 def suite(link):
     """The README's Quickstart: what each of its commands runs, and what it costs on an empty and a warm cache."""
     d = results("suite")
@@ -393,7 +407,7 @@ def user_systems(link):
 TABLES = {"headline": headline, "results": results_index, "engine": engine, "roofline": roofline,
           "torque-paths": torque_paths, "overhead": overhead, "work-precision": work_precision,
           "closed-form": closed_form, "stress": stress, "stress-limits": stress_limits, "chaos": chaos,
-          "first-call": first_call, "latency": latency, "attitude": attitude, "models": models, "scans": scans,
+          "first-call": first_call, "first-call-targets": first_call_targets, "latency": latency, "attitude": attitude, "models": models, "scans": scans,
           "scale-out": scale_out, "user-systems": user_systems, "suite": suite}
 
 

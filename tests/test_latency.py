@@ -446,6 +446,18 @@ def test_the_rows_compiled_ahead_are_those_of_the_regimes_the_set_up_meets():
     assert exact.regimes_met((1.0, 2.0, 3.0), [[0.01, 0.02, 1.0], [-0.03, 0.01, 2.0]]) == ("landen",)
 
 
+def test_a_call_estimates_the_regimes_to_compile_only_while_the_set_up_has_not_run(monkeypatch):
+    # the estimate costs about 50 us a call: once the set-up has run in the process, no call pays it again
+    import numpy as np
+
+    from tumble.physics import exact
+
+    exact.omega((1.0, 2.0, 3.0), [0.01, 1.0, 0.01], np.linspace(0.0, 1.0, 3))  # the set-up has run
+    monkeypatch.setattr(exact, "regimes_met", lambda *args: pytest.fail("estimated again"))
+    assert exact.regimes_to_compile((1.0, 2.0, 3.0), np.array([[0.01, 0.02, 1.0]])) == ()
+    exact.omega((1.0, 2.0, 3.0), [0.01, 0.02, 1.0], np.linspace(0.0, 1.0, 3))
+
+
 def test_tumble_checks_kernels_compile_side_by_side_in_the_variants_it_calls(monkeypatch):
     # the jobs' signatures are those check() calls: after a check here, each is among the compiled ones (a drifted
     # signature would have the worker compile a variant the run never loads)
@@ -460,6 +472,7 @@ def test_tumble_checks_kernels_compile_side_by_side_in_the_variants_it_calls(mon
     omega, quaternion = exact.omega((1.0, 2.0, 3.0), w0, t), exact.attitude((1.0, 2.0, 3.0), w0, t)
     asked = []
     monkeypatch.setattr(exact._side_by_side, "compile_side_by_side", lambda jobs: asked.append(jobs) or [])
+    monkeypatch.setattr(exact, "regimes_to_compile", exact.regimes_met)  # as in a process whose set-up never ran
     exact.compile_kernels_side_by_side.cache_clear()
     tumble.check(t, omega, quaternion, moments=(1, 2, 3))
     exact.compile_kernels_side_by_side.cache_clear()

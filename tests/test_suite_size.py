@@ -43,7 +43,7 @@ BUDGET = {
     "test_integrators.py": 102,
     "test_io.py": 26,
     "test_kind_names.py": 5,
-    "test_latency.py": 38,
+    "test_latency.py": 39,
     "test_layers.py": 145,
     "test_layout.py": 60,
     "test_memory.py": 1,

@@ -1,11 +1,11 @@
 """Compile the kernels a run needs side by side, one process per core, when numba's cache does not hold them yet.
 
-numba compiles one function at a time in one process (its compiler lock), and the closed form's set-up and its evaluation's
-rows take about 1.7 s and 0.5-1.3 s a regime to compile on the first run after an install (2 cores, AVX-512); on two
-cores they compile in the time of the longer. Each job below compiles one kernel for the exact signature a run calls it with, in this
-process or in a worker process that writes numba's on-disk cache; the run itself then loads them from the cache. With
-a warm cache nothing is started: whether a kernel is cached is read off the cache's index file (numba's own locator,
-``NUMBA_CACHE_DIR`` included), a file test per kernel.
+numba compiles one function at a time in one process (its compiler lock), and the closed form's set-up and its
+evaluation's rows take about 2 s and 0.5-1.5 s a regime to compile on the first run after an install (2 cores,
+AVX-512); on two cores they compile in the time of the longer. Each job below compiles one kernel for the exact
+signature a run calls it with, in this process or in a worker process that writes numba's on-disk cache; the run
+itself then loads them from the cache. With a warm cache nothing is started: whether a kernel is cached is read off
+the cache's index file (numba's own locator, ``NUMBA_CACHE_DIR`` included), a file test per kernel.
 
 Nothing here changes a result: a kernel a job did not compile (a signature that drifted from the run's, a cache
 that cannot be written, a worker that failed) is compiled by the run as it would have been, only later.

@@ -275,7 +275,7 @@ def check(t, omega=None, quaternion=None, *, moments=None, inertia=None, omega_f
     w0 = omega[0]
     tau = t - t[0]
     exact.compile_kernels_side_by_side("grid", attitude=quaternion is not None,  # a cold cache: two processes
-                                       regimes=exact.regimes_met(moments, w0))
+                                       regimes=exact.regimes_to_compile(moments, w0))
     w_exact = exact.omega(moments, w0, tau)
     series = _drifts(moments, omega, quaternion, w_exact, tau)
     flips = _flip_record(moments, tau, omega, w_exact)

@@ -359,13 +359,21 @@ def compile_kernels_side_by_side(kind, attitude=False, regimes=None):
     ``"periodic"`` or ``"neutral"``; ``"grid"``: the closed form on a time grid, as :func:`omega` and ``tumble check``
     run it) run on its samples, side by side where numba's cache lacks them
     (:func:`tumble.kernels.side_by_side.compile_side_by_side`: on two cores :func:`omega`'s first call on a grid after
-    an install takes about half as long); the evaluation's rows of ``regimes`` (:func:`regimes_met`; None: those
-    :data:`_KIND_REGIMES` expects of ``kind``, every one for the others); with ``attitude``, the attitude's kernels
-    too (:func:`attitude`, a study drawing one spin's attitude, as ``dzhanibekov_flip``); checked once per process
-    and arguments."""
-    rows = tuple(_side_by_side.ROWS[r] for r in (regimes or _KIND_REGIMES.get(kind, _ell.REGIMES)))
+    an install takes about half as long); the evaluation's rows of ``regimes`` (a call's own spins:
+    :func:`regimes_to_compile`; None: those :data:`_KIND_REGIMES` expects of ``kind``, every one for the others); with
+    ``attitude``, the attitude's kernels too (:func:`attitude`, a study drawing one spin's attitude, as
+    ``dzhanibekov_flip``); checked once per process and arguments."""
+    if regimes is None:
+        regimes = _KIND_REGIMES.get(kind, _ell.REGIMES)
+    rows = tuple(_side_by_side.ROWS[r] for r in regimes)
     return tuple(_side_by_side.compile_side_by_side(_side_by_side.CLOSED_FORM[kind] + rows
                                                     + (_side_by_side.ATTITUDE if attitude else ())))
+
+
+def regimes_to_compile(moments, w):
+    """:func:`regimes_met` while the set-up has not run in this process (a first call: what to compile ahead), else
+    none (its 50 us would be paid by every call; a regime met later compiles in its run)."""
+    return () if _ell.torque_free_solve_share.overloads else regimes_met(moments, w)
 
 
 def regimes_met(moments, w):
@@ -389,7 +397,6 @@ def regimes_met(moments, w):
            ("hyperbolic", bool(np.any(unsure | (kc2 < 1.25 * near)))),
            ("separatrix", bool(np.any(unsure | (np.abs(d) <= 1e-9 * L2)))))
     return tuple(name for name, meets in met if meets)
-
 
 
 def flip_spacings(sol):
@@ -573,7 +580,7 @@ def _omega_grid(body, w0, tt):
     where numba's cache lacks them (:func:`compile_kernels_side_by_side`)."""
     w = spin_vectors(w0)
     moments = one_body(body)
-    compile_kernels_side_by_side("grid", regimes=regimes_met(moments, w))
+    compile_kernels_side_by_side("grid", regimes=regimes_to_compile(moments, w))
     out = omega_apart(moments, np.ascontiguousarray(w.reshape(-1, 3)), np.ascontiguousarray(tt))
     return out.reshape(w.shape[:-1] + out.shape[1:])
 
@@ -875,7 +882,7 @@ def attitude(body, w0, t):
     tt = _check_t(t)
     moments = one_body(body)
     w = np.ascontiguousarray(spin_vectors(w0).reshape(-1, 3))
-    compile_kernels_side_by_side("grid", attitude=True, regimes=regimes_met(moments, w))
+    compile_kernels_side_by_side("grid", attitude=True, regimes=regimes_to_compile(moments, w))
     sol = _solve(body, w0)
     times = np.ascontiguousarray(np.atleast_1d(tt))
     out = attitude_rows(np.broadcast_to(moments, w.shape), w, sol, times)
