@@ -40,7 +40,7 @@ CALLS = {
     # a spin of each regime of the evaluation, which compiles a kernel per regime met: near the intermediate axis, near
     # the largest one, and on the separatrix (exactly, for the moments (3, 5, 6): 6 (6 - 5) w3^2 = 3 (5 - 3) w1^2)
     "exact": ("tumble.exact.omega on a grid of times",
-              _BODY + "t = np.linspace(0.0, 1.0, 3)\ntumble.exact.omega(body, [[0.01, 1.0, 0.01], [0.01, 0.02, 1.0]], t)\n"
+              _BODY + "t = np.linspace(0.0, 1.0, 3)\ntumble.exact.omega(body, [[0.01, 1.0, 0.01], [0.01, 0.02, 1.0]], t); "
               "tumble.exact.omega((3.0, 5.0, 6.0), [0.5, 1.0, 0.5], t)"),
     "attitude": ("tumble.exact.attitude", _BODY + "tumble.exact.attitude(body, W, np.linspace(0.0, 1.0, 3))"),
     **{f"integrate-{method}": _integrate(method)
