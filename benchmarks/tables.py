@@ -294,20 +294,6 @@ def first_call(link):
         "", sources(["first_call"], link)]
 
 
-def first_call_targets(link):
-    """The README's short form of :func:`first_call`: the calls the targets hold, and the floor under them."""
-    d = results("first_call")
-    targets = d["targets_seconds"]
-    names = {"integrate rk4": "`integrate` (rk4)", "integrate System": "`integrate` of your own `System`",
-             "floor: one numba kernel": "floor: one cached numba kernel, no tumble"}
-    rows = [(names.get(r["name"], f"`{r['name']}`"), seconds(r["empty_s"]), seconds(r["warm_s"]),
-             " / ".join(f"{t:.3g} s" for t in targets[r["name"]]) if r["name"] in targets else "")
-            for r in d["rows"] if r["name"] in targets or r["name"] in names]
-    return table(("first call in a new process", "empty numba cache", "warm cache", "target (empty / warm)"),
-                 rows) + ["", "The warm target is the floor plus a quarter of a second. "
-                          + sources(["first_call"], link)]
-
-
 def suite(link):
     """The README's Quickstart: what each of its commands runs, and what it costs on an empty and a warm cache."""
     d = results("suite")
@@ -318,8 +304,14 @@ def suite(link):
 
     rows = [(f"`{command}`", row["runs"] + (f" ({tests(row)})" if tests(row) else ""), seconds(row.get("cold_s")),
              seconds(row["warm_s"])) for command, row in d["commands"].items()]
+    # and the Python API's first calls that issue 58's targets hold (benchmarks/first_call.py), each in a new process
+    calls = results("first_call")
+    calls_named = {"integrate rk4": "`tumble.integrate` (rk4)", "exact.omega": "`tumble.exact.omega`",
+                   "measure": "`tumble.measure`", "integrate System": "`tumble.integrate` of your own `System`"}
+    rows += [(calls_named[r["name"]], "its first call in a new process", seconds(r["empty_s"]), seconds(r["warm_s"]))
+             for r in calls["rows"] if r["name"] in calls_named]
     return table(("command", "runs", "first time (empty numba cache)", "again (warm cache)"), rows) + [
-        "", sources(["suite"], link)]
+        "", sources(["suite", "first_call"], link)]
 
 
 def latency(link):
@@ -407,7 +399,7 @@ def user_systems(link):
 TABLES = {"headline": headline, "results": results_index, "engine": engine, "roofline": roofline,
           "torque-paths": torque_paths, "overhead": overhead, "work-precision": work_precision,
           "closed-form": closed_form, "stress": stress, "stress-limits": stress_limits, "chaos": chaos,
-          "first-call": first_call, "first-call-targets": first_call_targets, "latency": latency, "attitude": attitude, "models": models, "scans": scans,
+          "first-call": first_call, "latency": latency, "attitude": attitude, "models": models, "scans": scans,
           "scale-out": scale_out, "user-systems": user_systems, "suite": suite}
 
 
