@@ -44,7 +44,7 @@ BUDGET = {
     "test_io.py": 26,
     "test_kind_names.py": 5,
     "test_latency.py": 39,
-    "test_layers.py": 145,
+    "test_layers.py": 146,
     "test_layout.py": 60,
     "test_memory.py": 1,
     "test_model_equations.py": 6,

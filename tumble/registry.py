@@ -310,6 +310,7 @@ class Model(NamedTuple):
     equations: str = ""  # the module of tumble/physics/models/ that holds its equations ("": the one named as the kind)
     splitting: str = ""  # the Lie–Poisson splitting that steps it (kernels.steps.model_splittings): "rotor" (the
     # sub-flows turn L = I w + h), "gravity" (they turn L and g together, gravity kicks L); "": none
+    rate: str = "rate"  # the function of its equations module its error-controlled step calls (``rate(t, *y, c)``)
 
     @property
     def parameters(self):
@@ -346,7 +347,7 @@ STATE_BLOCKS = (
 #: Every model, the default first: one row each, its parameters' rows inside it.
 MODELS = (
     Model("free", (), ("w1", "w2", "w3"), ("energy", "momentum_squared"), True, True,  # the gyrostat with no rotor
-          "torque-free rigid body: I w' = (I w) x w", equations="gyrostat", splitting="rotor"),
+          "torque-free rigid body: I w' = (I w) x w", equations="gyrostat", splitting="rotor", rate="free_rate"),
     Model("gyrostat", (
         ModelParameter("rotor", 3, "N m s", False,
                        "gyrostat: rotor angular momentum relative to the body, body frame",

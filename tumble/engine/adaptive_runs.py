@@ -170,16 +170,17 @@ def checked_scalars(t_end, first_step, max_steps):
     return t_end, h0, int(limit)
 
 
-#: Built-in models' error-controlled drivers, by (system module, the user's surface or None): each a driver of its
-#: model's own trial step (:func:`tumble.kernels.adaptive_blocks.for_model`, cached on disk with the component surface).
+#: Built-in models' error-controlled drivers, by (system module, rate, the user's surface or None): each a driver of its
+#: model's own attempt (:func:`tumble.kernels.loops.adaptive_blocks.for_model`, cached on disk with the component
+#: surface).
 _MODEL_KERNELS = {}
 
 
 def _kernel(system, surface, parameters):
     """``(drive, p, a, path)``: the CPU driver of ``system``'s error-controlled run (with the user's ``surface``
     function, or the component surface for None), its per-sample rate's parameter array (None: a System's own values),
-    the block steps' constants and how its samples run: a built-in model's block driver of its own trial step
-    (:func:`tumble.kernels.adaptive_blocks.for_model`, cached on disk but over a user's surface), a System's made once
+    the block steps' constants and how its samples run: a built-in model's block driver of its own attempt
+    (:func:`tumble.kernels.loops.adaptive_blocks.for_model`, cached on disk but over a user's surface), a System's made once
     per process and kept with its compiled rate, stepping a block's lanes at once where its rate has a scalar form
     (:func:`tumble.engine.system_runs.block_code`), else one sample at a time."""
     if isinstance(system, System):
@@ -192,16 +193,17 @@ def _kernel(system, surface, parameters):
             keyed = None if keyed is None else f"sample_{keyed}"
             made[key] = (adaptive_loop.make_dop853_driver(adaptive_loop.make_dop853_sample(rate, surface, keyed), keyed)
                          if code is None else
-                         adaptive_blocks.specialised(system_steps.block_trial(code), rate, surface,
+                         adaptive_blocks.specialised(system_steps.block_attempt(code), rate, surface,
                                                      f"{code:x}" if surface is None and system_steps.cacheable(code)
                                                      else None))
         a = np.zeros(0) if code is None else system_steps.block_constants(system.parameter_values(parameters))
         return made[key], None, a, "per-sample loop" if code is None else "vectorised blocks"
     p = rate_sample_parameters(system.kind, system.moments, system.parameters)
-    key = (registry.model_kind(system.kind).equations_module, surface)
+    model = registry.model_kind(system.kind)
+    key = (model.equations_module, model.rate, surface)
     if key not in _MODEL_KERNELS:
         _MODEL_KERNELS[key] = adaptive_blocks.for_model(*key)
-    return _MODEL_KERNELS[key], p, p[1:], "vectorised blocks"  # the trial's constants: the parameters after the code
+    return _MODEL_KERNELS[key], p, p[1:], "vectorised blocks"  # the attempt's constants: the parameters after the code
 
 
 #: (rate, surface, state size, parameters) -> the device's driver of an error-controlled run (made once per process).

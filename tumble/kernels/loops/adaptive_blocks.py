@@ -1,20 +1,21 @@
 """The error-controlled run stepped in blocks of lanes: each lane its own sample, time and step, vectorised across them.
 
-:func:`run_share` steps a share of the samples in a block of :data:`BLOCK` lanes: ``trial(lane_t, lane_h, ys, ks, y1s,
-k1s, err, rtol, atol, a)`` (generated, :func:`tumble.kernels.steps.model_codegen.trial_source`) makes every lane's
-trial step at once, vectorised across the lanes; the loop then accepts or rejects each lane (Hairer's control, as
-:func:`tumble.kernels.loops.adaptive_loop.make_dop853_sample`), masks the lanes that are done (their trial step is 0),
-and reads the output times and a section's crossings off a lane's dense output, its stages made again one sample at a
+:func:`run_share` steps a share of the samples in a block of :data:`BLOCK` lanes: ``attempt(block, rtol, atol, a)``
+(generated, :func:`tumble.kernels.steps.model_codegen.attempt_source`) tries every lane's step at once and keeps it or
+not (Hairer's control, :func:`tumble.kernels.steps.control.next_step`, as one sample's loop does), each lane's state in
+registers from its load to its store, vectorised across the lanes; the loop masks the lanes that are done (their step
+is 0) and reads the output times and a section's crossings off a lane's dense output, its stages made again one
+sample at a
 time by ``rate(t, y, p, dydt)`` (where a step holds one). A lane whose sample is done takes the share's next sample at
 once, so that samples of few steps and of many share the block's work (a block that waited for its slowest sample
 stepped a third of its lanes idle on an eccentric orbit's ensemble); each sample's steps are the same whichever lane
 runs it.
 
-The functions here are written once, over the module's globals ``trial``, ``rate`` and ``surface``, and run as copies
+The functions here are written once, over the module's globals ``attempt``, ``rate`` and ``surface``, and run as copies
 with those in their globals (:func:`specialised`, :func:`tumble.kernels.jit.rebound`; numba's cache cannot key a
-function by another it is handed): a built-in model's (:func:`for_model`: its own generated trial step, the models'
+function by another it is handed): a built-in model's (:func:`for_model`: its own generated attempt, the models'
 :func:`~tumble.kernels.steps.model_steps.rate_sample` and the component surface, cached on disk under the model's
-system module, so that a model compiles its own trial step and no other), a System's (its generated trial and rate),
+system module, so that a model compiles its own attempt and no other), a System's (its generated attempt and rate),
 or either with a user's surface (compiled in the process that asks).
 """
 
@@ -24,35 +25,29 @@ import numpy as np
 
 from ...registry import STATUS_LIMIT, STATUS_NONFINITE, STATUS_OK, STATUS_UNDERFLOW
 from ..jit import jit, rebound
-from ..steps import model_steps
-from .adaptive_loop import (_C, _FAC1, _FAC2, _SAFE, _STAGES, _UROUND, SCRATCH_ROWS, _crossing, _dense, _first_step,
-                            _interpolant, _root8, _stage)
+from ..steps import model_codegen, model_steps
+from ..steps.control import (ACCEPTED, ACTIVE, BLOCK, G0, H, KEPT, LAST_REJECTED, NEXT_OUT, STATES, T, T_NEW, T_PREV,
+                             TRIAL_H, TRIES)
+from .adaptive_loop import (_C, _STAGES, _UROUND, SCRATCH_ROWS, _crossing, _dense, _first_step, _interpolant,
+                            _stage)
 from .adaptive_loop import component_surface as surface
-from ..tableaux import DOP853
 from ..threads import in_shares
-from ..trig import _max, _min
 
-__all__ = ["BLOCK", "for_model", "specialised"]
+__all__ = ["BLOCK", "for_model", "specialised"]  # BLOCK: tumble.kernels.steps.control's
 
-# What the templates read, until a copy reads its own (specialised): the trial and the rate are always the copy's.
-trial = None
+# What the templates read, until a copy reads its own (specialised): the attempt and the rate are always the copy's.
+attempt = None
 rate = None
 
-#: Lanes of a block: a sample's share steps in one block whose lanes take the next sample as theirs is done.
-BLOCK = 32
-
-# The rows of a block's lane numbers (``lanes``, float): each lane's time, step, trial step (0: done), whether it steps,
-# whether its last step was rejected, whether this one was accepted, the time it reaches, its next output time, its
-# surface's value, its error, its steps tried and accepted; and of its counters (int): its next output, its sample (-1:
-# none), its crossings. Helpers index the rows (a row's view would cost reference counts on every call).
-_T, _H, _TRIAL_H, _ACTIVE, _LAST_REJECTED, _ACCEPTED_NOW, _T_NEW, _NEXT_OUT, _G0, _ERR, _TRIES, _ACCEPTED = range(12)
+# The rows of a block's counters (``counters``, int): each lane's next output, its sample (-1: none), its crossings.
+# The block's numbers (``block``) are laid out as :mod:`tumble.kernels.steps.control` says.
 _SLOT, _OWNER, _CROSSED = range(3)
 
 
 @jit(inline=True, cache=False, contract=False)
 def _stages(rate, y0, p, t, h, k, stage):
     """The step's stages ``k[1..12]`` from ``y0`` at ``t`` over ``h`` (``k[0]`` given): what a lane's dense output
-    needs beyond the trial step, which keeps its stages in registers."""
+    needs beyond the attempt, which keeps its stages in registers."""
     for s in range(1, _STAGES + 1):
         _stage(s, y0, h, k, stage)
         rate(t + _C[s] * h, stage, p, k[s])
@@ -61,30 +56,31 @@ def _stages(rate, y0, p, t, h, k, stage):
 @jit(inline=True)
 def _stops(active, tries, h, t, max_steps):
     """Whether an active lane stops before its next try: its steps are used up, or its step cannot advance ``t``."""
-    return active != 0.0 and (tries >= max_steps or not 0.1 * h > abs(t) * _UROUND)
+    return (active != 0.0) & ((tries >= max_steps) | ~(0.1 * h > abs(t) * _UROUND))
 
 
 @jit(contract=False, refcounts=False)
-def _lane_extras(i, s, ys, ks, y1s, p, ti, hi, tn, times, out, slot, next_out, g0, crossed, component, value,
-                 direction, most, crossing_t, crossing_y, k, stage, y0, y1, f):
+def _lane_extras(i, s, y0s, k0s, ys, p, block, times, out, slot, crossed, component, value, direction, most,
+                 crossing_t, crossing_y, k, stage, y0, y1, f):
     # size: one lane's accepted step's outputs and crossing, with the scratch they are made in
-    """Lane ``i``'s (sample ``s``'s) accepted step ``(ti, ti + hi = tn)``: the surface's crossing and the output
-    times in it, from the dense output (its stages made again, one sample); an output time at ``tn`` itself is
-    ``y1``."""
+    """Lane ``i``'s (sample ``s``'s) kept step ``(ti, ti + hi = tn)`` from ``y0s`` to ``ys``: the surface's crossing
+    and the output times in it, from the dense output (its stages made again, one sample); an output time at ``tn``
+    itself is ``y1``."""
     n = ys.shape[0]
+    ti, hi, tn = block[T_PREV + i], block[TRIAL_H + i], block[T_NEW + i]
     for j in range(n):
-        y0[j] = ys[j, i]
-        y1[j] = y1s[j, i]
-    before = g0[i]
+        y0[j] = y0s[j, i]
+        y1[j] = ys[j, i]
+    before = block[G0 + i]
     g1 = 0.0
     crossing = False
     if most > 0:
         g1 = surface(tn, y1, p, component, value)
         crossing = (direction >= 0.0 and before < 0.0 <= g1) or (direction <= 0.0 and before > 0.0 >= g1)
-        g0[i] = g1
-    if crossing or next_out[i] < tn:
+        block[G0 + i] = g1
+    if crossing or block[NEXT_OUT + i] < tn:
         for j in range(n):
-            k[0, j] = ks[j, i]
+            k[0, j] = k0s[j, i]
         _stages(rate, y0, p, ti, hi, k, stage)
         _interpolant(rate, y0, y1, p, ti, hi, k, stage, f)
     if crossing:
@@ -100,11 +96,11 @@ def _lane_extras(i, s, ys, ks, y1s, p, ti, hi, tn, times, out, slot, next_out, g
         else:
             _dense(f, y0, (times[slot[i]] - ti) / hi, out[s, slot[i]])
         slot[i] += 1
-    next_out[i] = times[slot[i]] if slot[i] < times.shape[0] else np.inf
+    block[NEXT_OUT + i] = times[slot[i]] if slot[i] < times.shape[0] else np.inf
 
 
 @jit(inline=True, contract=False, refcounts=False)
-def _start(i, s, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, section, lanes, counters, k, stage,
+def _start(i, s, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, section, block, counters, k, stage,
            y0, y1):
     # size: one lane's start on a sample: its state, first outputs, rate, first step and surface value
     """Put sample ``s`` into lane ``i``: True when it steps, False when it is done at once (not finite, or no time
@@ -119,9 +115,9 @@ def _start(i, s, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, se
         if not math.isfinite(y0[j]):
             code = STATUS_NONFINITE
     status[s] = code
-    for row in (_T, _H, _LAST_REJECTED, _TRIES, _ACCEPTED, _G0):
-        lanes[row, i] = 0.0
-    lanes[_T, i] = t0
+    for row in (T, H, LAST_REJECTED, TRIES, ACCEPTED, G0):
+        block[row + i] = 0.0
+    block[T + i] = t0
     slot = 0
     while slot < times.shape[0] and times[slot] <= t0:
         for j in range(n):
@@ -129,32 +125,32 @@ def _start(i, s, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, se
         slot += 1
     counters[_SLOT, i] = slot
     counters[_CROSSED, i] = 0
-    lanes[_NEXT_OUT, i] = times[slot] if slot < times.shape[0] else np.inf
+    block[NEXT_OUT + i] = times[slot] if slot < times.shape[0] else np.inf
     if code != STATUS_OK or t_end <= t0:
-        lanes[_ACTIVE, i] = 0.0
+        block[ACTIVE + i] = 0.0
         return False
-    lanes[_ACTIVE, i] = 1.0
+    block[ACTIVE + i] = 1.0
     rate(t0, y0, p, k[0])
     for j in range(n):
         ks[j, i] = k[0, j]
-    lanes[_H, i] = h0 if h0 > 0.0 else _first_step(rate, t0, y0, p, t_end - t0, rtol, atol, k[0], stage, y1)
+    block[H + i] = h0 if h0 > 0.0 else _first_step(rate, t0, y0, p, t_end - t0, rtol, atol, k[0], stage, y1)
     if most > 0:
-        lanes[_G0, i] = surface(t0, y0, p, component, value)
+        block[G0 + i] = surface(t0, y0, p, component, value)
     return True
 
 
 @jit(inline=True, contract=False, refcounts=False)
-def _finish(i, y, ys, times, out, counts, stopped, lanes, counters):
+def _finish(i, y, ys, times, out, counts, stopped, block, counters):
     """Lane ``i``'s sample is done: its state, counts and time written back; a stopped sample's later outputs are
     the state it stopped with."""
     s = counters[_OWNER, i]
     n = ys.shape[0]
     for j in range(n):
         y[s, j] = ys[j, i]
-    counts[s, 0] = int(lanes[_ACCEPTED, i])
-    counts[s, 1] = int(lanes[_TRIES, i]) - counts[s, 0]
+    counts[s, 0] = int(block[ACCEPTED + i])
+    counts[s, 1] = int(block[TRIES + i]) - counts[s, 0]
     counts[s, 2] = counters[_CROSSED, i]
-    stopped[s] = lanes[_T, i]
+    stopped[s] = block[T + i]
     for slot in range(counters[_SLOT, i], times.shape[0]):
         for j in range(n):
             out[s, slot, j] = ys[j, i]
@@ -163,18 +159,18 @@ def _finish(i, y, ys, times, out, counts, stopped, lanes, counters):
 
 
 @jit(inline=True, contract=False, refcounts=False)
-def _fill(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, counts, stopped, section, lanes,
+def _fill(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, counts, stopped, section, block,
           counters, k, stage, y0, y1):
     # size: the share's queue, handed to one lane
     """Lane ``i`` takes the share's next samples from ``queued`` until one steps (those done at once are finished
     here): the next ``queued``."""
     while queued < y.shape[0]:
-        started = _start(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, section, lanes,
+        started = _start(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, section, block,
                          counters, k, stage, y0, y1)
         queued += 1
         if started:
             break
-        _finish(i, y, ys, times, out, counts, stopped, lanes, counters)
+        _finish(i, y, ys, times, out, counts, stopped, block, counters)
     return queued
 
 @jit(contract=False)
@@ -183,115 +179,95 @@ def run_share(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section
     # size: as _run_block
     """The samples ``y`` of one share in one block (:func:`_run_block`), with the block's arrays made here."""
     n = y.shape[1]
-    lanes = np.zeros((12, BLOCK))  # the lanes' own numbers (C-contiguous rows: the loops over lanes vectorise)
+    block = np.zeros(STATES + 4 * n * BLOCK)
     counters = np.zeros((3, BLOCK), dtype=np.int64)
-    rows = np.zeros((4, n, BLOCK))
     scratch = np.empty((SCRATCH_ROWS + 1, n))
     if y.shape[0] > 0:
         _run_block(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
-                   counts, stopped, lanes, counters, rows, scratch)
+                   counts, stopped, block, block[STATES:].reshape((4, n, BLOCK)), counters, scratch)
 
 
 @jit(contract=False, refcounts=False)
 def _run_block(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
-               counts, stopped, lanes, counters, rows, scratch):
+               counts, stopped, block, rows, counters, scratch):
     # size: Hairer's control over a block's lanes, with the outputs, the crossings, the stops and the lanes' refills
-    """:func:`run_share`'s loop over the block's lanes, with the arrays it made: ``lanes`` (12, BLOCK) and ``counters``
-    (3, BLOCK), rows named by ``_T`` ... and ``_SLOT`` ...; ``rows`` (4, n, BLOCK) the lanes' states, rates, trial
-    states and their rates; ``scratch`` (:data:`SCRATCH_ROWS` + 1, n) one sample's dense output. It makes no array, so
-    it runs without numba's reference counts (:func:`tumble.kernels.jit.jit`'s ``refcounts``)."""
+    """:func:`run_share`'s loop over the block's lanes, with the arrays it made: ``block`` (laid out as
+    :mod:`tumble.kernels.steps.control` says), ``rows`` (4, n, BLOCK) its states (``ys``, ``ks``, ``y0s``, ``k0s``)
+    and ``counters`` (3, BLOCK), rows named by ``_SLOT`` ...; ``scratch`` (:data:`SCRATCH_ROWS` + 1, n) one sample's
+    dense output. It makes no array, so it runs without numba's reference counts (:func:`tumble.kernels.jit.jit`'s
+    ``refcounts``). The passes over every lane index ``block`` at constant offsets, so that they vectorise."""
     n = y.shape[1]
     m = BLOCK
     component, value, direction, most = int(section[0]), section[1], section[2], int(section[3])
-    t, h, trial_h, active, last_rejected, accepted_now, t_new, next_out, g0, err, tries, accepted = (
-        lanes[_T], lanes[_H], lanes[_TRIAL_H], lanes[_ACTIVE], lanes[_LAST_REJECTED], lanes[_ACCEPTED_NOW],
-        lanes[_T_NEW], lanes[_NEXT_OUT], lanes[_G0], lanes[_ERR], lanes[_TRIES], lanes[_ACCEPTED])
     slot, owner, crossed = counters[_SLOT], counters[_OWNER], counters[_CROSSED]
     for i in range(m):
         owner[i] = -1
-    ys, ks, y1s, k1s = rows[0], rows[1], rows[2], rows[3]
+    ys, ks, y0s, k0s = rows[0], rows[1], rows[2], rows[3]
     k, stage, y0, y1, f = scratch[:16], scratch[16], scratch[17], scratch[18], scratch[19:26]
-    for j in range(n):  # a lane without a sample holds the first one's state, masked (its trial step is 0)
+    for j in range(n):  # a lane without a sample holds the first one's state, masked (its step is 0)
         for i in range(m):
             ys[j, i] = y[0, j]
     queued = 0
     for i in range(m):
         queued = _fill(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, counts, stopped,
-                       section, lanes, counters, k, stage, y0, y1)
-    while active.any():
-        stops = 0  # counted without a branch (an integer sum vectorises, a float one does not)
+                       section, block, counters, k, stage, y0, y1)
+    while True:
+        stops = 0  # the lanes that stop before their next try, counted without a branch (the pass vectorises)
         for i in range(m):
-            stops += 1 if _stops(active[i], tries[i], h[i], t[i], max_steps) else 0
-        if stops > 0:  # rare
+            stops += 1 if _stops(block[ACTIVE + i], block[TRIES + i], block[H + i], block[T + i], max_steps) else 0
+        if stops > 0:  # rare: those samples finished, their lanes refilled
             for i in range(m):
-                if _stops(active[i], tries[i], h[i], t[i], max_steps):
-                    status[owner[i]] = STATUS_LIMIT if tries[i] >= max_steps else STATUS_UNDERFLOW
-                    active[i] = 0.0
-        for i in range(m):  # each lane's step, the last one up to t_end; 0 for a lane that is done
-            last = t[i] + 1.01 * h[i] >= t_end
-            h[i] = t_end - t[i] if last else h[i]
-            trial_h[i] = h[i] * active[i]
-            t_new[i] = t_end if last else t[i] + h[i]
-        trial(t, trial_h, ys, ks, y1s, k1s, err, rtol, atol, a)
-        extras = 0
-        for i in range(m):  # accept or reject every lane, branch-free (Hairer's control), in floats: vectorised
-            e = err[i]
-            good = 1.0 if e <= 1.0 else 0.0
-            # the step's factor, kept within [1/6, 1/0.333] (a non-finite error: the smallest, 0.333); an accepted
-            # step grows by at most 6 (an error of 0, a steady spin's: 6), a rejected one shrinks by its factor; the
-            # step is chosen, not blended (an error of 0 makes the shrunk step h / 0), both made first: vectorised
-            factor = _min(1.0 / _FAC1, _root8(e) / _SAFE) if e < 1e300 else 1.0 / _FAC1
-            grow = h[i] / _max(1.0 / _FAC2, factor)
-            grow = _min(grow, h[i]) if last_rejected[i] != 0.0 else grow
-            shrink = h[i] / factor
-            on = active[i]
-            h[i] = (grow if good != 0.0 else shrink) if on != 0.0 else h[i]
-            last_rejected[i] = on * (1.0 - good) + (1.0 - on) * last_rejected[i]
-            tries[i] += on
-            accepted_now[i] = on * good
-            accepted[i] += on * good
-            # an accepted step that reaches an output time, or any of a section's
-            extras += 1 if accepted_now[i] != 0.0 and (next_out[i] <= t_new[i] or most > 0) else 0
-        if extras > 0:
-            for i in range(m):  # outputs and crossings: the lane's dense output, made again one sample
-                if accepted_now[i] != 0.0 and (next_out[i] <= t_new[i] or most > 0):
-                    _lane_extras(i, owner[i], ys, ks, y1s, p, t[i], trial_h[i], t_new[i], times, out, slot,
-                                 next_out, g0, crossed, component, value, direction, most, crossing_t,
-                                 crossing_y, k, stage, y0, y1, f)
-        done = 0
-        # the accepted lanes move on, done at t_end or with their crossings (both times read before the choice, and no
-        # short-circuit: so that the pass vectorises), and the lanes whose sample is done are counted
-        for i in range(m):
-            moved, stayed = t_new[i], t[i]
-            t[i] = moved if accepted_now[i] != 0.0 else stayed
-            finished = (t[i] == t_end) | ((most > 0) & (crossed[i] == most))
-            active[i] = 0.0 if finished else active[i]
-            done += 1 if (active[i] == 0.0) & (owner[i] >= 0) else 0
-        for j in range(n):  # their new states and rates
-            for i in range(m):
-                ys[j, i] = y1s[j, i] if accepted_now[i] != 0.0 else ys[j, i]
-                ks[j, i] = k1s[j, i] if accepted_now[i] != 0.0 else ks[j, i]
-        if done > 0:
-            for i in range(m):
-                if active[i] == 0.0 and owner[i] >= 0:
-                    _finish(i, y, ys, times, out, counts, stopped, lanes, counters)
+                if _stops(block[ACTIVE + i], block[TRIES + i], block[H + i], block[T + i], max_steps):
+                    status[owner[i]] = STATUS_LIMIT if block[TRIES + i] >= max_steps else STATUS_UNDERFLOW
+                    block[ACTIVE + i] = 0.0
+                    _finish(i, y, ys, times, out, counts, stopped, block, counters)
                     queued = _fill(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, counts,
-                                   stopped, section, lanes, counters, k, stage, y0, y1)
+                                   stopped, section, block, counters, k, stage, y0, y1)
+        stepping = 0
+        for i in range(m):  # each lane's step, the last one up to t_end; 0 for a lane that is done
+            on, ti, hi = block[ACTIVE + i], block[T + i], block[H + i]
+            stepping += 1 if on != 0.0 else 0
+            last = ti + 1.01 * hi >= t_end
+            hi = t_end - ti if last else hi
+            block[H + i] = hi
+            block[TRIAL_H + i] = hi * on
+            block[T_NEW + i] = t_end if last else ti + hi
+            block[T_PREV + i] = ti
+        if stepping == 0:
+            break
+        attempt(block, rtol, atol, a)
+        # the kept steps that reach an output time or t_end, or any of a section's (rare but for sections)
+        events = 0
+        for i in range(m):
+            tn = block[T_NEW + i]
+            events += 1 if (block[KEPT + i] != 0.0) & ((block[NEXT_OUT + i] <= tn) | (tn == t_end) | (most > 0)) else 0
+        if events > 0:
+            for i in range(m):
+                if block[KEPT + i] == 0.0:
+                    continue
+                if block[NEXT_OUT + i] <= block[T_NEW + i] or most > 0:  # outputs and crossings, made again
+                    _lane_extras(i, owner[i], y0s, k0s, ys, p, block, times, out, slot, crossed, component, value,
+                                 direction, most, crossing_t, crossing_y, k, stage, y0, y1, f)
+                if block[T + i] == t_end or (most > 0 and crossed[i] == most):  # done: the lane's next sample
+                    block[ACTIVE + i] = 0.0
+                    _finish(i, y, ys, times, out, counts, stopped, block, counters)
+                    queued = _fill(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, counts,
+                                   stopped, section, block, counters, k, stage, y0, y1)
 
 
 #: The functions :func:`specialised` copies, callees first.
 _FUNCTIONS = ("_lane_extras", "_start", "_finish", "_fill", "_run_block", "run_share")
 
 
-def specialised(trial, rate, surface=None, key=None):
+def specialised(attempt, rate, surface=None, key=None):
     """``drive(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
     counts, stopped)``, as :func:`tumble.kernels.loops.adaptive_loop.make_dop853_driver`'s (``p`` the rate's
-    parameters, ``a`` the trial's constants), over ``trial``, ``rate`` and ``surface`` (None: the component surface):
+    parameters, ``a`` the attempt's constants), over ``attempt``, ``rate`` and ``surface`` (None: the component surface):
     this module's functions copied with those in their globals (:func:`tumble.kernels.jit.rebound`), compiled on first
     use; one share of the samples per numba thread, each share in one block (a share is whole blocks: a run of one
     block's samples or fewer stays in the calling thread). Cached on disk under ``key`` (a string that names what they
     compute in every process: a model's system module, a System's code), not cached without it."""
-    share = rebound(_FUNCTIONS, globals(), key, trial=trial, rate=rate,
+    share = rebound(_FUNCTIONS, globals(), key, attempt=attempt, rate=rate,
                     surface=surface if surface is not None else globals()["surface"])["run_share"]
 
     def drive(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
@@ -305,12 +281,14 @@ def specialised(trial, rate, surface=None, key=None):
     return drive
 
 
-def for_model(module, surface=None):
+def for_model(module, rate="rate", surface=None):
     """:func:`specialised`'s driver of the built-in models whose equations are in system module ``module`` (the
-    registry's ``equations_module``: the free body's are the gyrostat's): its own generated trial step
-    (``model_steps.<module>_dop853_trial``, whose constants ``a`` are the models' parameters after their code), the
-    models' rate (``p``: the parameters, code first) and ``surface`` (None: the component surface, cached on disk under
-    ``module``). A first run compiles that model's trial alone: one trial for every model made a first free-body run
-    compile all four (24 s to 14 s on 2 cores)."""
-    return specialised(getattr(model_steps, f"{module}_{DOP853.name}_trial"), model_steps.rate_sample, surface,
-                       module if surface is None else None)
+    registry's ``equations_module``: the free body's are the gyrostat's) and whose rate is its function ``rate`` (the
+    registry's ``rate``: the free body's is the gyrostat's without the rotor): its own generated attempt
+    (:func:`tumble.kernels.steps.model_codegen.attempt_name`, whose constants ``a`` are the models' parameters after
+    their code), the models' rate for the dense output (``p``: the parameters, code first) and ``surface`` (None: the
+    component surface, cached on disk under ``module`` and ``rate``). A first run compiles that model's attempt alone:
+    one for every model made a first free-body run compile all four (24 s to 14 s on 2 cores)."""
+    key = None if surface is not None else module if rate == "rate" else f"{module}_{rate}"
+    return specialised(getattr(model_steps, model_codegen.attempt_name(module, rate)), model_steps.rate_sample,
+                       surface, key)

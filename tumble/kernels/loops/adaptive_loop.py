@@ -9,7 +9,7 @@ The method is Dormand & Prince's eighth-order pair as Hairer distributes it (``d
   |y1|)`` per component, ``err = |h| e5² / sqrt(n (e5² + 0.01 e3²))``, ``e5² = sum (E5·k / sk)²`` and ``e3²`` the
   same with ``E3``; a step is accepted when ``err <= 1``;
 * the next step is ``h / fac``, ``fac = err^(1/8) / 0.9`` kept within ``[1/6, 1/0.333]`` (Hairer's ``fac1``, ``fac2``
-  and ``safe``, ``beta = 0``); after a rejection the step does not grow;
+  and ``safe``, ``beta = 0``); after a rejection the step does not grow (:func:`tumble.kernels.steps.control.next_step`);
 * the first step, unless given, is Hairer's ``hinit`` (one more evaluation of the rate);
 * a step smaller than ``|t| · 2.3e-16 · 10`` cannot advance ``t``: the sample stops with ``STATUS_UNDERFLOW``; one that
   needs more than ``max_steps`` accepted and rejected steps stops with ``STATUS_LIMIT``; both keep the state they had;
@@ -32,6 +32,7 @@ import numpy as np
 
 from ...registry import STATUS_LIMIT, STATUS_NONFINITE, STATUS_OK, STATUS_UNDERFLOW
 from ..jit import jit, rebound
+from ..steps.control import ROUND, next_step
 from ..tableaux import DOP853
 from ..threads import in_shares
 from ..trig import _max, _min
@@ -47,11 +48,7 @@ _C = np.concatenate([DOP853.tableau.c, [1.0], DOP853.extra_c])
 _B = DOP853.tableau.b.copy()
 _E5, _E3, _D = DOP853.e5.copy(), DOP853.e3.copy(), DOP853.dense.copy()
 _EXPONENT = 1.0 / (DOP853.error_order + 1)
-assert _EXPONENT == 0.125, "the step control's root is taken as three square roots"
-
-# Hairer's control (dop853.f's defaults, the method's data): safety factor, the step's largest fall and rise per
-# step; the rounding unit.
-_SAFE, _FAC1, _FAC2, _UROUND = DOP853.safety, DOP853.smallest, DOP853.largest, 2.3e-16
+_UROUND = ROUND
 
 #: Rows of the scratch a sample's run needs (its state has ``n`` components): 16 stages, the stage's state, ``y1``,
 #: the 7 rows of the interpolant.
@@ -152,12 +149,7 @@ def run_sample(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, section, 
             err3 += (e3 / sk) ** 2
         deno = err5 + 0.01 * err3
         err = h * err5 / math.sqrt(n * deno) if deno > 0.0 else 0.0
-        if not math.isfinite(err):  # a stage overflowed: a much shorter step
-            h /= 1.0 / _FAC1
-            last_rejected = True
-            rejected += 1
-            continue
-        fac11 = _root8(err)
+        h_next = next_step(err, h, 1.0 if last_rejected else 0.0)
         if err <= 1.0:
             accepted += 1
             t_new = t_end if final else t + h
@@ -186,18 +178,14 @@ def run_sample(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, section, 
                 y[j] = y1[j]
                 k[0, j] = k[_STAGES, j]
             t = t_new
-            grow = _max(1.0 / _FAC2, _min(1.0 / _FAC1, fac11 / _SAFE))
-            h_new = h / grow
-            if last_rejected:
-                h_new = _min(h_new, h)
             last_rejected = False
-            h = h_new
+            h = h_next
             if most > 0 and crossed == most:
                 break  # the section is complete
-        else:
-            h /= _min(1.0 / _FAC1, fac11 / _SAFE)
+        else:  # rejected, or a stage overflowed (a non-finite error: the largest fall)
             last_rejected = True
             rejected += 1
+            h = h_next
     for s in range(slot, times.shape[0]):  # a stopped sample: the state it stopped with
         for j in range(n):
             out[s, j] = y[j]
@@ -248,13 +236,6 @@ def _crossing(surface, f, y0, p, t, h, g0, g1, component, value, trial):
         if b - a <= width:
             break
     return 0.5 * (a + b)
-
-
-@jit(inline=True)
-def _root8(x):
-    """``x ** (1/8)``, the step control's root, as three square roots: a few cycles, and vectorised, where ``pow``
-    takes tens."""
-    return math.sqrt(math.sqrt(math.sqrt(x)))
 
 
 @jit(inline=True, cache=False, contract=False)

@@ -40,6 +40,7 @@ import numpy as np
 
 from ... import registry
 from .. import tableaux
+from . import control
 from .codegen import combination, regenerate
 
 TARGET = Path(__file__).with_name("model_steps.py")
@@ -221,22 +222,36 @@ def block_source(tableau, name, components, project, forced=None):
     return "\n".join(lines)
 
 
-def trial_source(name, components, n_fields=None, control=tableaux.DOP853):
-    # size: generated from the coefficients: every stage, the step and both error estimates spelled out
-    """Source of ``<name>_<control>_trial(lane_t, lane_h, ys, ks, y1s, k1s, err, rtol, atol, a)``: one trial step of
-    the error-controlled ``control`` (:data:`tumble.kernels.tableaux.DOP853`) for every lane of a block, each at its
-    own time ``lane_t[i]`` and step ``lane_h[i]`` (0: a lane that is done, whose trial keeps its state), the state in
-    registers and vectorised across the lanes: ``ys`` (n, m) the states, ``ks`` (n, m) each one's rate (the last
-    accepted step's last stage); written, ``y1s`` the stepped states, ``k1s`` their rates and ``err`` (m,) the error
-    norm (:mod:`tumble.kernels.loops.adaptive_loop`; the loop of :mod:`tumble.kernels.loops.adaptive_blocks` accepts
-    or rejects each lane). ``a``: the constants array, read into the system's record (its ``n_fields`` fields)."""
+def attempt_name(name, rate="rate", method=tableaux.DOP853):
+    """The name of :func:`attempt_source`'s function for system module ``name`` and its function ``rate``."""
+    return f"{name}_{method.name}_attempt" if rate == "rate" else f"{name}_{rate}_{method.name}_attempt"
+
+
+def attempt_source(name, components, n_fields=None, method=tableaux.DOP853, rate="rate"):
+    # size: generated from the coefficients: every stage, the step, both error estimates and the keeping spelled out
+    """Source of ``<name>_<method>_attempt(block, rtol, atol, a)`` (:func:`attempt_name`: with the module's function
+    ``rate`` as the rate, ``rate(t, *y, c)``): one try of the error-controlled ``method``
+    (:data:`tumble.kernels.tableaux.DOP853`) for every lane of a block (:mod:`tumble.kernels.steps.control`'s flat
+    ``block``), each from its own time ``T`` with its own step ``TRIAL_H`` (0: a lane that is done, which keeps its
+    state), kept or not by Hairer's control (:func:`tumble.kernels.steps.control.next_step`); the lane's state in
+    registers from its load to its store, vectorised across the lanes.
+
+    A kept try moves its lane's state ``ys`` and rate ``ks`` (the step's last stage, the next one's first), its time to
+    ``T_NEW``; every lane's ``H`` becomes its next step (the same for a lane that is done), ``y0s`` and ``k0s`` the
+    state and rate its try started from (for a kept step's dense output), ``KEPT`` 1 or 0, and its tries and kept steps
+    are counted. ``a``: the constants array, read into the system's record (its ``n_fields`` fields)."""
     n = len(components)
-    tableau = control.tableau
+    tableau = method.tableau
     stages = len(tableau.b)
-    rows = [f"ys[{j}, i]" for j in range(n)]
+
+    def row(which, j):
+        return f"block[{control.state_row(which, j, n)} + i]"
+
+    def lane(name):
+        return f"block[control.{name} + i]"
 
     def rate_call(target, time, states):
-        call = [f"        {target} = {name}.rate(", f"            {time},"]
+        call = [f"        {target} = {name}.{rate}(", f"            {time},"]
         return call + [f"            {state}," for state in states] + ["            c)"]
 
     def names(stage):
@@ -248,16 +263,16 @@ def trial_source(name, components, n_fields=None, control=tableaux.DOP853):
 
     lines = [
         "@jit",
-        f"def {name}_{control.name}_trial(lane_t, lane_h, ys, ks, y1s, k1s, err, rtol, atol, a):",
+        f"def {attempt_name(name, rate, method)}(block, rtol, atol, a):",
         "    # size: generated from the coefficients, every stage spelled out (the lanes' states in registers)",
-        f'    """One trial step of {control.name} of the {name} for every lane of a block (each at its own time and '
-        f'step)."""',
+        f'    """One try of {method.name} of the {name} for every lane of a block (each at its own time and step), '
+        f'kept or not."""',
         f"    c = {_record(name, n_fields)}",
-        "    for i in range(ys.shape[1]):",
-        "        t = lane_t[i]",
-        "        h = lane_h[i]",
-        f"        {', '.join(components)} = {', '.join(rows)}",
-        f"        {names(1).rstrip(',')} = {', '.join(f'ks[{j}, i]' for j in range(n))}",
+        "    for i in range(control.BLOCK):",
+        f"        t = {lane('T')}",
+        f"        h = {lane('TRIAL_H')}",
+        f"        {', '.join(components)} = {', '.join(row(0, j) for j in range(n))}",
+        f"        {names(1).rstrip(',')} = {', '.join(row(1, j) for j in range(n))}",
     ]
     for stage in range(1, stages):
         lines += rate_call(names(stage + 1), f"t + {float(tableau.c[stage])!r} * h",
@@ -269,14 +284,26 @@ def trial_source(name, components, n_fields=None, control=tableaux.DOP853):
     lines += rate_call(names(stages + 1), "t + h", stepped)
     for j, y in enumerate(components):
         lines += [f"        s{j + 1} = 1.0 / (atol[{j}] + rtol[{j}] * _max(abs({y}), abs({stepped[j]})))",
-                  f"        e5_{j + 1} = ({weighted(control.e5, j)}) * s{j + 1}",
-                  f"        e3_{j + 1} = ({weighted(control.e3, j)}) * s{j + 1}",
-                  f"        y1s[{j}, i] = {stepped[j]}",
-                  f"        k1s[{j}, i] = k{stages + 1}_{j + 1}"]
+                  f"        e5_{j + 1} = ({weighted(method.e5, j)}) * s{j + 1}",
+                  f"        e3_{j + 1} = ({weighted(method.e3, j)}) * s{j + 1}"]
     lines += [f"        err5 = {' + '.join(f'e5_{j + 1} * e5_{j + 1}' for j in range(n))}",
               f"        err3 = {' + '.join(f'e3_{j + 1} * e3_{j + 1}' for j in range(n))}",
               "        deno = err5 + 0.01 * err3",
-              f"        err[i] = h * err5 / math.sqrt({n}.0 * deno) if deno > 0.0 else 0.0"]
+              f"        err = h * err5 / math.sqrt({n}.0 * deno) if deno > 0.0 else 0.0",
+              f"        on = {lane('ACTIVE')}",
+              "        keep = on if err <= 1.0 else 0.0",
+              f"        h_next = control.next_step(err, {lane('H')}, {lane('LAST_REJECTED')})",
+              f"        {lane('H')} = h_next if on != 0.0 else {lane('H')}",
+              f"        {lane('LAST_REJECTED')} = (1.0 - keep) if on != 0.0 else {lane('LAST_REJECTED')}",
+              f"        {lane('TRIES')} += on",
+              f"        {lane('ACCEPTED')} += keep",
+              f"        {lane('KEPT')} = keep",
+              f"        {lane('T')} = {lane('T_NEW')} if keep != 0.0 else t"]
+    for j, y in enumerate(components):
+        lines += [f"        {row(2, j)} = {y}",
+                  f"        {row(3, j)} = k1_{j + 1}",
+                  f"        {row(0, j)} = {stepped[j]} if keep != 0.0 else {y}",
+                  f"        {row(1, j)} = k{stages + 1}_{j + 1} if keep != 0.0 else k1_{j + 1}"]
     return "\n".join(lines)
 
 
@@ -503,7 +530,7 @@ def module_source():
     blocks = [
         '"""GENERATED by ``python -m tumble.kernels.steps.model_codegen``; do not edit.',
         "",
-        "The systems' rk4 and rk8 steps, the loop over a block for each, their dop853 trial steps (a block's lanes, each",
+        "The systems' rk4 and rk8 steps, the loop over a block for each, their dop853 attempts (a block's lanes, each",
         "at its own time and step), and the dispatch over systems and methods, from",
         ":mod:`tumble.kernels.tableaux`, :mod:`tumble.kernels.systems` and the registry.",
         '"""',
@@ -512,17 +539,19 @@ def module_source():
         "",
         "from ..jit import jit",
         f"from .model_splittings import {', '.join(splittings)}",
+        "from . import control",
         "from .drift_screen import suspect",
         f"from ..systems import {', '.join(sorted(name for name, _, _ in modules))}",
         "from ..trig import _max",
     ]
-    for name, components, _ in modules:
+    for name, components, kinds in modules:
         for tableau in METHODS:
             blocks += ["", "", step_source(tableau, name, components), "", "",
                        block_source(tableau, name, components, _has_project(name)), "", "",
                        tangent_step_source(tableau, name, components), "", "",
                        tangent_block_source(tableau, name, components)]
-        blocks += ["", "", trial_source(name, components)]
+        for rate in sorted({registry.MODELS[registry.MODEL_KINDS.index(kind)].rate for kind in kinds}):
+            blocks += ["", "", attempt_source(name, components, rate=rate)]
     blocks += ["", "", dispatch_source(modules), "", "", tangent_table_source(modules), ""]
     return "\n".join(blocks)
 

@@ -38,14 +38,14 @@ from collections import namedtuple
 
 import numpy as np
 
-from . import model_codegen
+from . import control, model_codegen
 from ..jit import jit
 from .. import tableaux
 from ..tableaux import TABLEAUX
 from ..trig import _max
 from ..loops.tangent_loop import DIFFERENCE_STEP
 
-__all__ = ["NotScalar", "SYSTEM_CODES", "block_constants", "block_step", "block_trial", "cacheable", "functions_key", "runs",
+__all__ = ["NotScalar", "SYSTEM_CODES", "block_attempt", "block_constants", "block_step", "cacheable", "functions_key", "runs",
            "scalar_rate", "scalar_tangent",
            "system_code", "tangent_code", "tangent_step"]
 
@@ -365,10 +365,10 @@ def _steps(module, n, n_parameters, tangents):
                       f"def {method}_step(ys, t, h, a):",
                       f"    {_NAME}_{method}_block(t, {rows}, h, {record})", ""]
             made[method] = f"{method}_step"
-    if not tangents:  # the error-controlled trial step over a block's lanes (tumble.kernels.loops.adaptive_loop)
-        lines += [model_codegen.trial_source(_NAME, components, n_fields=2 * n_parameters), ""]
-        made[tableaux.DOP853.name] = f"{_NAME}_{tableaux.DOP853.name}_trial"
-    scope = {"jit": _uncached_jit, "math": math, "_max": _max, _NAME: module}
+    if not tangents:  # the error-controlled try over a block's lanes (tumble.kernels.loops.adaptive_blocks)
+        lines += [model_codegen.attempt_source(_NAME, components, n_fields=2 * n_parameters), ""]
+        made[tableaux.DOP853.name] = f"{_NAME}_{tableaux.DOP853.name}_attempt"
+    scope = {"jit": _uncached_jit, "math": math, "_max": _max, "control": control, _NAME: module}
     exec(compile("\n".join(lines), "<tumble System steps>", "exec"), scope)
     from ...registry import STEPPING
 
@@ -431,10 +431,9 @@ def block_step(code, method):
     return _MADE[code].steps[method]
 
 
-def block_trial(code):
-    """The error-controlled trial step over a block's lanes of System ``code`` (:func:`system_code`):
-    ``trial(lane_t, lane_h, ys, ks, y1s, k1s, err, rtol, atol, a)``
-    (:func:`tumble.kernels.steps.model_codegen.trial_source`)."""
+def block_attempt(code):
+    """The error-controlled try over a block's lanes of System ``code`` (:func:`system_code`):
+    ``attempt(block, rtol, atol, a)`` (:func:`tumble.kernels.steps.model_codegen.attempt_source`)."""
     return _MADE[code].steps[tableaux.DOP853.name]
 
 

@@ -22,7 +22,7 @@ from ... import registry
 from ..bodies import finite_array
 from . import base
 
-__all__ = ["Constants", "FreeBody", "Gyrostat", "constants", "euler", "invariants", "rate", "tangent"]
+__all__ = ["Constants", "FreeBody", "Gyrostat", "constants", "euler", "free_rate", "invariants", "rate", "tangent"]
 
 #: The rigid body's fields (:data:`tumble.registry.RIGID_BODY`), ``h_j/I_i`` (1/s) and the rotor ``h``
 #: (N m s).
@@ -51,6 +51,12 @@ def rate(t, w1, w2, w3, c):
     return (e1 + (c.h2_i1 * w3 - c.h3_i1 * w2),
             e2 + (c.h3_i2 * w1 - c.h1_i2 * w3),
             e3 + (c.h1_i3 * w2 - c.h2_i3 * w1))
+
+
+def free_rate(t, w1, w2, w3, c):
+    """The free body's rate (no rotor): :func:`rate` with ``h = 0``, the same numbers in fewer operations (the
+    rotor's terms are a third of :func:`rate`'s, all zero here): what the free body's error-controlled step calls."""
+    return euler(w1, w2, w3, c.a1, c.a2, c.a3)
 
 
 def tangent(t, w1, w2, w3, v1, v2, v3, c):
