@@ -193,7 +193,7 @@ def _kernel(system, surface, parameters):
             keyed = None if keyed is None else f"sample_{keyed}"
             made[key] = (adaptive_loop.make_dop853_driver(adaptive_loop.make_dop853_sample(rate, surface, keyed), keyed)
                          if code is None else
-                         adaptive_blocks.specialised(system_steps.block_attempt(code), rate, surface,
+                         adaptive_blocks.specialised(*system_steps.block_attempt(code), rate, surface,
                                                      f"{code:x}" if surface is None and system_steps.cacheable(code)
                                                      else None))
         a = np.zeros(0) if code is None else system_steps.block_constants(system.parameter_values(parameters))

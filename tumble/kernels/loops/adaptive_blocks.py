@@ -28,15 +28,17 @@ from ..jit import jit, rebound
 from ..steps import model_codegen, model_steps
 from ..steps.control import (ACCEPTED, ACTIVE, BLOCK, G0, H, KEPT, LAST_REJECTED, NEXT_OUT, STATES, T, T_NEW, T_PREV,
                              TRIAL_H, TRIES)
-from .adaptive_loop import (_C, _STAGES, _UROUND, SCRATCH_ROWS, _crossing, _dense, _first_step, _interpolant,
+from .adaptive_loop import (_C, _STAGES, _UROUND, SCRATCH_ROWS, _crossing, _dense, _interpolant,
                             _stage)
 from .adaptive_loop import component_surface as surface
 from ..threads import in_shares
 
 __all__ = ["BLOCK", "for_model", "specialised"]  # BLOCK: tumble.kernels.steps.control's
 
-# What the templates read, until a copy reads its own (specialised): the attempt and the rate are always the copy's.
+# What the templates read, until a copy reads its own (specialised): the attempt, the start and the rate are always the
+# copy's.
 attempt = None
+start = None
 rate = None
 
 # The rows of a block's counters (``counters``, int): each lane's next output, its sample (-1: none), its crossings.
@@ -100,11 +102,10 @@ def _lane_extras(i, s, y0s, k0s, ys, p, block, times, out, slot, crossed, compon
 
 
 @jit(inline=True, contract=False, refcounts=False)
-def _start(i, s, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, section, block, counters, k, stage,
-           y0, y1):
+def _start(i, s, y, ys, ks, k0, firsts, p, t0, t_end, h0, times, out, status, section, block, counters, y0):
     # size: one lane's start on a sample: its state, first outputs, rate, first step and surface value
-    """Put sample ``s`` into lane ``i``: True when it steps, False when it is done at once (not finite, or no time
-    to run)."""
+    """Put sample ``s`` into lane ``i``, its rate ``k0[s]`` and first step ``h0`` (0: ``firsts[s]``) made for the
+    share by ``start``: True when it steps, False when it is done at once (not finite, or no time to run)."""
     component, value, most = int(section[0]), section[1], int(section[3])
     n = ys.shape[0]
     counters[_OWNER, i] = s
@@ -130,10 +131,9 @@ def _start(i, s, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, se
         block[ACTIVE + i] = 0.0
         return False
     block[ACTIVE + i] = 1.0
-    rate(t0, y0, p, k[0])
     for j in range(n):
-        ks[j, i] = k[0, j]
-    block[H + i] = h0 if h0 > 0.0 else _first_step(rate, t0, y0, p, t_end - t0, rtol, atol, k[0], stage, y1)
+        ks[j, i] = k0[s, j]
+    block[H + i] = h0 if h0 > 0.0 else firsts[s]
     if most > 0:
         block[G0 + i] = surface(t0, y0, p, component, value)
     return True
@@ -159,14 +159,14 @@ def _finish(i, y, ys, times, out, counts, stopped, block, counters):
 
 
 @jit(inline=True, contract=False, refcounts=False)
-def _fill(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, counts, stopped, section, block,
-          counters, k, stage, y0, y1):
+def _fill(i, queued, y, ys, ks, k0, firsts, p, t0, t_end, h0, times, out, status, counts, stopped, section, block,
+          counters, y0):
     # size: the share's queue, handed to one lane
     """Lane ``i`` takes the share's next samples from ``queued`` until one steps (those done at once are finished
     here): the next ``queued``."""
     while queued < y.shape[0]:
-        started = _start(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, section, block,
-                         counters, k, stage, y0, y1)
+        started = _start(i, queued, y, ys, ks, k0, firsts, p, t0, t_end, h0, times, out, status, section, block,
+                         counters, y0)
         queued += 1
         if started:
             break
@@ -182,19 +182,22 @@ def run_share(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section
     block = np.zeros(STATES + 4 * n * BLOCK)
     counters = np.zeros((3, BLOCK), dtype=np.int64)
     scratch = np.empty((SCRATCH_ROWS + 1, n))
+    k0 = np.empty((y.shape[0], n))
+    firsts = np.empty(y.shape[0])
     if y.shape[0] > 0:
+        start(t0, t_end - t0, y, rtol, atol, a, k0, firsts)  # every sample's rate and first step, vectorised
         _run_block(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
-                   counts, stopped, block, block[STATES:].reshape((4, n, BLOCK)), counters, scratch)
+                   counts, stopped, block, block[STATES:].reshape((4, n, BLOCK)), counters, scratch, k0, firsts)
 
 
 @jit(contract=False, refcounts=False)
 def _run_block(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
-               counts, stopped, block, rows, counters, scratch):
+               counts, stopped, block, rows, counters, scratch, k0, firsts):
     # size: Hairer's control over a block's lanes, with the outputs, the crossings, the stops and the lanes' refills
     """:func:`run_share`'s loop over the block's lanes, with the arrays it made: ``block`` (laid out as
     :mod:`tumble.kernels.steps.control` says), ``rows`` (4, n, BLOCK) its states (``ys``, ``ks``, ``y0s``, ``k0s``)
     and ``counters`` (3, BLOCK), rows named by ``_SLOT`` ...; ``scratch`` (:data:`SCRATCH_ROWS` + 1, n) one sample's
-    dense output. It makes no array, so it runs without numba's reference counts (:func:`tumble.kernels.jit.jit`'s
+    dense output; ``k0`` (N, n) and ``firsts`` (N,) the samples' rates and first steps. It makes no array, so it runs without numba's reference counts (:func:`tumble.kernels.jit.jit`'s
     ``refcounts``). The passes over every lane index ``block`` at constant offsets, so that they vectorise."""
     n = y.shape[1]
     m = BLOCK
@@ -209,8 +212,8 @@ def _run_block(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, sectio
             ys[j, i] = y[0, j]
     queued = 0
     for i in range(m):
-        queued = _fill(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, counts, stopped,
-                       section, block, counters, k, stage, y0, y1)
+        queued = _fill(i, queued, y, ys, ks, k0, firsts, p, t0, t_end, h0, times, out, status, counts, stopped,
+                       section, block, counters, y0)
     while True:
         stops = 0  # the lanes that stop before their next try, counted without a branch (the pass vectorises)
         for i in range(m):
@@ -221,8 +224,8 @@ def _run_block(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, sectio
                     status[owner[i]] = STATUS_LIMIT if block[TRIES + i] >= max_steps else STATUS_UNDERFLOW
                     block[ACTIVE + i] = 0.0
                     _finish(i, y, ys, times, out, counts, stopped, block, counters)
-                    queued = _fill(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, counts,
-                                   stopped, section, block, counters, k, stage, y0, y1)
+                    queued = _fill(i, queued, y, ys, ks, k0, firsts, p, t0, t_end, h0, times, out, status, counts,
+                                   stopped, section, block, counters, y0)
         stepping = 0
         for i in range(m):  # each lane's step, the last one up to t_end; 0 for a lane that is done
             on, ti, hi = block[ACTIVE + i], block[T + i], block[H + i]
@@ -251,23 +254,24 @@ def _run_block(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, sectio
                 if block[T + i] == t_end or (most > 0 and crossed[i] == most):  # done: the lane's next sample
                     block[ACTIVE + i] = 0.0
                     _finish(i, y, ys, times, out, counts, stopped, block, counters)
-                    queued = _fill(i, queued, y, ys, ks, p, t0, t_end, h0, rtol, atol, times, out, status, counts,
-                                   stopped, section, block, counters, k, stage, y0, y1)
+                    queued = _fill(i, queued, y, ys, ks, k0, firsts, p, t0, t_end, h0, times, out, status, counts,
+                                   stopped, section, block, counters, y0)
 
 
 #: The functions :func:`specialised` copies, callees first.
 _FUNCTIONS = ("_lane_extras", "_start", "_finish", "_fill", "_run_block", "run_share")
 
 
-def specialised(attempt, rate, surface=None, key=None):
+def specialised(attempt, start, rate, surface=None, key=None):
     """``drive(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
     counts, stopped)``, as :func:`tumble.kernels.loops.adaptive_loop.make_dop853_driver`'s (``p`` the rate's
-    parameters, ``a`` the attempt's constants), over ``attempt``, ``rate`` and ``surface`` (None: the component surface):
+    parameters, ``a`` the attempt's and start's constants), over ``attempt``, ``start`` (every sample's rate and first
+    step, :func:`tumble.kernels.steps.model_codegen.start_source`), ``rate`` and ``surface`` (None: the component surface):
     this module's functions copied with those in their globals (:func:`tumble.kernels.jit.rebound`), compiled on first
     use; one share of the samples per numba thread, each share in one block (a share is whole blocks: a run of one
     block's samples or fewer stays in the calling thread). Cached on disk under ``key`` (a string that names what they
     compute in every process: a model's system module, a System's code), not cached without it."""
-    share = rebound(_FUNCTIONS, globals(), key, attempt=attempt, rate=rate,
+    share = rebound(_FUNCTIONS, globals(), key, attempt=attempt, start=start, rate=rate,
                     surface=surface if surface is not None else globals()["surface"])["run_share"]
 
     def drive(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
@@ -290,5 +294,6 @@ def for_model(module, rate="rate", surface=None):
     component surface, cached on disk under ``module`` and ``rate``). A first run compiles that model's attempt alone:
     one for every model made a first free-body run compile all four (24 s to 14 s on 2 cores)."""
     key = None if surface is not None else module if rate == "rate" else f"{module}_{rate}"
-    return specialised(getattr(model_steps, model_codegen.attempt_name(module, rate)), model_steps.rate_sample,
+    name = model_codegen.attempt_name(module, rate)
+    return specialised(getattr(model_steps, name), getattr(model_steps, f"{name}_start"), model_steps.rate_sample,
                        surface, key)

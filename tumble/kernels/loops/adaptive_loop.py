@@ -32,7 +32,7 @@ import numpy as np
 
 from ...registry import STATUS_LIMIT, STATUS_NONFINITE, STATUS_OK, STATUS_UNDERFLOW
 from ..jit import jit, rebound
-from ..steps.control import ROUND, next_step
+from ..steps.control import ROUND, next_step, root8
 from ..tableaux import DOP853
 from ..threads import in_shares
 from ..trig import _max, _min
@@ -47,7 +47,6 @@ _A[_STAGES + 1:] = DOP853.extra_a
 _C = np.concatenate([DOP853.tableau.c, [1.0], DOP853.extra_c])
 _B = DOP853.tableau.b.copy()
 _E5, _E3, _D = DOP853.e5.copy(), DOP853.e3.copy(), DOP853.dense.copy()
-_EXPONENT = 1.0 / (DOP853.error_order + 1)
 _UROUND = ROUND
 
 #: Rows of the scratch a sample's run needs (its state has ``n`` components): 16 stages, the stage's state, ``y1``,
@@ -265,7 +264,7 @@ def _first_step(rate, t, y, p, span, rtol, atol, f0, y_trial, f1):
     if d1 <= 1e-15 and d2 <= 1e-15:
         h1 = _max(1e-6, h0 * 1e-3)
     else:
-        h1 = (0.01 / _max(d1, d2)) ** _EXPONENT
+        h1 = root8(0.01 / _max(d1, d2))
     return _min(100.0 * h0, h1, span)
 
 

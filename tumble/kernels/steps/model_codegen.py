@@ -307,6 +307,49 @@ def attempt_source(name, components, n_fields=None, method=tableaux.DOP853, rate
     return "\n".join(lines)
 
 
+def start_source(name, components, n_fields=None, method=tableaux.DOP853, rate="rate"):
+    # size: generated: the rate and Hairer's first step spelled out for one sample's state in registers
+    """Source of ``<attempt>_start(t0, span, y, rtol, atol, a, k0, h0)`` (:func:`attempt_name`'s, ``_start``
+    appended): every sample of ``y`` (N, n) started at once, vectorised across them: its rate ``k0`` (N, n) and
+    Hairer's first step ``h0`` (N,) (``hinit`` of dop853.f, as SciPy's ``select_initial_step``: from the sizes of
+    ``y``, ``f(t0, y)`` and an estimate of the second derivative, one more evaluation of the rate, within ``span``), the
+    root by :func:`tumble.kernels.steps.control.root8`. A sample that is not finite gets numbers no run reads."""
+    n = len(components)
+    rows = [f"y[s, {j}]" for j in range(n)]
+
+    def rate_call(target, time, states):
+        return [f"        {', '.join(target)}{',' if n == 1 else ''} = {name}.{rate}({time}, {', '.join(states)}, c)"]
+
+    def norm(terms):
+        return f"math.sqrt(({' + '.join(f'({term}) ** 2' for term in terms)}) / {n}.0)"
+
+    f0 = [f"f{j + 1}" for j in range(n)]
+    f1 = [f"g{j + 1}" for j in range(n)]
+    scale = [f"sk{j + 1}" for j in range(n)]
+    lines = [
+        "@jit",
+        f"def {attempt_name(name, rate, method)}_start(t0, span, y, rtol, atol, a, k0, h0):",
+        "    # size: generated, the rate and the first step spelled out (a sample's state in registers)",
+        f'    """Every sample\'s rate and first step of {method.name} of the {name}, vectorised across the samples."""',
+        f"    c = {_record(name, n_fields)}",
+        "    for s in range(y.shape[0]):",
+        f"        {', '.join(components)}{',' if n == 1 else ''} = {', '.join(rows)}",
+    ]
+    lines += rate_call(f0, "t0", components)
+    lines += [f"        {scale[j]} = atol[{j}] + rtol[{j}] * abs({y})" for j, y in enumerate(components)]
+    lines += [f"        d0 = {norm(f'{y} / {scale[j]}' for j, y in enumerate(components))}",
+              f"        d1 = {norm(f'{f0[j]} / {scale[j]}' for j in range(n))}",
+              "        h = 1e-6 if (d0 < 1e-5) | (d1 < 1e-5) else 0.01 * d0 / d1",
+              "        h = _min(h, span)"]
+    lines += rate_call(f1, "t0 + h", [f"{y} + h * {f0[j]}" for j, y in enumerate(components)])
+    lines += [f"        d2 = {norm(f'({f1[j]} - {f0[j]}) / {scale[j]}' for j in range(n))} / h",
+              "        h1 = (_max(1e-6, h * 1e-3) if (d1 <= 1e-15) & (d2 <= 1e-15) else",
+              "              control.root8(0.01 / _max(d1, d2)))",
+              "        h0[s] = _min(100.0 * h, h1, span)"]
+    lines += [f"        k0[s, {j}] = {f0[j]}" for j in range(n)]
+    return "\n".join(lines)
+
+
 def tangent_step_source(tableau, name, components, forced=None):
     # size: generated from the tableau, every stage of the state, one tangent vector and MEGNO's scalars spelled out
     """Source of ``<name>_<method>_tangent_sample(t, t0, *y, *d, ys, yss, h, c)``: one step of a system's state
@@ -542,7 +585,7 @@ def module_source():
         "from . import control",
         "from .drift_screen import suspect",
         f"from ..systems import {', '.join(sorted(name for name, _, _ in modules))}",
-        "from ..trig import _max",
+        "from ..trig import _max, _min",
     ]
     for name, components, kinds in modules:
         for tableau in METHODS:
@@ -551,7 +594,8 @@ def module_source():
                        tangent_step_source(tableau, name, components), "", "",
                        tangent_block_source(tableau, name, components)]
         for rate in sorted({registry.MODELS[registry.MODEL_KINDS.index(kind)].rate for kind in kinds}):
-            blocks += ["", "", attempt_source(name, components, rate=rate)]
+            blocks += ["", "", attempt_source(name, components, rate=rate), "", "",
+                       start_source(name, components, rate=rate)]
     blocks += ["", "", dispatch_source(modules), "", "", tangent_table_source(modules), ""]
     return "\n".join(blocks)
 

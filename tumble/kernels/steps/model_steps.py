@@ -12,7 +12,7 @@ from .model_splittings import gravity_splitting_block, rotor_splitting_block
 from . import control
 from .drift_screen import suspect
 from ..systems import damper, gravity_gradient, gyrostat, heavy_top
-from ..trig import _max
+from ..trig import _max, _min
 
 
 @jit(inline=True)
@@ -509,6 +509,31 @@ def gyrostat_free_rate_dop853_attempt(block, rtol, atol, a):
 
 
 @jit
+def gyrostat_free_rate_dop853_attempt_start(t0, span, y, rtol, atol, a, k0, h0):
+    # size: generated, the rate and the first step spelled out (a sample's state in registers)
+    """Every sample's rate and first step of dop853 of the gyrostat, vectorised across the samples."""
+    c = gyrostat.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14])
+    for s in range(y.shape[0]):
+        w1, w2, w3 = y[s, 0], y[s, 1], y[s, 2]
+        f1, f2, f3 = gyrostat.free_rate(t0, w1, w2, w3, c)
+        sk1 = atol[0] + rtol[0] * abs(w1)
+        sk2 = atol[1] + rtol[1] * abs(w2)
+        sk3 = atol[2] + rtol[2] * abs(w3)
+        d0 = math.sqrt(((w1 / sk1) ** 2 + (w2 / sk2) ** 2 + (w3 / sk3) ** 2) / 3.0)
+        d1 = math.sqrt(((f1 / sk1) ** 2 + (f2 / sk2) ** 2 + (f3 / sk3) ** 2) / 3.0)
+        h = 1e-6 if (d0 < 1e-5) | (d1 < 1e-5) else 0.01 * d0 / d1
+        h = _min(h, span)
+        g1, g2, g3 = gyrostat.free_rate(t0 + h, w1 + h * f1, w2 + h * f2, w3 + h * f3, c)
+        d2 = math.sqrt((((g1 - f1) / sk1) ** 2 + ((g2 - f2) / sk2) ** 2 + ((g3 - f3) / sk3) ** 2) / 3.0) / h
+        h1 = (_max(1e-6, h * 1e-3) if (d1 <= 1e-15) & (d2 <= 1e-15) else
+              control.root8(0.01 / _max(d1, d2)))
+        h0[s] = _min(100.0 * h, h1, span)
+        k0[s, 0] = f1
+        k0[s, 1] = f2
+        k0[s, 2] = f3
+
+
+@jit
 def gyrostat_dop853_attempt(block, rtol, atol, a):
     # size: generated from the coefficients, every stage spelled out (the lanes' states in registers)
     """One try of dop853 of the gyrostat for every lane of a block (each at its own time and step), kept or not."""
@@ -627,6 +652,31 @@ def gyrostat_dop853_attempt(block, rtol, atol, a):
         block[736 + i] = k1_3
         block[448 + i] = u3 if keep != 0.0 else w3
         block[544 + i] = k13_3 if keep != 0.0 else k1_3
+
+
+@jit
+def gyrostat_dop853_attempt_start(t0, span, y, rtol, atol, a, k0, h0):
+    # size: generated, the rate and the first step spelled out (a sample's state in registers)
+    """Every sample's rate and first step of dop853 of the gyrostat, vectorised across the samples."""
+    c = gyrostat.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14])
+    for s in range(y.shape[0]):
+        w1, w2, w3 = y[s, 0], y[s, 1], y[s, 2]
+        f1, f2, f3 = gyrostat.rate(t0, w1, w2, w3, c)
+        sk1 = atol[0] + rtol[0] * abs(w1)
+        sk2 = atol[1] + rtol[1] * abs(w2)
+        sk3 = atol[2] + rtol[2] * abs(w3)
+        d0 = math.sqrt(((w1 / sk1) ** 2 + (w2 / sk2) ** 2 + (w3 / sk3) ** 2) / 3.0)
+        d1 = math.sqrt(((f1 / sk1) ** 2 + (f2 / sk2) ** 2 + (f3 / sk3) ** 2) / 3.0)
+        h = 1e-6 if (d0 < 1e-5) | (d1 < 1e-5) else 0.01 * d0 / d1
+        h = _min(h, span)
+        g1, g2, g3 = gyrostat.rate(t0 + h, w1 + h * f1, w2 + h * f2, w3 + h * f3, c)
+        d2 = math.sqrt((((g1 - f1) / sk1) ** 2 + ((g2 - f2) / sk2) ** 2 + ((g3 - f3) / sk3) ** 2) / 3.0) / h
+        h1 = (_max(1e-6, h * 1e-3) if (d1 <= 1e-15) & (d2 <= 1e-15) else
+              control.root8(0.01 / _max(d1, d2)))
+        h0[s] = _min(100.0 * h, h1, span)
+        k0[s, 0] = f1
+        k0[s, 1] = f2
+        k0[s, 2] = f3
 
 
 @jit(inline=True)
@@ -1342,6 +1392,37 @@ def heavy_top_dop853_attempt(block, rtol, atol, a):
         block[1120 + i] = k1_6
         block[544 + i] = u6 if keep != 0.0 else g3
         block[736 + i] = k13_6 if keep != 0.0 else k1_6
+
+
+@jit
+def heavy_top_dop853_attempt_start(t0, span, y, rtol, atol, a, k0, h0):
+    # size: generated, the rate and the first step spelled out (a sample's state in registers)
+    """Every sample's rate and first step of dop853 of the heavy_top, vectorised across the samples."""
+    c = heavy_top.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10], a[11], a[12], a[13], a[14], a[15])
+    for s in range(y.shape[0]):
+        w1, w2, w3, g1, g2, g3 = y[s, 0], y[s, 1], y[s, 2], y[s, 3], y[s, 4], y[s, 5]
+        f1, f2, f3, f4, f5, f6 = heavy_top.rate(t0, w1, w2, w3, g1, g2, g3, c)
+        sk1 = atol[0] + rtol[0] * abs(w1)
+        sk2 = atol[1] + rtol[1] * abs(w2)
+        sk3 = atol[2] + rtol[2] * abs(w3)
+        sk4 = atol[3] + rtol[3] * abs(g1)
+        sk5 = atol[4] + rtol[4] * abs(g2)
+        sk6 = atol[5] + rtol[5] * abs(g3)
+        d0 = math.sqrt(((w1 / sk1) ** 2 + (w2 / sk2) ** 2 + (w3 / sk3) ** 2 + (g1 / sk4) ** 2 + (g2 / sk5) ** 2 + (g3 / sk6) ** 2) / 6.0)
+        d1 = math.sqrt(((f1 / sk1) ** 2 + (f2 / sk2) ** 2 + (f3 / sk3) ** 2 + (f4 / sk4) ** 2 + (f5 / sk5) ** 2 + (f6 / sk6) ** 2) / 6.0)
+        h = 1e-6 if (d0 < 1e-5) | (d1 < 1e-5) else 0.01 * d0 / d1
+        h = _min(h, span)
+        g1, g2, g3, g4, g5, g6 = heavy_top.rate(t0 + h, w1 + h * f1, w2 + h * f2, w3 + h * f3, g1 + h * f4, g2 + h * f5, g3 + h * f6, c)
+        d2 = math.sqrt((((g1 - f1) / sk1) ** 2 + ((g2 - f2) / sk2) ** 2 + ((g3 - f3) / sk3) ** 2 + ((g4 - f4) / sk4) ** 2 + ((g5 - f5) / sk5) ** 2 + ((g6 - f6) / sk6) ** 2) / 6.0) / h
+        h1 = (_max(1e-6, h * 1e-3) if (d1 <= 1e-15) & (d2 <= 1e-15) else
+              control.root8(0.01 / _max(d1, d2)))
+        h0[s] = _min(100.0 * h, h1, span)
+        k0[s, 0] = f1
+        k0[s, 1] = f2
+        k0[s, 2] = f3
+        k0[s, 3] = f4
+        k0[s, 4] = f5
+        k0[s, 5] = f6
 
 
 @jit(inline=True)
@@ -2157,6 +2238,39 @@ def gravity_gradient_dop853_attempt(block, rtol, atol, a):
         block[800 + i] = k13_7 if keep != 0.0 else k1_7
 
 
+@jit
+def gravity_gradient_dop853_attempt_start(t0, span, y, rtol, atol, a, k0, h0):
+    # size: generated, the rate and the first step spelled out (a sample's state in registers)
+    """Every sample's rate and first step of dop853 of the gravity_gradient, vectorised across the samples."""
+    c = gravity_gradient.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10])
+    for s in range(y.shape[0]):
+        w1, w2, w3, q0, q1, q2, q3 = y[s, 0], y[s, 1], y[s, 2], y[s, 3], y[s, 4], y[s, 5], y[s, 6]
+        f1, f2, f3, f4, f5, f6, f7 = gravity_gradient.rate(t0, w1, w2, w3, q0, q1, q2, q3, c)
+        sk1 = atol[0] + rtol[0] * abs(w1)
+        sk2 = atol[1] + rtol[1] * abs(w2)
+        sk3 = atol[2] + rtol[2] * abs(w3)
+        sk4 = atol[3] + rtol[3] * abs(q0)
+        sk5 = atol[4] + rtol[4] * abs(q1)
+        sk6 = atol[5] + rtol[5] * abs(q2)
+        sk7 = atol[6] + rtol[6] * abs(q3)
+        d0 = math.sqrt(((w1 / sk1) ** 2 + (w2 / sk2) ** 2 + (w3 / sk3) ** 2 + (q0 / sk4) ** 2 + (q1 / sk5) ** 2 + (q2 / sk6) ** 2 + (q3 / sk7) ** 2) / 7.0)
+        d1 = math.sqrt(((f1 / sk1) ** 2 + (f2 / sk2) ** 2 + (f3 / sk3) ** 2 + (f4 / sk4) ** 2 + (f5 / sk5) ** 2 + (f6 / sk6) ** 2 + (f7 / sk7) ** 2) / 7.0)
+        h = 1e-6 if (d0 < 1e-5) | (d1 < 1e-5) else 0.01 * d0 / d1
+        h = _min(h, span)
+        g1, g2, g3, g4, g5, g6, g7 = gravity_gradient.rate(t0 + h, w1 + h * f1, w2 + h * f2, w3 + h * f3, q0 + h * f4, q1 + h * f5, q2 + h * f6, q3 + h * f7, c)
+        d2 = math.sqrt((((g1 - f1) / sk1) ** 2 + ((g2 - f2) / sk2) ** 2 + ((g3 - f3) / sk3) ** 2 + ((g4 - f4) / sk4) ** 2 + ((g5 - f5) / sk5) ** 2 + ((g6 - f6) / sk6) ** 2 + ((g7 - f7) / sk7) ** 2) / 7.0) / h
+        h1 = (_max(1e-6, h * 1e-3) if (d1 <= 1e-15) & (d2 <= 1e-15) else
+              control.root8(0.01 / _max(d1, d2)))
+        h0[s] = _min(100.0 * h, h1, span)
+        k0[s, 0] = f1
+        k0[s, 1] = f2
+        k0[s, 2] = f3
+        k0[s, 3] = f4
+        k0[s, 4] = f5
+        k0[s, 5] = f6
+        k0[s, 6] = f7
+
+
 @jit(inline=True)
 def damper_rk4_sample(t, w1, w2, w3, s1, s2, s3, h, c):
     # size: generated from the tableau, every stage spelled out (the state stays in registers)
@@ -2870,6 +2984,37 @@ def damper_dop853_attempt(block, rtol, atol, a):
         block[1120 + i] = k1_6
         block[544 + i] = u6 if keep != 0.0 else s3
         block[736 + i] = k13_6 if keep != 0.0 else k1_6
+
+
+@jit
+def damper_dop853_attempt_start(t0, span, y, rtol, atol, a, k0, h0):
+    # size: generated, the rate and the first step spelled out (a sample's state in registers)
+    """Every sample's rate and first step of dop853 of the damper, vectorised across the samples."""
+    c = damper.Constants(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8], a[9], a[10])
+    for s in range(y.shape[0]):
+        w1, w2, w3, s1, s2, s3 = y[s, 0], y[s, 1], y[s, 2], y[s, 3], y[s, 4], y[s, 5]
+        f1, f2, f3, f4, f5, f6 = damper.rate(t0, w1, w2, w3, s1, s2, s3, c)
+        sk1 = atol[0] + rtol[0] * abs(w1)
+        sk2 = atol[1] + rtol[1] * abs(w2)
+        sk3 = atol[2] + rtol[2] * abs(w3)
+        sk4 = atol[3] + rtol[3] * abs(s1)
+        sk5 = atol[4] + rtol[4] * abs(s2)
+        sk6 = atol[5] + rtol[5] * abs(s3)
+        d0 = math.sqrt(((w1 / sk1) ** 2 + (w2 / sk2) ** 2 + (w3 / sk3) ** 2 + (s1 / sk4) ** 2 + (s2 / sk5) ** 2 + (s3 / sk6) ** 2) / 6.0)
+        d1 = math.sqrt(((f1 / sk1) ** 2 + (f2 / sk2) ** 2 + (f3 / sk3) ** 2 + (f4 / sk4) ** 2 + (f5 / sk5) ** 2 + (f6 / sk6) ** 2) / 6.0)
+        h = 1e-6 if (d0 < 1e-5) | (d1 < 1e-5) else 0.01 * d0 / d1
+        h = _min(h, span)
+        g1, g2, g3, g4, g5, g6 = damper.rate(t0 + h, w1 + h * f1, w2 + h * f2, w3 + h * f3, s1 + h * f4, s2 + h * f5, s3 + h * f6, c)
+        d2 = math.sqrt((((g1 - f1) / sk1) ** 2 + ((g2 - f2) / sk2) ** 2 + ((g3 - f3) / sk3) ** 2 + ((g4 - f4) / sk4) ** 2 + ((g5 - f5) / sk5) ** 2 + ((g6 - f6) / sk6) ** 2) / 6.0) / h
+        h1 = (_max(1e-6, h * 1e-3) if (d1 <= 1e-15) & (d2 <= 1e-15) else
+              control.root8(0.01 / _max(d1, d2)))
+        h0[s] = _min(100.0 * h, h1, span)
+        k0[s, 0] = f1
+        k0[s, 1] = f2
+        k0[s, 2] = f3
+        k0[s, 3] = f4
+        k0[s, 4] = f5
+        k0[s, 5] = f6
 
 
 @jit(inline=True)

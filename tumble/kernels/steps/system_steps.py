@@ -42,7 +42,7 @@ from . import control, model_codegen
 from ..jit import jit
 from .. import tableaux
 from ..tableaux import TABLEAUX
-from ..trig import _max
+from ..trig import _max, _min
 from ..loops.tangent_loop import DIFFERENCE_STEP
 
 __all__ = ["NotScalar", "SYSTEM_CODES", "block_attempt", "block_constants", "block_step", "cacheable", "functions_key", "runs",
@@ -366,9 +366,11 @@ def _steps(module, n, n_parameters, tangents):
                       f"    {_NAME}_{method}_block(t, {rows}, h, {record})", ""]
             made[method] = f"{method}_step"
     if not tangents:  # the error-controlled try over a block's lanes (tumble.kernels.loops.adaptive_blocks)
-        lines += [model_codegen.attempt_source(_NAME, components, n_fields=2 * n_parameters), ""]
-        made[tableaux.DOP853.name] = f"{_NAME}_{tableaux.DOP853.name}_attempt"
-    scope = {"jit": _uncached_jit, "math": math, "_max": _max, "control": control, _NAME: module}
+        lines += [model_codegen.attempt_source(_NAME, components, n_fields=2 * n_parameters), "",
+                  model_codegen.start_source(_NAME, components, n_fields=2 * n_parameters), ""]
+        made[tableaux.DOP853.name] = model_codegen.attempt_name(_NAME)
+        made["start"] = model_codegen.attempt_name(_NAME) + "_start"
+    scope = {"jit": _uncached_jit, "math": math, "_max": _max, "_min": _min, "control": control, _NAME: module}
     exec(compile("\n".join(lines), "<tumble System steps>", "exec"), scope)
     from ...registry import STEPPING
 
@@ -432,9 +434,10 @@ def block_step(code, method):
 
 
 def block_attempt(code):
-    """The error-controlled try over a block's lanes of System ``code`` (:func:`system_code`):
-    ``attempt(block, rtol, atol, a)`` (:func:`tumble.kernels.steps.model_codegen.attempt_source`)."""
-    return _MADE[code].steps[tableaux.DOP853.name]
+    """The error-controlled try over a block's lanes of System ``code`` (:func:`system_code`) and the samples' start:
+    ``attempt(block, rtol, atol, a)``, ``start(t0, span, y, rtol, atol, a, k0, h0)``
+    (:func:`tumble.kernels.steps.model_codegen.attempt_source`, :func:`~tumble.kernels.steps.model_codegen.start_source`)."""
+    return _MADE[code].steps[tableaux.DOP853.name], _MADE[code].steps["start"]
 
 
 def tangent_step(code, method):
