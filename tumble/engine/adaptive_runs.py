@@ -79,6 +79,8 @@ def _tolerance(value, default, name, components):
     n = len(components)
     if value is None:
         return np.full(n, default)
+    if type(value) is float and math.isfinite(value) and value > 0.0:  # the common case, without numpy's checks
+        return np.full(n, value)
     try:
         array = np.array(value, dtype=float)
     except (TypeError, ValueError):

@@ -12,7 +12,6 @@ counts, added here). The thread count is numba's (``numba.get_num_threads()``: `
 from concurrent.futures import ThreadPoolExecutor
 
 import numba
-import numpy as np
 
 __all__ = ["in_parallel", "in_shares", "parallel_block"]
 
@@ -24,7 +23,7 @@ def in_shares(run_share, n, share, granule=1):
     threads for each call cost 0.4 ms, more than a small run). Returns the shares' results, in order."""
     granules = -(-int(n) // granule)
     threads = max(1, min(numba.get_num_threads(), granules))
-    bounds = [min(int(n), granule * k) for k in np.linspace(0, granules, threads + 1).astype(int)]
+    bounds = [min(int(n), granule * (granules * k // threads)) for k in range(threads + 1)]
     shares = [share(lo, hi) for lo, hi in zip(bounds[:-1], bounds[1:])]
     if len(shares) == 1:
         return [run_share(*shares[0])]
