@@ -76,7 +76,7 @@ BUDGET = {
     "test_tables.py": 5,
     "test_tangent_blocks.py": 2,
     "test_theory.py": 69,
-    "test_threads.py": 2,
+    "test_threads.py": 3,
     "test_trig.py": 28,
     "test_user_systems.py": 43,
     "test_warm.py": 2,

@@ -61,3 +61,40 @@ def test_the_closed_form_its_attitude_a_scene_and_megno_give_the_same_bits_on_on
         numba.set_num_threads(before)
     for a, b in zip(one, two):
         np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="numba runs one thread on this machine")
+def test_the_spinning_workers_hand_back_results_and_errors_and_runs_from_two_threads_at_once_all_run():
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(2)
+
+        def share(lo, hi):
+            if lo == 0 and hi == 13:
+                raise ZeroDivisionError("a share's error")
+            return lo, hi, threading.current_thread().name
+
+        results = threads.in_shares(lambda *bounds: share(*bounds), 200, lambda lo, hi: (lo, hi))
+        assert [r[:2] for r in results] == [(0, 100), (100, 200)]
+        assert results[0][2] == "tumble" and results[1][2] == threading.current_thread().name
+        with pytest.raises(ZeroDivisionError, match="a share's error"):  # raised on the worker, handed back
+            threads.in_shares(share, 26, lambda lo, hi: (lo, hi))
+        assert threads.in_shares(share, 400, lambda lo, hi: (lo, hi))[0][:2] == (0, 200)  # the worker still runs
+
+        totals = []
+        spins = np.random.default_rng(0).normal(size=(400, 3)) + (0.0, 3.0, 0.0)
+        expected = tumble.propagate((1.0, 2.0, 3.0), spins, 5.0, method="dop853")
+
+        def run():  # two callers at once: one holds the workers, the other takes the pool's threads
+            totals.append(tumble.propagate((1.0, 2.0, 3.0), spins, 5.0, method="dop853"))
+
+        callers = [threading.Thread(target=run) for _ in range(4)]
+        for caller in callers:
+            caller.start()
+        for caller in callers:
+            caller.join()
+        assert len(totals) == 4
+        for total in totals:
+            np.testing.assert_array_equal(total, expected)
+    finally:
+        numba.set_num_threads(before)
