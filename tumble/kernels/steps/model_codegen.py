@@ -271,6 +271,8 @@ def attempt_source(name, components, n_fields=None, method=tableaux.DOP853, rate
         "    for i in range(control.BLOCK):",
         f"        t = {lane('T')}",
         f"        h = {lane('TRIAL_H')}",
+        # the lane's numbers read once, unconditionally: a read in a choice's arm became a masked load and a scatter
+        f"        on, step, rejected, t_new = {lane('ACTIVE')}, {lane('H')}, {lane('LAST_REJECTED')}, {lane('T_NEW')}",
         f"        {', '.join(components)} = {', '.join(row(0, j) for j in range(n))}",
         f"        {names(1).rstrip(',')} = {', '.join(row(1, j) for j in range(n))}",
     ]
@@ -290,15 +292,14 @@ def attempt_source(name, components, n_fields=None, method=tableaux.DOP853, rate
               f"        err3 = {' + '.join(f'e3_{j + 1} * e3_{j + 1}' for j in range(n))}",
               "        deno = err5 + 0.01 * err3",
               f"        err = h * err5 / math.sqrt({n}.0 * deno) if deno > 0.0 else 0.0",
-              f"        on = {lane('ACTIVE')}",
               "        keep = on if err <= 1.0 else 0.0",
-              f"        h_next = control.next_step(err, {lane('H')}, {lane('LAST_REJECTED')})",
-              f"        {lane('H')} = h_next if on != 0.0 else {lane('H')}",
-              f"        {lane('LAST_REJECTED')} = (1.0 - keep) if on != 0.0 else {lane('LAST_REJECTED')}",
+              "        h_next = control.next_step(err, step, rejected)",
+              f"        {lane('H')} = h_next if on != 0.0 else step",
+              f"        {lane('LAST_REJECTED')} = (1.0 - keep) if on != 0.0 else rejected",
               f"        {lane('TRIES')} += on",
               f"        {lane('ACCEPTED')} += keep",
               f"        {lane('KEPT')} = keep",
-              f"        {lane('T')} = {lane('T_NEW')} if keep != 0.0 else t"]
+              f"        {lane('T')} = t_new if keep != 0.0 else t"]
     for j, y in enumerate(components):
         lines += [f"        {row(2, j)} = {y}",
                   f"        {row(3, j)} = k1_{j + 1}",

@@ -395,6 +395,7 @@ def gyrostat_free_rate_dop853_attempt(block, rtol, atol, a):
     for i in range(control.BLOCK):
         t = block[control.T + i]
         h = block[control.TRIAL_H + i]
+        on, step, rejected, t_new = block[control.ACTIVE + i], block[control.H + i], block[control.LAST_REJECTED + i], block[control.T_NEW + i]
         w1, w2, w3 = block[384 + i], block[416 + i], block[448 + i]
         k1_1, k1_2, k1_3 = block[480 + i], block[512 + i], block[544 + i]
         k2_1, k2_2, k2_3 = gyrostat.free_rate(
@@ -485,15 +486,14 @@ def gyrostat_free_rate_dop853_attempt(block, rtol, atol, a):
         err3 = e3_1 * e3_1 + e3_2 * e3_2 + e3_3 * e3_3
         deno = err5 + 0.01 * err3
         err = h * err5 / math.sqrt(3.0 * deno) if deno > 0.0 else 0.0
-        on = block[control.ACTIVE + i]
         keep = on if err <= 1.0 else 0.0
-        h_next = control.next_step(err, block[control.H + i], block[control.LAST_REJECTED + i])
-        block[control.H + i] = h_next if on != 0.0 else block[control.H + i]
-        block[control.LAST_REJECTED + i] = (1.0 - keep) if on != 0.0 else block[control.LAST_REJECTED + i]
+        h_next = control.next_step(err, step, rejected)
+        block[control.H + i] = h_next if on != 0.0 else step
+        block[control.LAST_REJECTED + i] = (1.0 - keep) if on != 0.0 else rejected
         block[control.TRIES + i] += on
         block[control.ACCEPTED + i] += keep
         block[control.KEPT + i] = keep
-        block[control.T + i] = block[control.T_NEW + i] if keep != 0.0 else t
+        block[control.T + i] = t_new if keep != 0.0 else t
         block[576 + i] = w1
         block[672 + i] = k1_1
         block[384 + i] = u1 if keep != 0.0 else w1
@@ -541,6 +541,7 @@ def gyrostat_dop853_attempt(block, rtol, atol, a):
     for i in range(control.BLOCK):
         t = block[control.T + i]
         h = block[control.TRIAL_H + i]
+        on, step, rejected, t_new = block[control.ACTIVE + i], block[control.H + i], block[control.LAST_REJECTED + i], block[control.T_NEW + i]
         w1, w2, w3 = block[384 + i], block[416 + i], block[448 + i]
         k1_1, k1_2, k1_3 = block[480 + i], block[512 + i], block[544 + i]
         k2_1, k2_2, k2_3 = gyrostat.rate(
@@ -631,15 +632,14 @@ def gyrostat_dop853_attempt(block, rtol, atol, a):
         err3 = e3_1 * e3_1 + e3_2 * e3_2 + e3_3 * e3_3
         deno = err5 + 0.01 * err3
         err = h * err5 / math.sqrt(3.0 * deno) if deno > 0.0 else 0.0
-        on = block[control.ACTIVE + i]
         keep = on if err <= 1.0 else 0.0
-        h_next = control.next_step(err, block[control.H + i], block[control.LAST_REJECTED + i])
-        block[control.H + i] = h_next if on != 0.0 else block[control.H + i]
-        block[control.LAST_REJECTED + i] = (1.0 - keep) if on != 0.0 else block[control.LAST_REJECTED + i]
+        h_next = control.next_step(err, step, rejected)
+        block[control.H + i] = h_next if on != 0.0 else step
+        block[control.LAST_REJECTED + i] = (1.0 - keep) if on != 0.0 else rejected
         block[control.TRIES + i] += on
         block[control.ACCEPTED + i] += keep
         block[control.KEPT + i] = keep
-        block[control.T + i] = block[control.T_NEW + i] if keep != 0.0 else t
+        block[control.T + i] = t_new if keep != 0.0 else t
         block[576 + i] = w1
         block[672 + i] = k1_1
         block[384 + i] = u1 if keep != 0.0 else w1
@@ -1221,6 +1221,7 @@ def heavy_top_dop853_attempt(block, rtol, atol, a):
     for i in range(control.BLOCK):
         t = block[control.T + i]
         h = block[control.TRIAL_H + i]
+        on, step, rejected, t_new = block[control.ACTIVE + i], block[control.H + i], block[control.LAST_REJECTED + i], block[control.T_NEW + i]
         w1, w2, w3, g1, g2, g3 = block[384 + i], block[416 + i], block[448 + i], block[480 + i], block[512 + i], block[544 + i]
         k1_1, k1_2, k1_3, k1_4, k1_5, k1_6 = block[576 + i], block[608 + i], block[640 + i], block[672 + i], block[704 + i], block[736 + i]
         k2_1, k2_2, k2_3, k2_4, k2_5, k2_6 = heavy_top.rate(
@@ -1359,15 +1360,14 @@ def heavy_top_dop853_attempt(block, rtol, atol, a):
         err3 = e3_1 * e3_1 + e3_2 * e3_2 + e3_3 * e3_3 + e3_4 * e3_4 + e3_5 * e3_5 + e3_6 * e3_6
         deno = err5 + 0.01 * err3
         err = h * err5 / math.sqrt(6.0 * deno) if deno > 0.0 else 0.0
-        on = block[control.ACTIVE + i]
         keep = on if err <= 1.0 else 0.0
-        h_next = control.next_step(err, block[control.H + i], block[control.LAST_REJECTED + i])
-        block[control.H + i] = h_next if on != 0.0 else block[control.H + i]
-        block[control.LAST_REJECTED + i] = (1.0 - keep) if on != 0.0 else block[control.LAST_REJECTED + i]
+        h_next = control.next_step(err, step, rejected)
+        block[control.H + i] = h_next if on != 0.0 else step
+        block[control.LAST_REJECTED + i] = (1.0 - keep) if on != 0.0 else rejected
         block[control.TRIES + i] += on
         block[control.ACCEPTED + i] += keep
         block[control.KEPT + i] = keep
-        block[control.T + i] = block[control.T_NEW + i] if keep != 0.0 else t
+        block[control.T + i] = t_new if keep != 0.0 else t
         block[768 + i] = w1
         block[960 + i] = k1_1
         block[384 + i] = u1 if keep != 0.0 else w1
@@ -2045,6 +2045,7 @@ def gravity_gradient_dop853_attempt(block, rtol, atol, a):
     for i in range(control.BLOCK):
         t = block[control.T + i]
         h = block[control.TRIAL_H + i]
+        on, step, rejected, t_new = block[control.ACTIVE + i], block[control.H + i], block[control.LAST_REJECTED + i], block[control.T_NEW + i]
         w1, w2, w3, q0, q1, q2, q3 = block[384 + i], block[416 + i], block[448 + i], block[480 + i], block[512 + i], block[544 + i], block[576 + i]
         k1_1, k1_2, k1_3, k1_4, k1_5, k1_6, k1_7 = block[608 + i], block[640 + i], block[672 + i], block[704 + i], block[736 + i], block[768 + i], block[800 + i]
         k2_1, k2_2, k2_3, k2_4, k2_5, k2_6, k2_7 = gravity_gradient.rate(
@@ -2199,15 +2200,14 @@ def gravity_gradient_dop853_attempt(block, rtol, atol, a):
         err3 = e3_1 * e3_1 + e3_2 * e3_2 + e3_3 * e3_3 + e3_4 * e3_4 + e3_5 * e3_5 + e3_6 * e3_6 + e3_7 * e3_7
         deno = err5 + 0.01 * err3
         err = h * err5 / math.sqrt(7.0 * deno) if deno > 0.0 else 0.0
-        on = block[control.ACTIVE + i]
         keep = on if err <= 1.0 else 0.0
-        h_next = control.next_step(err, block[control.H + i], block[control.LAST_REJECTED + i])
-        block[control.H + i] = h_next if on != 0.0 else block[control.H + i]
-        block[control.LAST_REJECTED + i] = (1.0 - keep) if on != 0.0 else block[control.LAST_REJECTED + i]
+        h_next = control.next_step(err, step, rejected)
+        block[control.H + i] = h_next if on != 0.0 else step
+        block[control.LAST_REJECTED + i] = (1.0 - keep) if on != 0.0 else rejected
         block[control.TRIES + i] += on
         block[control.ACCEPTED + i] += keep
         block[control.KEPT + i] = keep
-        block[control.T + i] = block[control.T_NEW + i] if keep != 0.0 else t
+        block[control.T + i] = t_new if keep != 0.0 else t
         block[832 + i] = w1
         block[1056 + i] = k1_1
         block[384 + i] = u1 if keep != 0.0 else w1
@@ -2813,6 +2813,7 @@ def damper_dop853_attempt(block, rtol, atol, a):
     for i in range(control.BLOCK):
         t = block[control.T + i]
         h = block[control.TRIAL_H + i]
+        on, step, rejected, t_new = block[control.ACTIVE + i], block[control.H + i], block[control.LAST_REJECTED + i], block[control.T_NEW + i]
         w1, w2, w3, s1, s2, s3 = block[384 + i], block[416 + i], block[448 + i], block[480 + i], block[512 + i], block[544 + i]
         k1_1, k1_2, k1_3, k1_4, k1_5, k1_6 = block[576 + i], block[608 + i], block[640 + i], block[672 + i], block[704 + i], block[736 + i]
         k2_1, k2_2, k2_3, k2_4, k2_5, k2_6 = damper.rate(
@@ -2951,15 +2952,14 @@ def damper_dop853_attempt(block, rtol, atol, a):
         err3 = e3_1 * e3_1 + e3_2 * e3_2 + e3_3 * e3_3 + e3_4 * e3_4 + e3_5 * e3_5 + e3_6 * e3_6
         deno = err5 + 0.01 * err3
         err = h * err5 / math.sqrt(6.0 * deno) if deno > 0.0 else 0.0
-        on = block[control.ACTIVE + i]
         keep = on if err <= 1.0 else 0.0
-        h_next = control.next_step(err, block[control.H + i], block[control.LAST_REJECTED + i])
-        block[control.H + i] = h_next if on != 0.0 else block[control.H + i]
-        block[control.LAST_REJECTED + i] = (1.0 - keep) if on != 0.0 else block[control.LAST_REJECTED + i]
+        h_next = control.next_step(err, step, rejected)
+        block[control.H + i] = h_next if on != 0.0 else step
+        block[control.LAST_REJECTED + i] = (1.0 - keep) if on != 0.0 else rejected
         block[control.TRIES + i] += on
         block[control.ACCEPTED + i] += keep
         block[control.KEPT + i] = keep
-        block[control.T + i] = block[control.T_NEW + i] if keep != 0.0 else t
+        block[control.T + i] = t_new if keep != 0.0 else t
         block[768 + i] = w1
         block[960 + i] = k1_1
         block[384 + i] = u1 if keep != 0.0 else w1
