@@ -334,7 +334,7 @@ def start_source(name, components, n_fields=None, method=tableaux.DOP853, rate="
         f'    """Every sample\'s rate and first step of {method.name} of the {name}, vectorised across the samples."""',
         f"    c = {_record(name, n_fields)}",
         "    for s in range(y.shape[0]):",
-        f"        {', '.join(components)}{',' if n == 1 else ''} = {', '.join(rows)}",
+        f"        {', '.join(components)} = {', '.join(rows)}",
     ]
     lines += rate_call(f0, "t0", components)
     lines += [f"        {scale[j]} = atol[{j}] + rtol[{j}] * abs({y})" for j, y in enumerate(components)]
