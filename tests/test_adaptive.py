@@ -42,6 +42,10 @@ def _blow_up_rate(t, y, p, dydt):
     dydt[0] = y[0] * y[0]  # y = 1 / (1 - t): a singularity at t = 1
 
 
+def _not_finite_after_one_rate(t, y, p, dydt):
+    dydt[0] = -y[0] if t < 1.0 else math.nan  # a rate that returns NaN past t = 1
+
+
 @pytest.fixture(scope="module")
 def pendulum():
     return tumble.System(_pendulum_rate, state=("x", "v"), parameters={"k": 4.0, "c": 0.1}, name="pendulum")
@@ -147,6 +151,15 @@ def test_a_singularity_stops_its_sample_with_step_underflow_and_a_warning(blow_u
     assert ds.state.values[0, 0, 0] == pytest.approx(2.0, rel=1e-9)  # before the singularity: 1 / (1 - t)
     assert np.isfinite(ds.state.values).all() and ds.state.values[0, 1, 0] > 1e6  # the state it stopped with
     assert ds.state.values[1, 1, 0] == pytest.approx(-1.0 / 3.0, rel=1e-9)
+
+
+@pytest.mark.slow  # its own System's kernel's compile (4 s)
+def test_a_rate_that_returns_nan_stops_its_samples_with_the_last_finite_state_never_nan():
+    system = tumble.System(_not_finite_after_one_rate, state=("y",), name="not_finite")
+    with pytest.warns(RuntimeWarning, match=r"2 of 2 samples of 'not_finite' stopped before t_end \(2 step underflow"):
+        ds = tumble.integrate(system, [[1.0], [0.5]], 2.0, method="dop853")
+    assert ds.status.values.tolist() == [registry.STATUS_UNDERFLOW] * 2  # a NaN error is rejected, not an error of 0
+    np.testing.assert_allclose(ds.state.values[:, -1, 0], np.array([1.0, 0.5]) * math.exp(-1.0), rtol=1e-6)
 
 
 def test_a_steady_spin_is_kept_exactly_to_the_end():

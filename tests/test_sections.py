@@ -116,7 +116,7 @@ import tumble
 from tumble.engine import adaptive_runs
 top = tumble.models.HeavyTop((1.0, 1.5, 2.0), 1.0, centre=(1.0, 0.5, 1.0))
 ds = tumble.section(top, [[0.0, 0.0, 2.0, 0.0, 0.3, 0.95]], 20.0, surface=("g1", 0.0), max_crossings=3)
-drive = adaptive_runs._MODEL_KERNELS["heavy_top", None]
+drive = adaptive_runs._MODEL_KERNELS["heavy_top", "rate", None]
 print(repr(float(ds["time"][0, 0])), sum(drive.run_share.stats.cache_hits.values()))
 """
 

@@ -147,7 +147,8 @@ def run_sample(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, section, 
             err5 += (e5 / sk) ** 2
             err3 += (e3 / sk) ** 2
         deno = err5 + 0.01 * err3
-        err = h * err5 / math.sqrt(n * deno) if deno > 0.0 else 0.0
+        # a NaN among the stages (a rate that returned one) is a non-finite error, rejected, never an error of 0
+        err = h * err5 / math.sqrt(n * deno) if deno > 0.0 else (0.0 if deno == 0.0 else math.inf)
         h_next = next_step(err, h, 1.0 if last_rejected else 0.0)
         if err <= 1.0:
             accepted += 1

@@ -262,7 +262,7 @@ def attempt_source(name, components, n_fields=None, method=tableaux.DOP853, rate
         return " + ".join(terms)
 
     lines = [
-        "@jit",
+        "@jit(contract=False)",  # its bits the same compiled alone or in a caller, loaded or not
         f"def {attempt_name(name, rate, method)}(block, rtol, atol, a):",
         "    # size: generated from the coefficients, every stage spelled out (the lanes' states in registers)",
         f'    """One try of {method.name} of the {name} for every lane of a block (each at its own time and step), '
@@ -291,7 +291,8 @@ def attempt_source(name, components, n_fields=None, method=tableaux.DOP853, rate
     lines += [f"        err5 = {' + '.join(f'e5_{j + 1} * e5_{j + 1}' for j in range(n))}",
               f"        err3 = {' + '.join(f'e3_{j + 1} * e3_{j + 1}' for j in range(n))}",
               "        deno = err5 + 0.01 * err3",
-              f"        err = h * err5 / math.sqrt({n}.0 * deno) if deno > 0.0 else 0.0",
+              # a NaN among the stages (a rate that returned one) is a non-finite error, rejected, never 0
+              f"        err = h * err5 / math.sqrt({n}.0 * deno) if deno > 0.0 else (0.0 if deno == 0.0 else math.inf)",
               "        keep = on if err <= 1.0 else 0.0",
               "        h_next = control.next_step(err, step, rejected)",
               f"        {lane('H')} = h_next if on != 0.0 else step",
@@ -328,7 +329,7 @@ def start_source(name, components, n_fields=None, method=tableaux.DOP853, rate="
     f1 = [f"g{j + 1}" for j in range(n)]
     scale = [f"sk{j + 1}" for j in range(n)]
     lines = [
-        "@jit",
+        "@jit(contract=False)",  # its bits the same compiled alone or in a caller, loaded or not
         f"def {attempt_name(name, rate, method)}_start(t0, span, y, rtol, atol, a, k0, h0):",
         "    # size: generated, the rate and the first step spelled out (a sample's state in registers)",
         f'    """Every sample\'s rate and first step of {method.name} of the {name}, vectorised across the samples."""',

@@ -387,7 +387,7 @@ def gyrostat_rk8_tangent_step(Z, t, t0, h, a):
                 t, t0, Y[0, i], Y[1, i], Y[2, i], Y[3, i], Y[4, i], Y[5, i], Y[6, i], Y[7, i], h, c)
 
 
-@jit
+@jit(contract=False)
 def gyrostat_free_rate_dop853_attempt(block, rtol, atol, a):
     # size: generated from the coefficients, every stage spelled out (the lanes' states in registers)
     """One try of dop853 of the gyrostat for every lane of a block (each at its own time and step), kept or not."""
@@ -485,7 +485,7 @@ def gyrostat_free_rate_dop853_attempt(block, rtol, atol, a):
         err5 = e5_1 * e5_1 + e5_2 * e5_2 + e5_3 * e5_3
         err3 = e3_1 * e3_1 + e3_2 * e3_2 + e3_3 * e3_3
         deno = err5 + 0.01 * err3
-        err = h * err5 / math.sqrt(3.0 * deno) if deno > 0.0 else 0.0
+        err = h * err5 / math.sqrt(3.0 * deno) if deno > 0.0 else (0.0 if deno == 0.0 else math.inf)
         keep = on if err <= 1.0 else 0.0
         h_next = control.next_step(err, step, rejected)
         block[control.H + i] = h_next if on != 0.0 else step
@@ -508,7 +508,7 @@ def gyrostat_free_rate_dop853_attempt(block, rtol, atol, a):
         block[544 + i] = k13_3 if keep != 0.0 else k1_3
 
 
-@jit
+@jit(contract=False)
 def gyrostat_free_rate_dop853_attempt_start(t0, span, y, rtol, atol, a, k0, h0):
     # size: generated, the rate and the first step spelled out (a sample's state in registers)
     """Every sample's rate and first step of dop853 of the gyrostat, vectorised across the samples."""
@@ -533,7 +533,7 @@ def gyrostat_free_rate_dop853_attempt_start(t0, span, y, rtol, atol, a, k0, h0):
         k0[s, 2] = f3
 
 
-@jit
+@jit(contract=False)
 def gyrostat_dop853_attempt(block, rtol, atol, a):
     # size: generated from the coefficients, every stage spelled out (the lanes' states in registers)
     """One try of dop853 of the gyrostat for every lane of a block (each at its own time and step), kept or not."""
@@ -631,7 +631,7 @@ def gyrostat_dop853_attempt(block, rtol, atol, a):
         err5 = e5_1 * e5_1 + e5_2 * e5_2 + e5_3 * e5_3
         err3 = e3_1 * e3_1 + e3_2 * e3_2 + e3_3 * e3_3
         deno = err5 + 0.01 * err3
-        err = h * err5 / math.sqrt(3.0 * deno) if deno > 0.0 else 0.0
+        err = h * err5 / math.sqrt(3.0 * deno) if deno > 0.0 else (0.0 if deno == 0.0 else math.inf)
         keep = on if err <= 1.0 else 0.0
         h_next = control.next_step(err, step, rejected)
         block[control.H + i] = h_next if on != 0.0 else step
@@ -654,7 +654,7 @@ def gyrostat_dop853_attempt(block, rtol, atol, a):
         block[544 + i] = k13_3 if keep != 0.0 else k1_3
 
 
-@jit
+@jit(contract=False)
 def gyrostat_dop853_attempt_start(t0, span, y, rtol, atol, a, k0, h0):
     # size: generated, the rate and the first step spelled out (a sample's state in registers)
     """Every sample's rate and first step of dop853 of the gyrostat, vectorised across the samples."""
@@ -1213,7 +1213,7 @@ def heavy_top_rk8_tangent_step(Z, t, t0, h, a):
                 t, t0, Y[0, i], Y[1, i], Y[2, i], Y[3, i], Y[4, i], Y[5, i], Y[6, i], Y[7, i], Y[8, i], Y[9, i], Y[10, i], Y[11, i], Y[12, i], Y[13, i], h, c)
 
 
-@jit
+@jit(contract=False)
 def heavy_top_dop853_attempt(block, rtol, atol, a):
     # size: generated from the coefficients, every stage spelled out (the lanes' states in registers)
     """One try of dop853 of the heavy_top for every lane of a block (each at its own time and step), kept or not."""
@@ -1359,7 +1359,7 @@ def heavy_top_dop853_attempt(block, rtol, atol, a):
         err5 = e5_1 * e5_1 + e5_2 * e5_2 + e5_3 * e5_3 + e5_4 * e5_4 + e5_5 * e5_5 + e5_6 * e5_6
         err3 = e3_1 * e3_1 + e3_2 * e3_2 + e3_3 * e3_3 + e3_4 * e3_4 + e3_5 * e3_5 + e3_6 * e3_6
         deno = err5 + 0.01 * err3
-        err = h * err5 / math.sqrt(6.0 * deno) if deno > 0.0 else 0.0
+        err = h * err5 / math.sqrt(6.0 * deno) if deno > 0.0 else (0.0 if deno == 0.0 else math.inf)
         keep = on if err <= 1.0 else 0.0
         h_next = control.next_step(err, step, rejected)
         block[control.H + i] = h_next if on != 0.0 else step
@@ -1394,7 +1394,7 @@ def heavy_top_dop853_attempt(block, rtol, atol, a):
         block[736 + i] = k13_6 if keep != 0.0 else k1_6
 
 
-@jit
+@jit(contract=False)
 def heavy_top_dop853_attempt_start(t0, span, y, rtol, atol, a, k0, h0):
     # size: generated, the rate and the first step spelled out (a sample's state in registers)
     """Every sample's rate and first step of dop853 of the heavy_top, vectorised across the samples."""
@@ -2037,7 +2037,7 @@ def gravity_gradient_rk8_tangent_step(Z, t, t0, h, a):
                 t, t0, Y[0, i], Y[1, i], Y[2, i], Y[3, i], Y[4, i], Y[5, i], Y[6, i], Y[7, i], Y[8, i], Y[9, i], Y[10, i], Y[11, i], Y[12, i], Y[13, i], Y[14, i], Y[15, i], h, c, forcings)
 
 
-@jit
+@jit(contract=False)
 def gravity_gradient_dop853_attempt(block, rtol, atol, a):
     # size: generated from the coefficients, every stage spelled out (the lanes' states in registers)
     """One try of dop853 of the gravity_gradient for every lane of a block (each at its own time and step), kept or not."""
@@ -2199,7 +2199,7 @@ def gravity_gradient_dop853_attempt(block, rtol, atol, a):
         err5 = e5_1 * e5_1 + e5_2 * e5_2 + e5_3 * e5_3 + e5_4 * e5_4 + e5_5 * e5_5 + e5_6 * e5_6 + e5_7 * e5_7
         err3 = e3_1 * e3_1 + e3_2 * e3_2 + e3_3 * e3_3 + e3_4 * e3_4 + e3_5 * e3_5 + e3_6 * e3_6 + e3_7 * e3_7
         deno = err5 + 0.01 * err3
-        err = h * err5 / math.sqrt(7.0 * deno) if deno > 0.0 else 0.0
+        err = h * err5 / math.sqrt(7.0 * deno) if deno > 0.0 else (0.0 if deno == 0.0 else math.inf)
         keep = on if err <= 1.0 else 0.0
         h_next = control.next_step(err, step, rejected)
         block[control.H + i] = h_next if on != 0.0 else step
@@ -2238,7 +2238,7 @@ def gravity_gradient_dop853_attempt(block, rtol, atol, a):
         block[800 + i] = k13_7 if keep != 0.0 else k1_7
 
 
-@jit
+@jit(contract=False)
 def gravity_gradient_dop853_attempt_start(t0, span, y, rtol, atol, a, k0, h0):
     # size: generated, the rate and the first step spelled out (a sample's state in registers)
     """Every sample's rate and first step of dop853 of the gravity_gradient, vectorised across the samples."""
@@ -2805,7 +2805,7 @@ def damper_rk8_tangent_step(Z, t, t0, h, a):
                 t, t0, Y[0, i], Y[1, i], Y[2, i], Y[3, i], Y[4, i], Y[5, i], Y[6, i], Y[7, i], Y[8, i], Y[9, i], Y[10, i], Y[11, i], Y[12, i], Y[13, i], h, c)
 
 
-@jit
+@jit(contract=False)
 def damper_dop853_attempt(block, rtol, atol, a):
     # size: generated from the coefficients, every stage spelled out (the lanes' states in registers)
     """One try of dop853 of the damper for every lane of a block (each at its own time and step), kept or not."""
@@ -2951,7 +2951,7 @@ def damper_dop853_attempt(block, rtol, atol, a):
         err5 = e5_1 * e5_1 + e5_2 * e5_2 + e5_3 * e5_3 + e5_4 * e5_4 + e5_5 * e5_5 + e5_6 * e5_6
         err3 = e3_1 * e3_1 + e3_2 * e3_2 + e3_3 * e3_3 + e3_4 * e3_4 + e3_5 * e3_5 + e3_6 * e3_6
         deno = err5 + 0.01 * err3
-        err = h * err5 / math.sqrt(6.0 * deno) if deno > 0.0 else 0.0
+        err = h * err5 / math.sqrt(6.0 * deno) if deno > 0.0 else (0.0 if deno == 0.0 else math.inf)
         keep = on if err <= 1.0 else 0.0
         h_next = control.next_step(err, step, rejected)
         block[control.H + i] = h_next if on != 0.0 else step
@@ -2986,7 +2986,7 @@ def damper_dop853_attempt(block, rtol, atol, a):
         block[736 + i] = k13_6 if keep != 0.0 else k1_6
 
 
-@jit
+@jit(contract=False)
 def damper_dop853_attempt_start(t0, span, y, rtol, atol, a, k0, h0):
     # size: generated, the rate and the first step spelled out (a sample's state in registers)
     """Every sample's rate and first step of dop853 of the damper, vectorised across the samples."""
