@@ -26,9 +26,9 @@ import numpy as np
 from ...registry import STATUS_LIMIT, STATUS_NONFINITE, STATUS_OK, STATUS_UNDERFLOW
 from ..jit import jit, rebound
 from ..steps import model_codegen, model_steps
-from ..steps.control import (ACCEPTED, ACTIVE, BLOCK, G0, H, KEPT, LAST_REJECTED, NEXT_OUT, STATES, T, T_NEW, T_PREV,
-                             TRIAL_H, TRIES)
-from .adaptive_loop import (_C, _STAGES, _UROUND, SCRATCH_ROWS, _crossing, _dense, _interpolant,
+from ..steps.control import (ACCEPTED, ACTIVE, BLOCK, G0, H, KEPT, LAST_REJECTED, NEXT_OUT, ROUND, STATES, T, T_NEW,
+                             T_PREV, TRIAL_H, TRIES)
+from .adaptive_loop import (_C, _STAGES, SCRATCH_ROWS, _crossing, _dense, _interpolant,
                             _stage)
 from .adaptive_loop import component_surface as surface
 from ..threads import in_shares
@@ -58,7 +58,7 @@ def _stages(rate, y0, p, t, h, k, stage):
 @jit(inline=True)
 def _stops(active, tries, h, t, max_steps):
     """Whether an active lane stops before its next try: its steps are used up, or its step cannot advance ``t``."""
-    return (active != 0.0) & ((tries >= max_steps) | ~(0.1 * h > abs(t) * _UROUND))
+    return (active != 0.0) & ((tries >= max_steps) | ~(0.1 * h > abs(t) * ROUND))
 
 
 @jit(contract=False, refcounts=False)
@@ -294,6 +294,6 @@ def for_model(module, rate="rate", surface=None):
     component surface, cached on disk under ``module`` and ``rate``). A first run compiles that model's attempt alone:
     one for every model made a first free-body run compile all four (24 s to 14 s on 2 cores)."""
     key = None if surface is not None else module if rate == "rate" else f"{module}_{rate}"
-    name = model_codegen.attempt_name(module, rate)
-    return specialised(getattr(model_steps, name), getattr(model_steps, f"{name}_start"), model_steps.rate_sample,
-                       surface, key)
+    return specialised(getattr(model_steps, model_codegen.attempt_name(module, rate)),
+                       getattr(model_steps, model_codegen.start_name(module, rate)), model_steps.rate_sample, surface,
+                       key)

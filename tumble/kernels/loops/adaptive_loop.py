@@ -47,7 +47,6 @@ _A[_STAGES + 1:] = DOP853.extra_a
 _C = np.concatenate([DOP853.tableau.c, [1.0], DOP853.extra_c])
 _B = DOP853.tableau.b.copy()
 _E5, _E3, _D = DOP853.e5.copy(), DOP853.e3.copy(), DOP853.dense.copy()
-_UROUND = ROUND
 
 #: Rows of the scratch a sample's run needs (its state has ``n`` components): 16 stages, the stage's state, ``y1``,
 #: the 7 rows of the interpolant.
@@ -123,7 +122,7 @@ def run_sample(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, section, 
         if accepted + rejected >= max_steps:
             code = STATUS_LIMIT
             break
-        if 0.1 * h <= abs(t) * _UROUND or not h > 0.0:
+        if 0.1 * h <= abs(t) * ROUND or not h > 0.0:
             code = STATUS_UNDERFLOW
             break
         final = t + 1.01 * h >= t_end
@@ -214,7 +213,7 @@ def _crossing(surface, f, y0, p, t, h, g0, g1, component, value, trial):
         return 1.0
     a, b, ga, gb = 0.0, 1.0, g0, g1
     side = 0
-    width = 4.0 * _UROUND * _max(abs(t), abs(t + h)) / h
+    width = 4.0 * ROUND * _max(abs(t), abs(t + h)) / h
     for _ in range(200):
         x = (a * gb - b * ga) / (gb - ga)
         if not (a < x < b):

@@ -227,6 +227,11 @@ def attempt_name(name, rate="rate", method=tableaux.DOP853):
     return f"{name}_{method.name}_attempt" if rate == "rate" else f"{name}_{rate}_{method.name}_attempt"
 
 
+def start_name(name, rate="rate", method=tableaux.DOP853):
+    """The name of :func:`start_source`'s function: :func:`attempt_name`'s, ``_start`` appended."""
+    return f"{attempt_name(name, rate, method)}_start"
+
+
 def attempt_source(name, components, n_fields=None, method=tableaux.DOP853, rate="rate"):
     # size: generated from the coefficients: every stage, the step, both error estimates and the keeping spelled out
     """Source of ``<name>_<method>_attempt(block, rtol, atol, a)`` (:func:`attempt_name`: with the module's function
@@ -330,7 +335,7 @@ def start_source(name, components, n_fields=None, method=tableaux.DOP853, rate="
     scale = [f"sk{j + 1}" for j in range(n)]
     lines = [
         "@jit(contract=False)",  # its bits the same compiled alone or in a caller, loaded or not
-        f"def {attempt_name(name, rate, method)}_start(t0, span, y, rtol, atol, a, k0, h0):",
+        f"def {start_name(name, rate, method)}(t0, span, y, rtol, atol, a, k0, h0):",
         "    # size: generated, the rate and the first step spelled out (a sample's state in registers)",
         f'    """Every sample\'s rate and first step of {method.name} of the {name}, vectorised across the samples."""',
         f"    c = {_record(name, n_fields)}",

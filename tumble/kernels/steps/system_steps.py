@@ -369,7 +369,7 @@ def _steps(module, n, n_parameters, tangents):
         lines += [model_codegen.attempt_source(_NAME, components, n_fields=2 * n_parameters), "",
                   model_codegen.start_source(_NAME, components, n_fields=2 * n_parameters), ""]
         made[tableaux.DOP853.name] = model_codegen.attempt_name(_NAME)
-        made["start"] = model_codegen.attempt_name(_NAME) + "_start"
+        made["start"] = model_codegen.start_name(_NAME)
     scope = {"jit": _uncached_jit, "math": math, "_max": _max, "_min": _min, "control": control, _NAME: module}
     exec(compile("\n".join(lines), "<tumble System steps>", "exec"), scope)
     from ...registry import STEPPING
