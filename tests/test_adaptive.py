@@ -68,6 +68,11 @@ def test_the_coefficients_are_hairers_as_scipy_distributes_them():
     # each extra stage is consistent (its row sums to its time), and the error weights of a constant rate vanish
     np.testing.assert_allclose(DOP853.extra_a.sum(axis=1), DOP853.extra_c, atol=1e-14)
     assert abs(DOP853.e5.sum()) < 1e-14 and abs(DOP853.e3.sum()) < 1e-14
+    # the third-order estimate as dop853.f makes it: the step's increment less bhh1 k1, bhh2 k9, bhh3 k12
+    from_b = np.concatenate([DOP853.tableau.b, [0.0]])
+    for stage, weight in DOP853.e3_from_b:
+        from_b[stage] -= weight
+    np.testing.assert_allclose(from_b, DOP853.e3, rtol=0, atol=1e-15)
 
 
 def test_a_free_body_meets_its_tolerance_against_the_closed_form_at_dense_output_times():

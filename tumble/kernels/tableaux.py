@@ -161,6 +161,9 @@ class ErrorControl(NamedTuple):
     error_order: int  # the order of the error estimate (the step-size control's exponent is 1 / (error_order + 1))
     e5: np.ndarray  # (s + 1,): the fifth-order estimate's weights of the stages and f(t + h, y1)
     e3: np.ndarray  # (s + 1,): the third-order estimate's
+    # the third-order estimate as Hairer's code makes it, from the step's increment sum(b k): that sum less these
+    # weights of these stages ((stage, weight), ...; e3 is b less them, rounded): 3 products a component, not 8
+    e3_from_b: tuple
     extra_a: np.ndarray  # (3, s + 4): the dense output's three more stages (rows of A, over every stage before them)
     extra_c: np.ndarray  # (3,)
     dense: np.ndarray  # (4, s + 4): the interpolant's coefficients of degree 4 to 7 (over every stage)
@@ -188,7 +191,10 @@ _DOP853_DENSE = [
     [-25.69393346270375, 0.0, 0.0, 0.0, 0.0, -154.18974869023643, -231.5293791760455, 357.6391179106141, 93.40532418362432, -37.45832313645163, 104.0996495089623, 29.8402934266605, -43.53345659001114, 96.32455395918828, -39.17726167561544, -149.72683625798564],
 ]
 
-DOP853 = ErrorControl("dop853", 8, RK8, 7, np.array(_DOP853_E5), np.array(_DOP853_E3),
+# dop853.f's bhh1, bhh2, bhh3, the weights of k1, k9 and k3 (its name for the twelfth stage) in ``err2``
+_DOP853_E3_FROM_B = ((0, 0.244094488188976), (8, 0.733846688281611), (11, 0.0220588235294118))
+
+DOP853 = ErrorControl("dop853", 8, RK8, 7, np.array(_DOP853_E5), np.array(_DOP853_E3), _DOP853_E3_FROM_B,
                       np.array([row + [0.0] * (16 - len(row)) for row in _DOP853_EXTRA_A]), np.array(_DOP853_EXTRA_C),
                       np.array(_DOP853_DENSE))
 assert DOP853.e5.shape == DOP853.e3.shape == (13,) and DOP853.extra_a.shape == (3, 16) and DOP853.dense.shape == (4, 16)

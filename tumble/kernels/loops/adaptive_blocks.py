@@ -22,6 +22,8 @@ or either with a user's surface (compiled in the process that asks).
 import math
 
 import numpy as np
+from llvmlite import ir
+from numba.extending import intrinsic
 
 from ...registry import STATUS_LIMIT, STATUS_NONFINITE, STATUS_OK, STATUS_UNDERFLOW
 from ..jit import jit, rebound
@@ -53,6 +55,16 @@ def _stages(rate, y0, p, t, h, k, stage):
     for s in range(1, _STAGES + 1):
         _stage(s, y0, h, k, stage)
         rate(t + _C[s] * h, stage, p, k[s])
+
+
+@intrinsic
+def _lowest_bit(typingctx, bits):
+    """The index of the lowest set bit of ``bits`` (an integer, not 0): LLVM's ``cttz``, one instruction."""
+
+    def codegen(context, builder, signature, arguments):
+        return builder.cttz(arguments[0], ir.Constant(ir.IntType(1), 0))
+
+    return bits(bits), codegen
 
 
 @jit(inline=True)
@@ -104,7 +116,7 @@ def _lane_extras(i, s, y0s, k0s, ys, p, block, times, out, slot, crossed, compon
 @jit(inline=True, contract=False, refcounts=False)
 def _start(i, s, y, ys, ks, k0, firsts, p, t0, t_end, h0, times, out, status, section, block, counters, y0):
     # size: one lane's start on a sample: its state, first outputs, rate, first step and surface value
-    """Put sample ``s`` into lane ``i``, its rate ``k0[s]`` and first step ``h0`` (0: ``firsts[s]``) made for the
+    """Put sample ``s`` into lane ``i``, its rate ``k0[:, s]`` and first step ``h0`` (0: ``firsts[s]``) made for the
     share by ``start``: True when it steps, False when it is done at once (not finite, or no time to run)."""
     component, value, most = int(section[0]), section[1], int(section[3])
     n = ys.shape[0]
@@ -132,7 +144,7 @@ def _start(i, s, y, ys, ks, k0, firsts, p, t0, t_end, h0, times, out, status, se
         return False
     block[ACTIVE + i] = 1.0
     for j in range(n):
-        ks[j, i] = k0[s, j]
+        ks[j, i] = k0[j, s]
     block[H + i] = h0 if h0 > 0.0 else firsts[s]
     if most > 0:
         block[G0 + i] = surface(t0, y0, p, component, value)
@@ -182,7 +194,7 @@ def run_share(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section
     block = np.zeros(STATES + 4 * n * BLOCK)
     counters = np.zeros((3, BLOCK), dtype=np.int64)
     scratch = np.empty((SCRATCH_ROWS + 1, n))
-    k0 = np.empty((y.shape[0], n))
+    k0 = np.empty((n, y.shape[0]))  # a component's rates in a row: the start's stores are contiguous, so it vectorises
     firsts = np.empty(y.shape[0])
     if y.shape[0] > 0:
         start(t0, t_end - t0, y, rtol, atol, a, k0, firsts)  # every sample's rate and first step, vectorised
@@ -197,7 +209,7 @@ def _run_block(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, sectio
     """:func:`run_share`'s loop over the block's lanes, with the arrays it made: ``block`` (laid out as
     :mod:`tumble.kernels.steps.control` says), ``rows`` (4, n, BLOCK) its states (``ys``, ``ks``, ``y0s``, ``k0s``)
     and ``counters`` (3, BLOCK), rows named by ``_SLOT`` ...; ``scratch`` (:data:`SCRATCH_ROWS` + 1, n) one sample's
-    dense output; ``k0`` (N, n) and ``firsts`` (N,) the samples' rates and first steps. It makes no array, so it runs without numba's reference counts (:func:`tumble.kernels.jit.jit`'s
+    dense output; ``k0`` (n, N) and ``firsts`` (N,) the samples' rates and first steps. It makes no array, so it runs without numba's reference counts (:func:`tumble.kernels.jit.jit`'s
     ``refcounts``). The passes over every lane index ``block`` at constant offsets, so that they vectorise."""
     n = y.shape[1]
     m = BLOCK
@@ -239,23 +251,26 @@ def _run_block(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, sectio
         if stepping == 0:
             break
         attempt(block, rtol, atol, a)
-        # the kept steps that reach an output time or t_end, or any of a section's (rare but for sections)
+        # the lanes whose kept step reaches an output time or t_end, or any of a section's, as the bits of one
+        # number (a pass without a branch), then those lanes alone: a step with one is rare but for sections
         events = 0
         for i in range(m):
             tn = block[T_NEW + i]
-            events += 1 if (block[KEPT + i] != 0.0) & ((block[NEXT_OUT + i] <= tn) | (tn == t_end) | (most > 0)) else 0
-        if events > 0:
-            for i in range(m):
-                if block[KEPT + i] == 0.0:
-                    continue
-                if block[NEXT_OUT + i] <= block[T_NEW + i] or most > 0:  # outputs and crossings, made again
-                    _lane_extras(i, owner[i], y0s, k0s, ys, p, block, times, out, slot, crossed, component, value,
-                                 direction, most, crossing_t, crossing_y, k, stage, y0, y1, f)
-                if block[T + i] == t_end or (most > 0 and crossed[i] == most):  # done: the lane's next sample
-                    block[ACTIVE + i] = 0.0
-                    _finish(i, y, ys, times, out, counts, stopped, block, counters)
-                    queued = _fill(i, queued, y, ys, ks, k0, firsts, p, t0, t_end, h0, times, out, status, counts,
-                                   stopped, section, block, counters, y0)
+            events |= (1 << i) if ((block[KEPT + i] != 0.0) & ((block[NEXT_OUT + i] <= tn) | (tn == t_end) |
+                                                               (most > 0))) else 0
+        while events != 0:
+            i = _lowest_bit(events)
+            events &= events - 1
+            tn = block[T_NEW + i]
+            # outputs and crossings, made again (an output at t_end itself is the final state, written by _finish)
+            if block[NEXT_OUT + i] < tn or (block[NEXT_OUT + i] == tn and tn != t_end) or most > 0:
+                _lane_extras(i, owner[i], y0s, k0s, ys, p, block, times, out, slot, crossed, component, value,
+                             direction, most, crossing_t, crossing_y, k, stage, y0, y1, f)
+            if tn == t_end or (most > 0 and crossed[i] == most):  # done: the lane's next sample
+                block[ACTIVE + i] = 0.0
+                _finish(i, y, ys, times, out, counts, stopped, block, counters)
+                queued = _fill(i, queued, y, ys, ks, k0, firsts, p, t0, t_end, h0, times, out, status, counts,
+                               stopped, section, block, counters, y0)
 
 
 #: The functions :func:`specialised` copies, callees first.

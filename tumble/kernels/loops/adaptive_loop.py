@@ -45,8 +45,8 @@ _A[:_STAGES, :_STAGES] = DOP853.tableau.A
 _A[_STAGES, :_STAGES] = DOP853.tableau.b
 _A[_STAGES + 1:] = DOP853.extra_a
 _C = np.concatenate([DOP853.tableau.c, [1.0], DOP853.extra_c])
-_B = DOP853.tableau.b.copy()
-_E5, _E3, _D = DOP853.e5.copy(), DOP853.e3.copy(), DOP853.dense.copy()
+_B = np.concatenate([DOP853.tableau.b, [0.0]])
+_E5, _E3_FROM_B, _D = DOP853.e5.copy(), DOP853.e3_from_b, DOP853.dense.copy()
 
 #: Rows of the scratch a sample's run needs (its state has ``n`` components): 16 stages, the stage's state, ``y1``,
 #: the 7 rows of the interpolant.
@@ -137,14 +137,19 @@ def run_sample(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, section, 
         err5 = 0.0
         err3 = 0.0
         for j in range(n):
-            sk = atol[j] + rtol[j] * _max(abs(y[j]), abs(y1[j]))
+            scale = 1.0 / (atol[j] + rtol[j] * _max(abs(y[j]), abs(y1[j])))
             e5 = 0.0
-            e3 = 0.0
+            increment = 0.0  # the step's over h, as _stage made it: the third-order estimate is it less three stages
             for s in range(_STAGES + 1):
-                e5 += _E5[s] * k[s, j]
-                e3 += _E3[s] * k[s, j]
-            err5 += (e5 / sk) ** 2
-            err3 += (e3 / sk) ** 2
+                if _E5[s] != 0.0:
+                    e5 += _E5[s] * k[s, j]
+                if _B[s] != 0.0:
+                    increment += _B[s] * k[s, j]
+            e3 = increment
+            for s, weight in _E3_FROM_B:
+                e3 -= weight * k[s, j]
+            err5 += (e5 * scale) * (e5 * scale)
+            err3 += (e3 * scale) * (e3 * scale)
         deno = err5 + 0.01 * err3
         # a NaN among the stages (a rate that returned one) is a non-finite error, rejected, never an error of 0
         err = h * err5 / math.sqrt(n * deno) if deno > 0.0 else (0.0 if deno == 0.0 else math.inf)

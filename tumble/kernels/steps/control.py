@@ -62,9 +62,10 @@ def next_step(err, h, last_rejected):
     """The step to try after a try of ``h`` with error norm ``err``: grown by at most ``largest`` when the try is kept
     (``err <= 1``; not grown when the try before it was rejected, ``last_rejected`` not 0), shrunk by its factor when
     not (by ``1 / smallest`` for a non-finite error). Both steps are made and one chosen: an error of 0 (a steady
-    spin's) makes the shrunk one ``h / 0``, which is never chosen."""
-    factor = _min(1.0 / SMALLEST, root8(err) / SAFETY) if err < 1e300 else 1.0 / SMALLEST
-    grow = h / _max(1.0 / LARGEST, factor)
+    spin's) makes the shrunk one infinite, which is never chosen."""
+    factor = _min(1.0 / SMALLEST, root8(err) * (1.0 / SAFETY)) if err < 1e300 else 1.0 / SMALLEST
+    inverse = 1.0 / factor  # one division a lane (the lanes' loop runs at the rate of its divisions and roots)
+    grow = h * _min(LARGEST, inverse)
     grow = _min(grow, h) if last_rejected != 0.0 else grow
-    shrink = h / factor
+    shrink = h * inverse
     return grow if err <= 1.0 else shrink

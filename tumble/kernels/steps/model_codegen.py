@@ -273,6 +273,7 @@ def attempt_source(name, components, n_fields=None, method=tableaux.DOP853, rate
         f'    """One try of {method.name} of the {name} for every lane of a block (each at its own time and step), '
         f'kept or not."""',
         f"    c = {_record(name, n_fields)}",
+        *_tolerances(n),
         "    for i in range(control.BLOCK):",
         f"        t = {lane('T')}",
         f"        h = {lane('TRIAL_H')}",
@@ -283,16 +284,17 @@ def attempt_source(name, components, n_fields=None, method=tableaux.DOP853, rate
     ]
     for stage in range(1, stages):
         lines += rate_call(names(stage + 1), f"t + {float(tableau.c[stage])!r} * h",
-                           [combination(y, enumerate(tableau.A[stage, :stage]), j + 1)
-                            for j, y in enumerate(components)])
+                           [f"{y} + h * ({weighted(tableau.A[stage, :stage], j)})" for j, y in enumerate(components)])
     stepped = [f"u{j + 1}" for j in range(n)]
     for j, y in enumerate(components):
-        lines.append(f"        {stepped[j]} = {combination(y, enumerate(tableau.b), j + 1)}")
+        lines += [f"        b_{j + 1} = {weighted(tableau.b, j)}",  # the step's increment over h
+                  f"        {stepped[j]} = {y} + h * b_{j + 1}"]
     lines += rate_call(names(stages + 1), "t + h", stepped)
     for j, y in enumerate(components):
-        lines += [f"        s{j + 1} = 1.0 / (atol[{j}] + rtol[{j}] * _max(abs({y}), abs({stepped[j]})))",
+        less = "".join(f" - {w!r} * k{s + 1}_{j + 1}" for s, w in method.e3_from_b)
+        lines += [f"        s{j + 1} = 1.0 / (atol{j + 1} + rtol{j + 1} * _max(abs({y}), abs({stepped[j]})))",
                   f"        e5_{j + 1} = ({weighted(method.e5, j)}) * s{j + 1}",
-                  f"        e3_{j + 1} = ({weighted(method.e3, j)}) * s{j + 1}"]
+                  f"        e3_{j + 1} = (b_{j + 1}{less}) * s{j + 1}"]
     lines += [f"        err5 = {' + '.join(f'e5_{j + 1} * e5_{j + 1}' for j in range(n))}",
               f"        err3 = {' + '.join(f'e3_{j + 1} * e3_{j + 1}' for j in range(n))}",
               "        deno = err5 + 0.01 * err3",
@@ -314,15 +316,23 @@ def attempt_source(name, components, n_fields=None, method=tableaux.DOP853, rate
     return "\n".join(lines)
 
 
+def _tolerances(n):
+    """Lines reading the tolerances into names before a loop over lanes or samples: read in the loop, they are loads
+    LLVM must repeat after every store (the arrays may overlap), which kept the start's loop from vectorising."""
+    return [f"    {', '.join(f'{kind}{j + 1}' for j in range(n))}{',' if n == 1 else ''} = "
+            f"{', '.join(f'{kind}[{j}]' for j in range(n))}" for kind in ("rtol", "atol")]
+
+
 def start_source(name, components, n_fields=None, method=tableaux.DOP853, rate="rate"):
     # size: generated: the rate and Hairer's first step spelled out for one sample's state in registers
     """Source of ``<attempt>_start(t0, span, y, rtol, atol, a, k0, h0)`` (:func:`attempt_name`'s, ``_start``
-    appended): every sample of ``y`` (N, n) started at once, vectorised across them: its rate ``k0`` (N, n) and
+    appended): every sample of ``y`` (N, n) started at once, vectorised across them: its rate ``k0`` (n, N) and
     Hairer's first step ``h0`` (N,) (``hinit`` of dop853.f, as SciPy's ``select_initial_step``: from the sizes of
     ``y``, ``f(t0, y)`` and an estimate of the second derivative, one more evaluation of the rate, within ``span``), the
     root by :func:`tumble.kernels.steps.control.root8`. A sample that is not finite gets numbers no run reads."""
     n = len(components)
-    rows = [f"y[s, {j}]" for j in range(n)]
+    rows = [f"flat[{n} * s + {j}]" for j in range(n)]  # a constant stride: y[s, j]'s is y.shape[1], which LLVM
+    # vectorised only for a shape of 1 (the loop ran scalar, 30 ns a sample against 6)
 
     def rate_call(target, time, states):
         return [f"        {', '.join(target)}{',' if n == 1 else ''} = {name}.{rate}({time}, {', '.join(states)}, c)"]
@@ -339,11 +349,13 @@ def start_source(name, components, n_fields=None, method=tableaux.DOP853, rate="
         "    # size: generated, the rate and the first step spelled out (a sample's state in registers)",
         f'    """Every sample\'s rate and first step of {method.name} of the {name}, vectorised across the samples."""',
         f"    c = {_record(name, n_fields)}",
+        *_tolerances(n),
+        "    flat = y.reshape(y.size)",
         "    for s in range(y.shape[0]):",
         f"        {', '.join(components)} = {', '.join(rows)}",
     ]
     lines += rate_call(f0, "t0", components)
-    lines += [f"        {scale[j]} = atol[{j}] + rtol[{j}] * abs({y})" for j, y in enumerate(components)]
+    lines += [f"        {scale[j]} = atol{j + 1} + rtol{j + 1} * abs({y})" for j, y in enumerate(components)]
     lines += [f"        d0 = {norm(f'{y} / {scale[j]}' for j, y in enumerate(components))}",
               f"        d1 = {norm(f'{f0[j]} / {scale[j]}' for j in range(n))}",
               "        h = 1e-6 if (d0 < 1e-5) | (d1 < 1e-5) else 0.01 * d0 / d1",
@@ -353,7 +365,7 @@ def start_source(name, components, n_fields=None, method=tableaux.DOP853, rate="
               "        h1 = (_max(1e-6, h * 1e-3) if (d1 <= 1e-15) & (d2 <= 1e-15) else",
               "              control.root8(0.01 / _max(d1, d2)))",
               "        h0[s] = _min(100.0 * h, h1, span)"]
-    lines += [f"        k0[s, {j}] = {f0[j]}" for j in range(n)]
+    lines += [f"        k0[{j}, s] = {f0[j]}" for j in range(n)]
     return "\n".join(lines)
 
 
