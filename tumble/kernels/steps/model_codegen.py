@@ -319,8 +319,8 @@ def attempt_source(name, components, n_fields=None, method=tableaux.DOP853, rate
 def _tolerances(n):
     """Lines reading the tolerances into names before a loop over lanes or samples: read in the loop, they are loads
     LLVM must repeat after every store (the arrays may overlap), which kept the start's loop from vectorising."""
-    return [f"    {', '.join(f'{kind}{j + 1}' for j in range(n))}{',' if n == 1 else ''} = "
-            f"{', '.join(f'{kind}[{j}]' for j in range(n))}" for kind in ("rtol", "atol")]
+    return [f"    {', '.join(f'{kind}{j + 1}' for j in range(n))} = {', '.join(f'{kind}[{j}]' for j in range(n))}"
+            for kind in ("rtol", "atol")]
 
 
 def start_source(name, components, n_fields=None, method=tableaux.DOP853, rate="rate"):
