@@ -127,7 +127,8 @@ def initial_states(system, y0, name="y0"):
     if y.ndim != 2 or y.shape[1] != len(names) or len(y) == 0:
         raise ValueError(f"{name} must have shape (N, {len(names)}) with N >= 1 ({', '.join(names)} of "
                          f"{system_name(system)!r}), got shape {np.shape(y0)}")
-    bad = np.flatnonzero(~np.all(np.isfinite(y), axis=1))
+    finite = np.isfinite(y)
+    bad = [] if finite.all() else np.flatnonzero(~np.all(finite, axis=1))  # all(axis=1) alone: 30 us for 2000 states
     if len(bad):
         raise ValueError(f"{name} must be finite: sample {int(bad[0])} holds NaN or inf ({', '.join(names)} = "
                          f"{y[bad[0]].tolist()}){f', and {len(bad) - 1} more' if len(bad) > 1 else ''}")
