@@ -86,13 +86,15 @@ def test_a_free_body_meets_its_tolerance_against_the_closed_form_at_dense_output
     assert errors[1e-6] > 30 * errors[1e-9] > 30 * 30 * errors[1e-12]  # it follows the tolerance
 
 
-def test_its_steps_are_scipys_dop853_steps_and_its_states_agree():
+def test_its_steps_are_near_scipys_dop853_steps_and_its_states_agree():
     ds = tumble.integrate(BODY, SPINS, 50.0, method="dop853", rtol=1e-10, atol=1e-12)
     for i, w0 in enumerate(SPINS):
         sol = solve_ivp(lambda t, w: _euler(BODY, w), (0.0, 50.0), w0, method="DOP853", rtol=1e-10, atol=1e-12)
-        accepted = len(sol.t) - 1
-        assert abs(int(ds.steps[i]) - accepted) <= max(2, accepted // 50)  # the same control, to a step or two
-        assert abs(int(ds.steps[i] + ds.rejected_steps[i]) - (sol.nfev - 2) // 12) <= max(3, accepted // 25)
+        accepted, tries = len(sol.t) - 1, (sol.nfev - 2) // 12
+        # the same pair and error norm; Hairer's PI control (beta = 1/16, SciPy's has none) keeps up to a tenth more
+        # steps, smaller ones, and rejects fewer: it tries no more than SciPy
+        assert accepted - 2 <= int(ds.steps[i]) <= 1.12 * accepted + 2
+        assert int(ds.steps[i] + ds.rejected_steps[i]) <= tries + 2
         np.testing.assert_allclose(ds.omega.values[i, -1], sol.y[:, -1], rtol=0, atol=2e-9)
 
 

@@ -288,7 +288,7 @@ def run_adaptive(system, y0, t_end, *, times=None, rtol=None, atol=None, first_s
     if isinstance(system, System):
         p = system.parameter_values(parameters)
         probe(system, y, p, 0.0)
-    state = np.array(y, order="C")
+    state = y  # initial_states made it: a fresh contiguous copy, which the run overwrites with the final states
     n = y.shape[1]
     out = np.empty((len(y), len(marks), n))
     section = np.array([surface.component, surface.value, surface.direction, most] if most else [0.0, 0.0, 0.0, 0.0])

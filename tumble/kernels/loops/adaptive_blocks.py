@@ -28,8 +28,8 @@ from numba.extending import intrinsic
 from ...registry import STATUS_LIMIT, STATUS_NONFINITE, STATUS_OK, STATUS_UNDERFLOW
 from ..jit import jit, rebound
 from ..steps import model_codegen, model_steps
-from ..steps.control import (ACCEPTED, ACTIVE, BLOCK, G0, H, KEPT, LAST_REJECTED, NEXT_OUT, ROUND, STATES, T, T_NEW,
-                             T_PREV, TRIAL_H, TRIES)
+from ..steps.control import (ACCEPTED, ACTIVE, BLOCK, FACOLD, FIRST_FACOLD, G0, H, KEPT, LAST_REJECTED, NEXT_OUT, ROUND,
+                             STATES, T, T_NEW, T_PREV, TRIAL_H, TRIES)
 from .adaptive_loop import (_C, _STAGES, SCRATCH_ROWS, _crossing, _dense, _interpolant,
                             _stage)
 from .adaptive_loop import component_surface as surface
@@ -131,6 +131,7 @@ def _start(i, s, y, ys, ks, k0, firsts, p, t0, t_end, h0, times, out, status, se
     for row in (T, H, LAST_REJECTED, TRIES, ACCEPTED, G0):
         block[row + i] = 0.0
     block[T + i] = t0
+    block[FACOLD + i] = FIRST_FACOLD
     slot = 0
     while slot < times.shape[0] and times[slot] <= t0:
         for j in range(n):

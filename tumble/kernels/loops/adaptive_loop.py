@@ -8,8 +8,9 @@ The method is Dormand & Prince's eighth-order pair as Hairer distributes it (``d
 * the error is the embedded fifth-order estimate, damped by the third-order one: with ``sk = atol + rtol max(|y0|,
   |y1|)`` per component, ``err = |h| e5² / sqrt(n (e5² + 0.01 e3²))``, ``e5² = sum (E5·k / sk)²`` and ``e3²`` the
   same with ``E3``; a step is accepted when ``err <= 1``;
-* the next step is ``h / fac``, ``fac = err^(1/8) / 0.9`` kept within ``[1/6, 1/0.333]`` (Hairer's ``fac1``, ``fac2``
-  and ``safe``, ``beta = 0``); after a rejection the step does not grow (:func:`tumble.kernels.steps.control.next_step`);
+* the next step is ``h / fac``, ``fac = err^(1/8) / facold^(1/16) / 0.9`` kept within ``[1/6, 1/0.333]`` (Hairer's
+  ``fac1``, ``fac2``, ``safe`` and ``beta``, his PI control); after a rejection the step does not grow
+  (:func:`tumble.kernels.steps.control.next_step`);
 * the first step, unless given, is Hairer's ``hinit`` (one more evaluation of the rate);
 * a step smaller than ``|t| · 2.3e-16 · 10`` cannot advance ``t``: the sample stops with ``STATUS_UNDERFLOW``; one that
   needs more than ``max_steps`` accepted and rejected steps stops with ``STATUS_LIMIT``; both keep the state they had;
@@ -32,7 +33,7 @@ import numpy as np
 
 from ...registry import STATUS_LIMIT, STATUS_NONFINITE, STATUS_OK, STATUS_UNDERFLOW
 from ..jit import jit, rebound
-from ..steps.control import ROUND, next_step, root8
+from ..steps.control import FIRST_FACOLD, ROUND, next_step, root8
 from ..tableaux import DOP853
 from ..threads import in_shares
 from ..trig import _max, _min
@@ -118,6 +119,7 @@ def run_sample(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, section, 
     rate(t, y, p, k[0])
     h = h0 if h0 > 0.0 else _first_step(rate, t, y, p, t_end - t, rtol, atol, k[0], stage, y1)
     last_rejected = False
+    facold = FIRST_FACOLD
     while t < t_end:
         if accepted + rejected >= max_steps:
             code = STATUS_LIMIT
@@ -153,7 +155,7 @@ def run_sample(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, section, 
         deno = err5 + 0.01 * err3
         # a NaN among the stages (a rate that returned one) is a non-finite error, rejected, never an error of 0
         err = h * err5 / math.sqrt(n * deno) if deno > 0.0 else (0.0 if deno == 0.0 else math.inf)
-        h_next = next_step(err, h, 1.0 if last_rejected else 0.0)
+        h_next, facold = next_step(err, h, 1.0 if last_rejected else 0.0, facold)  # facold: changed by a kept try
         if err <= 1.0:
             accepted += 1
             t_new = t_end if final else t + h

@@ -279,6 +279,7 @@ def attempt_source(name, components, n_fields=None, method=tableaux.DOP853, rate
         f"        h = {lane('TRIAL_H')}",
         # the lane's numbers read once, unconditionally: a read in a choice's arm became a masked load and a scatter
         f"        on, step, rejected, t_new = {lane('ACTIVE')}, {lane('H')}, {lane('LAST_REJECTED')}, {lane('T_NEW')}",
+        f"        facold = {lane('FACOLD')}",
         f"        {', '.join(components)} = {', '.join(row(0, j) for j in range(n))}",
         f"        {names(1).rstrip(',')} = {', '.join(row(1, j) for j in range(n))}",
     ]
@@ -301,8 +302,9 @@ def attempt_source(name, components, n_fields=None, method=tableaux.DOP853, rate
               # a NaN among the stages (a rate that returned one) is a non-finite error, rejected, never 0
               f"        err = h * err5 / math.sqrt({n}.0 * deno) if deno > 0.0 else (0.0 if deno == 0.0 else math.inf)",
               "        keep = on if err <= 1.0 else 0.0",
-              "        h_next = control.next_step(err, step, rejected)",
+              "        h_next, facold_next = control.next_step(err, step, rejected, facold)",
               f"        {lane('H')} = h_next if on != 0.0 else step",
+              f"        {lane('FACOLD')} = facold_next if on != 0.0 else facold",
               f"        {lane('LAST_REJECTED')} = (1.0 - keep) if on != 0.0 else rejected",
               f"        {lane('TRIES')} += on",
               f"        {lane('ACCEPTED')} += keep",

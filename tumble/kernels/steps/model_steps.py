@@ -398,8 +398,9 @@ def gyrostat_free_rate_dop853_attempt(block, rtol, atol, a):
         t = block[control.T + i]
         h = block[control.TRIAL_H + i]
         on, step, rejected, t_new = block[control.ACTIVE + i], block[control.H + i], block[control.LAST_REJECTED + i], block[control.T_NEW + i]
-        w1, w2, w3 = block[384 + i], block[416 + i], block[448 + i]
-        k1_1, k1_2, k1_3 = block[480 + i], block[512 + i], block[544 + i]
+        facold = block[control.FACOLD + i]
+        w1, w2, w3 = block[416 + i], block[448 + i], block[480 + i]
+        k1_1, k1_2, k1_3 = block[512 + i], block[544 + i], block[576 + i]
         k2_1, k2_2, k2_3 = gyrostat.free_rate(
             t + 0.05260015195876773 * h,
             w1 + h * (0.05260015195876773 * k1_1),
@@ -492,25 +493,26 @@ def gyrostat_free_rate_dop853_attempt(block, rtol, atol, a):
         deno = err5 + 0.01 * err3
         err = h * err5 / math.sqrt(3.0 * deno) if deno > 0.0 else (0.0 if deno == 0.0 else math.inf)
         keep = on if err <= 1.0 else 0.0
-        h_next = control.next_step(err, step, rejected)
+        h_next, facold_next = control.next_step(err, step, rejected, facold)
         block[control.H + i] = h_next if on != 0.0 else step
+        block[control.FACOLD + i] = facold_next if on != 0.0 else facold
         block[control.LAST_REJECTED + i] = (1.0 - keep) if on != 0.0 else rejected
         block[control.TRIES + i] += on
         block[control.ACCEPTED + i] += keep
         block[control.KEPT + i] = keep
         block[control.T + i] = t_new if keep != 0.0 else t
-        block[576 + i] = w1
-        block[672 + i] = k1_1
-        block[384 + i] = u1 if keep != 0.0 else w1
-        block[480 + i] = k13_1 if keep != 0.0 else k1_1
-        block[608 + i] = w2
-        block[704 + i] = k1_2
-        block[416 + i] = u2 if keep != 0.0 else w2
-        block[512 + i] = k13_2 if keep != 0.0 else k1_2
-        block[640 + i] = w3
-        block[736 + i] = k1_3
-        block[448 + i] = u3 if keep != 0.0 else w3
-        block[544 + i] = k13_3 if keep != 0.0 else k1_3
+        block[608 + i] = w1
+        block[704 + i] = k1_1
+        block[416 + i] = u1 if keep != 0.0 else w1
+        block[512 + i] = k13_1 if keep != 0.0 else k1_1
+        block[640 + i] = w2
+        block[736 + i] = k1_2
+        block[448 + i] = u2 if keep != 0.0 else w2
+        block[544 + i] = k13_2 if keep != 0.0 else k1_2
+        block[672 + i] = w3
+        block[768 + i] = k1_3
+        block[480 + i] = u3 if keep != 0.0 else w3
+        block[576 + i] = k13_3 if keep != 0.0 else k1_3
 
 
 @jit(contract=False)
@@ -552,8 +554,9 @@ def gyrostat_dop853_attempt(block, rtol, atol, a):
         t = block[control.T + i]
         h = block[control.TRIAL_H + i]
         on, step, rejected, t_new = block[control.ACTIVE + i], block[control.H + i], block[control.LAST_REJECTED + i], block[control.T_NEW + i]
-        w1, w2, w3 = block[384 + i], block[416 + i], block[448 + i]
-        k1_1, k1_2, k1_3 = block[480 + i], block[512 + i], block[544 + i]
+        facold = block[control.FACOLD + i]
+        w1, w2, w3 = block[416 + i], block[448 + i], block[480 + i]
+        k1_1, k1_2, k1_3 = block[512 + i], block[544 + i], block[576 + i]
         k2_1, k2_2, k2_3 = gyrostat.rate(
             t + 0.05260015195876773 * h,
             w1 + h * (0.05260015195876773 * k1_1),
@@ -646,25 +649,26 @@ def gyrostat_dop853_attempt(block, rtol, atol, a):
         deno = err5 + 0.01 * err3
         err = h * err5 / math.sqrt(3.0 * deno) if deno > 0.0 else (0.0 if deno == 0.0 else math.inf)
         keep = on if err <= 1.0 else 0.0
-        h_next = control.next_step(err, step, rejected)
+        h_next, facold_next = control.next_step(err, step, rejected, facold)
         block[control.H + i] = h_next if on != 0.0 else step
+        block[control.FACOLD + i] = facold_next if on != 0.0 else facold
         block[control.LAST_REJECTED + i] = (1.0 - keep) if on != 0.0 else rejected
         block[control.TRIES + i] += on
         block[control.ACCEPTED + i] += keep
         block[control.KEPT + i] = keep
         block[control.T + i] = t_new if keep != 0.0 else t
-        block[576 + i] = w1
-        block[672 + i] = k1_1
-        block[384 + i] = u1 if keep != 0.0 else w1
-        block[480 + i] = k13_1 if keep != 0.0 else k1_1
-        block[608 + i] = w2
-        block[704 + i] = k1_2
-        block[416 + i] = u2 if keep != 0.0 else w2
-        block[512 + i] = k13_2 if keep != 0.0 else k1_2
-        block[640 + i] = w3
-        block[736 + i] = k1_3
-        block[448 + i] = u3 if keep != 0.0 else w3
-        block[544 + i] = k13_3 if keep != 0.0 else k1_3
+        block[608 + i] = w1
+        block[704 + i] = k1_1
+        block[416 + i] = u1 if keep != 0.0 else w1
+        block[512 + i] = k13_1 if keep != 0.0 else k1_1
+        block[640 + i] = w2
+        block[736 + i] = k1_2
+        block[448 + i] = u2 if keep != 0.0 else w2
+        block[544 + i] = k13_2 if keep != 0.0 else k1_2
+        block[672 + i] = w3
+        block[768 + i] = k1_3
+        block[480 + i] = u3 if keep != 0.0 else w3
+        block[576 + i] = k13_3 if keep != 0.0 else k1_3
 
 
 @jit(contract=False)
@@ -1240,8 +1244,9 @@ def heavy_top_dop853_attempt(block, rtol, atol, a):
         t = block[control.T + i]
         h = block[control.TRIAL_H + i]
         on, step, rejected, t_new = block[control.ACTIVE + i], block[control.H + i], block[control.LAST_REJECTED + i], block[control.T_NEW + i]
-        w1, w2, w3, g1, g2, g3 = block[384 + i], block[416 + i], block[448 + i], block[480 + i], block[512 + i], block[544 + i]
-        k1_1, k1_2, k1_3, k1_4, k1_5, k1_6 = block[576 + i], block[608 + i], block[640 + i], block[672 + i], block[704 + i], block[736 + i]
+        facold = block[control.FACOLD + i]
+        w1, w2, w3, g1, g2, g3 = block[416 + i], block[448 + i], block[480 + i], block[512 + i], block[544 + i], block[576 + i]
+        k1_1, k1_2, k1_3, k1_4, k1_5, k1_6 = block[608 + i], block[640 + i], block[672 + i], block[704 + i], block[736 + i], block[768 + i]
         k2_1, k2_2, k2_3, k2_4, k2_5, k2_6 = heavy_top.rate(
             t + 0.05260015195876773 * h,
             w1 + h * (0.05260015195876773 * k1_1),
@@ -1385,37 +1390,38 @@ def heavy_top_dop853_attempt(block, rtol, atol, a):
         deno = err5 + 0.01 * err3
         err = h * err5 / math.sqrt(6.0 * deno) if deno > 0.0 else (0.0 if deno == 0.0 else math.inf)
         keep = on if err <= 1.0 else 0.0
-        h_next = control.next_step(err, step, rejected)
+        h_next, facold_next = control.next_step(err, step, rejected, facold)
         block[control.H + i] = h_next if on != 0.0 else step
+        block[control.FACOLD + i] = facold_next if on != 0.0 else facold
         block[control.LAST_REJECTED + i] = (1.0 - keep) if on != 0.0 else rejected
         block[control.TRIES + i] += on
         block[control.ACCEPTED + i] += keep
         block[control.KEPT + i] = keep
         block[control.T + i] = t_new if keep != 0.0 else t
-        block[768 + i] = w1
-        block[960 + i] = k1_1
-        block[384 + i] = u1 if keep != 0.0 else w1
-        block[576 + i] = k13_1 if keep != 0.0 else k1_1
-        block[800 + i] = w2
-        block[992 + i] = k1_2
-        block[416 + i] = u2 if keep != 0.0 else w2
-        block[608 + i] = k13_2 if keep != 0.0 else k1_2
-        block[832 + i] = w3
-        block[1024 + i] = k1_3
-        block[448 + i] = u3 if keep != 0.0 else w3
-        block[640 + i] = k13_3 if keep != 0.0 else k1_3
-        block[864 + i] = g1
-        block[1056 + i] = k1_4
-        block[480 + i] = u4 if keep != 0.0 else g1
-        block[672 + i] = k13_4 if keep != 0.0 else k1_4
-        block[896 + i] = g2
-        block[1088 + i] = k1_5
-        block[512 + i] = u5 if keep != 0.0 else g2
-        block[704 + i] = k13_5 if keep != 0.0 else k1_5
-        block[928 + i] = g3
-        block[1120 + i] = k1_6
-        block[544 + i] = u6 if keep != 0.0 else g3
-        block[736 + i] = k13_6 if keep != 0.0 else k1_6
+        block[800 + i] = w1
+        block[992 + i] = k1_1
+        block[416 + i] = u1 if keep != 0.0 else w1
+        block[608 + i] = k13_1 if keep != 0.0 else k1_1
+        block[832 + i] = w2
+        block[1024 + i] = k1_2
+        block[448 + i] = u2 if keep != 0.0 else w2
+        block[640 + i] = k13_2 if keep != 0.0 else k1_2
+        block[864 + i] = w3
+        block[1056 + i] = k1_3
+        block[480 + i] = u3 if keep != 0.0 else w3
+        block[672 + i] = k13_3 if keep != 0.0 else k1_3
+        block[896 + i] = g1
+        block[1088 + i] = k1_4
+        block[512 + i] = u4 if keep != 0.0 else g1
+        block[704 + i] = k13_4 if keep != 0.0 else k1_4
+        block[928 + i] = g2
+        block[1120 + i] = k1_5
+        block[544 + i] = u5 if keep != 0.0 else g2
+        block[736 + i] = k13_5 if keep != 0.0 else k1_5
+        block[960 + i] = g3
+        block[1152 + i] = k1_6
+        block[576 + i] = u6 if keep != 0.0 else g3
+        block[768 + i] = k13_6 if keep != 0.0 else k1_6
 
 
 @jit(contract=False)
@@ -2075,8 +2081,9 @@ def gravity_gradient_dop853_attempt(block, rtol, atol, a):
         t = block[control.T + i]
         h = block[control.TRIAL_H + i]
         on, step, rejected, t_new = block[control.ACTIVE + i], block[control.H + i], block[control.LAST_REJECTED + i], block[control.T_NEW + i]
-        w1, w2, w3, q0, q1, q2, q3 = block[384 + i], block[416 + i], block[448 + i], block[480 + i], block[512 + i], block[544 + i], block[576 + i]
-        k1_1, k1_2, k1_3, k1_4, k1_5, k1_6, k1_7 = block[608 + i], block[640 + i], block[672 + i], block[704 + i], block[736 + i], block[768 + i], block[800 + i]
+        facold = block[control.FACOLD + i]
+        w1, w2, w3, q0, q1, q2, q3 = block[416 + i], block[448 + i], block[480 + i], block[512 + i], block[544 + i], block[576 + i], block[608 + i]
+        k1_1, k1_2, k1_3, k1_4, k1_5, k1_6, k1_7 = block[640 + i], block[672 + i], block[704 + i], block[736 + i], block[768 + i], block[800 + i], block[832 + i]
         k2_1, k2_2, k2_3, k2_4, k2_5, k2_6, k2_7 = gravity_gradient.rate(
             t + 0.05260015195876773 * h,
             w1 + h * (0.05260015195876773 * k1_1),
@@ -2237,41 +2244,42 @@ def gravity_gradient_dop853_attempt(block, rtol, atol, a):
         deno = err5 + 0.01 * err3
         err = h * err5 / math.sqrt(7.0 * deno) if deno > 0.0 else (0.0 if deno == 0.0 else math.inf)
         keep = on if err <= 1.0 else 0.0
-        h_next = control.next_step(err, step, rejected)
+        h_next, facold_next = control.next_step(err, step, rejected, facold)
         block[control.H + i] = h_next if on != 0.0 else step
+        block[control.FACOLD + i] = facold_next if on != 0.0 else facold
         block[control.LAST_REJECTED + i] = (1.0 - keep) if on != 0.0 else rejected
         block[control.TRIES + i] += on
         block[control.ACCEPTED + i] += keep
         block[control.KEPT + i] = keep
         block[control.T + i] = t_new if keep != 0.0 else t
-        block[832 + i] = w1
-        block[1056 + i] = k1_1
-        block[384 + i] = u1 if keep != 0.0 else w1
-        block[608 + i] = k13_1 if keep != 0.0 else k1_1
-        block[864 + i] = w2
-        block[1088 + i] = k1_2
-        block[416 + i] = u2 if keep != 0.0 else w2
-        block[640 + i] = k13_2 if keep != 0.0 else k1_2
-        block[896 + i] = w3
-        block[1120 + i] = k1_3
-        block[448 + i] = u3 if keep != 0.0 else w3
-        block[672 + i] = k13_3 if keep != 0.0 else k1_3
-        block[928 + i] = q0
-        block[1152 + i] = k1_4
-        block[480 + i] = u4 if keep != 0.0 else q0
-        block[704 + i] = k13_4 if keep != 0.0 else k1_4
-        block[960 + i] = q1
-        block[1184 + i] = k1_5
-        block[512 + i] = u5 if keep != 0.0 else q1
-        block[736 + i] = k13_5 if keep != 0.0 else k1_5
-        block[992 + i] = q2
-        block[1216 + i] = k1_6
-        block[544 + i] = u6 if keep != 0.0 else q2
-        block[768 + i] = k13_6 if keep != 0.0 else k1_6
-        block[1024 + i] = q3
-        block[1248 + i] = k1_7
-        block[576 + i] = u7 if keep != 0.0 else q3
-        block[800 + i] = k13_7 if keep != 0.0 else k1_7
+        block[864 + i] = w1
+        block[1088 + i] = k1_1
+        block[416 + i] = u1 if keep != 0.0 else w1
+        block[640 + i] = k13_1 if keep != 0.0 else k1_1
+        block[896 + i] = w2
+        block[1120 + i] = k1_2
+        block[448 + i] = u2 if keep != 0.0 else w2
+        block[672 + i] = k13_2 if keep != 0.0 else k1_2
+        block[928 + i] = w3
+        block[1152 + i] = k1_3
+        block[480 + i] = u3 if keep != 0.0 else w3
+        block[704 + i] = k13_3 if keep != 0.0 else k1_3
+        block[960 + i] = q0
+        block[1184 + i] = k1_4
+        block[512 + i] = u4 if keep != 0.0 else q0
+        block[736 + i] = k13_4 if keep != 0.0 else k1_4
+        block[992 + i] = q1
+        block[1216 + i] = k1_5
+        block[544 + i] = u5 if keep != 0.0 else q1
+        block[768 + i] = k13_5 if keep != 0.0 else k1_5
+        block[1024 + i] = q2
+        block[1248 + i] = k1_6
+        block[576 + i] = u6 if keep != 0.0 else q2
+        block[800 + i] = k13_6 if keep != 0.0 else k1_6
+        block[1056 + i] = q3
+        block[1280 + i] = k1_7
+        block[608 + i] = u7 if keep != 0.0 else q3
+        block[832 + i] = k13_7 if keep != 0.0 else k1_7
 
 
 @jit(contract=False)
@@ -2855,8 +2863,9 @@ def damper_dop853_attempt(block, rtol, atol, a):
         t = block[control.T + i]
         h = block[control.TRIAL_H + i]
         on, step, rejected, t_new = block[control.ACTIVE + i], block[control.H + i], block[control.LAST_REJECTED + i], block[control.T_NEW + i]
-        w1, w2, w3, s1, s2, s3 = block[384 + i], block[416 + i], block[448 + i], block[480 + i], block[512 + i], block[544 + i]
-        k1_1, k1_2, k1_3, k1_4, k1_5, k1_6 = block[576 + i], block[608 + i], block[640 + i], block[672 + i], block[704 + i], block[736 + i]
+        facold = block[control.FACOLD + i]
+        w1, w2, w3, s1, s2, s3 = block[416 + i], block[448 + i], block[480 + i], block[512 + i], block[544 + i], block[576 + i]
+        k1_1, k1_2, k1_3, k1_4, k1_5, k1_6 = block[608 + i], block[640 + i], block[672 + i], block[704 + i], block[736 + i], block[768 + i]
         k2_1, k2_2, k2_3, k2_4, k2_5, k2_6 = damper.rate(
             t + 0.05260015195876773 * h,
             w1 + h * (0.05260015195876773 * k1_1),
@@ -3000,37 +3009,38 @@ def damper_dop853_attempt(block, rtol, atol, a):
         deno = err5 + 0.01 * err3
         err = h * err5 / math.sqrt(6.0 * deno) if deno > 0.0 else (0.0 if deno == 0.0 else math.inf)
         keep = on if err <= 1.0 else 0.0
-        h_next = control.next_step(err, step, rejected)
+        h_next, facold_next = control.next_step(err, step, rejected, facold)
         block[control.H + i] = h_next if on != 0.0 else step
+        block[control.FACOLD + i] = facold_next if on != 0.0 else facold
         block[control.LAST_REJECTED + i] = (1.0 - keep) if on != 0.0 else rejected
         block[control.TRIES + i] += on
         block[control.ACCEPTED + i] += keep
         block[control.KEPT + i] = keep
         block[control.T + i] = t_new if keep != 0.0 else t
-        block[768 + i] = w1
-        block[960 + i] = k1_1
-        block[384 + i] = u1 if keep != 0.0 else w1
-        block[576 + i] = k13_1 if keep != 0.0 else k1_1
-        block[800 + i] = w2
-        block[992 + i] = k1_2
-        block[416 + i] = u2 if keep != 0.0 else w2
-        block[608 + i] = k13_2 if keep != 0.0 else k1_2
-        block[832 + i] = w3
-        block[1024 + i] = k1_3
-        block[448 + i] = u3 if keep != 0.0 else w3
-        block[640 + i] = k13_3 if keep != 0.0 else k1_3
-        block[864 + i] = s1
-        block[1056 + i] = k1_4
-        block[480 + i] = u4 if keep != 0.0 else s1
-        block[672 + i] = k13_4 if keep != 0.0 else k1_4
-        block[896 + i] = s2
-        block[1088 + i] = k1_5
-        block[512 + i] = u5 if keep != 0.0 else s2
-        block[704 + i] = k13_5 if keep != 0.0 else k1_5
-        block[928 + i] = s3
-        block[1120 + i] = k1_6
-        block[544 + i] = u6 if keep != 0.0 else s3
-        block[736 + i] = k13_6 if keep != 0.0 else k1_6
+        block[800 + i] = w1
+        block[992 + i] = k1_1
+        block[416 + i] = u1 if keep != 0.0 else w1
+        block[608 + i] = k13_1 if keep != 0.0 else k1_1
+        block[832 + i] = w2
+        block[1024 + i] = k1_2
+        block[448 + i] = u2 if keep != 0.0 else w2
+        block[640 + i] = k13_2 if keep != 0.0 else k1_2
+        block[864 + i] = w3
+        block[1056 + i] = k1_3
+        block[480 + i] = u3 if keep != 0.0 else w3
+        block[672 + i] = k13_3 if keep != 0.0 else k1_3
+        block[896 + i] = s1
+        block[1088 + i] = k1_4
+        block[512 + i] = u4 if keep != 0.0 else s1
+        block[704 + i] = k13_4 if keep != 0.0 else k1_4
+        block[928 + i] = s2
+        block[1120 + i] = k1_5
+        block[544 + i] = u5 if keep != 0.0 else s2
+        block[736 + i] = k13_5 if keep != 0.0 else k1_5
+        block[960 + i] = s3
+        block[1152 + i] = k1_6
+        block[576 + i] = u6 if keep != 0.0 else s3
+        block[768 + i] = k13_6 if keep != 0.0 else k1_6
 
 
 @jit(contract=False)
