@@ -113,6 +113,37 @@ def _flag(typingctx, flags):
     return types.int64(flags), codegen
 
 
+@intrinsic
+def _store(typingctx, flags, value):
+    """``flags[0] = value`` as an atomic store (release): what a thread spinning on it sees."""
+
+    def codegen(context, builder, signature, arguments):
+        array = context.make_array(signature.args[0])(context, builder, arguments[0])
+        builder.store_atomic(arguments[1], array.data, "release", 8)
+        return context.get_dummy_value()
+
+    return types.none(flags, types.int64), codegen
+
+
+@jit
+def _tell_and_await(told, value, flags, spins):
+    """``told[0] = value``, then :func:`_await` ``(flags, spins)``, both without the GIL: a thread that spins on
+    ``told`` takes the GIL, once it sees it, from a thread that no longer holds it (where it would sleep, tens of
+    microseconds, until this thread let it go)."""
+    _store(told, value)
+    return _await(flags, spins)
+
+
+@jit
+def _await_value(flags, value, spins):
+    """Whether ``flags[0] == value`` within ``spins`` pauses, spinning without the GIL."""
+    for _ in range(spins):
+        if _flag(flags) == value:
+            return True
+        _pause()
+    return _flag(flags) == value
+
+
 @jit
 def _await(flags, spins):
     """Whether ``flags[0]`` is set (not 0) within ``spins`` pauses, spinning without the GIL."""
@@ -129,37 +160,41 @@ class _Worker:
 
     def __init__(self):
         self.ready = np.zeros(1, dtype=np.int64)
-        self.done = np.zeros(1, dtype=np.int64)
+        self.done = np.zeros(1, dtype=np.int64)  # the number of the last share done (told without the GIL)
+        self.shares = 0  # handed over so far
         self.wake = threading.Event()
         self.finished = threading.Event()
         self.job = self.outcome = None
         threading.Thread(target=self._loop, name="tumble", daemon=True).start()
 
     def _loop(self):
+        finished = 0
         while True:
-            if not _await(self.ready, _LINGER):
+            # the last share's end told from inside a call that let the GIL go: its caller, spinning on ``done``, then
+            # takes the GIL at once
+            if not _tell_and_await(self.done, finished, self.ready, _LINGER):
                 self.wake.wait()
             self.wake.clear()
             if self.ready[0] == 0:
                 continue
             self.ready[0] = 0
-            function, arguments = self.job
+            number, function, arguments = self.job
             try:
                 self.outcome = (function(*arguments), None)
             except BaseException as error:  # handed to the caller
                 self.outcome = (None, error)
-            self.done[0] = 1
+            finished = number
             self.finished.set()
 
     def submit(self, function, arguments):
-        self.job, self.outcome = (function, arguments), None
-        self.done[0] = 0
+        self.shares += 1
+        self.job, self.outcome = (self.shares, function, arguments), None
         self.finished.clear()
         self.ready[0] = 1
         self.wake.set()
 
     def result(self):
-        if not _await(self.done, _LINGER):
+        if not _await_value(self.done, self.shares, _LINGER):
             self.finished.wait()
         value, error = self.outcome
         if error is not None:
