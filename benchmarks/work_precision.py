@@ -18,7 +18,8 @@ load) is timed apart and reported, never counted.
 
 Writes ``work_precision.nc`` (the dataset, :func:`tumble.io.write_dataset`), ``work_precision.md`` (the
 speed-up tables at errors 1e-4, 1e-7, 1e-10, 1e-13 against DOP853 and heyoka, with the targets of issue 15
-marked met or missed, compile times, machine, load, date), ``work_precision.json`` (every number) and, when
+marked met or missed; tumble's dop853 against both and its fastest fixed step at each error 1e-4 ... 1e-12, with the
+targets of issue 56; compile times, machine, load, date), ``work_precision.json`` (every number) and, when
 :mod:`tumble.output.figures` can draw it, ``work_precision_work_precision.png`` (the diagram).
 """
 
@@ -56,6 +57,10 @@ TARGET_EXACT = (200.0, (1e-10,))
 TARGET_HEYOKA_BEST = (3.0, (1e-4, 1e-7, 1e-10))
 #: tumble's fastest (integrator or closed form) over heyoka.
 TARGET_HEYOKA_ANY = (10.0, (1e-4, 1e-7, 1e-10, 1e-13))
+#: Targets of issue 56, tumble's error-controlled dop853 at each error 1e-4 ... 1e-12: over SciPy's DOP853, over heyoka.
+DOP853_ERRORS = tuple(10.0 ** -k for k in range(4, 13))
+TARGET_DOP853_X_SCIPY = 10.0
+TARGET_DOP853_X_HEYOKA = 2.0
 
 
 def _num(x):
@@ -127,6 +132,47 @@ def _comparisons(ds, errors):
     return rows
 
 
+def _dop853_rows(ds):
+    """Per error of :data:`DOP853_ERRORS`: tumble's dop853 against SciPy's DOP853, heyoka and tumble's fastest
+    fixed-step method (times to reach it, ratios, verdicts of issue 56's targets)."""
+    solvers = [str(s) for s in ds.solver.values]
+    kinds = [str(k) for k in ds.solver_kind.values]
+
+    def reach(solver, e):
+        if solver not in solvers:
+            return math.nan
+        return time_to_error(ds.wp_wall.sel(solver=solver).values, ds.wp_error.sel(solver=solver).values, e)
+
+    fixed = [s for s, k in zip(solvers, kinds) if k == "tumble" and s not in ("dop853", "exact")]
+    rows = []
+    for e in DOP853_ERRORS:
+        ours, scipy, heyoka = reach("dop853", e), reach(BASELINE, e), reach(HEYOKA, e)
+        times = {s: reach(s, e) for s in fixed}
+        best = min((s for s in times if math.isfinite(times[s])), key=times.get, default="")
+        rows.append(dict(error=e, dop853=ours, scipy=scipy, heyoka=heyoka, best_fixed=best,
+                         best_fixed_time=times.get(best, math.nan), x_scipy=_speedup(ours, scipy),
+                         x_heyoka=_speedup(ours, heyoka), dop853_over_fixed=_speedup(times.get(best, math.nan), ours),
+                         verdict_scipy=_verdict(ours, scipy, (TARGET_DOP853_X_SCIPY, DOP853_ERRORS), e, "DOP853"),
+                         verdict_heyoka=(_verdict(ours, heyoka, (TARGET_DOP853_X_HEYOKA, DOP853_ERRORS), e, "heyoka")
+                                         if HEYOKA in solvers else "no heyoka")))
+    return rows
+
+
+def _dop853_report(rows):
+    lines = ["", "## tumble's error-controlled dop853 (issue 56)", "",
+             f"Targets: dop853 ≥ {TARGET_DOP853_X_SCIPY:g}× SciPy's DOP853 and ≥ {TARGET_DOP853_X_HEYOKA:g}× heyoka at "
+             "each error 1e-4 … 1e-12 (times to reach it as above); beside them, tumble's fastest fixed-step method "
+             "and dop853's time over its (above 1: the fixed step is faster on this smooth problem).", "",
+             "| error | dop853 | SciPy DOP853 | speed-up | target | heyoka | speed-up | target | fastest fixed step "
+             "| its time | dop853 / it |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['error']:.0e} | {_fmt_time(r['dop853'])} | {_fmt_time(r['scipy'])} | "
+                     f"{_fmt_ratio(r['x_scipy'])} | {r['verdict_scipy']} | {_fmt_time(r['heyoka'])} | "
+                     f"{_fmt_ratio(r['x_heyoka'])} | {r['verdict_heyoka']} | {r['best_fixed'] or '—'} | "
+                     f"{_fmt_time(r['best_fixed_time'])} | {_fmt_ratio(r['dop853_over_fixed'])} |")
+    return lines
+
+
 def _report(ds, table, rows, load_before, load_after, elapsed, settings):
     solvers = [str(s) for s in ds.solver.values]
     errors = [float(e) for e in table.error.values]
@@ -183,6 +229,7 @@ def _report(ds, table, rows, load_before, load_after, elapsed, settings):
                          f"{r['verdicts']['best_tumble_x_heyoka']} | {_fmt_time(r['exact'])} | "
                          f"{_fmt_ratio(r['exact_x_heyoka'])} | {r['fastest_name'] or '—'} | "
                          f"{_fmt_ratio(r['fastest_x_heyoka'])} | {r['verdicts']['fastest_tumble_x_heyoka']} |")
+    lines += _dop853_report(_dop853_rows(ds))
     lines += ["", "## Every solver: time to reach the error (speed-up against DOP853)", "",
               "| solver | " + " | ".join(f"{e:.0e}" for e in errors) + " | compile / cache load |",
               "|---|" + "---|" * (len(errors) + 1)]
@@ -255,6 +302,7 @@ def main(argv=None):
             "speedup": {s: _num(table.speedup.sel(solver=s).values[j]) for s in solvers},
             "comparison": {k: (_num(v) if isinstance(v, float) else v) for k, v in rows[j].items()},
         } for j, e in enumerate(table.error.values)},
+        "dop853": [{k: (_num(v) if isinstance(v, float) else v) for k, v in r.items()} for r in _dop853_rows(ds)],
     }
     (out / "work_precision.json").write_text(json.dumps(numbers, indent=1, default=str))
     figure = ""
