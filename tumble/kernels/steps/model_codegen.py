@@ -320,7 +320,7 @@ def attempt_source(name, components, n_fields=None, method=tableaux.DOP853, rate
 
 def _tolerances(n):
     """Lines reading the tolerances into names before a loop over lanes or samples: read in the loop, they are loads
-    LLVM must repeat after every store (the arrays may overlap), which kept the start's loop from vectorising."""
+    LLVM must repeat after every store (the arrays may overlap)."""
     return [f"    {', '.join(f'{kind}{j + 1}' for j in range(n))} = {', '.join(f'{kind}[{j}]' for j in range(n))}"
             for kind in ("rtol", "atol")]
 
