@@ -81,6 +81,17 @@ def test_the_spinning_workers_hand_back_results_and_errors_and_runs_from_two_thr
             threads.in_shares(share, 26, lambda lo, hi: (lo, hi))
         assert threads.in_shares(share, 400, lambda lo, hi: (lo, hi))[0][:2] == (0, 200)  # the worker still runs
 
+        def started_share(lo, hi, starts):  # handoff: the caller's share starts the others' (an empty starts: none)
+            if hi == 10 and lo > 0:
+                raise ValueError("before it started the others")
+            threads.start_shares(starts)
+            return lo, hi, len(starts)
+
+        assert threads.in_shares(started_share, 40, lambda lo, hi: (lo, hi), handoff=True) == [(0, 20, 0), (20, 40, 1)]
+        with pytest.raises(ValueError, match="before it started"):  # the others started all the same, no hang
+            threads.in_shares(started_share, 10, lambda lo, hi: (lo, hi), handoff=True)
+        assert threads.in_shares(started_share, 40, lambda lo, hi: (lo, hi), handoff=True)[1] == (20, 40, 1)
+
         totals = []
         spins = np.random.default_rng(0).normal(size=(400, 3)) + (0.0, 3.0, 0.0)
         expected = tumble.propagate((1.0, 2.0, 3.0), spins, 5.0, method="dop853")

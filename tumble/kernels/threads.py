@@ -22,18 +22,25 @@ from numba.extending import intrinsic
 
 from .jit import jit
 
-__all__ = ["in_parallel", "in_shares", "parallel_block"]
+__all__ = ["in_parallel", "in_shares", "parallel_block", "start_shares"]
 
 
-def in_shares(run_share, n, share, granule=1):
+def in_shares(run_share, n, share, granule=1, handoff=False):
     """``run_share(*share(lo, hi))`` for one contiguous share ``lo:hi`` of the ``n`` samples per numba thread (its
     bounds multiples of ``granule``, so that a kernel's blocks stay whole), each on a thread of its own (``run_share``
     releases the GIL): the last in this thread, the others on the process's pool (:func:`_pool`, made once: starting
-    threads for each call cost 0.4 ms, more than a small run). Returns the shares' results, in order."""
+    threads for each call cost 0.4 ms, more than a small run). Returns the shares' results, in order.
+
+    ``handoff``: ``run_share`` takes one more argument, ``starts``, and calls :func:`start_shares` ``(starts)`` first:
+    the other threads' shares then start once this thread's has let the GIL go. Started by this thread in Python, a
+    worker's return to Python for its share waited for the GIL this thread held for its own share's call, asleep, 30-90
+    us on a 2-core machine: a tenth of a small run."""
     granules = -(-int(n) // granule)
     threads = max(1, min(numba.get_num_threads(), granules))
     bounds = [min(int(n), granule * (granules * k // threads)) for k in range(threads + 1)]
     shares = [share(lo, hi) for lo, hi in zip(bounds[:-1], bounds[1:])]
+    if handoff:
+        shares = [arguments + (_NO_STARTS,) for arguments in shares]
     if len(shares) == 1:
         return [run_share(*shares[0])]
     workers = _workers(len(shares) - 1)
@@ -42,11 +49,16 @@ def in_shares(run_share, n, share, granule=1):
     else:
         others = workers
         for worker, arguments in zip(workers, shares[:-1]):
-            worker.submit(run_share, arguments)
+            worker.submit(run_share, arguments, started_by_share=handoff)
+        if handoff:
+            shares[-1] = shares[-1][:-1] + (_READY[:len(workers)],)
     try:
         last = run_share(*shares[-1])
     finally:
         try:
+            if workers is not None:
+                for worker in workers:  # a share that failed before it started the others (never in a kernel)
+                    worker.start_if_not_taken()
             results = [done.result() for done in others]
         finally:
             if workers is not None:
@@ -126,6 +138,14 @@ def _store(typingctx, flags, value):
 
 
 @jit
+def start_shares(starts):
+    """Set every flag of ``starts`` (the other threads' shares: :func:`in_shares`' ``handoff``), from a kernel that has
+    let the GIL go."""
+    for i in range(starts.shape[0]):
+        _store(starts[i:], 1)
+
+
+@jit
 def _tell_and_await(told, value, flags, spins):
     """``told[0] = value``, then :func:`_await` ``(flags, spins)``, both without the GIL: a thread that spins on
     ``told`` takes the GIL, once it sees it, from a thread that no longer holds it (where it would sleep, tens of
@@ -158,10 +178,10 @@ class _Worker:
     """A thread that runs one share at a time, handed over through a flag it spins on for :data:`_LINGER` pauses after
     each share before it sleeps: a run that follows another starts its shares at once."""
 
-    def __init__(self):
-        self.ready = np.zeros(1, dtype=np.int64)
+    def __init__(self, ready):
+        self.ready = ready  # its flag in _READY
         self.done = np.zeros(1, dtype=np.int64)  # the number of the last share done (told without the GIL)
-        self.shares = 0  # handed over so far
+        self.shares = self.taken = 0  # handed over, started
         self.wake = threading.Event()
         self.finished = threading.Event()
         self.job = self.outcome = None
@@ -173,12 +193,15 @@ class _Worker:
             # the last share's end told from inside a call that let the GIL go: its caller, spinning on ``done``, then
             # takes the GIL at once
             if not _tell_and_await(self.done, finished, self.ready, _LINGER):
+                if self.taken < self.shares:  # handed over, to be started by the caller's share: spin on
+                    continue
                 self.wake.wait()
             self.wake.clear()
             if self.ready[0] == 0:
                 continue
-            self.ready[0] = 0
             number, function, arguments = self.job
+            self.taken = number  # before the flag falls: a caller that sees it taken never starts it again
+            self.ready[0] = 0
             try:
                 self.outcome = (function(*arguments), None)
             except BaseException as error:  # handed to the caller
@@ -186,12 +209,17 @@ class _Worker:
             finished = number
             self.finished.set()
 
-    def submit(self, function, arguments):
+    def submit(self, function, arguments, started_by_share=False):
         self.shares += 1
         self.job, self.outcome = (self.shares, function, arguments), None
         self.finished.clear()
-        self.ready[0] = 1
+        if not started_by_share:
+            self.ready[0] = 1
         self.wake.set()
+
+    def start_if_not_taken(self):
+        if self.taken < self.shares:
+            self.ready[0] = 1
 
     def result(self):
         if not _await_value(self.done, self.shares, _LINGER):
@@ -204,6 +232,10 @@ class _Worker:
 
 _WORKERS = []
 _WORKERS_FREE = threading.Lock()
+#: The workers' flags, each spinning on its own (a share with ``handoff`` sets those of the others at once).
+_READY = np.zeros(max(1, numba.config.NUMBA_NUM_THREADS), dtype=np.int64)
+#: ``starts`` of a share that starts no other.
+_NO_STARTS = np.zeros(0, dtype=np.int64)
 
 
 def _workers(count):
@@ -212,7 +244,7 @@ def _workers(count):
     if not _WORKERS_FREE.acquire(blocking=False):
         return None
     while len(_WORKERS) < count:
-        _WORKERS.append(_Worker())
+        _WORKERS.append(_Worker(_READY[len(_WORKERS):len(_WORKERS) + 1]))
     return _WORKERS[:count]
 
 
@@ -220,6 +252,7 @@ def _forget_workers():
     """In a forked child: the parent's threads are not there."""
     global _WORKERS_FREE
     _WORKERS.clear()
+    _READY[:] = 0
     _POOL.clear()
     _WORKERS_FREE = threading.Lock()
 

@@ -33,7 +33,7 @@ from ..steps.control import (ACCEPTED, ACTIVE, BLOCK, FACOLD, FIRST_FACOLD, G0, 
 from .adaptive_loop import (_C, _STAGES, SCRATCH_ROWS, _crossing, _dense, _interpolant,
                             _stage)
 from .adaptive_loop import component_surface as surface
-from ..threads import in_shares
+from ..threads import in_shares, start_shares
 
 __all__ = ["BLOCK", "for_model", "specialised"]  # BLOCK: tumble.kernels.steps.control's
 
@@ -188,9 +188,11 @@ def _fill(i, queued, y, ys, ks, k0, firsts, p, t0, t_end, h0, times, out, status
 
 @jit(contract=False)
 def run_share(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, section, crossing_t, crossing_y, status,
-              counts, stopped):
+              counts, stopped, starts):
     # size: as _run_block
-    """The samples ``y`` of one share in one block (:func:`_run_block`), with the block's arrays made here."""
+    """The samples ``y`` of one share in one block (:func:`_run_block`), with the block's arrays made here; the other
+    threads' shares started first (``starts``: :func:`tumble.kernels.threads.in_shares`' ``handoff``)."""
+    start_shares(starts)
     n = y.shape[1]
     block = np.zeros(STATES + 4 * n * BLOCK)
     counters = np.zeros((3, BLOCK), dtype=np.int64)
@@ -295,7 +297,7 @@ def specialised(attempt, start, rate, surface=None, key=None):
         # size: as run_share
         in_shares(share, len(y), lambda lo, hi: (y[lo:hi], p, a, t0, t_end, h0, rtol, atol, max_steps, times,
                                                  out[lo:hi], section, crossing_t[lo:hi], crossing_y[lo:hi],
-                                                 status[lo:hi], counts[lo:hi], stopped[lo:hi]), BLOCK)
+                                                 status[lo:hi], counts[lo:hi], stopped[lo:hi]), BLOCK, handoff=True)
 
     drive.run_share = share  # the compiled share, for its cache statistics
     return drive
