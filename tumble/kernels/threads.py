@@ -147,31 +147,21 @@ def start_shares(starts):
 
 @jit
 def _tell_and_await(told, value, flags, spins):
-    """``told[0] = value``, then :func:`_await` ``(flags, spins)``, both without the GIL: a thread that spins on
+    """``told[0] = value``, then :func:`_await` ``(flags, 1, spins)``, both without the GIL: a thread that spins on
     ``told`` takes the GIL, once it sees it, from a thread that no longer holds it (where it would sleep, tens of
     microseconds, until this thread let it go)."""
     _store(told, value)
-    return _await(flags, spins)
+    return _await(flags, 1, spins)
 
 
 @jit
-def _await_value(flags, value, spins):
+def _await(flags, value, spins):
     """Whether ``flags[0] == value`` within ``spins`` pauses, spinning without the GIL."""
     for _ in range(spins):
         if _flag(flags) == value:
             return True
         _pause()
     return _flag(flags) == value
-
-
-@jit
-def _await(flags, spins):
-    """Whether ``flags[0]`` is set (not 0) within ``spins`` pauses, spinning without the GIL."""
-    for _ in range(spins):
-        if _flag(flags) != 0:
-            return True
-        _pause()
-    return _flag(flags) != 0
 
 
 class _Worker:
@@ -222,7 +212,7 @@ class _Worker:
             self.ready[0] = 1
 
     def result(self):
-        if not _await_value(self.done, self.shares, _LINGER):
+        if not _await(self.done, self.shares, _LINGER):
             self.finished.wait()
         value, error = self.outcome
         if error is not None:
