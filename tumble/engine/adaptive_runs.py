@@ -18,10 +18,10 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import registry
-from ..kernels import adaptive_blocks, adaptive_loop, device_adaptive_loop, rate_sample, rate_sample_parameters, system_steps
+from ..kernels import adaptive_blocks, adaptive_loop, device_adaptive_loop, rate_sample, system_steps
 from ..physics.system import System, with_parameters
 from . import cost
-from .system_runs import block_code, compiled, initial_states, probe, state_units, system_name
+from .system_runs import block_code, compiled, initial_states, model_parameters, probe, state_units, system_name
 
 __all__ = ["AdaptiveRun", "Surface", "DEFAULT_ATOL", "DEFAULT_RTOL", "FLAG_MEANINGS", "FLAG_VALUES", "MAX_STEPS", "MIN_RTOL",
            "checked_horizon", "checked_scalars", "fixed_steps_only", "no_save_every", "output_times", "run_adaptive", "run_attrs", "run_variables", "tolerance_attrs", "tolerances",
@@ -200,7 +200,7 @@ def _kernel(system, surface, parameters):
                                                      else None))
         a = np.zeros(0) if code is None else system_steps.block_constants(system.parameter_values(parameters))
         return made[key], None, a, "per-sample loop" if code is None else "vectorised blocks"
-    p = rate_sample_parameters(system.kind, system.moments, system.parameters)
+    p = model_parameters(system)
     model = registry.model_kind(system.kind)
     key = (model.equations_module, model.rate, surface)
     if key not in _MODEL_KERNELS:
@@ -219,7 +219,7 @@ def _device_kernel(system, surface, n_state):
         rate, p = compiled(system).rate, None
         n_parameters = len(system.parameters)
     else:
-        rate, p = rate_sample, rate_sample_parameters(system.kind, system.moments, system.parameters)
+        rate, p = rate_sample, model_parameters(system)
         n_parameters = len(p)
     key = (rate, surface, n_state, n_parameters)
     if key not in _DEVICE_KERNELS:

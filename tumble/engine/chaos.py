@@ -28,7 +28,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import registry
-from ..kernels import TABLEAUX, device_tangent_loop, rate_sample, rate_sample_parameters
+from ..kernels import TABLEAUX, device_tangent_loop, rate_sample
 from ..kernels import sample_loop, system_steps, tangent_blocks, tangent_loop
 from ..physics.bodies import Body, one_body
 from ..physics.models import FreeBody, Model
@@ -37,7 +37,7 @@ from . import chaos_tolerance, cost
 from .adaptive_runs import checked_scalars, fixed_steps_only, no_save_every, output_times
 from .device import resolve_device
 from .integration import checked_save_every, indexed_dataset
-from .system_runs import block_code, compiled, initial_states, probe
+from .system_runs import block_code, compiled, initial_states, model_parameters, probe
 
 __all__ = ["RESCALE_EVERY", "STATUS_ABOVE_NAME", "TANGENT_TURN", "TangentRun", "gali", "initial_tangents", "lyapunov",
            "megno", "run_tangents", "tangent_kind"]
@@ -291,7 +291,7 @@ def _parameters(system, parameters):
     system, values = with_parameters(system, parameters)
     if isinstance(system, System):
         return system, system.parameter_values(parameters), values
-    return system, rate_sample_parameters(system.kind, system.moments, system.parameters), values
+    return system, model_parameters(system), values
 
 
 def _probe(system, y, p):

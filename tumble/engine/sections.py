@@ -22,13 +22,13 @@ import weakref
 import numpy as np
 
 from .. import registry
-from ..kernels import adaptive_loop, rate_sample_parameters, sample_loop
+from ..kernels import adaptive_loop, sample_loop
 from ..physics.bodies import one_body
 from ..physics.models import FreeBody
 from .adaptive_runs import (DEFAULT_ATOL, DEFAULT_RTOL, Surface, checked_horizon, run_adaptive, run_attrs,
                             run_variables)
 from .device import resolve_device
-from .system_runs import initial_states, is_system, system_name
+from .system_runs import initial_states, is_system, model_parameters, system_name
 
 __all__ = ["section"]
 
@@ -175,7 +175,7 @@ def section(system, y0, t_end, *, surface=None, period=None, phase=0.0, directio
         if spec.function is not None:  # called once at each initial state: a NaN there is a bug in g, said here
             y, _ = initial_states(model, y0, name)
             p = (model.parameter_values(parameters) if hasattr(model, "parameter_values") else
-                 rate_sample_parameters(model.kind, model.moments, model.parameters))
+                 model_parameters(model))
             for i in range(min(len(y), 256)):
                 value = spec.function(0.0, y[i], p)
                 if not math.isfinite(value):

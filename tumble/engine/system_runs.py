@@ -37,7 +37,7 @@ from ..physics.system import System, with_parameters
 from . import cost
 
 __all__ = ["PROBED", "SystemRun", "added_tableau", "no_body_parameters", "block_code", "compiled", "initial_states", "is_system",
-           "method_order", "probe", "run_system", "state_units", "system_methods", "system_name"]
+           "method_order", "model_parameters", "probe", "run_system", "state_units", "system_methods", "system_name"]
 
 #: Initial states at which a user's rate is called once before a run (the first with bounds checked): a NaN or an
 #: unset component there is refused with the sample named; later in the run a non-finite state is a sample status.
@@ -98,9 +98,26 @@ def method_order(method):
 _SAMPLE_LOOP_SYSTEMS = {}
 
 
+#: A built-in model's kernel parameters by its key (kind, moments, parameters): at most :data:`_KEPT_PARAMETERS`.
+_MODEL_PARAMETERS = {}
+_KEPT_PARAMETERS = 256
+
+
+def model_parameters(model):
+    """:func:`tumble.kernels.rate_sample_parameters` of a built-in ``model``, a fresh array: kept for the model's
+    values, since making them (its constants, scaled) took 10-35 us of a small run's 50."""
+    key = model._key()
+    p = _MODEL_PARAMETERS.get(key)
+    if p is None:
+        if len(_MODEL_PARAMETERS) >= _KEPT_PARAMETERS:  # a scan over many values: the oldest go
+            _MODEL_PARAMETERS.clear()
+        p = _MODEL_PARAMETERS[key] = rate_sample_parameters(model.kind, model.moments, model.parameters)
+    return p.copy()
+
+
 def _sample_loop_system(model):
     """``(System, p)``: ``model`` as the per-sample loop runs it (the kernels' rate of its kind, its parameters)."""
-    p = rate_sample_parameters(model.kind, model.moments, model.parameters)
+    p = model_parameters(model)
     if model.kind not in _SAMPLE_LOOP_SYSTEMS:
         _SAMPLE_LOOP_SYSTEMS[model.kind] = System(rate_sample, state=model.spec.state, name=model.kind,
                                                   parameters={f"p{i}": 0.0 for i in range(len(p))})

@@ -31,7 +31,7 @@ from ..steps import model_codegen, model_steps
 from ..steps.control import (ACCEPTED, ACTIVE, BLOCK, FACOLD, FIRST_FACOLD, G0, H, KEPT, LAST_REJECTED, NEXT_OUT, ROUND,
                              STATES, T, T_NEW, T_PREV, TRIAL_H, TRIES)
 from .adaptive_loop import (_C, _STAGES, SCRATCH_ROWS, _crossing, _dense, _interpolant,
-                            _stage)
+                            _stage, _step_to_end)
 from .adaptive_loop import component_surface as surface
 from ..threads import in_shares, start_shares
 
@@ -242,11 +242,11 @@ def _run_block(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, sectio
                     queued = _fill(i, queued, y, ys, ks, k0, firsts, p, t0, t_end, h0, times, out, status, counts,
                                    stopped, section, block, counters, y0)
         stepping = 0
-        for i in range(m):  # each lane's step, the last one up to t_end; 0 for a lane that is done
+        for i in range(m):  # each lane's step (as _step_to_end says); 0 for a lane that is done
             on, ti, hi = block[ACTIVE + i], block[T + i], block[H + i]
             stepping += 1 if on != 0.0 else 0
             last = ti + 1.01 * hi >= t_end
-            hi = t_end - ti if last else hi
+            hi = _step_to_end(ti, hi, t_end, last)
             block[H + i] = hi
             block[TRIAL_H + i] = hi * on
             block[T_NEW + i] = t_end if last else ti + hi
