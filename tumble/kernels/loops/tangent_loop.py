@@ -47,6 +47,7 @@ from ..steps.model_steps import tangent_sample
 from ..threads import in_shares
 from .sample_loop import combine
 from ..steps.steppers import _EPS, _MIDPOINT_MAX_ITERATIONS, _MIDPOINT_ULPS
+from ..steps.system_steps import DIFFERENCE_STEP  # also a System's generated difference tangents'
 from ..trig import _max
 
 __all__ = ["DIFFERENCE_STEP", "SCALARS", "difference_tangents", "jacobian_tangents", "make_cpu_driver",
@@ -64,10 +65,6 @@ SCALARS = 4
 #: :func:`difference_tangents`.
 WORK_EXTRA = 5
 
-#: The relative step of :func:`difference_tangents`: about ``eps ** (1/5)`` (a power of two), where the fourth-order
-#: truncation error ``step**4 |f^(5)| / 30`` and the rounding error ``eps |f| / step`` balance, both near 1e-13 of a
-#: smooth rate of unit scale.
-DIFFERENCE_STEP = 2.0 ** -10
 
 
 def scratch_shapes(n, k, stages):

@@ -43,11 +43,16 @@ from ..jit import jit
 from .. import tableaux
 from ..tableaux import TABLEAUX
 from ..trig import _max, _min
-from ..loops.tangent_loop import DIFFERENCE_STEP
 
-__all__ = ["NotScalar", "SYSTEM_CODES", "block_attempt", "block_constants", "block_step", "cacheable", "functions_key", "runs",
+__all__ = ["DIFFERENCE_STEP", "NotScalar", "SYSTEM_CODES", "block_attempt", "block_constants", "block_step", "cacheable", "functions_key", "runs",
            "scalar_rate", "scalar_tangent",
            "system_code", "tangent_code", "tangent_step"]
+
+#: The relative step of the difference tangents (:func:`tumble.kernels.loops.tangent_loop.difference_tangents` and a
+#: System's generated ones): about ``eps ** (1/5)`` (a power of two), where the fourth-order truncation error
+#: ``step**4 |f^(5)| / 30`` and the rounding error ``eps |f| / step`` balance, both near 1e-13 of a smooth rate of unit
+#: scale.
+DIFFERENCE_STEP = 2.0 ** -10
 
 #: The smallest code of a user's System (below: the built-in models' codes and the free body's).
 SYSTEM_CODES = 1 << 48
