@@ -14,10 +14,9 @@ The method is Dormand & Prince's eighth-order pair as Hairer distributes it (``d
 * the first step, unless given, is Hairer's ``hinit`` (one more evaluation of the rate);
 * the last step ends at ``t_end`` (``dop853.f``: a step within 1 % of it is stretched to it); where the controller's
   step would leave less than itself before ``t_end``, the two steps left are each half of what is left
-  (:func:`_step_to_end`): as many tries as the step and the sliver after it, each shorter (on the work-precision
-  benchmark's ensemble, where a quiet phase before the end grows the step to 3 s and the error estimate, outside its
-  asymptotic range, underestimates that step's error 5-30x, the largest error at ``rtol`` 1e-5 falls 3x and the
-  tries to reach an error of 1e-4 from 15.9 to 13.2 a sample);
+  (:func:`_step_to_end`): as many tries as the step and the sliver after it, each shorter. A quiet phase before the
+  end can grow the step past the error estimate's asymptotic range, where it underestimates the step's error (5-30x on
+  the work-precision benchmark's ensemble, whose largest errors came from such steps);
 * a step smaller than ``|t| · 2.3e-16 · 10`` cannot advance ``t``: the sample stops with ``STATUS_UNDERFLOW``; one that
   needs more than ``max_steps`` accepted and rejected steps stops with ``STATUS_LIMIT``; both keep the state they had;
 * the output times are read off the dense output of order 7 (three more stages, made only in a step that holds an
