@@ -109,7 +109,7 @@ def model_parameters(model):
     key = model._key()
     p = _MODEL_PARAMETERS.get(key)
     if p is None:
-        if len(_MODEL_PARAMETERS) >= _KEPT_PARAMETERS:  # a scan over many values: the oldest go
+        if len(_MODEL_PARAMETERS) >= _KEPT_PARAMETERS:  # a scan over many values: kept afresh
             _MODEL_PARAMETERS.clear()
         p = _MODEL_PARAMETERS[key] = rate_sample_parameters(model.kind, model.moments, model.parameters)
     return p.copy()
