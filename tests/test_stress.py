@@ -195,13 +195,21 @@ def test_the_closed_form_is_scale_invariant_from_1e_minus_8_to_1e8_rad_per_s():
 
 @pytest.mark.parametrize("method", STEPPERS)
 def test_every_stepper_is_scale_invariant_with_its_step_scaled_by_1_over_W(method):
+    """From 1e-200 to 1e200 rad/s: beyond 2^±256 the kernels step ``s w`` with ``dt / s`` (s a power of two), where
+    Euler's products would underflow (the spin stood still, status ok) or ``|L|^2`` overflow."""
     base = tumble.integrate(BODY, SCALE_SPINS, 5.0, 0.01, method=method).omega.values[:, -1]
-    for W in (1e-8, 1e8):
-        scaled = tumble.integrate(BODY, W * SCALE_SPINS, 5.0 / W, 0.01 / W, method=method).omega.values[:, -1] / W
-        assert np.abs(scaled - base).max() <= 1e-12 * np.abs(base).max(), W
-    for W in (2.0**-26, 2.0**26):
+    for W in (1e-200, 1e-160, 1e-8, 1e8, 1e160, 1e200):
+        ds = tumble.integrate(BODY, W * SCALE_SPINS, 5.0 / W, 0.01 / W, method=method)
+        assert np.abs(ds.omega.values[:, -1] / W - base).max() <= 1e-12 * np.abs(base).max(), W
+        assert np.all(ds.status.values == 0), W
+    for W in (2.0**-700, 2.0**-26, 2.0**26, 2.0**700):
         scaled = tumble.integrate(BODY, W * SCALE_SPINS, 5.0 / W, 0.01 / W, method=method).omega.values[:, -1] / W
         np.testing.assert_array_equal(scaled, base)
+    # the observers come back in rad/s and s: a flip's time, a probe's transverse norm
+    runs = [run_ensemble(BODY, W * SCALE_SPINS, 5.0 / W, 0.01 / W, method=method, axis=2, max_flips=2,
+                         probe_times=[0.0, 2.5 / W], drift=True, progress=False) for W in (1.0, 2.0**-700)]
+    np.testing.assert_array_equal(runs[1].flips * 2.0**-700, runs[0].flips)
+    np.testing.assert_array_equal(runs[1].probes / 2.0**-700, runs[0].probes)
 
 
 # --- extreme bodies ------------------------------------------------------------------------------------

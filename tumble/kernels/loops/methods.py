@@ -8,12 +8,13 @@ import numpy as np
 from ...registry import STEPPING
 from .. import tableaux
 from ..steps.attitude import FAMILY_MIDPOINT, FAMILY_RUNGE_KUTTA, FAMILY_SPLITTING, propagate_attitude
+from ..jit import jit
 from .drivers import driver
 from ..threads import in_parallel
 from ..steps.steppers import TORQUE_CONSTANT, body_constants
 
-__all__ = ["BLOCK", "METHODS", "Method", "Observed", "from_kernel_frame", "kernel_frame", "kernel_observed_axis", "run",
-           "run_attitude"]
+__all__ = ["BLOCK", "METHODS", "Method", "Observed", "SPIN_EXPONENT", "from_kernel_frame", "kernel_frame",
+           "kernel_observed_axis", "run", "run_attitude"]
 
 # Samples per SIMD block: large enough to amortise the per-step dispatch, small enough to stay in L1.
 BLOCK = 256
@@ -119,6 +120,42 @@ def _torque_free_constants(moments):
     return found
 
 
+#: A torque-free run whose largest spin component lies beyond ``2**±SPIN_EXPONENT`` rad/s is stepped rescaled
+#: (:func:`_spin_unit`); within, no bit changes.
+SPIN_EXPONENT = 256
+
+
+@jit
+def _magnitudes(w):
+    """``(largest, smallest)`` of the samples' largest spin components ``max_i |w[i, j]|`` (the smallest over the
+    samples that spin; a NaN is passed over), in one pass: numpy's reductions took 3 us of a small call."""
+    top = 0.0
+    low = math.inf
+    for j in range(w.shape[1]):
+        size = max(max(abs(w[0, j]), abs(w[1, j])), abs(w[2, j]))
+        top = max(top, size)
+        low = min(low, size) if size > 0.0 else low
+    return top, low
+
+
+def _spin_unit(w):
+    """1.0, or the power of two ``s`` that brings the largest spin component of a torque-free run near 1 rad/s when it
+    lies beyond ``2**±SPIN_EXPONENT`` rad/s and every sample that spins stays within that range after it.
+
+    ``u(tau) = s w(s tau)`` solves Euler's equations too, so :func:`run` steps ``s w`` with the step ``h / s`` and
+    gives back the states, norms and times exactly (a power of two). Unscaled, the products ``w_i w_j`` of spins
+    below about 1e-154 rad/s underflow (the spin stands still with status ok) and ``|L|^2`` above about 1e154 rad/s
+    overflows (``benchmarks/stress.py``). An ensemble that spans more than ``2**SPIN_EXPONENT`` is not rescaled (one
+    scale cannot keep both ends)."""
+    top, low = _magnitudes(w)
+    if not 0.0 < top < math.inf:  # at rest, or an infinite component (the kernels flag it)
+        return 1.0
+    exponent = math.frexp(top)[1]
+    if abs(exponent) <= SPIN_EXPONENT or math.frexp(low)[1] < exponent - SPIN_EXPONENT:
+        return 1.0
+    return math.ldexp(1.0, -exponent)
+
+
 def kernel_frame(method, w, moments, torque_params, torque_fn):
     """The frame a kernel runs in, shared by the CPU driver and the device (:mod:`tumble.kernels.cuda.rigid_body`).
 
@@ -221,6 +258,11 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
     Observed
     """
     n = w.shape[1]
+    torque_free = torque_params is None and torque_fn is None
+    unit = _spin_unit(w) if torque_free else 1.0  # beyond 2**±256 rad/s: stepped as s w, with h / s
+    if unit != 1.0:
+        w *= unit
+        t0, h, stop_norm = t0 / unit, h / unit, stop_norm * unit
     kernel_w, constants, torque_params, relabel = kernel_frame(method, w, moments, torque_params, torque_fn)
     kernel_axis, weights = kernel_observed_axis(relabel, axis, norm_weights)
     if torque_fn is not None and torque_params is None:
@@ -240,7 +282,6 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
     drifts = np.empty((2, n)) if drift else _NO_ROWS
     status = np.zeros(n, dtype=np.int8)
     steps_taken = np.zeros(n, dtype=np.int64)
-    torque_free = torque_params is None and torque_fn is None
     observing = len(probe_steps) > 0 or max_flips > 0 or drift or stop_norm > 0.0 or stop_flips > 0 or drift_limit > 0.0
     args = (kernel_w, constants, float(t0), float(h), int(n_steps), int(block),
             int(save_every), saved, int(kernel_axis), weights, probe_steps, probes, flips, flip_count, drifts, status,
@@ -250,6 +291,11 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
     if relabel is not None:
         w[:] = from_kernel_frame(relabel, kernel_w)
         saved = from_kernel_frame(relabel, saved, axis=1)
+    if unit != 1.0:  # back from s w at time t / s
+        w /= unit
+        saved /= unit
+        probes /= unit
+        flips *= unit
     return Observed(saved if save_every > 0 else None, probes if len(probe_steps) else None,
                     flips if max_flips > 0 else None, flip_count if max_flips > 0 else None, drifts if drift else None,
                     status, steps_taken)
