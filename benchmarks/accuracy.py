@@ -35,7 +35,7 @@ from pathlib import Path
 import numba
 import numpy as np
 import xarray as xr
-from provenance import source_digest, stamp  # benchmarks/provenance.py
+from provenance import source_digest, source_files, stamp  # benchmarks/provenance.py
 
 import tumble
 from tumble.engine.sampling import perturbed_spins, seed_entropy
@@ -565,7 +565,8 @@ def main(argv=None):
     parser.add_argument("--rk4-samples", type=int, default=128, help="samples per scene, parts 2 and 4 (default 128)")
     args = parser.parse_args(argv)
     started = time.perf_counter()
-    digest = source_digest()
+    files = source_files()  # the end compares the same files
+    digest = source_digest(files)
     report = dict(
         stamp(), source_digest=digest,  # machine, vector width, date, commit; machine in detail below
         machine=dict(platform=platform.platform(), processor=platform.processor() or platform.machine(),
@@ -585,7 +586,7 @@ def main(argv=None):
         report[name] = fn()
         print(f"[{name}: {time.perf_counter() - t:.1f} s]", file=sys.stderr, flush=True)
     report["total_seconds"] = time.perf_counter() - started
-    report["source_digest_end"] = source_digest()
+    report["source_digest_end"] = source_digest(files)
     if report["source_digest_end"] != digest:
         report["warning"] = (f"the tumble sources changed during the run (sha256 {digest} at the start, "
                              f"{report['source_digest_end']} at the end): the figures may mix two versions")

@@ -13,15 +13,21 @@ import tumble
 PACKAGE = Path(tumble.__file__).parent
 
 
-def source_digest():
-    """sha256 of the sources of the tumble modules this run imported, to tie the figures to that code."""
+def source_digest(files=None):
+    """sha256 of the sources of the tumble modules this run imported (or of ``files``, paths), to tie the figures to
+    that code. A run that checks its code did not change compares the digest of the same files, ``source_files()``
+    taken at its start: a module imported later would change the digest of everything imported."""
     h = hashlib.sha256()
-    files = {Path(m.__file__) for name, m in list(sys.modules.items())
-             if (name == "tumble" or name.startswith("tumble.")) and getattr(m, "__file__", None)}
-    for path in sorted(files):
+    for path in sorted(source_files() if files is None else files):
         h.update(str(path.relative_to(PACKAGE)).encode())
         h.update(path.read_bytes())
     return h.hexdigest()[:16]
+
+
+def source_files():
+    """The source files of the tumble modules imported so far."""
+    return {Path(m.__file__) for name, m in list(sys.modules.items())
+            if (name == "tumble" or name.startswith("tumble.")) and getattr(m, "__file__", None)}
 
 
 def commit():

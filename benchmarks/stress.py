@@ -50,7 +50,7 @@ from pathlib import Path
 import numba
 import numpy as np
 import xarray as xr
-from provenance import source_digest, stamp  # benchmarks/provenance.py
+from provenance import source_digest, source_files, stamp  # benchmarks/provenance.py
 
 import tumble
 from tumble.engine.ensemble import DEFAULT_DRIFT_LIMIT, run_ensemble
@@ -1213,7 +1213,8 @@ def main(argv=None):
         print(f"stress: note: load average {load_before:.2f} on {os.cpu_count()} cores; timings may be inflated by "
               "other processes", file=sys.stderr)
     started = time.perf_counter()
-    digest = source_digest()
+    files = source_files()  # the end compares the same files
+    digest = source_digest(files)
     report = dict(
         stamp(), quick=bool(args.quick), settings=settings, source_digest=digest,  # machine in detail below
         machine=dict(platform=platform.platform(), cpu_count=os.cpu_count(), vector_width=timing.vector_width(),
@@ -1241,7 +1242,7 @@ def main(argv=None):
     report["summary"] = summary(report)
     report["total_seconds"] = time.perf_counter() - started
     report["load_after"] = os.getloadavg()[0]
-    report["source_digest_end"] = source_digest()
+    report["source_digest_end"] = source_digest(files)
     if report["source_digest_end"] != digest:
         report["warning"] = (f"the tumble sources changed during the run (sha256 {digest} at the start, "
                              f"{report['source_digest_end']} at the end): the figures may mix two versions")
