@@ -210,6 +210,11 @@ def test_every_stepper_is_scale_invariant_with_its_step_scaled_by_1_over_W(metho
                          probe_times=[0.0, 2.5 / W], drift=True, progress=False) for W in (1.0, 2.0**-700)]
     np.testing.assert_array_equal(runs[1].flips * 2.0**-700, runs[0].flips)
     np.testing.assert_array_equal(runs[1].probes / 2.0**-700, runs[0].probes)
+    # and with the attitude: the same quaternions
+    turned = [tumble.integrate(BODY, W * SCALE_SPINS[:2], 5.0 / W, 0.01 / W, method=method, attitude=True)
+              for W in (1.0, 2.0**-700)]
+    np.testing.assert_array_equal(turned[1].omega.values / 2.0**-700, turned[0].omega.values)
+    np.testing.assert_array_equal(turned[1].quaternion.values, turned[0].quaternion.values)
 
 
 # --- extreme bodies ------------------------------------------------------------------------------------

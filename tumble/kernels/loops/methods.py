@@ -142,8 +142,9 @@ def _spin_unit(w):
     """1.0, or the power of two ``s`` that brings the largest spin component of a torque-free run near 1 rad/s when it
     lies beyond ``2**±SPIN_EXPONENT`` rad/s and every sample that spins stays within that range after it.
 
-    ``u(tau) = s w(s tau)`` solves Euler's equations too, so :func:`run` steps ``s w`` with the step ``h / s`` and
-    gives back the states, norms and times exactly (a power of two). Unscaled, the products ``w_i w_j`` of spins
+    ``u(tau) = s w(s tau)`` solves Euler's equations too (and the attitude ``q(s tau)`` its own), so :func:`run` and
+    :func:`run_attitude` step ``s w`` with the step ``h / s`` and give back the states, norms and times exactly (a
+    power of two). Unscaled, the products ``w_i w_j`` of spins
     below about 1e-154 rad/s underflow (the spin stands still with status ok) and ``|L|^2`` above about 1e154 rad/s
     overflows (``benchmarks/stress.py``). An ensemble that spans more than ``2**SPIN_EXPONENT`` is not rescaled (one
     scale cannot keep both ends)."""
@@ -327,6 +328,11 @@ def run_attitude(method, w, q, moments, t0, h, n_steps, *, save_every, torque_ki
     saved_q : ndarray, shape (N, n_saved, 4)
     status : ndarray, shape (N,), int8
     """
+    w = np.asarray(w, dtype=float)
+    # as run: beyond 2**±256 rad/s stepped as s w with h / s (the attitude q(s tau) is the same)
+    unit = _spin_unit(np.ascontiguousarray(w.T)) if torque_params is None and torque_fn is None else 1.0
+    if unit != 1.0:
+        w, t0, h = w * unit, t0 / unit, h / unit
     frame = attitude_frame(method, w, moments, torque_params, torque_fn, n_steps, save_every)
     n = w.shape[0]
     saved_w = np.empty((frame.n_saved, n, 3))
@@ -337,6 +343,8 @@ def run_attitude(method, w, q, moments, t0, h, n_steps, *, save_every, torque_ki
                 np.asarray(frame.axes, dtype=np.int64), frame.sign, frame.w, kernel_q, frame.body, float(t0),
                 float(h), int(n_steps), int(save_every), saved_w, saved_q, status, int(torque_kind),
                 frame.torque_params, torque_fn)
+    if unit != 1.0:
+        saved_w /= unit
     return from_attitude_frame(frame, saved_w), saved_q.transpose(1, 0, 2), status
 
 
