@@ -53,6 +53,7 @@ FREE_BODY_LOOP = {
     "kernels.loops.block_parts.store_initial": 1,
     "kernels.loops.block_parts.store_rest": 1,
     "kernels.loops.drivers.make_propagate.<locals>.propagate": 1,
+    "kernels.loops.methods._magnitudes": 1,
 }
 
 
