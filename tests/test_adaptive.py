@@ -46,6 +46,11 @@ def _not_finite_after_one_rate(t, y, p, dydt):
     dydt[0] = -y[0] if t < 1.0 else math.nan  # a rate that returns NaN past t = 1
 
 
+def _not_finite_after_one_rate_looped(t, y, p, dydt):
+    for j in range(y.shape[0]):  # an index that is not a constant: no scalar form, the per-sample loop
+        dydt[j] = -y[j] if t < 1.0 else math.nan
+
+
 @pytest.fixture(scope="module")
 def pendulum():
     return tumble.System(_pendulum_rate, state=("x", "v"), parameters={"k": 4.0, "c": 0.1}, name="pendulum")
@@ -161,12 +166,21 @@ def test_a_singularity_stops_its_sample_with_step_underflow_and_a_warning(blow_u
 
 
 @pytest.mark.slow  # its own System's kernel's compile (4 s)
-def test_a_rate_that_returns_nan_stops_its_samples_with_the_last_finite_state_never_nan():
-    system = tumble.System(_not_finite_after_one_rate, state=("y",), name="not_finite")
-    with pytest.warns(RuntimeWarning, match=r"2 of 2 samples of 'not_finite' stopped before t_end \(2 step underflow"):
-        ds = tumble.integrate(system, [[1.0], [0.5]], 2.0, method="dop853")
-    assert ds.status.values.tolist() == [registry.STATUS_UNDERFLOW] * 2  # a NaN error is rejected, not an error of 0
-    np.testing.assert_allclose(ds.state.values[:, -1, 0], np.array([1.0, 0.5]) * math.exp(-1.0), rtol=1e-6)
+@pytest.mark.parametrize("rate, path", [(_not_finite_after_one_rate, "error-controlled, vectorised blocks"),
+                                        (_not_finite_after_one_rate_looped, "error-controlled, per-sample loop")])
+def test_a_rate_that_returns_nan_stops_its_samples_non_finite_with_the_last_finite_state(rate, path):
+    system = tumble.System(rate, state=("y",), name="not_finite")
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*scalar form")  # the looped rate's: it runs one sample at a time
+        with pytest.warns(RuntimeWarning, match=r"2 of 2 samples of 'not_finite' stopped before t_end \(2 non-finite"):
+            ds = tumble.integrate(system, [[1.0], [0.5]], 2.0, method="dop853", times=[0.5, 2.0])
+    assert ds.attrs["path"] == path
+    # a NaN error is rejected (never an error of 0), the step falls until it cannot advance t, and its stages still
+    # hold the NaN: the rate's, not the step's, so the status says non-finite rather than step underflow
+    assert ds.status.values.tolist() == [registry.STATUS_NONFINITE] * 2
+    np.testing.assert_allclose(ds.state.values[:, 0, 0], np.array([1.0, 0.5]) * math.exp(-0.5), rtol=1e-8)
+    np.testing.assert_allclose(ds.state.values[:, -1, 0], np.array([1.0, 0.5]) * math.exp(-1.0), rtol=1e-8)
+    assert np.isfinite(ds.state.values).all()
 
 
 def test_a_steady_spin_is_kept_exactly_to_the_end():
@@ -288,7 +302,7 @@ def test_the_kernel_is_compiled_once_per_system_and_parameters_replace_its_own(p
     np.testing.assert_allclose(decay[0], [1.0 - math.exp(-1.0), math.exp(-1.0)], rtol=1e-11)
 
 
-@pytest.mark.slow  # the per-sample loop's compile for the device, twice (15 s)
+@pytest.mark.slow  # the per-sample loop's compile for the device, three times (20 s)
 def test_the_device_runs_the_per_sample_loop_and_gives_the_cpus_states(pendulum):
     """On numba-cuda's simulator (tests/conftest.py): one thread per sample, the CPU's per-sample loop compiled."""
     pytest.importorskip("numba_cuda")
@@ -309,3 +323,9 @@ def test_the_device_runs_the_per_sample_loop_and_gives_the_cpus_states(pendulum)
     on_cpu = tumble.section(pendulum, y0, 20.0, surface=("x", 0.0), direction=0, rtol=1e-12)
     assert section["count"].values.tolist() == on_cpu["count"].values.tolist()
     np.testing.assert_allclose(section.time.values, on_cpu.time.values, rtol=0, atol=1e-9)
+    # a rate that returns NaN: the device's stop is the CPU's (non-finite, the last finite state)
+    undefined = tumble.System(_not_finite_after_one_rate, state=("y",), name="not_finite")
+    with pytest.warns(RuntimeWarning, match=r"\(2 non-finite"):
+        gpu = tumble.integrate(undefined, [[1.0], [0.5]], 2.0, method="dop853", device="cuda")
+    assert gpu.status.values.tolist() == [registry.STATUS_NONFINITE] * 2
+    np.testing.assert_allclose(gpu.state.values[:, -1, 0], np.array([1.0, 0.5]) * math.exp(-1.0), rtol=1e-8)

@@ -107,7 +107,8 @@ class Status(NamedTuple):
 #: Per-sample statuses of the engine, by code (the kernels write the codes).
 STATUSES = (
     Status("ok", "ran to the end, or stopped because its measurement was complete"),
-    Status("non-finite", "a component became NaN or infinite (step too large for the spin rate?)"),
+    Status("non-finite", "a component became NaN or infinite (step too large for the spin rate?); error-controlled: "
+                         "the rate returned NaN or infinity however short the step, stopped there"),
     Status("invariant drift", "torque-free: |L|^2 or the energy drifted beyond the drift limit"),
 )
 STATUS_NAMES = tuple(s.name for s in STATUSES)

@@ -338,7 +338,8 @@ def integrate(body, w0, t_end, dt=None, method="rk4", torque=(0, 0, 0), save_eve
         ``method="dop853"``: the output times, s, increasing within ``[0, t_end]`` (None: ``t_end``).
     max_steps : int, optional
         ``method="dop853"``: the steps (accepted and rejected) a sample may take (None: 1 000 000); one that needs
-        more stops with status "step limit", one whose step underflows with "step underflow".
+        more stops with status "step limit", one whose step underflows with "step underflow" ("non-finite" where
+        the rate returns NaN or infinity however short the step).
 
     Returns
     -------

@@ -25,13 +25,13 @@ import numpy as np
 from llvmlite import ir
 from numba.extending import intrinsic
 
-from ...registry import STATUS_LIMIT, STATUS_NONFINITE, STATUS_OK, STATUS_UNDERFLOW
+from ...registry import STATUS_LIMIT, STATUS_NONFINITE, STATUS_OK
 from ..jit import jit, rebound
 from ..steps import model_codegen, model_steps
 from ..steps.control import (ACCEPTED, ACTIVE, BLOCK, FACOLD, FIRST_FACOLD, G0, H, KEPT, LAST_REJECTED, NEXT_OUT, ROUND,
                              STATES, T, T_NEW, T_PREV, TRIAL_H, TRIES)
-from .adaptive_loop import (_C, _STAGES, SCRATCH_ROWS, _crossing, _dense, _interpolant,
-                            _stage, _step_to_end)
+from .adaptive_loop import (SCRATCH_ROWS, _crossing, _dense, _interpolant, _stages, _step_to_end,
+                            _underflow_status)
 from .adaptive_loop import component_surface as surface
 from ..threads import in_shares, start_shares
 
@@ -46,15 +46,6 @@ rate = None
 # The rows of a block's counters (``counters``, int): each lane's next output, its sample (-1: none), its crossings.
 # The block's numbers (``block``) are laid out as :mod:`tumble.kernels.steps.control` says.
 _SLOT, _OWNER, _CROSSED = range(3)
-
-
-@jit(inline=True, cache=False, contract=False)
-def _stages(rate, y0, p, t, h, k, stage):
-    """The step's stages ``k[1..12]`` from ``y0`` at ``t`` over ``h`` (``k[0]`` given): what a lane's dense output
-    needs beyond the attempt, which keeps its stages in registers."""
-    for s in range(1, _STAGES + 1):
-        _stage(s, y0, h, k, stage)
-        rate(t + _C[s] * h, stage, p, k[s])
 
 
 @intrinsic
@@ -236,7 +227,13 @@ def _run_block(y, p, a, t0, t_end, h0, rtol, atol, max_steps, times, out, sectio
         if stops > 0:  # rare: those samples finished, their lanes refilled
             for i in range(m):
                 if _stops(block[ACTIVE + i], block[TRIES + i], block[H + i], block[T + i], max_steps):
-                    status[owner[i]] = STATUS_LIMIT if block[TRIES + i] >= max_steps else STATUS_UNDERFLOW
+                    status[owner[i]] = STATUS_LIMIT
+                    if block[TRIES + i] < max_steps:
+                        for j in range(n):
+                            y0[j] = ys[j, i]
+                            k[0, j] = ks[j, i]
+                        status[owner[i]] = _underflow_status(rate, y0, p, block[T + i], block[TRIAL_H + i], k,
+                                                             stage)
                     block[ACTIVE + i] = 0.0
                     _finish(i, y, ys, times, out, counts, stopped, block, counters)
                     queued = _fill(i, queued, y, ys, ks, k0, firsts, p, t0, t_end, h0, times, out, status, counts,

@@ -17,8 +17,10 @@ The method is Dormand & Prince's eighth-order pair as Hairer distributes it (``d
   (:func:`_step_to_end`): as many tries as the step and the sliver after it, each shorter. A quiet phase before the
   end can grow the step past the error estimate's asymptotic range, where it underestimates the step's error (5-30x on
   the work-precision benchmark's ensemble, whose largest errors came from such steps);
-* a step smaller than ``|t| · 2.3e-16 · 10`` cannot advance ``t``: the sample stops with ``STATUS_UNDERFLOW``; one that
-  needs more than ``max_steps`` accepted and rejected steps stops with ``STATUS_LIMIT``; both keep the state they had;
+* a step smaller than ``|t| · 2.3e-16 · 10`` cannot advance ``t``: the sample stops with ``STATUS_UNDERFLOW``, or
+  ``STATUS_NONFINITE`` where that step's stages still hold a NaN or an infinity (the rate returns one however short
+  the step: :func:`_underflow_status`); one that needs more than ``max_steps`` accepted and rejected steps stops with
+  ``STATUS_LIMIT``; each keeps the state it had;
 * the output times are read off the dense output of order 7 (three more stages, made only in a step that holds an
   output time), so the steps are the tolerance's, never the outputs'.
 
@@ -68,6 +70,29 @@ def _stage(s, y, h, k, out):
             if _A[s, r] != 0.0:
                 total += _A[s, r] * k[r, j]
         out[j] = y[j] + h * total
+
+
+@jit(inline=True, cache=False, contract=False)
+def _stages(rate, y0, p, t, h, k, stage):
+    """The step's stages ``k[1..12]`` from ``y0`` at ``t`` over ``h`` (``k[0]`` given)."""
+    for s in range(1, _STAGES + 1):
+        _stage(s, y0, h, k, stage)
+        rate(t + _C[s] * h, stage, p, k[s])
+
+
+@jit(inline=True, cache=False, contract=False)
+def _underflow_status(rate, y0, p, t, h, k, stage):
+    """The status of a sample at ``t`` whose next step cannot advance ``t``, ``h`` its last try: ``STATUS_NONFINITE``
+    when that try's stages from ``y0`` (``k[0]`` its rate) hold a NaN or an infinity, so that the rate returned one
+    however short the step (a rate undefined from here on: its tries were rejected for a non-finite error down to the
+    shortest), else ``STATUS_UNDERFLOW`` (a singularity, or a tolerance the arithmetic cannot meet). Made again once,
+    at the stop."""
+    _stages(rate, y0, p, t, h, k, stage)
+    for s in range(_STAGES + 1):
+        for j in range(y0.shape[0]):
+            if not math.isfinite(k[s, j]):
+                return STATUS_NONFINITE
+    return STATUS_UNDERFLOW
 
 
 @jit(inline=True)
@@ -133,15 +158,17 @@ def run_sample(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, section, 
     h = h0 if h0 > 0.0 else _first_step(rate, t, y, p, t_end - t, rtol, atol, k[0], stage, y1)
     last_rejected = False
     facold = FIRST_FACOLD
+    tried = h
     while t < t_end:
         if accepted + rejected >= max_steps:
             code = STATUS_LIMIT
             break
         if 0.1 * h <= abs(t) * ROUND or not h > 0.0:
-            code = STATUS_UNDERFLOW
+            code = _underflow_status(rate, y, p, t, tried, k, stage)
             break
         final = t + 1.01 * h >= t_end
         h = _step_to_end(t, h, t_end, final)
+        tried = h
         for s in range(1, _STAGES + 1):  # the stages, then f(t + h, y1): y1 is the last stage's state
             _stage(s, y, h, k, stage)
             if s == _STAGES:
