@@ -185,6 +185,47 @@ def test_the_growth_fit_in_the_kernel_is_the_cpu_fit_of_the_probes(cuda_device, 
     assert np.isnan(device.growth[0][points == 0]).all()
 
 
+@pytest.mark.slow  # the simulator steps each method at two scales, with every observer and both fits (20 s)
+@pytest.mark.parametrize("method", ["rk4", "splitting2"])
+def test_extreme_spins_on_the_device_are_stepped_rescaled_as_on_the_cpu(cuda_device, flipping, method):
+    """Beyond 2^±256 rad/s the device steps ``s w`` with ``dt / s`` as the CPU does (where Euler's products would
+    underflow and the spin stand still): at 2^-700 rad/s every state, record and fit is the one at 1 rad/s scaled,
+    bit for bit (a power of two), and the CPU's."""
+    scale = 2.0 ** -700
+
+    def records(w):
+        kwargs = dict(method=method, axis=1, probe_times=np.linspace(0.0, 12.0 / w, 41), max_flips=2, drift=True,
+                      growth_window=(0.25 * w, 8), keep_probes=True, progress=False)
+        return tumble.run_ensemble(BODY, w * flipping, 12.0 / w, STEP / w, device="cuda", **kwargs)
+
+    def phases(w, device):
+        kwargs = dict(method=method, axis=3, save_every=4, phase_window=((0, 1), (1.2, 0.8), 1e-11 * w, np.pi / 2),
+                      progress=False)
+        w0 = np.array([0.0, 0.0, w]) + 0.05 * w * np.random.default_rng(2813).normal(size=(8, 3))
+        return tumble.run_ensemble(BODY, w0, 6.0 / w, 0.05 / w, device=device, **kwargs)
+
+    base, tiny = records(1.0), records(scale)
+    assert (tiny.status == 0).all() and (base.flip_count > 0).any() and (base.growth[1] > 0).any()
+    for name in ("final", "probes"):
+        np.testing.assert_array_equal(getattr(tiny, name) / scale, getattr(base, name), err_msg=name)
+    np.testing.assert_array_equal(tiny.flips * scale, base.flips)
+    np.testing.assert_array_equal(tiny.drift, base.drift)
+    np.testing.assert_array_equal(tiny.growth[0] / scale, base.growth[0])  # 1/s: the rate of s w at t / s
+    np.testing.assert_array_equal(tiny.growth[1], base.growth[1])
+    np.testing.assert_array_equal(tiny.growth[2] / scale, base.growth[2])
+    base, tiny, cpu = phases(1.0, "cuda"), phases(scale, "cuda"), phases(scale, "cpu")
+    assert (base.phase[2] == 0).all()
+    np.testing.assert_array_equal(tiny.trajectory / scale, base.trajectory)
+    np.testing.assert_array_equal(tiny.phase[0] / scale, base.phase[0])
+    np.testing.assert_array_equal(tiny.phase[1] / scale, base.phase[1])
+    np.testing.assert_array_equal(tiny.phase[2], cpu.phase[2])  # the CPU's radii by hypot there: an ulp apart
+    np.testing.assert_allclose(np.array(tiny.phase[:2]), np.array(cpu.phase[:2]), rtol=1e-13)
+    turned = [tumble.integrate(BODY, w * flipping[:2], 2.0 / w, STEP / w, method=method, attitude=True,
+                               device="cuda") for w in (1.0, scale)]
+    np.testing.assert_array_equal(turned[1].omega.values / scale, turned[0].omega.values)
+    np.testing.assert_array_equal(turned[1].quaternion.values, turned[0].quaternion.values)
+
+
 def test_flips_check_every_step_for_a_blow_up_as_on_the_cpu(cuda_device):
     """With flips observed the non-finite check runs every step (not every 32): the same step and status."""
     w0 = np.array([[1.0, 0.05, 0.05], [1e150, 1e150, 1e150]])

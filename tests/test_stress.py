@@ -210,6 +210,14 @@ def test_every_stepper_is_scale_invariant_with_its_step_scaled_by_1_over_W(metho
                          probe_times=[0.0, 2.5 / W], drift=True, progress=False) for W in (1.0, 2.0**-700)]
     np.testing.assert_array_equal(runs[1].flips * 2.0**-700, runs[0].flips)
     np.testing.assert_array_equal(runs[1].probes / 2.0**-700, runs[0].probes)
+    # and the phase fit over 1e211 s (whose squares overflowed: frequency 0 with status ok until 2026-12-07)
+    fits = [run_ensemble(BODY, W * SCALE_SPINS, 5.0 / W, 0.01 / W, method=method, axis=3, save_every=10,
+                         phase_window=((0, 1), (1.0, 1.0), 1e-12 * W, np.pi / 2), progress=False).phase
+            for W in (1.0, 2.0**-700)]
+    assert (fits[0][2] == 0).any()
+    np.testing.assert_array_equal(fits[1][2], fits[0][2])
+    np.testing.assert_array_equal(fits[1][0] / 2.0**-700, fits[0][0])
+    np.testing.assert_allclose(fits[1][1] / 2.0**-700, fits[0][1], rtol=4e-16)  # there by hypot, within an ulp
     # and with the attitude: the same quaternions
     turned = [tumble.integrate(BODY, W * SCALE_SPINS[:2], 5.0 / W, 0.01 / W, method=method, attitude=True)
               for W in (1.0, 2.0**-700)]

@@ -194,11 +194,14 @@ def phase_fit_sample(t, x, y, floor, max_step):
     t_mean /= t_count
     phase_mean /= t_count
     # 3. the least-squares slope about both means: a phase that does not move gives 0 to round-off of its own size,
-    #    not of the size of the times
+    #    not of the size of the times. The times in units of a power of two near their span, so that the squares
+    #    neither overflow nor underflow (a spin of 1e-200 rad/s is stored over 1e200 s, whose squares were infinite
+    #    and its frequency 0): the same bits as unscaled within those ranges
+    unit = math.ldexp(1.0, -math.frexp(t[t_count - 1] - t[0])[1]) if t_count >= 2 else 1.0
     sxy = 0.0
     sxx = 0.0
     for j in range(t_count):
-        dt = t[j] - t_mean
+        dt = (t[j] - t_mean) * unit
         sxy += dt * (phases[j] - phase_mean)
         sxx += dt * dt
     median = np.nan if any_nan else _median_in_place(radii)
@@ -208,7 +211,7 @@ def phase_fit_sample(t, x, y, floor, max_step):
         code = FIT_OK
     else:
         code = FIT_UNDERSAMPLED
-    frequency = abs(sxy / sxx) if code == FIT_OK and t_count >= 2 else np.nan
+    frequency = abs(sxy / sxx) * unit if code == FIT_OK and t_count >= 2 else np.nan
     return frequency, median, code
 
 

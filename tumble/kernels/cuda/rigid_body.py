@@ -26,7 +26,7 @@ from numba import boolean, cuda, float64, int64
 from .launch import THREADS, launch_shape, loop_array, loop_with_codes
 from ..loops.block_loop import FREE_BODY, N_INVARIANTS, PROBE_ROWS, run_block
 from ..jit import cuda_jit
-from ..loops.methods import Observed, from_kernel_frame, kernel_frame, kernel_observed_axis
+from ..loops.methods import Observed, from_kernel_frame, kernel_frame, kernel_observed_axis, spin_unit
 from ..steps.steppers import TORQUE_CONSTANT
 
 __all__ = ["THREADS", "kernel", "make_kernel", "refusal", "run", "run_scenes"]
@@ -178,6 +178,17 @@ def run_scenes(method, w, sizes, moments, t0, h, n_steps, *, save_every, axis, n
     n, count = w.shape[1], len(sizes)
     starts = np.concatenate(([0], np.cumsum(sizes)))
     torque_free = torque_params is None
+    # as the CPU's run: beyond 2**±256 rad/s stepped as s w with h / s, its times, norms and rates given back exactly
+    unit = spin_unit(w) if torque_free else 1.0
+    spins = w * unit if unit != 1.0 else w
+    if unit != 1.0:
+        t0, h, stop_norm = t0 / unit, np.asarray(h, float) / unit, np.asarray(stop_norm, float) * unit
+        if growth_window:
+            growth_window = (np.asarray(growth_window[0], float) * unit, growth_window[1],
+                             np.asarray(growth_window[2], float) / unit)
+        if phase_window is not None:
+            times, planes, weights, floors, max_step = phase_window
+            phase_window = (np.asarray(times, float) / unit, planes, weights, np.asarray(floors, float) * unit, max_step)
     frames = []
     bodies, torque_rows = np.empty((count, 12)), np.zeros((count, 4))
     axes, column_rows = np.empty(count, dtype=np.int64), np.empty((count, 2), dtype=np.int64)
@@ -185,7 +196,7 @@ def run_scenes(method, w, sizes, moments, t0, h, n_steps, *, save_every, axis, n
     kernel_w = np.empty((3, n))
     for k in range(count):  # each scene in its kernel frame (a splitting relabels the axes by its moments)
         rows = slice(starts[k], starts[k + 1])
-        scene_w, constants, params, relabel = kernel_frame(method, w[:, rows], moments[k], torque_params, None)
+        scene_w, constants, params, relabel = kernel_frame(method, spins[:, rows], moments[k], torque_params, None)
         kernel_w[:, rows] = scene_w
         bodies[k] = constants
         if not torque_free:
@@ -234,11 +245,18 @@ def run_scenes(method, w, sizes, moments, t0, h, n_steps, *, save_every, axis, n
             trajectory[:, :, rows] = from_kernel_frame(relabel, trajectory[:, :, rows], axis=1)
     growth = None
     if growth_window:
-        rate, first, last = fit.copy_to_host()
+        rate, first, last = fit.copy_to_host() / unit  # 1/s and rad/s
         growth = (rate, fit_points.copy_to_host(), first, last)
-    phase = None if phase_window is None else _phase_fit(saved, frames, sizes, *phase_window)
-    return Observed(trajectory, probes.copy_to_host() if keep_probes else None,
-                    flips.copy_to_host() if max_flips > 0 else None,
+    phase = None
+    if phase_window is not None:
+        frequency, radius, code = _phase_fit(saved, frames, sizes, *phase_window)
+        phase = (frequency / unit, radius / unit, code)
+    if unit != 1.0:  # back from s w at time t / s
+        w /= unit
+        if trajectory is not None:
+            trajectory /= unit
+    return Observed(trajectory, probes.copy_to_host() / unit if keep_probes else None,
+                    flips.copy_to_host() * unit if max_flips > 0 else None,
                     flip_count.copy_to_host() if max_flips > 0 else None, drifts.copy_to_host() if drift else None,
                     status.copy_to_host(), steps_taken.copy_to_host(), growth, phase)
 

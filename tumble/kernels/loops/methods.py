@@ -13,7 +13,7 @@ from .drivers import driver
 from ..threads import in_parallel
 from ..steps.steppers import TORQUE_CONSTANT, body_constants
 
-__all__ = ["BLOCK", "METHODS", "Method", "Observed", "SPIN_EXPONENT", "from_kernel_frame", "kernel_frame",
+__all__ = ["BLOCK", "METHODS", "Method", "Observed", "SPIN_EXPONENT", "from_kernel_frame", "kernel_frame", "spin_unit",
            "kernel_observed_axis", "run", "run_attitude"]
 
 # Samples per SIMD block: large enough to amortise the per-step dispatch, small enough to stay in L1.
@@ -121,7 +121,7 @@ def _torque_free_constants(moments):
 
 
 #: A torque-free run whose largest spin component lies beyond ``2**±SPIN_EXPONENT`` rad/s is stepped rescaled
-#: (:func:`_spin_unit`); within, no bit changes.
+#: (:func:`spin_unit`); within, no bit changes.
 SPIN_EXPONENT = 256
 
 
@@ -138,13 +138,13 @@ def _magnitudes(w):
     return top, low
 
 
-def _spin_unit(w):
+def spin_unit(w):
     """1.0, or the power of two ``s`` that brings the largest spin component of a torque-free run near 1 rad/s when it
     lies beyond ``2**±SPIN_EXPONENT`` rad/s and every sample that spins stays within that range after it.
 
     ``u(tau) = s w(s tau)`` solves Euler's equations too (and the attitude ``q(s tau)`` its own), so :func:`run` and
-    :func:`run_attitude` step ``s w`` with the step ``h / s`` and give back the states, norms and times exactly (a
-    power of two). Unscaled, the products ``w_i w_j`` of spins
+    :func:`run_attitude` (and the device's, :mod:`tumble.kernels.cuda.rigid_body`) step ``s w`` with the step ``h / s``
+    and give back the states, norms, times and rates exactly (a power of two). Unscaled, the products ``w_i w_j`` of spins
     below about 1e-154 rad/s underflow (the spin stands still with status ok) and ``|L|^2`` above about 1e154 rad/s
     overflows (``benchmarks/stress.py``). An ensemble that spans more than ``2**SPIN_EXPONENT`` is not rescaled (one
     scale cannot keep both ends)."""
@@ -260,7 +260,7 @@ def run(method, w, moments, t0, h, n_steps, *, save_every=0, axis=0, norm_weight
     """
     n = w.shape[1]
     torque_free = torque_params is None and torque_fn is None
-    unit = _spin_unit(w) if torque_free else 1.0  # beyond 2**±256 rad/s: stepped as s w, with h / s
+    unit = spin_unit(w) if torque_free else 1.0  # beyond 2**±256 rad/s: stepped as s w, with h / s
     if unit != 1.0:
         w *= unit
         t0, h, stop_norm = t0 / unit, h / unit, stop_norm * unit
@@ -330,7 +330,7 @@ def run_attitude(method, w, q, moments, t0, h, n_steps, *, save_every, torque_ki
     """
     w = np.asarray(w, dtype=float)
     # as run: beyond 2**±256 rad/s stepped as s w with h / s (the attitude q(s tau) is the same)
-    unit = _spin_unit(np.ascontiguousarray(w.T)) if torque_params is None and torque_fn is None else 1.0
+    unit = spin_unit(np.ascontiguousarray(w.T)) if torque_params is None and torque_fn is None else 1.0
     if unit != 1.0:
         w, t0, h = w * unit, t0 / unit, h / unit
     frame = attitude_frame(method, w, moments, torque_params, torque_fn, n_steps, save_every)
