@@ -201,12 +201,18 @@ def test_too_few_steps_stop_with_step_limit():
         ds = tumble.integrate(BODY, SPINS[:1], 50.0, method="dop853", max_steps=5)
     assert ds.status.values.tolist() == [registry.STATUS_LIMIT]
     assert int(ds.steps[0] + ds.rejected_steps[0]) == 5
+    # propagate returns no status: its stopped samples' finite states come with the same warning, never silently
+    with pytest.warns(RuntimeWarning, match=r"1 of 1 samples of 'free' stopped before t_end \(1 step limit"):
+        final = tumble.propagate(BODY, SPINS[:1], 50.0, method="dop853", max_steps=5)
+    np.testing.assert_array_equal(final[0], ds.omega.values[0, -1])
 
 
 @pytest.mark.parametrize("keywords, message", [
     (dict(rtol=0.0), "rtol must be finite and > 0"),
     (dict(atol=-1.0), "atol must be finite and > 0"),
     (dict(rtol=[1e-8]), r"rtol must be a number or one number per state component \(2: x, v\)"),
+    (dict(rtol="1e-10"), r"rtol must be a number or one number per state component \(x, v\), got '1e-10'"),
+    (dict(atol=True), r"atol must be a number or one number per state component \(x, v\), got True"),
     (dict(rtol=1e-16), f"rtol must be >= {MIN_RTOL:g}"),
     (dict(times=[1.0, 0.5]), "times must be increasing"),
     (dict(times=[0.0, 9.0]), r"times must lie within \[0, t_end\]"),

@@ -231,6 +231,22 @@ def test_bad_state_maps_name_the_field(chaos, state, field, words):
     assert refused.value.field == field and words in refused.value.problem, str(refused.value)
 
 
+@pytest.mark.parametrize("state, scanned, field", [
+    ([0.0, 0.0, 1.0, 0.0, 0.6, 0.7], {"w3": [0.5, 1.0]}, "chaos.state"),
+    ([0.0, 0.0, 1.0, 0.0, 0.6, 0.8], {"g2": [0.6, 0.7]}, "scan.state.g2"),
+])
+def test_a_state_map_of_a_heavy_top_keeps_g_a_unit_vector_at_every_point(state, scanned, field):
+    """tumble never normalises g: a map point where it is not of unit length is refused at load, naming the field
+    (it ran and failed in the chaos indicators with exit 1; a section study ran it)."""
+    study = {"model": {"kind": "heavy_top", "mgl": 1.0}, "integration": {"dt": 0.01, "horizon": 1.0},
+             "chaos": {"indicators": ["megno"], "start": "state", "state": state}, "scan": {"state": scanned}}
+    with pytest.raises(StudyError) as refused:
+        load_study(study)
+    assert refused.value.field == field and "(g1, g2, g3) of a heavy_top must be a unit vector" in str(refused.value)
+    load_study({**study, "chaos": {**study["chaos"], "state": [0.0, 0.0, 1.0, 0.0, 0.6, 0.8]},
+                "scan": {"state": {"w3": [0.5, 1.0]}}})  # unit at every point: accepted
+
+
 def test_a_line_of_initial_states_and_gali_alone(tmp_path):
     """One coordinate scanned: megno_map draws <Y> against it; GALI alone draws no figure by default."""
     line = {"model": {"kind": "heavy_top", "mgl": 1.0}, "integration": {"dt": 0.01, "horizon": 1.0},

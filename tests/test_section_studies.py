@@ -14,7 +14,7 @@ from scipy.integrate import solve_ivp
 
 import tumble
 from tumble.measure import chaos_scenes
-from tumble.pipeline import config
+from tumble.pipeline import config, results
 from tumble.pipeline.config import StudyError, load_study
 
 # One worker runs the error-controlled tests (--dist loadgroup): their loops are compiled once per process.
@@ -128,6 +128,17 @@ def test_a_chaos_study_at_a_tolerance_is_the_api_run_point_by_point():
     assert ds["finite_time"].sizes["time"] == 3
 
 
+def test_orbits_out_of_steps_keep_their_crossings_and_the_summary_says_why():
+    study = _section_study()
+    study["integration"]["max_steps"] = 60  # the two orbits need 166 and 140 steps (accepted and rejected)
+    with pytest.warns(RuntimeWarning, match="step limit"):
+        ds = tumble.run_study(study, progress=False)
+    assert (ds["status"].values == tumble.registry.STATUS_LIMIT).all()
+    assert (ds["steps"].values == 60).all() and (ds["crossings"].values >= 1).all()
+    summary = results.chaos_summary(ds)
+    assert "2 orbit(s) stopped early (2 step limit; see status)" in summary, summary
+
+
 BAD = [
     ({"integration": {"method": "rk4", "dt": 0.01, "horizon": 30.0}}, "integration.method", "dense output"),
     ({"section": {"surface": "g1", "period": 1.0}}, "section.period", "not with section.surface"),
@@ -141,6 +152,7 @@ BAD = [
     ({"chaos": {"start": "swing", "energy": -0.9}}, "chaos.energy", "at least the potential"),
     ({"integration": {"method": "dop853", "horizon": 30.0, "rtol": 1e-15}}, "integration.rtol", ">= 1e-14"),
     ({"integration": {"method": "dop853", "horizon": 30.0, "atol": 0.0}}, "integration.atol", "> 0"),
+    ({"integration": {"method": "dop853", "horizon": 30.0, "max_steps": 0}}, "integration.max_steps", ">= 1"),
 ]
 
 

@@ -78,6 +78,22 @@ def test_a_sample_stops_once_it_has_max_crossings():
     np.testing.assert_array_equal(three.time.values[0], full.time.values[0, :3])
     assert int(three.steps[0]) < int(full.steps[0]) / 2  # it stopped stepping there
     assert three.status.values.tolist() == [registry.STATUS_OK]
+    # the stroboscopic section too: to its last mark, however far t_end (it ran to t_end, or to the step limit)
+    strobe = tumble.section(BODY, SPINS[:1], 1e5, period=1.0, max_crossings=3)
+    assert strobe["count"].values.tolist() == [3] and strobe.status.values.tolist() == [registry.STATUS_OK]
+    assert int(strobe.steps[0]) < 20 and strobe.attrs["t_end"] == 1e5
+
+
+def test_a_sample_out_of_steps_keeps_its_crossings_and_says_so():
+    full = tumble.section(BODY, SPINS[:1], 40.0, surface=("w2", 0.0), direction=0)
+    with pytest.warns(RuntimeWarning, match=r"1 of 1 samples of 'free' stopped before t_end \(1 step limit; status "
+                                            r"says which, their crossings are the ones found before\)"):
+        short = tumble.section(BODY, SPINS[:1], 40.0, surface=("w2", 0.0), direction=0, max_steps=60)
+    assert short.status.values.tolist() == [registry.STATUS_LIMIT]
+    assert int(short.steps[0] + short.rejected_steps[0]) == 60
+    kept = int(short["count"][0])
+    assert 0 < kept < int(full["count"][0])
+    np.testing.assert_array_equal(short.time.values[0, :kept], full.time.values[0, :kept])
 
 
 @pytest.mark.slow  # the heavy top's own kernel's compile (10 s)
@@ -101,13 +117,19 @@ def test_a_built_in_models_section():
     (dict(surface="w2"), r"surface must be \(component, value\)"),
     (dict(surface=("w2", 0.0), method="rk4"), "method must be 'dop853'"),
     (dict(period=-1.0), "period must be finite and > 0"),
+    (dict(surface=("w2", 0.0), phase=0.5), "phase is the stroboscopic section's .with a period., not a surface's"),
+    (dict(period=1.0, direction=0), "direction counts a surface's crossings, not a period's states, got 0"),
     (dict(surface=("w2", 0.0), rtol=0.0), "rtol must be finite and > 0"),
     (dict(surface=lambda t, y, p: (y[0], y[1])), "surface g.t, y, p. must return a number"),
     (dict(surface=lambda t, y, p: y.undefined), "numba cannot compile surface g"),
+    (dict(surface=lambda t, y: y[0]), r"surface g\(t, y, p\) must be a function of 3 arguments; it takes 2"),
+    (dict(surface=lambda t, y, p: np.linalg.undefined(y)),
+     "numba cannot compile surface g.* AttributeError: module 'numpy.linalg' has no attribute 'undefined'"),
 ])
 def test_bad_input_is_one_line_naming_the_argument(keywords, message):
-    with pytest.raises(ValueError, match=message):
+    with pytest.raises(ValueError, match=message) as refused:
         tumble.section(BODY, SPINS, 10.0, **keywords)
+    assert "\n" not in str(refused.value)
 
 
 _CACHED = """

@@ -82,7 +82,10 @@ def _tolerance(value, default, name, components):
     if type(value) is float and math.isfinite(value) and value > 0.0:  # the common case, without numpy's checks
         return np.full(n, value)
     try:
-        array = np.array(value, dtype=float)
+        given = np.asarray(value)
+        if given.dtype.kind not in "iuf":  # a string, a bool or an object is not a tolerance, whatever it converts to
+            raise TypeError
+        array = np.array(given, dtype=float)
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be a number or one number per state component ({', '.join(components)}), "
                          f"got {value!r}") from None
@@ -119,7 +122,8 @@ def output_times(times, t_end):
     if np.any(np.diff(array) <= 0.0):
         raise ValueError("times must be increasing")
     if array[0] < 0.0 or array[-1] > t_end:
-        raise ValueError(f"times must lie within [0, t_end] = [0, {t_end:g}] s, got {array[0]:g} ... {array[-1]:g}")
+        raise ValueError(f"times must lie within [0, t_end] = [0, {t_end!r}] s, got {float(array[0])!r} ... "
+                         f"{float(array[-1])!r}")  # repr: 0.30000000000000004 is not 0.3
     return np.ascontiguousarray(array)
 
 
@@ -309,16 +313,16 @@ FLAG_VALUES = np.arange(len(registry.ADAPTIVE_STATUSES), dtype=np.int8)
 FLAG_MEANINGS = " ".join(s.name.replace(" ", "_") for s in registry.ADAPTIVE_STATUSES)
 
 
-def warn_stops(status, total, name, stacklevel):
+def warn_stops(status, total, name, stacklevel, kept="their later states are the ones they stopped with"):
     """One warning saying how many samples of ``name`` stopped before ``t_end``, by status (none when every sample
-    ran to the end)."""
+    ran to the end), and what they ``kept``."""
     stopped = status != registry.STATUS_OK
     if stopped.any():
         counts = {registry.ADAPTIVE_STATUSES[code].name: int(np.count_nonzero(status == code))
                   for code in np.unique(status[stopped])}
         warnings.warn(f"{int(stopped.sum())} of {total} samples of {name!r} stopped before t_end "
-                      f"({', '.join(f'{n} {what}' for what, n in counts.items())}; status says which, their later "
-                      f"states are the ones they stopped with)", RuntimeWarning, stacklevel=stacklevel + 1)
+                      f"({', '.join(f'{n} {what}' for what, n in counts.items())}; status says which, {kept})",
+                      RuntimeWarning, stacklevel=stacklevel + 1)
 
 
 def run_variables(run):

@@ -218,7 +218,9 @@ def propagate(body, w0, t_end, dt=None, method="rk4", *, torque=None, save_every
     ndarray
         Shape ``(N, 3)`` (rad/s, final state) or ``(N, T, 3)`` with ``save_every``; a ``(3,)`` spin gives
         ``(3,)`` or ``(T, 3)``; a system's ``(N, n)`` or ``(N, T, n)``. The states are stepped as they come: a sample that became non-finite is NaN
-        or inf (check with ``numpy.isfinite``).
+        or inf (check with ``numpy.isfinite``). With ``method="dop853"`` a sample that stopped before ``t_end``
+        (step limit, step underflow, a rate that returned NaN) holds the finite state it stopped with, and a
+        ``RuntimeWarning`` says how many stopped and why (:func:`integrate`'s ``status`` says which).
 
     Raises
     ------
@@ -245,6 +247,7 @@ def propagate(body, w0, t_end, dt=None, method="rk4", *, torque=None, save_every
     if method in registry.ERROR_CONTROLLED:
         run, single, _ = _adaptive_run(body, w0, t_end, dt, torque, save_every, False, parameters, device,
                                        (rtol, atol, None, max_steps))
+        warn_stops(run.status, len(run.final), run.name, stacklevel=1)  # their states are finite: say it
         return run.final[0] if single else run.final
     fixed_steps_only(method, dt, rtol, atol, None, max_steps)
     if is_system(body) or (added_tableau(method) and parameters is None):

@@ -26,7 +26,7 @@ from ..kernels import adaptive_loop, sample_loop
 from ..physics.bodies import one_body
 from ..physics.models import FreeBody
 from .adaptive_runs import (DEFAULT_ATOL, DEFAULT_RTOL, Surface, checked_horizon, run_adaptive, run_attrs,
-                            run_variables)
+                            run_variables, warn_stops)
 from .device import resolve_device
 from .system_runs import initial_states, is_system, model_parameters, system_name
 
@@ -92,6 +92,10 @@ def _checked(direction, max_crossings, method, surface, period, phase):
         raise ValueError(f"direction must be 1 (g rising through 0), -1 (falling) or 0 (both), got {direction!r}")
     if isinstance(max_crossings, bool) or not isinstance(max_crossings, (int, np.integer)) or max_crossings < 1:
         raise ValueError(f"max_crossings must be an integer >= 1, got {max_crossings!r}")
+    if surface is not None and phase != 0.0:
+        raise ValueError(f"phase is the stroboscopic section's (with a period), not a surface's, got {phase!r}")
+    if period is not None and direction != 1:
+        raise ValueError(f"direction counts a surface's crossings, not a period's states, got {direction!r}")
     if period is not None:
         for name, value, low in (("period", period, 0.0), ("phase", phase, None)):
             try:
@@ -103,8 +107,8 @@ def _checked(direction, max_crossings, method, surface, period, phase):
 
 
 def section(system, y0, t_end, *, surface=None, period=None, phase=0.0, direction=1, max_crossings=1000,
-            method=registry.ERROR_CONTROLLED[0], rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, dt=None, parameters=None,
-            device="cpu"):
+            method=registry.ERROR_CONTROLLED[0], rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, dt=None, max_steps=None,
+            parameters=None, device="cpu"):
     # size: the contract's arguments (DESIGN.md "Tolerance and sections"), each checked once
     """The Poincaré section of an ensemble: where each sample crosses a surface, or its states once per period.
 
@@ -122,7 +126,8 @@ def section(system, y0, t_end, *, surface=None, period=None, phase=0.0, directio
         numba compiles: ``y`` the state; ``p`` a System's parameters' values in its order, a built-in model's
         kernel constants, which a surface should not need).
     period, phase : float, optional
-        The stroboscopic section instead: the states at ``phase + k period`` (s), ``k >= 1``, within ``t_end``.
+        The stroboscopic section instead: the states at ``phase + k period`` (s), ``k >= 1``, within ``t_end``
+        (the run ends at the last of them).
     direction : {1, -1, 0}
         Count the crossings where ``g`` rises through 0 (1), falls (-1), or both (0).
     max_crossings : int
@@ -132,6 +137,10 @@ def section(system, y0, t_end, *, surface=None, period=None, phase=0.0, directio
         The run's tolerance (as :func:`tumble.integrate`); the crossings are located on its dense output.
     dt : float, optional
         The first step, s (None: chosen).
+    max_steps : int, optional
+        The steps (accepted and rejected) a sample may take (None: 1 000 000); one that needs more stops with status
+        "step limit", its crossings so far kept. A ``RuntimeWarning`` says how many samples stopped before
+        ``t_end`` without their ``max_crossings``, and why.
     parameters : mapping, optional
         A model's or System's parameters, by name, in place of its own.
     device : str
@@ -181,24 +190,28 @@ def section(system, y0, t_end, *, surface=None, period=None, phase=0.0, directio
                 if not math.isfinite(value):
                     raise ValueError(f"system {system_name(model)!r}: surface g(t, y, p) returned {value} at {name}"
                                      f"[{i}] = {y[i].tolist()}")
-        run, _ = run_adaptive(model, y0, t_stop, rtol=rtol, atol=atol, first_step=dt, parameters=parameters,
-                              device=device, y0_name=name, surface=spec, compiled_surface=kernel)
+        run, _ = run_adaptive(model, y0, t_stop, rtol=rtol, atol=atol, first_step=dt, max_steps=max_steps,
+                              parameters=parameters, device=device, y0_name=name, surface=spec,
+                              compiled_surface=kernel)
         times, states, count = run.crossing_times, run.crossing_states, run.crossings
         attrs = {"surface": what, "direction": int(direction)}
     else:
         period, phase = float(period), float(phase)
         marks = phase + period * np.arange(1, int(max_crossings) + 1, dtype=float)
         marks = marks[marks <= t_stop]
-        run, _ = run_adaptive(model, y0, t_stop, times=marks if len(marks) else None, rtol=rtol, atol=atol,
-                              first_step=dt, parameters=parameters, device=device, y0_name=name)
+        # to the last mark: a sample stops stepping once it has its max_crossings states, as at a surface
+        run, _ = run_adaptive(model, y0, marks[-1] if len(marks) else t_stop, times=marks if len(marks) else None,
+                              rtol=rtol, atol=atol, first_step=dt, max_steps=max_steps, parameters=parameters,
+                              device=device, y0_name=name)
         reached = marks[None, :] <= run.stopped[:, None]
         reached &= (run.status == registry.STATUS_OK)[:, None] | (marks[None, :] < run.stopped[:, None])
         states = np.where(reached[:, :, None], run.states[:, :len(marks)], np.nan)
         times = np.where(reached, marks[None, :], np.nan)
         count = reached.sum(axis=1).astype(np.int64)
         attrs = {"period": period, "phase": phase}
+    warn_stops(run.status, len(count), run.name, stacklevel=1, kept="their crossings are the ones found before")
     kept = int(count.max(initial=0))  # the crossing dimension as long as the longest sample's
-    return _dataset(run, times[:, :kept], states[:, :kept], count, attrs, device)
+    return _dataset(run, times[:, :kept], states[:, :kept], count, {**attrs, "t_end": t_stop}, device)
 
 
 def _dataset(run, times, states, count, attrs, device):

@@ -63,6 +63,7 @@ class ChaosScene(NamedTuple):
     atol: float
     section: dict | None  # the study's [section] table (None: no section)
     start: str  # chaos.start
+    max_steps: int  # an error-controlled method's steps per orbit (lyapunov: per segment)
 
 
 def map_grid(start, values):
@@ -135,8 +136,8 @@ def start_coordinates(start, names, states):
 
 def scene_plan(kind, moments, parameters, start, points, options, method, coords):
     """The :class:`ChaosScene` of a model ``kind`` (its ``parameters`` by study key, extras included), the map's
-    ``points`` and the study's ``options`` (``chaos`` table with ``dt``, ``horizon``, ``device``, ``rtol``, ``atol``
-    and the ``section`` table or None)."""
+    ``points`` and the study's ``options`` (``chaos`` table with ``dt``, ``horizon``, ``device``, ``rtol``, ``atol``,
+    ``max_steps`` and the ``section`` table or None)."""
     model = models.from_kind(kind, moments, **parameters)
     if start == "swing":  # the energy level: each tilt's potential, and I1
         points = {**points, "energy": options["energy"], "I1": model.moments[0],
@@ -144,7 +145,8 @@ def scene_plan(kind, moments, parameters, start, points, options, method, coords
     return ChaosScene(model, initial_states(start, points, options["state"], model.spec.state),
                       tuple(options["indicators"]), method, options["dt"], options["horizon"], options["renormalise"],
                       options["transient"], options["exponents"], options["gali_k"], options["points"],
-                      options["device"], dict(coords), options["rtol"], options["atol"], options["section"], start)
+                      options["device"], dict(coords), options["rtol"], options["atol"], options["section"], start,
+                      options["max_steps"])
 
 
 def _save_every(scene):
@@ -165,7 +167,8 @@ def _section(scene, y):
     where = ({"surface": (section["surface"], section["value"]), "direction": section["direction"]}
              if section["surface"] else {"period": section["period"], "phase": section["phase"]})
     ds = sections.section(scene.model, y, scene.horizon, max_crossings=section["crossings"], method=scene.method,
-                       rtol=scene.rtol, atol=scene.atol, dt=scene.dt or None, device=scene.device, **where)
+                          rtol=scene.rtol, atol=scene.atol, dt=scene.dt or None, max_steps=scene.max_steps,
+                          device=scene.device, **where)
     most, count = section["crossings"], ds["crossing"].size
     times = np.full((len(y), most), np.nan)
     states = np.full((len(y), most, len(scene.model.spec.state)), np.nan)
@@ -182,8 +185,8 @@ def scene_samples(scene, start, stop):
     ``start``."""
     y = scene.states[start:stop]
     adaptive = scene.method in registry.ERROR_CONTROLLED
-    common = ({"method": scene.method, "device": scene.device, "rtol": scene.rtol, "atol": scene.atol}
-              if adaptive else {"method": scene.method, "device": scene.device})
+    common = ({"method": scene.method, "device": scene.device, "rtol": scene.rtol, "atol": scene.atol,
+               "max_steps": scene.max_steps} if adaptive else {"method": scene.method, "device": scene.device})
     step = (scene.dt or None) if adaptive else scene.dt
     curves = {"times": _curve_times(scene)} if adaptive else {"save_every": _save_every(scene)}
     out = {}

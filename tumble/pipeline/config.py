@@ -899,7 +899,7 @@ def _state_scan(value):
     against the model's state by :func:`_check_chaos_study`)."""
     if not isinstance(value, Mapping) or not value:
         raise _Invalid("scan.state", "must be a table of state components, each a list of values, e.g. "
-                                     "{w3 = [0.5, 1.0], g2 = [0.1, 0.2]}")
+                                     "{w1 = [0.1, 0.2], w3 = [0.5, 1.0]}")
     out = {}
     for name, items in value.items():
         field = f"scan.state.{name}"
@@ -1105,10 +1105,25 @@ def _check_state_map(chaos, scan, kind, names):
                                     "(e.g. w3)")
     if "state" not in scan:
         raise _Invalid("scan.state", "chaos.start = 'state' maps the components named here, e.g. "
-                                     "{w3 = [0.5, 1.0], g2 = [0.1, 0.2]}")
+                                     "{w1 = [0.1, 0.2], w3 = [0.5, 1.0]}")
     for name in scan["state"]:
         if name not in names:
             raise _Invalid(f"scan.state.{name}", f"is no component of a {kind}'s state ({', '.join(names)})")
+    unit = models.CLASSES[kind].unit_blocks if kind in models.CLASSES else ()
+    for letter, start, stop in registry.state_blocks(kind):  # g, q: unit vectors at every point of the map
+        if letter not in unit:
+            continue
+        block = names[start:stop]
+        values = [np.atleast_1d(np.asarray(scan["state"].get(c, chaos["state"][start + i]), dtype=float))
+                  for i, c in enumerate(block)]
+        points = np.stack(np.meshgrid(*values, indexing="ij"), axis=-1).reshape(-1, len(block))
+        norms = np.linalg.norm(points, axis=1)
+        bad = np.flatnonzero(~(np.abs(norms - 1.0) <= 1e-9))
+        if len(bad):
+            scanned = [c for c in block if c in scan["state"]]
+            raise _Invalid(f"scan.state.{scanned[0]}" if scanned else "chaos.state",
+                           f"({', '.join(block)}) of a {kind} must be a unit vector at every point of the map (tumble "
+                           f"does not normalise it); {points[bad[0]].tolist()} has norm {float(norms[bad[0]]):.9g}")
 
 
 def _described(study, field):

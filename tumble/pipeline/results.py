@@ -166,7 +166,12 @@ def chaos_summary(ds):
     if "gali" in ds:
         final = np.asarray(ds["gali"].isel(gali_time=-1).values, dtype=float)
         lines.append(f"GALI at the end: median {np.nanmedian(final):.3g}")
-    stopped = int(np.count_nonzero(np.asarray(ds["status"].values) != 0))
-    if stopped:
-        lines.append(f"{stopped} orbit(s) stopped early (non-finite or a lost tangent direction; see status)")
+    status = np.asarray(ds["status"].values)
+    stopped = status != registry.STATUS_OK
+    if stopped.any():  # by status (the codes of registry.ADAPTIVE_STATUSES, every chaos map's)
+        reasons = {registry.STATUS_NONFINITE: "non-finite or a lost tangent direction"}
+        counts = ", ".join(f"{np.count_nonzero(status == code)} "
+                           f"{reasons.get(code, registry.ADAPTIVE_STATUSES[code].name)}"
+                           for code in np.unique(status[stopped]))
+        lines.append(f"{int(stopped.sum())} orbit(s) stopped early ({counts}; see status)")
     return "\n".join(lines)

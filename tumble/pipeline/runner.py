@@ -404,6 +404,7 @@ class ChaosScenes:
         options = {**resolved["chaos"], "dt": resolved["integration"]["dt"],
                    "horizon": resolved["integration"]["horizon"], "device": resolved["integration"]["device"],
                    "rtol": resolved["integration"]["rtol"], "atol": resolved["integration"]["atol"],
+                   "max_steps": resolved["integration"]["max_steps"],
                    "section": resolved.get("section"), "extras": extras, "points_of_map": points}
         scanned = [key for key in values if key in scan]
         n = len(next(iter(chaos_scenes.map_grid(self.start, points)[2].values())))

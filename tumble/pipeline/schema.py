@@ -144,7 +144,7 @@ SCAN_DOC = _lines(
     "                          chaos studies only: the initial-state coordinates of chaos.start (release: tilt, rad,",
     "                          in [0, pi]; spin_orbit: angle, rad); with scan.rate (the initial spin) they span the",
     "                          map: one orbit per point, run together in one scene (the other scan keys: scenes)",
-    "  state = {w3 = [0.5, 1.0], g2 = [0.1, 0.2]}",
+    "  state = {w1 = [0.1, 0.2], w3 = [0.5, 1.0]}",
     "                          chaos.start = \"state\" only: named components of the model's state, each a list of",
     "                          values replacing that component of chaos.state; the map spans them in the order given",
 )
@@ -218,8 +218,9 @@ def _chaos_fields():
         Field("chaos", "state", [], _lines(
             "state: the initial state, the model's components in order (model.kind's state: w1 w2 w3 then g1 g2 g3",
             "for a heavy_top, q0 q1 q2 q3 for a gravity_gradient, s1 s2 s3 for a damper; w rad/s, the others as the",
-            "model defines them, used as given: a g or q not of unit length is not normalised). scan.state names the",
-            "components the map replaces, e.g. scan.state = {w3 = [0.5, 1.0], g2 = [0.1, 0.2]}."),
+            "model defines them, used as given: a g or q must be of unit length at every point of the map, never",
+            "normalised). scan.state names the components the map replaces, e.g. scan.state = {w1 = [0.1, 0.2],",
+            "w3 = [0.5, 1.0]}."),
             units="state units", check="chaos_state"),
         Field("chaos", "energy", 0.0, _lines(
             "swing: the total energy of every orbit of the map, J (1/2 w.Iw + mgl c.g, c the centre's unit",
@@ -341,6 +342,11 @@ FIELDS = (
         'method "dop853": the absolute tolerance, > 0 (in the state\'s units; the tangent vectors, of unit size, take',
         "the same rtol and atol)."),
         units="state units", check="tolerance"),
+    Field("integration", "max_steps", 1000000, _lines(
+        'method "dop853": the steps (accepted and rejected) each orbit may take, an integer >= 1 (lyapunov: in each',
+        'segment between renormalisations); an orbit that needs more stops with status "step limit" (a section',
+        "keeps the crossings found before)."),
+        units="1 (count)", check="integer", minimum=1),
     Field("integration", "horizon", 0.0, _lines(
         "Horizon of each scene, s, >= 0 and finite; 0 means chosen by the planner from the scene's time scales.",
         "For a periodic scene (spin about the largest or smallest axis) it is the span of the phase fit that",

@@ -17,6 +17,7 @@ The kernels are closures over the user's function, so numba compiles them in eac
 cannot key a closure over another function: numba issue #6264) — a few seconds on the first call.
 """
 
+import inspect
 import math
 import os
 import re
@@ -69,11 +70,17 @@ def compile_function(fn, signature, owner, what, boundscheck=False):
     ------
     ValueError
         numba cannot compile it: one line, ``"{owner}: numba cannot compile {what} in nopython mode: {reason}
-        ({file}, line {n})"``, never numba's traceback.
+        ({file}, line {n})"``, never numba's traceback; or it takes another number of arguments than
+        ``signature``.
     """
     from ..steps.system_steps import functions_key  # (system_steps imports the loops)
 
     source = getattr(fn, "py_func", fn)
+    code = getattr(source, "__code__", None)
+    if code is None or code.co_argcount != len(signature) or code.co_flags & (inspect.CO_VARARGS |
+                                                                                  inspect.CO_VARKEYWORDS):
+        takes = "is not a Python function" if code is None else f"takes {code.co_argcount} positional argument(s)"
+        raise ValueError(f"{owner}: {what} must be a function of {len(signature)} arguments; it {takes}")
     # numba keeps a function's cache beside its file: one typed at a prompt or in a doctest has none
     key = functions_key(source) if os.path.isfile(source.__code__.co_filename) else None
     if key is not None:
@@ -83,6 +90,9 @@ def compile_function(fn, signature, owner, what, boundscheck=False):
         dispatcher.compile(signature)
     except NumbaError as err:
         raise ValueError(f"{owner}: numba cannot compile {what} in nopython mode: {_reason(err)}") from None
+    except (AttributeError, NameError, TypeError) as err:  # raised from numba's passes by the function's own code
+        raise ValueError(f"{owner}: numba cannot compile {what} in nopython mode: {type(err).__name__}: "
+                         f"{str(err).splitlines()[0] if str(err) else ''}") from None
     return dispatcher
 
 
