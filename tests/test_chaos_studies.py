@@ -237,7 +237,7 @@ def test_bad_state_maps_name_the_field(chaos, state, field, words):
 ])
 def test_a_state_map_of_a_heavy_top_keeps_g_a_unit_vector_at_every_point(state, scanned, field):
     """tumble never normalises g: a map point where it is not of unit length is refused at load, naming the field
-    (it ran and failed in the chaos indicators with exit 1; a section study ran it)."""
+    (not in the chaos indicators' run, with exit 1, nor silently in a section's)."""
     study = {"model": {"kind": "heavy_top", "mgl": 1.0}, "integration": {"dt": 0.01, "horizon": 1.0},
              "chaos": {"indicators": ["megno"], "start": "state", "state": state}, "scan": {"state": scanned}}
     with pytest.raises(StudyError) as refused:

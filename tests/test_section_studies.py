@@ -139,6 +139,14 @@ def test_orbits_out_of_steps_keep_their_crossings_and_the_summary_says_why():
     assert "2 orbit(s) stopped early (2 step limit; see status)" in summary, summary
 
 
+def test_a_section_too_large_for_the_memory_names_its_crossings():
+    from tumble.pipeline import runner
+
+    with pytest.raises(StudyError) as refused:
+        runner.check_cost(load_study(_section_study(crossings=10**9)))
+    assert refused.value.field == "section.crossings" and "memory" in refused.value.problem
+
+
 BAD = [
     ({"integration": {"method": "rk4", "dt": 0.01, "horizon": 30.0}}, "integration.method", "dense output"),
     ({"section": {"surface": "g1", "period": 1.0}}, "section.period", "not with section.surface"),

@@ -210,7 +210,7 @@ def test_every_stepper_is_scale_invariant_with_its_step_scaled_by_1_over_W(metho
                          probe_times=[0.0, 2.5 / W], drift=True, progress=False) for W in (1.0, 2.0**-700)]
     np.testing.assert_array_equal(runs[1].flips * 2.0**-700, runs[0].flips)
     np.testing.assert_array_equal(runs[1].probes / 2.0**-700, runs[0].probes)
-    # and the phase fit over 1e211 s (whose squares overflowed: frequency 0 with status ok until 2026-12-07)
+    # and the phase fit over 1e211 s, whose squares overflow unscaled (a frequency of 0 with status ok)
     fits = [run_ensemble(BODY, W * SCALE_SPINS, 5.0 / W, 0.01 / W, method=method, axis=3, save_every=10,
                          phase_window=((0, 1), (1.0, 1.0), 1e-12 * W, np.pi / 2), progress=False).phase
             for W in (1.0, 2.0**-700)]

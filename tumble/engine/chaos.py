@@ -587,7 +587,8 @@ def lyapunov(system, y0, t_end, dt=None, *, method="rk4", exponents=None, renorm
         orthonormalisation and says so; NaN when there was none past the transient); with ``save_every`` ``finite_time(sample, time, index)``, 1/s,
         each row sorted descending (NaN after a stop). Attributes ``method``, ``dt``, ``renormalise``, ``transient``
         (as run: whole steps), ``exponents``, ``system``, ``tangent`` (:func:`tangent_kind`), ``t_end``,
-        ``n_steps``, ``device`` and the parameters.
+        ``n_steps``, ``device`` and the parameters; with ``method="dop853"`` ``rtol``, ``atol`` and ``order`` in place
+        of ``dt`` and ``n_steps``, and each sample's ``steps`` and ``rejected_steps``.
 
     Raises
     ------
@@ -720,7 +721,7 @@ def megno(system, y0, t_end, dt=None, *, method="rk4", stop_above=None, paramete
     xarray.Dataset
         ``megno(sample)`` (``<Y>`` at the end or at the stop), ``lyapunov(sample)`` 1/s, ``time_run(sample)`` s and
         ``status(sample)``; attributes ``method``, ``dt``, ``stop_above`` (inf: none), ``system``, ``t_end``,
-        ``n_steps``, ``device`` and the parameters.
+        ``n_steps``, ``device`` and the parameters (``method="dop853"``: as :func:`lyapunov` says).
 
     Raises
     ------
@@ -828,7 +829,7 @@ def gali(system, y0, t_end, dt=None, *, k=2, method="rk4", parameters=None, save
     xarray.Dataset
         ``gali(sample, time)`` (0 once the vectors are dependent to round-off), ``status(sample)`` (NaN after a stop),
         coordinate ``time`` (s); attributes ``method``, ``dt``, ``k``, ``system``, ``tangent``, ``t_end``, ``n_steps``,
-        ``device`` and the parameters.
+        ``device`` and the parameters (``method="dop853"``: as :func:`lyapunov` says).
 
     Raises
     ------

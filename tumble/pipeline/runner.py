@@ -528,8 +528,14 @@ def check_cost(resolved, file="<mapping>"):
         return cost.check(estimate, resolved["integration"]["device"])
     except cost.TooLarge as err:
         field = _BOUND_FIELDS[err.bound]
-        without_flips = study_cost(resolved, flips=0).peak_bytes
-        if err.bound == "memory" and without_flips <= cost.MEMORY_SHARE * cost.physical_memory():
+        share = cost.MEMORY_SHARE * cost.physical_memory()
+        if resolved.get("chaos") is not None:  # a map: its points (scan) or its section's crossings set the size
+            section = resolved.get("section")
+            field = "scan" if err.bound != "steps" else field
+            if err.bound == "memory" and section is not None and study_cost(
+                    {**resolved, "section": {**section, "crossings": 1}}).peak_bytes <= share:
+                field = "section.crossings"
+        elif err.bound == "memory" and study_cost(resolved, flips=0).peak_bytes <= share:
             field = "integration.flips"
         raise StudyError(file, field, str(err)) from None
 
