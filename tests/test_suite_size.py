@@ -65,7 +65,7 @@ BUDGET = {
     "test_sampling.py": 146,
     "test_scene_kinds.py": 4,
     "test_schema.py": 81,
-    "test_section_studies.py": 22,
+    "test_section_studies.py": 24,
     "test_sections.py": 22,
     "test_shapes.py": 96,
     "test_stress.py": 38,

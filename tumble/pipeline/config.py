@@ -1034,6 +1034,12 @@ def _section(study, given, resolved):
     if table["surface"] and table["period"] > 0:
         raise _Invalid("section.period", "not with section.surface: a section is the crossings of a surface or the "
                                          "states once per period, one of them")
+    given_keys = given.get("section", {})
+    for key in (("value", "direction") if table["period"] > 0 else ("phase",)):
+        if key in given_keys:
+            raise _Invalid(f"section.{key}", "belongs to a surface's section (section.surface), not a period's; remove "
+                                             "it" if key != "phase" else "belongs to a period's section "
+                                             "(section.period), not a surface's; remove it")
     return table
 
 
