@@ -150,8 +150,9 @@ def test_a_section_too_large_for_the_memory_names_its_crossings():
 BAD = [
     ({"integration": {"method": "rk4", "dt": 0.01, "horizon": 30.0}}, "integration.method", "dense output"),
     ({"section": {"surface": "g1", "period": 1.0}}, "section.period", "not with section.surface"),
-    ({"section": {"period": 1.0, "direction": -1}}, "section.direction", "a surface's section"),
-    ({"section": {"surface": "g1", "phase": 0.5}}, "section.phase", "a period's section"),
+    ({"section": {"period": 1.0, "direction": -1}}, "section.direction", "does not apply to a section by "
+                                                                        "section.period"),
+    ({"section": {"surface": "g1", "phase": 0.5}}, "section.phase", "does not apply to a section by section.surface"),
     ({"section": {"surface": "x1"}}, "section.surface", "component of a heavy_top's state"),
     ({"section": {"surface": "g1", "direction": 2}}, "section.direction", "one of 1, -1, 0"),
     ({"section": {"surface": "g1", "crossings": 0}}, "section.crossings", ">= 1"),

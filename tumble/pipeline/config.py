@@ -1034,12 +1034,10 @@ def _section(study, given, resolved):
     if table["surface"] and table["period"] > 0:
         raise _Invalid("section.period", "not with section.surface: a section is the crossings of a surface or the "
                                          "states once per period, one of them")
-    given_keys = given.get("section", {})
-    for key in (("value", "direction") if table["period"] > 0 else ("phase",)):
-        if key in given_keys:
-            raise _Invalid(f"section.{key}", "belongs to a surface's section (section.surface), not a period's; remove "
-                                             "it" if key != "phase" else "belongs to a period's section "
-                                             "(section.period), not a surface's; remove it")
+    own, other = ("period", ("value", "direction")) if table["period"] > 0 else ("surface", ("phase",))
+    for key in other:  # the other kind of section's key, given other than its default: it would be ignored
+        if key in given.get("section", {}) and table[key] != schema.field(f"section.{key}").default:
+            raise _Invalid(f"section.{key}", f"does not apply to a section by section.{own}; remove it")
     return table
 
 
@@ -1122,14 +1120,19 @@ def _check_state_map(chaos, scan, kind, names):
         block = names[start:stop]
         values = [np.atleast_1d(np.asarray(scan["state"].get(c, chaos["state"][start + i]), dtype=float))
                   for i, c in enumerate(block)]
-        points = np.stack(np.meshgrid(*values, indexing="ij"), axis=-1).reshape(-1, len(block))
-        norms = np.linalg.norm(points, axis=1)
-        bad = np.flatnonzero(~(np.abs(norms - 1.0) <= 1e-9))
-        if len(bad):
+        # the map spans every combination of the values: each is unit only if the first point is and each
+        # component's square is the same in all its values (checked by the first point with that component at its
+        # value whose square differs most), without making the map
+        first = np.array([v[0] for v in values])
+        points = [first] + [np.where(np.arange(len(block)) == i, v[np.argmax(np.abs(v * v - v[0] * v[0]))], first)
+                            for i, v in enumerate(values)]
+        point = next((p for p in points if not abs(np.linalg.norm(p) - 1.0) <= 1e-9), None)
+        if point is not None:
+            norm = float(np.linalg.norm(point))
             scanned = [c for c in block if c in scan["state"]]
             raise _Invalid(f"scan.state.{scanned[0]}" if scanned else "chaos.state",
                            f"({', '.join(block)}) of a {kind} must be a unit vector at every point of the map (tumble "
-                           f"does not normalise it); {points[bad[0]].tolist()} has norm {float(norms[bad[0]]):.9g}")
+                           f"does not normalise it); {point.tolist()} has norm {norm:.9g}")
 
 
 def _described(study, field):
