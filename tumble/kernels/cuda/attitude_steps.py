@@ -22,7 +22,7 @@ from ..steps.attitude import run_sample
 from .rigid_body import refusal
 from .launch import THREADS, launch_shape, loop_array
 from ..jit import cuda_jit
-from ..loops.methods import attitude_frame, from_attitude_frame, spin_unit
+from ..loops.methods import attitude_frame, attitude_spin_scale, from_attitude_frame
 from ..steps.steppers import TORQUE_CONSTANT
 
 __all__ = ["THREADS", "kernel", "make_kernel", "run_attitude"]
@@ -79,11 +79,7 @@ def run_attitude(method, w, q, moments, t0, h, n_steps, *, save_every, torque_ki
     problem = refusal(method, torque_fn=torque_fn)
     if problem:
         raise ValueError(problem)
-    w = np.asarray(w, dtype=float)
-    # as the CPU's: beyond 2**±256 rad/s stepped as s w with h / s (the attitude q(s tau) is the same)
-    unit = spin_unit(np.ascontiguousarray(w.T)) if torque_params is None else 1.0
-    if unit != 1.0:
-        w, t0, h = w * unit, t0 / unit, h / unit
+    w, t0, h, unit = attitude_spin_scale(w, t0, h, torque_params is None)  # as the CPU's, beyond 2**±256 rad/s
     frame = attitude_frame(method, w, moments, torque_params, None, n_steps, save_every)
     n = w.shape[0]
     saved_w = cuda.device_array((frame.n_saved, n, 3))

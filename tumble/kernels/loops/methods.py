@@ -13,8 +13,8 @@ from .drivers import driver
 from ..threads import in_parallel
 from ..steps.steppers import TORQUE_CONSTANT, body_constants
 
-__all__ = ["BLOCK", "METHODS", "Method", "Observed", "SPIN_EXPONENT", "from_kernel_frame", "kernel_frame", "spin_unit",
-           "kernel_observed_axis", "run", "run_attitude"]
+__all__ = ["BLOCK", "METHODS", "Method", "Observed", "SPIN_EXPONENT", "attitude_spin_scale", "from_kernel_frame",
+           "kernel_frame", "kernel_observed_axis", "run", "run_attitude", "spin_unit"]
 
 # Samples per SIMD block: large enough to amortise the per-step dispatch, small enough to stay in L1.
 BLOCK = 256
@@ -155,6 +155,15 @@ def spin_unit(w):
     if abs(exponent) <= SPIN_EXPONENT or math.frexp(low)[1] < exponent - SPIN_EXPONENT:
         return 1.0
     return math.ldexp(1.0, -exponent)
+
+
+def attitude_spin_scale(w, t0, h, torque_free):
+    """``(w, t0, h, unit)`` of an attitude run (``w`` (N, 3)) as :func:`spin_unit` rescales it, for :func:`run_attitude`
+    and the device's: ``s w``, ``t0 / s``, ``h / s`` (the attitude ``q(s tau)`` is the same); unchanged, with
+    ``unit`` 1.0, within ``2**±SPIN_EXPONENT`` rad/s or with a torque."""
+    w = np.asarray(w, dtype=float)
+    unit = spin_unit(np.ascontiguousarray(w.T)) if torque_free else 1.0
+    return (w * unit, t0 / unit, h / unit, unit) if unit != 1.0 else (w, t0, h, unit)
 
 
 def kernel_frame(method, w, moments, torque_params, torque_fn):
@@ -328,11 +337,7 @@ def run_attitude(method, w, q, moments, t0, h, n_steps, *, save_every, torque_ki
     saved_q : ndarray, shape (N, n_saved, 4)
     status : ndarray, shape (N,), int8
     """
-    w = np.asarray(w, dtype=float)
-    # as run: beyond 2**±256 rad/s stepped as s w with h / s (the attitude q(s tau) is the same)
-    unit = spin_unit(np.ascontiguousarray(w.T)) if torque_params is None and torque_fn is None else 1.0
-    if unit != 1.0:
-        w, t0, h = w * unit, t0 / unit, h / unit
+    w, t0, h, unit = attitude_spin_scale(w, t0, h, torque_params is None and torque_fn is None)  # as run
     frame = attitude_frame(method, w, moments, torque_params, torque_fn, n_steps, save_every)
     n = w.shape[0]
     saved_w = np.empty((frame.n_saved, n, 3))
