@@ -44,11 +44,12 @@ BLOCK = 32
 
 #: The lanes' rows, by offset in the block: each lane's time, step, trial step (0: done), whether it steps, whether its
 #: last try was rejected, whether this one was kept, the time it reaches, its next output time, its surface's value,
-#: the time its try started from, its tries and kept steps, and its control's ``facold^beta`` (:func:`next_step`).
-(T, H, TRIAL_H, ACTIVE, LAST_REJECTED, KEPT, T_NEW, NEXT_OUT, G0, T_PREV, TRIES, ACCEPTED, FACOLD) = (
-    BLOCK * row for row in range(13))
+#: the time its try started from, its tries and kept steps, its control's ``facold^beta`` (:func:`next_step`), and its
+#: try's squared error norms, of the 5th- and the 3rd-order estimates (left by an attempt's stages for its control).
+(T, H, TRIAL_H, ACTIVE, LAST_REJECTED, KEPT, T_NEW, NEXT_OUT, G0, T_PREV, TRIES, ACCEPTED, FACOLD, ERR5, ERR3) = (
+    BLOCK * row for row in range(15))
 #: Where the states begin: ``ys``, ``ks``, ``y0s``, ``k0s`` (``n`` rows each).
-STATES = 13 * BLOCK
+STATES = 15 * BLOCK
 
 
 def state_row(which, j, n):

@@ -395,12 +395,9 @@ def gyrostat_free_rate_dop853_attempt(block, rtol, atol, a):
     rtol1, rtol2, rtol3 = rtol[0], rtol[1], rtol[2]
     atol1, atol2, atol3 = atol[0], atol[1], atol[2]
     for i in range(control.BLOCK):
-        t = block[control.T + i]
-        h = block[control.TRIAL_H + i]
-        on, step, rejected, t_new = block[control.ACTIVE + i], block[control.H + i], block[control.LAST_REJECTED + i], block[control.T_NEW + i]
-        facold = block[control.FACOLD + i]
-        w1, w2, w3 = block[416 + i], block[448 + i], block[480 + i]
-        k1_1, k1_2, k1_3 = block[512 + i], block[544 + i], block[576 + i]
+        t, h = block[control.T + i], block[control.TRIAL_H + i]
+        w1, w2, w3 = block[480 + i], block[512 + i], block[544 + i]
+        k1_1, k1_2, k1_3 = block[576 + i], block[608 + i], block[640 + i]
         k2_1, k2_2, k2_3 = gyrostat.free_rate(
             t + 0.05260015195876773 * h,
             w1 + h * (0.05260015195876773 * k1_1),
@@ -488,8 +485,24 @@ def gyrostat_free_rate_dop853_attempt(block, rtol, atol, a):
         s3 = 1.0 / (atol3 + rtol3 * _max(abs(w3), abs(u3)))
         e5_3 = (0.01312004499419488 * k1_3 + -1.2251564463762044 * k6_3 + -0.4957589496572502 * k7_3 + 1.6643771824549864 * k8_3 + -0.35032884874997366 * k9_3 + 0.3341791187130175 * k10_3 + 0.08192320648511571 * k11_3 + -0.022355307863886294 * k12_3) * s3
         e3_3 = (b_3 - 0.244094488188976 * k1_3 - 0.733846688281611 * k9_3 - 0.0220588235294118 * k12_3) * s3
-        err5 = e5_1 * e5_1 + e5_2 * e5_2 + e5_3 * e5_3
-        err3 = e3_1 * e3_1 + e3_2 * e3_2 + e3_3 * e3_3
+        block[control.ERR5 + i] = e5_1 * e5_1 + e5_2 * e5_2 + e5_3 * e5_3
+        block[control.ERR3 + i] = e3_1 * e3_1 + e3_2 * e3_2 + e3_3 * e3_3
+        block[672 + i] = w1
+        block[768 + i] = k1_1
+        block[480 + i] = u1
+        block[576 + i] = k13_1
+        block[704 + i] = w2
+        block[800 + i] = k1_2
+        block[512 + i] = u2
+        block[608 + i] = k13_2
+        block[736 + i] = w3
+        block[832 + i] = k1_3
+        block[544 + i] = u3
+        block[640 + i] = k13_3
+    for i in range(control.BLOCK):
+        t, h, on, step = block[control.T + i], block[control.TRIAL_H + i], block[control.ACTIVE + i], block[control.H + i]
+        rejected, t_new, facold = block[control.LAST_REJECTED + i], block[control.T_NEW + i], block[control.FACOLD + i]
+        err5, err3 = block[control.ERR5 + i], block[control.ERR3 + i]
         deno = err5 + 0.01 * err3
         err = h * err5 / math.sqrt(3.0 * deno) if deno > 0.0 else (0.0 if deno == 0.0 else math.inf)
         keep = on if err <= 1.0 else 0.0
@@ -501,18 +514,13 @@ def gyrostat_free_rate_dop853_attempt(block, rtol, atol, a):
         block[control.ACCEPTED + i] += keep
         block[control.KEPT + i] = keep
         block[control.T + i] = t_new if keep != 0.0 else t
-        block[608 + i] = w1
-        block[704 + i] = k1_1
-        block[416 + i] = u1 if keep != 0.0 else w1
-        block[512 + i] = k13_1 if keep != 0.0 else k1_1
-        block[640 + i] = w2
-        block[736 + i] = k1_2
-        block[448 + i] = u2 if keep != 0.0 else w2
-        block[544 + i] = k13_2 if keep != 0.0 else k1_2
-        block[672 + i] = w3
-        block[768 + i] = k1_3
-        block[480 + i] = u3 if keep != 0.0 else w3
-        block[576 + i] = k13_3 if keep != 0.0 else k1_3
+        if keep == 0.0:
+            block[480 + i] = block[672 + i]
+            block[576 + i] = block[768 + i]
+            block[512 + i] = block[704 + i]
+            block[608 + i] = block[800 + i]
+            block[544 + i] = block[736 + i]
+            block[640 + i] = block[832 + i]
 
 
 @jit(contract=False)
@@ -551,12 +559,9 @@ def gyrostat_dop853_attempt(block, rtol, atol, a):
     rtol1, rtol2, rtol3 = rtol[0], rtol[1], rtol[2]
     atol1, atol2, atol3 = atol[0], atol[1], atol[2]
     for i in range(control.BLOCK):
-        t = block[control.T + i]
-        h = block[control.TRIAL_H + i]
-        on, step, rejected, t_new = block[control.ACTIVE + i], block[control.H + i], block[control.LAST_REJECTED + i], block[control.T_NEW + i]
-        facold = block[control.FACOLD + i]
-        w1, w2, w3 = block[416 + i], block[448 + i], block[480 + i]
-        k1_1, k1_2, k1_3 = block[512 + i], block[544 + i], block[576 + i]
+        t, h = block[control.T + i], block[control.TRIAL_H + i]
+        w1, w2, w3 = block[480 + i], block[512 + i], block[544 + i]
+        k1_1, k1_2, k1_3 = block[576 + i], block[608 + i], block[640 + i]
         k2_1, k2_2, k2_3 = gyrostat.rate(
             t + 0.05260015195876773 * h,
             w1 + h * (0.05260015195876773 * k1_1),
@@ -644,8 +649,24 @@ def gyrostat_dop853_attempt(block, rtol, atol, a):
         s3 = 1.0 / (atol3 + rtol3 * _max(abs(w3), abs(u3)))
         e5_3 = (0.01312004499419488 * k1_3 + -1.2251564463762044 * k6_3 + -0.4957589496572502 * k7_3 + 1.6643771824549864 * k8_3 + -0.35032884874997366 * k9_3 + 0.3341791187130175 * k10_3 + 0.08192320648511571 * k11_3 + -0.022355307863886294 * k12_3) * s3
         e3_3 = (b_3 - 0.244094488188976 * k1_3 - 0.733846688281611 * k9_3 - 0.0220588235294118 * k12_3) * s3
-        err5 = e5_1 * e5_1 + e5_2 * e5_2 + e5_3 * e5_3
-        err3 = e3_1 * e3_1 + e3_2 * e3_2 + e3_3 * e3_3
+        block[control.ERR5 + i] = e5_1 * e5_1 + e5_2 * e5_2 + e5_3 * e5_3
+        block[control.ERR3 + i] = e3_1 * e3_1 + e3_2 * e3_2 + e3_3 * e3_3
+        block[672 + i] = w1
+        block[768 + i] = k1_1
+        block[480 + i] = u1
+        block[576 + i] = k13_1
+        block[704 + i] = w2
+        block[800 + i] = k1_2
+        block[512 + i] = u2
+        block[608 + i] = k13_2
+        block[736 + i] = w3
+        block[832 + i] = k1_3
+        block[544 + i] = u3
+        block[640 + i] = k13_3
+    for i in range(control.BLOCK):
+        t, h, on, step = block[control.T + i], block[control.TRIAL_H + i], block[control.ACTIVE + i], block[control.H + i]
+        rejected, t_new, facold = block[control.LAST_REJECTED + i], block[control.T_NEW + i], block[control.FACOLD + i]
+        err5, err3 = block[control.ERR5 + i], block[control.ERR3 + i]
         deno = err5 + 0.01 * err3
         err = h * err5 / math.sqrt(3.0 * deno) if deno > 0.0 else (0.0 if deno == 0.0 else math.inf)
         keep = on if err <= 1.0 else 0.0
@@ -657,18 +678,13 @@ def gyrostat_dop853_attempt(block, rtol, atol, a):
         block[control.ACCEPTED + i] += keep
         block[control.KEPT + i] = keep
         block[control.T + i] = t_new if keep != 0.0 else t
-        block[608 + i] = w1
-        block[704 + i] = k1_1
-        block[416 + i] = u1 if keep != 0.0 else w1
-        block[512 + i] = k13_1 if keep != 0.0 else k1_1
-        block[640 + i] = w2
-        block[736 + i] = k1_2
-        block[448 + i] = u2 if keep != 0.0 else w2
-        block[544 + i] = k13_2 if keep != 0.0 else k1_2
-        block[672 + i] = w3
-        block[768 + i] = k1_3
-        block[480 + i] = u3 if keep != 0.0 else w3
-        block[576 + i] = k13_3 if keep != 0.0 else k1_3
+        if keep == 0.0:
+            block[480 + i] = block[672 + i]
+            block[576 + i] = block[768 + i]
+            block[512 + i] = block[704 + i]
+            block[608 + i] = block[800 + i]
+            block[544 + i] = block[736 + i]
+            block[640 + i] = block[832 + i]
 
 
 @jit(contract=False)
@@ -1241,12 +1257,9 @@ def heavy_top_dop853_attempt(block, rtol, atol, a):
     rtol1, rtol2, rtol3, rtol4, rtol5, rtol6 = rtol[0], rtol[1], rtol[2], rtol[3], rtol[4], rtol[5]
     atol1, atol2, atol3, atol4, atol5, atol6 = atol[0], atol[1], atol[2], atol[3], atol[4], atol[5]
     for i in range(control.BLOCK):
-        t = block[control.T + i]
-        h = block[control.TRIAL_H + i]
-        on, step, rejected, t_new = block[control.ACTIVE + i], block[control.H + i], block[control.LAST_REJECTED + i], block[control.T_NEW + i]
-        facold = block[control.FACOLD + i]
-        w1, w2, w3, g1, g2, g3 = block[416 + i], block[448 + i], block[480 + i], block[512 + i], block[544 + i], block[576 + i]
-        k1_1, k1_2, k1_3, k1_4, k1_5, k1_6 = block[608 + i], block[640 + i], block[672 + i], block[704 + i], block[736 + i], block[768 + i]
+        t, h = block[control.T + i], block[control.TRIAL_H + i]
+        w1, w2, w3, g1, g2, g3 = block[480 + i], block[512 + i], block[544 + i], block[576 + i], block[608 + i], block[640 + i]
+        k1_1, k1_2, k1_3, k1_4, k1_5, k1_6 = block[672 + i], block[704 + i], block[736 + i], block[768 + i], block[800 + i], block[832 + i]
         k2_1, k2_2, k2_3, k2_4, k2_5, k2_6 = heavy_top.rate(
             t + 0.05260015195876773 * h,
             w1 + h * (0.05260015195876773 * k1_1),
@@ -1385,8 +1398,36 @@ def heavy_top_dop853_attempt(block, rtol, atol, a):
         s6 = 1.0 / (atol6 + rtol6 * _max(abs(g3), abs(u6)))
         e5_6 = (0.01312004499419488 * k1_6 + -1.2251564463762044 * k6_6 + -0.4957589496572502 * k7_6 + 1.6643771824549864 * k8_6 + -0.35032884874997366 * k9_6 + 0.3341791187130175 * k10_6 + 0.08192320648511571 * k11_6 + -0.022355307863886294 * k12_6) * s6
         e3_6 = (b_6 - 0.244094488188976 * k1_6 - 0.733846688281611 * k9_6 - 0.0220588235294118 * k12_6) * s6
-        err5 = e5_1 * e5_1 + e5_2 * e5_2 + e5_3 * e5_3 + e5_4 * e5_4 + e5_5 * e5_5 + e5_6 * e5_6
-        err3 = e3_1 * e3_1 + e3_2 * e3_2 + e3_3 * e3_3 + e3_4 * e3_4 + e3_5 * e3_5 + e3_6 * e3_6
+        block[control.ERR5 + i] = e5_1 * e5_1 + e5_2 * e5_2 + e5_3 * e5_3 + e5_4 * e5_4 + e5_5 * e5_5 + e5_6 * e5_6
+        block[control.ERR3 + i] = e3_1 * e3_1 + e3_2 * e3_2 + e3_3 * e3_3 + e3_4 * e3_4 + e3_5 * e3_5 + e3_6 * e3_6
+        block[864 + i] = w1
+        block[1056 + i] = k1_1
+        block[480 + i] = u1
+        block[672 + i] = k13_1
+        block[896 + i] = w2
+        block[1088 + i] = k1_2
+        block[512 + i] = u2
+        block[704 + i] = k13_2
+        block[928 + i] = w3
+        block[1120 + i] = k1_3
+        block[544 + i] = u3
+        block[736 + i] = k13_3
+        block[960 + i] = g1
+        block[1152 + i] = k1_4
+        block[576 + i] = u4
+        block[768 + i] = k13_4
+        block[992 + i] = g2
+        block[1184 + i] = k1_5
+        block[608 + i] = u5
+        block[800 + i] = k13_5
+        block[1024 + i] = g3
+        block[1216 + i] = k1_6
+        block[640 + i] = u6
+        block[832 + i] = k13_6
+    for i in range(control.BLOCK):
+        t, h, on, step = block[control.T + i], block[control.TRIAL_H + i], block[control.ACTIVE + i], block[control.H + i]
+        rejected, t_new, facold = block[control.LAST_REJECTED + i], block[control.T_NEW + i], block[control.FACOLD + i]
+        err5, err3 = block[control.ERR5 + i], block[control.ERR3 + i]
         deno = err5 + 0.01 * err3
         err = h * err5 / math.sqrt(6.0 * deno) if deno > 0.0 else (0.0 if deno == 0.0 else math.inf)
         keep = on if err <= 1.0 else 0.0
@@ -1398,30 +1439,19 @@ def heavy_top_dop853_attempt(block, rtol, atol, a):
         block[control.ACCEPTED + i] += keep
         block[control.KEPT + i] = keep
         block[control.T + i] = t_new if keep != 0.0 else t
-        block[800 + i] = w1
-        block[992 + i] = k1_1
-        block[416 + i] = u1 if keep != 0.0 else w1
-        block[608 + i] = k13_1 if keep != 0.0 else k1_1
-        block[832 + i] = w2
-        block[1024 + i] = k1_2
-        block[448 + i] = u2 if keep != 0.0 else w2
-        block[640 + i] = k13_2 if keep != 0.0 else k1_2
-        block[864 + i] = w3
-        block[1056 + i] = k1_3
-        block[480 + i] = u3 if keep != 0.0 else w3
-        block[672 + i] = k13_3 if keep != 0.0 else k1_3
-        block[896 + i] = g1
-        block[1088 + i] = k1_4
-        block[512 + i] = u4 if keep != 0.0 else g1
-        block[704 + i] = k13_4 if keep != 0.0 else k1_4
-        block[928 + i] = g2
-        block[1120 + i] = k1_5
-        block[544 + i] = u5 if keep != 0.0 else g2
-        block[736 + i] = k13_5 if keep != 0.0 else k1_5
-        block[960 + i] = g3
-        block[1152 + i] = k1_6
-        block[576 + i] = u6 if keep != 0.0 else g3
-        block[768 + i] = k13_6 if keep != 0.0 else k1_6
+        if keep == 0.0:
+            block[480 + i] = block[864 + i]
+            block[672 + i] = block[1056 + i]
+            block[512 + i] = block[896 + i]
+            block[704 + i] = block[1088 + i]
+            block[544 + i] = block[928 + i]
+            block[736 + i] = block[1120 + i]
+            block[576 + i] = block[960 + i]
+            block[768 + i] = block[1152 + i]
+            block[608 + i] = block[992 + i]
+            block[800 + i] = block[1184 + i]
+            block[640 + i] = block[1024 + i]
+            block[832 + i] = block[1216 + i]
 
 
 @jit(contract=False)
@@ -2078,12 +2108,9 @@ def gravity_gradient_dop853_attempt(block, rtol, atol, a):
     rtol1, rtol2, rtol3, rtol4, rtol5, rtol6, rtol7 = rtol[0], rtol[1], rtol[2], rtol[3], rtol[4], rtol[5], rtol[6]
     atol1, atol2, atol3, atol4, atol5, atol6, atol7 = atol[0], atol[1], atol[2], atol[3], atol[4], atol[5], atol[6]
     for i in range(control.BLOCK):
-        t = block[control.T + i]
-        h = block[control.TRIAL_H + i]
-        on, step, rejected, t_new = block[control.ACTIVE + i], block[control.H + i], block[control.LAST_REJECTED + i], block[control.T_NEW + i]
-        facold = block[control.FACOLD + i]
-        w1, w2, w3, q0, q1, q2, q3 = block[416 + i], block[448 + i], block[480 + i], block[512 + i], block[544 + i], block[576 + i], block[608 + i]
-        k1_1, k1_2, k1_3, k1_4, k1_5, k1_6, k1_7 = block[640 + i], block[672 + i], block[704 + i], block[736 + i], block[768 + i], block[800 + i], block[832 + i]
+        t, h = block[control.T + i], block[control.TRIAL_H + i]
+        w1, w2, w3, q0, q1, q2, q3 = block[480 + i], block[512 + i], block[544 + i], block[576 + i], block[608 + i], block[640 + i], block[672 + i]
+        k1_1, k1_2, k1_3, k1_4, k1_5, k1_6, k1_7 = block[704 + i], block[736 + i], block[768 + i], block[800 + i], block[832 + i], block[864 + i], block[896 + i]
         k2_1, k2_2, k2_3, k2_4, k2_5, k2_6, k2_7 = gravity_gradient.rate(
             t + 0.05260015195876773 * h,
             w1 + h * (0.05260015195876773 * k1_1),
@@ -2239,8 +2266,40 @@ def gravity_gradient_dop853_attempt(block, rtol, atol, a):
         s7 = 1.0 / (atol7 + rtol7 * _max(abs(q3), abs(u7)))
         e5_7 = (0.01312004499419488 * k1_7 + -1.2251564463762044 * k6_7 + -0.4957589496572502 * k7_7 + 1.6643771824549864 * k8_7 + -0.35032884874997366 * k9_7 + 0.3341791187130175 * k10_7 + 0.08192320648511571 * k11_7 + -0.022355307863886294 * k12_7) * s7
         e3_7 = (b_7 - 0.244094488188976 * k1_7 - 0.733846688281611 * k9_7 - 0.0220588235294118 * k12_7) * s7
-        err5 = e5_1 * e5_1 + e5_2 * e5_2 + e5_3 * e5_3 + e5_4 * e5_4 + e5_5 * e5_5 + e5_6 * e5_6 + e5_7 * e5_7
-        err3 = e3_1 * e3_1 + e3_2 * e3_2 + e3_3 * e3_3 + e3_4 * e3_4 + e3_5 * e3_5 + e3_6 * e3_6 + e3_7 * e3_7
+        block[control.ERR5 + i] = e5_1 * e5_1 + e5_2 * e5_2 + e5_3 * e5_3 + e5_4 * e5_4 + e5_5 * e5_5 + e5_6 * e5_6 + e5_7 * e5_7
+        block[control.ERR3 + i] = e3_1 * e3_1 + e3_2 * e3_2 + e3_3 * e3_3 + e3_4 * e3_4 + e3_5 * e3_5 + e3_6 * e3_6 + e3_7 * e3_7
+        block[928 + i] = w1
+        block[1152 + i] = k1_1
+        block[480 + i] = u1
+        block[704 + i] = k13_1
+        block[960 + i] = w2
+        block[1184 + i] = k1_2
+        block[512 + i] = u2
+        block[736 + i] = k13_2
+        block[992 + i] = w3
+        block[1216 + i] = k1_3
+        block[544 + i] = u3
+        block[768 + i] = k13_3
+        block[1024 + i] = q0
+        block[1248 + i] = k1_4
+        block[576 + i] = u4
+        block[800 + i] = k13_4
+        block[1056 + i] = q1
+        block[1280 + i] = k1_5
+        block[608 + i] = u5
+        block[832 + i] = k13_5
+        block[1088 + i] = q2
+        block[1312 + i] = k1_6
+        block[640 + i] = u6
+        block[864 + i] = k13_6
+        block[1120 + i] = q3
+        block[1344 + i] = k1_7
+        block[672 + i] = u7
+        block[896 + i] = k13_7
+    for i in range(control.BLOCK):
+        t, h, on, step = block[control.T + i], block[control.TRIAL_H + i], block[control.ACTIVE + i], block[control.H + i]
+        rejected, t_new, facold = block[control.LAST_REJECTED + i], block[control.T_NEW + i], block[control.FACOLD + i]
+        err5, err3 = block[control.ERR5 + i], block[control.ERR3 + i]
         deno = err5 + 0.01 * err3
         err = h * err5 / math.sqrt(7.0 * deno) if deno > 0.0 else (0.0 if deno == 0.0 else math.inf)
         keep = on if err <= 1.0 else 0.0
@@ -2252,34 +2311,21 @@ def gravity_gradient_dop853_attempt(block, rtol, atol, a):
         block[control.ACCEPTED + i] += keep
         block[control.KEPT + i] = keep
         block[control.T + i] = t_new if keep != 0.0 else t
-        block[864 + i] = w1
-        block[1088 + i] = k1_1
-        block[416 + i] = u1 if keep != 0.0 else w1
-        block[640 + i] = k13_1 if keep != 0.0 else k1_1
-        block[896 + i] = w2
-        block[1120 + i] = k1_2
-        block[448 + i] = u2 if keep != 0.0 else w2
-        block[672 + i] = k13_2 if keep != 0.0 else k1_2
-        block[928 + i] = w3
-        block[1152 + i] = k1_3
-        block[480 + i] = u3 if keep != 0.0 else w3
-        block[704 + i] = k13_3 if keep != 0.0 else k1_3
-        block[960 + i] = q0
-        block[1184 + i] = k1_4
-        block[512 + i] = u4 if keep != 0.0 else q0
-        block[736 + i] = k13_4 if keep != 0.0 else k1_4
-        block[992 + i] = q1
-        block[1216 + i] = k1_5
-        block[544 + i] = u5 if keep != 0.0 else q1
-        block[768 + i] = k13_5 if keep != 0.0 else k1_5
-        block[1024 + i] = q2
-        block[1248 + i] = k1_6
-        block[576 + i] = u6 if keep != 0.0 else q2
-        block[800 + i] = k13_6 if keep != 0.0 else k1_6
-        block[1056 + i] = q3
-        block[1280 + i] = k1_7
-        block[608 + i] = u7 if keep != 0.0 else q3
-        block[832 + i] = k13_7 if keep != 0.0 else k1_7
+        if keep == 0.0:
+            block[480 + i] = block[928 + i]
+            block[704 + i] = block[1152 + i]
+            block[512 + i] = block[960 + i]
+            block[736 + i] = block[1184 + i]
+            block[544 + i] = block[992 + i]
+            block[768 + i] = block[1216 + i]
+            block[576 + i] = block[1024 + i]
+            block[800 + i] = block[1248 + i]
+            block[608 + i] = block[1056 + i]
+            block[832 + i] = block[1280 + i]
+            block[640 + i] = block[1088 + i]
+            block[864 + i] = block[1312 + i]
+            block[672 + i] = block[1120 + i]
+            block[896 + i] = block[1344 + i]
 
 
 @jit(contract=False)
@@ -2860,12 +2906,9 @@ def damper_dop853_attempt(block, rtol, atol, a):
     rtol1, rtol2, rtol3, rtol4, rtol5, rtol6 = rtol[0], rtol[1], rtol[2], rtol[3], rtol[4], rtol[5]
     atol1, atol2, atol3, atol4, atol5, atol6 = atol[0], atol[1], atol[2], atol[3], atol[4], atol[5]
     for i in range(control.BLOCK):
-        t = block[control.T + i]
-        h = block[control.TRIAL_H + i]
-        on, step, rejected, t_new = block[control.ACTIVE + i], block[control.H + i], block[control.LAST_REJECTED + i], block[control.T_NEW + i]
-        facold = block[control.FACOLD + i]
-        w1, w2, w3, s1, s2, s3 = block[416 + i], block[448 + i], block[480 + i], block[512 + i], block[544 + i], block[576 + i]
-        k1_1, k1_2, k1_3, k1_4, k1_5, k1_6 = block[608 + i], block[640 + i], block[672 + i], block[704 + i], block[736 + i], block[768 + i]
+        t, h = block[control.T + i], block[control.TRIAL_H + i]
+        w1, w2, w3, s1, s2, s3 = block[480 + i], block[512 + i], block[544 + i], block[576 + i], block[608 + i], block[640 + i]
+        k1_1, k1_2, k1_3, k1_4, k1_5, k1_6 = block[672 + i], block[704 + i], block[736 + i], block[768 + i], block[800 + i], block[832 + i]
         k2_1, k2_2, k2_3, k2_4, k2_5, k2_6 = damper.rate(
             t + 0.05260015195876773 * h,
             w1 + h * (0.05260015195876773 * k1_1),
@@ -3004,8 +3047,36 @@ def damper_dop853_attempt(block, rtol, atol, a):
         s6 = 1.0 / (atol6 + rtol6 * _max(abs(s3), abs(u6)))
         e5_6 = (0.01312004499419488 * k1_6 + -1.2251564463762044 * k6_6 + -0.4957589496572502 * k7_6 + 1.6643771824549864 * k8_6 + -0.35032884874997366 * k9_6 + 0.3341791187130175 * k10_6 + 0.08192320648511571 * k11_6 + -0.022355307863886294 * k12_6) * s6
         e3_6 = (b_6 - 0.244094488188976 * k1_6 - 0.733846688281611 * k9_6 - 0.0220588235294118 * k12_6) * s6
-        err5 = e5_1 * e5_1 + e5_2 * e5_2 + e5_3 * e5_3 + e5_4 * e5_4 + e5_5 * e5_5 + e5_6 * e5_6
-        err3 = e3_1 * e3_1 + e3_2 * e3_2 + e3_3 * e3_3 + e3_4 * e3_4 + e3_5 * e3_5 + e3_6 * e3_6
+        block[control.ERR5 + i] = e5_1 * e5_1 + e5_2 * e5_2 + e5_3 * e5_3 + e5_4 * e5_4 + e5_5 * e5_5 + e5_6 * e5_6
+        block[control.ERR3 + i] = e3_1 * e3_1 + e3_2 * e3_2 + e3_3 * e3_3 + e3_4 * e3_4 + e3_5 * e3_5 + e3_6 * e3_6
+        block[864 + i] = w1
+        block[1056 + i] = k1_1
+        block[480 + i] = u1
+        block[672 + i] = k13_1
+        block[896 + i] = w2
+        block[1088 + i] = k1_2
+        block[512 + i] = u2
+        block[704 + i] = k13_2
+        block[928 + i] = w3
+        block[1120 + i] = k1_3
+        block[544 + i] = u3
+        block[736 + i] = k13_3
+        block[960 + i] = s1
+        block[1152 + i] = k1_4
+        block[576 + i] = u4
+        block[768 + i] = k13_4
+        block[992 + i] = s2
+        block[1184 + i] = k1_5
+        block[608 + i] = u5
+        block[800 + i] = k13_5
+        block[1024 + i] = s3
+        block[1216 + i] = k1_6
+        block[640 + i] = u6
+        block[832 + i] = k13_6
+    for i in range(control.BLOCK):
+        t, h, on, step = block[control.T + i], block[control.TRIAL_H + i], block[control.ACTIVE + i], block[control.H + i]
+        rejected, t_new, facold = block[control.LAST_REJECTED + i], block[control.T_NEW + i], block[control.FACOLD + i]
+        err5, err3 = block[control.ERR5 + i], block[control.ERR3 + i]
         deno = err5 + 0.01 * err3
         err = h * err5 / math.sqrt(6.0 * deno) if deno > 0.0 else (0.0 if deno == 0.0 else math.inf)
         keep = on if err <= 1.0 else 0.0
@@ -3017,30 +3088,19 @@ def damper_dop853_attempt(block, rtol, atol, a):
         block[control.ACCEPTED + i] += keep
         block[control.KEPT + i] = keep
         block[control.T + i] = t_new if keep != 0.0 else t
-        block[800 + i] = w1
-        block[992 + i] = k1_1
-        block[416 + i] = u1 if keep != 0.0 else w1
-        block[608 + i] = k13_1 if keep != 0.0 else k1_1
-        block[832 + i] = w2
-        block[1024 + i] = k1_2
-        block[448 + i] = u2 if keep != 0.0 else w2
-        block[640 + i] = k13_2 if keep != 0.0 else k1_2
-        block[864 + i] = w3
-        block[1056 + i] = k1_3
-        block[480 + i] = u3 if keep != 0.0 else w3
-        block[672 + i] = k13_3 if keep != 0.0 else k1_3
-        block[896 + i] = s1
-        block[1088 + i] = k1_4
-        block[512 + i] = u4 if keep != 0.0 else s1
-        block[704 + i] = k13_4 if keep != 0.0 else k1_4
-        block[928 + i] = s2
-        block[1120 + i] = k1_5
-        block[544 + i] = u5 if keep != 0.0 else s2
-        block[736 + i] = k13_5 if keep != 0.0 else k1_5
-        block[960 + i] = s3
-        block[1152 + i] = k1_6
-        block[576 + i] = u6 if keep != 0.0 else s3
-        block[768 + i] = k13_6 if keep != 0.0 else k1_6
+        if keep == 0.0:
+            block[480 + i] = block[864 + i]
+            block[672 + i] = block[1056 + i]
+            block[512 + i] = block[896 + i]
+            block[704 + i] = block[1088 + i]
+            block[544 + i] = block[928 + i]
+            block[736 + i] = block[1120 + i]
+            block[576 + i] = block[960 + i]
+            block[768 + i] = block[1152 + i]
+            block[608 + i] = block[992 + i]
+            block[800 + i] = block[1184 + i]
+            block[640 + i] = block[1024 + i]
+            block[832 + i] = block[1216 + i]
 
 
 @jit(contract=False)
