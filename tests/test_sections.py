@@ -2,6 +2,7 @@
 directions, the stop at max_crossings, bad input."""
 
 import math
+import sys
 
 import numpy as np
 import pytest
@@ -59,6 +60,28 @@ def test_a_users_surface_function_is_compiled_and_located_as_scipys_event():
         w = ds.state.values[i, :count]
         assert np.abs(w[:, 0] * w[:, 1] - 0.05).max(initial=0.0) < 1e-12
     assert ds["count"].values[:2].min() > 2  # the third spin, near axis 3, never reaches it (nor SciPy's)
+
+
+#: The level a surface reads from this module (a user's global): changed by the test below.
+LEVEL = 0.0
+
+
+def _level(t, y, p):
+    return y[0] - LEVEL
+
+
+@pytest.mark.slow  # the surface compiled twice, a kernel each (10 s each)
+def test_a_global_the_surface_reads_changed_since_it_was_compiled_is_compiled_again_and_said(monkeypatch):
+    def crossings(level):
+        return _events(SPINS[0], lambda t, w: w[0] - level, 0)[0][:3]
+
+    first = tumble.section(BODY, SPINS[:1], 40.0, surface=_level, direction=0, max_crossings=3, rtol=1e-13, atol=1e-15)
+    np.testing.assert_allclose(first.time.values[0], crossings(0.0), rtol=0, atol=1e-9)
+    monkeypatch.setattr(sys.modules[__name__], "LEVEL", 0.1)
+    with pytest.warns(RuntimeWarning, match=r"LEVEL, read by surface g, changed since it was compiled"):
+        moved = tumble.section(BODY, SPINS[:1], 40.0, surface=_level, direction=0, max_crossings=3, rtol=1e-13,
+                               atol=1e-15)
+    np.testing.assert_allclose(moved.time.values[0], crossings(0.1), rtol=0, atol=1e-9)
 
 
 def test_the_stroboscopic_section_is_the_state_at_each_period():

@@ -12,6 +12,7 @@ import os
 import subprocess
 import sys
 import textwrap
+import warnings
 
 import numpy as np
 import pytest
@@ -320,6 +321,29 @@ def test_a_system_is_compiled_once_per_process_not_per_call(monkeypatch):
     tumble.propagate(PENDULUM, np.array([[1.0, 0.0]]), 0.1, 0.01, method="rk8")
     tumble.integrate(PENDULUM, np.array([[0.5, 0.0]]), 0.2, 0.01, method="rk8", save_every=5)
     assert calls == []
+
+
+#: The decay rate a rate reads from this module (a user's global, not a parameter): changed by the test below.
+DECAY = 1.0
+
+
+def decay(t, y, p, dydt):
+    dydt[0] = -DECAY * y[0]
+
+
+@pytest.mark.parametrize("method", ["rk4", "dop853"])
+def test_a_global_the_rate_reads_changed_since_it_was_compiled_is_compiled_again_and_said(monkeypatch, method):
+    # numba compiles a module's names in as constants: a System kept its kernels for the old value and ran them
+    system = tumble.System(decay, state=("x",), name="decay")
+    options = {"dt": 1e-3} if method == "rk4" else {"rtol": 1e-12, "atol": 1e-14}
+    run = lambda: tumble.propagate(system, np.array([[1.0]]), 1.0, method=method, **options)[0, 0]
+    assert run() == pytest.approx(math.exp(-1.0), rel=1e-10)
+    monkeypatch.setattr(sys.modules[__name__], "DECAY", 2.0)
+    with pytest.warns(RuntimeWarning, match=r"system 'decay': DECAY, read by its functions, changed since"):
+        assert run() == pytest.approx(math.exp(-2.0), rel=1e-10)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # said once: the kernels are now those of the new value
+        assert run() == pytest.approx(math.exp(-2.0), rel=1e-10)
 
 
 # --- the mission's job on any system: tumble.measure(system, state=y_eq) ----------------------------------------------

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import math
 import warnings
-import weakref
 from typing import NamedTuple
 
 import numpy as np
@@ -37,7 +36,7 @@ from . import chaos_tolerance, cost
 from .adaptive_runs import checked_scalars, fixed_steps_only, no_save_every, output_times
 from .device import resolve_device
 from .integration import checked_save_every, indexed_dataset
-from .system_runs import block_code, compiled, initial_states, model_parameters, probe
+from .system_runs import block_code, compiled, initial_states, model_parameters, probe, system_cache
 
 __all__ = ["RESCALE_EVERY", "STATUS_ABOVE_NAME", "TANGENT_TURN", "TangentRun", "gali", "initial_tangents", "lyapunov",
            "megno", "run_tangents", "tangent_kind"]
@@ -226,7 +225,7 @@ class _Kernels(NamedTuple):
 _MODEL_KERNELS = {}
 #: System -> {method: (tableau, _Kernels)}, its compiled Jacobian (and the Jacobian with bounds checked) under the key
 #: None, its device kernels under ``(run_sample, n, k, len(p))``: they go with the system.
-_SYSTEM_KERNELS = weakref.WeakKeyDictionary()
+_SYSTEM_KERNELS = system_cache()
 
 
 def _system_functions(system):

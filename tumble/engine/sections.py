@@ -22,17 +22,18 @@ import weakref
 import numpy as np
 
 from .. import registry
-from ..kernels import adaptive_loop, sample_loop
+from ..kernels import adaptive_loop, sample_loop, system_steps
 from ..physics.bodies import one_body
 from ..physics.models import FreeBody
 from .adaptive_runs import (DEFAULT_ATOL, DEFAULT_RTOL, Surface, checked_horizon, run_adaptive, run_attrs,
                             run_variables, warn_stops)
 from .device import resolve_device
-from .system_runs import initial_states, is_system, model_parameters, system_name
+from .system_runs import changed_reads, initial_states, is_system, model_parameters, system_name, warn_caller
 
 __all__ = ["section"]
 
-#: A user's surface -> its compiled ``g`` and the kernel's surface over it (made once per process, kept with ``g``).
+#: A user's surface -> its compiled ``g``, the kernel's surface over it and what ``g`` read then (made once per process
+#: and kept with ``g``; again when what it reads changes).
 _SURFACES = weakref.WeakKeyDictionary()
 
 _SURFACE_SIGNATURE = sample_loop.RATE_SIGNATURE[:3]  # g(t, y, p)
@@ -40,14 +41,20 @@ _SURFACE_SIGNATURE = sample_loop.RATE_SIGNATURE[:3]  # g(t, y, p)
 
 def _compiled_surface(g, owner):
     """``(g compiled, the kernel's surface)``: ``g(t, y, p)`` compiled once (one line naming ``owner`` when numba cannot
-    compile it, or when it returns no number)."""
-    if g not in _SURFACES:
+    compile it, or when it returns no number), and again where a number, array or function it reads from its module or
+    closure has changed since (numba compiles those in as constants), which a warning says."""
+    reads = system_steps.reads_by_name(g)  # None: what it reads cannot be told
+    made = _SURFACES.get(g)
+    if made is None or (reads is not None and reads != made[2]):
         compiled = sample_loop.compile_function(g, _SURFACE_SIGNATURE, owner, "surface g(t, y, p)")
         returns = compiled.nopython_signatures[0].return_type
         if not isinstance(returns, (sample_loop.types.Float, sample_loop.types.Integer)):
             raise ValueError(f"{owner}: surface g(t, y, p) must return a number (a float), returns {returns}")
-        _SURFACES[g] = (compiled, adaptive_loop.make_user_surface(compiled))
-    return _SURFACES[g]
+        if made is not None and made[2] is not None:
+            warn_caller(f"{owner}: {changed_reads(made[2], reads)}, read by surface g, changed since it was compiled: "
+                        f"compiled again (numba compiles a module's names in as constants)")
+        _SURFACES[g] = made = (compiled, adaptive_loop.make_user_surface(compiled), reads)
+    return made[:2]
 
 
 def _surface(system, surface, direction, max_crossings):
@@ -124,7 +131,8 @@ def section(system, y0, t_end, *, surface=None, period=None, phase=0.0, directio
     surface : (component, value) or callable, optional
         ``g = y[component] − value`` (a component's name or index), or ``g(t, y, p) -> float`` (plain Python that
         numba compiles: ``y`` the state; ``p`` a System's parameters' values in its order, a built-in model's
-        kernel constants, which a surface should not need).
+        kernel constants, which a surface should not need). A number it reads from its module is compiled in:
+        changed, ``g`` is compiled again (a warning says so).
     period, phase : float, optional
         The stroboscopic section instead: the states at ``phase + k period`` (s), ``k >= 1``, within ``t_end``
         (the run ends at the last of them).

@@ -22,6 +22,8 @@ Both run on ``device="cpu"`` or ``"cuda"`` (one thread per sample, the same per-
 from __future__ import annotations
 
 import functools
+import os
+import sys
 import warnings
 import weakref
 from typing import NamedTuple
@@ -36,8 +38,9 @@ from ..physics.models import Model
 from ..physics.system import System, with_parameters
 from . import cost
 
-__all__ = ["PROBED", "SystemRun", "added_tableau", "no_body_parameters", "block_code", "compiled", "initial_states", "is_system",
-           "method_order", "model_parameters", "probe", "run_system", "state_units", "system_methods", "system_name"]
+__all__ = ["PROBED", "SystemRun", "added_tableau", "no_body_parameters", "block_code", "changed_reads", "compiled",
+           "initial_states", "is_system", "method_order", "model_parameters", "probe", "run_system", "state_units",
+           "system_cache", "system_methods", "system_name", "warn_caller"]
 
 #: Initial states at which a user's rate is called once before a run (the first with bounds checked): a NaN or an
 #: unset component there is refused with the sample named; later in the run a non-finite state is a sample status.
@@ -178,8 +181,58 @@ class _Compiled:
         return self._compile()
 
 
+#: The caches of what this process made for a System (System -> its compiled functions and kernels; they go with the
+#: system), dropped together when what its functions read changes (:func:`current`).
+SYSTEM_CACHES = []
+
+
+def system_cache():
+    """A new cache System -> what is made for it, one of :data:`SYSTEM_CACHES`."""
+    cache = weakref.WeakKeyDictionary()
+    SYSTEM_CACHES.append(cache)
+    return cache
+
+
+#: System -> what its rate and Jacobian read from their modules and closures when its kernels were made, by name.
+_READS = weakref.WeakKeyDictionary()
+
+
+def current(system):
+    """Drop what this process made for ``system`` where a number, array or function its rate or Jacobian reads from
+    its module or closure has changed since (numba compiles those in as constants: the kernels made before would run
+    with the old value), saying so once per system. What cannot be keyed (an object of another kind) is not told."""
+    reads = {}
+    for fn in (system.rate, system.jacobian):
+        named = system_steps.reads_by_name(fn)
+        if named is None:
+            return
+        reads.update(named)
+    before = _READS.get(system, reads)
+    _READS[system] = reads
+    if reads != before:
+        for cache in SYSTEM_CACHES:
+            cache.pop(system, None)
+        warn_caller(f"system {system.name!r}: {changed_reads(before, reads)}, read by its functions, changed since "
+                    f"they were compiled: compiled again (numba compiles a module's names in as constants; a "
+                    f"parameter, System(parameters=...), changes without compiling)")
+
+
+def changed_reads(before, after):
+    """The names whose values differ between two :func:`~tumble.kernels.steps.system_steps.reads_by_name`, as text."""
+    return ", ".join(sorted(name for name in before.keys() | after.keys() if before.get(name) != after.get(name)))
+
+
+def warn_caller(message):
+    """A ``RuntimeWarning`` of ``message`` attributed to the first caller outside tumble (the user's line)."""
+    package = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    frame, level = sys._getframe(1), 2
+    while frame is not None and frame.f_code.co_filename.startswith(package):
+        frame, level = frame.f_back, level + 1
+    warnings.warn(message, RuntimeWarning, stacklevel=level)
+
+
 #: System -> its compiled rate and kernels: made once per process (they go with the system).
-_COMPILED = weakref.WeakKeyDictionary()
+_COMPILED = system_cache()
 
 
 def compiled(system):
@@ -203,7 +256,7 @@ def _kernels(system, method):
 
 
 #: System -> the code of its steps on the block path (None: it has no scalar form), made once per process.
-_BLOCK_CODES = weakref.WeakKeyDictionary()
+_BLOCK_CODES = system_cache()
 
 
 def block_code(system, method, tangents=False):
@@ -229,7 +282,10 @@ def block_code(system, method, tangents=False):
 
 def probe(system, y, p, t0):
     """Call the rate, with bounds checked, at the first :data:`PROBED` finite initial states: ValueError naming the
-    system when it reads or writes beyond the state, or leaves a component unset or not finite."""
+    system when it reads or writes beyond the state, or leaves a component unset or not finite. Before any of
+    ``system``'s kernels are looked up for a run: the kernels made for values its functions no longer read are dropped
+    first (:func:`current`)."""
+    current(system)
     rate = compiled(system).checked
     n = y.shape[1]
     dydt = np.empty(n)
@@ -355,7 +411,7 @@ def state_units(system):
 
 
 #: System -> {per-sample loop: its device kernel} (made once per process, they go with the system).
-_DEVICE = weakref.WeakKeyDictionary()
+_DEVICE = system_cache()
 
 
 def _device_kernel(system, method, kernels, n_state):

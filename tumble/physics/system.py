@@ -74,7 +74,9 @@ class System:
         ``p`` (float64, (k,)) holds the parameters in the order of ``parameters``. A rate that reads ``y[j]`` and
         writes ``dydt[j]`` at constant indices (straight-line code, branches allowed) runs on the CPU vectorised
         across samples, as the built-in models do, its kernels cached on disk; one that loops over the components or
-        passes its arrays on runs one sample at a time, and a warning says so.
+        passes its arrays on runs one sample at a time, and a warning says so. A number, array or function it reads
+        from its module is compiled in as a constant: changed, the next run compiles again (a warning says so); what
+        varies belongs in ``parameters``.
     state : sequence of str
         Names of the state's components, in order (n >= 1): the ``component`` coordinate of
         :func:`tumble.integrate`'s ``state(sample, time, component)``.

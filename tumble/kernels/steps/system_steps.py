@@ -44,9 +44,9 @@ from .. import tableaux
 from ..tableaux import TABLEAUX
 from ..trig import _max, _min
 
-__all__ = ["DIFFERENCE_STEP", "NotScalar", "SYSTEM_CODES", "block_attempt", "block_constants", "block_step", "cacheable", "functions_key", "runs",
-           "scalar_rate", "scalar_tangent",
-           "system_code", "tangent_code", "tangent_step"]
+__all__ = ["DIFFERENCE_STEP", "NotScalar", "SYSTEM_CODES", "block_attempt", "block_constants", "block_step", "cacheable",
+           "functions_key", "reads_by_name", "runs", "scalar_rate", "scalar_tangent", "system_code", "tangent_code",
+           "tangent_step"]
 
 #: The relative step of the difference tangents (:func:`tumble.kernels.loops.tangent_loop.difference_tangents` and a
 #: System's generated ones): about ``eps ** (1/5)`` (a power of two), where the fourth-order truncation error
@@ -254,13 +254,20 @@ def scalar_tangent(n, n_parameters, jacobian=None, scales=None):
 def _reads(fn, seen=None):
     """What ``fn`` reads from its module and closure, as text that keys it: numbers and strings by value, arrays by
     their bytes, modules by name, functions by their source (and what they read); None when something else."""
+    named = reads_by_name(fn, seen)
+    return None if named is None else "\n".join(f"{name} = {text}" for name, text in named.items())
+
+
+def reads_by_name(fn, seen=None):
+    """:func:`_reads` name by name: ``{name: text}`` for each name ``fn`` reads from its module and closure (sorted),
+    None when one cannot be keyed; ``{}`` for None."""
     if fn is None:
-        return ""
+        return {}
     fn = getattr(fn, "py_func", fn)
     seen = set() if seen is None else seen
     seen.add(fn)
     values = inspect.getclosurevars(fn)
-    keyed = []
+    keyed = {}
     for name, value in sorted({**values.globals, **values.nonlocals}.items()):
         function = getattr(value, "py_func", value)
         if isinstance(value, types.ModuleType):
@@ -284,8 +291,8 @@ def _reads(fn, seen=None):
             text = None
         if text is None:
             return None
-        keyed.append(f"{name} = {text}")
-    return "\n".join(keyed)
+        keyed[name] = text
+    return keyed
 
 
 class _Made(types.SimpleNamespace):
