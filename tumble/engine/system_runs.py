@@ -200,7 +200,7 @@ _READS = weakref.WeakKeyDictionary()
 def current(system):
     """Drop what this process made for ``system`` where a number, array or function its rate or Jacobian reads from
     its module or closure has changed since (numba compiles those in as constants: the kernels made before would run
-    with the old value), saying so once per system. What cannot be keyed (an object of another kind) is not told."""
+    with the old value), and say which changed. What cannot be keyed (an object of another kind) is not told."""
     reads = {}
     for fn in (system.rate, system.jacobian):
         named = system_steps.reads_by_name(fn)
