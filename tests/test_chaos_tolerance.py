@@ -52,6 +52,18 @@ def test_the_spectrum_does_not_depend_on_renormalise():
     np.testing.assert_allclose(one["exponent"].values, four["exponent"].values, rtol=0, atol=1e-9)
 
 
+def test_max_steps_bounds_the_whole_spectrum_run_not_each_segment():
+    free = tumble.lyapunov(BODY, SPINS, 12.0, method="dop853")  # 12 segments of 1 s
+    taken = free["steps"].values + free["rejected_steps"].values
+    limit = int(taken.min()) // 2  # more than any one segment takes, half of the whole run
+    assert limit > 3 * taken.max() / 12
+    with pytest.warns(RuntimeWarning, match=r"2 of 2 samples .* stopped before t_end \(2 step limit"):
+        bound = tumble.lyapunov(BODY, SPINS, 12.0, method="dop853", max_steps=limit)
+    assert (bound["status"].values == registry.STATUS_LIMIT).all()
+    assert (bound["steps"].values + bound["rejected_steps"].values == limit).all()
+    assert (bound["steps"].values <= free["steps"].values).all()
+
+
 @pytest.mark.slow  # a loop of its own for each System (about 10 s to compile each, then kept in the disk cache)
 def test_a_systems_jacobian_and_its_differences_give_the_same_exponents_at_a_tolerance():
     rotor, parameters = hand_written_systems.rotor, hand_written_systems.ROTOR

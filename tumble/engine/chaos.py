@@ -574,9 +574,8 @@ def lyapunov(system, y0, t_end, dt=None, *, method="rk4", exponents=None, renorm
         ``method="dop853"`` only (``dt``: the first step, None: chosen): the tolerance of the augmented state's steps
         (as :func:`tumble.integrate`; :mod:`tumble.engine.chaos_tolerance` says what it controls), the times of the
         finite-time exponents (s, after the transient, in place of ``save_every``) and the steps a sample may take
-        in each segment between renormalisations (None: 1 000 000). The vectors are orthonormalised every
-        ``renormalise`` seconds as with a fixed step, each segment between started with a chosen first step and
-        its own count of steps.
+        over the whole run (None: 1 000 000). The vectors are orthonormalised every ``renormalise`` seconds as with
+        a fixed step, each segment between started with a chosen first step.
 
     Returns
     -------

@@ -91,14 +91,17 @@ def _augmented(y, vectors, megno, tolerance, components):
     return state, np.concatenate([rtol, rest * rtol.min()]), np.concatenate([atol, rest * atol.min()]), rtol, atol
 
 
-def _segment(drive, state, p, t0, t1, marks, rtol, atol, first_step, max_steps):
+def _segment(drive, state, p, t0, t1, marks, rtol, atol, first_step, max_steps, taken=None):
     # size: one segment's run, as the driver takes it
     """Run ``state`` (N, m, overwritten) from ``t0`` to ``t1`` with outputs at ``marks``: ``(outputs, status, counts,
-    stopped)``."""
+    stopped)``, ``counts`` the steps accepted and rejected since the run began (``taken``, (N, 2): those of the
+    segments before; ``max_steps`` bounds the total)."""
     n_samples, m = state.shape
     out = np.empty((n_samples, len(marks), m))
     status = np.zeros(n_samples, dtype=np.int8)
     counts = np.zeros((n_samples, 3), dtype=np.int64)
+    if taken is not None:
+        counts[:, :2] = taken
     stopped = np.zeros(n_samples)
     drive(state, p, np.zeros(0), t0, t1, first_step, rtol, atol, max_steps, marks, out, np.zeros(4),
           np.zeros((n_samples, 0)), np.zeros((n_samples, 0, m)), status, counts, stopped)
@@ -155,9 +158,10 @@ def run_spectrum(functions, y, p, vectors, *, t_end, renormalise, transient, tim
             break
         inside = np.flatnonzero((marks > t0) & (marks <= t1))
         part = np.ascontiguousarray(state[run])
-        out, code, steps, reached = _segment(drive, part, p, t0, t1, marks[inside], rtol, atol, first_step, max_steps)
+        out, code, steps, reached = _segment(drive, part, p, t0, t1, marks[inside], rtol, atol, first_step, max_steps,
+                                             counts[run, :2])
         state[run], status[run], stopped[run] = part, code, reached
-        counts[run] += steps
+        counts[run] = steps
         if t0 >= transient and len(inside):
             _, grown = _orthonormalised(out[:, :, n:n + k * n].reshape(-1, k, n))
             so_far = (logs[run][:, None, :] + grown.reshape(len(run), len(inside), k)) / (

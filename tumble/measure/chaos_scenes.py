@@ -63,7 +63,7 @@ class ChaosScene(NamedTuple):
     atol: float
     section: dict | None  # the study's [section] table (None: no section)
     start: str  # chaos.start
-    max_steps: int  # an error-controlled method's steps per orbit (lyapunov: per segment)
+    max_steps: int  # an error-controlled method's steps per orbit
 
 
 def map_grid(start, values):

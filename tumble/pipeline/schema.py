@@ -343,9 +343,8 @@ FIELDS = (
         "the same rtol and atol)."),
         units="state units", check="tolerance"),
     Field("integration", "max_steps", 1000000, _lines(
-        'method "dop853": the steps (accepted and rejected) each orbit may take, an integer >= 1 (lyapunov: in each',
-        'segment between renormalisations); an orbit that needs more stops with status "step limit" (a section',
-        "keeps the crossings found before)."),
+        'method "dop853": the steps (accepted and rejected) each orbit may take, an integer >= 1; an orbit that',
+        'needs more stops with status "step limit" (a section keeps the crossings found before).'),
         units="1 (count)", check="integer", minimum=1),
     Field("integration", "horizon", 0.0, _lines(
         "Horizon of each scene, s, >= 0 and finite; 0 means chosen by the planner from the scene's time scales.",

@@ -38,15 +38,16 @@ def make_kernel(run_sample, n_state, n_parameters):
             state[j] = y[i, j]
         for j in range(p.shape[0]):
             parameters[j] = p[j]
+        taken = counts[i, 0] + counts[i, 1]  # as the CPU's driver: max_steps bounds the sample's total
         code, accepted, rejected, crossed, t = run_sample(
-            state, parameters[:p.shape[0]], t0, t_end, h0, loop_array(rtol), loop_array(atol), max_steps,
+            state, parameters[:p.shape[0]], t0, t_end, h0, loop_array(rtol), loop_array(atol), max_steps - taken,
             loop_array(times), loop_array(out)[i], loop_array(section), loop_array(crossing_t)[i],
             loop_array(crossing_y)[i], scratch)
         for j in range(n_state):
             y[i, j] = state[j]
         status[i] = code
-        counts[i, 0] = accepted
-        counts[i, 1] = rejected
+        counts[i, 0] += accepted
+        counts[i, 1] += rejected
         counts[i, 2] = crossed
         stopped[i] = t
 

@@ -105,7 +105,7 @@ def _lane_extras(i, s, y0s, k0s, ys, p, block, times, out, slot, crossed, compon
 
 
 @jit(inline=True, contract=False, refcounts=False)
-def _start(i, s, y, ys, ks, k0, firsts, p, t0, t_end, h0, times, out, status, section, block, counters, y0):
+def _start(i, s, y, ys, ks, k0, firsts, p, t0, t_end, h0, times, out, status, counts, section, block, counters, y0):
     # size: one lane's start on a sample: its state, first outputs, rate, first step and surface value
     """Put sample ``s`` into lane ``i``, its rate ``k0[:, s]`` and first step ``h0`` (0: ``firsts[s]``) made for the
     share by ``start``: True when it steps, False when it is done at once (not finite, or no time to run)."""
@@ -119,8 +119,10 @@ def _start(i, s, y, ys, ks, k0, firsts, p, t0, t_end, h0, times, out, status, se
         if not math.isfinite(y0[j]):
             code = STATUS_NONFINITE
     status[s] = code
-    for row in (T, H, LAST_REJECTED, TRIES, ACCEPTED, G0):
+    for row in (T, H, LAST_REJECTED, G0):
         block[row + i] = 0.0
+    block[ACCEPTED + i] = counts[s, 0]  # the steps the sample took before (0 for a new run): max_steps bounds its total
+    block[TRIES + i] = counts[s, 0] + counts[s, 1]
     block[T + i] = t0
     block[FACOLD + i] = FIRST_FACOLD
     slot = 0
@@ -169,8 +171,8 @@ def _fill(i, queued, y, ys, ks, k0, firsts, p, t0, t_end, h0, times, out, status
     """Lane ``i`` takes the share's next samples from ``queued`` until one steps (those done at once are finished
     here): the next ``queued``."""
     while queued < y.shape[0]:
-        started = _start(i, queued, y, ys, ks, k0, firsts, p, t0, t_end, h0, times, out, status, section, block,
-                         counters, y0)
+        started = _start(i, queued, y, ys, ks, k0, firsts, p, t0, t_end, h0, times, out, status, counts, section,
+                         block, counters, y0)
         queued += 1
         if started:
             break

@@ -353,8 +353,10 @@ def make_dop853_driver(run_sample, key=None):
     counts, stopped)``: every sample of ``y`` (N, n) run by ``run_sample`` (:func:`make_dop853_sample`), ``y`` overwritten with
     the final (or frozen) states, ``out`` (N, T, n) with the states at ``times``, ``crossing_t`` (N, most) and
     ``crossing_y`` (N, most, n) with the section's crossings (``section`` as the run's), ``status`` (N,) int8 and
-    ``counts`` (N, 3) int64 (the steps accepted, rejected, the crossings), ``stopped`` (N,) the time each sample
-    reached, written; one share of the samples per numba thread (:func:`tumble.kernels.threads.in_shares`).
+    ``stopped`` (N,) the time each sample reached, written; ``counts`` (N, 3) int64, the steps accepted and rejected
+    (and the crossings, written): the steps each sample took before, 0 for a new run, this run's added, and
+    ``max_steps`` bounds the total (a run in segments, as the Lyapunov spectrum's, bounds the whole run); one share
+    of the samples per numba thread (:func:`tumble.kernels.threads.in_shares`).
     Cached on disk under ``key`` (as ``run_sample``'s), compiled in each process without it."""
     share = rebound(("run_share",), globals(), key, run_sample=run_sample)["run_share"]
 
@@ -378,12 +380,13 @@ def run_share(y, p, t0, t_end, h0, rtol, atol, max_steps, times, out, section, c
     scratch = np.empty((SCRATCH_ROWS, n))
     for i in range(n_samples):
         state[:] = y[i]
-        code, good, bad, crossed, t = run_sample(state, p, t0, t_end, h0, rtol, atol, max_steps, times, out[i],
+        taken = counts[i, 0] + counts[i, 1]  # before this run (0 for a new one): max_steps bounds the sample's total
+        code, good, bad, crossed, t = run_sample(state, p, t0, t_end, h0, rtol, atol, max_steps - taken, times, out[i],
                                                  section, crossing_t[i], crossing_y[i], scratch)
         y[i] = state
         status[i] = code
-        counts[i, 0] = good
-        counts[i, 1] = bad
+        counts[i, 0] += good
+        counts[i, 1] += bad
         counts[i, 2] = crossed
         stopped[i] = t
 
