@@ -287,12 +287,12 @@ def run_adaptive(system, y0, t_end, *, times=None, rtol=None, atol=None, first_s
     if most:
         cost.refuse(cost.run_cost(len(y), 0, most * (y.shape[1] + 1)), f"y0 ({len(y):,} states) and max_crossings = "
                     f"{most:,}", device)
-    if isinstance(system, System):
-        probe(system, y, system.parameter_values(parameters), 0.0)  # before its kernels are looked up
+    own = system.parameter_values(parameters) if isinstance(system, System) else None
+    if own is not None:
+        probe(system, y, own, 0.0)  # before its kernels are looked up
     drive, p, a, path = (_kernel(system, compiled_surface, parameters) if device == "cpu" else
                          (*_device_kernel(system, compiled_surface, y.shape[1]), "one sample per device thread"))
-    if isinstance(system, System):
-        p = system.parameter_values(parameters)
+    p = own if own is not None else p
     state = y  # initial_states made it: a fresh contiguous copy, which the run overwrites with the final states
     n = y.shape[1]
     out = np.empty((len(y), len(marks), n))
